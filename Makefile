@@ -1,0 +1,179 @@
+# corrtex build. One static library per folder (DESIGN.md), three programs
+# linked from them, Criterion unit tests and end-to-end scripts.
+#   make                      release build of every program whose main exists
+#   make SANITIZE=address,undefined   the same under sanitizers (build/san)
+#   make test | test-asan | check-deps | bench | demo | install PREFIX=...
+# `make test` and `make demo` run scripts/setup-deps first (idempotent).
+
+SHELL       := /bin/bash
+OPT         ?= -O2 -g
+SANITIZE    ?=
+PREFIX      ?= /usr/local
+V           ?= 0
+
+ifneq ($(SANITIZE),)
+CONFIG      ?= san
+SANFLAGS    := -fsanitize=$(SANITIZE) -fno-omit-frame-pointer -fno-sanitize-recover=all
+OPT         := -O1 -g
+else
+CONFIG      ?= release
+SANFLAGS    :=
+endif
+
+BUILD       := build/$(CONFIG)
+ifeq ($(CONFIG),release)
+BINDIR      := bin
+else
+BINDIR      := $(BUILD)/bin
+endif
+
+WARN   := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
+          -Wwrite-strings -Werror -Wno-format-truncation
+# (-Wno-format-truncation: error and log messages are bounded on purpose.)
+PKGS   := OpenEXR assimp libcjson libpng liblz4 libsodium
+PKGCF  := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+MPICF  := $(shell pkg-config --cflags ompi-c 2>/dev/null)
+CFLAGS := -std=c11 -D_GNU_SOURCE $(OPT) $(SANFLAGS) $(WARN) -I. $(PKGCF) -MMD -MP
+LDFLAGS_BASE := $(SANFLAGS) -pthread
+
+LIBS_COMMON  := -lOpenEXRCore-3_1 -lassimp -lcjson -lpng -lz -lm
+LIBS_PROTO   := -llz4 -lsodium
+LIBS_EMBREE  := -lembree3
+LIBS_MPI     := $(shell pkg-config --libs ompi-c 2>/dev/null)
+LIBS_GL      := -lglfw -lEGL -lOSMesa -lGL -ldl
+LIBS_TEST    := -lcriterion
+
+ifeq ($(V),1)
+Q :=
+else
+Q := @
+endif
+
+FOLDERS := common proto tracer master display
+# Sources of a folder: its .c files, one level of subfolders included.
+srcs_of = $(sort $(wildcard $(1)/*.c $(1)/*/*.c))
+objs_of = $(patsubst %.c,$(BUILD)/%.o,$(call srcs_of,$(1)))
+
+LIB_common := $(BUILD)/libcommon.a
+LIB_proto  := $(BUILD)/libproto.a
+LIB_tracer := $(BUILD)/libtracer.a
+LIB_master := $(BUILD)/libmaster.a
+LIB_display:= $(BUILD)/libdisplay.a
+
+# Programs: bin/corrtex (offline tools), bin/corrtex-render (MPI job),
+# bin/corrtex-display (display client). Built when their main exists.
+PROG_corrtex_SRCS         := $(sort $(wildcard cli/corrtex/*.c))
+PROG_corrtex_render_SRCS  := $(sort $(wildcard cli/render/*.c))
+PROG_corrtex_display_SRCS := $(sort $(wildcard cli/display/*.c))
+
+PROGS :=
+ifneq ($(PROG_corrtex_SRCS),)
+PROGS += $(BINDIR)/corrtex
+endif
+ifneq ($(PROG_corrtex_render_SRCS),)
+PROGS += $(BINDIR)/corrtex-render
+endif
+ifneq ($(PROG_corrtex_display_SRCS),)
+PROGS += $(BINDIR)/corrtex-display
+endif
+
+# Scene generators (scenes/gen/*.c): standalone programs, run by `make scenes`.
+GEN_SRCS  := $(sort $(wildcard scenes/gen/*.c))
+GEN_BINS  := $(patsubst scenes/gen/%.c,$(BUILD)/gen/%,$(GEN_SRCS))
+
+UNIT_SRCS := $(sort $(wildcard tests/unit/test_*.c))
+UNIT_BINS := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(UNIT_SRCS))
+TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(sort $(wildcard tests/support/*.c)))
+
+ALL_LIBS := $(LIB_display) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
+
+.PHONY: all test test-asan unit-bins e2e check-deps bench demo install clean scenes fuzz setup
+.DEFAULT_GOAL := all
+
+all: $(PROGS) scenes
+
+$(BUILD)/%.o: %.c
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  CC      $<"
+	$(Q)$(CC) $(CFLAGS) $(if $(filter master/%,$<),$(MPICF)) -c $< -o $@
+
+lib_objs = $(or $(call objs_of,$(1)),$(BUILD)/empty.o)
+define LIBRULE
+$$(LIB_$(1)): $$(call lib_objs,$(1))
+	@mkdir -p $$(dir $$@)
+	@[ "$(V)" = 1 ] || echo "  AR      $$@"
+	$(Q)rm -f $$@ && ar rcs $$@ $$^
+endef
+$(foreach f,$(FOLDERS),$(eval $(call LIBRULE,$(f))))
+
+# An empty folder still yields a valid (empty) archive.
+$(BUILD)/empty.o:
+	@mkdir -p $(dir $@)
+	$(Q)echo 'typedef int ct_empty_unit;' | $(CC) -x c -c - -o $@
+
+$(BINDIR)/corrtex: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_SRCS)) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  LD      $@"
+	$(Q)$(CC) $(LDFLAGS_BASE) -o $@ $^ $(LIBS_EMBREE) $(LIBS_PROTO) $(LIBS_COMMON)
+
+$(BINDIR)/corrtex-render: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_render_SRCS)) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  LD      $@"
+	$(Q)$(CC) $(LDFLAGS_BASE) -o $@ $^ $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)
+
+$(BINDIR)/corrtex-display: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_display_SRCS)) $(LIB_display) $(LIB_proto) $(LIB_common)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  LD      $@"
+	$(Q)$(CC) $(LDFLAGS_BASE) -o $@ $^ $(LIBS_GL) $(LIBS_PROTO) $(LIBS_COMMON)
+
+$(BUILD)/gen/%: scenes/gen/%.c
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  GEN     $@"
+	$(Q)$(CC) -std=c11 -D_GNU_SOURCE -O2 $(WARN) -o $@ $< -lm
+
+# Generated scene meshes (not in git): each generator writes its scene folder.
+scenes: $(GEN_BINS)
+	@for g in $(GEN_BINS); do n=$$(basename $$g); \
+	  stamp=scenes/$$n/.generated; \
+	  if [ ! -f $$stamp ] || [ $$g -nt $$stamp ]; then \
+	    echo "  SCENE   scenes/$$n"; $$g scenes/$$n && touch $$stamp || exit 1; fi; done
+
+$(BUILD)/tests/%: tests/unit/%.c $(TEST_SUPPORT) $(ALL_LIBS)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  TEST-LD $@"
+	$(Q)$(CC) $(CFLAGS) -o $@ $< $(TEST_SUPPORT) $(ALL_LIBS) $(LDFLAGS_BASE) \
+	  $(LIBS_TEST) $(LIBS_GL) $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)
+
+setup:
+	@scripts/setup-deps
+
+# The whole suite: unit tests then end-to-end tests, one summary line at the end.
+test: setup
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory unit-bins
+	@CORRTEX_BIN=$(BINDIR) CORRTEX_BUILD=$(BUILD) scripts/run-tests $(UNIT_BINS) -- $(sort $(wildcard tests/e2e/*.sh))
+
+unit-bins: $(UNIT_BINS)
+
+test-asan: setup
+	@$(MAKE) --no-print-directory SANITIZE=address,undefined test
+
+check-deps:
+	@scripts/check-deps
+
+bench: all
+	@for b in scripts/bench-*; do echo "== $$b"; $$b || exit 1; done
+
+demo: setup
+	@$(MAKE) --no-print-directory all
+	@scripts/demo
+
+install: all
+	install -d $(PREFIX)/bin $(PREFIX)/share/corrtex
+	install -m 0755 $(PROGS) $(PREFIX)/bin/
+	cp -r scenes $(PREFIX)/share/corrtex/
+
+clean:
+	rm -rf build bin
+
+-include $(shell find build -name '*.d' 2>/dev/null)

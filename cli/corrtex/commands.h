@@ -1,0 +1,17 @@
+/* commands.h: the subcommands of bin/corrtex (the offline tools). Each takes
+ * the arguments after its name (argv[0] is the subcommand name) and returns
+ * the process exit status: 0 ok, 1 a check failed (e.g. --max-rmse), 2 bad
+ * input or usage. */
+#ifndef CT_CLI_COMMANDS_H
+#define CT_CLI_COMMANDS_H
+
+typedef struct cli_command {
+    const char *name;
+    const char *summary;
+    int (*run)(int argc, char **argv);
+} cli_command;
+
+/* The table, terminated by a NULL name (main.c). */
+extern const cli_command cli_commands[];
+
+#endif

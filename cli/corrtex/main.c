@@ -1,0 +1,34 @@
+/* bin/corrtex: the offline tools as subcommands. A thin dispatcher: every
+ * subcommand parses its own options and calls into the libraries. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli/corrtex/commands.h"
+
+const cli_command cli_commands[] = {
+    {NULL, NULL, NULL}
+};
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: corrtex COMMAND [options]   (corrtex COMMAND --help for its options)\n\n"
+               "commands:\n");
+    for (const cli_command *c = cli_commands; c->name; c++)
+        fprintf(f, "  %-12s %s\n", c->name, c->summary);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "help") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    for (const cli_command *c = cli_commands; c->name; c++)
+        if (strcmp(argv[1], c->name) == 0) return c->run(argc - 1, argv + 1);
+    fprintf(stderr, "error corrtex: unknown command '%s' (try corrtex --help)\n", argv[1]);
+    return 2;
+}

@@ -1,0 +1,81 @@
+#include "common/camera.h"
+
+ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg)
+{
+    vec3 f = v3_norm(v3_sub(target, eye));
+    vec3 r = v3_cross(f, up);
+    if (v3_len2(r) < 1e-12f) {
+        /* Looking along up: any perpendicular right vector will do. */
+        vec3 t, b;
+        v3_basis(f, &t, &b);
+        r = t;
+    }
+    r = v3_norm(r);
+    vec3 u = v3_cross(r, f);
+    ct_camera c;
+    c.eye = eye;
+    c.orient = q_from_basis(r, u, v3_neg(f));
+    c.fov_y = fov_y_deg * CT_PI / 180.0f;
+    return c;
+}
+
+void cam_axes(const ct_camera *c, vec3 *right, vec3 *up, vec3 *forward)
+{
+    if (right) *right = q_rotate(c->orient, v3(1, 0, 0));
+    if (up) *up = q_rotate(c->orient, v3(0, 1, 0));
+    if (forward) *forward = q_rotate(c->orient, v3(0, 0, -1));
+}
+
+mat4 cam_view(const ct_camera *c)
+{
+    vec3 r, u, f;
+    cam_axes(c, &r, &u, &f);
+    mat4 m = m4_identity();
+    m.m[0][0] = r.x;  m.m[0][1] = r.y;  m.m[0][2] = r.z;  m.m[0][3] = -v3_dot(r, c->eye);
+    m.m[1][0] = u.x;  m.m[1][1] = u.y;  m.m[1][2] = u.z;  m.m[1][3] = -v3_dot(u, c->eye);
+    m.m[2][0] = -f.x; m.m[2][1] = -f.y; m.m[2][2] = -f.z; m.m[2][3] = v3_dot(f, c->eye);
+    return m;
+}
+
+mat4 cam_proj(const ct_camera *c, int width, int height, float znear, float zfar)
+{
+    return m4_perspective(c->fov_y, (float)width / (float)height, znear, zfar);
+}
+
+vec3 cam_ray_dir(const ct_camera *c, int width, int height, float px, float py)
+{
+    float th = tanf(0.5f * c->fov_y);
+    float tw = th * (float)width / (float)height;
+    float sx = (2.0f * px / (float)width - 1.0f) * tw;
+    float sy = (1.0f - 2.0f * py / (float)height) * th;
+    vec3 r, u, f;
+    cam_axes(c, &r, &u, &f);
+    return v3_norm(v3_add(f, v3_add(v3_scale(r, sx), v3_scale(u, sy))));
+}
+
+bool cam_project(const ct_camera *c, int width, int height, vec3 p, float *px, float *py,
+                 float *depth)
+{
+    vec3 r, u, f;
+    cam_axes(c, &r, &u, &f);
+    vec3 d = v3_sub(p, c->eye);
+    float z = v3_dot(d, f);
+    if (depth) *depth = z;
+    if (z <= 0.0f) return false;
+    float th = tanf(0.5f * c->fov_y);
+    float tw = th * (float)width / (float)height;
+    float sx = v3_dot(d, r) / (z * tw);
+    float sy = v3_dot(d, u) / (z * th);
+    if (px) *px = 0.5f * (sx + 1.0f) * (float)width;
+    if (py) *py = 0.5f * (1.0f - sy) * (float)height;
+    return true;
+}
+
+ct_camera cam_lerp(const ct_camera *a, const ct_camera *b, float t)
+{
+    ct_camera c;
+    c.eye = v3_lerp(a->eye, b->eye, t);
+    c.orient = q_slerp(a->orient, b->orient, t);
+    c.fov_y = a->fov_y + (b->fov_y - a->fov_y) * t;
+    return c;
+}

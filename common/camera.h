@@ -1,0 +1,43 @@
+/* camera.h: the pinhole camera shared by tracer, master and display, and the
+ * mapping between image positions and rays. Image positions are in pixels,
+ * origin at the top-left corner, pixel (i, j) covering [i, i+1) x [j, j+1), so
+ * its centre is (i + 0.5, j + 0.5). The GL projection built from the same
+ * camera (cam_proj) maps every point to exactly that position. */
+#ifndef CT_CAMERA_H
+#define CT_CAMERA_H
+
+#include <stdbool.h>
+
+#include "common/vecmath.h"
+
+typedef struct ct_camera {
+    vec3 eye;
+    quat orient;   /* camera frame -> world: +x right, +y up, -z forward */
+    float fov_y;   /* vertical field of view, radians */
+} ct_camera;
+
+/* A camera at eye looking at target with the given up vector and vertical
+ * field of view in degrees. */
+ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg);
+
+/* World-space unit axes of the camera. */
+void cam_axes(const ct_camera *c, vec3 *right, vec3 *up, vec3 *forward);
+
+/* World -> eye matrix (GL convention: camera looks down -z). */
+mat4 cam_view(const ct_camera *c);
+
+/* Eye -> clip matrix for a width:height image (GL convention). */
+mat4 cam_proj(const ct_camera *c, int width, int height, float znear, float zfar);
+
+/* Unit world direction of the primary ray through image position (px, py). */
+vec3 cam_ray_dir(const ct_camera *c, int width, int height, float px, float py);
+
+/* Projects world point p to image position (px, py) and its eye-space depth
+ * along the view direction; false when p is behind the eye (depth <= 0). */
+bool cam_project(const ct_camera *c, int width, int height, vec3 p, float *px, float *py,
+                 float *depth);
+
+/* Interpolates two cameras: position linearly, orientation by slerp, fov linearly. */
+ct_camera cam_lerp(const ct_camera *a, const ct_camera *b, float t);
+
+#endif

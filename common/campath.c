@@ -1,0 +1,196 @@
+#include "common/campath.h"
+#include "common/fsutil.h"
+
+#include <ctype.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define CAMPATH_MAX_KEYS 100000
+#define CAMPATH_MAX_BYTES (16u << 20)
+
+static int validate(const campath_key *k, int n, vec3 up, const char *origin, ct_error *err)
+{
+    if (n < 1) return ct_fail(err, CT_EEMPTY, "%s: camera path has no keyframes", origin);
+    if (!v3_finite(up) || v3_len2(up) <= 0.0f)
+        return ct_fail(err, CT_EINVAL, "%s: invalid up vector", origin);
+    for (int i = 0; i < n; i++) {
+        if (!isfinite(k[i].t) || !v3_finite(k[i].eye) || !v3_finite(k[i].target) ||
+            !isfinite(k[i].fov_deg))
+            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: non-finite value", origin, i + 1);
+        if (!(k[i].fov_deg > 0.0f && k[i].fov_deg < 180.0f))
+            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: fov %g outside (0, 180)", origin, i + 1,
+                           (double)k[i].fov_deg);
+        if (v3_len2(v3_sub(k[i].target, k[i].eye)) <= 0.0f)
+            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: eye equals target", origin, i + 1);
+        if (i > 0 && !(k[i].t > k[i - 1].t))
+            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: time %g not after %g", origin, i + 1,
+                           (double)k[i].t, (double)k[i - 1].t);
+    }
+    return CT_OK;
+}
+
+int campath_from_keys(const campath_key *keys, int n, vec3 up, const char *origin,
+                      ct_campath *out, ct_error *err)
+{
+    memset(out, 0, sizeof *out);
+    int rc = validate(keys, n, up, origin, err);
+    if (rc) return rc;
+    out->keys = malloc((size_t)n * sizeof *out->keys);
+    out->cams = malloc((size_t)n * sizeof *out->cams);
+    if (!out->keys || !out->cams) {
+        campath_free(out);
+        return ct_fail(err, CT_ENOMEM, "%s: out of memory", origin);
+    }
+    memcpy(out->keys, keys, (size_t)n * sizeof *keys);
+    out->nkeys = n;
+    out->up = v3_norm(up);
+    for (int i = 0; i < n; i++) {
+        out->cams[i] = cam_look_at(keys[i].eye, keys[i].target, out->up, keys[i].fov_deg);
+        /* Keep consecutive quaternions in one hemisphere so slerp takes the
+         * short way and the spline never flips. */
+        if (i > 0 && q_dot(out->cams[i - 1].orient, out->cams[i].orient) < 0.0f) {
+            quat *q = &out->cams[i].orient;
+            q->w = -q->w; q->x = -q->x; q->y = -q->y; q->z = -q->z;
+        }
+    }
+    const char *base = strrchr(origin, '/');
+    snprintf(out->name, sizeof out->name, "%s", base ? base + 1 : origin);
+    char *dot = strrchr(out->name, '.');
+    if (dot && dot != out->name) *dot = '\0';
+    return CT_OK;
+}
+
+int campath_parse(const char *text, const char *origin, ct_campath *out, ct_error *err)
+{
+    memset(out, 0, sizeof *out);
+    campath_key *keys = NULL;
+    int n = 0, cap = 0, lineno = 0;
+    vec3 up = v3(0, 1, 0);
+    const char *p = text;
+    int rc = CT_OK;
+    while (*p) {
+        const char *eol = strchr(p, '\n');
+        size_t len = eol ? (size_t)(eol - p) : strlen(p);
+        lineno++;
+        char line[512];
+        if (len >= sizeof line) { rc = ct_fail(err, CT_EPARSE, "%s:%d: line too long", origin, lineno); break; }
+        memcpy(line, p, len);
+        line[len] = '\0';
+        p = eol ? eol + 1 : p + len;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = '\0';
+        char *s = line;
+        while (isspace((unsigned char)*s)) s++;
+        if (!*s) continue;
+        if (strncmp(s, "up", 2) == 0 && isspace((unsigned char)s[2])) {
+            char extra[2];
+            if (sscanf(s + 2, "%f %f %f %1s", &up.x, &up.y, &up.z, extra) != 3) {
+                rc = ct_fail(err, CT_EPARSE, "%s:%d: expected 'up ux uy uz'", origin, lineno);
+                break;
+            }
+            continue;
+        }
+        campath_key k;
+        char extra[2];
+        k.fov_deg = 45.0f;
+        int got = sscanf(s, "%f %f %f %f %f %f %f %f %1s", &k.t, &k.eye.x, &k.eye.y, &k.eye.z,
+                         &k.target.x, &k.target.y, &k.target.z, &k.fov_deg, extra);
+        if (got != 7 && got != 8) {
+            rc = ct_fail(err, CT_EPARSE,
+                         "%s:%d: expected 't ex ey ez tx ty tz [fov]' (7 or 8 numbers)", origin, lineno);
+            break;
+        }
+        if (n >= CAMPATH_MAX_KEYS) {
+            rc = ct_fail(err, CT_ERANGE, "%s: more than %d keyframes", origin, CAMPATH_MAX_KEYS);
+            break;
+        }
+        if (n == cap) {
+            cap = cap ? cap * 2 : 16;
+            campath_key *q = realloc(keys, (size_t)cap * sizeof *keys);
+            if (!q) { rc = ct_fail(err, CT_ENOMEM, "%s: out of memory", origin); break; }
+            keys = q;
+        }
+        keys[n++] = k;
+    }
+    if (rc == CT_OK) rc = campath_from_keys(keys, n, up, origin, out, err);
+    free(keys);
+    return rc;
+}
+
+int campath_load(const char *path, ct_campath *out, ct_error *err)
+{
+    char *text;
+    int rc = fs_read_all(path, CAMPATH_MAX_BYTES, &text, NULL, err);
+    if (rc) return rc;
+    rc = campath_parse(text, path, out, err);
+    free(text);
+    return rc;
+}
+
+int campath_save(const ct_campath *p, const char *path, ct_error *err)
+{
+    fs_atomic a;
+    int rc = fs_atomic_open(&a, path, err);
+    if (rc) return rc;
+    fprintf(a.f, "# corrtex camera path '%s': t  eye(x y z)  target(x y z)  fov_deg\n", p->name);
+    fprintf(a.f, "up %.9g %.9g %.9g\n", (double)p->up.x, (double)p->up.y, (double)p->up.z);
+    for (int i = 0; i < p->nkeys; i++) {
+        const campath_key *k = &p->keys[i];
+        fprintf(a.f, "%.9g  %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g\n", (double)k->t, (double)k->eye.x,
+                (double)k->eye.y, (double)k->eye.z, (double)k->target.x, (double)k->target.y,
+                (double)k->target.z, (double)k->fov_deg);
+    }
+    return fs_atomic_commit(&a, err);
+}
+
+float campath_duration(const ct_campath *p)
+{
+    return p->nkeys > 0 ? p->keys[p->nkeys - 1].t - p->keys[0].t : 0.0f;
+}
+
+/* Catmull-Rom on a non-uniform time grid: tangents are finite differences
+ * over the neighbouring keys' times (cardinal spline, tension 0), so the
+ * camera's velocity is continuous at every keyframe. */
+static vec3 spline(const campath_key *k, int n, int i, float u)
+{
+    int i0 = i > 0 ? i - 1 : i, i2 = i + 1, i3 = i + 2 < n ? i + 2 : i + 1;
+    vec3 p1 = k[i].eye, p2 = k[i2].eye;
+    float dt = k[i2].t - k[i].t;
+    vec3 m1 = i0 == i ? v3_sub(p2, p1)
+                      : v3_scale(v3_sub(p2, k[i0].eye), dt / (k[i2].t - k[i0].t));
+    vec3 m2 = i3 == i2 ? v3_sub(p2, p1)
+                       : v3_scale(v3_sub(k[i3].eye, p1), dt / (k[i3].t - k[i].t));
+    float u2 = u * u, u3 = u2 * u;
+    float h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
+    return v3_add(v3_add(v3_scale(p1, h00), v3_scale(m1, h10)),
+                  v3_add(v3_scale(p2, h01), v3_scale(m2, h11)));
+}
+
+ct_camera campath_eval(const ct_campath *p, float t)
+{
+    if (p->nkeys == 1 || t <= p->keys[0].t) return p->cams[0];
+    if (t >= p->keys[p->nkeys - 1].t) return p->cams[p->nkeys - 1];
+    int lo = 0, hi = p->nkeys - 1;
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (p->keys[mid].t <= t) lo = mid; else hi = mid;
+    }
+    float u = (t - p->keys[lo].t) / (p->keys[lo + 1].t - p->keys[lo].t);
+    ct_camera c = cam_lerp(&p->cams[lo], &p->cams[lo + 1], u);
+    c.eye = spline(p->keys, p->nkeys, lo, u);
+    return c;
+}
+
+ct_camera campath_frame(const ct_campath *p, int k, int n)
+{
+    if (n <= 1) return p->cams[0];
+    float t0 = p->keys[0].t;
+    return campath_eval(p, t0 + campath_duration(p) * (float)k / (float)(n - 1));
+}
+
+void campath_free(ct_campath *p)
+{
+    free(p->keys);
+    free(p->cams);
+    memset(p, 0, sizeof *p);
+}

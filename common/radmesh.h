@@ -1,0 +1,70 @@
+/* radmesh.h: the interactive solution as a triangle mesh with per-vertex
+ * radiosity: what the display draws (Gouraud), what tracer ranks intersect
+ * and what L_base is interpolated on. Radiosity is stored as outgoing
+ * radiance (B / pi), total and its direct part (light straight from
+ * emitters), per vertex. The node table mirrors the scene's, so node ids in
+ * samples, textures and the display agree. The .ctmesh cache format is
+ * specified in docs/radiosity.md and implemented in radmesh_io.c. */
+#ifndef CT_RADMESH_H
+#define CT_RADMESH_H
+
+#include <stdint.h>
+
+#include "common/error.h"
+#include "common/scene.h"
+#include "common/vecmath.h"
+
+typedef struct rmesh_node {
+    char name[SCENE_NAME_LEN];
+    int32_t parent;
+    uint32_t node_end;
+    uint32_t material;
+    bounds3 bounds;
+} rmesh_node;
+
+typedef struct ct_radmesh {
+    uint32_t nverts;
+    vec3 *pos;
+    vec3 *nrm;
+    vec3 *rad;          /* total outgoing radiance per vertex */
+    vec3 *rad_direct;   /* its direct-lighting part */
+    uint32_t ntris;
+    uint32_t *tris;     /* 3 indices per triangle */
+    uint32_t *tri_node; /* scene part node per triangle */
+    uint32_t *tri_mat;  /* scene material per triangle */
+    uint32_t nnodes;
+    rmesh_node *nodes;
+    uint64_t scene_hash;  /* hash of the scene file and solver parameters */
+} ct_radmesh;
+
+/* Allocates a mesh with the given counts (arrays zeroed). */
+int rmesh_alloc(ct_radmesh *m, uint32_t nverts, uint32_t ntris, uint32_t nnodes, ct_error *err);
+
+/* Frees the arrays and zeroes the struct. */
+void rmesh_free(ct_radmesh *m);
+
+/* A mesh with the scene's own triangles and a constant radiance per vertex
+ * taken from each material (emission + diffuse * ambient): a stand-in
+ * interactive solution for tests and for runs before radiosity exists. */
+int rmesh_from_scene(const ct_scene *s, vec3 ambient, ct_radmesh *m, ct_error *err);
+
+/* Gouraud interpolation on triangle t at Embree barycentrics (u, v):
+ * (1-u-v) * v0 + u * v1 + v * v2, exactly the value GL draws there. */
+static inline vec3 rmesh_eval(const ct_radmesh *m, uint32_t t, float u, float v)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    float w = 1.0f - u - v;
+    vec3 a = m->rad[i[0]], b = m->rad[i[1]], c = m->rad[i[2]];
+    return v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
+}
+
+/* The same for the direct part. */
+static inline vec3 rmesh_eval_direct(const ct_radmesh *m, uint32_t t, float u, float v)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    float w = 1.0f - u - v;
+    vec3 a = m->rad_direct[i[0]], b = m->rad_direct[i[1]], c = m->rad_direct[i[2]];
+    return v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
+}
+
+#endif
