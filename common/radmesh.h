@@ -48,6 +48,13 @@ void rmesh_free(ct_radmesh *m);
  * interactive solution for tests and for runs before radiosity exists. */
 int rmesh_from_scene(const ct_scene *s, vec3 ambient, ct_radmesh *m, ct_error *err);
 
+/* Writes the mesh as a .ctmesh cache file, atomically (radmesh_io.c). */
+int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err);
+
+/* Reads a .ctmesh file; checks magic, version, endianness and sizes. When
+ * expect_hash is not 0, a file whose scene_hash differs fails with CT_ESTALE. */
+int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *err);
+
 /* Gouraud interpolation on triangle t at Embree barycentrics (u, v):
  * (1-u-v) * v0 + u * v1 + v * v2, exactly the value GL draws there. */
 static inline vec3 rmesh_eval(const ct_radmesh *m, uint32_t t, float u, float v)
