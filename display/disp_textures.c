@@ -1,0 +1,157 @@
+#include "display/disp_textures.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "display/gl_load.h"
+
+struct disp_textures {
+    disp_texture *items;
+    uint32_t count, cap;
+};
+
+int disp_textures_new(disp_textures **out, ct_error *err)
+{
+    *out = calloc(1, sizeof **out);
+    return *out ? CT_OK : ct_fail(err, CT_ENOMEM, "out of memory for the texture table");
+}
+
+void disp_textures_clear(disp_textures *t)
+{
+    for (uint32_t i = 0; i < t->count; i++) gl.DeleteTextures(1, &t->items[i].gl_tex);
+    t->count = 0;
+}
+
+void disp_textures_free(disp_textures *t)
+{
+    if (!t) return;
+    disp_textures_clear(t);
+    free(t->items);
+    free(t);
+}
+
+static disp_texture *find(const disp_textures *t, uint32_t id)
+{
+    for (uint32_t i = 0; i < t->count; i++)
+        if (t->items[i].id == id) return &t->items[i];
+    return NULL;
+}
+
+const disp_texture *disp_textures_find(const disp_textures *t, uint32_t id) { return find(t, id); }
+
+int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
+                        uint32_t tri_end, int width, int height, ct_error *err)
+{
+    GLint max = 0;
+    gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &max);
+    if (max > DISP_TEX_MAX_SIZE) max = DISP_TEX_MAX_SIZE;
+    if (width < 1 || height < 1 || width > max || height > max)
+        return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, width,
+                       height, (int)max);
+    disp_texture *x = find(t, id);
+    if (!x) {
+        if (t->count == t->cap) {
+            uint32_t cap = t->cap ? 2 * t->cap : 64;
+            disp_texture *n = realloc(t->items, cap * sizeof *n);
+            if (!n) return ct_fail(err, CT_ENOMEM, "out of memory for %u textures", cap);
+            t->items = n;
+            t->cap = cap;
+        }
+        x = &t->items[t->count++];
+        memset(x, 0, sizeof *x);
+        x->id = id;
+        x->proj = m4_identity();
+        gl.GenTextures(1, &x->gl_tex);
+    }
+    x->node = node;
+    x->tri_begin = tri_begin;
+    x->tri_end = tri_end;
+    x->width = width;
+    x->height = height;
+    x->negative = false;
+    /* Zeroed contents: a fresh texture corrects nothing. */
+    uint16_t *zero = calloc((size_t)width * (size_t)height * 3, sizeof *zero);
+    if (!zero) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", width, height);
+    gl.BindTexture(GL_TEXTURE_2D, x->gl_tex);
+    gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGB16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, zero);
+    free(zero);
+    /* Bilinear filtering (§4.3: the hardware interpolates between texels). */
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    return gl_check("texture allocation", err);
+}
+
+int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *world_to_tex,
+                                 disp_proj_kind kind, ct_error *err)
+{
+    disp_texture *x = find(t, id);
+    if (!x) return ct_fail(err, CT_EPROTO, "projection for unknown texture %u", id);
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            if (!isfinite(world_to_tex->m[r][c]))
+                return ct_fail(err, CT_ERANGE, "texture %u: projection is not finite", id);
+    x->proj = *world_to_tex;
+    x->kind = kind;
+    x->has_proj = true;
+    return CT_OK;
+}
+
+static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, const void *rgb,
+                 GLenum type, bool negative, ct_error *err)
+{
+    disp_texture *d = find(t, id);
+    if (!d) return ct_fail(err, CT_EPROTO, "patch for unknown texture %u", id);
+    if (x < 0 || y < 0 || w < 1 || h < 1 || x > d->width - w || y > d->height - h)
+        return ct_fail(err, CT_ERANGE, "texture %u: patch %dx%d at (%d,%d) outside %dx%d", id, w,
+                       h, x, y, d->width, d->height);
+    gl.BindTexture(GL_TEXTURE_2D, d->gl_tex);
+    gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl.TexSubImage2D(GL_TEXTURE_2D, 0, x, y, w, h, GL_RGB, type, rgb);
+    d->negative = d->negative || negative;
+    return gl_check("texture patch", err);
+}
+
+int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w, int h,
+                             const uint16_t *rgb, ct_error *err)
+{
+    bool neg = false;
+    size_t n = (w > 0 && h > 0) ? (size_t)w * (size_t)h * 3 : 0;
+    /* Negative: sign bit set and not -0. */
+    for (size_t i = 0; i < n && !neg; i++) neg = (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
+    return patch(t, id, x, y, w, h, rgb, GL_HALF_FLOAT, neg, err);
+}
+
+int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w, int h,
+                              const float *rgb, ct_error *err)
+{
+    bool neg = false;
+    size_t n = (w > 0 && h > 0) ? (size_t)w * (size_t)h * 3 : 0;
+    for (size_t i = 0; i < n && !neg; i++) neg = rgb[i] < 0.0f;
+    return patch(t, id, x, y, w, h, rgb, GL_FLOAT, neg, err);
+}
+
+int disp_textures_release(disp_textures *t, uint32_t id, ct_error *err)
+{
+    disp_texture *x = find(t, id);
+    if (!x) return ct_fail(err, CT_EPROTO, "free of unknown texture %u", id);
+    gl.DeleteTextures(1, &x->gl_tex);
+    *x = t->items[--t->count];
+    return CT_OK;
+}
+
+uint32_t disp_textures_count(const disp_textures *t) { return t->count; }
+
+const disp_texture *disp_textures_at(const disp_textures *t, uint32_t i)
+{
+    return i < t->count ? &t->items[i] : NULL;
+}
+
+uint64_t disp_textures_texels(const disp_textures *t)
+{
+    uint64_t n = 0;
+    for (uint32_t i = 0; i < t->count; i++) n += (uint64_t)t->items[i].width * (uint64_t)t->items[i].height;
+    return n;
+}
