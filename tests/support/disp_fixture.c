@@ -409,3 +409,33 @@ void fx_diff(const float *a, const float *b, size_t n, double *max, double *mean
     *max = mx;
     *mean = n ? sum / (double)n : 0;
 }
+
+uint16_t fx_half(float f)
+{
+    if (f == 0.0f) return 0;
+    uint16_t sign = f < 0 ? 0x8000u : 0;
+    float a = fabsf(f);
+    int e;
+    float m = frexpf(a, &e);   /* a = m * 2^e, m in [0.5, 1) */
+    int he = e - 1 + 15;       /* a = (2m) * 2^(e-1) */
+    uint32_t mant = (uint32_t)lroundf((2.0f * m - 1.0f) * 1024.0f);
+    return (uint16_t)(sign | (uint16_t)(he << 10) | (uint16_t)mant);
+}
+
+static vec3 texel(const float *rgb, int w, int h, int x, int y)
+{
+    x = x < 0 ? 0 : (x >= w ? w - 1 : x);
+    y = y < 0 ? 0 : (y >= h ? h - 1 : y);
+    const float *p = rgb + 3 * ((size_t)y * (size_t)w + (size_t)x);
+    return v3(p[0], p[1], p[2]);
+}
+
+vec3 fx_bilinear(const float *rgb, int w, int h, float s, float t)
+{
+    float u = s * (float)w - 0.5f, v = t * (float)h - 0.5f;
+    int x0 = (int)floorf(u), y0 = (int)floorf(v);
+    float fu = u - (float)x0, fv = v - (float)y0;
+    vec3 a = v3_lerp(texel(rgb, w, h, x0, y0), texel(rgb, w, h, x0 + 1, y0), fu);
+    vec3 b = v3_lerp(texel(rgb, w, h, x0, y0 + 1), texel(rgb, w, h, x0 + 1, y0 + 1), fu);
+    return v3_lerp(a, b, fv);
+}

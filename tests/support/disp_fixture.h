@@ -71,4 +71,10 @@ void fx_xvfb_stop(pid_t pid);
 /* Max and mean absolute difference over n floats. */
 void fx_diff(const float *a, const float *b, size_t n, double *max, double *mean);
 
+/* Half-float bits of f (f must be 0 or a normal half value; exact). */
+uint16_t fx_half(float f);
+
+/* GL's bilinear lookup (clamp to edge) of an RGB float texture at (s, t). */
+vec3 fx_bilinear(const float *rgb, int w, int h, float s, float t);
+
 #endif
