@@ -1,13 +1,15 @@
-/* fixtures.h: helpers shared by unit tests: temporary folders and files. */
+/* fixtures.h: helpers shared by unit tests: temporary folders and files that
+ * are removed (and their strings freed) when the test process exits. */
 #ifndef CT_TEST_FIXTURES_H
 #define CT_TEST_FIXTURES_H
 
-#include <stddef.h>
-
-/* Creates a fresh temporary folder and returns its path (static storage per call site is not needed: the string is heap-allocated and lives until exit). */
+/* Creates a fresh temporary folder; its path lives until exit. */
 const char *fx_tmpdir(void);
 
-/* Writes text to dir/name and returns the full path (heap, lives until exit). */
+/* Writes text to dir/name and returns the full path (lives until exit). */
 const char *fx_write(const char *dir, const char *name, const char *text);
+
+/* Joins dir/name into a string that lives until exit. */
+const char *fx_path(const char *dir, const char *name);
 
 #endif
