@@ -171,7 +171,7 @@ static int run(app *a, ct_error *err)
         rgb = malloc(npx * 3 * sizeof *rgb);
         if (!rgb) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d frame", o->width, o->height);
     }
-    double render_ms_sum = 0;
+    double render_ms_sum = 0, first_ms = 0;
     uint32_t k = 0;
     int rc = CT_OK;
     gl_input in;
@@ -211,7 +211,9 @@ static int run(app *a, ct_error *err)
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
         double frame_ms = 1000.0 * (ct_now() - t0);
-        render_ms_sum += frame_ms;
+        /* The first frame pays for shader compilation (JIT on llvmpipe). */
+        if (k == 0) first_ms = frame_ms;
+        else render_ms_sum += frame_ms;
         a->stat_frames++;
         if (a->capture) {
             disp_counters c = disp_session_counters(a->session);
@@ -229,11 +231,14 @@ static int run(app *a, ct_error *err)
     }
     if (!window && nframes > 1) ct_progress(COMP, 1.0, 1, "frame %u/%d", k, nframes);
     double total = ct_now() - t_start;
-    if (k > 0)
-        printf("display: %u frames in %.3f s: %.2f fps, %.3f ms per frame (render + present), %u textures, %s, %d-pass, %s\n",
-               k, total, total > 0 ? k / total : 0.0, render_ms_sum / k,
+    if (k > 0) {
+        double steady = k > 1 ? render_ms_sum / (k - 1) : first_ms;
+        printf("display: %u frames in %.3f s; first frame %.1f ms; steady %.3f ms per frame = %.2f fps "
+               "(render + present); %u textures, %s view, %d-pass, %s\n",
+               k, total, first_ms, steady, steady > 0 ? 1000.0 / steady : 0.0,
                disp_textures_count(disp_session_textures(a->session)), disp_view_name(a->ropts.view),
                a->ropts.passes, gl_backend_name(gl_backend_kind_of(a->backend)));
+    }
     free(rgb);
     return rc;
 }

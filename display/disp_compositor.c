@@ -9,14 +9,15 @@
 
 typedef struct mesh_prog {
     GLuint id;
-    GLint u_mvp, u_texproj, u_rad_scale, u_ntex, u_color, u_tex[GL_ONE_PASS_MAX_TEX];
+    GLint u_mvp, u_texproj, u_rad_scale, u_color, u_tex[GL_ONE_PASS_MAX_TEX];
 } mesh_prog;
 
 struct disp_compositor {
     int width, height;
     gl_target hdr;       /* linear float image + depth */
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
-    mesh_prog mesh[GL_PASS_COUNT];
+    mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
+    mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
     GLuint tonemap, points;
     GLint tm_image, tm_exposure, tm_mode, tm_dim;
     GLint pt_size, pt_point, pt_color;
@@ -34,17 +35,16 @@ const char *disp_view_name(disp_view v)
     return (unsigned)v < DISP_VIEW_COUNT ? names[v] : "?";
 }
 
-static int build_mesh_prog(mesh_prog *p, int pass, ct_error *err)
+static int build_mesh_prog(mesh_prog *p, int pass, int ntex, ct_error *err)
 {
-    char defs[32], name[32];
-    snprintf(defs, sizeof defs, "#define PASS %d\n", pass);
-    snprintf(name, sizeof name, "mesh-pass-%d", pass);
+    char defs[64], name[32];
+    snprintf(defs, sizeof defs, "#define PASS %d\n#define NTEX %d\n", pass, ntex);
+    snprintf(name, sizeof name, "mesh-pass-%d-%d", pass, ntex);
     int rc = gl_program_build(name, gl_src_mesh_vs, gl_src_mesh_fs, defs, &p->id, err);
     if (rc) return rc;
     p->u_mvp = gl.GetUniformLocation(p->id, "u_mvp");
     p->u_texproj = gl.GetUniformLocation(p->id, "u_texproj");
     p->u_rad_scale = gl.GetUniformLocation(p->id, "u_rad_scale");
-    p->u_ntex = gl.GetUniformLocation(p->id, "u_ntex");
     p->u_color = gl.GetUniformLocation(p->id, "u_color");
     gl.UseProgram(p->id);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++) {
@@ -71,7 +71,10 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
     c->height = height;
     int rc = gl_target_init(&c->hdr, width, height, float_format, true, err);
     if (!rc) rc = gl_target_init(&c->ldr, width, height, GL_RGBA8, false, err);
-    for (int p = 0; p < GL_PASS_COUNT && !rc; p++) rc = build_mesh_prog(&c->mesh[p], p, err);
+    for (int p = 0; p < GL_PASS_COUNT && !rc; p++)
+        if (p != GL_PASS_ONE) rc = build_mesh_prog(&c->mesh[p], p, 1, err);
+    for (int k = 0; k < GL_ONE_PASS_MAX_TEX && !rc; k++)
+        rc = build_mesh_prog(&c->one[k], GL_PASS_ONE, k + 1, err);
     if (!rc) rc = gl_program_build("tonemap", gl_src_screen_vs, gl_src_tonemap_fs, NULL, &c->tonemap, err);
     if (!rc) rc = gl_program_build("points", gl_src_points_vs, gl_src_points_fs, NULL, &c->points, err);
     if (rc) {
@@ -109,6 +112,8 @@ void disp_compositor_free(disp_compositor *c)
     gl_target_free(&c->ldr);
     for (int p = 0; p < GL_PASS_COUNT; p++)
         if (c->mesh[p].id) gl.DeleteProgram(c->mesh[p].id);
+    for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++)
+        if (c->one[k].id) gl.DeleteProgram(c->one[k].id);
     if (c->tonemap) gl.DeleteProgram(c->tonemap);
     if (c->points) gl.DeleteProgram(c->points);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
@@ -235,8 +240,6 @@ static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture 
         c->bounds[nb++] = tex[i]->tri_end;
     }
     qsort(c->bounds, nb, sizeof *c->bounds, cmp_u32);
-    const mesh_prog *p = &c->mesh[GL_PASS_ONE];
-    use_mesh(p, mvp, rad_scale);
     for (size_t k = 0; k + 1 < nb; k++) {
         uint32_t b = c->bounds[k], e = c->bounds[k + 1];
         if (b == e) continue;
@@ -256,8 +259,10 @@ static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture 
             }
         }
         uint32_t first = m < GL_ONE_PASS_MAX_TEX ? m : GL_ONE_PASS_MAX_TEX;
-        gl.Uniform1i(p->u_ntex, (GLint)first);
-        set_texproj(p, c->seg_tex, (int)first);
+        /* Untextured runs: the plain radiosity program (no fetches). */
+        const mesh_prog *p = first ? &c->one[first - 1] : &c->mesh[GL_PASS_RAD];
+        use_mesh(p, mvp, rad_scale);
+        if (first) set_texproj(p, c->seg_tex, (int)first);
         disp_scene_draw(s, b, e);
         st->draws++;
         if (m > first) {
@@ -272,7 +277,6 @@ static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture 
                 const disp_texture *one = &tmp;
                 correction_passes(c, s, &one, 1, mvp, all_positive, st);
             }
-            use_mesh(p, mvp, rad_scale);
         }
     }
     return CT_OK;

@@ -1,5 +1,5 @@
 /* disp_textures.h: the display's copy of the master's corrective textures:
- * one GL texture (RGB16F, bilinear, clamped) per texture id, with the node
+ * one GL texture (RGBA16F, filled from RGB halves; bilinear, clamped) per texture id, with the node
  * whose triangles it covers, its world -> texture projection (§3.2) and
  * whether any texel was ever negative (pass 3 is skipped for textures that
  * never held a negative correction). Texel (x, y) is GL row y, column x; its

@@ -26,8 +26,10 @@ const char *const gl_src_mesh_vs =
 
 /* Texture coordinates are projective (divide by w, §3.2); only fragments
  * whose coordinates fall in [0,1]^2 in front of the projection centre get a
- * correction. The fetch comes before the test so it stays in uniform control
- * flow. */
+ * correction. Textures have no mipmaps, so textureLod(level 0) is the
+ * same bilinear lookup as texture() and may sit behind the test (no
+ * derivatives needed): fragments outside a texture skip its fetch. The
+ * one-pass variant is compiled for NTEX = 1..4 textures. */
 const char *const gl_src_mesh_fs =
     "in vec3 v_rad;\n"
     "in vec4 v_tex0;\n"
@@ -35,8 +37,7 @@ const char *const gl_src_mesh_fs =
     "in vec4 v_tex2;\n"
     "in vec4 v_tex3;\n"
     "uniform float u_rad_scale;\n"
-    "uniform int u_ntex;\n"
-    "uniform vec3 u_color;\n"
+        "uniform vec3 u_color;\n"
     "uniform sampler2D u_tex0;\n"
     "uniform sampler2D u_tex1;\n"
     "uniform sampler2D u_tex2;\n"
@@ -44,10 +45,10 @@ const char *const gl_src_mesh_fs =
     "out vec4 o_color;\n"
     "vec3 corr(sampler2D s, vec4 t, out bool inside) {\n"
     "    vec2 tc = t.xy / t.w;\n"
-    "    vec3 c = texture(s, tc).rgb;\n"
     "    inside = t.w > 0.0 && all(greaterThanEqual(tc, vec2(0.0))) &&\n"
     "             all(lessThanEqual(tc, vec2(1.0)));\n"
-    "    return inside ? c : vec3(0.0);\n"
+    "    if (!inside) return vec3(0.0);\n"
+    "    return textureLod(s, tc, 0.0).rgb;\n"
     "}\n"
     "void main() {\n"
     "    bool in0, in1, in2, in3;\n"
@@ -62,15 +63,17 @@ const char *const gl_src_mesh_fs =
     "    if (!in0) discard;\n"
     "    o_color = vec4(max(-c, vec3(0.0)), 0.0);\n"
     "#elif PASS == 3\n"
-    "    vec3 c0 = corr(u_tex0, v_tex0, in0);\n"
-    "    vec3 c1 = corr(u_tex1, v_tex1, in1);\n"
-    "    vec3 c2 = corr(u_tex2, v_tex2, in2);\n"
-    "    vec3 c3 = corr(u_tex3, v_tex3, in3);\n"
     "    vec3 sum = u_rad_scale * v_rad;\n"
-    "    if (u_ntex > 0) sum += c0;\n"
-    "    if (u_ntex > 1) sum += c1;\n"
-    "    if (u_ntex > 2) sum += c2;\n"
-    "    if (u_ntex > 3) sum += c3;\n"
+    "    sum += corr(u_tex0, v_tex0, in0);\n"
+    "#if NTEX > 1\n"
+    "    sum += corr(u_tex1, v_tex1, in1);\n"
+    "#endif\n"
+    "#if NTEX > 2\n"
+    "    sum += corr(u_tex2, v_tex2, in2);\n"
+    "#endif\n"
+    "#if NTEX > 3\n"
+    "    sum += corr(u_tex3, v_tex3, in3);\n"
+    "#endif\n"
     "    o_color = vec4(sum, 1.0);\n"
     "#else\n"
     "    o_color = vec4(u_color, 1.0);\n"

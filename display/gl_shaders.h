@@ -12,7 +12,7 @@ typedef enum gl_mesh_pass {
     GL_PASS_RAD  = 0,   /* pass 1: Gouraud radiosity (times u_rad_scale) */
     GL_PASS_POS  = 1,   /* pass 2: positive part of texture 0's correction */
     GL_PASS_NEG  = 2,   /* pass 3: negative part (drawn with REVERSE_SUBTRACT) */
-    GL_PASS_ONE  = 3,   /* one pass: radiosity + signed corrections of up to 4 textures */
+    GL_PASS_ONE  = 3,   /* one pass: radiosity + signed corrections of NTEX (1..4) textures */
     GL_PASS_FLAT = 4,   /* flat colour u_color (texture assignment view) */
     GL_PASS_COUNT = 5
 } gl_mesh_pass;
@@ -23,7 +23,8 @@ typedef enum gl_mesh_pass {
 /* Vertex shader of every mesh pass: a_pos (location 0), a_rad (location 1),
  * u_mvp, u_texproj[4] (world -> texture, projective). */
 extern const char *const gl_src_mesh_vs;
-/* Fragment shader of the mesh passes, specialised by "#define PASS n". */
+/* Fragment shader of the mesh passes, specialised by "#define PASS n" (and
+ * "#define NTEX n" for GL_PASS_ONE). */
 extern const char *const gl_src_mesh_fs;
 /* A full-screen triangle (no attributes) with v_uv in [0,1]^2. */
 extern const char *const gl_src_screen_vs;

@@ -299,4 +299,6 @@ Test(disp_corrections, pass3_skipped_when_all_positive)
     /* No texel is negative: pass 3 has nothing to do even without the master's flag. */
     compare_passes(&f, false, false, "positive textures");
     compare_passes(&f, true, false, "master says all positive");
+    free(f.tex[0].rgb);
+    free(f.tex[1].rgb);
 }
