@@ -14,4 +14,7 @@ typedef struct cli_command {
 /* The table, terminated by a NULL name (main.c). */
 extern const cli_command cli_commands[];
 
+/* corrtex compare A.exr B.exr [--json] [--max-rmse X] (cmd_compare.c). */
+int cmd_compare(int argc, char **argv);
+
 #endif

@@ -6,6 +6,7 @@
 #include "cli/corrtex/commands.h"
 
 const cli_command cli_commands[] = {
+    {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
     {NULL, NULL, NULL}
 };
 
