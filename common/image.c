@@ -79,11 +79,10 @@ static exr_context_initializer_t exr_init(void)
     return init;
 }
 
-/* Decodes one chunk into img (whose top-left is data-window (x0, y0)); ch[c]
- * are the chunk's channel indices of R, G, B. */
+/* Decodes one chunk into img at pixel (px, py) (relative to the data
+ * window's origin): R, G and B become floats, other channels are skipped. */
 static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *ci, int px, int py,
-                                 const int ch[3], ct_image *img, exr_decode_pipeline_t *dec,
-                                 int *initialized)
+                                 ct_image *img, exr_decode_pipeline_t *dec, int *initialized)
 {
     exr_result_t rv;
     if (px < 0 || py < 0 || ci->width < 1 || ci->height < 1 || px + ci->width > img->width ||
@@ -93,16 +92,16 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *ci, 
     if (rv != EXR_ERR_SUCCESS) return rv;
     for (int c = 0; c < dec->channel_count; c++) {
         exr_coding_channel_info_t *o = &dec->channels[c];
+        const char *name = o->channel_name ? o->channel_name : "";
+        int k = strcmp(name, "R") == 0 ? 0 : strcmp(name, "G") == 0 ? 1 : strcmp(name, "B") == 0 ? 2 : -1;
         o->decode_to_ptr = NULL;
-        for (int k = 0; k < 3; k++) {
-            if (c != ch[k]) continue;
-            if (o->width != ci->width || o->height != ci->height) return EXR_ERR_CORRUPT_CHUNK;
-            o->decode_to_ptr = (uint8_t *)(img->px + 3 * ((size_t)py * (size_t)img->width + (size_t)px) + k);
-            o->user_pixel_stride = 3 * (int32_t)sizeof(float);
-            o->user_line_stride = 3 * (int32_t)sizeof(float) * img->width;
-            o->user_data_type = EXR_PIXEL_FLOAT;
-            o->user_bytes_per_element = (int16_t)sizeof(float);
-        }
+        if (k < 0) continue;
+        if (o->width != ci->width || o->height != ci->height) return EXR_ERR_CORRUPT_CHUNK;
+        o->decode_to_ptr = (uint8_t *)(img->px + 3 * ((size_t)py * (size_t)img->width + (size_t)px) + k);
+        o->user_pixel_stride = 3 * (int32_t)sizeof(float);
+        o->user_line_stride = 3 * (int32_t)sizeof(float) * img->width;
+        o->user_data_type = EXR_PIXEL_FLOAT;
+        o->user_bytes_per_element = (int16_t)sizeof(float);
     }
     if (!*initialized) {
         rv = exr_decoding_choose_default_routines(ctx, 0, dec);
@@ -166,7 +165,6 @@ static int read_exr_ctx(const char *path, exr_context_t ctx, ct_image *img, ct_e
     int rc = img_alloc(img, (int)w64, (int)h64, err);
     if (rc) { ct_error_prefix(err, path); return rc; }
 
-    /* The decoder's channel list is the file's, in the same (sorted) order. */
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int initialized = 0;
     rv = EXR_ERR_SUCCESS;
@@ -178,7 +176,7 @@ static int read_exr_ctx(const char *path, exr_context_t ctx, ct_image *img, ct_e
             exr_chunk_info_t ci;
             rv = exr_read_scanline_chunk_info(ctx, 0, (int)y, &ci);
             if (rv != EXR_ERR_SUCCESS) break;
-            rv = decode_chunk(ctx, &ci, 0, ci.start_y - dw.min.y, idx, img, &dec, &initialized);
+            rv = decode_chunk(ctx, &ci, 0, ci.start_y - dw.min.y, img, &dec, &initialized);
         }
     } else {
         uint32_t tw = 0, th = 0;
@@ -193,8 +191,7 @@ static int read_exr_ctx(const char *path, exr_context_t ctx, ct_image *img, ct_e
                 exr_chunk_info_t ci;
                 rv = exr_read_tile_chunk_info(ctx, 0, (int)tx, (int)ty, 0, 0, &ci);
                 if (rv != EXR_ERR_SUCCESS) break;
-                rv = decode_chunk(ctx, &ci, (int)(tx * tw), (int)(ty * th), idx, img, &dec,
-                                  &initialized);
+                rv = decode_chunk(ctx, &ci, (int)(tx * tw), (int)(ty * th), img, &dec, &initialized);
             }
     }
     exr_decoding_destroy(ctx, &dec);

@@ -76,13 +76,13 @@ int cmd_compare(int argc, char **argv)
     const char *pa = argv[optind], *pb = argv[optind + 1];
     ct_image a, b;
     ct_error err;
-    if (img_read_exr(pb, &b, &err)) {
+    if (img_read_exr(pa, &a, &err)) {
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
-    if (img_read_exr(pa, &a, &err)) {
+    if (img_read_exr(pb, &b, &err)) {
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
-        img_free(&b);
+        img_free(&a);
         return 2;
     }
     img_metrics m;
