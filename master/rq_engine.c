@@ -48,6 +48,7 @@ struct rq_engine {
     int list_mode;
     uint64_t global_round;
     float child_scale;       /* 1 / sqrt(N) */
+    uint64_t child_salt;     /* hash of the seed for the children's streams */
     int child_k;             /* children sit in a k x k subdivision, k = ceil(sqrt(N)) */
     flight *fl;              /* ring indexed by id & (fl_cap - 1) */
     size_t fl_cap;           /* power of two */
@@ -65,7 +66,11 @@ float rq_error_norm(vec3 E, rq_norm norm)
     switch (norm) {
     case RQ_NORM_LUM: return v3_luminance(a);
     case RQ_NORM_AVG: return v3_avg(a);
-    default: return v3_maxc(a);
+    default: {
+        /* Plain compares: E is finite here, and fmaxf is a library call. */
+        float m = a.x > a.y ? a.x : a.y;
+        return m > a.z ? m : a.z;
+    }
     }
 }
 
@@ -316,7 +321,12 @@ static void make_children(rq_engine *e, uint64_t pid, const flight *f, float err
     const int k = e->child_k;
     const float cell = s / (float)k;
     const float ox = f->px - 0.5f * s, oy = f->py - 0.5f * s;
-    ct_rng r = rng_make(e->seed, pid, e->epoch, STREAM_CHILD);
+    /* The children's stream is a pure function of (seed, parent id); ids are
+     * unique over the run, so that is all it needs. One hash instead of
+     * rng_make's four: this runs once per sample. */
+    ct_rng r;
+    r.state = ct_hash64(e->child_salt ^ pid);
+    r.inc = 0x5851f42d4c957f2dULL;
     uint8_t cells[64];
     int ncell = k * k;
     for (int i = 0; i < ncell; i++) cells[i] = (uint8_t)i;
@@ -332,8 +342,10 @@ static void make_children(rq_engine *e, uint64_t pid, const flight *f, float err
     uint32_t kind = mismatch ? RQ_KIND_MISMATCH : RQ_KIND_CHILD;
     for (int i = 0; i < nchild; i++) {
         int cx = cells[i] % k, cy = cells[i] / k;
-        float px = ox + ((float)cx + rng_float(&r)) * cell;
-        float py = oy + ((float)cy + rng_float(&r)) * cell;
+        /* One 32-bit draw: 16 bits of jitter per axis (1/65536 of a cell). */
+        uint32_t j = rng_u32(&r);
+        float px = ox + ((float)cx + (float)(j & 0xffffu) * 0x1p-16f) * cell;
+        float py = oy + ((float)cy + (float)(j >> 16) * 0x1p-16f) * cell;
         if (enqueue(e, px, py, sc, prio, pid, kind, &e->st.discarded_outside)) e->st.children++;
     }
 }
@@ -452,6 +464,7 @@ int rq_new(rq_engine **out, int width, int height, const ct_camera *cam, const r
     e->fl_lo = 1;
     e->grows = 1;
     e->child_scale = 1.0f / sqrtf((float)o.children);
+    e->child_salt = ct_hash64(seed ^ ((uint64_t)STREAM_CHILD << 32));
     e->child_k = (int)ceil(sqrt((double)o.children) - 1e-9);
     uint64_t total = (uint64_t)width * (uint64_t)height;
     e->switch_count = (uint64_t)ceil((double)o.coverage_switch * (double)total);

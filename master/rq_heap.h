@@ -1,5 +1,5 @@
 /* rq_heap.h: the request priority queue of the sampler (§3.7): a 4-ary
- * max-heap on one flat array of fixed-size items. Pushing and popping never
+ * max-heap on flat arrays of fixed-size items. Pushing and popping never
  * allocate; the array only grows (doubling) when it is full, up to a cap.
  * Order is total and deterministic: higher priority first, and among equal
  * priorities the item pushed first (lower sequence number) first, both packed
@@ -24,7 +24,7 @@ enum {
     RQ_KIND_LIST      = 5   /* remaining-pixel list */
 };
 
-/* One queued request: 32 bytes. */
+/* One queued request as pushed and popped. */
 typedef struct rq_item {
     uint64_t key;     /* rq_key(priority, seq) */
     uint64_t parent;  /* id of the request whose sample spawned it, 0 = none */
@@ -33,12 +33,33 @@ typedef struct rq_item {
     uint32_t kind;    /* RQ_KIND_* */
 } rq_item;
 
+/* Storage: the heap orders 16-byte (key, slot) entries, laid out so that the
+ * four children of a node share one 64-byte cache line; the rest of an item
+ * waits in a slot of a payload pool (free slots on a stack) and is touched
+ * once on push and once on pop. */
+typedef struct rq_hent {
+    uint64_t key;
+    uint32_t slot;
+    uint32_t unused;
+} rq_hent;
+
+typedef struct rq_payload {
+    uint64_t parent;
+    float px, py, radius;
+    uint32_t kind;
+} rq_payload;
+
 typedef struct rq_heap {
-    rq_item *a;
-    size_t n;         /* items queued */
-    size_t cap;       /* items allocated */
-    size_t max;       /* cap on n (0 = none) */
-    uint64_t grows;   /* allocations made so far (for the no-allocation check) */
+    rq_hent *mem;       /* allocation (64-byte aligned) */
+    rq_hent *a;         /* mem + 3: a[4i+1..4i+4] start on a cache line */
+    rq_payload *pl;     /* payload slots */
+    uint32_t *freel;    /* stack of free slots below hw */
+    size_t nfree;
+    size_t hw;          /* slots ever used since the last clear */
+    size_t n;           /* items queued */
+    size_t cap;         /* items allocated */
+    size_t max;         /* cap on n (0 = none) */
+    uint64_t grows;     /* allocations made so far (for the no-allocation check) */
 } rq_heap;
 
 /* The 64-bit key of an item: the priority's bits (non-negative floats order
@@ -68,7 +89,7 @@ int rq_heap_init(rq_heap *h, size_t initial_cap, size_t max_items, ct_error *err
 void rq_heap_free(rq_heap *h);
 
 /* Empties the queue, keeping its memory. */
-static inline void rq_heap_clear(rq_heap *h) { h->n = 0; }
+static inline void rq_heap_clear(rq_heap *h) { h->n = h->hw = h->nfree = 0; }
 
 /* Queues a copy of *it. Returns 0, or CT_ENOMEM when the cap is reached or
  * growing failed (the item is then not queued and the heap is unchanged). */
@@ -77,7 +98,7 @@ int rq_heap_push(rq_heap *h, const rq_item *it);
 /* Removes the highest item into *out; false when empty. */
 bool rq_heap_pop(rq_heap *h, rq_item *out);
 
-/* The highest item, or NULL when empty. */
-static inline const rq_item *rq_heap_top(const rq_heap *h) { return h->n ? &h->a[0] : NULL; }
+/* The highest key, or 0 when empty. */
+static inline uint64_t rq_heap_top_key(const rq_heap *h) { return h->n ? h->a[0].key : 0; }
 
 #endif

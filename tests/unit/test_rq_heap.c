@@ -104,7 +104,7 @@ Test(rq_heap, cap_refuses_and_keeps_heap_intact)
     cr_assert(rq_heap_pop(&h, &it));
     cr_assert_eq(it.parent, 39u, "the refused item did not enter");
     rq_heap_clear(&h);
-    cr_assert_null(rq_heap_top(&h));
+    cr_assert_eq(rq_heap_top_key(&h), 0u);
     rq_heap_free(&h);
 }
 
