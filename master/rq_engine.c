@@ -425,7 +425,7 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
     e->epoch = epoch;
     e->cam = *cam;
     /* Most significant first, so that FIFO among equal priorities keeps it. */
-    qsort(e->sig, (size_t)e->n_sig, sizeof *e->sig, cmp_sig_desc);
+    if (e->n_sig > 1) qsort(e->sig, (size_t)e->n_sig, sizeof *e->sig, cmp_sig_desc);
     for (int i = 0; i < e->n_sig; i++) {
         const sigsample *s = &e->sig[i];
         float px, py;
