@@ -77,7 +77,9 @@ float rq_error_norm(vec3 E, rq_norm norm)
 /* Pixel index of an image position, or -1 outside the image. */
 static inline int64_t pixel_of(const rq_engine *e, float px, float py)
 {
-    if (!(px >= 0.0f && py >= 0.0f)) return -1;
+    /* Compare as floats first: a reprojected point near the eye plane can be
+     * far outside the int range. NaN fails every comparison. */
+    if (!(px >= 0.0f && py >= 0.0f && px < (float)e->w && py < (float)e->h)) return -1;
     int x = (int)px, y = (int)py;
     if (x >= e->w || y >= e->h) return -1;
     return (int64_t)y * e->w + x;

@@ -684,3 +684,41 @@ Test(sampler, queue_cap_drops_and_counts)
     cr_assert_eq(st.discarded_full, 64u - 20u);
     rq_free(e);
 }
+
+Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
+{
+    enum { W = 32, H = 32 };
+    rq_options o;
+    rq_options_default(&o);
+    o.n_sig = 50;
+    o.seed_spacing = 8;
+    rq_engine *e = make(W, H, &o, 14);
+    ct_camera a = cam_a();
+    ct_request r[16];
+    int k = batch(e, r, 16);
+    for (int i = 0; i < k; i++) {
+        ct_sample s = trace(&a, W, H, &r[i]);
+        if (i == 0) s.hit = v3(1e-3f, 0, -1e-30f);     /* projects to ~1e27 px */
+        if (i == 1) s.hit = v3(NAN, 0, -10);           /* not a point: never significant */
+        report(e, &s, v3s(1.0f + (float)i), 1);
+    }
+    /* The same view again: the far-off point is dropped, the others return. */
+    cr_assert_eq(rq_set_camera(e, &a, 1, NULL), 0);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.reprojected, (uint64_t)(k - 2));
+    cr_assert_eq(st.reproject_dropped, 1u);
+    k = batch(e, r, 16);
+    for (int i = 0; i < k; i++) {
+        ct_sample s = trace(&a, W, H, &r[i]);
+        report(e, &s, v3s(1.0f), 1);
+    }
+    /* Turn around: every significant point is behind the eye. */
+    ct_camera back = cam_look_at(v3(0, 0, 0), v3(0, 0, 1), v3(0, 1, 0), 60.0f);
+    cr_assert_eq(rq_set_camera(e, &back, 2, NULL), 0);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.reprojected, (uint64_t)(k - 2));
+    cr_assert_eq(st.reproject_dropped, 1u + (uint64_t)k);
+    cr_assert_eq(st.queued, 0u);
+    rq_free(e);
+}
