@@ -14,8 +14,10 @@
 #include "master/rq_mask.h"
 #include "master/sampler.h"
 
-/* Random stream selectors (rng_make's third id); every stream is a pure
- * function of (seed, an id, the selector), so batches are reproducible. */
+/* Random stream selectors; every stream is a pure function of the seed, an
+ * id and its selector, so batches are reproducible: the grid and the global
+ * requests use rng_make(seed, epoch, selector, round), the children a PCG
+ * state hashed from (seed, selector, parent id). */
 #define STREAM_SEED   0x53454544u
 #define STREAM_CHILD  0x4348494cu
 #define STREAM_GLOBAL 0x474c4f42u
@@ -67,7 +69,7 @@ float rq_error_norm(vec3 E, rq_norm norm)
     case RQ_NORM_LUM: return v3_luminance(a);
     case RQ_NORM_AVG: return v3_avg(a);
     default: {
-        /* Plain compares: E is finite here, and fmaxf is a library call. */
+        /* Plain compares: fmaxf is a library call at -O2 (NaN handling). */
         float m = a.x > a.y ? a.x : a.y;
         return m > a.z ? m : a.z;
     }

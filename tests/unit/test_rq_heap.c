@@ -53,6 +53,7 @@ Test(rq_heap, pops_in_priority_order_with_fifo_ties)
     }
     rq_item it;
     cr_assert_not(rq_heap_pop(&h, &it));
+    cr_assert_eq((uintptr_t)(h.a + 1) % 64, 0u, "children groups start on a cache line");
     cr_assert_lt(h.grows, 20, "doubling growth, not one allocation per push (%llu)",
                  (unsigned long long)h.grows);
     free(r);

@@ -580,12 +580,22 @@ static int scenario(uint64_t seed, ct_request *out, int cap)
     ct_camera b = cam_look_at(v3(0.3f, 0, 0), v3(0.2f, 0.1f, -10), v3(0, 1, 0), 60.0f);
     int n = 0;
     ct_request r[3][37];
+    bool handed[W * H] = {false};
     for (int round = 0; round < 40 && n + 3 * 37 <= cap; round++) {
-        if (round == 20) cr_assert_eq(rq_set_camera(e, &b, 1, NULL), 0);
+        if (round == 20) {
+            cr_assert_eq(rq_set_camera(e, &b, 1, NULL), 0);
+            memset(handed, 0, sizeof handed);
+        }
         const ct_camera *c = round < 20 ? &a : &b;
         int k[3];
         for (int t = 0; t < 3; t++) {
             k[t] = batch(e, r[t], 37);
+            /* Three batches in flight: still never the same pixel twice. */
+            for (int i = 0; i < k[t]; i++) {
+                int p = (int)r[t][i].py * W + (int)r[t][i].px;
+                cr_assert_not(handed[p], "pixel %d handed out twice in one epoch", p);
+                handed[p] = true;
+            }
             memcpy(out + n, r[t], (size_t)k[t] * sizeof *out);
             n += k[t];
         }
