@@ -1,11 +1,15 @@
 #include "display/gl_backend.h"
 
+#include <dlfcn.h>
+#include <link.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "display/gl_backend_impl.h"
 
 static const char *const names[] = {"glfw", "egl", "osmesa"};
+
+static void pin_driver_libraries(void);
 
 int gl_backend_parse(const char *name, gl_backend_kind *out, ct_error *err)
 {
@@ -50,6 +54,7 @@ int gl_backend_open(gl_backend_kind kind, int width, int height, const char *tit
         free(b);
         return rc;
     }
+    pin_driver_libraries();
     *out = b;
     return CT_OK;
 }
@@ -82,4 +87,48 @@ void gl_backend_close(gl_backend *b)
     if (!b) return;
     if (b->ops && b->ops->close) b->ops->close(b);
     free(b);
+}
+
+/* LeakSanitizer (sanitizer builds only read this): the Mesa/GLVND/X11 stack
+ * behind the backends keeps process-lifetime allocations (driver screens,
+ * glapi tables) that it never frees; they are not ours. Only these
+ * libraries are suppressed. */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void)
+{
+    return "leak:libOSMesa.so\n"
+           "leak:libEGL_mesa.so\n"
+           "leak:libGLX_mesa.so\n"
+           "leak:libgallium\n"
+           "leak:swrast_dri.so\n"
+           "leak:libglapi.so\n"
+           "leak:libGLdispatch.so\n"
+           "leak:libLLVM\n"
+           "leak:libX11.so\n"
+           "leak:libxcb.so\n"
+           "leak:libglfw.so\n";
+}
+
+/* GLVND unloads the vendor libraries and the driver at exit, before
+ * LeakSanitizer looks, so their allocations show up from "<unknown module>"
+ * and cannot be suppressed by name; marking the loaded GL libraries
+ * RTLD_NODELETE keeps their names. Only sanitizer builds do this. */
+#if defined(__SANITIZE_ADDRESS__)
+static int pin_one(struct dl_phdr_info *info, size_t size, void *data)
+{
+    (void)size;
+    (void)data;
+    const char *n = info->dlpi_name;
+    if (n && *n && (strstr(n, "_dri.so") || strstr(n, "gallium") || strstr(n, "EGL_mesa") ||
+                    strstr(n, "GLX_mesa") || strstr(n, "OSMesa")))
+        dlopen(n, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+    return 0;
+}
+#endif
+
+static void pin_driver_libraries(void)
+{
+#if defined(__SANITIZE_ADDRESS__)
+    dl_iterate_phdr(pin_one, NULL);
+#endif
 }

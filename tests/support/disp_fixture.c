@@ -440,21 +440,3 @@ vec3 fx_bilinear(const float *rgb, int w, int h, float s, float t)
     return v3_lerp(a, b, fv);
 }
 
-/* LeakSanitizer (sanitizer builds): the Mesa/GLVND/X11 stack keeps
- * process-lifetime allocations (driver screens, glapi tables) that it never
- * frees; they are not ours. Only these libraries are suppressed. */
-const char *__lsan_default_suppressions(void);
-const char *__lsan_default_suppressions(void)
-{
-    return "leak:libOSMesa.so\n"
-           "leak:libEGL_mesa.so\n"
-           "leak:libGLX_mesa.so\n"
-           "leak:libgallium\n"
-           "leak:swrast_dri.so\n"
-           "leak:libglapi.so\n"
-           "leak:libGLdispatch.so\n"
-           "leak:libLLVM\n"
-           "leak:libX11.so\n"
-           "leak:libxcb.so\n"
-           "leak:libglfw.so\n";
-}
