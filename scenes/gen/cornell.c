@@ -159,7 +159,9 @@ int main(int argc, char **argv)
     gen_sphere(&o, g3(400.0, 80.0, 140.0), 80.0, CORNELL_STACKS, CORNELL_SLICES);
 
     long prims = o.prims, quads = o.quads, tris = o.tris;
-    if (gen_close(&o, GEN_NAME) || write_mtl(dir)) return 1;
+    gcounts c = {0, 0, 0, 0, 0, 0};
+    gen_count(&c, &o);
+    if (gen_close(&o, GEN_NAME) || write_mtl(dir) || gen_write_counts(dir, GEN_NAME, &c)) return 1;
     printf("  " GEN_NAME ": %ld primitives (%ld quads, %ld triangles), %ld render triangles\n",
            prims, quads, tris, tris + 2 * quads);
     return 0;

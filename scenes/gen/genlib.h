@@ -514,4 +514,45 @@ static inline long gen_prof(gobj *o, const gprof *p, int segs, double crease_deg
     return gen_lathe(o, p->n, p->r, p->y, segs, crease_deg);
 }
 
+/* --- counts manifest ------------------------------------------------------- */
+
+/* What a generator wrote, summed over its files: the tests compare the
+ * loaded scene against these independent counts (NAME.counts). */
+typedef struct gcounts { long files, objects, prims, quads, tris, ngons; } gcounts;
+
+/* Adds one finished file's counts (call before gen_close). */
+static inline void gen_count(gcounts *c, const gobj *o)
+{
+    c->files++;
+    c->objects += o->objects;
+    c->prims += o->prims;
+    c->quads += o->quads;
+    c->tris += o->tris;
+    c->ngons += o->ngons;
+}
+
+/* Writes dir/name.counts atomically: one "key value" line per count. */
+static inline int gen_write_counts(const char *dir, const char *name, const gcounts *c)
+{
+    char path[1024], tmp[1100];
+    snprintf(path, sizeof path, "%s/%s.counts", dir, name);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        fprintf(stderr, "error %s: cannot write %s: %s\n", name, tmp, strerror(errno));
+        return -1;
+    }
+    fprintf(f, "# %s.counts: what scenes/gen/%s.c wrote (input polygons; run make scenes)\n"
+               "files %ld\nobjects %ld\nprimitives %ld\nquads %ld\ntriangles %ld\nngons %ld\n",
+            name, name, c->files, c->objects, c->prims, c->quads, c->tris, c->ngons);
+    int bad = ferror(f) != 0;
+    if (fclose(f) != 0) bad = 1;
+    if (bad || rename(tmp, path) != 0) {
+        fprintf(stderr, "error %s: writing %s failed\n", name, path);
+        remove(tmp);
+        return -1;
+    }
+    return 0;
+}
+
 #endif

@@ -420,7 +420,7 @@ static void mirror_on_wall(gobj *o, double w, double h)
 
 /* One office in its local frame: x 0..IN_W along the corridor, z 0..OFFICE_D
  * away from it (the corridor wall's office face at z = 0), y up. */
-static int office(const char *dir, int idx, gxf place, grng *rng)
+static int office(const char *dir, int idx, gxf place, grng *rng, gcounts *cnt)
 {
     static const char *const paints[] = {"paint_white", "paint_sage", "paint_sand"};
     static const char *const carpets[] = {"carpet_grey", "carpet_blue"};
@@ -449,6 +449,8 @@ static int office(const char *dir, int idx, gxf place, grng *rng)
     wall_face(&o, g3(IN_W, 0, 0), g3(0, 0, 1), OFFICE_D, g3(-1, 0, 0), NULL, 0);      /* right */
     reveals(&o, g3(0, 0, 0), g3(1, 0, 0), g3(0, 0, 1), WALL, holes[0]);
     reveals(&o, g3(0, 0, 0), g3(1, 0, 0), g3(0, 0, 1), WALL, holes[1]);
+    gen_material(&o, carpets[idx % 2]);   /* the door's threshold closes the floor */
+    gen_quad(&o, g3(DOOR_X0, 0, -WALL), g3(DOOR_X1 - DOOR_X0, 0, 0), g3(0, 0, WALL), g3(0, 1, 0));
 
     gen_object(&o, "partition_glass");
     gen_material(&o, "glass");
@@ -503,11 +505,12 @@ static int office(const char *dir, int idx, gxf place, grng *rng)
 
     gen_pop(&o);
     long prims = o.prims;
+    gen_count(cnt, &o);
     if (gen_close(&o, GEN_NAME)) return -1;
     return (int)prims;
 }
 
-static int corridor(const char *dir, grng *rng)
+static int corridor(const char *dir, grng *rng, gcounts *cnt)
 {
     gobj o;
     if (gen_open(&o, dir, "corridor.obj", "office.mtl", GEN_NAME)) return -1;
@@ -582,6 +585,7 @@ static int corridor(const char *dir, grng *rng)
     gen_pop(&o);
 
     long prims = o.prims;
+    gen_count(cnt, &o);
     if (gen_close(&o, GEN_NAME)) return -1;
     return (int)prims;
 }
@@ -662,7 +666,8 @@ int main(int argc, char **argv)
     long total = 0;
     if (write_mtl(dir)) return 1;
     grng rng = grng_seed(20000, 7);
-    int n = corridor(dir, &rng);
+    gcounts cnt = {0, 0, 0, 0, 0, 0};
+    int n = corridor(dir, &rng, &cnt);
     if (n < 0) return 1;
     total += n;
     for (int side = 0; side < 2; side++)
@@ -674,10 +679,11 @@ int main(int argc, char **argv)
                             ? gxf_at(g3(OFFICE_W * k + WALL / 2, 0, COR_HALF + WALL), 0)
                             : gxf_at(g3(OFFICE_W * (k + 1) - WALL / 2, 0, -COR_HALF - WALL), 180);
             grng r = grng_seed(20000 + (uint64_t)idx, 11);
-            n = office(dir, idx, place, &r);
+            n = office(dir, idx, place, &r, &cnt);
             if (n < 0) return 1;
             total += n;
         }
+    if (gen_write_counts(dir, GEN_NAME, &cnt)) return 1;
     printf("  " GEN_NAME ": %ld primitives in %d rooms\n", total, 2 * OFFICES_PER_SIDE + 1);
     return 0;
 }

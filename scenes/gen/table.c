@@ -403,7 +403,9 @@ int main(int argc, char **argv)
     bookshelf(&o, &rng);
 
     long prims = o.prims, quads = o.quads, tris = o.tris, ngons = o.ngons, objs = o.objects;
-    if (gen_close(&o, GEN_NAME) || write_mtl(dir)) return 1;
+    gcounts c = {0, 0, 0, 0, 0, 0};
+    gen_count(&c, &o);
+    if (gen_close(&o, GEN_NAME) || write_mtl(dir) || gen_write_counts(dir, GEN_NAME, &c)) return 1;
     printf("  " GEN_NAME ": %ld objects, %ld primitives (%ld quads, %ld triangles, %ld other), "
            "%ld render triangles\n", objs, prims, quads, tris, ngons, tris + 2 * quads);
     return 0;
