@@ -50,7 +50,7 @@ int disp_session_scene(disp_session *s, const ct_radmesh *m, ct_error *err)
 }
 
 int disp_session_tex_alloc(disp_session *s, uint32_t id, uint32_t node, int width, int height,
-                           ct_error *err)
+                           disp_proj_kind kind, ct_error *err)
 {
     if (!s->scene) return ct_fail(err, CT_EPROTO, "texture %u allocated before any scene", id);
     uint32_t b, e;
@@ -59,15 +59,15 @@ int disp_session_tex_alloc(disp_session *s, uint32_t id, uint32_t node, int widt
         ct_error_prefix(err, "texture allocation");
         return rc;
     }
-    return disp_textures_alloc(s->tex, id, node, b, e, width, height, err);
-}
-
-int disp_session_tex_projection(disp_session *s, uint32_t id, disp_proj_kind kind,
-                                const mat4 *world_to_tex, ct_error *err)
-{
     if (kind != DISP_PROJ_OBJECT_PARALLEL && kind != DISP_PROJ_CAMERA_PERSPECTIVE)
         return ct_fail(err, CT_EPROTO, "texture %u: unknown projection kind %d", id, (int)kind);
-    return disp_textures_set_projection(s->tex, id, world_to_tex, kind, err);
+    return disp_textures_alloc(s->tex, id, node, b, e, width, height, kind, err);
+}
+
+int disp_session_tex_projection(disp_session *s, uint32_t id, const mat4 *world_to_tex,
+                                ct_error *err)
+{
+    return disp_textures_set_projection(s->tex, id, world_to_tex, err);
 }
 
 int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, int h,
@@ -99,7 +99,6 @@ int disp_session_tex_free(disp_session *s, uint32_t id, ct_error *err)
 
 void disp_session_samples(disp_session *s, const float *xy, uint32_t n)
 {
-    if (!s->samples_from_stats) s->cnt.samples += n;
     if (n > DISP_SAMPLE_MAX) {
         xy += 2 * (size_t)(n - DISP_SAMPLE_MAX);
         n = DISP_SAMPLE_MAX;
@@ -126,8 +125,10 @@ void disp_session_samples(disp_session *s, const float *xy, uint32_t n)
     s->nxy += n;
 }
 
-void disp_session_frame_end(disp_session *s, uint32_t frame)
+void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, bool all_positive)
 {
+    if (!s->samples_from_stats) s->cnt.samples += samples;
+    s->all_positive = all_positive;
     s->cnt.frames++;
     s->cnt.last_frame = frame;
     /* Keep the positions of the last DISP_SAMPLE_FRAMES frames. */

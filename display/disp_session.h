@@ -42,13 +42,14 @@ void disp_session_free(disp_session *s);
 /* SCENE: replaces the mesh (uploading it) and drops all textures. */
 int disp_session_scene(disp_session *s, const ct_radmesh *m, ct_error *err);
 
-/* TEX_ALLOC: texture id of width x height for node's subtree (zeroed). */
+/* TEX_ALLOC: texture id of width x height for node's subtree (zeroed),
+ * projected the given way. It is drawn once its projection arrives. */
 int disp_session_tex_alloc(disp_session *s, uint32_t id, uint32_t node, int width, int height,
-                           ct_error *err);
+                           disp_proj_kind kind, ct_error *err);
 
 /* TEX_PROJECTION: world -> texture matrix of texture id. */
-int disp_session_tex_projection(disp_session *s, uint32_t id, disp_proj_kind kind,
-                                const mat4 *world_to_tex, ct_error *err);
+int disp_session_tex_projection(disp_session *s, uint32_t id, const mat4 *world_to_tex,
+                                ct_error *err);
 
 /* TEX_PATCH: rectangle (x, y, w, h) of texture id, half-float RGB texels. */
 int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, int h,
@@ -62,14 +63,16 @@ int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int
 int disp_session_tex_free(disp_session *s, uint32_t id, ct_error *err);
 
 /* Image positions (pixels, y down; 2 floats each) of n samples of the
- * current frame, for the samples view. */
+ * current frame, for the samples view (they do not change the counters). */
 void disp_session_samples(disp_session *s, const float *xy, uint32_t n);
 
-/* FRAME: the master finished frame `frame` (all its patches were sent). */
-void disp_session_frame_end(disp_session *s, uint32_t frame);
+/* FRAME: the master finished frame `frame` (all its patches were sent),
+ * with `samples` samples in it; all_positive: no correction is negative
+ * (then pass 3 is skipped). */
+void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, bool all_positive);
 
-/* STATS: the master's sample total, and whether all corrections are
- * positive (then pass 3 is skipped). */
+/* STATS: the master's sample total and the all-positive flag. Once stats
+ * arrive, their total is the sample counter. */
 void disp_session_stats(disp_session *s, uint64_t samples_total, bool all_positive);
 
 /* Adds n received bytes to the counters. */

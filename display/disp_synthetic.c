@@ -82,8 +82,8 @@ int disp_synthetic_textures(disp_session *s, const ct_radmesh *m, const ct_camer
                                 float val = 0.15f * sinf(0.4f * (float)x + 0.3f * (float)y + 2.0f * (float)ch + (float)id);
                                 buf[3 * ((size_t)y * (size_t)tw + (size_t)x) + (size_t)ch] = positive ? fabsf(val) : val;
                             }
-                    rc = disp_session_tex_alloc(s, id, r.node, tw, th, err);
-                    if (!rc) rc = disp_session_tex_projection(s, id, DISP_PROJ_CAMERA_PERSPECTIVE, &proj, err);
+                    rc = disp_session_tex_alloc(s, id, r.node, tw, th, DISP_PROJ_CAMERA_PERSPECTIVE, err);
+                    if (!rc) rc = disp_session_tex_projection(s, id, &proj, err);
                     if (!rc) rc = disp_session_tex_patch_float(s, id, 0, 0, tw, th, buf, err);
                     if (!rc) (*made)++;
                 }

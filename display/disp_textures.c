@@ -40,7 +40,8 @@ static disp_texture *find(const disp_textures *t, uint32_t id)
 const disp_texture *disp_textures_find(const disp_textures *t, uint32_t id) { return find(t, id); }
 
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
-                        uint32_t tri_end, int width, int height, ct_error *err)
+                        uint32_t tri_end, int width, int height, disp_proj_kind kind,
+                        ct_error *err)
 {
     GLint max = 0;
     gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &max);
@@ -68,6 +69,8 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     x->tri_end = tri_end;
     x->width = width;
     x->height = height;
+    x->kind = kind;
+    x->has_proj = false;
     x->negative = false;
     /* Zeroed contents: a fresh texture corrects nothing. Stored as RGBA16F:
      * llvmpipe samples it about twice as fast as RGB16F, and GPUs pad RGB16F
@@ -87,7 +90,7 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
 }
 
 int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *world_to_tex,
-                                 disp_proj_kind kind, ct_error *err)
+                                 ct_error *err)
 {
     disp_texture *x = find(t, id);
     if (!x) return ct_fail(err, CT_EPROTO, "projection for unknown texture %u", id);
@@ -96,7 +99,6 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
             if (!isfinite(world_to_tex->m[r][c]))
                 return ct_fail(err, CT_ERANGE, "texture %u: projection is not finite", id);
     x->proj = *world_to_tex;
-    x->kind = kind;
     x->has_proj = true;
     return CT_OK;
 }

@@ -43,13 +43,14 @@ int disp_textures_new(disp_textures **out, ct_error *err);
 void disp_textures_free(disp_textures *t);
 
 /* Creates (or re-creates, zeroed) texture id of width x height covering the
- * triangle range of `node`. Needs a current context. */
+ * triangle range of `node`, projected the given way. Needs a current context. */
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
-                        uint32_t tri_end, int width, int height, ct_error *err);
+                        uint32_t tri_end, int width, int height, disp_proj_kind kind,
+                        ct_error *err);
 
 /* Sets texture id's projection. */
 int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *world_to_tex,
-                                 disp_proj_kind kind, ct_error *err);
+                                 ct_error *err);
 
 /* Replaces the rectangle (x, y, w, h) of texture id with half-float RGB
  * texels (row by row, 3 halves each). */

@@ -84,8 +84,8 @@ static int setup(disp_session *s, void *ctx, ct_error *err)
     rmesh_free(&m);
     for (int i = 0; i < f->ntex && !rc; i++) {
         fx_tex *t = &f->tex[i];
-        rc = disp_session_tex_alloc(s, t->id, t->node, t->w, t->h, err);
-        if (!rc) rc = disp_session_tex_projection(s, t->id, t->kind, &t->proj, err);
+        rc = disp_session_tex_alloc(s, t->id, t->node, t->w, t->h, t->kind, err);
+        if (!rc) rc = disp_session_tex_projection(s, t->id, &t->proj, err);
         if (rc) break;
         if (t->half) {
             size_t n = (size_t)t->w * (size_t)t->h * 3;

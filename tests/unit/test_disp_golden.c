@@ -101,7 +101,7 @@ Test(disp_golden, rejects_bad_mesh)
     m.tris[5] = 0;
     m.tri_node[0] = m.nnodes;
     cr_expect_eq(disp_session_scene(s, &m, &err), CT_ERANGE);
-    cr_expect_eq(disp_session_tex_alloc(s, 1, 0, 4, 4, &err), CT_EPROTO);
+    cr_expect_eq(disp_session_tex_alloc(s, 1, 0, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), CT_EPROTO);
     disp_session_free(s);
     gl_backend_close(b);
     rmesh_free(&m);

@@ -28,8 +28,8 @@ static int setup_box(disp_session *s, void *ctx, ct_error *err)
     p.m[0][0] = 0.5f; p.m[0][3] = 0.5f;
     p.m[1][1] = 0.5f; p.m[1][3] = 0.5f;
     p.m[3][3] = 1.0f;
-    if (!rc) rc = disp_session_tex_alloc(s, 1, nd.back, 4, 4, err);
-    if (!rc) rc = disp_session_tex_projection(s, 1, DISP_PROJ_OBJECT_PARALLEL, &p, err);
+    if (!rc) rc = disp_session_tex_alloc(s, 1, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, err);
+    if (!rc) rc = disp_session_tex_projection(s, 1, &p, err);
     if (!rc) rc = disp_session_tex_patch_float(s, 1, 0, 0, 4, 4, rgb, err);
     return rc;
 }
