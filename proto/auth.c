@@ -146,7 +146,7 @@ struct auth_hs {
 
 static const char *role_name(unsigned r)
 {
-    return r == AUTH_ROLE_MASTER ? "master" : r == AUTH_ROLE_DISPLAY ? "display" : "unknown role";
+    return r == AUTH_ROLE_MASTER ? "master" : r == AUTH_ROLE_DISPLAY ? "display" : "unknown";
 }
 
 int auth_hs_new(const auth_config *cfg, auth_hs **out, ct_error *err)
@@ -227,7 +227,7 @@ static int check_hello(auth_hs *hs, ct_error *err)
         return hs_fail(hs, CT_EPROTO, WIRE_ERR_VERSION, msg, err);
     }
     if (role != want_role) {
-        snprintf(msg, sizeof msg, "peer is a %s (%u), expected a %s", role_name(role), role, role_name(want_role));
+        snprintf(msg, sizeof msg, "peer has role %s (%u), expected %s", role_name(role), role, role_name(want_role));
         ct_fail(err, CT_EPROTO, "%s: %s", hs->peer, msg);
         return hs_fail(hs, CT_EPROTO, WIRE_ERR_PROTOCOL, msg, err);
     }
