@@ -20,7 +20,8 @@ struct chan {
     bool ready;
     int error;               /* sticky error (handshake, decode, local) */
     ct_error last;
-    bool closed;             /* the connection is gone (EOF or write failure) */
+    bool closed;             /* the connection is gone (EOF, read or write failure) */
+    bool rd_closed;          /* reading ended: nothing more will arrive */
     ct_error closed_why;
     long long t_start;
     uint64_t rx, tx;
@@ -82,11 +83,13 @@ static int fail(chan *c, int rc, ct_error *err)
     return rc;
 }
 
-static void mark_closed(chan *c, const ct_error *why)
+/* A write failure marks the connection closed, but reading goes on: what the
+ * peer sent before it left is still delivered. */
+static void mark_closed(chan *c, const ct_error *why, bool reading)
 {
-    if (c->closed) return;
+    if (reading) c->rd_closed = true;
+    if (!c->closed || reading) c->closed_why = *why;
     c->closed = true;
-    c->closed_why = *why;
 }
 
 /* Writes as much of data as the socket takes; false when it failed. */
@@ -95,7 +98,7 @@ static bool write_some(chan *c, const uint8_t *data, size_t len, size_t *sent)
     ct_error e;
     *sent = 0;
     if (xport_write(c->conn, data, len, sent, &e) != 0) {
-        mark_closed(c, &e);
+        mark_closed(c, &e, false);
         return false;
     }
     c->tx += *sent;
@@ -139,10 +142,10 @@ static int take_bytes(chan *c, const uint8_t *d, size_t n, ct_error *err)
         if (rc == WIRE_NEED_MORE) return 0;
         /* Done: flush the rest of our handshake bytes (e.g. our AUTH) before any message. */
         wire_buf *o = auth_hs_output(c->hs);
-        if (o->len) {
-            int wr = xport_write_all(c->conn, o->data, o->len, 2000, err);
-            if (wr) return fail(c, wr, err);
-            c->tx += o->len;
+        if (o->len && !c->closed) {
+            ct_error e;
+            if (xport_write_all(c->conn, o->data, o->len, 2000, &e) != 0) mark_closed(c, &e, false);
+            else c->tx += o->len;
         }
         auth_hs_free(c->hs);
         c->hs = NULL;
@@ -159,18 +162,18 @@ static int take_bytes(chan *c, const uint8_t *d, size_t n, ct_error *err)
 
 static int pump_read(chan *c, ct_error *err)
 {
-    for (int i = 0; i < 16 && !c->closed; i++) {
+    for (int i = 0; i < 16 && !c->rd_closed; i++) {
         if (!c->hs && wire_decoder_pending(c->dec) >= READ_BACKLOG) return 0; /* let the caller catch up */
         size_t got;
         ct_error e;
         int rc = xport_read(c->conn, c->rbuf, sizeof c->rbuf, &got, &e);
         if (rc == XPORT_EOF) {
             ct_fail(&e, CT_EIO, "%s: the peer closed the connection", xport_peer(c->conn));
-            mark_closed(c, &e);
+            mark_closed(c, &e, true);
             break;
         }
         if (rc < 0) {
-            mark_closed(c, &e);
+            mark_closed(c, &e, true);
             break;
         }
         if (got == 0) break;
@@ -178,7 +181,7 @@ static int pump_read(chan *c, ct_error *err)
         rc = take_bytes(c, c->rbuf, got, err);
         if (rc) return rc;
     }
-    if (c->hs && c->closed) {
+    if (c->hs && c->rd_closed) {
         ct_fail(err, CT_EIO, "%s: connection closed during the handshake (%s)", xport_peer(c->conn),
                 c->closed_why.msg);
         return fail(c, CT_EIO, err);
@@ -225,7 +228,7 @@ int chan_recv(chan *c, wire_msg *out, ct_error *err)
     int rc = wire_decoder_next(c->dec, out, err);
     if (rc < 0) return fail(c, rc, err);
     if (rc == WIRE_OK) return WIRE_OK;
-    if (c->closed) {
+    if (c->rd_closed) {
         size_t pend = wire_decoder_pending(c->dec);
         if (pend)
             ct_fail(err, CT_EIO, "%s: connection closed in the middle of a message (%zu of %zu bytes received)",
