@@ -517,7 +517,7 @@ static wire_msg patch(uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t
  * (0..3); returns the message types in order. */
 typedef struct drained {
     float img[4][64][64];
-    unsigned types[64];
+    unsigned types[1024];
     size_t n;
 } drained;
 
@@ -535,7 +535,8 @@ static void drain(xport_queue *q, drained *out)
         xport_queue_advance(q, len);
         wire_msg m;
         while (wire_decoder_next(d, &m, NULL) == WIRE_OK) {
-            out->types[out->n++] = m.type;
+            if (out->n < 1024) out->types[out->n] = m.type;
+            out->n++;
             if (m.type != WIRE_TEX_PATCH) continue;
             const wire_tex_patch *p = &m.u.tex_patch;
             for (uint32_t y = 0; y < p->h; y++)
