@@ -48,7 +48,9 @@ int chan_new(xport_conn *conn, const chan_config *cfg, chan **out, ct_error *err
     auth_config ac = {
         .role = cfg->role,
         .token = cfg->token,
-        .require_auth = cfg->require_auth || xport_conn_ops(conn)->needs_auth,
+        /* A master with a token always demands it; TCP always needs one. */
+        .require_auth = cfg->require_auth || xport_conn_ops(conn)->needs_auth ||
+                        (cfg->role == AUTH_ROLE_MASTER && cfg->token),
         .peer = peer,
         .build_id = NULL,
     };

@@ -23,7 +23,9 @@ typedef struct chan chan;
 typedef struct chan_config {
     auth_role role;
     const auth_token *token;   /* NULL: none (then TCP fails the handshake) */
-    bool require_auth;         /* also on a UNIX socket (TCP always requires it) */
+    bool require_auth;         /* display: refuse a master that does not authenticate, also on
+                                * UNIX (always on TCP). A master authenticates whenever it has
+                                * a token, and refuses TCP without one. */
     size_t queue_bytes;        /* 0: CHAN_DEFAULT_QUEUE_BYTES */
 } chan_config;
 
