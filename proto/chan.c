@@ -347,11 +347,11 @@ int chan_flush(chan *c, int timeout_ms, ct_error *err)
     for (;;) {
         int rc = chan_pump(c, err);
         if (rc) return rc;
+        if (c->ready && xport_queue_empty(c->q)) return 0;
         if (c->closed) {
             if (err) *err = c->closed_why;
             return CT_EIO;
         }
-        if (c->ready && xport_queue_empty(c->q)) return 0;
         rc = wait_ready(c, deadline, err);
         if (rc < 0) return rc;
         if (rc == 0)
@@ -373,4 +373,33 @@ int chan_recv_wait(chan *c, wire_msg *out, int timeout_ms, ct_error *err)
         if (rc < 0) return rc;
         if (rc == 0) return WIRE_NEED_MORE;
     }
+}
+
+int chan_connect(const char *spec, const chan_config *cfg, int timeout_ms, chan **out, ct_error *err)
+{
+    long long deadline = timeout_ms < 0 ? -1 : now_ms() + timeout_ms;
+    xport_conn *conn;
+    int rc = xport_connect(spec, timeout_ms, &conn, err);
+    if (rc) return rc;
+    chan *c;
+    rc = chan_new(conn, cfg, &c, err);
+    if (rc) return rc;
+    int left = deadline < 0 ? -1 : (int)(deadline - now_ms());
+    if (deadline >= 0 && left < 1) left = 1;
+    rc = chan_handshake(c, left, err);
+    if (rc) {
+        chan_free(c);
+        return rc;
+    }
+    *out = c;
+    return 0;
+}
+
+int chan_accept(xport_listener *l, const chan_config *cfg, chan **out, ct_error *err)
+{
+    *out = NULL;
+    xport_conn *conn;
+    int rc = xport_accept(l, &conn, err);
+    if (rc || !conn) return rc;
+    return chan_new(conn, cfg, out, err);
 }

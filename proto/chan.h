@@ -33,6 +33,14 @@ typedef struct chan_config {
  * failure) and starts the handshake. */
 int chan_new(xport_conn *conn, const chan_config *cfg, chan **out, ct_error *err);
 
+/* Display side in one call: connects to spec ("unix:PATH", "tcp:HOST:PORT"),
+ * starts the channel and completes the handshake, all within timeout_ms. */
+int chan_connect(const char *spec, const chan_config *cfg, int timeout_ms, chan **out, ct_error *err);
+
+/* Master side: accepts one pending connection from l and starts its
+ * handshake (non-blocking); *out = NULL (and 0) when none is pending. */
+int chan_accept(xport_listener *l, const chan_config *cfg, chan **out, ct_error *err);
+
 /* Closes the connection and frees everything (NULL is fine). */
 void chan_free(chan *c);
 

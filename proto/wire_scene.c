@@ -170,10 +170,11 @@ int wire_scene_tx_init(wire_scene_tx *tx, const ct_radmesh *m, ct_error *err)
         ww_vec3(&w, n->bounds.lo);
         ww_vec3(&w, n->bounds.hi);
     }
-    int rc = parse_payload(raw, size, "scene", NULL, err);
+    ct_error why;
+    int rc = parse_payload(raw, size, "scene", NULL, &why);
     if (rc) {
         free(raw);
-        return ct_fail(err, CT_EINVAL, "%s (the mesh cannot be sent)", err ? err->msg : "scene");
+        return ct_fail(err, CT_EINVAL, "%s (the mesh cannot be sent)", why.msg);
     }
     tx->raw = raw;
     tx->raw_size = size;

@@ -731,3 +731,88 @@ Test(queue, slow_display_over_a_socket)
     chan_free(p.d);
     xport_listener_close(l);
 }
+
+/* --- blocking helpers: a master thread and a display using chan_connect ------------- */
+
+#include <pthread.h>
+
+typedef struct master_ctx {
+    xport_listener *l;
+    const auth_token *token;
+    int rc;
+    ct_error err;
+    uint32_t epoch;
+} master_ctx;
+
+static void *master_main(void *arg)
+{
+    master_ctx *mc = arg;
+    chan_config cfg = {.role = AUTH_ROLE_MASTER, .token = mc->token};
+    chan *c = NULL;
+    for (int i = 0; i < 500 && !c; i++) {
+        struct pollfd p = {xport_listener_fd(mc->l), POLLIN, 0};
+        poll(&p, 1, 10);
+        if ((mc->rc = chan_accept(mc->l, &cfg, &c, &mc->err)) != 0) return NULL;
+    }
+    if (!c) {
+        mc->rc = ct_fail(&mc->err, CT_EIO, "master: no display connected");
+        return NULL;
+    }
+    if ((mc->rc = chan_handshake(c, 3000, &mc->err)) != 0) goto done;
+    wire_msg m;
+    mc->rc = chan_recv_wait(c, &m, 3000, &mc->err);
+    if (mc->rc == WIRE_OK && m.type == WIRE_CAMERA) mc->epoch = m.u.camera.epoch;
+    wire_msg bye = {.type = WIRE_BYE, .u.bye.reason = WIRE_BYE_SHUTDOWN};
+    if (mc->rc == WIRE_OK && (mc->rc = chan_send(c, &bye, &mc->err)) == 0) mc->rc = chan_flush(c, 3000, &mc->err);
+done:
+    chan_free(c);
+    return NULL;
+}
+
+Test(xport, chan_connect_and_accept_tcp)
+{
+    auth_token t = token_of("the tcp shared token");
+    master_ctx mc = {.token = &t};
+    ct_error err = {{0}};
+    cr_assert_eq(xport_listen("tcp:127.0.0.1:0", &mc.l, &err), 0, "%s", err.msg);
+    pthread_t th;
+    pthread_create(&th, NULL, master_main, &mc);
+    chan_config dc = {.role = AUTH_ROLE_DISPLAY, .token = &t};
+    chan *d;
+    int rc = chan_connect(xport_listener_addr(mc.l), &dc, 3000, &d, &err);
+    cr_assert_eq(rc, 0, "%s", err.msg);
+    cr_assert(chan_ready(d));
+    wire_msg cam = {.type = WIRE_CAMERA};
+    cam.u.camera = (wire_camera){.epoch = 41, .width = 128, .height = 96,
+                                 .cam = cam_look_at(v3(0, 1, 5), v3(0, 1, 0), v3(0, 1, 0), 50.0f)};
+    cr_assert_eq(chan_send(d, &cam, &err), 0);
+    cr_assert_eq(chan_flush(d, 3000, &err), 0, "%s", err.msg);
+    wire_msg m;
+    cr_assert_eq(chan_recv_wait(d, &m, 3000, &err), WIRE_OK, "%s", err.msg);
+    cr_assert_eq(m.type, WIRE_BYE);
+    cr_assert_eq(m.u.bye.reason, WIRE_BYE_SHUTDOWN);
+    pthread_join(th, NULL);
+    cr_assert_eq(mc.rc, 0, "master: %s", mc.err.msg);
+    cr_assert_eq(mc.epoch, 41);
+    chan_free(d);
+    xport_listener_close(mc.l);
+}
+
+Test(xport, chan_connect_errors)
+{
+    chan_config dc = {.role = AUTH_ROLE_DISPLAY};
+    chan *d;
+    ct_error err;
+    cr_assert_eq(chan_connect("tcp:[::1", &dc, 1000, &d, &err), CT_EINVAL);
+    cr_assert_str_eq(err.msg, "address 'tcp:[::1': missing ']' after the IPv6 address");
+    /* Nobody listens on a freshly closed port. */
+    xport_listener *l;
+    cr_assert_eq(xport_listen("tcp:127.0.0.1:0", &l, &err), 0);
+    char spec[XPORT_ADDR_LEN];
+    snprintf(spec, sizeof spec, "%s", xport_listener_addr(l));
+    xport_listener_close(l);
+    cr_assert_eq(chan_connect(spec, &dc, 1000, &d, &err), CT_EIO);
+    char want[400];
+    snprintf(want, sizeof want, "%s: connect: Connection refused", spec);
+    cr_assert_str_eq(err.msg, want);
+}
