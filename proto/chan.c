@@ -135,10 +135,10 @@ static int take_bytes(chan *c, const uint8_t *d, size_t n, ct_error *err)
         size_t used;
         int rc = auth_hs_input(c->hs, d, n, &used, err);
         if (rc < 0) {
-            /* Best effort: let the peer read why (the hs queued an ERROR). */
+            /* Best effort, briefly: let the peer read why (the hs queued an ERROR). */
             wire_buf *o = auth_hs_output(c->hs);
-            size_t sent;
-            if (o->len) write_some(c, o->data, o->len, &sent);
+            if (o->len && !c->closed && xport_write_all(c->conn, o->data, o->len, 200, NULL) == 0)
+                wire_buf_consume(o, o->len);
             return fail(c, rc, err);
         }
         if (rc == WIRE_NEED_MORE) return 0;
