@@ -24,6 +24,7 @@ struct chan {
     bool rd_closed;          /* reading ended: nothing more will arrive */
     ct_error closed_why;
     long long t_start;
+    int handshake_ms;
     uint64_t rx, tx;
     uint8_t rbuf[READ_CHUNK];
 };
@@ -45,6 +46,7 @@ int chan_new(xport_conn *conn, const chan_config *cfg, chan **out, ct_error *err
     }
     c->conn = conn;
     c->t_start = now_ms();
+    c->handshake_ms = cfg->handshake_ms > 0 ? cfg->handshake_ms : CHAN_HANDSHAKE_TIMEOUT_MS;
     auth_config ac = {
         .role = cfg->role,
         .token = cfg->token,
@@ -205,9 +207,8 @@ int chan_pump(chan *c, ct_error *err)
     if (rc) return rc;
     rc = pump_write(c, err); /* the handshake may have finished: send queued messages */
     if (rc) return rc;
-    if (c->hs && now_ms() - c->t_start > CHAN_HANDSHAKE_TIMEOUT_MS) {
-        ct_fail(err, CT_EPROTO, "%s: handshake not completed within %d ms", xport_peer(c->conn),
-                CHAN_HANDSHAKE_TIMEOUT_MS);
+    if (c->hs && now_ms() - c->t_start > c->handshake_ms) {
+        ct_fail(err, CT_EPROTO, "%s: handshake not completed within %d ms", xport_peer(c->conn), c->handshake_ms);
         return fail(c, CT_EPROTO, err);
     }
     return 0;

@@ -27,6 +27,7 @@ typedef struct chan_config {
                                 * UNIX (always on TCP). A master authenticates whenever it has
                                 * a token, and refuses TCP without one. */
     size_t queue_bytes;        /* 0: CHAN_DEFAULT_QUEUE_BYTES */
+    int handshake_ms;          /* deadline of the handshake; 0: CHAN_HANDSHAKE_TIMEOUT_MS */
 } chan_config;
 
 /* Wraps a connected transport (ownership passes to the channel, also on

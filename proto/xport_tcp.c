@@ -24,9 +24,14 @@ static void name_of(const struct sockaddr *sa, char *out, size_t cap)
         snprintf(out, cap, "tcp:%s:%u", host, port);
     } else if (sa->sa_family == AF_INET6) {
         const struct sockaddr_in6 *s = (const struct sockaddr_in6 *)(const void *)sa;
-        inet_ntop(AF_INET6, &s->sin6_addr, host, sizeof host);
         port = ntohs(s->sin6_port);
-        snprintf(out, cap, "tcp:[%s]:%u", host, port);
+        if (IN6_IS_ADDR_V4MAPPED(&s->sin6_addr)) { /* an IPv4 peer on a dual-stack socket */
+            inet_ntop(AF_INET, s->sin6_addr.s6_addr + 12, host, sizeof host);
+            snprintf(out, cap, "tcp:%s:%u", host, port);
+        } else {
+            inet_ntop(AF_INET6, &s->sin6_addr, host, sizeof host);
+            snprintf(out, cap, "tcp:[%s]:%u", host, port);
+        }
     } else {
         snprintf(out, cap, "tcp:?");
     }
@@ -46,37 +51,50 @@ static int resolve(const xport_addr *a, bool passive, struct addrinfo **res, ct_
     return 0;
 }
 
+/* Creates, binds and listens one socket; 0 or an errno. dual: an IPv6
+ * socket that also accepts IPv4 (IPV6_V6ONLY off). */
+static int try_listen(const struct addrinfo *ai, bool dual, int *out)
+{
+    int fd = socket(ai->ai_family, ai->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, ai->ai_protocol);
+    if (fd < 0) return errno;
+    int one = 1, zero = 0;
+    setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (dual) setsockopt(fd, IPPROTO_IPV6, IPV6_V6ONLY, &zero, sizeof zero);
+    if (bind(fd, ai->ai_addr, ai->ai_addrlen) != 0 || listen(fd, 16) != 0) {
+        int e = errno;
+        close(fd);
+        return e;
+    }
+    *out = fd;
+    return 0;
+}
+
 static int tcp_listen(const xport_addr *a, int *out, char *bound, size_t cap, ct_error *err)
 {
     struct addrinfo *res;
     int rc = resolve(a, true, &res, err);
     if (rc) return rc;
-    int last = 0;
-    for (struct addrinfo *ai = res; ai; ai = ai->ai_next) {
-        int fd = socket(ai->ai_family, ai->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, ai->ai_protocol);
-        if (fd < 0) {
-            last = errno;
-            continue;
+    /* For "*" try IPv6 first, dual-stack, so IPv4 and IPv6 displays both
+     * reach one socket; then (or otherwise) the addresses in resolver order. */
+    bool any = strcmp(a->host, "*") == 0;
+    int last = EADDRNOTAVAIL, fd = -1;
+    for (int pass = any ? 0 : 1; pass < 2 && fd < 0; pass++) {
+        for (struct addrinfo *ai = res; ai && fd < 0; ai = ai->ai_next) {
+            if (pass == 0 && ai->ai_family != AF_INET6) continue;
+            int e = try_listen(ai, pass == 0, &fd);
+            if (e) last = e;
         }
-        int one = 1;
-        setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-        if (bind(fd, ai->ai_addr, ai->ai_addrlen) != 0 || listen(fd, 16) != 0) {
-            last = errno;
-            close(fd);
-            continue;
-        }
-        struct sockaddr_storage ss;
-        socklen_t sl = sizeof ss;
-        if (getsockname(fd, (struct sockaddr *)&ss, &sl) == 0)
-            name_of((struct sockaddr *)&ss, bound, cap);
-        else
-            snprintf(bound, cap, "%s", a->text);
-        freeaddrinfo(res);
-        *out = fd;
-        return 0;
     }
     freeaddrinfo(res);
-    return ct_fail(err, CT_EIO, "%s: cannot listen: %s", a->text, strerror(last ? last : EADDRNOTAVAIL));
+    if (fd < 0) return ct_fail(err, CT_EIO, "%s: cannot listen: %s", a->text, strerror(last));
+    struct sockaddr_storage ss;
+    socklen_t sl = sizeof ss;
+    if (getsockname(fd, (struct sockaddr *)&ss, &sl) == 0)
+        name_of((struct sockaddr *)&ss, bound, cap);
+    else
+        snprintf(bound, cap, "%s", a->text);
+    *out = fd;
+    return 0;
 }
 
 /* One non-blocking connect attempt within timeout_ms. Returns 0 or an errno. */

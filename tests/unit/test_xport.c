@@ -816,3 +816,115 @@ Test(xport, chan_connect_errors)
     snprintf(want, sizeof want, "%s: connect: Connection refused", spec);
     cr_assert_str_eq(err.msg, want);
 }
+
+/* --- hostile peers and listening on any address -------------------------------------- */
+
+Test(xport, handshake_deadline)
+{
+    /* A client that connects and sends nothing must not hold the master. */
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair(spec, &l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER, .handshake_ms = 100};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    int rc = 0;
+    for (int i = 0; i < 400 && rc == 0; i++) {
+        rc = chan_pump(m, &err);
+        usleep(1000);
+    }
+    cr_assert_eq(rc, CT_EPROTO);
+    char want[300];
+    snprintf(want, sizeof want, "%s (pid %d): handshake not completed within 100 ms", spec, (int)getpid());
+    cr_assert_str_eq(err.msg, want);
+    chan_free(m);
+    xport_close(cli);
+    xport_listener_close(l);
+}
+
+Test(xport, oversized_frame_after_handshake)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair(spec, &l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {9};
+    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    uint8_t huge[8] = {WIRE_SCENE_CHUNK, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
+    cr_assert_eq(xport_write_all(cli, hello, sizeof hello, 1000, &err), 0);
+    cr_assert_eq(xport_write_all(cli, huge, sizeof huge, 1000, &err), 0);
+    wire_msg msg;
+    int rc = chan_recv_wait(m, &msg, 2000, &err);
+    cr_assert_eq(rc, CT_EPROTO, "%s", err.msg);
+    char want[300];
+    snprintf(want, sizeof want, "%s (pid %d): SCENE_CHUNK body length 2147483647 over the limit %zu", spec,
+             (int)getpid(), wire_max_body(WIRE_SCENE_CHUNK));
+    cr_assert_str_eq(err.msg, want);
+    chan_send_error(m, WIRE_ERR_PROTOCOL, err.msg, 500);
+    /* The raw client reads our HELLO, then the ERROR with the reason. */
+    uint8_t buf[1024];
+    size_t got = 0, n;
+    for (int i = 0; i < 500; i++) {
+        if (xport_read(cli, buf + got, sizeof buf - got, &n, &err) != 0) break;
+        got += n;
+        if (got >= AUTH_HELLO_SIZE + WIRE_HEADER_SIZE &&
+            got >= AUTH_HELLO_SIZE + WIRE_HEADER_SIZE + wio_get_u32(buf + AUTH_HELLO_SIZE + 4))
+            break;
+        usleep(1000);
+    }
+    wire_msg e;
+    wire_scratch s = {0};
+    cr_assert_eq(wire_decode(buf + AUTH_HELLO_SIZE, got - AUTH_HELLO_SIZE, "master", &e, &s, &err), 0, "%s", err.msg);
+    cr_assert_eq(e.type, WIRE_ERROR);
+    cr_assert(strstr(e.u.error.text, "SCENE_CHUNK body length 2147483647 over the limit"), "%s", e.u.error.text);
+    wire_scratch_free(&s);
+    chan_free(m);
+    xport_close(cli);
+    xport_listener_close(l);
+}
+
+Test(xport, listen_on_any_address)
+{
+    xport_listener *l;
+    ct_error err = {{0}};
+    cr_assert_eq(xport_listen("tcp:*:0", &l, &err), 0, "%s", err.msg);
+    const char *bound = xport_listener_addr(l);
+    const char *port = strrchr(bound, ':') + 1;
+    char spec[64];
+    snprintf(spec, sizeof spec, "tcp:127.0.0.1:%s", port);
+    xport_conn *c, *s;
+    cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
+    s = NULL;
+    for (int i = 0; i < 200 && !s; i++) {
+        usleep(1000);
+        xport_accept(l, &s, &err);
+    }
+    cr_assert(s, "IPv4 client not accepted on %s", bound);
+    cr_assert(strncmp(xport_peer(s), "tcp:127.0.0.1:", 14) == 0, "%s", xport_peer(s));
+    xport_close(c);
+    xport_close(s);
+    if (strncmp(bound, "tcp:[", 5) == 0) { /* dual-stack IPv6 socket: IPv6 clients too */
+        snprintf(spec, sizeof spec, "tcp:[::1]:%s", port);
+        cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
+        s = NULL;
+        for (int i = 0; i < 200 && !s; i++) {
+            usleep(1000);
+            xport_accept(l, &s, &err);
+        }
+        cr_assert(s, "IPv6 client not accepted on %s", bound);
+        cr_assert(strncmp(xport_peer(s), "tcp:[::1]:", 10) == 0, "%s", xport_peer(s));
+        xport_close(c);
+        xport_close(s);
+    } else {
+        cr_log_warn("skip: IPv6 part, listening on %s", bound);
+    }
+    xport_listener_close(l);
+}
