@@ -336,6 +336,8 @@ int wire_scene_parse(const uint8_t *raw, size_t size, const char *peer, ct_radme
                      ct_error *err);
 /* Bytes of the payload of a mesh with these counts. */
 uint64_t wire_scene_payload_size(uint64_t nverts, uint64_t ntris, uint64_t nnodes);
+/* Lower-case hex of a content hash (65 bytes with the NUL), e.g. for a cache file name. */
+void wire_hash_hex(const uint8_t hash[WIRE_HASH_SIZE], char out[2 * WIRE_HASH_SIZE + 1]);
 /* The content hash of a payload. */
 void wire_scene_hash(const uint8_t *raw, size_t size, uint8_t out[WIRE_HASH_SIZE]);
 

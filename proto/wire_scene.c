@@ -26,6 +26,16 @@ void wire_scene_hash(const uint8_t *raw, size_t size, uint8_t out[WIRE_HASH_SIZE
     crypto_generichash(out, WIRE_HASH_SIZE, raw, size, NULL, 0);
 }
 
+void wire_hash_hex(const uint8_t hash[WIRE_HASH_SIZE], char out[2 * WIRE_HASH_SIZE + 1])
+{
+    static const char digits[] = "0123456789abcdef";
+    for (unsigned i = 0; i < WIRE_HASH_SIZE; i++) {
+        out[2 * i] = digits[hash[i] >> 4];
+        out[2 * i + 1] = digits[hash[i] & 15];
+    }
+    out[2 * WIRE_HASH_SIZE] = '\0';
+}
+
 static bool vec_ok(vec3 v)
 {
     return isfinite(v.x) && isfinite(v.y) && isfinite(v.z);

@@ -473,6 +473,12 @@ Test(scene, hash_depends_on_content)
     m.rad[3].y += 0.5f;
     wire_scene_tx_init(&b, &m, NULL);
     cr_assert(memcmp(a.hash, b.hash, WIRE_HASH_SIZE) != 0);
+    /* BLAKE2b-256 of the empty string, as a check of the hash and its hex form. */
+    uint8_t h[WIRE_HASH_SIZE];
+    char hex[2 * WIRE_HASH_SIZE + 1];
+    wire_scene_hash((const uint8_t *)"", 0, h);
+    wire_hash_hex(h, hex);
+    cr_assert_str_eq(hex, "0e5751c026e543b2e8ab2eb06099daa1d1e5df47778f7787faab45cdf12fe3a8");
     wire_scene_tx_free(&a);
     wire_scene_tx_free(&b);
     rmesh_free(&m);
