@@ -12,6 +12,7 @@
 #include "common/timer.h"
 #include "display/disp_camera_control.h"
 #include "display/disp_capture.h"
+#include "display/disp_client.h"
 #include "display/disp_session.h"
 #include "display/disp_synthetic.h"
 #include "display/gl_load.h"
@@ -64,6 +65,12 @@ typedef struct app {
     disp_fly fly;
     bool have_cam;            /* fly.cam was set from the options or the scene */
     disp_render_opts ropts;
+    /* the master connection */
+    disp_client *client;
+    disp_scene_cache *cache;
+    double retry_at, backoff;     /* next reconnection attempt, its delay */
+    bool cam_sent;                /* last_cam went to this connection */
+    ct_camera last_cam;
     /* title statistics */
     double stat_t0;
     uint32_t stat_frames;
@@ -104,7 +111,7 @@ static int load_solution(app *a, ct_error *err)
         }
         scene_free(s);
         if (rc) return rc;
-    } else {
+    } else if (!o->connect) {
         return ct_fail(err, CT_EINVAL, "nothing to show: give --mesh, --scene or --connect");
     }
     return CT_OK;
@@ -154,6 +161,110 @@ static bool handle_keys(app *a, const gl_input *in)
     return !in->close;
 }
 
+/* Reconnection back-off: 0.5 s doubling to 8 s. */
+#define BACKOFF_FIRST 0.5
+#define BACKOFF_MAX 8.0
+
+static int try_connect(app *a, ct_error *err)
+{
+    /* 3 s for connect + handshake: a master answers at once or not at all,
+     * and a reconnecting display must not freeze for long. */
+    disp_client_opts co = {a->o->connect, a->o->token_file, (uint32_t)a->o->samples_per_frame, 3000};
+    int rc = disp_client_connect(&co, a->cache, &a->client, err);
+    if (rc) return rc;
+    a->cam_sent = false;
+    a->backoff = BACKOFF_FIRST;
+    a->status[0] = '\0';
+    return CT_OK;
+}
+
+/* The connection failed or was lost: with --reconnect schedule a retry and
+ * keep showing the last image; else fail with DISP_EXIT_LOST. */
+static int connection_lost(app *a, ct_error *cause, double now, ct_error *err)
+{
+    disp_client_close(a->client);
+    a->client = NULL;
+    if (!a->o->reconnect) {
+        ct_fail(err, CT_EIO, "connection to %s lost: %s", a->o->connect, cause->msg);
+        return DISP_EXIT_LOST;
+    }
+    if (a->backoff <= 0) a->backoff = BACKOFF_FIRST;
+    a->retry_at = now + a->backoff;
+    ct_warn(COMP, "connection to %s lost: %s; reconnecting in %.1f s", a->o->connect, cause->msg, a->backoff);
+    snprintf(a->status, sizeof a->status, "CONNECTION LOST (%.60s), retrying", cause->msg);
+    a->backoff = a->backoff * 2 > BACKOFF_MAX ? BACKOFF_MAX : a->backoff * 2;
+    set_title(a, now, true);
+    return CT_OK;
+}
+
+/* Services the connection without waiting (or up to wait_ms); reconnects
+ * when due. Returns 0, or DISP_EXIT_LOST with err filled. */
+static int service(app *a, int wait_ms, ct_error *err)
+{
+    if (!a->o->connect) return CT_OK;
+    double now = ct_now();
+    ct_error e;
+    ct_error_clear(&e);
+    if (!a->client) {
+        if (now < a->retry_at) return CT_OK;
+        if (try_connect(a, &e)) return connection_lost(a, &e, now, err);
+        ct_info(COMP, "reconnected to %s", a->o->connect);
+        return CT_OK;
+    }
+    if (disp_client_service(a->client, a->session, wait_ms, &e)) {
+        if (disp_client_ended(a->client)) {
+            ct_info(COMP, "%s", e.msg);
+            return 1;   /* orderly end */
+        }
+        return connection_lost(a, &e, now, err);
+    }
+    return CT_OK;
+}
+
+static bool same_camera(const ct_camera *x, const ct_camera *y)
+{
+    return memcmp(x, y, sizeof *x) == 0;
+}
+
+/* What the connection says about the frame about to be drawn. */
+enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4 };
+
+/* With --connect: services the connection, sends the camera when it changed,
+ * and in lockstep waits for the master's FRAME of the current epoch. */
+static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_start, ct_error *err)
+{
+    const disp_app_opts *o = a->o;
+    int st = service(a, 0, err);
+    if (st) return st == 1 ? STEP_END : STEP_LOST;
+    if (a->client && (!a->cam_sent || !same_camera(cam, &a->last_cam))) {
+        ct_error e;
+        if (disp_client_send_camera(a->client, cam, o->width, o->height, &e)) {
+            if (connection_lost(a, &e, ct_now(), err)) return STEP_LOST;
+        } else {
+            a->cam_sent = true;
+            a->last_cam = *cam;
+        }
+    }
+    if (!disp_session_scene_of(a->session)) {
+        if (a->client) snprintf(a->status, sizeof a->status, "waiting for the scene from %s", o->connect);
+        set_title(a, ct_now(), false);
+        st = service(a, 20, err);
+        return st == 1 ? STEP_END : st ? STEP_LOST : STEP_WAIT;
+    }
+    if (!strncmp(a->status, "waiting", 7)) a->status[0] = '\0';
+    /* Lockstep (docs/protocol.md): draw frame k only after FRAME k. */
+    while (a->client && o->samples_per_frame > 0 && !disp_client_frame_ready(a->client, NULL)) {
+        st = service(a, 20, err);
+        if (st) return st == 1 ? STEP_END : STEP_LOST;
+        gl_backend_poll(a->backend, in);
+        if (!handle_keys(a, in)) return STEP_QUIT;
+        if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
+    }
+    if (a->client) disp_client_take_frame(a->client);
+    return STEP_DRAW;
+}
+
+/* The run loop; returns 0, a negative CT_E* code, or DISP_EXIT_LOST. */
 static int run(app *a, ct_error *err)
 {
     const disp_app_opts *o = a->o;
@@ -175,17 +286,24 @@ static int run(app *a, ct_error *err)
     double render_ms_sum = 0, first_ms = 0;
     uint32_t k = 0;
     int rc = CT_OK;
+    bool fly_ready = disp_session_scene_of(a->session) != NULL;
     gl_input in;
     memset(&in, 0, sizeof in);
     set_title(a, t_start, true);
-    for (;; k++) {
-        if (nframes > 0 && k >= (uint32_t)nframes) break;
+    while (nframes <= 0 || k < (uint32_t)nframes) {
         double now = ct_now();
         double dt = now - t_last;
         t_last = now;
         gl_backend_poll(a->backend, &in);
         if (!handle_keys(a, &in)) break;
         if (o->max_seconds > 0 && now - t_start >= o->max_seconds) break;
+        if (!fly_ready && disp_session_scene_of(a->session)) {
+            /* The master's scene arrived: start the fly camera over it. */
+            bounds3 b = disp_scene_bounds(disp_session_scene_of(a->session));
+            if (!a->have_cam) a->fly.cam = disp_camera_overview(b, 50.0f);
+            disp_fly_init(&a->fly, &a->fly.cam, b);
+            fly_ready = true;
+        }
         double ftime = now - t_start;
         ct_camera cam;
         if (a->have_path) {
@@ -199,6 +317,21 @@ static int run(app *a, ct_error *err)
         } else {
             disp_fly_update(&a->fly, &in, dt);
             cam = a->fly.cam;
+        }
+        bool last = false;
+        if (o->connect) {
+            int st = connection_step(a, &cam, &in, t_start, err);
+            if (st == STEP_QUIT) break;
+            /* The master ended the run: draw (and capture) what arrived, then stop. */
+            if (st == STEP_END) {
+                if (!disp_session_scene_of(a->session)) break;
+                last = true;
+            }
+            if (st == STEP_LOST) {
+                rc = DISP_EXIT_LOST;
+                break;
+            }
+            if (st == STEP_WAIT) continue;
         }
         double t0 = ct_now();
         disp_render_stats rs;
@@ -228,9 +361,11 @@ static int run(app *a, ct_error *err)
             if (o->ref_dir) ct_info(COMP, "frame %u: rmse %.5f, psnr %.2f dB", k, rmse, psnr);
         }
         set_title(a, ct_now(), false);
-        if (!window && nframes > 1) ct_progress(COMP, (double)(k + 1) / nframes, 0, "frame %u/%d", k + 1, nframes);
+        k++;
+        if (!window && nframes > 1) ct_progress(COMP, (double)k / nframes, 0, "frame %u/%d", k, nframes);
+        if (last) break;
     }
-    if (!window && nframes > 1) ct_progress(COMP, 1.0, 1, "frame %u/%d", k, nframes);
+    if (!window && nframes > 1) ct_progress(COMP, (double)k / nframes, 1, "frame %u/%d", k, nframes);
     double total = ct_now() - t_start;
     if (k > 0) {
         double steady = k > 1 ? render_ms_sum / (k - 1) : first_ms;
@@ -274,7 +409,16 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     }
     if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
-    if (!rc) {
+    if (!rc && o->connect) {
+        rc = disp_scene_cache_new(&a.cache, err);
+        ct_error e;
+        ct_error_clear(&e);
+        if (!rc && try_connect(&a, &e) && connection_lost(&a, &e, ct_now(), err)) {
+            status = DISP_EXIT_LOST;
+            rc = CT_EIO;
+        }
+    }
+    if (!rc && disp_session_scene_of(a.session)) {
         const disp_scene *sc = disp_session_scene_of(a.session);
         if (!a.have_cam) a.fly.cam = disp_camera_overview(disp_scene_bounds(sc), 50.0f);
         disp_fly_init(&a.fly, &a.fly.cam, disp_scene_bounds(sc));
@@ -295,6 +439,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     if (!rc) {
         if (gl_backend_is_window(a.backend)) fputs("H or F1 in the window prints the keys\n", stdout);
         rc = run(&a, err);
+        if (rc == DISP_EXIT_LOST) status = DISP_EXIT_LOST;
         if (!rc && a.capture) {
             rc = disp_capture_close(a.capture, err);
             a.capture = NULL;
@@ -306,6 +451,8 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         ct_error e2;
         disp_capture_close(a.capture, &e2);
     }
+    disp_client_close(a.client);
+    disp_scene_cache_free(a.cache);
     disp_compositor_free(a.comp);
     disp_session_free(a.session);
     gl_backend_close(a.backend);

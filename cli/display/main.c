@@ -201,10 +201,6 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "--reference needs --out");
         return DISP_EXIT_USAGE;
     }
-    if (o.connect) {
-        ct_log(CT_LOG_ERROR, COMP, "--connect: the socket client is not built yet");
-        return DISP_EXIT_USAGE;
-    }
     ct_error err;
     ct_error_clear(&err);
     int status = disp_app_run(&o, &err);

@@ -70,4 +70,9 @@ bad "exactly one" --backend osmesa
 printf '0 0 0 1 0 0 0\n0 1 1 1 0 0 0\n' >"$tmp/bad.path"
 bad "bad.path" --backend osmesa --scene "$SCENE" --path "$tmp/bad.path"
 bad "no camera named" --backend osmesa --scene "$SCENE" --camera-name nope
+# No master at the address and no --reconnect: exit 3, one error line.
+"$BIN/corrtex-display" --backend osmesa --connect "unix:$tmp/none.sock" --width 32 --height 32 >"$tmp/o" 2>"$tmp/e"; rc=$?
+echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock  -> exit $rc: $(cat "$tmp/e")"
+[[ $rc -eq 3 ]] || { echo "FAIL: exit $rc, want 3"; fail=1; }
+[[ $(grep -c "^error" "$tmp/e") -eq 1 ]] && grep -q "none.sock" "$tmp/e" || { echo "FAIL: want one error line naming the socket"; fail=1; }
 exit $fail
