@@ -70,6 +70,7 @@ typedef struct app {
     disp_scene_cache *cache;
     double retry_at, backoff;     /* next reconnection attempt, its delay */
     bool cam_sent;                /* last_cam went to this connection */
+    bool ever_connected;
     ct_camera last_cam;
     /* title statistics */
     double stat_t0;
@@ -173,6 +174,7 @@ static int try_connect(app *a, ct_error *err)
     int rc = disp_client_connect(&co, a->cache, &a->client, err);
     if (rc) return rc;
     a->cam_sent = false;
+    a->ever_connected = true;
     a->backoff = BACKOFF_FIRST;
     a->status[0] = '\0';
     return CT_OK;
@@ -185,12 +187,14 @@ static int connection_lost(app *a, ct_error *cause, double now, ct_error *err)
     disp_client_close(a->client);
     a->client = NULL;
     if (!a->o->reconnect) {
-        ct_fail(err, CT_EIO, "connection to %s lost: %s", a->o->connect, cause->msg);
+        ct_fail(err, CT_EIO, a->ever_connected ? "connection to %s lost: %s" : "cannot connect to %s: %s",
+                a->o->connect, cause->msg);
         return DISP_EXIT_LOST;
     }
     if (a->backoff <= 0) a->backoff = BACKOFF_FIRST;
     a->retry_at = now + a->backoff;
-    ct_warn(COMP, "connection to %s lost: %s; reconnecting in %.1f s", a->o->connect, cause->msg, a->backoff);
+    ct_warn(COMP, "%s %s: %s; retrying in %.1f s", a->ever_connected ? "connection lost to" : "cannot connect to",
+            a->o->connect, cause->msg, a->backoff);
     snprintf(a->status, sizeof a->status, "CONNECTION LOST (%.60s), retrying", cause->msg);
     a->backoff = a->backoff * 2 > BACKOFF_MAX ? BACKOFF_MAX : a->backoff * 2;
     set_title(a, now, true);

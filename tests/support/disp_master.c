@@ -39,12 +39,20 @@ static int send_all(chan *c, const wire_msg *m)
 
 /* The master: accepts one display, checks SETTINGS and CAMERA, sends the box
  * scene, one texture in two patches and FRAME 0 for the display's epoch. */
-static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h)
+static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h, const char *token)
 {
     ct_error err;
     chan_config cfg;
     memset(&cfg, 0, sizeof cfg);
     cfg.role = AUTH_ROLE_MASTER;
+    auth_token tok;
+    if (token) {
+        memset(&tok, 0, sizeof tok);
+        tok.len = strlen(token);
+        memcpy(tok.bytes, token, tok.len);
+        cfg.token = &tok;
+        cfg.require_auth = true;
+    }
     chan *c = NULL;
     struct pollfd p = {xport_listener_fd(l), POLLIN, 0};
     for (int i = 0; i < 100 && !c; i++) {
@@ -120,19 +128,20 @@ int fxm_start(fxm_peer *p, fxm_end end, uint32_t k, int w, int h)
         snprintf(p->msg, sizeof p->msg, "mkdtemp failed");
         return -1;
     }
-    snprintf(p->addr, sizeof p->addr, "unix:%s/sock", p->dir);
+    snprintf(p->addr, sizeof p->addr, p->token ? "tcp:127.0.0.1:0" : "unix:%s/sock", p->dir);
     p->l = NULL;
     if (xport_listen(p->addr, &p->l, &err)) {
         snprintf(p->msg, sizeof p->msg, "%s", err.msg);
         return -1;
     }
+    if (p->token) snprintf(p->addr, sizeof p->addr, "%s", xport_listener_addr(p->l));
     fflush(NULL);
     p->pid = fork();
     if (p->pid < 0) {
         snprintf(p->msg, sizeof p->msg, "fork failed");
         return -1;
     }
-    if (p->pid == 0) _exit(master(p->l, end, k, w, h));
+    if (p->pid == 0) _exit(master(p->l, end, k, w, h, p->token));
     return 0;
 }
 

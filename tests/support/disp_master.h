@@ -26,10 +26,12 @@ typedef struct fxm_peer {
     char addr[300];      /* "unix:DIR/sock" */
     char dir[64];
     char msg[256];       /* why fxm_start failed */
+    const char *token;   /* set before fxm_start: listen on TCP (loopback) and require this token */
 } fxm_peer;
 
-/* Starts the master child; 0 or -1 (msg says why). The child exits 0 when
- * everything it checked and sent went as planned. */
+/* Starts the master child on a UNIX socket (or on TCP with p->token); 0 or
+ * -1 (msg says why). The child exits 0 when everything it checked and sent
+ * went as planned. */
 int fxm_start(fxm_peer *p, fxm_end end, uint32_t samples_per_frame, int width, int height);
 
 /* Waits for the child, removes the socket; returns the child's exit status. */

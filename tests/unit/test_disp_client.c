@@ -54,7 +54,8 @@ static void render_direct(uint8_t *out)
     disp_session_free(s);
 }
 
-static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_ended)
+static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_ended,
+                        const char *token_file)
 {
     ct_error err;
     gl_backend *b = NULL;
@@ -64,7 +65,7 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     disp_scene_cache *cache = NULL;
     cr_assert_eq(disp_scene_cache_new(&cache, &err), 0);
     disp_client *c = NULL;
-    disp_client_opts o = {p->addr, NULL, k, 5000};
+    disp_client_opts o = {p->addr, token_file, k, 5000};
     cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0, "%s", err.msg);
@@ -110,25 +111,25 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
 
 Test(disp_client, events_render_like_direct_calls_then_lost_connection, .timeout = 60)
 {
-        fxm_peer p;
+        fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
-    run_display(&p, 0, CT_EIO, false);
+    run_display(&p, 0, CT_EIO, false, NULL);
     cr_expect_eq(fxm_stop(&p), 0, "master child failed");
 }
 
 Test(disp_client, lockstep_settings_and_bye, .timeout = 60)
 {
-        fxm_peer p;
+        fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_BYE, 500, W, H), 0, "%s", p.msg);
-    run_display(&p, 500, CT_EIO, true);
+    run_display(&p, 500, CT_EIO, true, NULL);
     cr_expect_eq(fxm_stop(&p), 0, "master child failed");
 }
 
 Test(disp_client, display_says_bye, .timeout = 60)
 {
-        fxm_peer p;
+        fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_STAY, 0, W, H), 0, "%s", p.msg);
-    run_display(&p, 0, 0, false);
+    run_display(&p, 0, 0, false, NULL);
     cr_expect_eq(fxm_stop(&p), 0, "master child failed (did it get BYE?)");
 }
 
@@ -141,4 +142,46 @@ Test(disp_client, no_master_is_an_error, .timeout = 30)
     cr_expect_lt(rc, 0);
     cr_expect(strstr(err.msg, "nonexistent-dir") != NULL, "message: %s", err.msg);
     printf("no master: %s\n", err.msg);
+}
+
+static const char *const TOKEN = "a-test-token-of-sufficient-length";
+
+static void write_token(char *path, size_t cap, const char *text)
+{
+    snprintf(path, cap, "/tmp/ctdisp-token-XXXXXX");
+    int fd = mkstemp(path);
+    cr_assert_geq(fd, 0);
+    cr_assert_eq(write(fd, text, strlen(text)), (ssize_t)strlen(text));
+    close(fd);
+}
+
+Test(disp_client, tcp_with_token, .timeout = 60)
+{
+    fxm_peer p = {0};
+    p.token = TOKEN;
+    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
+    char tf[64];
+    write_token(tf, sizeof tf, TOKEN);
+    printf("master at %s\n", p.addr);
+    run_display(&p, 0, CT_EIO, false, tf);
+    cr_expect_eq(fxm_stop(&p), 0, "master child failed");
+    unlink(tf);
+}
+
+Test(disp_client, tcp_with_a_wrong_token_fails, .timeout = 60)
+{
+    fxm_peer p = {0};
+    p.token = TOKEN;
+    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
+    char tf[64];
+    write_token(tf, sizeof tf, "another-token-of-sufficient-length");
+    ct_error err;
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, tf, 0, 5000};
+    int rc = disp_client_connect(&o, NULL, &c, &err);
+    printf("wrong token: %s\n", err.msg);
+    cr_expect_lt(rc, 0);
+    cr_expect_null(c);
+    cr_expect_neq(fxm_stop(&p), 0, "the master must refuse the display");
+    unlink(tf);
 }
