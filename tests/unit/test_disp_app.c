@@ -46,7 +46,7 @@ static void rm_out(const char *dir)
 
 Test(disp_app, lost_connection_exits_3, .timeout = 60)
 {
-    fxm_peer p;
+    fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
     disp_app_opts o;
     opts(&o, &p);
@@ -61,7 +61,7 @@ Test(disp_app, lost_connection_exits_3, .timeout = 60)
 
 Test(disp_app, bye_draws_the_last_state_and_exits_0, .timeout = 60)
 {
-    fxm_peer p;
+    fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_BYE, 0, W, H), 0, "%s", p.msg);
     char out[64];
     snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
@@ -86,7 +86,7 @@ Test(disp_app, bye_draws_the_last_state_and_exits_0, .timeout = 60)
 
 Test(disp_app, lockstep_frame_then_bye_from_display, .timeout = 60)
 {
-    fxm_peer p;
+    fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_STAY, 250, W, H), 0, "%s", p.msg);
     char out[64];
     snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
@@ -124,7 +124,7 @@ Test(disp_app, lockstep_frame_then_bye_from_display, .timeout = 60)
 
 Test(disp_app, reconnect_keeps_drawing_the_last_image, .timeout = 60)
 {
-    fxm_peer p;
+    fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
     char out[64];
     snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
