@@ -132,7 +132,10 @@ void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, b
     s->cnt.frames++;
     s->cnt.last_frame = frame;
     /* Keep the positions of the last DISP_SAMPLE_FRAMES frames. */
-    uint32_t keep_from = s->cnt.frames >= DISP_SAMPLE_FRAMES ? s->cnt.frames - DISP_SAMPLE_FRAMES + 1 : 0;
+    /* Positions carry the number of frame ends before them: frame f's are
+     * tagged f. Keep frames cnt.frames - DISP_SAMPLE_FRAMES .. and the one
+     * in progress. */
+    uint32_t keep_from = s->cnt.frames > DISP_SAMPLE_FRAMES ? s->cnt.frames - DISP_SAMPLE_FRAMES : 0;
     uint32_t k = 0;
     while (k < s->nxy && s->xy_frame[k] < keep_from) k++;
     if (k) {
