@@ -430,7 +430,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
             ct_camera c0 = a.have_path ? campath_frame(&a.path, 0, o->frames > 0 ? o->frames : 2) : a.fly.cam;
             uint32_t made = 0;
             rc = disp_synthetic_textures(a.session, &a.mesh, &c0, o->width, o->height, o->synthetic,
-                                         o->synthetic_positive, &made, err);
+                                         o->synthetic_tiles, o->synthetic_positive, &made, err);
             if (!rc)
                 ct_info(COMP, "%u synthetic correction textures (%llu texels)", made,
                         (unsigned long long)disp_textures_texels(disp_session_textures(a.session)));

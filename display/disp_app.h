@@ -43,6 +43,7 @@ typedef struct disp_app_opts {
     const char *ref_dir;
     uint32_t synthetic;           /* synthetic correction textures (no master) */
     bool synthetic_positive;
+    bool synthetic_tiles;         /* cut parts into tiles to reach the count */
     const char *connect;          /* unix:PATH or tcp:HOST:PORT */
     const char *token_file;
     bool reconnect;

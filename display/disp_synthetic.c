@@ -24,7 +24,8 @@ static bool project_bounds(const mat4 *pv, bounds3 b, rect *r)
 }
 
 int disp_synthetic_textures(disp_session *s, const ct_radmesh *m, const ct_camera *cam, int width,
-                            int height, uint32_t n, bool positive, uint32_t *made, ct_error *err)
+                            int height, uint32_t n, bool tiles, bool positive, uint32_t *made,
+                            ct_error *err)
 {
     *made = 0;
     if (!n) return CT_OK;
@@ -48,7 +49,7 @@ int disp_synthetic_textures(disp_session *s, const ct_radmesh *m, const ct_camer
     if (nv) {
         /* Tiles per visible node: k x k with k*k*nv >= n. */
         uint32_t k = 1;
-        while (k * k * nv < n) k++;
+        while (tiles && k * k * nv < n) k++;
         uint32_t id = 1;
         float *buf = NULL;
         for (uint32_t v = 0; v < nv && id <= n && !rc; v++)

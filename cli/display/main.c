@@ -24,7 +24,9 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --mesh FILE.ctmesh    a radiosity mesh cache (corrtex radiosity), no master\n"
             "  --scene FILE.json     a scene with a stand-in radiosity (constant per material), no master\n"
             "  --ambient A           stand-in radiosity: emission + diffuse * A (default %.2f)\n"
-            "  --synthetic N         N synthetic correction textures (benchmarks; default 0)\n"
+            "  --synthetic N         up to N synthetic correction textures, one per visible part\n"
+            "                        (benchmarks without a master; default 0)\n"
+            "  --synthetic-tiles     cut parts into tiles to make all N (textures stack on parts)\n"
             "  --synthetic-positive  make them all positive\n"
             "view:\n"
             "  --backend B           glfw, egl or osmesa (default %s: glfw when $DISPLAY is set)\n"
@@ -169,6 +171,7 @@ int main(int argc, char **argv)
             bad = parse_int(a, v, 0, 100000, &n);
             o.synthetic = (uint32_t)n;
         } else if (!strcmp(a, "--synthetic-positive")) o.synthetic_positive = true;
+        else if (!strcmp(a, "--synthetic-tiles")) o.synthetic_tiles = true;
         else if (!strcmp(a, "--path")) { NEED(); o.path = v; }
         else if (!strcmp(a, "--frames")) { NEED(); bad = parse_int(a, v, 0, 10000000, &o.frames); }
         else if (!strcmp(a, "--seconds")) {
