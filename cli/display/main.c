@@ -109,7 +109,6 @@ int main(int argc, char **argv)
     disp_app_opts o, d;
     disp_app_defaults(&o);
     d = o;
-    bool backend_set = false;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -130,7 +129,6 @@ int main(int argc, char **argv)
                 ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
                 return DISP_EXIT_USAGE;
             }
-            backend_set = true;
         } else if (!strcmp(a, "--width")) { NEED(); bad = parse_int(a, v, 1, 16384, &o.width); }
         else if (!strcmp(a, "--height")) { NEED(); bad = parse_int(a, v, 1, 16384, &o.height); }
         else if (!strcmp(a, "--exposure")) { NEED(); bad = parse_float(a, v, -30, 30, &o.exposure); }
@@ -194,7 +192,6 @@ int main(int argc, char **argv)
 #undef NEED
         if (bad) return DISP_EXIT_USAGE;
     }
-    (void)backend_set;
     int sources = (o.mesh != NULL) + (o.scene != NULL) + (o.connect != NULL);
     if (sources != 1) {
         ct_log(CT_LOG_ERROR, COMP, "give exactly one of --connect, --mesh or --scene (see --help)");
