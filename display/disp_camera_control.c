@@ -30,13 +30,14 @@ bool disp_fly_update(disp_fly *f, const gl_input *in, double dt)
         changed = true;
     }
     if (in->mouse_dx != 0.0 || in->mouse_dy != 0.0) {
+        /* Pitch is clamped to +-85 degrees about the horizon, so the camera
+         * never flips over; yaw turns about the world up. */
+        float pitch = asinf(fmaxf(-1.0f, fminf(1.0f, v3_dot(fw, f->world_up))));
+        float lim = 85.0f * CT_PI / 180.0f;
+        float want = fmaxf(-lim, fminf(lim, pitch - (float)in->mouse_dy * f->look));
         quat yaw = q_axis_angle(f->world_up, -(float)in->mouse_dx * f->look);
-        quat pitch = q_axis_angle(v3(1, 0, 0), -(float)in->mouse_dy * f->look);
-        quat q = q_normalize(q_mul(yaw, q_mul(f->cam.orient, pitch)));
-        /* Refuse pitching past straight up or down. */
-        vec3 nf = q_rotate(q, v3(0, 0, -1));
-        if (fabsf(v3_dot(nf, f->world_up)) < 0.995f) f->cam.orient = q;
-        else f->cam.orient = q_normalize(q_mul(yaw, f->cam.orient));
+        quat tilt = q_axis_angle(v3(1, 0, 0), want - pitch);
+        f->cam.orient = q_normalize(q_mul(yaw, q_mul(f->cam.orient, tilt)));
         changed = true;
     }
     return changed;

@@ -1,7 +1,8 @@
 /* disp_camera_control.h: the fly camera of the window: move with WASD or
  * the arrow keys (Q/E or PageDown/PageUp down/up, Shift 4x faster), look by
  * dragging with a mouse button held, scroll to change the speed. Yaw turns
- * about the starting camera's up vector so the horizon stays level. */
+ * about the starting camera's up vector so the horizon stays level; pitch
+ * stops 85 degrees above or below the horizon. */
 #ifndef CT_DISP_CAMERA_CONTROL_H
 #define CT_DISP_CAMERA_CONTROL_H
 
