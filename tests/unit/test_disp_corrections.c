@@ -302,3 +302,121 @@ Test(disp_corrections, pass3_skipped_when_all_positive)
     free(f.tex[0].rgb);
     free(f.tex[1].rgb);
 }
+
+/* The debug views: corrections only (signed grey), radiosity only, texture
+ * assignment colours (Fig. 5), sample positions (Fig. 7). */
+Test(disp_corrections, debug_views)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    ct_camera cam = fx_box_camera();
+    fx_ref ref;
+    cr_assert_eq(fx_rasterise(&m, &cam, W, H, &ref), 0);
+    const float cval[3] = {0.25f, -0.125f, 0.5f};
+    float rgb[4 * 4 * 3];
+    for (int i = 0; i < 48; i++) rgb[i] = cval[i % 3];
+    fx_setup f = {.ntex = 1};
+    f.tex[0] = (fx_tex){9, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, wall_proj(-1, -1, 2, 2), rgb, false};
+
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(setup(s, &f, &err), 0, "%s", err.msg);
+    float pts[4] = {10.5f, 20.5f, 40.5f, 7.5f};
+    disp_session_samples(s, pts, 2);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
+    size_t n = (size_t)W * H;
+    float *lin = malloc(n * 3 * sizeof *lin);
+    uint8_t *disp = malloc(n * 3);
+    disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false};
+    uint32_t npts = 0;
+    const float *xy = disp_session_sample_xy(s, &npts);
+    cr_expect_eq(npts, 2u);
+
+    /* Corrections only: 0.5 + 0.5 * value, no sRGB; grey where none. */
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, false, W, H, &err), 0);
+    disp_compositor_read_display(c, disp);
+    size_t on_wall = 0, bad = 0;
+    for (size_t p = 0; p < n; p++) {
+        if (!ref.smooth[p]) continue;
+        bool wall = ref.node[p] == (int32_t)nd.back;
+        on_wall += wall;
+        for (int k = 0; k < 3; k++) {
+            int want = (int)lroundf(255.0f * (0.5f + 0.5f * (wall ? cval[k] : 0.0f)));
+            if (abs(want - (int)disp[3 * p + (size_t)k]) > 1) bad++;
+        }
+    }
+    cr_expect_gt(on_wall, (size_t)300);
+    cr_expect_eq(bad, 0u, "corrections view: %zu wrong values", bad);
+
+    /* Radiosity only: the Gouraud reference, no correction. */
+    o.view = DISP_VIEW_RADIOSITY;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, lin);
+    double mx = 0;
+    for (size_t p = 0; p < n; p++)
+        if (ref.smooth[p])
+            for (int k = 0; k < 3; k++) mx = fmax(mx, fabs(lin[3 * p + (size_t)k] - ref.rgb[3 * p + (size_t)k]));
+    cr_expect_leq(mx, 2e-3, "radiosity view differs from Gouraud by %g", mx);
+
+    /* Assignment: the back wall is 0.6 * colour + 0.4 * radiosity with one
+     * colour for the whole texture; other parts keep their radiosity. */
+    o.view = DISP_VIEW_ASSIGNMENT;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, lin);
+    float col[3] = {-1, -1, -1};
+    double spread = 0, other = 0;
+    for (size_t p = 0; p < n; p++) {
+        if (!ref.smooth[p] || ref.node[p] < 0) continue;
+        for (int k = 0; k < 3; k++) {
+            float v = lin[3 * p + (size_t)k], r = ref.rgb[3 * p + (size_t)k];
+            if (ref.node[p] == (int32_t)nd.back) {
+                float cc = (v - 0.4f * r) / 0.6f;
+                if (col[k] < 0) col[k] = cc;
+                spread = fmax(spread, fabs(cc - col[k]));
+            } else {
+                other = fmax(other, fabs(v - r));
+            }
+        }
+    }
+    printf("metric: assignment colour of texture 9: (%.3f %.3f %.3f), spread %.1e; other parts off by %.1e\n",
+           col[0], col[1], col[2], spread, other);
+    cr_expect_leq(spread, 1e-3);
+    cr_expect_leq(other, 2e-3);
+    cr_expect(col[0] >= 0.25f && col[1] >= 0.25f && col[2] >= 0.25f);
+
+    /* Samples: dots at the sample positions over the image dimmed to 35 %. */
+    o.view = DISP_VIEW_SAMPLES;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, false, W, H, &err), 0);
+    disp_compositor_read_display(c, disp);
+    for (int i = 0; i < 2; i++) {
+        size_t p = (size_t)pts[2 * i + 1] * W + (size_t)pts[2 * i];
+        cr_expect(disp[3 * p] == 255 && disp[3 * p + 1] >= 200 && disp[3 * p + 2] <= 40,
+                  "sample %d pixel (%u %u %u)", i, disp[3 * p], disp[3 * p + 1], disp[3 * p + 2]);
+    }
+    size_t p0 = (size_t)30 * W + 30;
+    uint8_t full[3];
+    o.view = DISP_VIEW_FULL;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, false, W, H, &err), 0);
+    uint8_t *d2 = malloc(n * 3);
+    disp_compositor_read_display(c, d2);
+    memcpy(full, d2 + 3 * p0, 3);
+    for (int k = 0; k < 3; k++)
+        cr_expect_leq(abs((int)disp[3 * p0 + (size_t)k] - (int)lroundf(0.35f * (float)full[k])), 1,
+                      "dimmed value %u vs full %u", disp[3 * p0 + (size_t)k], full[k]);
+    free(d2);
+    free(lin);
+    free(disp);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
+    fx_ref_free(&ref);
+    rmesh_free(&m);
+}
