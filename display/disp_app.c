@@ -429,7 +429,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
-        rc = disp_scene_cache_new(&a.cache, err);
+        rc = disp_scene_cache_new(o->cache_dir, &a.cache, err);
         ct_error e;
         ct_error_clear(&e);
         if (!rc && try_connect(&a, &e) && connection_lost(&a, &e, ct_now(), err)) {

@@ -46,6 +46,7 @@ typedef struct disp_app_opts {
     bool synthetic_tiles;         /* cut parts into tiles to reach the count */
     const char *connect;          /* unix:PATH or tcp:HOST:PORT */
     const char *token_file;
+    const char *cache_dir;        /* scene cache directory (NULL: memory only) */
     bool reconnect;
     double max_seconds;           /* stop after this long (0: no limit) */
 } disp_app_opts;

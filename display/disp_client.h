@@ -22,11 +22,17 @@ typedef struct disp_client_opts {
     int connect_timeout_ms;       /* connect + handshake */
 } disp_client_opts;
 
-/* The scene payload of a previous connection (for SETTINGS' cache hash). */
+/* The scene payload of a previous connection, announced in SETTINGS so the
+ * master can skip sending it. Kept in memory, and with a directory also on
+ * disk: DIR/<hash>.ctscene (the payload) and DIR/last (the hash of the last
+ * scene), so a restarted display announces the scene it showed last. */
 typedef struct disp_scene_cache disp_scene_cache;
 
-/* An empty cache; NULL is fine for the functions below. */
-int disp_scene_cache_new(disp_scene_cache **out, ct_error *err);
+/* A cache; dir may be NULL (memory only). A missing or unreadable DIR/last
+ * just means an empty cache (logged), never an error. */
+int disp_scene_cache_new(const char *dir, disp_scene_cache **out, ct_error *err);
+
+/* Frees it (NULL is fine). */
 void disp_scene_cache_free(disp_scene_cache *c);
 
 typedef struct disp_client disp_client;

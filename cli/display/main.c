@@ -20,6 +20,8 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --connect ADDR        master's display socket: unix:PATH or tcp:HOST:PORT\n"
             "  --token-file FILE     shared token for the handshake (else $CORRTEX_TOKEN)\n"
             "  --reconnect           on a lost connection retry with back-off (default: exit 3)\n"
+            "  --cache DIR           keep received scenes in DIR by content hash (default %s)\n"
+            "  --no-cache            keep the scene in memory only\n"
             "  --samples-per-frame K lockstep: the master inserts K samples per frame (default 0: free-running)\n"
             "  --mesh FILE.ctmesh    a radiosity mesh cache (corrtex radiosity), no master\n"
             "  --scene FILE.json     a scene with a stand-in radiosity (constant per material), no master\n"
@@ -46,7 +48,7 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --out DIR             write frame_NNNNN.exr/.png and frames.csv\n"
             "  --reference DIR       add RMSE/PSNR against DIR/frame_NNNNN.exr to frames.csv\n"
             "  --quiet | --verbose\n\n%s",
-            d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
+            d->cache_dir ? d->cache_dir : "none", d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), disp_app_keys_help());
 }
 
@@ -108,6 +110,12 @@ int main(int argc, char **argv)
 {
     disp_app_opts o, d;
     disp_app_defaults(&o);
+    /* Default scene cache: $XDG_CACHE_HOME/corrtex or ~/.cache/corrtex. */
+    char cache[2048] = "";
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    if (xdg && *xdg) snprintf(cache, sizeof cache, "%s/corrtex", xdg);
+    else if (home && *home) snprintf(cache, sizeof cache, "%s/.cache/corrtex", home);
+    if (cache[0]) o.cache_dir = cache;
     d = o;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
@@ -183,6 +191,8 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--connect")) { NEED(); o.connect = v; }
         else if (!strcmp(a, "--token-file")) { NEED(); o.token_file = v; }
         else if (!strcmp(a, "--reconnect")) o.reconnect = true;
+        else if (!strcmp(a, "--cache")) { NEED(); o.cache_dir = v; }
+        else if (!strcmp(a, "--no-cache")) o.cache_dir = NULL;
         else if (!strcmp(a, "--quiet")) ct_log_set_level(CT_LOG_WARN);
         else if (!strcmp(a, "--verbose")) ct_log_set_level(CT_LOG_DEBUG);
         else {

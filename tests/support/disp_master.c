@@ -66,6 +66,8 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
     wire_msg m;
     if (chan_recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_SETTINGS) return 12;
     if (m.u.settings.samples_per_frame != want_k) return 13;
+    uint8_t cached[WIRE_HASH_SIZE];
+    memcpy(cached, m.u.settings.cached_scene, WIRE_HASH_SIZE);
     if (chan_recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 14;
     uint32_t epoch = m.u.camera.epoch;
     if (m.u.camera.width != (uint32_t)w || m.u.camera.height != (uint32_t)h) return 15;
@@ -74,9 +76,11 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
     if (fx_box_mesh(4, &mesh, &nd, &err)) return 16;
     wire_scene_tx tx;
     if (wire_scene_tx_init(&tx, &mesh, &err)) return 17;
-    wire_scene_tx_begin(&tx, false, &m);
+    /* A display that announces this scene's hash gets it as CACHED. */
+    bool is_cached = memcmp(cached, tx.hash, WIRE_HASH_SIZE) == 0;
+    wire_scene_tx_begin(&tx, is_cached, &m);
     if (send_all(c, &m)) return 18;
-    for (uint32_t i = 0; i < tx.begin.nchunks; i++) {
+    for (uint32_t i = 0; !is_cached && i < tx.begin.nchunks; i++) {
         wire_scene_tx_chunk(&tx, i, &m);
         if (send_all(c, &m)) return 19;
     }

@@ -1,7 +1,8 @@
 /* disp_master.h: a scripted master peer for display tests: a child process
  * that speaks the real display protocol (proto/chan.h) over a UNIX socket:
  * accepts one display, checks its SETTINGS (lockstep K) and CAMERA (image
- * size), sends the box scene of disp_fixture.h, one 8x6 texture on the back
+ * size), sends the box scene of disp_fixture.h (as CACHED when SETTINGS
+ * announced its hash), one 8x6 texture on the back
  * wall (object-local parallel, fxm_wall_proj, contents fxm_tex_rgb) in two
  * patches and FRAME 0 of the display's epoch with 123 samples, then ends
  * the way the test asks. */

@@ -44,7 +44,7 @@ static void rm_out(const char *dir)
     cr_expect_eq(system(cmd), 0);
 }
 
-Test(disp_app, lost_connection_exits_3, .timeout = 60)
+Test(disp_app, lost_connection_exits_3)
 {
     fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
@@ -59,7 +59,7 @@ Test(disp_app, lost_connection_exits_3, .timeout = 60)
     cr_expect_eq(fxm_stop(&p), 0);
 }
 
-Test(disp_app, bye_draws_the_last_state_and_exits_0, .timeout = 60)
+Test(disp_app, bye_draws_the_last_state_and_exits_0)
 {
     fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_BYE, 0, W, H), 0, "%s", p.msg);
@@ -84,7 +84,7 @@ Test(disp_app, bye_draws_the_last_state_and_exits_0, .timeout = 60)
     rm_out(out);
 }
 
-Test(disp_app, lockstep_frame_then_bye_from_display, .timeout = 60)
+Test(disp_app, lockstep_frame_then_bye_from_display)
 {
     fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_STAY, 250, W, H), 0, "%s", p.msg);
@@ -122,7 +122,7 @@ Test(disp_app, lockstep_frame_then_bye_from_display, .timeout = 60)
     rm_out(out);
 }
 
-Test(disp_app, reconnect_keeps_drawing_the_last_image, .timeout = 60)
+Test(disp_app, reconnect_keeps_drawing_the_last_image)
 {
     fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);

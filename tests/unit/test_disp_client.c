@@ -63,7 +63,7 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
     disp_scene_cache *cache = NULL;
-    cr_assert_eq(disp_scene_cache_new(&cache, &err), 0);
+    cr_assert_eq(disp_scene_cache_new(NULL, &cache, &err), 0);
     disp_client *c = NULL;
     disp_client_opts o = {p->addr, token_file, k, 5000};
     cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
@@ -109,7 +109,7 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     gl_backend_close(b);
 }
 
-Test(disp_client, events_render_like_direct_calls_then_lost_connection, .timeout = 60)
+Test(disp_client, events_render_like_direct_calls_then_lost_connection)
 {
         fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
@@ -117,7 +117,7 @@ Test(disp_client, events_render_like_direct_calls_then_lost_connection, .timeout
     cr_expect_eq(fxm_stop(&p), 0, "master child failed");
 }
 
-Test(disp_client, lockstep_settings_and_bye, .timeout = 60)
+Test(disp_client, lockstep_settings_and_bye)
 {
         fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_BYE, 500, W, H), 0, "%s", p.msg);
@@ -125,7 +125,7 @@ Test(disp_client, lockstep_settings_and_bye, .timeout = 60)
     cr_expect_eq(fxm_stop(&p), 0, "master child failed");
 }
 
-Test(disp_client, display_says_bye, .timeout = 60)
+Test(disp_client, display_says_bye)
 {
         fxm_peer p = {0};
     cr_assert_eq(fxm_start(&p, FXM_END_STAY, 0, W, H), 0, "%s", p.msg);
@@ -133,7 +133,7 @@ Test(disp_client, display_says_bye, .timeout = 60)
     cr_expect_eq(fxm_stop(&p), 0, "master child failed (did it get BYE?)");
 }
 
-Test(disp_client, no_master_is_an_error, .timeout = 30)
+Test(disp_client, no_master_is_an_error)
 {
     ct_error err;
     disp_client *c = NULL;
@@ -155,7 +155,7 @@ static void write_token(char *path, size_t cap, const char *text)
     close(fd);
 }
 
-Test(disp_client, tcp_with_token, .timeout = 60)
+Test(disp_client, tcp_with_token)
 {
     fxm_peer p = {0};
     p.token = TOKEN;
@@ -168,7 +168,7 @@ Test(disp_client, tcp_with_token, .timeout = 60)
     unlink(tf);
 }
 
-Test(disp_client, tcp_with_a_wrong_token_fails, .timeout = 60)
+Test(disp_client, tcp_with_a_wrong_token_fails)
 {
     fxm_peer p = {0};
     p.token = TOKEN;
@@ -184,4 +184,64 @@ Test(disp_client, tcp_with_a_wrong_token_fails, .timeout = 60)
     cr_expect_null(c);
     cr_expect_neq(fxm_stop(&p), 0, "the master must refuse the display");
     unlink(tf);
+}
+
+/* Runs one session against a master that stays until BYE; returns the bytes received. */
+static uint64_t session_bytes(disp_scene_cache *cache)
+{
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_STAY, 0, W, H), 0, "%s", p.msg);
+    ct_error err;
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    for (int i = 0; i < 200 && !disp_client_frame_ready(c, NULL); i++)
+        cr_assert_eq(disp_client_service(c, s, 25, &err), 0, "%s", err.msg);
+    cr_assert(disp_client_has_scene(c));
+    cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
+    uint8_t img[W * H * 3], want[W * H * 3];
+    render(s, img);
+    render_direct(want);
+    cr_expect_eq(memcmp(img, want, sizeof img), 0, "the cached scene renders the same");
+    uint64_t bytes = disp_session_counters(s).bytes;
+    disp_client_close(c);
+    disp_session_free(s);
+    cr_expect_eq(fxm_stop(&p), 0);
+    return bytes;
+}
+
+Test(disp_client, scene_cache_on_disk)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    char dir[64];
+    snprintf(dir, sizeof dir, "/tmp/ctdisp-cache-XXXXXX");
+    cr_assert(mkdtemp(dir));
+    disp_scene_cache *cache = NULL;
+    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    uint64_t first = session_bytes(cache);
+    disp_scene_cache_free(cache);
+    /* A new display process: the cache comes from the directory. */
+    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    uint64_t second = session_bytes(cache);
+    disp_scene_cache_free(cache);
+    printf("metric: bytes received: %llu with the scene, %llu with it cached\n",
+           (unsigned long long)first, (unsigned long long)second);
+    cr_expect_lt(second + 1000, first, "the cached scene was sent again");
+    /* A corrupted cache file is ignored (the scene is sent again). */
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "for f in %s/*.ctscene; do printf 'x' >> \"$f\"; done", dir);
+    cr_assert_eq(system(cmd), 0);
+    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    uint64_t third = session_bytes(cache);
+    disp_scene_cache_free(cache);
+    cr_expect_gt(third, second + 1000, "a corrupt cache must not be announced");
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    cr_expect_eq(system(cmd), 0);
+    gl_backend_close(b);
 }

@@ -46,7 +46,7 @@ static int max_byte_diff(const uint8_t *a, const uint8_t *b, size_t n, size_t *n
     return m;
 }
 
-Test(disp_window, glfw_under_xvfb_matches_headless, .timeout = 60)
+Test(disp_window, glfw_under_xvfb_matches_headless)
 {
     char msg[256];
     pid_t x = fx_xvfb_start(msg, sizeof msg);
