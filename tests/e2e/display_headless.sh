@@ -24,31 +24,32 @@ lines=$(wc -l <"$tmp/osm/frames.csv")
 head -n 1 "$tmp/osm/frames.csv" | grep -q '^frame,time_s,eye_x' || { echo "FAIL: frames.csv header"; fail=1; }
 ls "$tmp/osm" | grep -q '\.tmp' && { echo "FAIL: temporary files left"; fail=1; }
 
-# EGL with OSMesa's frames as the reference: the same pixels.
+# EGL with OSMesa's frames as the reference: the same pixels, up to the half
+# float rounding of the reference EXR (relative 2^-11; the light is bright).
 run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --out "$tmp/egl" --reference "$tmp/osm" || { echo "FAIL: egl run"; exit 1; }
 max_rmse() { awk -F, 'NR > 1 { if ($16 > m) m = $16 } END { printf "%.3g", m + 0 }' "$1"; }
 r=$(max_rmse "$tmp/egl/frames.csv")
-echo "metric: egl vs osmesa frames: max RMSE $r (tolerance 1e-4)"
-awk -v r="$r" 'BEGIN { exit !(r <= 1e-4) }' || { echo "FAIL: egl differs from osmesa"; fail=1; }
+echo "metric: egl vs osmesa frames: max RMSE $r (tolerance 1e-3)"
+awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: egl differs from osmesa"; fail=1; }
 
 # Three passes against one pass.
 run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --passes 3 --out "$tmp/p3" --reference "$tmp/osm" || { echo "FAIL: 3-pass run"; exit 1; }
 r=$(max_rmse "$tmp/p3/frames.csv")
-echo "metric: 3-pass vs 1-pass frames: max RMSE $r (tolerance 1e-4)"
-awk -v r="$r" 'BEGIN { exit !(r <= 1e-4) }' || { echo "FAIL: 3-pass differs from 1-pass"; fail=1; }
+echo "metric: 3-pass vs 1-pass frames: max RMSE $r (tolerance 1e-3)"
+awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: 3-pass differs from 1-pass"; fail=1; }
 
 # The corrections change the image (the comparison above is not vacuous).
 run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --synthetic 0 --out "$tmp/rad" --reference "$tmp/osm" || { echo "FAIL: radiosity run"; exit 1; }
 r=$(max_rmse "$tmp/rad/frames.csv")
-echo "metric: radiosity alone vs corrected frames: max RMSE $r (must exceed 1e-3)"
-awk -v r="$r" 'BEGIN { exit !(r > 1e-3) }' || { echo "FAIL: synthetic corrections had no effect"; fail=1; }
+echo "metric: radiosity alone vs corrected frames: max RMSE $r (must exceed 5e-3)"
+awk -v r="$r" 'BEGIN { exit !(r > 5e-3) }' || { echo "FAIL: synthetic corrections had no effect"; fail=1; }
 
 # The window backend under Xvfb writes the same frames.
 if command -v xvfb-run >/dev/null; then
   run xvfb-run -a "$BIN/corrtex-display" --backend glfw --no-vsync "${COMMON[@]}" --out "$tmp/win" --reference "$tmp/osm" || { echo "FAIL: glfw run"; exit 1; }
   r=$(max_rmse "$tmp/win/frames.csv")
-  echo "metric: glfw window vs osmesa frames: max RMSE $r (tolerance 1e-4)"
-  awk -v r="$r" 'BEGIN { exit !(r <= 1e-4) }' || { echo "FAIL: glfw differs"; fail=1; }
+  echo "metric: glfw window vs osmesa frames: max RMSE $r (tolerance 1e-3)"
+  awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: glfw differs"; fail=1; }
 else
   echo "skip: xvfb-run not installed"
 fi
