@@ -70,7 +70,8 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     x->width = width;
     x->height = height;
     x->kind = kind;
-    x->has_proj = false;
+    /* A re-allocation of a live id (the master resized it) keeps its
+     * projection until a new one arrives; a new id waits for one. */
     x->negative = false;
     /* Zeroed contents: a fresh texture corrects nothing. Stored as RGBA16F:
      * llvmpipe samples it about twice as fast as RGB16F, and GPUs pad RGB16F

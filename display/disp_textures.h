@@ -43,7 +43,8 @@ int disp_textures_new(disp_textures **out, ct_error *err);
 void disp_textures_free(disp_textures *t);
 
 /* Creates (or re-creates, zeroed) texture id of width x height covering the
- * triangle range of `node`, projected the given way. Needs a current context. */
+ * triangle range of `node`, projected the given way; a re-created id keeps
+ * its projection (a resize does not move it). Needs a current context. */
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
                         uint32_t tri_end, int width, int height, disp_proj_kind kind,
                         ct_error *err);
