@@ -321,7 +321,20 @@ int disp_client_service(disp_client *c, disp_session *s, int timeout_ms, ct_erro
         if (rc == WIRE_NEED_MORE) break;
         if (rc < 0) break;
         rc = apply(c, s, &m, err);
-        if (rc) break;
+        if (rc && m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) {
+            /* Session errors do not know the peer: name it and the message. */
+            char what[64];
+            snprintf(what, sizeof what, "%s from %s", wire_type_name(m.type), c->addr);
+            ct_error_prefix(err, what);
+        }
+        if (rc) {
+            /* A message that does not fit our state: tell the master why
+             * before the connection is dropped (not after its own ERROR/BYE). */
+            if (m.type != WIRE_ERROR && m.type != WIRE_BYE)
+                chan_send_error(c->ch, rc == CT_ENOMEM || rc == CT_ESYS ? WIRE_ERR_INTERNAL : WIRE_ERR_PROTOCOL,
+                                err->msg, 200);
+            break;
+        }
     }
     uint64_t rx = 0, tx = 0;
     chan_byte_counts(c->ch, &rx, &tx);

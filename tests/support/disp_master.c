@@ -112,6 +112,20 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
         m.type = WIRE_BYE;
         m.u.bye.reason = WIRE_BYE_DONE;
         send_all(c, &m);
+    } else if (end == FXM_END_BAD) {
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_PATCH;
+        m.u.tex_patch = (wire_tex_patch){77, 0, 0, 1, 1, half};
+        if (send_all(c, &m)) return 30;
+        int got = 31;
+        for (int i = 0; i < 50 && got == 31; i++) {
+            int rc = chan_recv_wait(c, &m, 100, &err);
+            if (rc < 0) break;
+            if (rc == WIRE_OK && m.type == WIRE_ERROR)
+                got = m.u.error.code == WIRE_ERR_PROTOCOL && strstr(m.u.error.text, "77") ? 0 : 32;
+        }
+        chan_free(c);
+        return got;
     } else if (end == FXM_END_STAY) {
         /* Wait for the display's BYE. */
         for (int i = 0; i < 50; i++) {

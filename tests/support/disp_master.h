@@ -18,7 +18,8 @@
 typedef enum fxm_end {
     FXM_END_CLOSE = 0,   /* close the socket without a word */
     FXM_END_BYE   = 1,   /* send BYE (run finished), then close */
-    FXM_END_STAY  = 2    /* wait (up to 5 s) for the display's BYE */
+    FXM_END_STAY  = 2,   /* wait (up to 5 s) for the display's BYE */
+    FXM_END_BAD   = 3    /* send a patch for an unknown texture; expect the display's ERROR */
 } fxm_end;
 
 typedef struct fxm_peer {

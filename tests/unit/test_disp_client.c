@@ -245,3 +245,28 @@ Test(disp_client, scene_cache_on_disk)
     cr_expect_eq(system(cmd), 0);
     gl_backend_close(b);
 }
+
+Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_BAD, 0, W, H), 0, "%s", p.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, NULL, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    int rc = 0;
+    for (int i = 0; i < 200 && rc == 0; i++) rc = disp_client_service(c, s, 25, &err);
+    printf("bad patch: %s\n", err.msg);
+    cr_expect_eq(rc, CT_EPROTO);
+    cr_expect(strstr(err.msg, "unknown texture 77") != NULL, "%s", err.msg);
+    disp_client_close(c);
+    cr_expect_eq(fxm_stop(&p), 0, "the master did not get a PROTOCOL error naming texture 77");
+    disp_session_free(s);
+    gl_backend_close(b);
+}
