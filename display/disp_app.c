@@ -352,9 +352,12 @@ static int run(app *a, ct_error *err)
         a->ropts.all_positive = disp_session_all_positive(a->session);
         rc = disp_compositor_render(a->comp, disp_session_scene_of(a->session),
                                     disp_session_textures(a->session), &cam, &a->ropts, &rs, err);
-        uint32_t nxy = 0;
+        uint32_t nxy = 0, nwp = 0;
         const float *xy = disp_session_sample_xy(a->session, &nxy);
-        if (!rc) rc = disp_compositor_present(a->comp, &a->ropts, xy, nxy, window, in.fb_width, in.fb_height, err);
+        const float *wp = disp_session_patch_points(a->session, &nwp);
+        if (!rc)
+            rc = disp_compositor_present(a->comp, &a->ropts, xy, nxy, wp, nwp, window, in.fb_width,
+                                         in.fb_height, err);
         if (rc) break;
         if (window) gl_backend_present(a->backend);
         else gl.Finish();

@@ -18,7 +18,10 @@ struct disp_compositor {
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
     mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
     mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
-    GLuint tonemap, points;
+    GLuint tonemap, points, points_world;
+    GLint pw_mvp, pw_point, pw_color;
+    GLuint pw_vao, pw_vbo;
+    mat4 last_mvp;       /* the camera of the last render (for world points) */
     GLint tm_image, tm_exposure, tm_mode, tm_dim;
     GLint pt_size, pt_point, pt_color;
     GLuint empty_vao, pt_vao, pt_vbo;
@@ -77,6 +80,8 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
         rc = build_mesh_prog(&c->one[k], GL_PASS_ONE, k + 1, err);
     if (!rc) rc = gl_program_build("tonemap", gl_src_screen_vs, gl_src_tonemap_fs, NULL, &c->tonemap, err);
     if (!rc) rc = gl_program_build("points", gl_src_points_vs, gl_src_points_fs, NULL, &c->points, err);
+    if (!rc)
+        rc = gl_program_build("points-world", gl_src_points_world_vs, gl_src_points_fs, NULL, &c->points_world, err);
     if (rc) {
         disp_compositor_free(c);
         return rc;
@@ -88,6 +93,17 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
     c->pt_size = gl.GetUniformLocation(c->points, "u_size");
     c->pt_point = gl.GetUniformLocation(c->points, "u_point");
     c->pt_color = gl.GetUniformLocation(c->points, "u_color");
+    c->pw_mvp = gl.GetUniformLocation(c->points_world, "u_mvp");
+    c->pw_point = gl.GetUniformLocation(c->points_world, "u_point");
+    c->pw_color = gl.GetUniformLocation(c->points_world, "u_color");
+    c->last_mvp = m4_identity();
+    gl.GenVertexArrays(1, &c->pw_vao);
+    gl.GenBuffers(1, &c->pw_vbo);
+    gl.BindVertexArray(c->pw_vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, c->pw_vbo);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), (const void *)0);
+    gl.BindVertexArray(0);
     gl.GenVertexArrays(1, &c->empty_vao);
     gl.GenVertexArrays(1, &c->pt_vao);
     gl.GenBuffers(1, &c->pt_vbo);
@@ -116,6 +132,9 @@ void disp_compositor_free(disp_compositor *c)
         if (c->one[k].id) gl.DeleteProgram(c->one[k].id);
     if (c->tonemap) gl.DeleteProgram(c->tonemap);
     if (c->points) gl.DeleteProgram(c->points);
+    if (c->points_world) gl.DeleteProgram(c->points_world);
+    if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
+    if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
     if (c->pt_vao) gl.DeleteVertexArrays(1, &c->pt_vao);
     if (c->pt_vbo) gl.DeleteBuffers(1, &c->pt_vbo);
@@ -302,6 +321,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     float zn, zf;
     disp_compositor_depth_range(s, cam, &zn, &zf);
     mat4 mvp = m4_mul(cam_proj(cam, c->width, c->height, zn, zf), cam_view(cam));
+    c->last_mvp = mvp;
 
     /* The drawable textures, in table order. */
     uint32_t ntex = t ? disp_textures_count(t) : 0, n = 0;
@@ -364,7 +384,8 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
 }
 
 int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const float *xy,
-                            uint32_t n, bool to_window, int win_w, int win_h, ct_error *err)
+                            uint32_t n, const float *world, uint32_t nworld, bool to_window, int win_w,
+                            int win_h, ct_error *err)
 {
     gl_target_bind(to_window ? NULL : &c->ldr, win_w, win_h);
     gl.Disable(GL_DEPTH_TEST);
@@ -388,6 +409,19 @@ int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const
         gl.Uniform1f(c->pt_point, c->width >= 512 ? 3.0f : 1.0f);
         gl.Uniform3f(c->pt_color, 1.0f, 0.85f, 0.1f);
         gl.DrawArrays(GL_POINTS, 0, (GLsizei)n);
+        gl.Disable(GL_PROGRAM_POINT_SIZE);
+    }
+    if (o->view == DISP_VIEW_SAMPLES && nworld && world) {
+        /* Patch centres, through the camera of the last render. */
+        gl.BindVertexArray(c->pw_vao);
+        gl.BindBuffer(GL_ARRAY_BUFFER, c->pw_vbo);
+        gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)nworld * 3 * sizeof(float)), world, GL_STREAM_DRAW);
+        gl.Enable(GL_PROGRAM_POINT_SIZE);
+        gl.UseProgram(c->points_world);
+        gl.UniformMatrix4fv(c->pw_mvp, 1, GL_TRUE, &c->last_mvp.m[0][0]);
+        gl.Uniform1f(c->pw_point, c->width >= 512 ? 3.0f : 1.0f);
+        gl.Uniform3f(c->pw_color, 0.2f, 0.9f, 1.0f);
+        gl.DrawArrays(GL_POINTS, 0, (GLsizei)nworld);
         gl.Disable(GL_PROGRAM_POINT_SIZE);
     }
     gl.BindVertexArray(0);

@@ -59,11 +59,13 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
                            const ct_camera *cam, const disp_render_opts *o,
                            disp_render_stats *stats, ct_error *err);
 
-/* Tone-maps the float target (and, in the samples view, draws the n image
- * positions xy[2n] in pixels, y down) into the window's default framebuffer
- * of size win_w x win_h (to_window) or into the 8-bit target. */
+/* Tone-maps the float target into the window's default framebuffer of size
+ * win_w x win_h (to_window) or into the 8-bit target. In the samples view
+ * it also draws the n image positions xy[2n] (pixels, y down; yellow) and
+ * the nworld world points world[3n] seen by the last render's camera (cyan). */
 int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const float *xy,
-                            uint32_t n, bool to_window, int win_w, int win_h, ct_error *err);
+                            uint32_t n, const float *world, uint32_t nworld, bool to_window, int win_w,
+                            int win_h, ct_error *err);
 
 /* The float image as linear RGB, row 0 at the top (3 * width * height floats). */
 void disp_compositor_read_linear(disp_compositor *c, float *rgb);

@@ -16,7 +16,8 @@
 #include "display/disp_scene.h"
 #include "display/disp_textures.h"
 
-/* Frames of sample positions kept for the samples view (Fig. 7). */
+/* Frames of sample positions (and patch centres) kept for the samples view
+ * (Fig. 7). */
 #define DISP_SAMPLE_FRAMES 4
 /* At most this many sample positions are kept. */
 #define DISP_SAMPLE_MAX 1000000u
@@ -87,6 +88,12 @@ bool disp_session_all_positive(const disp_session *s);
 
 /* Sample positions of the last DISP_SAMPLE_FRAMES frames (2 floats each). */
 const float *disp_session_sample_xy(const disp_session *s, uint32_t *n);
+
+/* World points (3 floats each) at the centres of the texel patches of the
+ * last DISP_SAMPLE_FRAMES frames: where corrections changed. The samples
+ * view shows them when no sample positions arrive (protocol version 1
+ * carries none). */
+const float *disp_session_patch_points(const disp_session *s, uint32_t *n);
 
 /* Running totals. */
 disp_counters disp_session_counters(const disp_session *s);

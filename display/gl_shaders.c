@@ -117,6 +117,15 @@ const char *const gl_src_points_vs =
     "    gl_PointSize = u_point;\n"
     "}\n";
 
+const char *const gl_src_points_world_vs =
+    "layout(location = 0) in vec3 a_pos;\n"
+    "uniform mat4 u_mvp;\n"
+    "uniform float u_point;\n"
+    "void main() {\n"
+    "    gl_Position = u_mvp * vec4(a_pos, 1.0);\n"
+    "    gl_PointSize = u_point;\n"
+    "}\n";
+
 const char *const gl_src_points_fs =
     "uniform vec3 u_color;\n"
     "out vec4 o_color;\n"

@@ -34,6 +34,8 @@ extern const char *const gl_src_screen_vs;
 extern const char *const gl_src_tonemap_fs;
 /* Points at image positions in pixels (y down), for the samples view. */
 extern const char *const gl_src_points_vs;
+/* Points at world positions through u_mvp (patch centres in the samples view). */
+extern const char *const gl_src_points_world_vs;
 extern const char *const gl_src_points_fs;
 
 /* Compiles vs and fs (each prefixed with "#version 330 core" and `defines`,

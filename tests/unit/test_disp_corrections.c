@@ -226,12 +226,12 @@ static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, 
     ct_camera cam = fx_box_camera();
     disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive};
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, st1, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
     disp_compositor_read_display(c, one);
     disp_compositor_read_linear(c, lin1);
     o.passes = 3;
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, st3, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
     disp_compositor_read_display(c, three);
     disp_compositor_read_linear(c, lin3);
     disp_compositor_free(c);
@@ -339,7 +339,7 @@ Test(disp_corrections, debug_views)
 
     /* Corrections only: 0.5 + 0.5 * value, no sRGB; grey where none. */
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, NULL, 0, false, W, H, &err), 0);
     disp_compositor_read_display(c, disp);
     size_t on_wall = 0, bad = 0;
     for (size_t p = 0; p < n; p++) {
@@ -393,7 +393,7 @@ Test(disp_corrections, debug_views)
     /* Samples: dots at the sample positions over the image dimmed to 35 %. */
     o.view = DISP_VIEW_SAMPLES;
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, NULL, 0, false, W, H, &err), 0);
     disp_compositor_read_display(c, disp);
     for (int i = 0; i < 2; i++) {
         size_t p = (size_t)pts[2 * i + 1] * W + (size_t)pts[2 * i];
@@ -404,7 +404,7 @@ Test(disp_corrections, debug_views)
     uint8_t full[3];
     o.view = DISP_VIEW_FULL;
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
     uint8_t *d2 = malloc(n * 3);
     disp_compositor_read_display(c, d2);
     memcpy(full, d2 + 3 * p0, 3);
@@ -418,5 +418,57 @@ Test(disp_corrections, debug_views)
     disp_session_free(s);
     gl_backend_close(b);
     fx_ref_free(&ref);
+    rmesh_free(&m);
+}
+
+/* Patch centres: with an invertible object-local projection (third row =
+ * distance from the wall's plane), a patch's centre becomes a world point on
+ * the wall, which the samples view draws at its pixel. */
+Test(disp_corrections, patch_centres_in_the_samples_view)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(disp_session_scene(s, &m, &err), 0);
+    mat4 p = wall_proj(-1, -1, 2, 2);
+    p.m[2][2] = 1.0f;   /* z + 1: distance from the back wall z = -1 */
+    p.m[2][3] = 1.0f;
+    cr_assert_eq(disp_session_tex_alloc(s, 4, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(s, 4, &p, &err), 0);
+    float one[3] = {0.1f, 0.1f, 0.1f};
+    cr_assert_eq(disp_session_tex_patch_float(s, 4, 1, 2, 1, 1, one, &err), 0);
+    uint32_t n = 0;
+    const float *wp = disp_session_patch_points(s, &n);
+    cr_assert_eq(n, 1u);
+    printf("patch centre at (%g %g %g)\n", wp[0], wp[1], wp[2]);
+    cr_expect_float_eq(wp[0], -0.25f, 1e-5f);
+    cr_expect_float_eq(wp[1], 0.25f, 1e-5f);
+    cr_expect_float_eq(wp[2], -1.0f, 1e-5f);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0);
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_SAMPLES, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, wp, n, false, W, H, &err), 0);
+    uint8_t *disp = malloc((size_t)W * H * 3);
+    disp_compositor_read_display(c, disp);
+    float px, py;
+    cr_assert(cam_project(&cam, W, H, v3(wp[0], wp[1], wp[2]), &px, &py, NULL));
+    size_t q = (size_t)py * W + (size_t)px;
+    cr_expect(disp[3 * q] <= 70 && disp[3 * q + 1] >= 200 && disp[3 * q + 2] == 255,
+              "pixel (%g, %g) is (%u %u %u), want the cyan dot", px, py, disp[3 * q], disp[3 * q + 1], disp[3 * q + 2]);
+    /* Frames later the point is gone. */
+    for (uint32_t f = 0; f <= DISP_SAMPLE_FRAMES; f++) disp_session_frame_end(s, f, 0, false);
+    disp_session_patch_points(s, &n);
+    cr_expect_eq(n, 0u);
+    free(disp);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
     rmesh_free(&m);
 }
