@@ -14,6 +14,7 @@
 #include "display/disp_camera_control.h"
 #include "display/disp_capture.h"
 #include "display/disp_client.h"
+#include "display/disp_keys.h"
 #include "display/disp_session.h"
 #include "display/disp_synthetic.h"
 #include "display/gl_load.h"
@@ -37,20 +38,7 @@ void disp_app_defaults(disp_app_opts *o)
 
 const char *disp_app_keys_help(void)
 {
-    return "keys (window):\n"
-           "  W/S or Up/Down      move forward / back\n"
-           "  A/D or Left/Right   move left / right\n"
-           "  E/Q or PgUp/PgDn    move up / down (Shift: 4x faster)\n"
-           "  mouse drag          look around;  scroll: change speed\n"
-           "  1  full image (radiosity + corrections)\n"
-           "  2  radiosity only\n"
-           "  3  corrections only (grey = 0, brighter = positive, darker = negative)\n"
-           "  4  texture assignment colours (paper Fig. 5)\n"
-           "  5  sample positions of the last frames (paper Fig. 7)\n"
-           "  P  toggle 1-pass / 3-pass compositing\n"
-           "  + / -  exposure up / down half a stop;  0  exposure 0\n"
-           "  C  print the camera as a path keyframe line\n"
-           "  H or F1  this help;  Esc  quit\n";
+    return disp_keys_help();
 }
 
 typedef struct app {
@@ -143,22 +131,21 @@ static void set_title(app *a, double now, bool force)
 static bool handle_keys(app *a, const gl_input *in)
 {
     for (int i = 0; i < in->npresses; i++) {
-        int k = in->presses[i];
-        if (k >= '1' && k <= '5') a->ropts.view = (disp_view)(k - '1');
-        else if (k == 'P') a->ropts.passes = a->ropts.passes == 1 ? 3 : 1;
-        else if (k == '+') a->ropts.exposure += 0.5f;
-        else if (k == '-') a->ropts.exposure -= 0.5f;
-        else if (k == '0') a->ropts.exposure = 0.0f;
-        else if (k == 'H' || k == GL_KEY_F1 || k == '?') fputs(disp_app_keys_help(), stdout);
-        else if (k == 'C') {
+        switch (disp_keys_apply(in->presses[i], &a->ropts)) {
+        case DISP_KEY_CHANGED: set_title(a, ct_now(), true); break;
+        case DISP_KEY_HELP: fputs(disp_keys_help(), stdout); fflush(stdout); break;
+        case DISP_KEY_CAMERA: {
             vec3 f;
             cam_axes(&a->fly.cam, NULL, NULL, &f);
             vec3 t = v3_add(a->fly.cam.eye, f);
             printf("0  %.4f %.4f %.4f  %.4f %.4f %.4f  %.2f\n", a->fly.cam.eye.x, a->fly.cam.eye.y,
                    a->fly.cam.eye.z, t.x, t.y, t.z, a->fly.cam.fov_y * 180.0f / CT_PI);
             fflush(stdout);
-        } else if (k == GL_KEY_ESCAPE) return false;
-        if (k != 'C' && k != 'H' && k != GL_KEY_F1) set_title(a, ct_now(), true);
+            break;
+        }
+        case DISP_KEY_QUIT: return false;
+        case DISP_KEY_NONE: break;
+        }
     }
     return !in->close;
 }
