@@ -332,7 +332,17 @@ static int run(app *a, ct_error *err)
                 rc = DISP_EXIT_LOST;
                 break;
             }
-            if (st == STEP_WAIT) continue;
+            if (st == STEP_WAIT) {
+                /* Nothing to draw yet: a dark grey window, the title says why. */
+                if (window) {
+                    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+                    gl.Viewport(0, 0, in.fb_width, in.fb_height);
+                    gl.ClearColor(0.1f, 0.1f, 0.1f, 1.0f);
+                    gl.Clear(GL_COLOR_BUFFER_BIT);
+                    gl_backend_present(a->backend);
+                }
+                continue;
+            }
         }
         double t0 = ct_now(), c0 = cpu_now();
         disp_render_stats rs;
