@@ -8,6 +8,7 @@
 struct disp_textures {
     disp_texture *items;
     uint32_t count, cap;
+    unsigned clear_fbo;   /* zeroes new textures on the GPU (no CPU buffer) */
 };
 
 int disp_textures_new(disp_textures **out, ct_error *err)
@@ -26,6 +27,7 @@ void disp_textures_free(disp_textures *t)
 {
     if (!t) return;
     disp_textures_clear(t);
+    if (t->clear_fbo) gl.DeleteFramebuffers(1, &t->clear_fbo);
     free(t->items);
     free(t);
 }
@@ -73,15 +75,26 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     /* A re-allocation of a live id (the master resized it) keeps its
      * projection until a new one arrives; a new id waits for one. */
     x->negative = false;
-    /* Zeroed contents: a fresh texture corrects nothing. Stored as RGBA16F:
-     * llvmpipe samples it about twice as fast as RGB16F, and GPUs pad RGB16F
-     * to four channels anyway. */
-    uint16_t *zero = calloc((size_t)width * (size_t)height * 3, sizeof *zero);
-    if (!zero) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", width, height);
+    /* Stored as RGBA16F: llvmpipe samples it faster than RGB16F, GPUs pad
+     * RGB16F to four channels anyway, and it is colour-renderable, so the
+     * zeroing below needs no CPU buffer of the texture's size. */
     gl.BindTexture(GL_TEXTURE_2D, x->gl_tex);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, zero);
-    free(zero);
+    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, NULL);
+    /* Zeroed contents: a fresh texture corrects nothing. */
+    if (!t->clear_fbo) gl.GenFramebuffers(1, &t->clear_fbo);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, x->gl_tex, 0);
+    GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    if (st == GL_FRAMEBUFFER_COMPLETE) {
+        gl.ClearColor(0, 0, 0, 0);
+        gl.Clear(GL_COLOR_BUFFER_BIT);
+    }
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (st != GL_FRAMEBUFFER_COMPLETE)
+        return ct_fail(err, CT_ESYS, "texture %u: cannot clear a %dx%d RGBA16F texture (0x%04x)", id, width,
+                       height, (unsigned)st);
     /* Bilinear filtering (§4.3: the hardware interpolates between texels). */
     gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);

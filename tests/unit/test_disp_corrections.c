@@ -472,3 +472,57 @@ Test(disp_corrections, patch_centres_in_the_samples_view)
     gl_backend_close(b);
     rmesh_free(&m);
 }
+
+/* A texture that got no patch corrects nothing (allocation zeroes it on the
+ * GPU), also after a resize of a texture that held values. */
+Test(disp_corrections, fresh_and_resized_textures_are_zero)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(disp_session_scene(s, &m, &err), 0);
+    mat4 p = wall_proj(-1, -1, 2, 2);
+    cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 64, 64, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0);
+    ct_camera cam = fx_box_camera();
+    size_t n = (size_t)W * H * 3;
+    float *full = malloc(n * sizeof *full), *rad = malloc(n * sizeof *rad);
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, rad);
+    o.view = DISP_VIEW_FULL;
+    /* Rounds: fresh 64x64; re-allocated at the same size after holding
+     * values; re-allocated at 32x16 after holding values. */
+    const int sizes[3][2] = {{64, 64}, {64, 64}, {32, 16}};
+    for (int round = 0; round < 3; round++) {
+        for (int passes = 1; passes <= 3; passes += 2) {
+            o.passes = passes;
+            cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+            disp_compositor_read_linear(c, full);
+            cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "round %d, %d-pass: a zero texture changed pixels", round, passes);
+        }
+        /* Fill it, then resize: the new texels must be zero again. */
+        const disp_texture *t = disp_textures_find(disp_session_textures(s), 1);
+        int tw = t->width, th = t->height;
+        float *v = malloc((size_t)tw * (size_t)th * 3 * sizeof *v);
+        for (int i = 0; i < tw * th * 3; i++) v[i] = 0.5f;
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, tw, th, v, &err), 0, "%s", err.msg);
+        free(v);
+        if (round < 2)
+            cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, sizes[round + 1][0], sizes[round + 1][1],
+                                                DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    }
+    free(full);
+    free(rad);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
+    rmesh_free(&m);
+}
