@@ -288,6 +288,7 @@ static int run(app *a, ct_error *err)
     uint32_t k = 0;
     int rc = CT_OK;
     bool fly_ready = disp_session_scene_of(a->session) != NULL;
+    bool path_done = false;
     gl_input in;
     memset(&in, 0, sizeof in);
     set_title(a, t_start, true);
@@ -312,14 +313,18 @@ static int run(app *a, ct_error *err)
                 cam = campath_frame(&a->path, (int)k, nframes);
                 ftime = nframes > 1 ? (double)dur * k / (double)(nframes - 1) : 0.0;
             } else {
-                if (ftime > dur && k > 0) break;
+                /* Real time: the frame at or after the path's end is its last. */
+                if (ftime >= dur) {
+                    ftime = dur;
+                    path_done = true;
+                }
                 cam = campath_eval(&a->path, t_first + (float)ftime);
             }
         } else {
             disp_fly_update(&a->fly, &in, dt);
             cam = a->fly.cam;
         }
-        bool last = false;
+        bool last = path_done;
         if (o->connect) {
             int st = connection_step(a, &cam, &in, t_start, err);
             if (st == STEP_QUIT) break;
