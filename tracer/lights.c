@@ -1,0 +1,95 @@
+#include "tracer/lights.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+struct light_set {
+    const emb_mesh *mesh;
+    uint32_t n;
+    uint32_t *tri;      /* emissive triangles */
+    float *cdf;         /* n + 1 entries, cdf[n] = 1 */
+    float *pdf_area;    /* per mesh triangle: selection probability / area */
+};
+
+int light_build(const emb_mesh *m, light_set **out, ct_error *err)
+{
+    *out = NULL;
+    light_set *l = calloc(1, sizeof *l);
+    if (!l) return ct_fail(err, CT_ENOMEM, "out of memory");
+    l->mesh = m;
+    l->pdf_area = calloc(m->ntris ? m->ntris : 1, sizeof *l->pdf_area);
+    if (!l->pdf_area) goto oom;
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        vec3 le = m->mats[m->tri_mat[t]].emission;
+        if (v3_luminance(le) > 0.0f && emb_tri_area(m, t) > 0.0f) l->n++;
+    }
+    l->tri = malloc((l->n ? l->n : 1) * sizeof *l->tri);
+    l->cdf = malloc(((size_t)l->n + 1) * sizeof *l->cdf);
+    if (!l->tri || !l->cdf) goto oom;
+    /* Cumulative power in double: thousands of small radiosity triangles
+     * would lose precision summed in float. */
+    double total = 0.0;
+    uint32_t k = 0;
+    l->cdf[0] = 0.0f;
+    double *acc = malloc(((size_t)l->n + 1) * sizeof *acc);
+    if (!acc) goto oom;
+    acc[0] = 0.0;
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        vec3 le = m->mats[m->tri_mat[t]].emission;
+        float a = emb_tri_area(m, t);
+        if (!(v3_luminance(le) > 0.0f && a > 0.0f)) continue;
+        l->tri[k] = t;
+        total += (double)a * v3_luminance(le);
+        acc[++k] = total;
+    }
+    for (uint32_t i = 0; i < l->n; i++) {
+        l->cdf[i + 1] = (float)(acc[i + 1] / total);
+        uint32_t t = l->tri[i];
+        l->pdf_area[t] = (float)(v3_luminance(m->mats[m->tri_mat[t]].emission) / total);
+    }
+    if (l->n) l->cdf[l->n] = 1.0f;
+    free(acc);
+    *out = l;
+    return CT_OK;
+oom:
+    light_free(l);
+    return ct_fail(err, CT_ENOMEM, "out of memory for the light list");
+}
+
+void light_free(light_set *l)
+{
+    if (!l) return;
+    free(l->tri);
+    free(l->cdf);
+    free(l->pdf_area);
+    free(l);
+}
+
+uint32_t light_count(const light_set *l) { return l->n; }
+
+bool light_sample(const light_set *l, float u0, float u1, float u2, light_point *out)
+{
+    if (l->n == 0) return false;
+    /* First index whose cdf[i + 1] > u0. */
+    uint32_t lo = 0, hi = l->n - 1;
+    while (lo < hi) {
+        uint32_t mid = (lo + hi) / 2;
+        if (l->cdf[mid + 1] > u0) hi = mid;
+        else lo = mid + 1;
+    }
+    uint32_t t = l->tri[lo];
+    const emb_mesh *m = l->mesh;
+    float su = sqrtf(u1);
+    float b1 = 1.0f - su, b2 = u2 * su;   /* uniform by area */
+    out->tri = t;
+    out->p = emb_tri_point(m, t, b1, b2);
+    out->n = emb_tri_normal(m, t);
+    out->le = m->mats[m->tri_mat[t]].emission;
+    out->pdf_area = l->pdf_area[t];
+    return true;
+}
+
+float light_pdf_area(const light_set *l, uint32_t tri)
+{
+    return tri < l->mesh->ntris ? l->pdf_area[tri] : 0.0f;
+}
