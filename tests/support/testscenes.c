@@ -92,3 +92,47 @@ int ts_diffuse(ct_scene *s, const char *name, vec3 rho, vec3 le, ct_error *err)
     m.emission = le;
     return scene_add_material(s, &m, err);
 }
+
+ct_scene *ts_room(ct_error *err)
+{
+    ct_scene *s = scene_new("room");
+    if (!s) {
+        ct_fail(err, CT_ENOMEM, "out of memory");
+        return NULL;
+    }
+    scene_material ward = scene_material_default("brushed");
+    ward.diffuse = v3(0.2f, 0.1f, 0.05f);
+    ward.glossy = SCENE_GLOSSY_WARD;
+    ward.specular = v3s(0.6f);
+    ward.ward_ax = 0.05f;
+    ward.ward_ay = 0.3f;
+    ward.ward_tangent = v3(1, 0, 0);
+    scene_material phong = scene_material_default("plastic");
+    phong.diffuse = v3(0.1f, 0.4f, 0.1f);
+    phong.glossy = SCENE_GLOSSY_PHONG;
+    phong.specular = v3s(0.4f);
+    phong.phong_exp = 50.0f;
+    scene_material mirror = scene_material_default("mirror");
+    mirror.mirror = v3s(0.9f);
+    scene_material glass = scene_material_default("glass");
+    glass.dielectric = 1;
+    glass.ior = 1.5f;
+    glass.transmission = v3(0.9f, 0.95f, 1.0f);
+    int walls = ts_diffuse(s, "walls", v3(0.6f, 0.6f, 0.55f), v3s(0.0f), err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(20, 18, 14), err);
+    int mw = scene_add_material(s, &ward, err), mp = scene_add_material(s, &phong, err);
+    int mm = scene_add_material(s, &mirror, err), mg = scene_add_material(s, &glass, err);
+    if (walls < 0 || lamp < 0 || mw < 0 || mp < 0 || mm < 0 || mg < 0) goto fail;
+    if (ts_box(s, "walls", (uint32_t)walls, v3(-2, 0, -2), v3(2, 3, 2), true, err) < 0) goto fail;
+    if (ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 2.99f, -0.5f), v3(1, 0, 0), v3(0, 0, 1), err) < 0) goto fail;
+    if (ts_sphere(s, "sphere", (uint32_t)mw, v3(-0.8f, 0.6f, 0.5f), 0.6f, 24, 12, false, err) < 0) goto fail;
+    if (ts_box(s, "block", (uint32_t)mp, v3(0.5f, 0, 0.6f), v3(1.3f, 0.9f, 1.4f), false, err) < 0) goto fail;
+    if (ts_quad(s, "mirror", (uint32_t)mm, v3(-1.5f, 0.3f, 1.98f), v3(0, 2, 0), v3(3, 0, 0), err) < 0) goto fail;
+    if (ts_box(s, "glass", (uint32_t)mg, v3(0.2f, 0, -0.8f), v3(0.8f, 1.2f, -0.2f), false, err) < 0) goto fail;
+    if (scene_add_camera(s, "main", v3(0, 1.5f, -1.9f), v3(0, 0.8f, 1.0f), v3(0, 1, 0), 70.0f, err)) goto fail;
+    if (scene_finalize(s, err)) goto fail;
+    return s;
+fail:
+    scene_free(s);
+    return NULL;
+}
