@@ -15,6 +15,7 @@ struct emb_scene {
     uint32_t *order;      /* grouped position -> mesh triangle */
     uint32_t *geom_base;  /* geomID -> first grouped position */
     uint32_t ngeoms;
+    vec3 *face_n;         /* unit front normal per mesh triangle */
     ct_error dev_err;     /* last device error (filled by the callback) */
     int dev_code;
 };
@@ -163,6 +164,13 @@ int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct
     }
     memset(e->verts + 3 * (size_t)mesh->nverts, 0, 4 * sizeof(float));
 
+    e->face_n = malloc((size_t)mesh->ntris * sizeof *e->face_n);
+    if (!e->face_n) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u triangles", mesh->ntris);
+        goto fail;
+    }
+    for (uint32_t t = 0; t < mesh->ntris; t++) e->face_n[t] = emb_tri_normal(mesh, t);
+
     e->device = rtcNewDevice(device_config && *device_config ? device_config : NULL);
     if (!e->device) {
         enum RTCError code = rtcGetDeviceError(NULL);
@@ -209,6 +217,7 @@ void emb_free(emb_scene *e)
     free(e->index);
     free(e->order);
     free(e->geom_base);
+    free(e->face_n);
     free(e);
 }
 
@@ -275,6 +284,27 @@ float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float t
 bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
 {
     return emb_occluded(e, o, d, tnear, tfar);
+}
+
+void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
+{
+    const emb_mesh *m = &e->mesh;
+    const uint32_t *i = m->tris + 3 * (size_t)h->tri;
+    float u = h->u, v = h->v, w = 1.0f - u - v;
+    vec3 a = m->pos[i[0]], b = m->pos[i[1]], c = m->pos[i[2]];
+    *p = v3_add(a, v3_add(v3_scale(v3_sub(b, a), u), v3_scale(v3_sub(c, a), v)));
+    *ng = e->face_n[h->tri];
+    if (m->nrm) {
+        vec3 na = m->nrm[i[0]], nb = m->nrm[i[1]], nc = m->nrm[i[2]];
+        vec3 n = v3(w * na.x + u * nb.x + v * nc.x, w * na.y + u * nb.y + v * nc.y,
+                    w * na.z + u * nb.z + v * nc.z);
+        float l2 = v3_len2(n);
+        if (l2 > 1e-12f && isfinite(l2)) {
+            *ns = v3_scale(n, 1.0f / sqrtf(l2));
+            return;
+        }
+    }
+    *ns = *ng;
 }
 
 vec3 emb_tri_normal(const emb_mesh *m, uint32_t t)

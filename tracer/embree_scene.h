@@ -70,6 +70,10 @@ float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float t
 /* Raw rtcOccluded1 (benchmark baseline). */
 bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
 
+/* Point, unit front (winding) normal and unit shading normal of a hit, from
+ * one read of the triangle (face normals are precomputed at build). */
+void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns);
+
 /* Geometric normal of mesh triangle t (unit; winding e1 x e2 = front side). */
 vec3 emb_tri_normal(const emb_mesh *m, uint32_t t);
 

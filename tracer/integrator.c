@@ -44,7 +44,7 @@ static inline vec3 clamp0(vec3 a) { return v3(fmaxf(a.x, 0.0f), fmaxf(a.y, 0.0f)
 /* Offsets a point along n past the float error of the intersection (Waechter
  * & Binder, Ray Tracing Gems ch. 6): integer ULP steps far from the origin,
  * a small absolute step near it. Scale independent, so no scene-size epsilon. */
-static vec3 offset_ray(vec3 p, vec3 n)
+static inline vec3 offset_ray(vec3 p, vec3 n)
 {
     const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
     float pc[3] = {p.x, p.y, p.z}, nc[3] = {n.x, n.y, n.z}, out[3];
@@ -62,8 +62,20 @@ static vec3 offset_ray(vec3 p, vec3 n)
 static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t shadow)
 {
     trc_raylog *l = c->st->log;
-    if (!l || l->n >= l->cap) return;
-    trc_ray *r = &l->rays[l->n++];
+    if (!l || !l->cap) return;
+    uint64_t seq = l->seen++;
+    size_t slot;
+    if (l->n < l->cap) {
+        slot = l->n++;
+    } else {
+        /* Reservoir sampling: keep ray seq with probability cap / (seq + 1). */
+        l->state = ct_hash64(l->state + 0x9e3779b97f4a7c15ULL);
+        uint64_t k = l->state % (seq + 1);
+        if (k >= l->cap) return;
+        slot = (size_t)k;
+    }
+    trc_ray *r = &l->rays[slot];
+    r->seq = seq;
     r->o[0] = o.x; r->o[1] = o.y; r->o[2] = o.z;
     r->d[0] = d.x; r->d[1] = d.y; r->d[2] = d.z;
     r->tnear = 0.0f;
@@ -74,9 +86,7 @@ static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t sh
 static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
 {
     s->h = *h;
-    s->p = emb_tri_point(c->mesh, h->tri, h->u, h->v);
-    s->ng = emb_tri_normal(c->mesh, h->tri);
-    s->ns = emb_tri_shading_normal(c->mesh, h->tri, h->u, h->v);
+    emb_surface(c->emb, h, &s->p, &s->ng, &s->ns);
     s->m = &c->mesh->mats[h->mat];
 }
 

@@ -7,6 +7,7 @@ struct light_set {
     const emb_mesh *mesh;
     uint32_t n;
     uint32_t *tri;      /* emissive triangles */
+    vec3 *nrm;          /* their unit front normals */
     float *cdf;         /* n + 1 entries, cdf[n] = 1 */
     float *pdf_area;    /* per mesh triangle: selection probability / area */
 };
@@ -25,7 +26,8 @@ int light_build(const emb_mesh *m, light_set **out, ct_error *err)
     }
     l->tri = malloc((l->n ? l->n : 1) * sizeof *l->tri);
     l->cdf = malloc(((size_t)l->n + 1) * sizeof *l->cdf);
-    if (!l->tri || !l->cdf) goto oom;
+    l->nrm = malloc((l->n ? l->n : 1) * sizeof *l->nrm);
+    if (!l->tri || !l->cdf || !l->nrm) goto oom;
     /* Cumulative power in double: thousands of small radiosity triangles
      * would lose precision summed in float. */
     double total = 0.0;
@@ -39,6 +41,7 @@ int light_build(const emb_mesh *m, light_set **out, ct_error *err)
         float a = emb_tri_area(m, t);
         if (!(v3_luminance(le) > 0.0f && a > 0.0f)) continue;
         l->tri[k] = t;
+        l->nrm[k] = emb_tri_normal(m, t);
         total += (double)a * v3_luminance(le);
         acc[++k] = total;
     }
@@ -61,6 +64,7 @@ void light_free(light_set *l)
     if (!l) return;
     free(l->tri);
     free(l->cdf);
+    free(l->nrm);
     free(l->pdf_area);
     free(l);
 }
@@ -83,7 +87,7 @@ bool light_sample(const light_set *l, float u0, float u1, float u2, light_point 
     float b1 = 1.0f - su, b2 = u2 * su;   /* uniform by area */
     out->tri = t;
     out->p = emb_tri_point(m, t, b1, b2);
-    out->n = emb_tri_normal(m, t);
+    out->n = l->nrm[lo];
     out->le = m->mats[m->tri_mat[t]].emission;
     out->pdf_area = l->pdf_area[t];
     return true;

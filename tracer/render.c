@@ -20,7 +20,6 @@ void render_options_default(render_options *o, int width, int height)
     o->spp = 1;
     o->threads = 1;
     o->tile = 16;
-    o->raylog_stride = 1;
 }
 
 typedef struct job {
@@ -66,10 +65,7 @@ static void render_tile(worker *w, int tile)
                 r->radius = 0.5f;
                 r->priority = 0.0f;
             }
-            /* Log the rays of every stride-th pixel (hashed, so the logged
-             * subset is spread over the image, not its first tiles). */
-            bool logit = w->log.cap > 0 && ct_hash64(pix) % (uint64_t)o->raylog_stride == 0;
-            w->st.log = logit ? &w->log : NULL;
+            w->st.log = w->log.cap > 0 ? &w->log : NULL;
             trc_trace(j->t, &j->view, w->req, (size_t)o->spp, w->out, &w->st);
             double sx = 0.0, sy = 0.0, sz = 0.0;
             for (int s = 0; s < o->spp; s++) {
@@ -146,7 +142,7 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     if (o->spp < 1 || o->spp > (1 << 20)) return ct_fail(err, CT_EINVAL, "spp %d outside 1..1048576", o->spp);
     if (o->threads < 1 || o->threads > MAX_THREADS)
         return ct_fail(err, CT_EINVAL, "threads %d outside 1..%d", o->threads, MAX_THREADS);
-    if (o->tile < 1 || o->raylog_stride < 1) return ct_fail(err, CT_EINVAL, "tile and log stride must be >= 1");
+    if (o->tile < 1) return ct_fail(err, CT_EINVAL, "tile %d must be >= 1", o->tile);
     job j;
     j.t = t;
     j.o = o;
@@ -167,6 +163,7 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         if (o->raylog_cap) {
             ws[i].log.rays = malloc(o->raylog_cap * sizeof *ws[i].log.rays);
             ws[i].log.cap = ws[i].log.rays ? o->raylog_cap : 0;
+            ws[i].log.state = (uint64_t)i + 1;
         }
         if (!ws[i].req || !ws[i].out || (o->raylog_cap && !ws[i].log.rays)) {
             free_workers(ws, o->threads);
@@ -202,6 +199,7 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         res->logged += ws[i].log.n;
     }
     if (res->logged) {
+        for (int i = 0; i < o->threads; i++) trc_raylog_sort(&ws[i].log);
         res->replay_isect_s = replay(ws, o->threads, 0, err, &rc);
         if (!rc) res->replay_traced_s = replay(ws, o->threads, 1, err, &rc);
     }

@@ -3,8 +3,9 @@
  * pthreads pulling square tiles from a shared counter, with a progress line.
  * Request ids are ((y * W + x) * spp + s + 1), the jitter comes from
  * rng_make(seed, id, epoch, TRC_DIM_PIXEL), so an image is bit-identical
- * for any thread count. Optionally logs the rays of a subset of pixels and
- * replays them with raw Embree queries, the benchmark's physical limit. */
+ * for any thread count. Optionally logs (a random subset of) the rays it
+ * traced and replays them with raw Embree queries in the order they were
+ * traced: the benchmark's physical limit for the same rays. */
 #ifndef CT_TRACER_RENDER_H
 #define CT_TRACER_RENDER_H
 
@@ -21,8 +22,8 @@ typedef struct render_options {
     int threads;          /* worker threads (>= 1) */
     int tile;             /* tile edge in pixels */
     uint32_t epoch;       /* the requests' epoch (frame index for --frames) */
-    size_t raylog_cap;    /* rays logged per thread for the raw replay (0: none) */
-    int raylog_stride;    /* log the rays of one pixel in this many */
+    size_t raylog_cap;    /* rays logged per thread for the raw replay (0: none);
+                             a uniform random subset of the traced rays */
     const char *progress; /* progress line component, NULL: silent */
 } render_options;
 

@@ -1,5 +1,6 @@
 #include "tracer/tracer.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -125,9 +126,30 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->st = st;
 }
 
+/* A view's camera axes and tangents, computed once per batch; cam_dir then
+ * does exactly cam_ray_dir's arithmetic (same results, bit for bit). */
+typedef struct view_pre {
+    vec3 r, u, f;
+    float th, tw;
+} view_pre;
+
+static void view_prepare(const trc_view *v, view_pre *p)
+{
+    p->th = tanf(0.5f * v->cam.fov_y);
+    p->tw = p->th * (float)v->width / (float)v->height;
+    cam_axes(&v->cam, &p->r, &p->u, &p->f);
+}
+
+static vec3 cam_dir(const view_pre *p, const trc_view *v, float px, float py)
+{
+    float sx = (2.0f * px / (float)v->width - 1.0f) * p->tw;
+    float sy = (1.0f - 2.0f * py / (float)v->height) * p->th;
+    return v3_norm(v3_add(p->f, v3_add(v3_scale(p->r, sx), v3_scale(p->u, sy))));
+}
+
 /* The primary part of a record: request fields, hit, L_base. */
-static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const ct_request *r,
-                    ct_sample *out, integ_surf *s, vec3 *d)
+static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const view_pre *vp,
+                    const ct_request *r, ct_sample *out, integ_surf *s, vec3 *d)
 {
     memset(out, 0, sizeof *out);
     out->request_id = r->id;
@@ -136,7 +158,7 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
     out->py = r->py;
     out->node = UINT32_MAX;
     out->tri = UINT32_MAX;
-    *d = cam_ray_dir(&v->cam, v->width, v->height, r->px, r->py);
+    *d = cam_dir(vp, v, r->px, r->py);
     if (!integ_primary(c, v->cam.eye, *d, s)) return false;
     out->flags |= CT_SAMPLE_HIT;
     if (!v3_is_zero(s->m->emission)) out->flags |= CT_SAMPLE_EMISSIVE;
@@ -157,13 +179,15 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
 {
     integ_ctx c;
     init_ctx(t, &c, st);
+    view_pre vp;
+    view_prepare(v, &vp);
     unsigned fpu = fpu_enter();
     for (size_t i = 0; i < n; i++) {
         integ_surf s;
         vec3 d;
         c.rng = rng_make(t->opt.seed, req[i].id, req[i].epoch, TRC_DIM_TRACE);
         st->samples++;
-        if (!primary(t, &c, v, &req[i], &out[i], &s, &d)) continue;
+        if (!primary(t, &c, v, &vp, &req[i], &out[i], &s, &d)) continue;
         vec3 base = out[i].l_base;
         vec3 l = integ_radiance(&c, v->cam.eye, d, &s, &base);
         /* A NaN or infinity (a degenerate frame) would poison every average
@@ -179,14 +203,27 @@ void trc_trace_primary(const trc_tracer *t, const trc_view *v, const ct_request 
 {
     integ_ctx c;
     init_ctx(t, &c, st);
+    view_pre vp;
+    view_prepare(v, &vp);
     unsigned fpu = fpu_enter();
     for (size_t i = 0; i < n; i++) {
         integ_surf s;
         vec3 d;
         st->samples++;
-        primary(t, &c, v, &req[i], &out[i], &s, &d);
+        primary(t, &c, v, &vp, &req[i], &out[i], &s, &d);
     }
     fpu_leave(fpu);
+}
+
+static int by_seq(const void *a, const void *b)
+{
+    uint64_t x = ((const trc_ray *)a)->seq, y = ((const trc_ray *)b)->seq;
+    return x < y ? -1 : x > y;
+}
+
+void trc_raylog_sort(trc_raylog *log)
+{
+    if (log->n > 1) qsort(log->rays, log->n, sizeof *log->rays, by_seq);
 }
 
 uint64_t trc_replay(const trc_tracer *t, const trc_raylog *log, int as_traced)

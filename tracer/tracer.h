@@ -59,13 +59,21 @@ typedef struct trc_ray {
     float o[3], d[3];
     float tnear, tfar;
     uint32_t shadow;     /* 1: traced with rtcOccluded1 */
+    uint64_t seq;        /* position in the thread's ray stream */
 } trc_ray;
 
-/* A bounded per-thread ray log; rays past cap are counted, not stored. */
+/* A bounded per-thread ray log: a uniform random subset (reservoir
+ * sampling) of all rays the thread traced, so a capped log still represents
+ * the whole image; trc_raylog_sort restores the traced order for replay. */
 typedef struct trc_raylog {
     trc_ray *rays;
     size_t n, cap;
+    uint64_t seen;       /* rays offered to the log */
+    uint64_t state;      /* the reservoir's own random state */
 } trc_raylog;
+
+/* Sorts a log's rays back into the order they were traced. */
+void trc_raylog_sort(trc_raylog *log);
 
 /* Per-thread counters (and optional ray log). */
 typedef struct trc_stats {

@@ -194,12 +194,11 @@ Test(determinism, raw_replay_counts_the_logged_rays, .init = setup, .fini = tear
     render_options_default(&o, 32, 24);
     o.threads = 2;
     o.raylog_cap = 100000;
-    o.raylog_stride = 1;
     float *img = calloc(32 * 24 * 3, sizeof(float));
     render_result r;
     ct_error err;
     cr_assert_eq(render_image(t, &room->cams[0].cam, &o, img, &r, &err), 0, "%s", err.msg);
-    /* Every ray fits in the log at stride 1: the replay covers all of them. */
+    /* Every ray fits in the log: the replay covers all of them. */
     cr_expect(r.logged == trc_stats_rays(&r.stats), "logged %llu of %llu rays", (unsigned long long)r.logged,
               (unsigned long long)trc_stats_rays(&r.stats));
     cr_expect(r.replay_isect_s > 0.0 && r.replay_traced_s > 0.0);
