@@ -8,6 +8,7 @@ struct light_set {
     uint32_t n;
     uint32_t *tri;      /* emissive triangles */
     vec3 *nrm;          /* their unit front normals */
+    vec3 *geo;          /* per light: vertex 0, edge 1 - 0, edge 2 - 0, L_e (no index lookups) */
     float *cdf;         /* n + 1 entries, cdf[n] = 1 */
     float *pdf_area;    /* per mesh triangle: selection probability / area */
 };
@@ -27,7 +28,8 @@ int light_build(const emb_mesh *m, light_set **out, ct_error *err)
     l->tri = malloc((l->n ? l->n : 1) * sizeof *l->tri);
     l->cdf = malloc(((size_t)l->n + 1) * sizeof *l->cdf);
     l->nrm = malloc((l->n ? l->n : 1) * sizeof *l->nrm);
-    if (!l->tri || !l->cdf || !l->nrm) goto oom;
+    l->geo = malloc((l->n ? l->n : 1) * 4 * sizeof *l->geo);
+    if (!l->tri || !l->cdf || !l->nrm || !l->geo) goto oom;
     /* Cumulative power in double: thousands of small radiosity triangles
      * would lose precision summed in float. */
     double total = 0.0;
@@ -42,6 +44,11 @@ int light_build(const emb_mesh *m, light_set **out, ct_error *err)
         if (!(v3_luminance(le) > 0.0f && a > 0.0f)) continue;
         l->tri[k] = t;
         l->nrm[k] = emb_tri_normal(m, t);
+        const uint32_t *vi = m->tris + 3 * (size_t)t;
+        l->geo[4 * k] = m->pos[vi[0]];
+        l->geo[4 * k + 1] = v3_sub(m->pos[vi[1]], m->pos[vi[0]]);
+        l->geo[4 * k + 2] = v3_sub(m->pos[vi[2]], m->pos[vi[0]]);
+        l->geo[4 * k + 3] = le;
         total += (double)a * v3_luminance(le);
         acc[++k] = total;
     }
@@ -65,6 +72,7 @@ void light_free(light_set *l)
     free(l->tri);
     free(l->cdf);
     free(l->nrm);
+    free(l->geo);
     free(l->pdf_area);
     free(l);
 }
@@ -82,13 +90,13 @@ bool light_sample(const light_set *l, float u0, float u1, float u2, light_point 
         else lo = mid + 1;
     }
     uint32_t t = l->tri[lo];
-    const emb_mesh *m = l->mesh;
     float su = sqrtf(u1);
     float b1 = 1.0f - su, b2 = u2 * su;   /* uniform by area */
+    const vec3 *g = l->geo + 4 * (size_t)lo;
     out->tri = t;
-    out->p = emb_tri_point(m, t, b1, b2);
+    out->p = v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
     out->n = l->nrm[lo];
-    out->le = m->mats[m->tri_mat[t]].emission;
+    out->le = g[3];
     out->pdf_area = l->pdf_area[t];
     return true;
 }
