@@ -16,7 +16,10 @@
 typedef enum emis_mode { EMIS_FULL = 0, EMIS_NONE = 1, EMIS_MIS = 2 } emis_mode;
 
 /* How emission found by a ray counts: fully (camera rays, delta bounces),
- * not at all, or MIS-weighted against light sampling. */
+ * not at all, or MIS-weighted against light sampling. Light that a shading
+ * point's shadow rays received through glass (straight, attenuated) must not
+ * be counted again by its scattered rays passing the same glass: a ray that
+ * is only refracted keeps FULL, and turns MIS into NONE (see after_delta). */
 typedef struct emis_w {
     emis_mode mode;
     float pdf;    /* solid-angle pdf of the direction (EMIS_MIS) */
@@ -28,6 +31,16 @@ typedef enum direct_mode {
     DIRECT_GLOSSY_MIS,  /* drt: f_d with weight 1, f_g MIS against the B glossy rays */
     DIRECT_GLOSSY_ONLY  /* reuse-diffuse: f_g only (diffuse comes from radiosity) */
 } direct_mode;
+
+/* The emission mode of a ray leaving a mirror or dielectric: reflections see
+ * lights fully; a refraction continues a straight line that shadow rays
+ * already looked along, unless it started at the camera or a reflection. */
+static inline emis_w after_delta(emis_w in, bool transmit)
+{
+    emis_w out = {EMIS_FULL, 0.0f, 1};
+    if (transmit && in.mode != EMIS_FULL) out.mode = EMIS_NONE;
+    return out;
+}
 
 static inline float power_heuristic(float a, float b)
 {
@@ -114,8 +127,9 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
  * an opaque surface; through dielectrics, their transmission colour times
  * (1 - Fresnel) per crossing (refraction of the shadow ray itself is
  * ignored, so glass casts a lighter, unfocused shadow as in the paper). */
-static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target)
+static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
 {
+    *crossed = false;
     vec3 d = v3_sub(target, o);
     float dist = v3_len(d);
     if (!(dist > 0.0f)) return v3s(0.0f);
@@ -132,6 +146,7 @@ static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target)
         if (!emb_intersect(c->emb, o, d, 0.0f, dist, &h)) return att;
         const scene_material *m = &c->mesh->mats[h.mat];
         if (!m->dielectric) return v3s(0.0f);
+        *crossed = true;
         vec3 ng = emb_tri_normal(c->mesh, h.tri);
         float cosd = v3_dot(d, ng), ct;
         float ior = m->ior > 0.0f ? m->ior : 1.0f;
@@ -172,21 +187,25 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
         if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
         float pl = lp.pdf_area * d2 / cos_l;
         if (!(pl > 0.0f)) continue;
-        vec3 f;
+        float pb = 0.0f;
+        vec3 f, fg = v3s(0.0f);
         if (mode == DIRECT_ALL) {
-            float pb;
             f = bsdf_eval(b, wo, wi, &pb);
-            f = v3_scale(f, power_heuristic((float)k_rays * pl, (float)nb * pb));
         } else {
-            vec3 fg = bsdf_eval_glossy(b, wo, wi);
-            float w = nb > 0 ? power_heuristic((float)k_rays * pl, (float)nb * bsdf_pdf_glossy(b, wo, wi))
-                             : 1.0f;
-            f = v3_scale(fg, w);
-            if (mode == DIRECT_GLOSSY_MIS) f = v3_add(f, bsdf_eval_diffuse(b, wi));
+            fg = bsdf_eval_glossy(b, wo, wi);
+            pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
+            f = mode == DIRECT_GLOSSY_MIS ? v3_add(fg, bsdf_eval_diffuse(b, wi)) : fg;
         }
         if (v3_is_zero(f)) continue;
-        vec3 tr = transmittance(c, origin, offset_ray(lp.p, lp.n));
+        bool crossed;
+        vec3 tr = transmittance(c, origin, offset_ray(lp.p, lp.n), &crossed);
         if (v3_is_zero(tr)) continue;
+        /* MIS against the scattered rays, except through glass: scattered
+         * rays do not count lights seen through it (after_delta). */
+        float w = crossed ? 1.0f : power_heuristic((float)k_rays * pl, (float)nb * pb);
+        if (mode == DIRECT_ALL) f = v3_scale(f, w);
+        else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(f, fg), v3_scale(fg, w));
+        else f = v3_scale(fg, w);
         float g = v3_dot(wi, b->n) / (pl * (float)k_rays);
         sum = v3_add(sum, v3_scale(v3_mul(v3_mul(f, lp.le), tr), g));
     }
@@ -223,9 +242,13 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         bsdf_sample bs;
         if (!bsdf_sample_all(&b, wo, u0, u1, u2, &bs)) break;
         beta = v3_mul(beta, bs.weight);
-        ew.mode = bs.delta ? EMIS_FULL : EMIS_MIS;
-        ew.pdf = bs.pdf;
-        ew.n = 1;
+        if (bs.delta) {
+            ew = after_delta(ew, bs.transmit);
+        } else {
+            ew.mode = EMIS_MIS;
+            ew.pdf = bs.pdf;
+            ew.n = 1;
+        }
         if (depth >= RR_START) {
             float q = fminf(0.95f, v3_maxc(beta));
             if (!(rnd(c) < q)) break;
@@ -268,7 +291,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
         }
     }
     if (!recurse) return L;
-    emis_w full = {EMIS_FULL, 0.0f, 1};
+    emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
     vec3 up = offset_ray(s.p, b.ng);
     for (int i = 0; i < nb; i++) {
         bsdf_sample bs;
@@ -280,15 +303,15 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     }
     if (v3_maxc(b.km) > 0.0f) {
         vec3 wr = bsdf_reflect(wo, b.n);
-        if (bsdf_same_side(&b, wr)) L = v3_add(L, v3_mul(b.km, drt_li(c, up, wr, NULL, depth + 1, full)));
+        if (bsdf_same_side(&b, wr)) L = v3_add(L, v3_mul(b.km, drt_li(c, up, wr, NULL, depth + 1, refl)));
     }
     if (b.dielectric) {
         vec3 wr, wt;
         bool ok;
         float f = bsdf_dielectric(&b, wo, &wr, &wt, &ok);
-        L = v3_add(L, v3_scale(drt_li(c, up, wr, NULL, depth + 1, full), f));
+        L = v3_add(L, v3_scale(drt_li(c, up, wr, NULL, depth + 1, refl), f));
         if (ok) {
-            vec3 lt = drt_li(c, offset_ray(s.p, v3_neg(b.ng)), wt, NULL, depth + 1, full);
+            vec3 lt = drt_li(c, offset_ray(s.p, v3_neg(b.ng)), wt, NULL, depth + 1, refr);
             L = v3_add(L, v3_mul(lt, v3_scale(b.kt, (1.0f - f) * b.eta * b.eta)));
         }
     }
@@ -319,7 +342,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     int nb = recurse && b.p_g > 0.0f ? opt->branch : 0;
     vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);
     if (recurse) {
-        emis_w full = {EMIS_FULL, 0.0f, 1};
+        emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
         vec3 up = offset_ray(s.p, b.ng);
         for (int i = 0; i < nb; i++) {
             bsdf_sample bs;
@@ -332,15 +355,15 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
         if (v3_maxc(b.km) > 0.0f) {
             vec3 wr = bsdf_reflect(wo, b.n);
             if (bsdf_same_side(&b, wr))
-                extra = v3_add(extra, v3_mul(b.km, reuse_li(c, up, wr, NULL, depth + 1, full, NULL)));
+                extra = v3_add(extra, v3_mul(b.km, reuse_li(c, up, wr, NULL, depth + 1, refl, NULL)));
         }
         if (b.dielectric) {
             vec3 wr, wt;
             bool ok;
             float f = bsdf_dielectric(&b, wo, &wr, &wt, &ok);
-            extra = v3_add(extra, v3_scale(reuse_li(c, up, wr, NULL, depth + 1, full, NULL), f));
+            extra = v3_add(extra, v3_scale(reuse_li(c, up, wr, NULL, depth + 1, refl, NULL), f));
             if (ok) {
-                vec3 lt = reuse_li(c, offset_ray(s.p, v3_neg(b.ng)), wt, NULL, depth + 1, full, NULL);
+                vec3 lt = reuse_li(c, offset_ray(s.p, v3_neg(b.ng)), wt, NULL, depth + 1, refr, NULL);
                 extra = v3_add(extra, v3_mul(lt, v3_scale(b.kt, (1.0f - f) * b.eta * b.eta)));
             }
         }

@@ -231,3 +231,83 @@ Test(tracer, mirror_shows_known_emitter)
     rmesh_free(&rad);
     scene_free(s);
 }
+
+/* --- drt takes its indirect diffuse light from the radiosity mesh ---------- */
+
+Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
+{
+    ct_error err;
+    ct_scene *s = scene_new("plane");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(10, 5, 2), &err);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    /* Stand-in radiosity: rad = L_e + rho * A, rad_direct = L_e, so the
+     * indirect part on the floor is rho * A = 0.5 * (0.2, 0.4, 0.6). */
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3(0.2f, 0.4f, 0.6f), &rad, &err));
+    trc_tracer *t = make_tracer(s, &rad, TRC_MODE_DRT, 4, 0, 0);
+    trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
+    ct_sample last;
+    vec3 l = mean_at(t, &v, 8, 8, 2000, 1, &last);
+    double f = ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
+    double want_x = 0.5 * 10.0 * f + 0.1, want_z = 0.5 * 2.0 * f + 0.3;
+    cr_expect(fabs(l.x - want_x) < 0.02 * want_x, "L.x = %g, want direct + indirect %g", (double)l.x, want_x);
+    cr_expect(fabs(l.z - want_z) < 0.02 * want_z, "L.z = %g, want %g", (double)l.z, want_z);
+    cr_expect(last.flags & CT_SAMPLE_HAS_BASE);
+    vec3 base = rmesh_eval(&rad, last.tri, last.u, last.v);
+    cr_expect(memcmp(&base, &last.l_base, sizeof base) == 0, "l_base is not the Gouraud value at the hit");
+    trc_free(t);
+    rmesh_free(&rad);
+    scene_free(s);
+}
+
+/* --- shadows of transparent objects ----------------------------------------- */
+
+static vec3 under_slab(trc_mode mode, bool with_slab)
+{
+    ct_error err;
+    ct_scene *s = scene_new("shadow");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(100.0f), &err);
+    scene_material g = scene_material_default("glass");
+    g.dielectric = 1;
+    g.ior = 1.5f;
+    g.transmission = v3(1.0f, 0.5f, 1.0f);
+    int gm = scene_add_material(s, &g, &err);
+    cr_assert(floor_m >= 0 && lamp >= 0 && gm >= 0);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
+    /* A small light high above: shadow rays cross the slab almost normally. */
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.05f, 5, -0.05f), v3(0.1f, 0, 0), v3(0, 0, 0.1f), &err) >= 0);
+    if (with_slab)
+        cr_assert(ts_box(s, "slab", (uint32_t)gm, v3(-3, 1, -3), v3(3, 1.2f, 3), false, &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    /* Direct light only: path stops after one bounce, drt takes a zero
+     * indirect part from a stand-in radiosity mesh (the floor and the glass
+     * would otherwise interreflect). */
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
+    trc_tracer *t = make_tracer(s, mode == TRC_MODE_DRT ? &rad : NULL, mode, 4, 0, 1);
+    trc_view v = view_of(v3(0, 0.5f, -1.0f), v3(0, 0, 0), 30.0f, 9, 9);
+    vec3 l = mean_at(t, &v, 4.5f, 4.5f, 500, 1, NULL);
+    trc_free(t);
+    rmesh_free(&rad);
+    scene_free(s);
+    return l;
+}
+
+Test(tracer, glass_attenuates_shadow_rays_instead_of_blocking)
+{
+    for (int mode = TRC_MODE_PATH; mode <= TRC_MODE_DRT; mode++) {
+        vec3 open = under_slab((trc_mode)mode, false), shaded = under_slab((trc_mode)mode, true);
+        /* Two crossings at (nearly) normal incidence: (1 - F0)^2 * transmission. */
+        double f0 = 0.04, want = (1 - f0) * (1 - f0);
+        cr_assert(open.x > 0.0f);
+        double rx = shaded.x / open.x, ry = shaded.y / open.y;
+        cr_expect(fabs(rx - want) < 0.01, "%s: glass passes %g of the light, want %g", trc_mode_name((trc_mode)mode),
+                  rx, want);
+        cr_expect(fabs(ry - want * 0.25) < 0.01, "%s: green passes %g, want %g", trc_mode_name((trc_mode)mode), ry,
+                  want * 0.25);
+    }
+}
