@@ -14,6 +14,7 @@
 #include "common/fsutil.h"
 #include "common/image.h"
 #include "common/log.h"
+#include "common/radmesh.h"
 #include "common/scene.h"
 #include "common/timer.h"
 #include "tracer/render.h"
@@ -30,6 +31,7 @@ typedef struct ref_args {
     uint64_t seed;
     float exposure;
     int png, half, raw_embree;
+    float stand_in;         /* < 0: no stand-in radiosity */
     long raw_cap;
 } ref_args;
 
@@ -57,10 +59,16 @@ static void help(FILE *f)
         "  --spp S           samples per pixel, jittered in the pixel (required)\n"
         "  --mode MODE       path | drt | reuse-diffuse (required)\n"
         "                      path: unbiased path tracing with next-event estimation and MIS\n"
-        "                      drt: distributed ray tracing; without a radiosity mesh (not yet\n"
-        "                           loadable here) its indirect diffuse light is path-traced\n"
-        "                      reuse-diffuse: needs a radiosity mesh: not available from this\n"
-        "                           command until radiosity meshes can be loaded\n"
+        "                      drt: distributed ray tracing; indirect diffuse light from the\n"
+        "                           radiosity mesh; without one (radiosity meshes cannot be\n"
+        "                           loaded here yet) it is path-traced\n"
+        "                      reuse-diffuse: the diffuse part from a radiosity mesh, only\n"
+        "                           specular transport traced; needs --stand-in-radiosity until\n"
+        "                           radiosity meshes can be loaded\n"
+        "  --stand-in-radiosity A   use a stand-in interactive solution (every surface\n"
+        "                    L_e + rho_d * A, no shadows; rmesh_from_scene) for drt and\n"
+        "                    reuse-diffuse: for tests and throughput only, the images are\n"
+        "                    not references (default: none)\n"
         "  --threads T       render threads (default: %ld, the online CPUs)\n"
         "  --shadow-rays K   light samples per shading point (default: path %d, drt %d)\n"
         "  --branch B        drt: rays per glossy lobe at each hit (default %d)\n"
@@ -113,6 +121,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
     a->tile = 16;
     a->seed = 1;
     a->raw_cap = 2000000;
+    a->stand_in = -1.0f;
     long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
     a->threads = ncpu > 0 ? (int)(ncpu < 256 ? ncpu : 256) : 1;
     for (int i = 1; i < argc; i++) {
@@ -144,6 +153,11 @@ static int parse_args(int argc, char **argv, ref_args *a)
             char *end;
             a->exposure = strtof(v, &end);
             if (end == v || *end || !isfinite(a->exposure)) return bad("--exposure: '%s' is not a number%s", v, ""), -1;
+        } else if (!strcmp(o, "--stand-in-radiosity")) {
+            char *end;
+            a->stand_in = strtof(v, &end);
+            if (end == v || *end || !isfinite(a->stand_in) || a->stand_in < 0.0f)
+                return bad("--stand-in-radiosity: '%s' is not a number >= 0%s", v, ""), -1;
         } else if (!strcmp(o, "--seed")) {
             char *end;
             errno = 0;
@@ -179,8 +193,9 @@ static int parse_args(int argc, char **argv, ref_args *a)
         snprintf(n, sizeof n, "%d", a->frames);
         return bad("--frame %s is not below --frames %s", f, n), -1;
     }
-    if (a->mode == TRC_MODE_REUSE)
-        return bad("mode reuse-diffuse needs a radiosity mesh, which this command cannot load yet%s%s", "", ""), -1;
+    if (a->mode == TRC_MODE_REUSE && a->stand_in < 0.0f)
+        return bad("mode reuse-diffuse needs a radiosity mesh: give --stand-in-radiosity A "
+                   "(radiosity meshes cannot be loaded here yet)%s%s", "", ""), -1;
     return 0;
 }
 
@@ -263,6 +278,9 @@ int cmd_reference(int argc, char **argv)
     const ct_campath *path = NULL;
     ct_camera cam;
     ct_image img = {0, 0, NULL};
+    ct_radmesh rad;
+    memset(&rad, 0, sizeof rad);
+    bool have_rad = false;
     int status = 2, rc;
 
     if ((rc = scene_load(a.scene, &s, &err))) goto fail;
@@ -300,7 +318,13 @@ int cmd_reference(int argc, char **argv)
     if (a.depth) to.depth = a.depth;
     to.seed = a.seed;
     double tb = ct_now();
-    if ((rc = trc_new(s, NULL, &to, &t, &err))) goto fail;
+    if (a.stand_in >= 0.0f) {
+        if ((rc = rmesh_from_scene(s, v3s(a.stand_in), &rad, &err))) goto fail;
+        have_rad = true;
+        ct_warn(CMD, "stand-in radiosity (L_e + rho_d * %g): throughput and tests only, not a reference",
+                (double)a.stand_in);
+    }
+    if ((rc = trc_new(s, have_rad ? &rad : NULL, &to, &t, &err))) goto fail;
     ct_info(CMD, "%s: %u triangles, %u lights; Embree scene built in %.2f s", a.scene, s->ntris, s->nemitters,
             ct_now() - tb);
     img.width = a.width;
@@ -350,6 +374,7 @@ fail:
 done:
     free(img.px);
     trc_free(t);
+    if (have_rad) rmesh_free(&rad);
     if (own_path.keys) campath_free(&own_path);
     scene_free(s);
     return status;

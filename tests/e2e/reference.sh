@@ -27,6 +27,11 @@ run "$BIN/corrtex" reference "$SCENE" --camera top --width 32 --height 24 --spp 
 run exrheader "$tmp/h.exr" >"$tmp/hdr2" 2>&1 || die "exrheader cannot read h.exr"
 grep -qE '^ +R, 16-bit floating-point' "$tmp/hdr2" || die "--half did not write half floats"
 
+# reuse-diffuse needs a radiosity mesh (here the stand-in).
+run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode reuse-diffuse \
+    --stand-in-radiosity 0.1 --quiet -o "$tmp/r.exr" >/dev/null 2>&1 || die "reuse-diffuse with a stand-in failed"
+exrheader "$tmp/r.exr" >/dev/null 2>&1 || die "reuse-diffuse wrote no readable EXR"
+
 # Same image for 1 and 2 threads, byte for byte.
 run "$BIN/corrtex" reference "$SCENE" --width 32 --height 24 --spp 2 --mode drt --threads 1 --quiet \
     -o "$tmp/a1.exr" >/dev/null || die "1-thread render failed"
@@ -62,6 +67,8 @@ check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
 check "missing.json" "$tmp/missing.json" "${common[@]}" --mode path
 check "--frame 3 is not below --frames 3" "$SCENE" "${common[@]}" --mode path --path walk --frame 3 --frames 3
+check "needs a radiosity mesh" "$SCENE" "${common[@]}" --mode reuse-diffuse
+check "--stand-in-radiosity: '-1'" "$SCENE" "${common[@]}" --mode drt --stand-in-radiosity -1
 check "path 'nowhere'" "$SCENE" "${common[@]}" --mode path --path nowhere --frames 2
 [[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"
 exit $fail
