@@ -165,7 +165,11 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
             ws[i].log.cap = ws[i].log.rays ? o->raylog_cap : 0;
             ws[i].log.state = (uint64_t)i + 1;
         }
-        if (!ws[i].req || !ws[i].out || (o->raylog_cap && !ws[i].log.rays)) {
+        if (o->raylog_cap && !ws[i].log.rays) {
+            free_workers(ws, o->threads);
+            return ct_fail(err, CT_ENOMEM, "out of memory for a ray log of %zu rays per thread", o->raylog_cap);
+        }
+        if (!ws[i].req || !ws[i].out) {
             free_workers(ws, o->threads);
             return ct_fail(err, CT_ENOMEM, "out of memory for %d samples per pixel", o->spp);
         }
