@@ -123,14 +123,21 @@ static int start_all(worker *ws, int n, void *(*fn)(void *), ct_error *err)
     return CT_OK;
 }
 
+/* Wall time of replaying every worker's log on its own thread; the best of
+ * two runs, so a burst of load from other processes counts less. */
 static double replay(worker *ws, int n, int as_traced, ct_error *err, int *rc)
 {
-    for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
-    double t0 = ct_now();
-    *rc = start_all(ws, n, run_replay, err);
-    if (*rc) return 0.0;
-    for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
-    return ct_now() - t0;
+    double best = 0.0;
+    for (int run = 0; run < 2; run++) {
+        for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
+        double t0 = ct_now();
+        *rc = start_all(ws, n, run_replay, err);
+        if (*rc) return 0.0;
+        for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
+        double dt = ct_now() - t0;
+        if (run == 0 || dt < best) best = dt;
+    }
+    return best;
 }
 
 int render_image(const trc_tracer *t, const ct_camera *cam, const render_options *o, float *rgb,
