@@ -2,6 +2,7 @@
  * reference renderer (any thread count): bit-identical records and images.
  * reuse-diffuse: corrections L_hq - L_base are never negative. */
 #include <criterion/criterion.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
@@ -290,5 +291,37 @@ Test(determinism, capped_ray_log_is_a_spread_subset_in_traced_order, .init = set
     /* A uniform subset: about half of the kept rays come from the second half. */
     cr_expect(late > 60 && late < 140, "%llu of 200 kept rays from the second half", (unsigned long long)late);
     free(log.rays);
+    trc_free(t);
+}
+
+Test(tracer_api, primary_hits_match_full_records, .init = setup, .fini = teardown)
+{
+    trc_tracer *t = tracer_for(TRC_MODE_DRT, true);
+    trc_view v = room_view();
+    static ct_request req[NREQ];
+    static ct_sample full[NREQ], prim[NREQ];
+    make_requests(req, NREQ);
+    trc_stats sf = {0}, sp = {0};
+    trc_trace(t, &v, req, NREQ, full, &sf);
+    trc_trace_primary(t, &v, req, NREQ, prim, &sp);
+    cr_expect_eq(sp.primary, NREQ);
+    cr_expect_eq(sp.secondary + sp.shadow, 0);
+    for (int i = 0; i < NREQ; i++) {
+        cr_assert_eq(prim[i].request_id, req[i].id);
+        cr_assert_eq(prim[i].epoch, req[i].epoch);
+        cr_assert_eq(prim[i].flags, full[i].flags);
+        cr_assert(prim[i].flags & CT_SAMPLE_HIT);
+        cr_assert_eq(prim[i].node, full[i].node);
+        cr_assert_eq(prim[i].tri, full[i].tri);
+        cr_assert(memcmp(&prim[i].hit, &full[i].hit, sizeof prim[i].hit) == 0);
+        cr_assert(memcmp(&prim[i].l_base, &full[i].l_base, sizeof prim[i].l_base) == 0);
+        cr_assert(v3_is_zero(prim[i].l_hq));
+        /* The hit projects back onto the request's image position. */
+        float px, py, depth;
+        cr_assert(cam_project(&v.cam, v.width, v.height, prim[i].hit, &px, &py, &depth));
+        cr_expect(fabsf(px - req[i].px) < 1e-2f && fabsf(py - req[i].py) < 1e-2f,
+                  "hit projects to (%g, %g), request at (%g, %g)", (double)px, (double)py, (double)req[i].px,
+                  (double)req[i].py);
+    }
     trc_free(t);
 }
