@@ -4,6 +4,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -252,6 +253,14 @@ Test(tracer_api, rejects_bad_options, .init = setup, .fini = teardown)
     trc_options_default(&o, TRC_MODE_DRT);
     o.shadow_rays = 0;
     cr_expect_eq(trc_new(room, NULL, &o, &t, &err), CT_EINVAL);
+    /* A radiosity mesh of another scene. */
+    trc_options_default(&o, TRC_MODE_DRT);
+    ct_radmesh other;
+    cr_assert_eq(rmesh_from_scene(room, v3s(0.0f), &other, &err), 0);
+    snprintf(other.nodes[2].name, sizeof other.nodes[2].name, "%s", "elsewhere");
+    cr_expect_eq(trc_new(room, &other, &o, &t, &err), CT_ESTALE);
+    cr_expect(strstr(err.msg, "elsewhere") != NULL, "%s", err.msg);
+    rmesh_free(&other);
     trc_mode m;
     cr_expect_eq(trc_mode_parse("whitted", &m, &err), CT_EINVAL);
     cr_expect(strstr(err.msg, "whitted") != NULL);
