@@ -261,6 +261,61 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
     return L;
 }
 
+typedef vec3 (*radiance_fn)(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
+
+static vec3 drt_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
+static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
+
+/* Glossy rays at a hit on recursion level depth: B on the first
+ * branch_depth levels, 1 below (so a sample's cost grows linearly with D,
+ * not as B^D), none at the last level or without a glossy lobe. */
+static int glossy_rays(const trc_options *opt, const bsdf *b, int depth)
+{
+    if (depth >= opt->depth || b->p_g <= 0.0f) return 0;
+    return depth < opt->branch_depth ? opt->branch : 1;
+}
+
+/* The traced non-diffuse transport at s (drt, reuse-diffuse): nb glossy
+ * rays MIS-weighted against light sampling, the mirror ray, and the Fresnel
+ * reflection and refraction: both on the first branch_depth levels, below
+ * one of them chosen with probability F (unbiased). li continues a ray. */
+static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, int depth, emis_w ew,
+                             int nb, radiance_fn li)
+{
+    vec3 L = v3s(0.0f);
+    emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
+    vec3 up = offset_ray(s->p, b->ng);
+    for (int i = 0; i < nb; i++) {
+        bsdf_sample bs;
+        float u1 = rnd(c), u2 = rnd(c);
+        if (!bsdf_sample_glossy(b, wo, u1, u2, &bs)) continue;
+        emis_w mis = {EMIS_MIS, bs.pdf, nb};
+        vec3 l = li(c, up, bs.wi, depth + 1, mis);
+        L = v3_add(L, v3_scale(v3_mul(bs.weight, l), 1.0f / (float)nb));
+    }
+    if (v3_maxc(b->km) > 0.0f) {
+        vec3 wr = bsdf_reflect(wo, b->n);
+        if (bsdf_same_side(b, wr)) L = v3_add(L, v3_mul(b->km, li(c, up, wr, depth + 1, refl)));
+    }
+    if (b->dielectric) {
+        vec3 wr, wt;
+        bool ok;
+        float f = bsdf_dielectric(b, wo, &wr, &wt, &ok);
+        float wrefl = f, wrefr = 1.0f - f;
+        if (ok && depth >= c->opt->branch_depth) {
+            /* One branch, picked by Fresnel: the weights F/F and (1-F)/(1-F). */
+            if (rnd(c) < f) wrefr = 0.0f, wrefl = 1.0f;
+            else wrefl = 0.0f, wrefr = 1.0f;
+        }
+        if (wrefl > 0.0f) L = v3_add(L, v3_scale(li(c, up, wr, depth + 1, refl), wrefl));
+        if (ok && wrefr > 0.0f) {
+            vec3 lt = li(c, offset_ray(s->p, v3_neg(b->ng)), wt, depth + 1, refr);
+            L = v3_add(L, v3_mul(lt, v3_scale(b->kt, wrefr * b->eta * b->eta)));
+        }
+    }
+    return L;
+}
+
 /* Distributed ray tracing (Cook 1984) at recursion level depth. */
 static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int depth, emis_w ew)
 {
@@ -273,7 +328,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     bsdf b;
     bsdf_init(&b, s.m, s.ns, s.ng, wo);
     bool recurse = depth < opt->depth;
-    int nb = recurse && b.p_g > 0.0f ? opt->branch : 0;
+    int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
     if (b.p_d > 0.0f) {
         if (c->rad) {
@@ -290,32 +345,13 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
             }
         }
     }
-    if (!recurse) return L;
-    emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
-    vec3 up = offset_ray(s.p, b.ng);
-    for (int i = 0; i < nb; i++) {
-        bsdf_sample bs;
-        float u1 = rnd(c), u2 = rnd(c);
-        if (!bsdf_sample_glossy(&b, wo, u1, u2, &bs)) continue;
-        emis_w mis = {EMIS_MIS, bs.pdf, nb};
-        vec3 li = drt_li(c, up, bs.wi, NULL, depth + 1, mis);
-        L = v3_add(L, v3_scale(v3_mul(bs.weight, li), 1.0f / (float)nb));
-    }
-    if (v3_maxc(b.km) > 0.0f) {
-        vec3 wr = bsdf_reflect(wo, b.n);
-        if (bsdf_same_side(&b, wr)) L = v3_add(L, v3_mul(b.km, drt_li(c, up, wr, NULL, depth + 1, refl)));
-    }
-    if (b.dielectric) {
-        vec3 wr, wt;
-        bool ok;
-        float f = bsdf_dielectric(&b, wo, &wr, &wt, &ok);
-        L = v3_add(L, v3_scale(drt_li(c, up, wr, NULL, depth + 1, refl), f));
-        if (ok) {
-            vec3 lt = drt_li(c, offset_ray(s.p, v3_neg(b.ng)), wt, NULL, depth + 1, refr);
-            L = v3_add(L, v3_mul(lt, v3_scale(b.kt, (1.0f - f) * b.eta * b.eta)));
-        }
-    }
+    if (recurse) L = v3_add(L, scatter_specular(c, &s, &b, wo, depth, ew, nb, drt_next));
     return L;
+}
+
+static vec3 drt_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew)
+{
+    return drt_li(c, o, d, NULL, depth, ew);
 }
 
 /* reuse-diffuse (§4.1): the interpolated radiosity plus the traced glossy,
@@ -339,41 +375,20 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     bsdf b;
     bsdf_init(&b, s.m, s.ns, s.ng, wo);
     bool recurse = depth < opt->depth;
-    int nb = recurse && b.p_g > 0.0f ? opt->branch : 0;
+    int nb = glossy_rays(opt, &b, depth);
     vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);
-    if (recurse) {
-        emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
-        vec3 up = offset_ray(s.p, b.ng);
-        for (int i = 0; i < nb; i++) {
-            bsdf_sample bs;
-            float u1 = rnd(c), u2 = rnd(c);
-            if (!bsdf_sample_glossy(&b, wo, u1, u2, &bs)) continue;
-            emis_w mis = {EMIS_MIS, bs.pdf, nb};
-            vec3 li = reuse_li(c, up, bs.wi, NULL, depth + 1, mis, NULL);
-            extra = v3_add(extra, v3_scale(v3_mul(bs.weight, li), 1.0f / (float)nb));
-        }
-        if (v3_maxc(b.km) > 0.0f) {
-            vec3 wr = bsdf_reflect(wo, b.n);
-            if (bsdf_same_side(&b, wr))
-                extra = v3_add(extra, v3_mul(b.km, reuse_li(c, up, wr, NULL, depth + 1, refl, NULL)));
-        }
-        if (b.dielectric) {
-            vec3 wr, wt;
-            bool ok;
-            float f = bsdf_dielectric(&b, wo, &wr, &wt, &ok);
-            extra = v3_add(extra, v3_scale(reuse_li(c, up, wr, NULL, depth + 1, refl, NULL), f));
-            if (ok) {
-                vec3 lt = reuse_li(c, offset_ray(s.p, v3_neg(b.ng)), wt, NULL, depth + 1, refr, NULL);
-                extra = v3_add(extra, v3_mul(lt, v3_scale(b.kt, (1.0f - f) * b.eta * b.eta)));
-            }
-        }
-    }
+    if (recurse) extra = v3_add(extra, scatter_specular(c, &s, &b, wo, depth, ew, nb, reuse_next));
     /* Every term of extra is >= 0; a NaN from a degenerate frame must not
      * break that guarantee, so it is dropped. */
     extra = clamp0(extra);
     if (!finite3(extra)) extra = v3s(0.0f);
     if (base_out) *base_out = base;
     return v3_add(base, extra);
+}
+
+static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew)
+{
+    return reuse_li(c, o, d, NULL, depth, ew, NULL);
 }
 
 vec3 integ_radiance(integ_ctx *c, vec3 o, vec3 d, const integ_surf *s, vec3 *base)

@@ -42,10 +42,12 @@ void trc_options_default(trc_options *o, trc_mode mode)
     if (mode == TRC_MODE_PATH) {
         o->shadow_rays = 1;
         o->branch = 1;
+        o->branch_depth = 1;
         o->depth = 64;
     } else {
         o->shadow_rays = 4;
         o->branch = 4;
+        o->branch_depth = 1;
         o->depth = 5;
     }
 }
@@ -80,6 +82,8 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
         return ct_fail(err, CT_EINVAL, "shadow rays %d outside 1..4096", o->shadow_rays);
     if (o->branch < 1 || o->branch > 4096)
         return ct_fail(err, CT_EINVAL, "branch %d outside 1..4096", o->branch);
+    if (o->branch_depth < 0 || o->branch_depth > 1024)
+        return ct_fail(err, CT_EINVAL, "branch depth %d outside 0..1024", o->branch_depth);
     if (o->depth < 0 || o->depth > 1024)
         return ct_fail(err, CT_EINVAL, "depth %d outside 0..1024", o->depth);
     if (rad && rad->nnodes != scene->nnodes)

@@ -2,7 +2,8 @@
  * scene built from a corrtex scene or its radiosity mesh, with three modes
  *   path           unbiased path tracing, next-event estimation + MIS (ground truth)
  *   drt            distributed ray tracing (Cook 1984): K shadow rays, B rays at
- *                  glossy surfaces, one per mirror/refraction, to depth D; indirect
+ *                  glossy surfaces (on the first branch-depth levels, then 1), one
+ *                  per mirror and per Fresnel branch, to depth D; indirect
  *                  diffuse from the radiosity mesh (total - direct), or
  *                  path-traced when no mesh is given
  *   reuse-diffuse  the diffuse part is the interpolated radiosity; only glossy,
@@ -39,13 +40,15 @@ typedef struct trc_options {
     trc_mode mode;
     int shadow_rays;     /* K: light samples per shading point */
     int branch;          /* B: rays per glossy lobe (drt, reuse-diffuse) */
+    int branch_depth;    /* levels that split (B glossy rays, both Fresnel branches); 1 below */
     int depth;           /* D: bounces (drt, reuse-diffuse: recursion; path: maximum length) */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
 
 /* Defaults of a mode: path K=1, D=64 (Russian roulette from bounce 3);
- * drt and reuse-diffuse K=4, B=4, D=5. Seed 1. */
+ * drt and reuse-diffuse K=4, B=4, D=5, splitting on the first level only.
+ * Seed 1. */
 void trc_options_default(trc_options *o, trc_mode mode);
 
 /* "path", "drt", "reuse-diffuse". */

@@ -28,6 +28,7 @@ typedef struct ref_args {
     int width, height, spp, threads, tile;
     trc_mode mode;
     int shadow_rays, branch, depth;   /* 0: the mode's default */
+    int branch_depth;                 /* -1: the mode's default */
     uint64_t seed;
     float exposure;
     int png, half, raw_embree;
@@ -71,7 +72,10 @@ static void help(FILE *f)
         "                    not references (default: none)\n"
         "  --threads T       render threads (default: %ld, the online CPUs)\n"
         "  --shadow-rays K   light samples per shading point (default: path %d, drt %d)\n"
-        "  --branch B        drt: rays per glossy lobe at each hit (default %d)\n"
+        "  --branch B        drt: rays per glossy lobe at a hit (default %d)\n"
+        "  --branch-depth L  drt: levels that split into B glossy rays and both Fresnel\n"
+        "                    branches; deeper levels trace one ray per event, so a sample\n"
+        "                    costs about B * D rays, not B^D (default %d)\n"
         "  --depth D         drt: recursion depth (default %d); path: maximum bounces\n"
         "                    (default %d, Russian roulette after 3)\n"
         "  --seed N          random seed (default %llu)\n"
@@ -84,7 +88,7 @@ static void help(FILE *f)
         "                    traced rays (default 2000000)\n"
         "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
         "  --quiet, --verbose\n",
-        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.depth, p.depth,
+        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
         (unsigned long long)p.seed);
 }
 
@@ -119,6 +123,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
     a->width = a->height = a->spp = -1;
     a->mode = (trc_mode)-1;
     a->tile = 16;
+    a->branch_depth = -1;
     a->seed = 1;
     a->raw_cap = 2000000;
     a->stand_in = -1.0f;
@@ -168,13 +173,13 @@ static int parse_args(int argc, char **argv, ref_args *a)
                 {"--width", 1, 65536}, {"--height", 1, 65536}, {"--spp", 1, 1 << 20},
                 {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
                 {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
-                {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}};
+                {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024}};
             size_t k = 0;
             while (k < sizeof ints / sizeof ints[0] && strcmp(o, ints[k].name)) k++;
             if (k == sizeof ints / sizeof ints[0]) return bad("unknown option '%s' (try --help)%s", o, ""), -1;
             if (parse_int(o, v, ints[k].lo, ints[k].hi, &n)) return -1;
             int *dst[] = {&a->width, &a->height, &a->spp, &a->threads, &a->frame, &a->frames,
-                          &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL};
+                          &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth};
             if (k == 10) a->raw_cap = n;
             else *dst[k] = (int)n;
         }
@@ -315,6 +320,7 @@ int cmd_reference(int argc, char **argv)
     trc_options_default(&to, a.mode);
     if (a.shadow_rays) to.shadow_rays = a.shadow_rays;
     if (a.branch) to.branch = a.branch;
+    if (a.branch_depth >= 0) to.branch_depth = a.branch_depth;
     if (a.depth) to.depth = a.depth;
     to.seed = a.seed;
     double tb = ct_now();

@@ -157,7 +157,7 @@ Test(tracer, plane_under_area_light_drt_radmesh) { form_factor(TRC_MODE_DRT, tru
 
 /* A 0.1 thick glass slab at y in [-0.1, 0] seen at 45 degrees; emitters
  * (L_e = 1) below (transmitted light), above (reflected light) or both. */
-static vec3 slab(trc_mode mode, bool below, bool above, int n)
+static vec3 slab(trc_mode mode, bool below, bool above, int n, int branch_depth)
 {
     ct_error err;
     ct_scene *s = scene_new("slab");
@@ -174,7 +174,12 @@ static vec3 slab(trc_mode mode, bool below, bool above, int n)
     if (above)
         cr_assert(ts_quad(s, "above", (uint32_t)lamp, v3(-100, 5, -100), v3(200, 0, 0), v3(0, 0, 200), &err) >= 0);
     CHECK(scene_finalize(s, &err));
-    trc_tracer *t = make_tracer(s, NULL, mode, 1, 1, 0);
+    trc_options o;
+    trc_options_default(&o, mode);
+    o.shadow_rays = 1;
+    o.branch_depth = branch_depth;
+    trc_tracer *t;
+    CHECK(trc_new(s, NULL, &o, &t, &err));
     trc_view v = view_of(v3(0, 1, -1), v3(0, 0, 0), 30.0f, 9, 9);
     vec3 l = mean_at(t, &v, 4.5f, 4.5f, n, 1, NULL);
     trc_free(t);
@@ -187,16 +192,21 @@ Test(tracer, glass_slab_fresnel_energy_balance)
     float ct;
     double r = bsdf_fresnel(cosf(CT_PI / 4), 1.0f / 1.5f, &ct);
     double t_slab = (1 - r) / (1 + r), r_slab = 2 * r / (1 + r);
-    /* drt traces both Fresnel branches: deterministic and exact. */
-    vec3 lt = slab(TRC_MODE_DRT, true, false, 1);
-    vec3 lr = slab(TRC_MODE_DRT, false, true, 1);
-    vec3 lb = slab(TRC_MODE_DRT, true, true, 1);
+    /* drt splitting into both Fresnel branches on every level: deterministic
+     * and exact. */
+    vec3 lt = slab(TRC_MODE_DRT, true, false, 1, 5);
+    vec3 lr = slab(TRC_MODE_DRT, false, true, 1, 5);
+    vec3 lb = slab(TRC_MODE_DRT, true, true, 1, 5);
     cr_expect(fabs(lt.x - t_slab) < 1e-4, "drt: slab transmits %g, analytic %g", (double)lt.x, t_slab);
     cr_expect(fabs(lr.x - r_slab) < 1e-4, "drt: slab reflects %g, analytic %g", (double)lr.x, r_slab);
     cr_expect(fabs(lb.x - 1.0) < 1e-4, "drt: R + T = %g, not 1", (double)lb.x);
-    /* path picks one branch by Fresnel: unbiased on average. */
-    vec3 pt = slab(TRC_MODE_PATH, true, false, 20000);
-    vec3 pb = slab(TRC_MODE_PATH, true, true, 2000);
+    /* Default drt (split on the first level, one branch by Fresnel below) and
+     * path (one branch everywhere): unbiased on average. */
+    vec3 dt = slab(TRC_MODE_DRT, true, false, 20000, 1);
+    cr_expect(fabs(dt.x - t_slab) < 0.01, "drt (branch depth 1): slab transmits %g, analytic %g", (double)dt.x,
+              t_slab);
+    vec3 pt = slab(TRC_MODE_PATH, true, false, 20000, 1);
+    vec3 pb = slab(TRC_MODE_PATH, true, true, 2000, 1);
     cr_expect(fabs(pt.x - t_slab) < 0.01, "path: slab transmits %g, analytic %g", (double)pt.x, t_slab);
     cr_expect(fabs(pb.x - 1.0) < 0.01, "path: R + T = %g, not 1", (double)pb.x);
 }
