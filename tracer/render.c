@@ -188,7 +188,9 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         return rc;
     }
     if (o->progress) {
-        const struct timespec nap = {0, 100 * 1000 * 1000};
+        /* Short naps so a small render is not timed up to a nap too long;
+         * ct_progress itself limits how often a line is printed. */
+        const struct timespec nap = {0, 2 * 1000 * 1000};
         for (;;) {
             int done = atomic_load(&j.done);
             double el = ct_now() - t0;
