@@ -24,8 +24,10 @@ void bsdf_init(bsdf *b, const scene_material *m, vec3 ns, vec3 ng, vec3 wo)
     /* Outside is the front side (the winding's normal); ior 1 there. */
     float ior = m->ior > 0.0f ? m->ior : 1.0f;
     b->eta = side >= 0.0f ? 1.0f / ior : ior;
-    vec3 tan = v3_sub(m->ward_tangent, v3_scale(b->n, v3_dot(m->ward_tangent, b->n)));
-    if (b->glossy == SCENE_GLOSSY_WARD && v3_len2(tan) > 1e-8f) {
+    vec3 tan = v3s(0.0f);
+    if (b->glossy == SCENE_GLOSSY_WARD)
+        tan = v3_sub(m->ward_tangent, v3_scale(b->n, v3_dot(m->ward_tangent, b->n)));
+    if (v3_len2(tan) > 1e-8f) {
         b->t = v3_norm(tan);
         b->b = v3_cross(b->n, b->t);
     } else {
