@@ -169,6 +169,8 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
     out->py = r->py;
     out->node = UINT32_MAX;
     out->tri = UINT32_MAX;
+    /* A position that is not a number has no ray: a miss, not an Embree query. */
+    if (!isfinite(r->px) || !isfinite(r->py)) return false;
     *d = cam_dir(vp, v, r->px, r->py);
     if (!integ_primary(c, v->cam.eye, *d, s)) return false;
     out->flags |= CT_SAMPLE_HIT;

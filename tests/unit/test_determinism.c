@@ -314,6 +314,14 @@ Test(tracer_api, primary_hits_match_full_records, .init = setup, .fini = teardow
     trc_trace(t, &v, req, NREQ, full, &sf);
     trc_trace_primary(t, &v, req, NREQ, prim, &sp);
     cr_expect_eq(sp.primary, NREQ);
+    /* Positions that are not numbers give misses, not crashes. */
+    ct_request bad[2] = {req[0], req[1]};
+    bad[0].px = NAN;
+    bad[1].py = INFINITY;
+    ct_sample bo[2];
+    trc_trace(t, &v, bad, 2, bo, &sf);
+    cr_expect(!(bo[0].flags & CT_SAMPLE_HIT) && !(bo[1].flags & CT_SAMPLE_HIT));
+    cr_expect(v3_is_zero(bo[0].l_hq) && bo[0].request_id == req[0].id);
     cr_expect_eq(sp.secondary + sp.shadow, 0);
     for (int i = 0; i < NREQ; i++) {
         cr_assert_eq(prim[i].request_id, req[i].id);
