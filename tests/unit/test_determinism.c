@@ -342,3 +342,24 @@ Test(tracer_api, primary_hits_match_full_records, .init = setup, .fini = teardow
     }
     trc_free(t);
 }
+
+Test(render, rejects_bad_sizes, .init = setup, .fini = teardown)
+{
+    trc_tracer *t = tracer_for(TRC_MODE_PATH, false);
+    render_options o;
+    float px[3];
+    render_result r;
+    ct_error err;
+    render_options_default(&o, 0, 1);
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
+    render_options_default(&o, 1, 1);
+    o.spp = 0;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
+    o.spp = 1;
+    o.threads = 0;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
+    o.threads = 1;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), 0, "%s", err.msg);
+    cr_expect(px[0] >= 0.0f && r.stats.samples == 1);
+    trc_free(t);
+}
