@@ -1,0 +1,281 @@
+/* rad_mesh.c: meshes the leaves of the element hierarchy into a conforming
+ * triangle mesh. Leaf corners are welded on their exact positions (midpoints
+ * are bit-identical from both sides of a shared edge, rad_patch.c); a leaf
+ * whose edges carry vertices of finer neighbours is anchored: triangulated as
+ * a fan from its centre through every boundary vertex, so no T-vertex is left.
+ * Vertex values are the mean of the leaves that share the vertex, within one
+ * node and material and below the crease angle; elsewhere vertices are
+ * duplicated so values stay separate. */
+#include "tracer/rad_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/rng.h"
+
+typedef struct poshash {
+    uint32_t *slot;   /* point index + 1, 0 = empty */
+    uint32_t mask;
+    vec3 *pts;
+    uint32_t npts, cap;
+} poshash;
+
+static uint64_t pos_key(vec3 p, uint32_t k[3])
+{
+    float f[3] = {p.x, p.y, p.z};
+    for (int i = 0; i < 3; i++) {
+        if (f[i] == 0.0f) f[i] = 0.0f;   /* -0 and +0 are one point */
+        memcpy(&k[i], &f[i], 4);
+    }
+    return ct_hash64(((uint64_t)k[0] << 32 | k[1]) ^ ct_hash64(k[2]));
+}
+
+static int same(vec3 a, const uint32_t k[3])
+{
+    uint32_t b[3];
+    pos_key(a, b);
+    return b[0] == k[0] && b[1] == k[1] && b[2] == k[2];
+}
+
+/* Index of p, or RAD_NONE when absent and !insert. */
+static uint32_t ph_get(poshash *h, vec3 p, int insert)
+{
+    uint32_t k[3];
+    uint64_t hv = pos_key(p, k);
+    for (uint32_t i = (uint32_t)hv & h->mask;; i = (i + 1) & h->mask) {
+        uint32_t s = h->slot[i];
+        if (!s) {
+            if (!insert || h->npts >= h->cap) return RAD_NONE;
+            h->pts[h->npts] = p;
+            h->slot[i] = ++h->npts;
+            return h->npts - 1;
+        }
+        if (same(h->pts[s - 1], k)) return s - 1;
+    }
+}
+
+typedef struct u32vec {
+    uint32_t *v;
+    size_t n, cap;
+} u32vec;
+
+static int push(u32vec *a, uint32_t x)
+{
+    if (a->n == a->cap) {
+        size_t n = a->cap ? a->cap * 2 : 4096;
+        uint32_t *q = realloc(a->v, n * sizeof *q);
+        if (!q) return CT_ENOMEM;
+        a->v = q;
+        a->cap = n;
+    }
+    a->v[a->n++] = x;
+    return 0;
+}
+
+/* Appends the points strictly inside edge a-b that are mesh vertices, in
+ * order from a to b: recursively the midpoints that exist. */
+static int edge_points(poshash *h, vec3 a, vec3 b, int depth, u32vec *out)
+{
+    if (depth > RAD_MAX_DEPTH + 1) return 0;
+    vec3 m = v3_scale(v3_add(a, b), 0.5f);
+    uint32_t id = ph_get(h, m, 0);
+    if (id == RAD_NONE) return 0;
+    int rc = edge_points(h, a, m, depth + 1, out);
+    if (!rc) rc = push(out, id);
+    if (!rc) rc = edge_points(h, m, b, depth + 1, out);
+    return rc;
+}
+
+int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
+{
+    const ct_scene *s = c->scene;
+    int rc = CT_OK;
+    u32vec leaves = {0}, bnd = {0}, boff = {0}, stack = {0};
+    poshash h = {0};
+    uint32_t *cnt = NULL, *byp = NULL, *bvert = NULL;
+    vec3 *vsum = NULL, *vdsum = NULL, *vnrm = NULL, *vpos = NULL;
+    uint32_t *vcount = NULL;
+
+    /* Leaves in patch order, depth first. */
+    for (uint32_t p = 0; p < c->npatches && !rc; p++) {
+        stack.n = 0;
+        rc = push(&stack, c->patches[p].root);
+        while (!rc && stack.n) {
+            uint32_t e = stack.v[--stack.n];
+            const rad_elem *el = rad_el(c, e);
+            if (el->child == RAD_NONE) rc = push(&leaves, e);
+            else for (int i = 3; i >= 0 && !rc; i--) rc = push(&stack, el->child + (uint32_t)i);
+        }
+    }
+    if (rc) goto oom;
+
+    uint32_t cap = 1;
+    while (cap < leaves.n * 8 + 16) cap <<= 1;
+    h.slot = calloc(cap, sizeof *h.slot);
+    h.mask = cap - 1;
+    h.cap = (uint32_t)(leaves.n * 4 + 4);
+    h.pts = malloc((size_t)h.cap * sizeof *h.pts);
+    if (!h.slot || !h.pts) goto oom;
+    for (size_t i = 0; i < leaves.n; i++) {
+        const rad_elem *e = rad_el(c, leaves.v[i]);
+        for (int k = 0; k < e->nv; k++) ph_get(&h, e->p[k], 1);
+    }
+
+    /* Boundary loop of every leaf: corners and the finer neighbours'
+     * vertices on its edges. */
+    for (size_t i = 0; i < leaves.n && !rc; i++) {
+        const rad_elem *e = rad_el(c, leaves.v[i]);
+        rc = push(&boff, (uint32_t)bnd.n);
+        for (int k = 0; k < e->nv && !rc; k++) {
+            rc = push(&bnd, ph_get(&h, e->p[k], 0));
+            if (!rc) rc = edge_points(&h, e->p[k], e->p[(k + 1) % e->nv], 0, &bnd);
+        }
+    }
+    if (!rc) rc = push(&boff, (uint32_t)bnd.n);
+    if (rc) goto oom;
+
+    /* Incidences grouped by point (counting sort of boundary slots). */
+    cnt = calloc((size_t)h.npts + 1, sizeof *cnt);
+    byp = malloc((bnd.n ? bnd.n : 1) * sizeof *byp);
+    bvert = malloc((bnd.n ? bnd.n : 1) * sizeof *bvert);
+    if (!cnt || !byp || !bvert) goto oom;
+    for (size_t i = 0; i < bnd.n; i++) cnt[bnd.v[i] + 1]++;
+    for (uint32_t i = 0; i < h.npts; i++) cnt[i + 1] += cnt[i];
+    {
+        uint32_t *fill = malloc(((size_t)h.npts + 1) * sizeof *fill);
+        if (!fill) goto oom;
+        memcpy(fill, cnt, ((size_t)h.npts + 1) * sizeof *fill);
+        for (size_t i = 0; i < bnd.n; i++) byp[fill[bnd.v[i]]++] = (uint32_t)i;
+        free(fill);
+    }
+    /* The leaf of each boundary slot. */
+    uint32_t *slot_leaf = malloc((bnd.n ? bnd.n : 1) * sizeof *slot_leaf);
+    if (!slot_leaf) goto oom;
+    for (size_t i = 0; i < leaves.n; i++)
+        for (uint32_t j = boff.v[i]; j < boff.v[i + 1]; j++) slot_leaf[j] = (uint32_t)i;
+
+    /* Vertex groups: same node and material, normals within the crease. */
+    float cos_crease = cosf((float)c->prm.crease_deg * CT_PI / 180.0f);
+    size_t vcap = bnd.n + leaves.n + 1;
+    vsum = calloc(vcap, sizeof *vsum);
+    vdsum = calloc(vcap, sizeof *vdsum);
+    vnrm = calloc(vcap, sizeof *vnrm);
+    vpos = calloc(vcap, sizeof *vpos);
+    vcount = calloc(vcap, sizeof *vcount);
+    if (!vsum || !vdsum || !vnrm || !vpos || !vcount) {
+        free(slot_leaf);
+        goto oom;
+    }
+    uint32_t nv = 0;
+    int cur = c->cur;
+    for (uint32_t p = 0; p < h.npts; p++) {
+        uint32_t gfirst = nv;
+        for (uint32_t k = cnt[p]; k < cnt[p + 1]; k++) {
+            uint32_t slot = byp[k];
+            const rad_elem *e = rad_el(c, leaves.v[slot_leaf[slot]]);
+            const rad_patch *pa = &c->patches[e->patch];
+            uint32_t g = RAD_NONE;
+            for (uint32_t q = gfirst; q < nv && g == RAD_NONE; q++) {
+                const rad_elem *f = rad_el(c, leaves.v[slot_leaf[vcount[q]]]);
+                const rad_patch *pb = &c->patches[f->patch];
+                if (pb->node == pa->node && pb->mat == pa->mat && v3_dot(pa->n, pb->n) >= cos_crease) g = q;
+            }
+            if (g == RAD_NONE) {
+                g = nv++;
+                vcount[g] = slot;   /* temporarily: the group's first slot */
+                vpos[g] = h.pts[p];
+            }
+            bvert[slot] = g;
+        }
+        /* Sums per group (vcount reused once the groups are known). */
+        for (uint32_t q = gfirst; q < nv; q++) vcount[q] = 0;
+        for (uint32_t k = cnt[p]; k < cnt[p + 1]; k++) {
+            uint32_t slot = byp[k], g = bvert[slot];
+            const rad_elem *e = rad_el(c, leaves.v[slot_leaf[slot]]);
+            vsum[g] = v3_add(vsum[g], e->B[cur]);
+            vdsum[g] = v3_add(vdsum[g], e->Bd);
+            vnrm[g] = v3_add(vnrm[g], c->patches[e->patch].n);
+            vcount[g]++;
+        }
+    }
+    free(slot_leaf);
+
+    /* Count triangles and centre vertices, then fill the mesh. */
+    uint32_t ntris = 0, ncentres = 0;
+    for (size_t i = 0; i < leaves.n; i++) {
+        const rad_elem *e = rad_el(c, leaves.v[i]);
+        uint32_t k = boff.v[i + 1] - boff.v[i];
+        if (k == e->nv) ntris += e->nv == 4 ? 2 : 1;
+        else { ntris += k; ncentres++; }
+    }
+    rc = rmesh_alloc(out, nv + ncentres, ntris, s->nnodes, err);
+    if (rc) goto done;
+    const float inv_pi = 1.0f / CT_PI;
+    for (uint32_t g = 0; g < nv; g++) {
+        float w = vcount[g] ? 1.0f / (float)vcount[g] : 0.0f;
+        out->pos[g] = vpos[g];
+        out->nrm[g] = v3_norm(vnrm[g]);
+        out->rad[g] = v3_scale(vsum[g], w * inv_pi);
+        out->rad_direct[g] = v3_scale(vdsum[g], w * inv_pi);
+    }
+    uint32_t t = 0, vc = nv;
+    for (size_t i = 0; i < leaves.n; i++) {
+        const rad_elem *e = rad_el(c, leaves.v[i]);
+        const rad_patch *pa = &c->patches[e->patch];
+        uint32_t b0 = boff.v[i], k = boff.v[i + 1] - b0;
+        uint32_t t_first = t;
+        if (k == e->nv) {
+            const uint32_t *v = bvert + b0;
+            uint32_t tri[2][3] = {{v[0], v[1], v[2]}, {v[0], v[2], e->nv == 4 ? v[3] : 0}};
+            for (int j = 0; j < (e->nv == 4 ? 2 : 1); j++, t++) memcpy(out->tris + 3 * (size_t)t, tri[j], sizeof tri[j]);
+        } else {
+            /* Anchor: a fan from the centre through every boundary vertex. */
+            uint32_t ce = vc++;
+            vec3 r = v3s(0.0f), rd = v3s(0.0f);
+            for (uint32_t j = 0; j < k; j++) {
+                r = v3_add(r, out->rad[bvert[b0 + j]]);
+                rd = v3_add(rd, out->rad_direct[bvert[b0 + j]]);
+            }
+            out->pos[ce] = e->c;
+            out->nrm[ce] = pa->n;
+            out->rad[ce] = v3_scale(r, 1.0f / (float)k);
+            out->rad_direct[ce] = v3_scale(rd, 1.0f / (float)k);
+            for (uint32_t j = 0; j < k; j++, t++) {
+                out->tris[3 * (size_t)t] = ce;
+                out->tris[3 * (size_t)t + 1] = bvert[b0 + j];
+                out->tris[3 * (size_t)t + 2] = bvert[b0 + (j + 1) % k];
+            }
+        }
+        for (uint32_t j = t_first; j < t; j++) {
+            out->tri_node[j] = pa->node;
+            out->tri_mat[j] = pa->mat;
+        }
+    }
+    for (uint32_t n = 0; n < s->nnodes; n++) {
+        memcpy(out->nodes[n].name, s->nodes[n].name, sizeof out->nodes[n].name);
+        out->nodes[n].parent = s->nodes[n].parent;
+        out->nodes[n].node_end = s->nodes[n].node_end;
+        out->nodes[n].material = s->nodes[n].material;
+        out->nodes[n].bounds = s->nodes[n].bounds;
+    }
+    rc = CT_OK;
+    goto done;
+oom:
+    rc = ct_fail(err, CT_ENOMEM, "radiosity: out of memory while meshing %zu leaves", leaves.n);
+done:
+    free(leaves.v);
+    free(bnd.v);
+    free(boff.v);
+    free(stack.v);
+    free(h.slot);
+    free(h.pts);
+    free(cnt);
+    free(byp);
+    free(bvert);
+    free(vsum);
+    free(vdsum);
+    free(vnrm);
+    free(vpos);
+    free(vcount);
+    return rc;
+}
