@@ -63,6 +63,7 @@ typedef struct rad_cluster {
     bounds3 b;
     vec3 c;
     float radius, area;
+    vec3 N;              /* area-weighted sum of its patches' normals */
     uint32_t child[2];
     uint32_t pbegin, pend;  /* range in rad_ctx.order */
     int has_emitter;

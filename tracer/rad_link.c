@@ -112,22 +112,27 @@ static double ff_elem(const rad_ctx *c, const rad_elem *r, const rad_elem *s)
     return sum / 3.0;
 }
 
-/* An isotropic cluster seen from r: its area radiates as if randomly
- * oriented (mean projected area A/4), cosine at r averaged over the box's
- * centre and corners. */
+/* A cluster seen from r: its projected area towards r is that of its
+ * area-weighted normal N (exact for a planar cluster) plus a quarter of the
+ * area N does not account for (the mean projected area of randomly oriented
+ * one-sided surfaces); the cosine at r is averaged over the box's centre and
+ * corners. */
 static double ff_cluster(const rad_ctx *c, const rad_elem *r, const rad_cluster *k)
 {
     vec3 n = c->patches[r->patch].n;
     vec3 w = v3_sub(k->c, r->c);
     float d2 = v3_len2(w);
     if (d2 <= 0.0f) return 0.0;
-    double cs = fmax(0.0, v3_dot(n, w) / sqrt(d2));
+    float d = sqrtf(d2);
+    double cs = fmax(0.0, v3_dot(n, w) / d);
     for (int i = 0; i < 8; i++) {
         vec3 q = v3_norm(v3_sub(b3_corner(k->b, i), r->c));
         cs += fmax(0.0, v3_dot(n, q));
     }
     cs /= 9.0;
-    double f = 0.25 * k->area * cs / (M_PI * d2);
+    double nlen = v3_len(k->N);
+    double proj = fmax(0.0, -v3_dot(k->N, w) / d) + 0.25 * fmax(0.0, k->area - nlen);
+    double f = proj * cs / (M_PI * d2);
     return f < 1.0 ? f : 1.0;
 }
 
@@ -141,8 +146,10 @@ static int src_has_emitter(const rad_ctx *c, uint32_t src)
 }
 
 /* Fraction of jittered segments between r and the source that are free:
- * receiver points stratified, source points uniform (on a random patch of a
- * cluster). */
+ * receiver points stratified, source points uniform. For a cluster the end
+ * point is on a random patch of it that faces the receiver point: the
+ * cluster's projected area already accounts for the patches turned away, so
+ * their (self-occluded) rays must not count twice. */
 static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
 {
     int nrays = src_has_emitter(c, src) ? c->prm.shadow_rays : c->prm.vis_rays;
@@ -151,25 +158,34 @@ static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
     int m = 1;
     while (m * m < nrays) m++;
     vec3 nr = v3_scale(c->patches[r->patch].n, c->ray_eps);
-    int free_ = 0;
+    int free_ = 0, counted = 0;
     for (int i = 0; i < nrays; i++) {
         float u = ((float)(i % m) + rng_float(&g)) / (float)m;
         float v = ((float)((i / m) % m) + rng_float(&g)) / (float)m;
         vec3 a = v3_add(rad_elem_point(r, u, v), nr);
-        const rad_elem *s;
-        if (src & RAD_CLUSTER_BIT) {
-            const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
-            uint32_t p = c->order[k->pbegin + rng_below(&g, k->pend - k->pbegin)];
-            s = rad_el(c, c->patches[p].root);
-        } else {
-            s = rad_el(c, src);
+        const rad_elem *s = NULL;
+        vec3 b = a;
+        for (int tries = 0; tries < 8 && !s; tries++) {
+            const rad_elem *q;
+            if (src & RAD_CLUSTER_BIT) {
+                const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
+                uint32_t p = c->order[k->pbegin + rng_below(&g, k->pend - k->pbegin)];
+                q = rad_el(c, c->patches[p].root);
+            } else {
+                q = rad_el(c, src);
+            }
+            float su = rng_float(&g), sv = rng_float(&g);
+            vec3 ns = c->patches[q->patch].n;
+            b = rad_elem_point(q, su, sv);
+            if (v3_dot(ns, v3_sub(a, b)) > 0.0f || !(src & RAD_CLUSTER_BIT)) s = q;
+            b = v3_add(b, v3_scale(ns, c->ray_eps));
         }
-        float su = rng_float(&g), sv = rng_float(&g);
-        vec3 b = v3_add(rad_elem_point(s, su, sv), v3_scale(c->patches[s->patch].n, c->ray_eps));
+        if (!s) continue;
+        counted++;
         if (!rad_vis_occluded(c->vis, a, b)) free_++;
     }
-    atomic_fetch_add(&c->rays, (uint64_t)nrays);
-    return (float)free_ / (float)nrays;
+    atomic_fetch_add(&c->rays, (uint64_t)counted);
+    return counted ? (float)free_ / (float)counted : 0.0f;
 }
 
 /* ------------------------------------------------------------------------ */

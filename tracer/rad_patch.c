@@ -183,6 +183,7 @@ static uint32_t build_cluster(rad_ctx *c, uint32_t b, uint32_t e)
         cb = b3_add(cb, r->c);
         for (int j = 0; j < r->nv; j++) bb = b3_add(bb, r->p[j]);
         area += r->area;
+        k->N = v3_madd(k->N, p->n, r->area);
         E = v3_madd(E, p->E, r->area);
         if (v3_maxc(p->E) > 0.0f) k->has_emitter = 1;
     }
