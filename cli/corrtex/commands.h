@@ -11,6 +11,9 @@ typedef struct cli_command {
     int (*run)(int argc, char **argv);
 } cli_command;
 
+/* corrtex info: scene counts and bounds. */
+int cmd_info(int argc, char **argv);
+
 /* The table, terminated by a NULL name (main.c). */
 extern const cli_command cli_commands[];
 

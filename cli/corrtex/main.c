@@ -6,6 +6,7 @@
 #include "cli/corrtex/commands.h"
 
 const cli_command cli_commands[] = {
+    {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
     {NULL, NULL, NULL}
 };
 
