@@ -40,7 +40,6 @@ typedef struct rad_elem {
     uint32_t child_pub;  /* the same, as published between passes: what sources see */
     uint32_t link_off, nlinks;  /* in the patch's link block */
     uint64_t key;        /* stable id from the patch and the child path (seeds rays) */
-    vec3 B[2];           /* radiosity, double-buffered by iteration parity */
     vec3 Bd;             /* direct part: emission + one bounce of emitted light */
     vec3 H;              /* irradiance gathered by this element's own links */
     uint8_t nv, depth;
@@ -71,6 +70,14 @@ typedef struct rad_cluster {
     vec3 E;              /* area-weighted emission */
 } rad_cluster;
 
+/* An input patch's corners and normal in one cache line, in cluster order:
+ * what cluster visibility rays sample. */
+typedef struct rad_sgeo {
+    vec3 p[4];
+    vec3 n;
+    uint32_t nv;
+} rad_sgeo;
+
 typedef struct rad_vis rad_vis;
 
 typedef struct rad_ctx {
@@ -87,8 +94,12 @@ typedef struct rad_ctx {
     uint32_t nclusters;
     rad_cluster *clusters;
     uint32_t *order;     /* patch ids in cluster order */
+    rad_sgeo *sgeo;      /* their geometry, same order */
 
     rad_elem **chunks;
+    vec3 **bchunks[2];   /* radiosity per element, double-buffered by iteration
+                          * parity, apart from the elements so the gather's
+                          * random reads stay in cache */
     uint32_t nelems;     /* allocated elements */
     pthread_mutex_t alloc_lock;
 
@@ -110,6 +121,12 @@ typedef struct rad_ctx {
 static inline rad_elem *rad_el(const rad_ctx *c, uint32_t i)
 {
     return &c->chunks[i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
+}
+
+/* Radiosity of element i in buffer b (0 or 1). */
+static inline vec3 *rad_B(const rad_ctx *c, int b, uint32_t i)
+{
+    return &c->bchunks[b][i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
 }
 
 /* --- rad_patch.c ---------------------------------------------------------- */

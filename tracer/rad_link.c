@@ -158,29 +158,36 @@ static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
     int m = 1;
     while (m * m < nrays) m++;
     vec3 nr = v3_scale(c->patches[r->patch].n, c->ray_eps);
+    const rad_elem *se = (src & RAD_CLUSTER_BIT) ? NULL : rad_el(c, src);
+    vec3 ns_eps = se ? v3_scale(c->patches[se->patch].n, c->ray_eps) : v3s(0.0f);
     int free_ = 0, counted = 0;
     for (int i = 0; i < nrays; i++) {
         float u = ((float)(i % m) + rng_float(&g)) / (float)m;
         float v = ((float)((i / m) % m) + rng_float(&g)) / (float)m;
         vec3 a = v3_add(rad_elem_point(r, u, v), nr);
-        const rad_elem *s = NULL;
+        int found = 0;
         vec3 b = a;
-        for (int tries = 0; tries < 8 && !s; tries++) {
-            const rad_elem *q;
-            if (src & RAD_CLUSTER_BIT) {
-                const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
-                uint32_t p = c->order[k->pbegin + rng_below(&g, k->pend - k->pbegin)];
-                q = rad_el(c, c->patches[p].root);
-            } else {
-                q = rad_el(c, src);
+        if (src & RAD_CLUSTER_BIT) {
+            const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
+            for (int tries = 0; tries < 8 && !found; tries++) {
+                const rad_sgeo *q = &c->sgeo[k->pbegin + rng_below(&g, k->pend - k->pbegin)];
+                float su = rng_float(&g), sv = rng_float(&g);
+                if (q->nv == 4) {
+                    b = v3_lerp(v3_lerp(q->p[0], q->p[1], su), v3_lerp(q->p[3], q->p[2], su), sv);
+                } else {
+                    if (su + sv > 1.0f) { su = 1.0f - su; sv = 1.0f - sv; }
+                    b = v3_add(q->p[0], v3_add(v3_scale(v3_sub(q->p[1], q->p[0]), su),
+                                               v3_scale(v3_sub(q->p[2], q->p[0]), sv)));
+                }
+                found = v3_dot(q->n, v3_sub(a, b)) > 0.0f;
+                b = v3_add(b, v3_scale(q->n, c->ray_eps));
             }
+        } else {
             float su = rng_float(&g), sv = rng_float(&g);
-            vec3 ns = c->patches[q->patch].n;
-            b = rad_elem_point(q, su, sv);
-            if (v3_dot(ns, v3_sub(a, b)) > 0.0f || !(src & RAD_CLUSTER_BIT)) s = q;
-            b = v3_add(b, v3_scale(ns, c->ray_eps));
+            b = v3_add(rad_elem_point(se, su, sv), ns_eps);
+            found = 1;
         }
-        if (!s) continue;
+        if (!found) continue;
         counted++;
         if (!rad_vis_occluded(c->vis, a, b)) free_++;
     }
@@ -194,7 +201,7 @@ static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
 static vec3 src_B(const rad_ctx *c, uint32_t src)
 {
     if (src & RAD_CLUSTER_BIT) return c->clusters[src & RAD_ID_MASK].B[c->cur];
-    return rad_el(c, src)->B[c->cur];
+    return *rad_B(c, c->cur, src);
 }
 
 /* All corners of s behind r's plane (or the reverse): nothing is exchanged. */
@@ -221,6 +228,13 @@ static int cluster_behind(const rad_ctx *c, const rad_elem *r, const rad_cluster
 
 #define ERR_DROP (-1.0)
 
+/* A cluster whose bounding sphere nearly touches r: no estimate holds. */
+static int too_close(const rad_elem *r, const rad_cluster *k)
+{
+    double d = v3_len(v3_sub(k->c, r->c)) - k->radius - r->radius;
+    return d <= 0.5 * k->radius;
+}
+
 /* Estimated power error B * F * A_r of the link r <- src (ERR_DROP: no
  * exchange at all; HUGE_VAL: too close to estimate). */
 static double link_error(const rad_ctx *c, const rad_elem *r, uint32_t src)
@@ -230,8 +244,8 @@ static double link_error(const rad_ctx *c, const rad_elem *r, uint32_t src)
         const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
         if (cluster_behind(c, r, k)) return ERR_DROP;
         if (B <= 0.0) return 0.0;
+        if (too_close(r, k)) return HUGE_VAL;
         double d = v3_len(v3_sub(k->c, r->c)) - k->radius - r->radius;
-        if (d <= 0.5 * k->radius) return HUGE_VAL;
         double f = 0.25 * k->area / (M_PI * d * d);
         return B * fmin(f, 1.0) * r->area;
     }
@@ -270,19 +284,24 @@ static int can_split_receiver(const rad_ctx *c, const rad_elem *r)
            atomic_load(&c->est_tris) < c->prm.max_triangles;
 }
 
-/* Unoccluded factor and visibility of a link. */
-static float evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double err, int *uniform)
+/* Unoccluded factor times visibility of a link; -1 when the link carries
+ * nothing and can go (no unoccluded exchange, or every ray blocked). */
+static float evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, int *uniform)
 {
+    *uniform = 0;
+    if (src & RAD_CLUSTER_BIT) {
+        const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
+        /* A cluster too close to estimate is only kept while it is dark, as
+         * a placeholder of factor 0; it is refined as soon as it has light
+         * to give. */
+        if (too_close(r, k)) return 0.0f;
+    }
     double f = (src & RAD_CLUSTER_BIT) ? ff_cluster(c, r, &c->clusters[src & RAD_ID_MASK])
                                        : ff_elem(c, r, rad_el(c, src));
-    /* A cluster too close to estimate is only kept while it is dark; it is
-     * refined as soon as it has light to give. */
-    if ((src & RAD_CLUSTER_BIT) && err == HUGE_VAL) f = 0.0;
-    *uniform = 0;
-    if (f <= 0.0) return 0.0f;
+    if (f <= 0.0) return -1.0f;
     float v = visibility(c, r, src);
     *uniform = v == 0.0f || v == 1.0f;
-    return (float)f * v;
+    return v > 0.0f ? (float)f * v : -1.0f;
 }
 
 /* Links whose rays all agreed (fully visible or fully hidden) carry less
@@ -303,8 +322,10 @@ static int refine(rad_ctx *c, rad_tls *t, uint32_t ri, uint32_t src_flags, float
     if (err == ERR_DROP) return 0;
     float ff = ff_old;
     if (ff >= 0.0f && uniform) err *= UNIFORM_FACTOR;
+    int evaluated = 0;
     if (ff < 0.0f && err > c->eps && err * UNIFORM_FACTOR <= c->eps) {
-        ff = evaluate(c, r, src, err, &uniform);
+        ff = evaluate(c, r, src, &uniform);
+        evaluated = 1;
         if (uniform) err *= UNIFORM_FACTOR;
     }
     if (err > c->eps) {
@@ -343,9 +364,11 @@ static int refine(rad_ctx *c, rad_tls *t, uint32_t ri, uint32_t src_flags, float
             return 0;
         }
     }
-    if (ff < 0.0f) ff = evaluate(c, r, src, err, &uniform);
-    /* Links of factor 0 stay so they are re-examined when their source
-     * brightens (a dark cluster next to the receiver, say). */
+    if (ff < 0.0f && !evaluated) ff = evaluate(c, r, src, &uniform);
+    /* A link that carries nothing (hidden from every ray, or no exchange)
+     * goes; placeholders of factor 0 stay to be re-examined when their
+     * source brightens. */
+    if (ff < 0.0f) return 0;
     return push_link(t, ri, src | (uniform ? RAD_UNIFORM_BIT : 0u), ff);
 }
 

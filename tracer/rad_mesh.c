@@ -192,7 +192,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
         for (uint32_t k = cnt[p]; k < cnt[p + 1]; k++) {
             uint32_t slot = byp[k], g = bvert[slot];
             const rad_elem *e = rad_el(c, leaves.v[slot_leaf[slot]]);
-            vsum[g] = v3_add(vsum[g], e->B[cur]);
+            vsum[g] = v3_add(vsum[g], *rad_B(c, cur, leaves.v[slot_leaf[slot]]));
             vdsum[g] = v3_add(vdsum[g], e->Bd);
             vnrm[g] = v3_add(vnrm[g], c->patches[e->patch].n);
             vcount[g]++;

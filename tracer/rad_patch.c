@@ -35,12 +35,14 @@ uint32_t rad_alloc_elems(rad_ctx *c, uint32_t n)
         return RAD_NONE;
     }
     if (!c->chunks[ch]) {
-        if (rad_track(c, (int64_t)RAD_CHUNK * (int64_t)sizeof(rad_elem)) != 0) {
+        if (rad_track(c, (int64_t)RAD_CHUNK * (int64_t)(sizeof(rad_elem) + 2 * sizeof(vec3))) != 0) {
             pthread_mutex_unlock(&c->alloc_lock);
             return RAD_NONE;
         }
         c->chunks[ch] = calloc(RAD_CHUNK, sizeof(rad_elem));
-        if (!c->chunks[ch]) {
+        c->bchunks[0][ch] = calloc(RAD_CHUNK, sizeof(vec3));
+        c->bchunks[1][ch] = calloc(RAD_CHUNK, sizeof(vec3));
+        if (!c->chunks[ch] || !c->bchunks[0][ch] || !c->bchunks[1][ch]) {
             pthread_mutex_unlock(&c->alloc_lock);
             return RAD_NONE;
         }
@@ -121,8 +123,8 @@ int rad_subdivide(rad_ctx *c, uint32_t ei)
         k->patch = e->patch;
         k->child = k->child_pub = RAD_NONE;
         k->key = ct_hash64(e->key * 4u + i + 1u);
-        k->B[0] = e->B[0];
-        k->B[1] = e->B[1];
+        *rad_B(c, 0, first + i) = *rad_B(c, 0, ei);
+        *rad_B(c, 1, first + i) = *rad_B(c, 1, ei);
         k->Bd = e->Bd;
         elem_geometry(k);
     }
@@ -209,7 +211,9 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
     const ct_scene *s = c->scene;
     c->patches = calloc(s->ntris ? s->ntris : 1, sizeof *c->patches);
     c->chunks = calloc(RAD_MAX_CHUNKS, sizeof *c->chunks);
-    if (!c->patches || !c->chunks) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for %u patches", s->ntris);
+    c->bchunks[0] = calloc(RAD_MAX_CHUNKS, sizeof *c->bchunks[0]);
+    c->bchunks[1] = calloc(RAD_MAX_CHUNKS, sizeof *c->bchunks[1]);
+    if (!c->patches || !c->chunks || !c->bchunks[0] || !c->bchunks[1]) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for %u patches", s->ntris);
     rad_track(c, (int64_t)s->ntris * (int64_t)sizeof *c->patches);
     c->total_area = 0.0;
     c->emitted = 0.0;
@@ -262,7 +266,8 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         e->patch = pi;
         e->child = e->child_pub = RAD_NONE;
         e->key = ct_hash64((uint64_t)pi + 0x51ed27ULL);
-        e->B[0] = e->B[1] = e->Bd = p->E;
+        e->Bd = p->E;
+        *rad_B(c, 0, ei) = *rad_B(c, 1, ei) = p->E;
         elem_geometry(e);
         p->root = ei;
         c->total_area += e->area;
@@ -278,6 +283,16 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
     for (uint32_t i = 0; i < c->npatches; i++) c->order[i] = i;
     c->nclusters = 0;
     if (c->npatches > 1) build_cluster(c, 0, c->npatches);
+    c->sgeo = aligned_alloc(64, ((size_t)c->npatches * sizeof *c->sgeo + 63) / 64 * 64);
+    if (!c->sgeo) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for clusters");
+    rad_track(c, (int64_t)c->npatches * (int64_t)sizeof *c->sgeo);
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        const rad_patch *p = &c->patches[c->order[i]];
+        const rad_elem *e = rad_el(c, p->root);
+        memcpy(c->sgeo[i].p, e->p, sizeof e->p);
+        c->sgeo[i].n = p->n;
+        c->sgeo[i].nv = e->nv;
+    }
     return CT_OK;
 }
 
@@ -288,9 +303,17 @@ void rad_free_patches(rad_ctx *c)
     free(c->patches);
     free(c->clusters);
     free(c->order);
-    if (c->chunks)
-        for (uint32_t i = 0; i < RAD_MAX_CHUNKS; i++) free(c->chunks[i]);
+    free(c->sgeo);
+    c->sgeo = NULL;
+    for (uint32_t i = 0; i < RAD_MAX_CHUNKS; i++) {
+        if (c->chunks) free(c->chunks[i]);
+        if (c->bchunks[0]) free(c->bchunks[0][i]);
+        if (c->bchunks[1]) free(c->bchunks[1][i]);
+    }
     free(c->chunks);
+    free(c->bchunks[0]);
+    free(c->bchunks[1]);
+    c->bchunks[0] = c->bchunks[1] = NULL;
     c->patches = NULL;
     c->clusters = NULL;
     c->order = NULL;

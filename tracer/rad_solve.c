@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "common/log.h"
 #include "common/rng.h"
 #include "common/timer.h"
 
@@ -116,6 +117,7 @@ typedef struct worker {
     atomic_uint *next;
     rad_tls tls;
     double residual;
+    double max_reflected;   /* largest reflected radiosity (B - E) of a leaf */
     double absorbed;
     int final;
     int rc;
@@ -136,18 +138,18 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     for (uint32_t i = 0; i < e->nlinks; i++) {
         const rad_link *l = &p->links[e->link_off + i];
         uint32_t src = l->src & ~RAD_UNIFORM_BIT;
-        vec3 B, E;
+        vec3 B;
         if (src & RAD_CLUSTER_BIT) {
             const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
             B = k->B[cur];
-            E = k->E;
+            /* The direct part needs no iteration: only the final gather
+             * computes it (it reads the elements, which is slower). */
+            if (w->final) Hd = v3_madd(Hd, k->E, l->ff);
         } else {
-            const rad_elem *s = rad_el(c, src);
-            B = s->B[cur];
-            E = c->patches[s->patch].E;
+            B = *rad_B(c, cur, src);
+            if (w->final) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
         }
         H = v3_madd(H, B, l->ff);
-        Hd = v3_madd(Hd, E, l->ff);
     }
     e->H = H;
     vec3 Ht = v3_add(Hdown, H), Hdt = v3_add(Hddown, Hd);
@@ -155,8 +157,11 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     if (e->child == RAD_NONE) {
         B = v3_add(p->E, v3_mul(p->rho, Ht));
         Bd = v3_add(p->E, v3_mul(p->rho, Hdt));
-        double r = v3_maxc(v3(fabsf(B.x - e->B[cur].x), fabsf(B.y - e->B[cur].y), fabsf(B.z - e->B[cur].z)));
+        vec3 old = *rad_B(c, cur, ei);
+        double r = v3_maxc(v3(fabsf(B.x - old.x), fabsf(B.y - old.y), fabsf(B.z - old.z)));
         if (r > w->residual) w->residual = r;
+        double refl = v3_maxc(v3_mul(p->rho, Ht));
+        if (refl > w->max_reflected) w->max_reflected = refl;
         if (w->final)
             w->absorbed += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho), Ht)) * e->area;
     } else {
@@ -173,7 +178,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         B = v3_scale(B, inv);
         Bd = v3_scale(Bd, inv);
     }
-    e->B[nxt] = B;
+    *rad_B(c, nxt, ei) = B;
     e->Bd = Bd;
     *Bd_out = Bd;
     return B;
@@ -234,6 +239,7 @@ static int run_job(rad_ctx *c, worker *ws, int n, job_kind kind, int final)
         ws[i].kind = kind;
         ws[i].next = &next;
         ws[i].residual = 0.0;
+        ws[i].max_reflected = 0.0;
         ws[i].absorbed = 0.0;
         ws[i].final = final;
         ws[i].rc = 0;
@@ -264,7 +270,7 @@ static void update_clusters(rad_ctx *c)
                 B = v3_madd(B, q->B[nxt], q->area);
             } else {
                 const rad_elem *e = rad_el(c, ch);
-                B = v3_madd(B, e->B[nxt], e->area);
+                B = v3_madd(B, *rad_B(c, nxt, ch), e->area);
             }
         }
         k->B[nxt] = k->area > 0.0f ? v3_scale(B, 1.0f / k->area) : v3s(0.0f);
@@ -334,6 +340,7 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     double residual = 1.0;
     for (c->pass = 0; c->pass < prm->max_passes; c->pass++) {
         atomic_store(&c->refined, 0);
+        double tp = ct_now();
         rc = run_job(c, ws, prm->threads, JOB_REFINE, 0);
         if (rc || atomic_load(&c->over_cap)) {
             rc = rc == CT_ENOMEM || atomic_load(&c->over_cap) ? cap_error(c, err)
@@ -344,23 +351,37 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         st->passes = c->pass + 1;
         uint64_t refined = atomic_load(&c->refined);
         int last = (c->pass > 0 && refined == 0) || c->pass + 1 == prm->max_passes;
-        for (int it = 0; it < prm->max_iterations; it++) {
+        /* Intermediate passes only need the oracle's B roughly right: a few
+         * iterations; the last pass converges to the tolerance. */
+        int max_it = last ? prm->max_iterations : (prm->max_iterations < 6 ? prm->max_iterations : 6);
+        double tol = last ? prm->tolerance : 10.0 * prm->tolerance;
+        for (int it = 0; it < max_it; it++) {
             rc = run_job(c, ws, prm->threads, JOB_GATHER, 0);
             if (rc) goto done;
             update_clusters(c);
             c->cur = 1 - c->cur;
             st->iterations++;
             residual = 0.0;
-            for (int i = 0; i < prm->threads; i++) residual = fmax(residual, ws[i].residual);
-            residual /= c->max_E;
+            double scale = 0.0;
+            for (int i = 0; i < prm->threads; i++) {
+                residual = fmax(residual, ws[i].residual);
+                scale = fmax(scale, ws[i].max_reflected);
+            }
+            /* Relative to the brightest reflected light: emitters are orders
+             * of magnitude brighter and would hide a slow convergence. */
+            residual = scale > 0.0 ? residual / scale : 0.0;
             if (progress) {
                 char msg[128];
                 snprintf(msg, sizeof msg, "pass %d: iteration %d, residual %.2e, %u elements",
                          c->pass + 1, it + 1, residual, c->nelems);
-                progress(user, fmin(1.0, log(residual) / log(prm->tolerance)), msg);
+                progress(user, residual > 0.0 ? fmax(0.0, fmin(1.0, log(residual) / log(prm->tolerance))) : 1.0, msg);
             }
-            if (residual < prm->tolerance) break;
+            ct_debug("radiosity", "pass %d iteration %d: residual %.3e (%.2f s into the pass)", c->pass + 1,
+                     it + 1, residual, ct_now() - tp);
+            if (residual < tol) break;
         }
+        ct_debug("radiosity", "pass %d: %llu links refined, %u elements, %.2f s", c->pass + 1,
+                 (unsigned long long)refined, c->nelems, ct_now() - tp);
         if (last) break;
     }
     /* One more gather at the converged values for the absorbed power. */
@@ -375,7 +396,16 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
 
     st->patches = c->npatches;
     st->clusters = c->nclusters;
-    for (uint32_t i = 0; i < c->npatches; i++) st->links += c->patches[i].nlinks;
+    uint64_t ncl = 0, nzero = 0;
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        st->links += c->patches[i].nlinks;
+        for (uint32_t k = 0; k < c->patches[i].nlinks; k++) {
+            ncl += (c->patches[i].links[k].src & RAD_CLUSTER_BIT) != 0;
+            nzero += c->patches[i].links[k].ff == 0.0f;
+        }
+    }
+    ct_debug("radiosity", "links: %llu from clusters, %llu of factor 0", (unsigned long long)ncl,
+             (unsigned long long)nzero);
     st->elements = 0;
     st->leaves = 0;
     for (uint32_t i = 0; i < c->npatches; i++) {

@@ -45,8 +45,7 @@ int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err)
     rtcSetDeviceErrorFunction(v->dev, on_error, v);
     rtcSetDeviceMemoryMonitorFunction(v->dev, on_memory, v);
     v->scn = rtcNewScene(v->dev);
-    rtcSetSceneBuildQuality(v->scn, RTC_BUILD_QUALITY_MEDIUM);
-    rtcSetSceneFlags(v->scn, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(v->scn, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry g = rtcNewGeometry(v->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
     float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                         3 * sizeof(float), s->nverts);

@@ -27,7 +27,7 @@ typedef struct rad_params {
     uint32_t memory_cap_mb; /* fail when the solver's memory would exceed this */
     int vis_rays;           /* visibility rays per link from a non-emitting source */
     int shadow_rays;        /* visibility rays per link from a source containing emitters */
-    double tolerance;       /* residual (relative to the brightest emitter) to stop iterating */
+    double tolerance;       /* residual (relative to the brightest reflected light) to stop iterating */
     int max_iterations;     /* gather/push-pull iterations per refinement pass at most */
     int max_passes;         /* refinement passes at most */
     double crease_deg;      /* vertex values are averaged only below this normal angle */
@@ -44,7 +44,7 @@ typedef struct rad_stats {
     uint64_t rays;          /* visibility rays traced */
     int passes;             /* refinement passes */
     int iterations;         /* gather/push-pull iterations, all passes */
-    double residual;        /* last residual, relative to the brightest emitter */
+    double residual;        /* last residual, relative to the brightest reflected light */
     uint32_t triangles;     /* output mesh */
     uint32_t vertices;
     uint64_t peak_bytes;    /* the solver's own peak (elements, links, Embree) */

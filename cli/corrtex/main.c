@@ -7,6 +7,7 @@
 
 const cli_command cli_commands[] = {
     {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
+    {"radiosity", "hierarchical radiosity solution as a .ctmesh cache", cmd_radiosity},
     {NULL, NULL, NULL}
 };
 
