@@ -20,4 +20,7 @@ int cmd_radiosity(int argc, char **argv);
 /* The table, terminated by a NULL name (main.c). */
 extern const cli_command cli_commands[];
 
+/* corrtex compare A.exr B.exr [--json] [--max-rmse X] (cmd_compare.c). */
+int cmd_compare(int argc, char **argv);
+
 #endif

@@ -8,6 +8,7 @@
 const cli_command cli_commands[] = {
     {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
     {"radiosity", "hierarchical radiosity solution as a .ctmesh cache", cmd_radiosity},
+    {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
     {NULL, NULL, NULL}
 };
 
