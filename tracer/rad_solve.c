@@ -19,7 +19,7 @@
 void rad_params_default(rad_params *p)
 {
     memset(p, 0, sizeof *p);
-    p->error = 2e-6;
+    p->error = 1e-5;
     p->min_area = 2e-7;
     p->max_triangles = 2000000;
     long n = sysconf(_SC_NPROCESSORS_ONLN);
