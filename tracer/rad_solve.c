@@ -106,6 +106,31 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
     return h ? h : 1;
 }
 
+int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_path,
+                     rad_progress_fn progress, void *user, ct_radmesh *out, rad_stats *st,
+                     int *from_cache, ct_error *why, ct_error *err)
+{
+    ct_error load_err;
+    *from_cache = 0;
+    if (why) ct_error_clear(why);
+    uint64_t h = rad_solution_hash(s, p);
+    if (rmesh_load(cache_path, h, out, &load_err) == CT_OK) {
+        *from_cache = 1;
+        if (st) memset(st, 0, sizeof *st);
+        if (st) {
+            st->triangles = out->ntris;
+            st->vertices = out->nverts;
+        }
+        return CT_OK;
+    }
+    if (why) *why = load_err;
+    int rc = rad_solve(s, p, progress, user, out, st, err);
+    if (rc) return rc;
+    rc = rmesh_save(out, cache_path, err);
+    if (rc) rmesh_free(out);
+    return rc;
+}
+
 /* ------------------------------------------------------------------------ */
 /* Worker threads over input patches                                        */
 

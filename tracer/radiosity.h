@@ -73,6 +73,15 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p);
 int rad_solve(const ct_scene *s, const rad_params *p, rad_progress_fn progress, void *user,
               ct_radmesh *out, rad_stats *st, ct_error *err);
 
+/* The solution through its cache: loads cache_path when it holds this
+ * scene's solution for these parameters (rad_solution_hash), otherwise
+ * solves and writes the cache atomically. *from_cache tells which happened;
+ * a missing, stale or unreadable cache is recomputed (its reason is in
+ * *why when why is not NULL, "" when it was used). */
+int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_path,
+                     rad_progress_fn progress, void *user, ct_radmesh *out, rad_stats *st,
+                     int *from_cache, ct_error *why, ct_error *err);
+
 /* Unoccluded form factor from a differential area at x (unit normal n) to a
  * planar polygon (Lambert's contour formula), clipped to n's hemisphere;
  * 0 when x lies behind the polygon (its front is counter-clockwise). */

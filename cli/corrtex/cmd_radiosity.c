@@ -20,6 +20,8 @@ static void usage(FILE *f, const rad_params *d)
             "  Hierarchical radiosity (Hanrahan, Salzman, Aupperle 1991) meshed into a conforming\n"
             "  Gouraud mesh with per-vertex total and direct radiance (docs/radiosity.md).\n"
             "  -o, --output FILE      the .ctmesh cache to write (required)\n"
+            "  --reuse                keep FILE when it already holds this scene's solution for\n"
+            "                         these parameters (same hash), else solve and overwrite it\n"
             "  --error E              link error threshold: the largest B*F*A a link may carry,\n"
             "                         as a fraction of the total emitted power (default %g)\n"
             "  --min-area A           smallest element, as a fraction of the total surface area\n"
@@ -68,7 +70,7 @@ int cmd_radiosity(int argc, char **argv)
     defaults = p;
     const char *out_path = NULL;
     enum { O_ERROR = 256, O_MINAREA, O_MAXTRI, O_THREADS, O_MEMCAP, O_VIS, O_SHADOW, O_TOL, O_MAXIT,
-           O_PASSES, O_CREASE, O_SEED, O_QUIET, O_VERBOSE };
+           O_PASSES, O_CREASE, O_SEED, O_QUIET, O_VERBOSE, O_REUSE };
     static const struct option opts[] = {
         {"output", required_argument, 0, 'o'}, {"error", required_argument, 0, O_ERROR},
         {"min-area", required_argument, 0, O_MINAREA}, {"max-triangles", required_argument, 0, O_MAXTRI},
@@ -77,7 +79,9 @@ int cmd_radiosity(int argc, char **argv)
         {"tolerance", required_argument, 0, O_TOL}, {"max-iterations", required_argument, 0, O_MAXIT},
         {"max-passes", required_argument, 0, O_PASSES}, {"crease-angle", required_argument, 0, O_CREASE},
         {"seed", required_argument, 0, O_SEED}, {"quiet", no_argument, 0, O_QUIET},
-        {"verbose", no_argument, 0, O_VERBOSE}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+        {"verbose", no_argument, 0, O_VERBOSE}, {"reuse", no_argument, 0, O_REUSE},
+        {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    int reuse = 0;
     int c;
     double v;
     optind = 1;
@@ -101,6 +105,7 @@ int cmd_radiosity(int argc, char **argv)
         case O_SEED: bad = num(name, optarg, 0, 1.8e19, &v); p.seed = (uint64_t)v; break;
         case O_QUIET: ct_log_set_level(CT_LOG_ERROR); break;
         case O_VERBOSE: ct_log_set_level(CT_LOG_DEBUG); break;
+        case O_REUSE: reuse = 1; break;
         case 'h': usage(stdout, &defaults); return 0;
         default:
             ct_log(CT_LOG_ERROR, "corrtex radiosity", "unknown or incomplete option '%s' (try --help)",
@@ -132,15 +137,31 @@ int cmd_radiosity(int argc, char **argv)
             s->name, s->nprims, s->ntris, s->nemitters, p.error, p.min_area, p.threads);
     ct_radmesh m;
     rad_stats st;
-    int rc = rad_solve(s, &p, ct_log_get_level() >= CT_LOG_INFO ? on_progress : NULL, NULL, &m, &st, &err);
-    if (ct_log_get_level() >= CT_LOG_INFO) ct_progress("radiosity", 1.0, 1, "%s", rc ? "failed" : "done");
+    rad_progress_fn prog = ct_log_get_level() >= CT_LOG_INFO ? on_progress : NULL;
+    int rc, from_cache = 0;
+    if (reuse) {
+        ct_error why;
+        rc = rad_cached_solve(s, &p, out_path, prog, NULL, &m, &st, &from_cache, &why, &err);
+        if (!from_cache) ct_info("radiosity", "solving: %s", why.msg);
+    } else {
+        rc = rad_solve(s, &p, prog, NULL, &m, &st, &err);
+    }
+    if (prog && !from_cache) ct_progress("radiosity", 1.0, 1, "%s", rc ? "failed" : "done");
     if (rc != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s: %s", argv[optind], err.msg);
         scene_free(s);
         /* A scene without light is bad input; running out of the cap is a resource failure. */
         return rc == CT_ENOMEM ? 1 : 2;
     }
-    rc = rmesh_save(&m, out_path, &err);
+    if (from_cache) {
+        ct_info("radiosity", "%s: up to date (hash %016llx), %u triangles, %u vertices", out_path,
+                (unsigned long long)m.scene_hash, m.ntris, m.nverts);
+        printf("cached 1\ntriangles %u\nvertices %u\n", m.ntris, m.nverts);
+        rmesh_free(&m);
+        scene_free(s);
+        return 0;
+    }
+    rc = reuse ? CT_OK : rmesh_save(&m, out_path, &err);
     if (rc != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
         rmesh_free(&m);

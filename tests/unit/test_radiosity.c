@@ -3,8 +3,10 @@
  * node and material per triangle), determinism across thread counts, and
  * the memory cap. */
 #include <criterion/criterion.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "common/rng.h"
 #include "tests/support/rad_fixtures.h"
@@ -321,4 +323,35 @@ Test(radiosity, hash_follows_scene_and_parameters)
     cr_assert_eq(h, rad_solution_hash(s, &q));
     scene_free(s);
     scene_free(t);
+}
+
+Test(radiosity, cache_is_used_when_fresh_and_recomputed_when_stale)
+{
+    ct_scene *s = rfx_closed_box(3, 0.5f, 10.0f);
+    rad_params p = test_params();
+    p.error = 1e-3;
+    char path[128];
+    snprintf(path, sizeof path, "/tmp/ct_rad_cache_%ld.ctmesh", (long)getpid());
+    unlink(path);
+    ct_radmesh a, b, c;
+    ct_error why, err;
+    int from_cache = -1;
+    cr_assert_eq(rad_cached_solve(s, &p, path, NULL, NULL, &a, NULL, &from_cache, &why, &err), 0, "%s", err.msg);
+    cr_assert_eq(from_cache, 0);
+    cr_assert(strstr(why.msg, "cannot open") != NULL, "why: %s", why.msg);
+    cr_assert_eq(rad_cached_solve(s, &p, path, NULL, NULL, &b, NULL, &from_cache, &why, &err), 0, "%s", err.msg);
+    cr_assert_eq(from_cache, 1, "the fresh cache was not used: %s", why.msg);
+    cr_assert_eq(a.ntris, b.ntris);
+    cr_assert_eq(mesh_digest(&a), mesh_digest(&b));
+    /* Other parameters: the cache is stale and the solution recomputed. */
+    p.error = 5e-4;
+    cr_assert_eq(rad_cached_solve(s, &p, path, NULL, NULL, &c, NULL, &from_cache, &why, &err), 0, "%s", err.msg);
+    cr_assert_eq(from_cache, 0);
+    cr_assert(strstr(why.msg, "stale") != NULL, "why: %s", why.msg);
+    cr_assert_gt(c.ntris, a.ntris);
+    rmesh_free(&a);
+    rmesh_free(&b);
+    rmesh_free(&c);
+    unlink(path);
+    scene_free(s);
 }
