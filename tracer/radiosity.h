@@ -4,7 +4,8 @@
  * rad_ prefix; the pieces live in rad_patch.c (input patches, element and
  * cluster hierarchies), rad_visibility.c (Embree occlusion), rad_link.c (form
  * factors, error oracle, link refinement), rad_solve.c (gather, push-pull,
- * passes, threads) and rad_mesh.c (conforming meshing). docs/radiosity.md
+ * passes, threads), rad_mesh.c (conforming meshing) and rad_view.c (a
+ * Gouraud image of the mesh). docs/radiosity.md
  * describes the method, its parameters and how non-diffuse materials are
  * treated. */
 #ifndef CT_RADIOSITY_H
@@ -13,7 +14,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "common/camera.h"
 #include "common/error.h"
+#include "common/image.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "common/vecmath.h"
@@ -81,6 +84,13 @@ int rad_solve(const ct_scene *s, const rad_params *p, rad_progress_fn progress, 
 int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_path,
                      rad_progress_fn progress, void *user, ct_radmesh *out, rad_stats *st,
                      int *from_cache, ct_error *why, ct_error *err);
+
+/* Renders the mesh as the display shows it (Gouraud radiance at the primary
+ * hit, rmesh_eval; direct = 1: rad_direct instead) from cam into img (sized
+ * by the caller), spp jittered samples per pixel, black where nothing is hit
+ * (rad_view.c). */
+int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int direct, int threads,
+                    ct_image *img, ct_error *err);
 
 /* Unoccluded form factor from a differential area at x (unit normal n) to a
  * planar polygon (Lambert's contour formula), clipped to n's hemisphere;

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cli/corrtex/commands.h"
+#include "common/image.h"
 #include "common/log.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
@@ -37,6 +38,12 @@ static void usage(FILE *f, const rad_params *d)
             "  --max-passes N         refinement passes at most (default %d)\n"
             "  --crease-angle DEG     average vertex values only below this normal angle (default %g)\n"
             "  --seed S               visibility ray seed (default %llu)\n"
+            "  --image FILE           also render the solution as the display shows it (Gouraud)\n"
+            "                         from a scene camera: FILE.exr (linear) or FILE.png (sRGB)\n"
+            "  --camera NAME          the camera of --image (default: the scene's first)\n"
+            "  --width W, --height H  size of --image (default 512 x 512)\n"
+            "  --spp S                jittered samples per pixel of --image (default 4)\n"
+            "  --image-direct         --image shows the direct part only\n"
             "  --quiet, --verbose     log level\n",
             d->error, d->min_area, d->max_triangles, d->threads, d->memory_cap_mb, d->vis_rays,
             d->shadow_rays, d->tolerance, d->max_iterations, d->max_passes, d->crease_deg,
@@ -70,7 +77,8 @@ int cmd_radiosity(int argc, char **argv)
     defaults = p;
     const char *out_path = NULL;
     enum { O_ERROR = 256, O_MINAREA, O_MAXTRI, O_THREADS, O_MEMCAP, O_VIS, O_SHADOW, O_TOL, O_MAXIT,
-           O_PASSES, O_CREASE, O_SEED, O_QUIET, O_VERBOSE, O_REUSE };
+           O_PASSES, O_CREASE, O_SEED, O_QUIET, O_VERBOSE, O_REUSE, O_IMAGE, O_CAMERA, O_WIDTH,
+           O_HEIGHT, O_SPP, O_IMGDIRECT };
     static const struct option opts[] = {
         {"output", required_argument, 0, 'o'}, {"error", required_argument, 0, O_ERROR},
         {"min-area", required_argument, 0, O_MINAREA}, {"max-triangles", required_argument, 0, O_MAXTRI},
@@ -80,8 +88,12 @@ int cmd_radiosity(int argc, char **argv)
         {"max-passes", required_argument, 0, O_PASSES}, {"crease-angle", required_argument, 0, O_CREASE},
         {"seed", required_argument, 0, O_SEED}, {"quiet", no_argument, 0, O_QUIET},
         {"verbose", no_argument, 0, O_VERBOSE}, {"reuse", no_argument, 0, O_REUSE},
+        {"image", required_argument, 0, O_IMAGE}, {"camera", required_argument, 0, O_CAMERA},
+        {"width", required_argument, 0, O_WIDTH}, {"height", required_argument, 0, O_HEIGHT},
+        {"spp", required_argument, 0, O_SPP}, {"image-direct", no_argument, 0, O_IMGDIRECT},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    int reuse = 0;
+    int reuse = 0, width = 512, height = 512, spp = 4, img_direct = 0;
+    const char *image = NULL, *camera = NULL;
     int c;
     double v;
     optind = 1;
@@ -106,6 +118,12 @@ int cmd_radiosity(int argc, char **argv)
         case O_QUIET: ct_log_set_level(CT_LOG_ERROR); break;
         case O_VERBOSE: ct_log_set_level(CT_LOG_DEBUG); break;
         case O_REUSE: reuse = 1; break;
+        case O_IMAGE: image = optarg; break;
+        case O_CAMERA: camera = optarg; break;
+        case O_WIDTH: bad = num("width", optarg, 1, 16384, &v); width = (int)v; break;
+        case O_HEIGHT: bad = num("height", optarg, 1, 16384, &v); height = (int)v; break;
+        case O_SPP: bad = num("spp", optarg, 1, 4096, &v); spp = (int)v; break;
+        case O_IMGDIRECT: img_direct = 1; break;
         case 'h': usage(stdout, &defaults); return 0;
         default:
             ct_log(CT_LOG_ERROR, "corrtex radiosity", "unknown or incomplete option '%s' (try --help)",
@@ -133,6 +151,16 @@ int cmd_radiosity(int argc, char **argv)
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
         return 2;
     }
+    int cam = 0;
+    if (image) {
+        cam = camera ? scene_find_camera(s, camera) : (s->ncams ? 0 : -1);
+        if (cam < 0) {
+            if (camera) ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s: no camera named '%s'", argv[optind], camera);
+            else ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s: --image needs a camera and the scene has none", argv[optind]);
+            scene_free(s);
+            return 2;
+        }
+    }
     ct_info("radiosity", "%s: %u primitives, %u triangles, %u emitters; error %g, min-area %g, %d threads",
             s->name, s->nprims, s->ntris, s->nemitters, p.error, p.min_area, p.threads);
     ct_radmesh m;
@@ -152,6 +180,25 @@ int cmd_radiosity(int argc, char **argv)
         scene_free(s);
         /* A scene without light is bad input; running out of the cap is a resource failure. */
         return rc == CT_ENOMEM ? 1 : 2;
+    }
+    if (image) {
+        ct_image img;
+        rc = img_alloc(&img, width, height, &err);
+        if (!rc) rc = rad_render_view(&m, &s->cams[cam].cam, spp, img_direct, p.threads, &img, &err);
+        if (!rc) {
+            size_t n = strlen(image);
+            rc = n > 4 && strcmp(image + n - 4, ".png") == 0 ? img_write_png(image, &img, 0.0f, &err)
+                                                             : img_write_exr(image, &img, IMG_FLOAT, &err);
+        }
+        img_free(&img);
+        if (rc) {
+            ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
+            rmesh_free(&m);
+            scene_free(s);
+            return 2;
+        }
+        ct_info("radiosity", "%s: %d x %d, camera '%s', %d samples per pixel", image, width, height,
+                s->cams[cam].name, spp);
     }
     if (from_cache) {
         ct_info("radiosity", "%s: up to date (hash %016llx), %u triangles, %u vertices", out_path,
