@@ -41,7 +41,6 @@ typedef struct rad_elem {
     uint32_t link_off, nlinks;  /* in the patch's link block */
     uint64_t key;        /* stable id from the patch and the child path (seeds rays) */
     vec3 Bd;             /* direct part: emission + one bounce of emitted light */
-    vec3 H;              /* irradiance gathered by this element's own links */
     uint8_t nv, depth;
 } rad_elem;
 
@@ -85,7 +84,7 @@ typedef struct rad_ctx {
     rad_params prm;
     double eps;          /* absolute link error threshold (power) */
     double min_area;     /* absolute */
-    double total_area, emitted, max_E;
+    double total_area, emitted;
     float ray_eps;       /* offset of ray end points from surfaces */
 
     uint32_t npatches;

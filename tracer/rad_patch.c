@@ -217,7 +217,6 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
     rad_track(c, (int64_t)s->ntris * (int64_t)sizeof *c->patches);
     c->total_area = 0.0;
     c->emitted = 0.0;
-    c->max_E = 0.0;
     for (uint32_t t = 0; t < s->ntris;) {
         const uint32_t *i0 = s->tris + 3 * (size_t)t;
         vec3 v[4] = {s->pos[i0[0]], s->pos[i0[1]], s->pos[i0[2]], s->pos[i0[2]]};
@@ -272,7 +271,6 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         p->root = ei;
         c->total_area += e->area;
         c->emitted += (double)v3_avg(p->E) * e->area;
-        c->max_E = fmax(c->max_E, v3_maxc(p->E));
         atomic_fetch_add(&c->est_tris, nv == 4 ? 2u : 1u);
         t += (uint32_t)used;
     }

@@ -176,7 +176,6 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         }
         H = v3_madd(H, B, l->ff);
     }
-    e->H = H;
     vec3 Ht = v3_add(Hdown, H), Hdt = v3_add(Hddown, Hd);
     vec3 B, Bd;
     if (e->child == RAD_NONE) {

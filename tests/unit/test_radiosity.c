@@ -355,3 +355,50 @@ Test(radiosity, cache_is_used_when_fresh_and_recomputed_when_stale)
     unlink(path);
     scene_free(s);
 }
+
+Test(radiosity, direct_part_is_one_bounce_of_emitted_light)
+{
+    /* Receiver grey, emitter black: light reflected by the receiver only
+     * reaches the black emitter, so the receiver's total is its direct part.
+     * A grey emitter reflects some back: then the total exceeds the direct. */
+    for (int grey_emitter = 0; grey_emitter < 2; grey_emitter++) {
+        ct_scene *s = rfx_parallel_squares(1.0f, 1.0f);
+        s->mats[0].diffuse = v3s(0.5f);
+        if (grey_emitter) s->mats[1].diffuse = v3s(0.5f);
+        rad_params p = test_params();
+        p.error = 1e-3;
+        ct_radmesh m;
+        ct_error err;
+        cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), 0, "%s", err.msg);
+        double tot = 0, dir = 0;
+        for (uint32_t v = 0; v < m.nverts; v++)
+            if (m.pos[v].z < 0.5f) {
+                tot += m.rad[v].x;
+                dir += m.rad_direct[v].x;
+            }
+        cr_assert_gt(dir, 0.0);
+        if (grey_emitter) cr_assert_gt(tot, dir * 1.01, "total %f, direct %f", tot, dir);
+        else cr_assert_float_eq(tot, dir, 1e-6 * dir, "total %f, direct %f", tot, dir);
+        rmesh_free(&m);
+        scene_free(s);
+    }
+}
+
+Test(radiosity, max_triangles_bounds_the_mesh)
+{
+    ct_scene *s = rfx_room_with_block();
+    rad_params p = test_params();
+    p.error = 1e-7;
+    p.min_area = 1e-7;
+    p.max_triangles = 5000;
+    ct_radmesh m;
+    rad_stats st;
+    ct_error err;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, &st, &err), 0, "%s", err.msg);
+    cr_log_info("max-triangles 5000: %u triangles", m.ntris);
+    cr_assert_leq(m.ntris, 5000u, "%u triangles", m.ntris);
+    cr_assert_gt(m.ntris, 2500u, "%u triangles: the budget should be nearly used", m.ntris);
+    check_conforming(&m);
+    rmesh_free(&m);
+    scene_free(s);
+}
