@@ -208,7 +208,10 @@ static vec3 src_B(const rad_ctx *c, uint32_t src)
 static int faces_away(const rad_ctx *c, const rad_elem *r, const rad_elem *s)
 {
     vec3 nr = c->patches[r->patch].n, ns = c->patches[s->patch].n;
-    float tol_r = 1e-5f * r->radius, tol_s = 1e-5f * s->radius;
+    /* Coplanar neighbours must come out "behind" despite float rounding,
+     * which grows with the coordinates, not with the element. */
+    float tol_r = fmaxf(1e-5f * r->radius, 0.05f * c->ray_eps);
+    float tol_s = fmaxf(1e-5f * s->radius, 0.05f * c->ray_eps);
     int front = 0;
     for (int i = 0; i < s->nv && !front; i++) front = v3_dot(nr, v3_sub(s->p[i], r->c)) > tol_r;
     if (!front) return 1;
@@ -220,7 +223,7 @@ static int faces_away(const rad_ctx *c, const rad_elem *r, const rad_elem *s)
 static int cluster_behind(const rad_ctx *c, const rad_elem *r, const rad_cluster *k)
 {
     vec3 nr = c->patches[r->patch].n;
-    float tol = 1e-5f * r->radius;
+    float tol = fmaxf(1e-5f * r->radius, 0.05f * c->ray_eps);
     for (int i = 0; i < 8; i++)
         if (v3_dot(nr, v3_sub(b3_corner(k->b, i), r->c)) > tol) return 0;
     return 1;
