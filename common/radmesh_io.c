@@ -24,128 +24,106 @@
 #define RMESH_MAX_NODES   (1u << 24)
 #define RMESH_MAX_FILE    ((size_t)1 << 34)
 
-typedef struct wbuf {
-    unsigned char b[1 << 16];
-    size_t n;
-    FILE *f;
-    uint64_t sum;
-    int bad;
-} wbuf;
-
 static uint64_t fnv(uint64_t h, const unsigned char *p, size_t n)
 {
     for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 1099511628211ULL;
     return h;
 }
 
-static void wflush(wbuf *w)
+static unsigned char *wu32(unsigned char *p, uint32_t v)
 {
-    if (w->n && fwrite(w->b, 1, w->n, w->f) != w->n) w->bad = 1;
-    w->sum = fnv(w->sum, w->b, w->n);
-    w->n = 0;
+    p[0] = (unsigned char)v;
+    p[1] = (unsigned char)(v >> 8);
+    p[2] = (unsigned char)(v >> 16);
+    p[3] = (unsigned char)(v >> 24);
+    return p + 4;
 }
 
-static void wbytes(wbuf *w, const void *p, size_t n)
-{
-    const unsigned char *c = p;
-    while (n) {
-        if (w->n == sizeof w->b) wflush(w);
-        size_t k = sizeof w->b - w->n < n ? sizeof w->b - w->n : n;
-        memcpy(w->b + w->n, c, k);
-        w->n += k;
-        c += k;
-        n -= k;
-    }
-}
+static unsigned char *wu64(unsigned char *p, uint64_t v) { return wu32(wu32(p, (uint32_t)v), (uint32_t)(v >> 32)); }
 
-static void wu32(wbuf *w, uint32_t v)
-{
-    unsigned char b[4] = {(unsigned char)v, (unsigned char)(v >> 8), (unsigned char)(v >> 16),
-                          (unsigned char)(v >> 24)};
-    wbytes(w, b, 4);
-}
-
-static void wu64(wbuf *w, uint64_t v)
-{
-    wu32(w, (uint32_t)v);
-    wu32(w, (uint32_t)(v >> 32));
-}
-
-static void wf32(wbuf *w, float f)
+static unsigned char *wf32(unsigned char *p, float f)
 {
     uint32_t v;
     memcpy(&v, &f, 4);
-    wu32(w, v);
+    return wu32(p, v);
 }
 
-static void wvec(wbuf *w, vec3 v)
+static unsigned char *wvec(unsigned char *p, vec3 v) { return wf32(wf32(wf32(p, v.x), v.y), v.z); }
+
+int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error *err)
 {
-    wf32(w, v.x);
-    wf32(w, v.y);
-    wf32(w, v.z);
+    *out = NULL;
+    *len = 0;
+    if (m->nverts > RMESH_MAX_VERTS || m->ntris > RMESH_MAX_TRIS || m->nnodes > RMESH_MAX_NODES)
+        return ct_fail(err, CT_ERANGE, "mesh too large to encode (%u vertices, %u triangles, %u nodes)",
+                       m->nverts, m->ntris, m->nnodes);
+    size_t n = (size_t)RMESH_HEADER + (size_t)m->nverts * RMESH_VERT_BYTES + (size_t)m->ntris * RMESH_TRI_BYTES +
+               (size_t)m->nnodes * RMESH_NODE_BYTES + 8;
+    unsigned char *buf = malloc(n), *p = buf;
+    if (!buf) return ct_fail(err, CT_ENOMEM, "out of memory for a %zu-byte mesh", n);
+    memcpy(p, RMESH_MAGIC, RMESH_MAGIC_LEN);
+    p += RMESH_MAGIC_LEN;
+    *p++ = 0;
+    *p++ = 0;
+    p = wu32(p, RMESH_VERSION);
+    p = wu32(p, RMESH_ENDIAN);
+    p = wu64(p, m->scene_hash);
+    p = wu32(p, m->nverts);
+    p = wu32(p, m->ntris);
+    p = wu32(p, m->nnodes);
+    p = wu32(p, 0);
+    p = wu32(p, 0);
+    for (uint32_t i = 0; i < m->nverts; i++) {
+        p = wvec(p, m->pos[i]);
+        p = wvec(p, m->nrm[i]);
+        p = wvec(p, m->rad[i]);
+        p = wvec(p, m->rad_direct[i]);
+    }
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        for (int k = 0; k < 3; k++) p = wu32(p, m->tris[3 * (size_t)t + (size_t)k]);
+        p = wu32(p, m->tri_node[t]);
+        p = wu32(p, m->tri_mat[t]);
+    }
+    for (uint32_t i = 0; i < m->nnodes; i++) {
+        const rmesh_node *d = &m->nodes[i];
+        /* NUL-padded: the bytes after the name are zero, so encoding is a
+         * function of the mesh alone. */
+        memset(p, 0, SCENE_NAME_LEN);
+        memcpy(p, d->name, strnlen(d->name, SCENE_NAME_LEN - 1));
+        p += SCENE_NAME_LEN;
+        p = wu32(p, (uint32_t)d->parent);
+        p = wu32(p, d->node_end);
+        p = wu32(p, d->material);
+        p = wvec(p, d->bounds.lo);
+        p = wvec(p, d->bounds.hi);
+    }
+    p = wu64(p, fnv(1469598103934665603ULL, buf, (size_t)(p - buf)));
+    *out = buf;
+    *len = (size_t)(p - buf);
+    return CT_OK;
 }
 
 int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err)
 {
-    if (m->nverts > RMESH_MAX_VERTS || m->ntris > RMESH_MAX_TRIS || m->nnodes > RMESH_MAX_NODES)
-        return ct_fail(err, CT_ERANGE, "%s: mesh too large to save (%u vertices, %u triangles, %u nodes)",
-                       path, m->nverts, m->ntris, m->nnodes);
+    unsigned char *buf;
+    size_t len;
+    int rc = rmesh_encode(m, &buf, &len, err);
+    if (rc) {
+        ct_error_prefix(err, path);
+        return rc;
+    }
     fs_atomic a;
-    int rc = fs_atomic_open(&a, path, err);
-    if (rc) return rc;
-    wbuf *w = malloc(sizeof *w);
-    if (!w) {
-        fs_atomic_abort(&a);
-        return ct_fail(err, CT_ENOMEM, "%s: out of memory", path);
+    rc = fs_atomic_open(&a, path, err);
+    if (rc) {
+        free(buf);
+        return rc;
     }
-    w->n = 0;
-    w->f = a.f;
-    w->sum = 1469598103934665603ULL;
-    w->bad = 0;
-    wbytes(w, RMESH_MAGIC, RMESH_MAGIC_LEN);
-    wbytes(w, "\0\0", 2);
-    wu32(w, RMESH_VERSION);
-    wu32(w, RMESH_ENDIAN);
-    wu64(w, m->scene_hash);
-    wu32(w, m->nverts);
-    wu32(w, m->ntris);
-    wu32(w, m->nnodes);
-    wu32(w, 0);
-    wu32(w, 0);
-    for (uint32_t i = 0; i < m->nverts; i++) {
-        wvec(w, m->pos[i]);
-        wvec(w, m->nrm[i]);
-        wvec(w, m->rad[i]);
-        wvec(w, m->rad_direct[i]);
-    }
-    for (uint32_t t = 0; t < m->ntris; t++) {
-        for (int k = 0; k < 3; k++) wu32(w, m->tris[3 * (size_t)t + (size_t)k]);
-        wu32(w, m->tri_node[t]);
-        wu32(w, m->tri_mat[t]);
-    }
-    for (uint32_t n = 0; n < m->nnodes; n++) {
-        const rmesh_node *d = &m->nodes[n];
-        char name[SCENE_NAME_LEN];
-        memset(name, 0, sizeof name);
-        size_t nl = strnlen(d->name, sizeof name - 1);
-        memcpy(name, d->name, nl);
-        wbytes(w, name, sizeof name);
-        wu32(w, (uint32_t)d->parent);
-        wu32(w, d->node_end);
-        wu32(w, d->material);
-        wvec(w, d->bounds.lo);
-        wvec(w, d->bounds.hi);
-    }
-    wflush(w);
-    uint64_t sum = w->sum;
-    wu64(w, sum);
-    wflush(w);
-    int bad = w->bad;
-    free(w);
-    if (bad) {
+    if (fwrite(buf, 1, len, a.f) != len) {
+        free(buf);
         fs_atomic_abort(&a);
         return ct_fail(err, CT_EIO, "%s: write failed", path);
     }
+    free(buf);
     return fs_atomic_commit(&a, err);
 }
 
@@ -166,63 +144,50 @@ static float rf32(const unsigned char *p)
 
 static vec3 rvec(const unsigned char *p) { return v3(rf32(p), rf32(p + 4), rf32(p + 8)); }
 
-int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *err)
+int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t expect_hash, ct_radmesh *m,
+                 ct_error *err)
 {
     memset(m, 0, sizeof *m);
-    char *data = NULL;
-    size_t len = 0;
-    int rc = fs_read_all(path, RMESH_MAX_FILE, &data, &len, err);
-    if (rc) return rc;
-    const unsigned char *d = (const unsigned char *)data;
+    int rc;
     if (len < RMESH_MAGIC_LEN || memcmp(d, RMESH_MAGIC, RMESH_MAGIC_LEN) != 0) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: not a corrtex mesh cache (bad magic)", path);
     }
     if (len < RMESH_HEADER) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: truncated header (%zu bytes, need %d)", path, len, RMESH_HEADER);
     }
     uint32_t version = ru32(d + 12), endian = ru32(d + 16);
     if (version != RMESH_VERSION) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: mesh cache version %u not supported (this build reads %u)",
                        path, version, RMESH_VERSION);
     }
     if (endian != RMESH_ENDIAN) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: endianness check 0x%08x, expected 0x%08x (written byte-swapped?)",
                        path, endian, RMESH_ENDIAN);
     }
     uint64_t hash = ru64(d + 20);
     uint32_t nv = ru32(d + 28), nt = ru32(d + 32), nn = ru32(d + 36);
     if (ru32(d + 40) != 0 || ru32(d + 44) != 0) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: reserved header fields are not zero", path);
     }
     if (nv > RMESH_MAX_VERTS || nt > RMESH_MAX_TRIS || nn > RMESH_MAX_NODES) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: counts out of range (%u vertices, %u triangles, %u nodes)",
                        path, nv, nt, nn);
     }
     uint64_t need = (uint64_t)RMESH_HEADER + (uint64_t)nv * RMESH_VERT_BYTES +
                     (uint64_t)nt * RMESH_TRI_BYTES + (uint64_t)nn * RMESH_NODE_BYTES + 8;
     if (len != need) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: %s (%zu bytes, header says %llu)", path,
                        len < need ? "truncated" : "trailing bytes", len, (unsigned long long)need);
     }
     if (fnv(1469598103934665603ULL, d, len - 8) != ru64(d + len - 8)) {
-        free(data);
         return ct_fail(err, CT_EPARSE, "%s: checksum mismatch (corrupted cache)", path);
     }
     if (expect_hash && hash != expect_hash) {
-        free(data);
         return ct_fail(err, CT_ESTALE, "%s: stale cache (scene hash %016llx, expected %016llx)", path,
                        (unsigned long long)hash, (unsigned long long)expect_hash);
     }
     rc = rmesh_alloc(m, nv, nt, nn, err);
     if (rc) {
-        free(data);
         return rc;
     }
     m->scene_hash = hash;
@@ -257,8 +222,11 @@ int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *
     for (uint32_t n = 0; n < nn; n++, p += RMESH_NODE_BYTES) {
         rmesh_node *q = &m->nodes[n];
         memcpy(q->name, p, SCENE_NAME_LEN);
-        if (memchr(q->name, '\0', SCENE_NAME_LEN) == NULL) {
-            rc = ct_fail(err, CT_EPARSE, "%s: node %u: name not terminated", path, n);
+        const char *nul = memchr(q->name, '\0', SCENE_NAME_LEN);
+        int padded = nul != NULL;
+        for (const char *z = nul; padded && z < q->name + SCENE_NAME_LEN; z++) padded = *z == '\0';
+        if (!padded) {
+            rc = ct_fail(err, CT_EPARSE, "%s: node %u: name not NUL-terminated and NUL-padded", path, n);
             goto fail;
         }
         q->parent = (int32_t)ru32(p + SCENE_NAME_LEN);
@@ -272,10 +240,20 @@ int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *
             goto fail;
         }
     }
-    free(data);
     return CT_OK;
 fail:
-    free(data);
     rmesh_free(m);
+    return rc;
+}
+
+int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *err)
+{
+    memset(m, 0, sizeof *m);
+    char *data = NULL;
+    size_t len = 0;
+    int rc = fs_read_all(path, RMESH_MAX_FILE, &data, &len, err);
+    if (rc) return rc;
+    rc = rmesh_decode((const unsigned char *)data, len, path, expect_hash, m, err);
+    free(data);
     return rc;
 }

@@ -229,3 +229,50 @@ Test(radmesh_io, save_is_atomic_and_leaves_no_temporary)
     unlink(p);
     rmdir(g_dir);
 }
+
+Test(radmesh_io, decode_encode_round_trip_and_fuzz_corpus)
+{
+    ct_radmesh m, r;
+    sample_mesh(&m);
+    unsigned char *a, *b;
+    size_t la, lb;
+    ct_error err;
+    cr_assert_eq(rmesh_encode(&m, &a, &la, &err), 0, "%s", err.msg);
+    cr_assert_eq(rmesh_decode(a, la, "mem", m.scene_hash, &r, &err), 0, "%s", err.msg);
+    cr_assert_eq(rmesh_encode(&r, &b, &lb, &err), 0, "%s", err.msg);
+    cr_assert_eq(la, lb);
+    cr_assert_eq(memcmp(a, b, la), 0);
+    /* Garbage after a node name's NUL would not survive re-encoding: refused. */
+    size_t name1 = 48 + 5 * 48 + 3 * 20 + 100 + 10;
+    a[name1] = 'x';
+    uint64_t h = fnv(a, la - 8);
+    for (int i = 0; i < 8; i++) a[la - 8 + (size_t)i] = (unsigned char)(h >> (8 * i));
+    rmesh_free(&r);
+    cr_assert_eq(rmesh_decode(a, la, "mem", 0, &r, &err), CT_EPARSE);
+    cr_assert(strstr(err.msg, "NUL-padded") != NULL, "%s", err.msg);
+    free(a);
+    free(b);
+    rmesh_free(&m);
+    /* The fuzz target's property on its corpus (make fuzz runs it with libFuzzer). */
+    FILE *ls = popen("ls tests/fuzz/corpus/ctmesh 2>/dev/null", "r");
+    cr_assert_not_null(ls);
+    char name[256];
+    int files = 0;
+    while (fgets(name, sizeof name, ls)) {
+        name[strcspn(name, "\n")] = '\0';
+        char path[512];
+        snprintf(path, sizeof path, "tests/fuzz/corpus/ctmesh/%s", name);
+        size_t len;
+        unsigned char *d = read_file(path, &len);
+        if (rmesh_decode(d, len, path, 0, &r, &err) == 0) {
+            cr_assert_eq(rmesh_encode(&r, &b, &lb, &err), 0);
+            cr_assert(lb == len && memcmp(b, d, len) == 0, "%s does not re-encode to itself", path);
+            free(b);
+            rmesh_free(&r);
+        }
+        free(d);
+        files++;
+    }
+    pclose(ls);
+    cr_assert_geq(files, 1, "tests/fuzz/corpus/ctmesh is empty (run from the repository root)");
+}
