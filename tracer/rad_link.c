@@ -152,9 +152,15 @@ static int src_has_emitter(const rad_ctx *c, uint32_t src)
  * their (self-occluded) rays must not count twice. */
 static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
 {
-    int nrays = src_has_emitter(c, src) ? c->prm.shadow_rays : c->prm.vis_rays;
+    int emitting = src_has_emitter(c, src);
+    int nrays = emitting ? c->prm.shadow_rays : c->prm.vis_rays;
     uint64_t skey = (src & RAD_CLUSTER_BIT) ? ct_hash64(src) : rad_el(c, src)->key;
-    ct_rng g = rng_make(c->prm.seed, r->key, skey, 0x7669u);
+    /* Links from one non-emitting source share their jitter pattern, so
+     * neighbouring receivers see the same few rays' bias instead of
+     * independent noise (blotches across a curved surface); shadow rays to
+     * emitters stay independent, or penumbrae would show as a few shifted
+     * hard shadows. */
+    ct_rng g = rng_make(c->prm.seed, emitting ? r->key : 0x5eedu, skey, 0x7669u);
     int m = 1;
     while (m * m < nrays) m++;
     vec3 nr = v3_scale(c->patches[r->patch].n, c->ray_eps);
