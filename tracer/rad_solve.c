@@ -374,7 +374,12 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         run_job(c, ws, prm->threads, JOB_PUBLISH, 0);
         st->passes = c->pass + 1;
         uint64_t refined = atomic_load(&c->refined);
-        int last = (c->pass > 0 && refined == 0) || c->pass + 1 == prm->max_passes;
+        uint64_t nlinks = 0;
+        for (uint32_t i = 0; i < c->npatches; i++) nlinks += c->patches[i].nlinks;
+        /* Converged when (almost) no link changed: a pass that refines under
+         * 0.1 % of the links changes the solution by far less than the
+         * links' own error. */
+        int last = (c->pass > 0 && refined * 1000 <= nlinks) || c->pass + 1 == prm->max_passes;
         /* Intermediate passes only need the oracle's B roughly right: a few
          * iterations; the last pass converges to the tolerance. */
         int max_it = last ? prm->max_iterations : (prm->max_iterations < 6 ? prm->max_iterations : 6);
