@@ -8,7 +8,8 @@ set -u
 BIN=${CORRTEX_BIN:-bin}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 fail=0
-run() { echo "+ $*"; "$@"; }
+exec 3>&1   # commands are logged to the original stdout even when output is redirected
+run() { echo "+ $*" >&3; "$@"; }
 scene=scenes/cornell/cornell.json
 [[ -f scenes/cornell/cornell.obj ]] || { echo "missing $scene meshes (run make scenes)"; exit 1; }
 
@@ -32,6 +33,14 @@ echo "metric: cornell_triangles=$tris"
 run "$BIN/corrtex" radiosity "$scene" -o "$tmp/b.ctmesh" --error 1e-4 --threads 2 --quiet >/dev/null \
   || { echo "FAIL: 2-thread solve"; fail=1; }
 cmp "$tmp/a.ctmesh" "$tmp/b.ctmesh" || { echo "FAIL: 1 and 2 threads give different meshes"; fail=1; }
+
+# --image: the Gouraud view from a scene camera, PNG and EXR.
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --reuse --image "$tmp/v.png" --camera front \
+  --width 64 --height 48 --spp 2 --quiet >/dev/null || { echo "FAIL: --image png"; fail=1; }
+[[ $(head -c 8 "$tmp/v.png" | od -An -tx1 | tr -d ' ') == 89504e470d0a1a0a ]] || { echo "FAIL: not a PNG"; fail=1; }
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --reuse --image "$tmp/v.exr" --width 64 \
+  --height 48 --quiet >/dev/null || { echo "FAIL: --image exr"; fail=1; }
+run "$BIN/corrtex" compare "$tmp/v.exr" "$tmp/v.exr" --max-rmse 0 >/dev/null || { echo "FAIL: the EXR does not read back"; fail=1; }
 
 run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --reuse >"$tmp/r.out" 2>"$tmp/r.err" || fail=1
 grep -q "^cached 1" "$tmp/r.out" || { echo "FAIL: --reuse did not keep a fresh cache"; cat "$tmp/r.err"; fail=1; }
@@ -58,6 +67,7 @@ check 2 "\-\-error: 'abc'" "$scene" -o "$tmp/x.ctmesh" --error abc
 check 2 "\-\-threads" "$scene" -o "$tmp/x.ctmesh" --threads 0
 check 2 "unknown or incomplete option '--bogus'" "$scene" -o "$tmp/x.ctmesh" --bogus
 check 2 "cannot create" "$scene" -o "$tmp/no/such/dir/x.ctmesh" --error 1e-2
+check 2 "no camera named 'nope'" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/x.png" --camera nope
 check 1 "memory cap of 16 MB" "$scene" -o "$tmp/x.ctmesh" --error 1e-9 --min-area 1e-12 --memory-cap 16
 [[ -e $tmp/x.ctmesh ]] && { echo "FAIL: a failed run left an output"; fail=1; }
 exit $fail

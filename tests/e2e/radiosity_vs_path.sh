@@ -15,7 +15,8 @@
 set -u
 BIN=${CORRTEX_BIN:-bin}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
-run() { echo "+ $*"; "$@"; }
+exec 3>&1   # commands are logged to the original stdout even when output is redirected
+run() { echo "+ $*" >&3; "$@"; }
 if ! "$BIN/corrtex" reference --help >/dev/null 2>&1; then
   echo "skip: corrtex reference is not in this build (the tracer); radiosity vs path not compared"
   exit 0
