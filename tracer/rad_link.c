@@ -146,7 +146,9 @@ static int src_has_emitter(const rad_ctx *c, uint32_t src)
 }
 
 /* Fraction of jittered segments between r and the source that are free:
- * receiver points stratified, source points uniform. For a cluster the end
+ * receiver and source points both stratified, the source strata paired with
+ * the receiver's by a random permutation (so a penumbra's estimate varies
+ * less from element to element). For a cluster the end
  * point is on a random patch of it that faces the receiver point: the
  * cluster's projected area already accounts for the patches turned away, so
  * their (self-occluded) rays must not count twice. */
@@ -167,6 +169,14 @@ static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
     const rad_elem *se = (src & RAD_CLUSTER_BIT) ? NULL : rad_el(c, src);
     vec3 ns_eps = se ? v3_scale(c->patches[se->patch].n, c->ray_eps) : v3s(0.0f);
     int free_ = 0, counted = 0;
+    uint16_t perm[1024];
+    for (int i = 0; i < nrays; i++) perm[i] = (uint16_t)i;
+    for (int i = nrays - 1; i > 0; i--) {
+        uint32_t j = rng_below(&g, (uint32_t)i + 1);
+        uint16_t t = perm[i];
+        perm[i] = perm[j];
+        perm[j] = t;
+    }
     for (int i = 0; i < nrays; i++) {
         float u = ((float)(i % m) + rng_float(&g)) / (float)m;
         float v = ((float)((i / m) % m) + rng_float(&g)) / (float)m;
@@ -189,7 +199,8 @@ static float visibility(rad_ctx *c, const rad_elem *r, uint32_t src)
                 b = v3_add(b, v3_scale(q->n, c->ray_eps));
             }
         } else {
-            float su = rng_float(&g), sv = rng_float(&g);
+            float su = ((float)(perm[i] % m) + rng_float(&g)) / (float)m;
+            float sv = ((float)((perm[i] / m) % m) + rng_float(&g)) / (float)m;
             b = v3_add(rad_elem_point(se, su, sv), ns_eps);
             found = 1;
         }
