@@ -72,18 +72,152 @@ static int push(u32vec *a, uint32_t x)
     return 0;
 }
 
-/* Appends the points strictly inside edge a-b that are mesh vertices, in
- * order from a to b: recursively the midpoints that exist. */
-static int edge_points(poshash *h, vec3 a, vec3 b, int depth, u32vec *out)
+/* --- points on input patch edges ------------------------------------------
+ * Input meshes may have T-junctions of their own (a wall tessellated finer
+ * than the ceiling it meets). Every mesh point lying on an input patch's
+ * boundary edge is found through a hashed uniform grid and kept, sorted
+ * along the edge; leaf edges on that boundary take their inner vertices from
+ * there, so they are anchored to foreign vertices too. */
+
+typedef struct pgrid {
+    float h, inv_h;
+    vec3 lo;
+    uint32_t mask;
+    uint32_t *start;   /* bucket -> first index in ids (size mask + 2) */
+    uint32_t *ids;     /* point ids grouped by bucket */
+} pgrid;
+
+static void cell_of(const pgrid *g, vec3 p, int32_t q[3])
 {
-    if (depth > RAD_MAX_DEPTH + 1) return 0;
-    vec3 m = v3_scale(v3_add(a, b), 0.5f);
-    uint32_t id = ph_get(h, m, 0);
-    if (id == RAD_NONE) return 0;
-    int rc = edge_points(h, a, m, depth + 1, out);
-    if (!rc) rc = push(out, id);
-    if (!rc) rc = edge_points(h, m, b, depth + 1, out);
-    return rc;
+    q[0] = (int32_t)floorf((p.x - g->lo.x) * g->inv_h);
+    q[1] = (int32_t)floorf((p.y - g->lo.y) * g->inv_h);
+    q[2] = (int32_t)floorf((p.z - g->lo.z) * g->inv_h);
+}
+
+static uint32_t bucket_of(const pgrid *g, const int32_t q[3])
+{
+    uint64_t k = ((uint64_t)(uint32_t)q[0] * 0x9E3779B1u) ^ ((uint64_t)(uint32_t)q[1] * 0x85EBCA77u) ^
+                 ((uint64_t)(uint32_t)q[2] * 0xC2B2AE3Du);
+    return (uint32_t)ct_hash64(k) & g->mask;
+}
+
+static int pgrid_build(pgrid *g, const vec3 *pts, uint32_t n, float h)
+{
+    memset(g, 0, sizeof *g);
+    g->h = h;
+    g->inv_h = 1.0f / h;
+    g->lo = v3s(0.0f);
+    uint32_t cap = 1;
+    while (cap < 2 * n + 2) cap <<= 1;
+    g->mask = cap - 1;
+    g->start = calloc((size_t)cap + 1, sizeof *g->start);
+    g->ids = malloc(((size_t)n + 1) * sizeof *g->ids);
+    uint32_t *b = malloc(((size_t)n + 1) * sizeof *b);
+    if (!g->start || !g->ids || !b) {
+        free(b);
+        return CT_ENOMEM;
+    }
+    for (uint32_t i = 0; i < n; i++) {
+        int32_t q[3];
+        cell_of(g, pts[i], q);
+        b[i] = bucket_of(g, q);
+        g->start[b[i] + 1]++;
+    }
+    for (uint32_t i = 0; i < cap; i++) g->start[i + 1] += g->start[i];
+    uint32_t *fill = malloc(((size_t)cap + 1) * sizeof *fill);
+    if (!fill) {
+        free(b);
+        return CT_ENOMEM;
+    }
+    memcpy(fill, g->start, ((size_t)cap + 1) * sizeof *fill);
+    for (uint32_t i = 0; i < n; i++) g->ids[fill[b[i]]++] = i;
+    free(fill);
+    free(b);
+    return 0;
+}
+
+static void pgrid_free(pgrid *g)
+{
+    free(g->start);
+    free(g->ids);
+}
+
+typedef struct tpoint {
+    float t;
+    uint32_t id;
+} tpoint;
+
+static int cmp_tpoint(const void *a, const void *b)
+{
+    float x = ((const tpoint *)a)->t, y = ((const tpoint *)b)->t;
+    return x < y ? -1 : x > y;
+}
+
+/* Appends to out the points strictly inside segment a-b (within a tolerance
+ * of its length), sorted by their parameter t along it. stamp/mark dedupe
+ * candidates seen through several cells. */
+static int segment_points(const pgrid *g, const vec3 *pts, vec3 a, vec3 b, uint32_t *mark, uint32_t stamp,
+                          tpoint **out, size_t *nout, size_t *capout)
+{
+    vec3 ab = v3_sub(b, a);
+    float l2 = v3_len2(ab);
+    if (!(l2 > 0.0f)) return 0;
+    float len = sqrtf(l2);
+    /* Rounding of coordinates, not of the edge, sets the tolerance. */
+    float scale = fmaxf(v3_maxc(v3(fabsf(a.x), fabsf(a.y), fabsf(a.z))), v3_maxc(v3(fabsf(b.x), fabsf(b.y), fabsf(b.z))));
+    float tol = 4e-6f * fmaxf(scale, len);
+    int steps = (int)ceilf(len * g->inv_h) + 1;
+    if (steps > 1 << 20) steps = 1 << 20;
+    size_t first = *nout;
+    int32_t prev[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
+    for (int s = 0; s <= steps; s++) {
+        vec3 p = v3_add(a, v3_scale(ab, (float)s / (float)steps));
+        int32_t q[3];
+        cell_of(g, p, q);
+        if (q[0] == prev[0] && q[1] == prev[1] && q[2] == prev[2]) continue;
+        memcpy(prev, q, sizeof prev);
+        for (int dz = -1; dz <= 1; dz++)
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
+                    int32_t r[3] = {q[0] + dx, q[1] + dy, q[2] + dz};
+                    uint32_t bk = bucket_of(g, r);
+                    for (uint32_t k = g->start[bk]; k < g->start[bk + 1]; k++) {
+                        uint32_t id = g->ids[k];
+                        if (mark[id] == stamp) continue;
+                        mark[id] = stamp;
+                        vec3 d = v3_sub(pts[id], a);
+                        float t = v3_dot(d, ab) / l2;
+                        if (t * len <= tol || (1.0f - t) * len <= tol) continue;
+                        vec3 off = v3_sub(d, v3_scale(ab, t));
+                        if (v3_len2(off) > tol * tol) continue;
+                        if (*nout == *capout) {
+                            size_t nc = *capout ? *capout * 2 : 1024;
+                            tpoint *x = realloc(*out, nc * sizeof *x);
+                            if (!x) return CT_ENOMEM;
+                            *out = x;
+                            *capout = nc;
+                        }
+                        (*out)[*nout].t = t;
+                        (*out)[*nout].id = id;
+                        (*nout)++;
+                    }
+                }
+    }
+    qsort(*out + first, *nout - first, sizeof **out, cmp_tpoint);
+    return 0;
+}
+
+/* Parameter of p along a-b when p lies on that segment (inside tol), else -1. */
+static float on_segment(vec3 a, vec3 b, vec3 p)
+{
+    vec3 ab = v3_sub(b, a), d = v3_sub(p, a);
+    float l2 = v3_len2(ab);
+    if (!(l2 > 0.0f)) return -1.0f;
+    float t = v3_dot(d, ab) / l2;
+    if (t < -1e-6f || t > 1.0f + 1e-6f) return -1.0f;
+    float scale = fmaxf(v3_maxc(v3(fabsf(a.x), fabsf(a.y), fabsf(a.z))), v3_maxc(v3(fabsf(b.x), fabsf(b.y), fabsf(b.z))));
+    float tol = 4e-6f * fmaxf(scale, sqrtf(l2));
+    return v3_len2(v3_sub(d, v3_scale(ab, t))) <= tol * tol ? t : -1.0f;
 }
 
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
@@ -92,6 +226,13 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     int rc = CT_OK;
     u32vec leaves = {0}, bnd = {0}, boff = {0}, stack = {0};
     poshash h = {0};
+    pgrid grid = {0};
+    tpoint *pe = NULL;
+    size_t npe = 0, cappe = 0;
+    uint32_t *pe_off = NULL, *mark = NULL;
+    tpoint *tmp = NULL;
+    size_t captmp = 0;
+    uint32_t stamp = 4 * c->npatches;   /* stamps below are the patch edges' */
     uint32_t *cnt = NULL, *byp = NULL, *bvert = NULL;
     vec3 *vsum = NULL, *vdsum = NULL, *vnrm = NULL, *vpos = NULL;
     uint32_t *vcount = NULL;
@@ -121,14 +262,65 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
         for (int k = 0; k < e->nv; k++) ph_get(&h, e->p[k], 1);
     }
 
-    /* Boundary loop of every leaf: corners and the finer neighbours'
-     * vertices on its edges. */
+    /* Points on every input patch's boundary edges (grid cells about the
+     * size of a leaf). */
+    double leaf_area = 0.0;
+    for (size_t i = 0; i < leaves.n; i++) leaf_area += rad_el(c, leaves.v[i])->area;
+    float cell = (float)sqrt(leaf_area / (double)(leaves.n ? leaves.n : 1));
+    if (!(cell > 0.0f)) cell = 1.0f;
+    if (pgrid_build(&grid, h.pts, h.npts, cell) != 0) goto oom;
+    pe_off = malloc(((size_t)c->npatches * 4 + 1) * sizeof *pe_off);
+    mark = malloc(((size_t)h.npts + 1) * sizeof *mark);
+    if (!pe_off || !mark) goto oom;
+    for (uint32_t i = 0; i < h.npts; i++) mark[i] = UINT32_MAX;
+    for (uint32_t p = 0; p < c->npatches && !rc; p++) {
+        const rad_elem *r = rad_el(c, c->patches[p].root);
+        for (int k = 0; k < 4 && !rc; k++) {
+            pe_off[4 * (size_t)p + (size_t)k] = (uint32_t)npe;
+            if (k < r->nv)
+                rc = segment_points(&grid, h.pts, r->p[k], r->p[(k + 1) % r->nv], mark, 4 * p + (uint32_t)k,
+                                    &pe, &npe, &cappe);
+        }
+    }
+    if (rc) goto oom;
+    pe_off[4 * (size_t)c->npatches] = (uint32_t)npe;
+
+    /* Boundary loop of every leaf: its corners, and the vertices inside its
+     * edges: from the patch edge's list on the patch boundary, else the
+     * finer neighbours' midpoints. */
     for (size_t i = 0; i < leaves.n && !rc; i++) {
         const rad_elem *e = rad_el(c, leaves.v[i]);
+        const rad_elem *r = rad_el(c, c->patches[e->patch].root);
         rc = push(&boff, (uint32_t)bnd.n);
         for (int k = 0; k < e->nv && !rc; k++) {
-            rc = push(&bnd, ph_get(&h, e->p[k], 0));
-            if (!rc) rc = edge_points(&h, e->p[k], e->p[(k + 1) % e->nv], 0, &bnd);
+            vec3 a = e->p[k], b = e->p[(k + 1) % e->nv];
+            rc = push(&bnd, ph_get(&h, a, 0));
+            int done = 0;
+            for (int j = 0; j < r->nv && !rc && !done; j++) {
+                vec3 pa = r->p[j], pb = r->p[(j + 1) % r->nv];
+                float ta = on_segment(pa, pb, a), tb = on_segment(pa, pb, b);
+                if (ta < 0.0f || tb < 0.0f) continue;
+                done = 1;
+                uint32_t lo = pe_off[4 * (size_t)e->patch + (size_t)j], hi = pe_off[4 * (size_t)e->patch + (size_t)j + 1];
+                float t0 = fminf(ta, tb), t1 = fmaxf(ta, tb);
+                /* Strictly between the leaf edge's ends, in a-to-b order. */
+                float eps = 1e-6f;
+                if (ta <= tb) {
+                    for (uint32_t q = lo; q < hi && !rc; q++)
+                        if (pe[q].t > t0 + eps && pe[q].t < t1 - eps) rc = push(&bnd, pe[q].id);
+                } else {
+                    for (uint32_t q = hi; q-- > lo && !rc;)
+                        if (pe[q].t > t0 + eps && pe[q].t < t1 - eps) rc = push(&bnd, pe[q].id);
+                }
+            }
+            if (!done && !rc) {
+                /* Inside the patch: finer neighbours' midpoints, and any
+                 * other geometry's vertex touching the edge (the corner of
+                 * a box standing on a floor). */
+                size_t n0 = 0;
+                rc = segment_points(&grid, h.pts, a, b, mark, stamp++, &tmp, &n0, &captmp);
+                for (size_t q = 0; q < n0 && !rc; q++) rc = push(&bnd, tmp[q].id);
+            }
         }
     }
     if (!rc) rc = push(&boff, (uint32_t)bnd.n);
@@ -263,6 +455,11 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
 oom:
     rc = ct_fail(err, CT_ENOMEM, "radiosity: out of memory while meshing %zu leaves", leaves.n);
 done:
+    pgrid_free(&grid);
+    free(pe);
+    free(pe_off);
+    free(mark);
+    free(tmp);
     free(leaves.v);
     free(bnd.v);
     free(boff.v);

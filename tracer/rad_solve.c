@@ -419,8 +419,10 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     c->cur = 1 - c->cur;
 
     if (progress) progress(user, 1.0, "meshing");
+    double tm = ct_now();
     rc = rad_mesh_build(c, out, err);
     if (rc) goto done;
+    ct_debug("radiosity", "meshing: %u triangles, %u vertices, %.2f s", out->ntris, out->nverts, ct_now() - tm);
     out->scene_hash = rad_solution_hash(s, prm);
 
     st->patches = c->npatches;
