@@ -203,7 +203,7 @@ static int segment_points(const pgrid *g, const vec3 *pts, vec3 a, vec3 b, uint3
                     }
                 }
     }
-    qsort(*out + first, *nout - first, sizeof **out, cmp_tpoint);
+    if (*nout - first > 1) qsort(*out + first, *nout - first, sizeof **out, cmp_tpoint);
     return 0;
 }
 
