@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cli/corrtex/commands.h"
+#include "common/fsutil.h"
 #include "common/image.h"
 #include "common/log.h"
 #include "common/radmesh.h"
@@ -145,6 +146,17 @@ int cmd_radiosity(int argc, char **argv)
     if (rad_params_check(&p, &err) != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
         return 2;
+    }
+    /* Fail on an unwritable output now, not after a long solve. */
+    const char *outs[2] = {out_path, image};
+    for (int i = 0; i < 2; i++) {
+        fs_atomic probe;
+        if (!outs[i]) continue;
+        if (fs_atomic_open(&probe, outs[i], &err) != CT_OK) {
+            ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
+            return 2;
+        }
+        fs_atomic_abort(&probe);
     }
     ct_scene *s;
     if (scene_load(argv[optind], &s, &err) != CT_OK) {
