@@ -17,6 +17,9 @@ int cmd_info(int argc, char **argv);
 /* corrtex radiosity: hierarchical radiosity into a .ctmesh cache. */
 int cmd_radiosity(int argc, char **argv);
 
+/* corrtex reference: the offline high-quality renderer (cmd_reference.c). */
+int cmd_reference(int argc, char **argv);
+
 /* The table, terminated by a NULL name (main.c). */
 extern const cli_command cli_commands[];
 
