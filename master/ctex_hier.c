@@ -1,0 +1,447 @@
+/* ctex_hier.c: builds the texture hierarchy (ctex_hier.h): modeling
+ * hierarchy from the mesh's node table, BVH refinement by space and material
+ * where a node has more than two children, and per-node geometry. */
+#include "master/ctex_hier.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define MIXED UINT32_MAX
+
+/* Per modeling node: statistics of its own triangles and of its subtree. */
+typedef struct mstat {
+    uint32_t own, total;      /* triangle counts */
+    bounds3 own_b, sub_b;
+    uint32_t own_mat, sub_mat;/* single material or MIXED (UINT32_MAX - 1 = none yet) */
+    float own_gloss, sub_gloss;
+} mstat;
+
+#define NOMAT (UINT32_MAX - 1)
+
+static uint32_t mat_merge(uint32_t a, uint32_t b)
+{
+    if (a == NOMAT) return b;
+    if (b == NOMAT) return a;
+    return a == b ? a : MIXED;
+}
+
+/* An entry of a child list: a modeling node (own = 0) or a node's own
+ * triangles as a pseudo leaf (own = 1). */
+typedef struct item {
+    uint32_t node;
+    int own;
+    bounds3 b;
+    vec3 c;
+    uint32_t mat;
+    float gloss;
+} item;
+
+typedef struct builder {
+    const ct_radmesh *m;
+    mstat *st;
+    ctex_hier *h;
+    uint32_t cap;
+    float mat_weight;
+    int32_t *leaf_of_node;    /* modeling node -> leaf index of its own triangles */
+    ct_error *err;
+} builder;
+
+static int new_node(builder *B, int32_t parent, int32_t snode, uint32_t *id)
+{
+    if (B->h->nnodes >= B->cap) return ct_fail(B->err, CT_ERANGE, "texture hierarchy overflow");
+    *id = B->h->nnodes++;
+    ctex_hnode *n = &B->h->nodes[*id];
+    memset(n, 0, sizeof *n);
+    n->parent = parent;
+    n->scene_node = snode;
+    n->leaf_begin = B->h->nleaves;
+    return CT_OK;
+}
+
+static int emit_items(builder *B, item *it, uint32_t k, int32_t parent, int depth);
+
+/* A leaf for node's own triangles. */
+static int emit_leaf(builder *B, uint32_t node, int32_t parent)
+{
+    uint32_t id = 0;
+    int rc = new_node(B, parent, (int32_t)node, &id);
+    if (rc) return rc;
+    uint32_t li = B->h->nleaves++;
+    B->h->leaf_node[li] = id;
+    B->h->leaf_part[li] = node;
+    B->leaf_of_node[node] = (int32_t)li;
+    B->h->nodes[id].end = B->h->nnodes;
+    B->h->nodes[id].leaf_end = B->h->nleaves;
+    return CT_OK;
+}
+
+/* Child items of modeling node n (non-empty subtrees, plus own triangles). */
+static uint32_t gather(builder *B, uint32_t n, item *out)
+{
+    const ct_radmesh *m = B->m;
+    uint32_t k = 0;
+    if (B->st[n].own > 0) {
+        out[k].node = n; out[k].own = 1; out[k].b = B->st[n].own_b;
+        out[k].mat = B->st[n].own_mat; out[k].gloss = B->st[n].own_gloss; k++;
+    }
+    for (uint32_t c = n + 1; c < m->nodes[n].node_end && c < m->nnodes; c = m->nodes[c].node_end) {
+        if (m->nodes[c].node_end <= c) break;   /* malformed table: stop */
+        if (B->st[c].total == 0) continue;
+        out[k].node = c; out[k].own = 0; out[k].b = B->st[c].sub_b;
+        out[k].mat = B->st[c].sub_mat; out[k].gloss = B->st[c].sub_gloss; k++;
+    }
+    for (uint32_t i = 0; i < k; i++) out[i].c = b3_center(out[i].b);
+    return k;
+}
+
+static int emit_modeling(builder *B, uint32_t n, int32_t parent, int depth)
+{
+    if (depth > 200) return ct_fail(B->err, CT_ERANGE, "modeling hierarchy deeper than 200 levels");
+    /* a pure part: a leaf */
+    if (B->st[n].own == B->st[n].total) return emit_leaf(B, n, parent);
+    uint32_t nch = 0;
+    for (uint32_t c = n + 1; c < B->m->nodes[n].node_end && c < B->m->nnodes; c = B->m->nodes[c].node_end) {
+        if (B->m->nodes[c].node_end <= c) break;
+        nch++;
+    }
+    item *it = malloc((nch + 1) * sizeof *it);
+    if (!it) return ct_fail(B->err, CT_ENOMEM, "out of memory building the texture hierarchy");
+    uint32_t k = gather(B, n, it);
+    uint32_t id = 0;
+    int rc = new_node(B, parent, (int32_t)n, &id);
+    if (!rc) rc = emit_items(B, it, k, (int32_t)id, depth + 1);
+    free(it);
+    if (rc) return rc;
+    B->h->nodes[id].end = B->h->nnodes;
+    B->h->nodes[id].leaf_end = B->h->nleaves;
+    return CT_OK;
+}
+
+static int emit_item(builder *B, const item *x, int32_t parent, int depth)
+{
+    if (x->own) return emit_leaf(B, x->node, parent);
+    return emit_modeling(B, x->node, parent, depth);
+}
+
+typedef struct okey { double k1, k2, k3; uint32_t i; } okey;
+
+static int okey_cmp(const void *a, const void *b)
+{
+    const okey *x = a, *y = b;
+    if (x->k1 != y->k1) return x->k1 < y->k1 ? -1 : 1;
+    if (x->k2 != y->k2) return x->k2 < y->k2 ? -1 : 1;
+    if (x->k3 != y->k3) return x->k3 < y->k3 ? -1 : 1;
+    return x->i < y->i ? -1 : (x->i > y->i);
+}
+
+/* Splits items into two groups minimizing the BVH cost
+ * area(A) nA (1 + w mixA) + area(B) nB (1 + w mixB) over the orders by x, y,
+ * z centroid and by (glossiness, material, longest axis). Reorders `it` so
+ * that the first *na items form group A. */
+static int split_items(builder *B, item *it, uint32_t k, int depth, uint32_t *na)
+{
+    okey *keys = malloc(k * sizeof *keys);
+    okey *best_keys = malloc(k * sizeof *keys);
+    float *suffix = malloc(k * sizeof *suffix);
+    uint32_t *smat = malloc(k * sizeof *smat);
+    if (!keys || !best_keys || !suffix || !smat) {
+        free(keys); free(best_keys); free(suffix); free(smat);
+        return ct_fail(B->err, CT_ENOMEM, "out of memory building the texture hierarchy");
+    }
+    bounds3 all = b3_empty();
+    for (uint32_t i = 0; i < k; i++) all = b3_union(all, it[i].b);
+    vec3 ext = b3_extent(all);
+    int longest = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+    double best = INFINITY;
+    uint32_t best_na = k / 2;
+    int have = 0;
+    /* Degenerate recursion guard: fall back to a median split on the longest axis. */
+    int norders = depth > 48 ? 1 : 4;
+    for (int ord = 0; ord < norders; ord++) {
+        int axis = depth > 48 ? longest : ord;
+        for (uint32_t i = 0; i < k; i++) {
+            keys[i].i = i;
+            if (axis < 3) {
+                keys[i].k1 = v3_get(it[i].c, axis); keys[i].k2 = 0; keys[i].k3 = 0;
+            } else {
+                keys[i].k1 = it[i].gloss;
+                keys[i].k2 = it[i].mat == MIXED ? 1e12 : (double)it[i].mat;
+                keys[i].k3 = v3_get(it[i].c, longest);
+            }
+        }
+        qsort(keys, k, sizeof *keys, okey_cmp);
+        if (depth > 48) {
+            memcpy(best_keys, keys, k * sizeof *keys);
+            best_na = k / 2;
+            have = 1;
+            break;
+        }
+        /* suffix areas and materials */
+        bounds3 sb = b3_empty();
+        uint32_t sm = NOMAT;
+        for (uint32_t i = k; i-- > 0;) {
+            sb = b3_union(sb, it[keys[i].i].b);
+            sm = mat_merge(sm, it[keys[i].i].mat);
+            suffix[i] = b3_area(sb);
+            smat[i] = sm;
+        }
+        bounds3 pb = b3_empty();
+        uint32_t pm = NOMAT;
+        for (uint32_t i = 0; i + 1 < k; i++) {
+            pb = b3_union(pb, it[keys[i].i].b);
+            pm = mat_merge(pm, it[keys[i].i].mat);
+            double ca = (double)b3_area(pb) * (double)(i + 1) * (1.0 + B->mat_weight * (pm == MIXED));
+            double cb = (double)suffix[i + 1] * (double)(k - i - 1) * (1.0 + B->mat_weight * (smat[i + 1] == MIXED));
+            double cost = ca + cb;
+            if (cost < best) {
+                best = cost;
+                best_na = i + 1;
+                memcpy(best_keys, keys, k * sizeof *keys);
+                have = 1;
+            }
+        }
+    }
+    if (have) {
+        item *tmp = malloc(k * sizeof *tmp);
+        if (!tmp) {
+            free(keys); free(best_keys); free(suffix); free(smat);
+            return ct_fail(B->err, CT_ENOMEM, "out of memory building the texture hierarchy");
+        }
+        for (uint32_t i = 0; i < k; i++) tmp[i] = it[best_keys[i].i];
+        memcpy(it, tmp, k * sizeof *tmp);
+        free(tmp);
+    }
+    *na = best_na;
+    free(keys); free(best_keys); free(suffix); free(smat);
+    return CT_OK;
+}
+
+static int emit_group(builder *B, item *it, uint32_t k, int32_t parent, int depth)
+{
+    if (k == 1) return emit_item(B, it, parent, depth);
+    uint32_t id = 0;
+    int rc = new_node(B, parent, -1, &id);
+    if (!rc) rc = emit_items(B, it, k, (int32_t)id, depth + 1);
+    if (rc) return rc;
+    B->h->nodes[id].end = B->h->nnodes;
+    B->h->nodes[id].leaf_end = B->h->nleaves;
+    return CT_OK;
+}
+
+/* Emits k items as children of parent: directly when k <= 2, otherwise as
+ * the two halves of a BVH split. */
+static int emit_items(builder *B, item *it, uint32_t k, int32_t parent, int depth)
+{
+    if (depth > 400) return ct_fail(B->err, CT_ERANGE, "texture hierarchy deeper than 400 levels");
+    if (k <= 2) {
+        for (uint32_t i = 0; i < k; i++) {
+            int rc = emit_item(B, &it[i], parent, depth);
+            if (rc) return rc;
+        }
+        return CT_OK;
+    }
+    uint32_t na = 0;
+    int rc = split_items(B, it, k, depth, &na);
+    if (rc) return rc;
+    rc = emit_group(B, it, na, parent, depth);
+    if (!rc) rc = emit_group(B, it + na, k - na, parent, depth);
+    return rc;
+}
+
+/* Bounds, normal, spread, flat frame, material and glossiness of node n
+ * from its triangles. */
+static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
+                          const ctex_hier *h, ctex_hnode *n, float flat_deg, float flat_thickness)
+{
+    bounds3 b = b3_empty();
+    vec3 ns = v3s(0.0f);
+    double area = 0.0;
+    uint32_t mat = NOMAT;
+    float gloss = 0.0f;
+    for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
+        vec3 a = m->pos[v[0]], bb = m->pos[v[1]], c = m->pos[v[2]];
+        b = b3_add(b3_add(b3_add(b, a), bb), c);
+        vec3 cr = v3_cross(v3_sub(bb, a), v3_sub(c, a));  /* 2 * area * normal */
+        ns = v3_add(ns, cr);
+        area += 0.5 * (double)v3_len(cr);
+        uint32_t tm = m->tri_mat[h->tris[i]];
+        mat = mat_merge(mat, tm);
+        if (tm < nmats) gloss = fmaxf(gloss, scene_material_glossiness(&mats[tm]));
+    }
+    n->bounds = b;
+    n->area = (float)area;
+    n->material = mat == NOMAT ? MIXED : mat;
+    n->gloss = gloss;
+    n->normal = v3_len2(ns) > 0.0f ? v3_norm(ns) : v3s(0.0f);
+    n->flat = 0;
+    if (v3_is_zero(n->normal) || area <= 0.0) {
+        n->spread_deg = 180.0f;
+        return;
+    }
+    float mincos = 1.0f;
+    for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
+        vec3 a = m->pos[v[0]];
+        vec3 cr = v3_cross(v3_sub(m->pos[v[1]], a), v3_sub(m->pos[v[2]], a));
+        if (!(v3_len2(cr) > 0.0f)) continue;
+        float c = v3_dot(v3_norm(cr), n->normal);
+        if (c < mincos) mincos = c;
+    }
+    n->spread_deg = acosf(fmaxf(-1.0f, fminf(1.0f, mincos))) * 180.0f / CT_PI;
+    if (!(n->spread_deg < flat_deg)) return;
+    /* In-plane principal axis (2D covariance of the vertices) gives a tight
+     * rectangle for rotated parts. */
+    vec3 t0, b0;
+    v3_basis(n->normal, &t0, &b0);
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, cnt = 0;
+    float dmin = INFINITY, dmax = -INFINITY;
+    for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
+        for (int k = 0; k < 3; k++) {
+            vec3 p = m->pos[v[k]];
+            double x = v3_dot(p, t0), y = v3_dot(p, b0);
+            float d = v3_dot(p, n->normal);
+            sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; cnt += 1;
+            dmin = fminf(dmin, d); dmax = fmaxf(dmax, d);
+        }
+    }
+    double mx = sx / cnt, my = sy / cnt;
+    double cxx = sxx / cnt - mx * mx, cyy = syy / cnt - my * my, cxy = sxy / cnt - mx * my;
+    float ang = 0.5f * (float)atan2(2.0 * cxy, cxx - cyy);
+    vec3 tu = v3_add(v3_scale(t0, cosf(ang)), v3_scale(b0, sinf(ang)));
+    vec3 tv = v3_cross(n->normal, tu);
+    float umin = INFINITY, umax = -INFINITY, vmin = INFINITY, vmax = -INFINITY;
+    for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
+        for (int k = 0; k < 3; k++) {
+            vec3 p = m->pos[v[k]];
+            float u = v3_dot(p, tu), w = v3_dot(p, tv);
+            umin = fminf(umin, u); umax = fmaxf(umax, u);
+            vmin = fminf(vmin, w); vmax = fmaxf(vmax, w);
+        }
+    }
+    float us = umax - umin, vs = vmax - vmin, ext = fmaxf(us, vs);
+    if (!(ext > 0.0f)) return;
+    if (dmax - dmin > flat_thickness * ext) return;   /* parallel but not coplanar */
+    /* keep the frame non-degenerate for thin strips */
+    if (us < 1e-4f * ext) { umin -= 0.5e-4f * ext; us = 1e-4f * ext; }
+    if (vs < 1e-4f * ext) { vmin -= 0.5e-4f * ext; vs = 1e-4f * ext; }
+    float dmid = 0.5f * (dmin + dmax);
+    n->flat = 1;
+    n->o = v3_add(v3_add(v3_scale(tu, umin), v3_scale(tv, vmin)), v3_scale(n->normal, dmid));
+    n->t = v3_scale(tu, us);
+    n->b = v3_scale(tv, vs);
+}
+
+int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
+                    float flat_deg, float flat_thickness, float mat_weight, ctex_hier *h,
+                    ct_error *err)
+{
+    memset(h, 0, sizeof *h);
+    if (m->nnodes == 0 || m->ntris == 0)
+        return ct_fail(err, CT_EEMPTY, "radiosity mesh has no nodes or no triangles");
+    uint32_t N = m->nnodes;
+    for (uint32_t i = 0; i < N; i++) {
+        if (m->nodes[i].node_end <= i || m->nodes[i].node_end > N)
+            return ct_fail(err, CT_EPARSE, "mesh node %u has a bad subtree end %u", i, m->nodes[i].node_end);
+        if (i > 0 && (m->nodes[i].parent < 0 || (uint32_t)m->nodes[i].parent >= i))
+            return ct_fail(err, CT_EPARSE, "mesh node %u has a bad parent %d", i, m->nodes[i].parent);
+    }
+    if (m->nodes[0].node_end != N)
+        return ct_fail(err, CT_EPARSE, "mesh node 0 does not span the node table");
+    mstat *st = calloc(N, sizeof *st);
+    int32_t *leaf_of_node = malloc(N * sizeof *leaf_of_node);
+    if (!st || !leaf_of_node) {
+        free(st); free(leaf_of_node);
+        return ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+    }
+    for (uint32_t i = 0; i < N; i++) {
+        st[i].own_b = st[i].sub_b = b3_empty();
+        st[i].own_mat = st[i].sub_mat = NOMAT;
+        leaf_of_node[i] = -1;
+    }
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        uint32_t n = m->tri_node[t];
+        if (n >= N) {
+            free(st); free(leaf_of_node);
+            return ct_fail(err, CT_EPARSE, "mesh triangle %u names node %u of %u", t, n, N);
+        }
+        const uint32_t *v = m->tris + 3 * (size_t)t;
+        for (int k = 0; k < 3; k++) {
+            if (v[k] >= m->nverts) {
+                free(st); free(leaf_of_node);
+                return ct_fail(err, CT_EPARSE, "mesh triangle %u names vertex %u of %u", t, v[k], m->nverts);
+            }
+            st[n].own_b = b3_add(st[n].own_b, m->pos[v[k]]);
+        }
+        st[n].own++;
+        st[n].own_mat = mat_merge(st[n].own_mat, m->tri_mat[t]);
+        if (m->tri_mat[t] < nmats)
+            st[n].own_gloss = fmaxf(st[n].own_gloss, scene_material_glossiness(&mats[m->tri_mat[t]]));
+    }
+    for (uint32_t i = 0; i < N; i++) {
+        st[i].total = st[i].own; st[i].sub_b = st[i].own_b;
+        st[i].sub_mat = st[i].own_mat; st[i].sub_gloss = st[i].own_gloss;
+    }
+    for (uint32_t i = N; i-- > 1;) {
+        uint32_t p = (uint32_t)m->nodes[i].parent;
+        st[p].total += st[i].total;
+        st[p].sub_b = b3_union(st[p].sub_b, st[i].sub_b);
+        st[p].sub_mat = mat_merge(st[p].sub_mat, st[i].sub_mat);
+        st[p].sub_gloss = fmaxf(st[p].sub_gloss, st[i].sub_gloss);
+    }
+    builder B = {0};
+    B.m = m; B.st = st; B.h = h; B.mat_weight = mat_weight; B.leaf_of_node = leaf_of_node; B.err = err;
+    B.cap = 3 * N + 2;
+    h->nodes = calloc(B.cap, sizeof *h->nodes);
+    h->leaf_node = calloc(N, sizeof *h->leaf_node);
+    h->leaf_part = calloc(N, sizeof *h->leaf_part);
+    h->part_leaf = malloc(N * sizeof *h->part_leaf);
+    h->tris = malloc((size_t)m->ntris * sizeof *h->tris);
+    int rc = CT_OK;
+    if (!h->nodes || !h->leaf_node || !h->leaf_part || !h->part_leaf || !h->tris)
+        rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+    if (!rc) rc = emit_modeling(&B, 0, -1, 0);
+    if (!rc) {
+        /* triangles grouped by leaf (counting sort) */
+        h->npart_map = N;
+        for (uint32_t i = 0; i < N; i++) h->part_leaf[i] = leaf_of_node[i];
+        uint32_t *start = calloc(h->nleaves + 1, sizeof *start);
+        if (!start) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+        else {
+            for (uint32_t t = 0; t < m->ntris; t++) start[h->part_leaf[m->tri_node[t]] + 1]++;
+            for (uint32_t l = 0; l < h->nleaves; l++) start[l + 1] += start[l];
+            uint32_t *fill = malloc((h->nleaves + 1) * sizeof *fill);
+            if (!fill) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+            else {
+                memcpy(fill, start, (h->nleaves + 1) * sizeof *fill);
+                for (uint32_t t = 0; t < m->ntris; t++) h->tris[fill[h->part_leaf[m->tri_node[t]]]++] = t;
+                h->ntris = m->ntris;
+                for (uint32_t i = 0; i < h->nnodes; i++) {
+                    ctex_hnode *n = &h->nodes[i];
+                    n->tri_begin = start[n->leaf_begin];
+                    n->tri_end = start[n->leaf_end];
+                }
+                free(fill);
+                for (uint32_t i = 0; i < h->nnodes; i++)
+                    node_geometry(m, mats, nmats, h, &h->nodes[i], flat_deg, flat_thickness);
+            }
+            free(start);
+        }
+    }
+    free(st);
+    free(leaf_of_node);
+    if (rc) ctex_hier_free(h);
+    return rc;
+}
+
+void ctex_hier_free(ctex_hier *h)
+{
+    free(h->nodes);
+    free(h->leaf_node);
+    free(h->leaf_part);
+    free(h->part_leaf);
+    free(h->tris);
+    memset(h, 0, sizeof *h);
+}
