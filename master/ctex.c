@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/log.h"
 #include "master/ctex_hier.h"
 #include "master/ctex_tex.h"
 
@@ -57,8 +58,8 @@ ctex_options ctex_options_default(void)
     o.flat_thickness = 0.01f;
     o.blend = 1.0f;
     o.splat_lo = 1.0f;
-    o.splat_hi = 4.0f;
-    o.splat_window = 16;
+    o.splat_hi = 5.0f;
+    o.splat_window = 64;
     o.tex_min = 4;           /* §3.6: minimum 4x4 */
     o.tex_init = 16;
     o.tex_rate = 2.0f;       /* §3.6: at most twice the screen sampling rate */
@@ -742,15 +743,21 @@ static void adapt_resolution(ctex *c, uint32_t id, int r)
     ctex_tex *t = &s->t;
     uint32_t n = t->since_resize;
     uint32_t win = (uint32_t)c->o.splat_window;
-    t->mean_r += ((float)r - t->mean_r) / (float)(n < win ? n + 1 : win);
+    /* A sample flooding an empty region has a huge radius; clamping it keeps
+     * single outliers from halving a texture that is dense elsewhere. */
+    float rc = fminf((float)r, 2.0f * c->o.splat_hi);
+    t->mean_r += (rc - t->mean_r) / (float)(n < win ? n + 1 : win);
     t->since_resize = n + 1;
     if (t->since_resize < win) return;
+    /* hysteresis: reversing the last change needs four windows of evidence */
     int nw = t->w, nh = t->h;
     if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
+        if (t->last_resize > 0 && t->since_resize < 4 * win) return;
         nw = (t->w + 1) / 2; nh = (t->h + 1) / 2;
         if (nw < c->o.tex_min) nw = t->w < c->o.tex_min ? t->w : c->o.tex_min;
         if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
     } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
+        if (t->last_resize < 0 && t->since_resize < 4 * win) return;
         nw = 2 * t->w > s->max_w ? (t->w > s->max_w ? t->w : s->max_w) : 2 * t->w;
         nh = 2 * t->h > s->max_h ? (t->h > s->max_h ? t->h : s->max_h) : 2 * t->h;
         size_t grow = tex_bytes(nw, nh) - tex_bytes(t->w, t->h);
@@ -760,8 +767,12 @@ static void adapt_resolution(ctex *c, uint32_t id, int r)
     }
     if (nw == t->w && nh == t->h) return;
     size_t ob = tex_bytes(t->w, t->h);
+    int dir = nw > t->w || nh > t->h ? 1 : -1;
+    ct_debug("ctex", "texture %u: %dx%d -> %dx%d (mean splat radius %.2f over %u samples)", id, t->w, t->h, nw, nh,
+             (double)t->mean_r, t->since_resize);
     if (ctex_tex_resize(t, nw, nh, NULL)) return;   /* out of memory: keep the old size */
     c->bytes = c->bytes - ob + tex_bytes(nw, nh);
+    t->last_resize = dir;
     t->mean_r = 0.0f;
     t->since_resize = 0;
     c->st.resizes++;
@@ -803,6 +814,34 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     c->st.inserted++;
     adapt_resolution(c, (uint32_t)id, r);
     return 1;
+}
+
+/* Prefetches the texel rows a sample will read and splat first. */
+static inline void prefetch_sample(const ctex *c, const ct_sample *s)
+{
+    int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node) : -1;
+    float u, v;
+    if (id < 0 || !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) return;
+    const ctex_tex *t = &c->slots[id].t;
+    int ci = (int)(u * (float)t->w), cj = (int)(v * (float)t->h);
+    if (ci < 1 || cj < 1 || ci >= t->w - 1 || cj >= t->h - 1) return;
+    for (int j = cj - 1; j <= cj + 1; j++) {
+        const ctex_texel *row = t->tx + (size_t)j * (size_t)t->w + (size_t)ci;
+        __builtin_prefetch(row - 1, 1, 1);
+        __builtin_prefetch(row + 1, 1, 1);
+    }
+}
+
+size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info)
+{
+    enum { AHEAD = 4 };   /* samples prefetched ahead: hides DRAM latency */
+    size_t done = 0;
+    for (size_t i = 0; i < n && i < AHEAD; i++) prefetch_sample(c, &s[i]);
+    for (size_t i = 0; i < n; i++) {
+        if (i + AHEAD < n) prefetch_sample(c, &s[i + AHEAD]);
+        done += (size_t)ctex_insert(c, &s[i], &info[i]);
+    }
+    return done;
 }
 
 vec3 ctex_lookup(const ctex *c, uint32_t node, vec3 p)

@@ -143,6 +143,11 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
  * l_hq - l_base. Returns 1 when splatted, 0 when dropped (info->tex = -1). */
 int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
 
+/* Inserts n samples in order, as n ctex_insert calls, prefetching the
+ * texels of the samples ahead (the loop is bound by memory latency).
+ * Returns how many were splatted. */
+size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info);
+
 /* The correction the display shows at world point p on scene node `node`
  * (zero when the node has no texture). */
 vec3 ctex_lookup(const ctex *c, uint32_t node, vec3 p);

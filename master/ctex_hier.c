@@ -308,17 +308,42 @@ static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint3
     }
     double mx = sx / cnt, my = sy / cnt;
     double cxx = sxx / cnt - mx * mx, cyy = syy / cnt - my * my, cxy = sxy / cnt - mx * my;
-    float ang = 0.5f * (float)atan2(2.0 * cxy, cxx - cyy);
-    vec3 tu = v3_add(v3_scale(t0, cosf(ang)), v3_scale(b0, sinf(ang)));
-    vec3 tv = v3_cross(n->normal, tu);
-    float umin = INFINITY, umax = -INFINITY, vmin = INFINITY, vmax = -INFINITY;
-    for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
-        const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
-        for (int k = 0; k < 3; k++) {
-            vec3 p = m->pos[v[k]];
-            float u = v3_dot(p, tu), w = v3_dot(p, tv);
-            umin = fminf(umin, u); umax = fmaxf(umax, u);
-            vmin = fminf(vmin, w); vmax = fmaxf(vmax, w);
+    /* Candidate in-plane axes: the principal axis, and the edges of the
+     * first triangles (a square's covariance has no principal axis); the
+     * smallest rectangle wins. */
+    float best_area = INFINITY;
+    vec3 tu = t0, tv = b0;
+    float umin = 0, umax = 0, vmin = 0, vmax = 0;
+    uint32_t ncand = n->tri_end - n->tri_begin < 32 ? n->tri_end - n->tri_begin : 32;
+    for (uint32_t cidx = 0; cidx <= 3 * ncand; cidx++) {
+        vec3 cu;
+        if (cidx == 0) {
+            float ang = 0.5f * (float)atan2(2.0 * cxy, cxx - cyy);
+            cu = v3_add(v3_scale(t0, cosf(ang)), v3_scale(b0, sinf(ang)));
+        } else {
+            const uint32_t *v = m->tris + 3 * (size_t)h->tris[n->tri_begin + (cidx - 1) / 3];
+            int e = (int)((cidx - 1) % 3);
+            vec3 d = v3_sub(m->pos[v[(e + 1) % 3]], m->pos[v[e]]);
+            d = v3_sub(d, v3_scale(n->normal, v3_dot(d, n->normal)));
+            if (!(v3_len2(d) > 0.0f)) continue;
+            cu = v3_norm(d);
+        }
+        vec3 cv = v3_cross(n->normal, cu);
+        float a0 = INFINITY, a1 = -INFINITY, b0m = INFINITY, b1 = -INFINITY;
+        for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
+            const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
+            for (int k = 0; k < 3; k++) {
+                vec3 p = m->pos[v[k]];
+                float u = v3_dot(p, cu), w = v3_dot(p, cv);
+                a0 = fminf(a0, u); a1 = fmaxf(a1, u);
+                b0m = fminf(b0m, w); b1 = fmaxf(b1, w);
+            }
+        }
+        float rect = (a1 - a0) * (b1 - b0m);
+        if (rect < best_area * 0.999f) {
+            best_area = rect;
+            tu = cu; tv = cv;
+            umin = a0; umax = a1; vmin = b0m; vmax = b1;
         }
     }
     float us = umax - umin, vs = vmax - vmin, ext = fmaxf(us, vs);

@@ -27,6 +27,7 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     t->vmax = 0.0f;   /* §3.4: the first samples start at validity 0 */
     t->mean_r = 0.0f;
     t->since_resize = 0;
+    t->last_resize = 0;
     t->dx0 = 0; t->dy0 = 0; t->dx1 = w; t->dy1 = h;
     return CT_OK;
 }

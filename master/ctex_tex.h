@@ -35,6 +35,7 @@ typedef struct ctex_tex {
     /* §3.6 running mean of splat radii */
     float mean_r;
     uint32_t since_resize;
+    int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
     /* dirty rectangle [dx0, dx1) x [dy0, dy1), empty when dx0 >= dx1 */
     int dx0, dy0, dx1, dy1;
 } ctex_tex;
