@@ -144,6 +144,15 @@ $(BUILD)/tests/%: tests/unit/%.c $(TEST_SUPPORT) $(ALL_LIBS)
 	$(Q)$(CC) $(CFLAGS) -o $@ $< $(TEST_SUPPORT) $(ALL_LIBS) $(LDFLAGS_BASE) \
 	  $(LIBS_TEST) $(LIBS_GL) $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)
 
+# Benchmark programs (tests/bench/*.c), run by scripts/bench-*; built with the tests.
+BENCH_SRCS := $(sort $(wildcard tests/bench/*.c))
+BENCH_BINS := $(patsubst tests/bench/%.c,$(BUILD)/bench/%,$(BENCH_SRCS))
+$(BUILD)/bench/%: tests/bench/%.c $(ALL_LIBS)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  BENCH-LD $@"
+	$(Q)$(CC) $(CFLAGS) -o $@ $< $(ALL_LIBS) $(LDFLAGS_BASE) \
+	  $(LIBS_GL) $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)
+
 setup:
 	@scripts/setup-deps
 
@@ -153,7 +162,7 @@ test: setup
 	@$(MAKE) --no-print-directory unit-bins
 	@CORRTEX_BIN=$(BINDIR) CORRTEX_BUILD=$(BUILD) scripts/run-tests $(UNIT_BINS) -- $(sort $(wildcard tests/e2e/*.sh))
 
-unit-bins: $(UNIT_BINS)
+unit-bins: $(UNIT_BINS) $(BENCH_BINS)
 
 test-asan: setup
 	@$(MAKE) --no-print-directory SANITIZE=address,undefined test

@@ -8,23 +8,31 @@
 #define CAMPATH_MAX_KEYS 100000
 #define CAMPATH_MAX_BYTES (16u << 20)
 
-static int validate(const campath_key *k, int n, vec3 up, const char *origin, ct_error *err)
+/* Checks keyframes; errors name "origin:LINE:" when the source lines are
+ * known (lines[i] for key i, up_line for the up vector; 0 = unknown), else
+ * "origin: keyframe N:". */
+static int validate(const campath_key *k, int n, vec3 up, const char *origin, const int *lines,
+                    int up_line, ct_error *err)
 {
     if (n < 1) return ct_fail(err, CT_EEMPTY, "%s: camera path has no keyframes", origin);
-    if (!v3_finite(up) || v3_len2(up) <= 0.0f)
+    if (!v3_finite(up) || v3_len2(up) <= 0.0f) {
+        if (up_line > 0) return ct_fail(err, CT_EINVAL, "%s:%d: invalid up vector", origin, up_line);
         return ct_fail(err, CT_EINVAL, "%s: invalid up vector", origin);
+    }
     for (int i = 0; i < n; i++) {
+        char where[320];
+        if (lines) snprintf(where, sizeof where, "%s:%d", origin, lines[i]);
+        else snprintf(where, sizeof where, "%s: keyframe %d", origin, i + 1);
         if (!isfinite(k[i].t) || !v3_finite(k[i].eye) || !v3_finite(k[i].target) ||
             !isfinite(k[i].fov_deg))
-            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: non-finite value", origin, i + 1);
+            return ct_fail(err, CT_EINVAL, "%s: non-finite value", where);
         if (!(k[i].fov_deg > 0.0f && k[i].fov_deg < 180.0f))
-            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: fov %g outside (0, 180)", origin, i + 1,
-                           (double)k[i].fov_deg);
+            return ct_fail(err, CT_EINVAL, "%s: fov %g outside (0, 180)", where, (double)k[i].fov_deg);
         if (v3_len2(v3_sub(k[i].target, k[i].eye)) <= 0.0f)
-            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: eye equals target", origin, i + 1);
+            return ct_fail(err, CT_EINVAL, "%s: eye equals target", where);
         if (i > 0 && !(k[i].t > k[i - 1].t))
-            return ct_fail(err, CT_EINVAL, "%s: keyframe %d: time %g not after %g", origin, i + 1,
-                           (double)k[i].t, (double)k[i - 1].t);
+            return ct_fail(err, CT_EINVAL, "%s: time %g not after %g", where, (double)k[i].t,
+                           (double)k[i - 1].t);
     }
     return CT_OK;
 }
@@ -33,7 +41,7 @@ int campath_from_keys(const campath_key *keys, int n, vec3 up, const char *origi
                       ct_campath *out, ct_error *err)
 {
     memset(out, 0, sizeof *out);
-    int rc = validate(keys, n, up, origin, err);
+    int rc = validate(keys, n, up, origin, NULL, 0, err);
     if (rc) return rc;
     out->keys = malloc((size_t)n * sizeof *out->keys);
     out->cams = malloc((size_t)n * sizeof *out->cams);
@@ -64,7 +72,8 @@ int campath_parse(const char *text, const char *origin, ct_campath *out, ct_erro
 {
     memset(out, 0, sizeof *out);
     campath_key *keys = NULL;
-    int n = 0, cap = 0, lineno = 0;
+    int *lines = NULL;   /* source line of each key, for error messages */
+    int n = 0, cap = 0, lineno = 0, up_line = 0;
     vec3 up = v3(0, 1, 0);
     const char *p = text;
     int rc = CT_OK;
@@ -88,6 +97,7 @@ int campath_parse(const char *text, const char *origin, ct_campath *out, ct_erro
                 rc = ct_fail(err, CT_EPARSE, "%s:%d: expected 'up ux uy uz'", origin, lineno);
                 break;
             }
+            up_line = lineno;
             continue;
         }
         campath_key k;
@@ -107,13 +117,18 @@ int campath_parse(const char *text, const char *origin, ct_campath *out, ct_erro
         if (n == cap) {
             cap = cap ? cap * 2 : 16;
             campath_key *q = realloc(keys, (size_t)cap * sizeof *keys);
-            if (!q) { rc = ct_fail(err, CT_ENOMEM, "%s: out of memory", origin); break; }
-            keys = q;
+            if (q) keys = q;
+            int *ql = q ? realloc(lines, (size_t)cap * sizeof *lines) : NULL;
+            if (ql) lines = ql;
+            if (!q || !ql) { rc = ct_fail(err, CT_ENOMEM, "%s: out of memory", origin); break; }
         }
+        lines[n] = lineno;
         keys[n++] = k;
     }
+    if (rc == CT_OK) rc = validate(keys, n, up, origin, lines, up_line, err);
     if (rc == CT_OK) rc = campath_from_keys(keys, n, up, origin, out, err);
     free(keys);
+    free(lines);
     return rc;
 }
 

@@ -19,7 +19,7 @@ typedef enum img_pixel_type {
     IMG_FLOAT = 2
 } img_pixel_type;
 
-/* Allocates a zeroed image (sizes 1..65536). */
+/* Allocates a zeroed image (sides 1..65536, at most 2^28 pixels). */
 int img_alloc(ct_image *img, int width, int height, ct_error *err);
 
 /* Frees the pixels and zeroes the struct. */
@@ -40,7 +40,7 @@ static inline void img_set(ct_image *img, int x, int y, vec3 c)
 /* Reads the R, G, B channels of an EXR file (any of half/float/uint). */
 int img_read_exr(const char *path, ct_image *img, ct_error *err);
 
-/* Writes an RGB EXR file (ZIP compression), atomically. */
+/* Writes an RGB EXR file (scanline, ZIP), atomically; half clamps to +-65504. */
 int img_write_exr(const char *path, const ct_image *img, img_pixel_type type, ct_error *err);
 
 /* sRGB-encoded display value in [0, 1] of a linear value times 2^exposure. */

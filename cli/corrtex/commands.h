@@ -11,7 +11,13 @@ typedef struct cli_command {
     int (*run)(int argc, char **argv);
 } cli_command;
 
+/* corrtex info: scene counts and bounds. */
+int cmd_info(int argc, char **argv);
+
 /* The table, terminated by a NULL name (main.c). */
 extern const cli_command cli_commands[];
+
+/* corrtex compare A.exr B.exr [--json] [--max-rmse X] (cmd_compare.c). */
+int cmd_compare(int argc, char **argv);
 
 #endif

@@ -6,6 +6,8 @@
 #include "cli/corrtex/commands.h"
 
 const cli_command cli_commands[] = {
+    {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
+    {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
     {NULL, NULL, NULL}
 };
 

@@ -1,0 +1,135 @@
+/* corrtex info SCENE [--json]: counts and bounds of a scene. */
+#include <cJSON.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli/corrtex/commands.h"
+#include "common/log.h"
+#include "common/scene.h"
+
+static const char *const KINDS[] = {"diffuse", "phong", "ward", "mirror", "dielectric", "emissive"};
+#define NKINDS ((int)(sizeof KINDS / sizeof KINDS[0]))
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: corrtex info SCENE.json [--json] [--tree] [--quiet]\n"
+               "  Loads a scene and prints its counts and bounds.\n"
+               "  --json   machine-readable output (keys: nodes, primitives, triangles, materials,\n"
+               "           emitters, cameras, paths, bounds, ...)\n"
+               "  --tree   also print the node hierarchy (plain output only)\n");
+}
+
+static cJSON *vec_json(vec3 v)
+{
+    double a[3] = {v.x, v.y, v.z};
+    return cJSON_CreateDoubleArray(a, 3);
+}
+
+static void print_tree(const ct_scene *s, uint32_t n, int depth)
+{
+    static const char *const kind[] = {"root", "file", "group", "part"};
+    const scene_node *nd = &s->nodes[n];
+    printf("%*s%s [%s] %u triangles", 2 * depth, "", nd->name, kind[nd->kind], nd->tri_end - nd->tri_begin);
+    if (nd->kind == SCENE_NODE_PART) printf(", material %s", s->mats[nd->material].name);
+    printf("\n");
+    for (uint32_t c = scene_first_child(s, n); c < nd->node_end; c = scene_next_sibling(s, c))
+        print_tree(s, c, depth + 1);
+}
+
+int cmd_info(int argc, char **argv)
+{
+    int json = 0, tree = 0;
+    static const struct option opts[] = {
+        {"json", no_argument, 0, 'j'}, {"tree", no_argument, 0, 't'},
+        {"quiet", no_argument, 0, 'q'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    int c;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, "jtqh", opts, NULL)) != -1) {
+        switch (c) {
+        case 'j': json = 1; break;
+        case 't': tree = 1; break;
+        case 'q': ct_log_set_level(CT_LOG_ERROR); break;
+        case 'h': usage(stdout); return 0;
+        default: usage(stderr); return 2;
+        }
+    }
+    if (optind != argc - 1) {
+        ct_log(CT_LOG_ERROR, "corrtex info", "expected one scene file (got %d arguments)", argc - optind);
+        return 2;
+    }
+    ct_error err;
+    ct_scene *s;
+    if (scene_load(argv[optind], &s, &err) != CT_OK) {
+        ct_log(CT_LOG_ERROR, "corrtex info", "%s", err.msg);
+        return 2;
+    }
+    int kinds[NKINDS] = {0};
+    for (uint32_t i = 0; i < s->nmats; i++) {
+        const char *k = scene_material_kind(&s->mats[i]);
+        for (int j = 0; j < NKINDS; j++)
+            if (strcmp(k, KINDS[j]) == 0) kinds[j]++;
+    }
+    uint32_t by_kind[4] = {0};
+    for (uint32_t n = 0; n < s->nnodes; n++) by_kind[s->nodes[n].kind]++;
+
+    if (json) {
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "scene", s->name);
+        cJSON_AddStringToObject(o, "file", s->source);
+        char hash[32];
+        snprintf(hash, sizeof hash, "%016llx", (unsigned long long)s->source_hash);
+        cJSON_AddStringToObject(o, "hash", hash);
+        cJSON_AddNumberToObject(o, "nodes", s->nnodes);
+        cJSON *nk = cJSON_AddObjectToObject(o, "nodes_by_kind");
+        cJSON_AddNumberToObject(nk, "root", by_kind[0]);
+        cJSON_AddNumberToObject(nk, "file", by_kind[1]);
+        cJSON_AddNumberToObject(nk, "group", by_kind[2]);
+        cJSON_AddNumberToObject(nk, "part", by_kind[3]);
+        cJSON_AddNumberToObject(o, "primitives", s->nprims);
+        cJSON_AddNumberToObject(o, "quads", s->nquads);
+        cJSON_AddNumberToObject(o, "triangles", s->ntris);
+        cJSON_AddNumberToObject(o, "vertices", s->nverts);
+        cJSON_AddNumberToObject(o, "dropped_degenerate", s->dropped_degenerate);
+        cJSON *mk = cJSON_AddObjectToObject(o, "materials");
+        cJSON_AddNumberToObject(mk, "total", s->nmats);
+        for (int j = 0; j < NKINDS; j++) cJSON_AddNumberToObject(mk, KINDS[j], kinds[j]);
+        cJSON_AddNumberToObject(o, "emitters", s->nemitters);
+        cJSON *cams = cJSON_AddArrayToObject(o, "cameras");
+        for (uint32_t i = 0; i < s->ncams; i++) cJSON_AddItemToArray(cams, cJSON_CreateString(s->cams[i].name));
+        cJSON *paths = cJSON_AddArrayToObject(o, "paths");
+        for (uint32_t i = 0; i < s->npaths; i++) {
+            cJSON *p = cJSON_CreateObject();
+            cJSON_AddStringToObject(p, "name", s->paths[i].name);
+            cJSON_AddNumberToObject(p, "keyframes", s->paths[i].nkeys);
+            cJSON_AddNumberToObject(p, "seconds", campath_duration(&s->paths[i]));
+            cJSON_AddItemToArray(paths, p);
+        }
+        cJSON *b = cJSON_AddObjectToObject(o, "bounds");
+        cJSON_AddItemToObject(b, "min", vec_json(s->bounds.lo));
+        cJSON_AddItemToObject(b, "max", vec_json(s->bounds.hi));
+        char *txt = cJSON_Print(o);
+        printf("%s\n", txt);
+        free(txt);
+        cJSON_Delete(o);
+    } else {
+        printf("scene       %s (%s)\n", s->name, s->source);
+        printf("nodes       %u (%u files, %u groups, %u parts)\n", s->nnodes, by_kind[1], by_kind[2], by_kind[3]);
+        printf("primitives  %u (%u quads)\n", s->nprims, s->nquads);
+        printf("triangles   %u (%u vertices, %u degenerate dropped)\n", s->ntris, s->nverts, s->dropped_degenerate);
+        printf("materials   %u:", s->nmats);
+        for (int j = 0; j < NKINDS; j++) printf(" %d %s%s", kinds[j], KINDS[j], j + 1 < NKINDS ? "," : "\n");
+        printf("emitters    %u triangles\n", s->nemitters);
+        printf("cameras     %u:", s->ncams);
+        for (uint32_t i = 0; i < s->ncams; i++) printf(" %s", s->cams[i].name);
+        printf("\npaths       %u:", s->npaths);
+        for (uint32_t i = 0; i < s->npaths; i++)
+            printf(" %s (%d keys, %.1f s)", s->paths[i].name, s->paths[i].nkeys, (double)campath_duration(&s->paths[i]));
+        printf("\nbounds      [%g %g %g] .. [%g %g %g]\n", (double)s->bounds.lo.x, (double)s->bounds.lo.y,
+               (double)s->bounds.lo.z, (double)s->bounds.hi.x, (double)s->bounds.hi.y, (double)s->bounds.hi.z);
+        if (tree) print_tree(s, 0, 0);
+    }
+    scene_free(s);
+    return 0;
+}

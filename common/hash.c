@@ -1,0 +1,19 @@
+#include "common/hash.h"
+#include "common/rng.h"
+
+#include <string.h>
+
+uint64_t ct_hash_bytes(uint64_t h, const void *data, size_t len)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < len; i++) {
+        h ^= p[i];
+        h *= 0x100000001b3ULL;
+    }
+    return ct_hash64(h ^ len);
+}
+
+uint64_t ct_hash_str(uint64_t h, const char *s)
+{
+    return ct_hash_bytes(h, s, strlen(s));
+}

@@ -1,0 +1,849 @@
+/* Scene import: the JSON scene file (cJSON) and the mesh files it names
+ * (assimp). The format is specified in docs/scene-format.md. */
+#include "common/fsutil.h"
+#include "common/hash.h"
+#include "common/log.h"
+#include "common/scene.h"
+
+#include <assimp/cfileio.h>
+#include <assimp/cimport.h>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <cJSON.h>
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define SCENE_JSON_MAX  (64u << 20)
+#define MESH_FILE_MAX   (1ull << 30)
+
+typedef struct loader {
+    ct_scene *s;
+    const char *path;       /* the scene file, for messages */
+    char dir[4096];         /* its folder: relative paths start here */
+    uint64_t hash;
+    ct_error *err;
+} loader;
+
+/* --- JSON helpers ---------------------------------------------------------- */
+
+static int bad(loader *L, const char *ctx, const char *what)
+{
+    return ct_fail(L->err, CT_EPARSE, "%s: %s: %s", L->path, ctx, what);
+}
+
+/* Fails on any key of obj not in allowed (NULL-terminated). */
+static int check_keys(loader *L, const cJSON *obj, const char *ctx, const char *const *allowed)
+{
+    for (const cJSON *it = obj->child; it; it = it->next) {
+        int ok = 0;
+        for (const char *const *a = allowed; *a; a++)
+            if (it->string && strcmp(it->string, *a) == 0) { ok = 1; break; }
+        if (!ok)
+            return ct_fail(L->err, CT_EPARSE, "%s: %s: unknown key '%s'", L->path, ctx,
+                           it->string ? it->string : "?");
+    }
+    return CT_OK;
+}
+
+static int get_num(loader *L, const cJSON *obj, const char *key, const char *ctx, int required,
+                   float def, float *out)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!v) {
+        if (required) return ct_fail(L->err, CT_EPARSE, "%s: %s: missing '%s'", L->path, ctx, key);
+        *out = def;
+        return CT_OK;
+    }
+    if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble))
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' must be a finite number", L->path, ctx, key);
+    *out = (float)v->valuedouble;
+    if (!isfinite(*out))
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' out of range", L->path, ctx, key);
+    return CT_OK;
+}
+
+static int get_floats(loader *L, const cJSON *v, const char *key, const char *ctx, float *out, int n)
+{
+    if (!cJSON_IsArray(v) || cJSON_GetArraySize(v) != n)
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' must be an array of %d numbers", L->path,
+                       ctx, key, n);
+    int i = 0;
+    for (const cJSON *e = v->child; e; e = e->next, i++) {
+        if (!cJSON_IsNumber(e) || !isfinite(e->valuedouble) || !isfinite((float)e->valuedouble))
+            return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' element %d is not a finite number",
+                           L->path, ctx, key, i);
+        out[i] = (float)e->valuedouble;
+    }
+    return CT_OK;
+}
+
+static int get_vec3(loader *L, const cJSON *obj, const char *key, const char *ctx, int required,
+                    vec3 def, vec3 *out)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!v) {
+        if (required) return ct_fail(L->err, CT_EPARSE, "%s: %s: missing '%s'", L->path, ctx, key);
+        *out = def;
+        return CT_OK;
+    }
+    float f[3];
+    int rc = get_floats(L, v, key, ctx, f, 3);
+    if (rc) return rc;
+    *out = v3(f[0], f[1], f[2]);
+    return CT_OK;
+}
+
+static int get_str(loader *L, const cJSON *obj, const char *key, const char *ctx, int required,
+                   const char **out)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, key);
+    *out = NULL;
+    if (!v) {
+        if (required) return ct_fail(L->err, CT_EPARSE, "%s: %s: missing '%s'", L->path, ctx, key);
+        return CT_OK;
+    }
+    if (!cJSON_IsString(v) || !v->valuestring[0])
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' must be a non-empty string", L->path, ctx, key);
+    if (strlen(v->valuestring) >= SCENE_NAME_LEN && strcmp(key, "file") != 0)
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' longer than %d characters", L->path, ctx,
+                       key, SCENE_NAME_LEN - 1);
+    *out = v->valuestring;
+    return CT_OK;
+}
+
+static int check_albedo(loader *L, vec3 c, const char *ctx, const char *key)
+{
+    if (c.x < 0 || c.y < 0 || c.z < 0)
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' must not be negative", L->path, ctx, key);
+    if (c.x > 1 || c.y > 1 || c.z > 1)
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: '%s' above 1 would create energy", L->path, ctx, key);
+    return CT_OK;
+}
+
+/* --- materials ------------------------------------------------------------- */
+
+static int parse_material(loader *L, const cJSON *j, const char *name, scene_material *m)
+{
+    char ctx[128];
+    snprintf(ctx, sizeof ctx, "material '%s'", name);
+    if (!cJSON_IsObject(j)) return bad(L, ctx, "must be an object");
+    static const char *const keys[] = {"diffuse", "phong", "ward", "mirror", "dielectric", "emission", NULL};
+    int rc = check_keys(L, j, ctx, keys);
+    if (rc) return rc;
+    *m = scene_material_default(name);
+    if ((rc = get_vec3(L, j, "diffuse", ctx, 0, v3s(0), &m->diffuse))) return rc;
+    if ((rc = check_albedo(L, m->diffuse, ctx, "diffuse"))) return rc;
+    if ((rc = get_vec3(L, j, "mirror", ctx, 0, v3s(0), &m->mirror))) return rc;
+    if ((rc = check_albedo(L, m->mirror, ctx, "mirror"))) return rc;
+    if ((rc = get_vec3(L, j, "emission", ctx, 0, v3s(0), &m->emission))) return rc;
+    if (m->emission.x < 0 || m->emission.y < 0 || m->emission.z < 0)
+        return bad(L, ctx, "'emission' must not be negative");
+
+    const cJSON *phong = cJSON_GetObjectItemCaseSensitive(j, "phong");
+    const cJSON *ward = cJSON_GetObjectItemCaseSensitive(j, "ward");
+    if (phong && ward) return bad(L, ctx, "has both 'phong' and 'ward' (one glossy lobe only)");
+    if (phong) {
+        char c2[160];
+        snprintf(c2, sizeof c2, "%s.phong", ctx);
+        static const char *const pk[] = {"rho_s", "exponent", NULL};
+        if (!cJSON_IsObject(phong)) return bad(L, c2, "must be an object");
+        if ((rc = check_keys(L, phong, c2, pk))) return rc;
+        m->glossy = SCENE_GLOSSY_PHONG;
+        if ((rc = get_vec3(L, phong, "rho_s", c2, 1, v3s(0), &m->specular))) return rc;
+        if ((rc = check_albedo(L, m->specular, c2, "rho_s"))) return rc;
+        if ((rc = get_num(L, phong, "exponent", c2, 1, 0, &m->phong_exp))) return rc;
+        if (!(m->phong_exp >= 0.0f)) return bad(L, c2, "'exponent' must be >= 0");
+    }
+    if (ward) {
+        char c2[160];
+        snprintf(c2, sizeof c2, "%s.ward", ctx);
+        static const char *const wk[] = {"rho_s", "alpha_x", "alpha_y", "tangent", NULL};
+        if (!cJSON_IsObject(ward)) return bad(L, c2, "must be an object");
+        if ((rc = check_keys(L, ward, c2, wk))) return rc;
+        m->glossy = SCENE_GLOSSY_WARD;
+        if ((rc = get_vec3(L, ward, "rho_s", c2, 1, v3s(0), &m->specular))) return rc;
+        if ((rc = check_albedo(L, m->specular, c2, "rho_s"))) return rc;
+        if ((rc = get_num(L, ward, "alpha_x", c2, 1, 0, &m->ward_ax))) return rc;
+        if ((rc = get_num(L, ward, "alpha_y", c2, 1, 0, &m->ward_ay))) return rc;
+        if (!(m->ward_ax > 0.0f) || !(m->ward_ay > 0.0f)) return bad(L, c2, "'alpha_x' and 'alpha_y' must be > 0");
+        if ((rc = get_vec3(L, ward, "tangent", c2, 0, v3(1, 0, 0), &m->ward_tangent))) return rc;
+        if (v3_len2(m->ward_tangent) <= 0.0f) return bad(L, c2, "'tangent' must not be zero");
+        m->ward_tangent = v3_norm(m->ward_tangent);
+    }
+    const cJSON *die = cJSON_GetObjectItemCaseSensitive(j, "dielectric");
+    if (die) {
+        char c2[160];
+        snprintf(c2, sizeof c2, "%s.dielectric", ctx);
+        static const char *const dk[] = {"ior", "transmission", NULL};
+        if (!cJSON_IsObject(die)) return bad(L, c2, "must be an object");
+        if ((rc = check_keys(L, die, c2, dk))) return rc;
+        m->dielectric = 1;
+        if ((rc = get_num(L, die, "ior", c2, 1, 1.5f, &m->ior))) return rc;
+        if (!(m->ior >= 1.0f && m->ior <= 4.0f)) return bad(L, c2, "'ior' must be in [1, 4]");
+        if ((rc = get_vec3(L, die, "transmission", c2, 0, v3s(1), &m->transmission))) return rc;
+        if ((rc = check_albedo(L, m->transmission, c2, "transmission"))) return rc;
+    }
+    vec3 sum = v3_add(v3_add(m->diffuse, m->specular), m->mirror);
+    if (v3_maxc(sum) > 1.0f)
+        ct_warn("scene", "%s: %s: diffuse + glossy + mirror reflectance %.3g exceeds 1 (not energy conserving)",
+                L->path, ctx, (double)v3_maxc(sum));
+    return CT_OK;
+}
+
+/* MTL (and other assimp formats) to corrtex materials; docs/scene-format.md. */
+static scene_material convert_ai_material(const struct aiMaterial *am, const char *name)
+{
+    scene_material m = scene_material_default(name);
+    struct aiColor4D c;
+    vec3 kd = v3s(0), ks = v3s(0), ke = v3s(0), tf = v3s(1);
+    if (aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &c) == aiReturn_SUCCESS) kd = v3(c.r, c.g, c.b);
+    if (aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &c) == aiReturn_SUCCESS) ks = v3(c.r, c.g, c.b);
+    if (aiGetMaterialColor(am, AI_MATKEY_COLOR_EMISSIVE, &c) == aiReturn_SUCCESS) ke = v3(c.r, c.g, c.b);
+    if (aiGetMaterialColor(am, AI_MATKEY_COLOR_TRANSPARENT, &c) == aiReturn_SUCCESS) tf = v3(c.r, c.g, c.b);
+    ai_real ns = 0, ni = 1, d = 1;
+    unsigned int one = 1;
+    aiGetMaterialFloatArray(am, AI_MATKEY_SHININESS, &ns, &one);
+    one = 1;
+    aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ni, &one);
+    one = 1;
+    aiGetMaterialFloatArray(am, AI_MATKEY_OPACITY, &d, &one);
+    int illum = -1;
+    one = 1;
+    aiGetMaterialIntegerArray(am, "$mat.illum", 0, 0, &illum, &one);
+
+    /* Clamp imported reflectances into [0,1]: exporters write Ks = 1 with
+     * Kd > 0 freely; we never create energy. */
+    kd = v3_min(v3_max(kd, v3s(0)), v3s(1));
+    ks = v3_min(v3_max(ks, v3s(0)), v3s(1));
+    tf = v3_min(v3_max(tf, v3s(0)), v3s(1));
+    m.emission = v3_max(ke, v3s(0));
+    if (illum == 4 || illum == 6 || illum == 7 || d < 1.0f) {
+        m.dielectric = 1;
+        m.ior = ni > 1.0f ? (float)ni : 1.5f;
+        m.transmission = tf;
+    } else if (illum == 3 || illum == 5) {
+        m.diffuse = kd;
+        m.mirror = v3_maxc(ks) > 0.0f ? ks : v3s(1);
+    } else {
+        m.diffuse = kd;
+        if (illum != 0 && illum != 1 && v3_maxc(ks) > 0.0f) {
+            m.glossy = SCENE_GLOSSY_PHONG;
+            m.specular = ks;
+            m.phong_exp = ns > 0 ? (float)ns : 1.0f;
+        }
+    }
+    /* Keep diffuse + specular <= 1 per channel by scaling the diffuse part. */
+    vec3 sum = v3_add(v3_add(m.diffuse, m.specular), m.mirror);
+    float mx = v3_maxc(sum);
+    if (mx > 1.0f) {
+        float room = fmaxf(0.0f, 1.0f - v3_maxc(v3_add(m.specular, m.mirror)));
+        float dm = v3_maxc(m.diffuse);
+        if (dm > 0.0f) m.diffuse = v3_scale(m.diffuse, room / dm);
+    }
+    return m;
+}
+
+/* --- assimp file I/O hook: every file assimp reads goes into the hash ------ */
+
+typedef struct mem_file {
+    char *data;
+    size_t len, pos;
+} mem_file;
+
+static size_t mf_read(struct aiFile *f, char *buf, size_t size, size_t count)
+{
+    mem_file *m = (mem_file *)f->UserData;
+    if (size == 0) return 0;
+    size_t avail = (m->len - m->pos) / size;
+    size_t n = count < avail ? count : avail;
+    memcpy(buf, m->data + m->pos, n * size);
+    m->pos += n * size;
+    return n;
+}
+
+static size_t mf_write(struct aiFile *f, const char *buf, size_t size, size_t count)
+{
+    (void)f; (void)buf; (void)size; (void)count;
+    return 0;
+}
+
+static size_t mf_tell(struct aiFile *f) { return ((mem_file *)f->UserData)->pos; }
+static size_t mf_size(struct aiFile *f) { return ((mem_file *)f->UserData)->len; }
+static void mf_flush(struct aiFile *f) { (void)f; }
+
+static enum aiReturn mf_seek(struct aiFile *f, size_t off, enum aiOrigin origin)
+{
+    mem_file *m = (mem_file *)f->UserData;
+    size_t base = origin == aiOrigin_SET ? 0 : origin == aiOrigin_CUR ? m->pos : m->len;
+    if (base + off > m->len) return aiReturn_FAILURE;
+    m->pos = base + off;
+    return aiReturn_SUCCESS;
+}
+
+static struct aiFile *mf_open(struct aiFileIO *io, const char *path, const char *mode)
+{
+    if (!mode || mode[0] != 'r') return NULL;
+    loader *L = (loader *)io->UserData;
+    char *data;
+    size_t len;
+    ct_error e;
+    if (fs_read_all(path, MESH_FILE_MAX, &data, &len, &e) != CT_OK) return NULL;
+    L->hash = ct_hash_bytes(L->hash, data, len);
+    struct aiFile *f = calloc(1, sizeof *f);
+    mem_file *m = calloc(1, sizeof *m);
+    if (!f || !m) { free(f); free(m); free(data); return NULL; }
+    m->data = data;
+    m->len = len;
+    f->ReadProc = mf_read;
+    f->WriteProc = mf_write;
+    f->TellProc = mf_tell;
+    f->FileSizeProc = mf_size;
+    f->SeekProc = mf_seek;
+    f->FlushProc = mf_flush;
+    f->UserData = (aiUserData)m;
+    return f;
+}
+
+static void mf_close(struct aiFileIO *io, struct aiFile *f)
+{
+    (void)io;
+    if (!f) return;
+    mem_file *m = (mem_file *)f->UserData;
+    free(m->data);
+    free(m);
+    free(f);
+}
+
+/* --- geometry -------------------------------------------------------------- */
+
+typedef struct mesh_ctx {
+    loader *L;
+    const char *file;           /* mesh file path, for messages */
+    const struct aiScene *ai;
+    int *matmap;                /* assimp material -> scene material, -1 = not yet */
+} mesh_ctx;
+
+static mat4 ai_to_m4(const struct aiMatrix4x4 *a)
+{
+    mat4 m;
+    m.m[0][0] = a->a1; m.m[0][1] = a->a2; m.m[0][2] = a->a3; m.m[0][3] = a->a4;
+    m.m[1][0] = a->b1; m.m[1][1] = a->b2; m.m[1][2] = a->b3; m.m[1][3] = a->b4;
+    m.m[2][0] = a->c1; m.m[2][1] = a->c2; m.m[2][2] = a->c3; m.m[2][3] = a->c4;
+    m.m[3][0] = a->d1; m.m[3][1] = a->d2; m.m[3][2] = a->d3; m.m[3][3] = a->d4;
+    return m;
+}
+
+static float det3(const mat4 *m)
+{
+    return m->m[0][0] * (m->m[1][1] * m->m[2][2] - m->m[1][2] * m->m[2][1]) -
+           m->m[0][1] * (m->m[1][0] * m->m[2][2] - m->m[1][2] * m->m[2][0]) +
+           m->m[0][2] * (m->m[1][0] * m->m[2][1] - m->m[1][1] * m->m[2][0]);
+}
+
+/* Newell's normal of a polygon: robust for non-planar quads. */
+static vec3 polygon_normal(const ct_scene *s, const uint32_t *idx, int n)
+{
+    vec3 nn = v3s(0);
+    for (int i = 0; i < n; i++) {
+        vec3 a = s->pos[idx[i]], b = s->pos[idx[(i + 1) % n]];
+        nn.x += (a.y - b.y) * (a.z + b.z);
+        nn.y += (a.z - b.z) * (a.x + b.x);
+        nn.z += (a.x - b.x) * (a.y + b.y);
+    }
+    return v3_norm(nn);
+}
+
+static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
+{
+    loader *L = C->L;
+    ct_scene *s = L->s;
+    mat4 inv;
+    if (!m4_invert(*xf, &inv))
+        return ct_fail(L->err, CT_EPARSE, "%s: singular transform", C->file);
+    int flip = det3(xf) < 0.0f;
+    int has_n = am->mNormals != NULL;
+    uint32_t base = s->nverts;
+    const char *mname = am->mName.length ? am->mName.data : "mesh";
+
+    if (has_n) {
+        for (unsigned i = 0; i < am->mNumVertices; i++) {
+            vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+            if (!v3_finite(p))
+                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
+                               C->file, mname, i + 1);
+            vec3 n = v3(am->mNormals[i].x, am->mNormals[i].y, am->mNormals[i].z);
+            vec3 wp = m4_point(xf, p);
+            if (!v3_finite(wp))
+                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u overflows after transform",
+                               C->file, mname, i + 1);
+            vec3 wn = v3_finite(n) && v3_len2(n) > 0.0f ? m4_normal(&inv, n) : v3s(0);
+            int64_t r = scene_add_vertex(s, wp, wn, L->err);
+            if (r < 0) return (int)r;
+        }
+    } else {
+        for (unsigned i = 0; i < am->mNumVertices; i++) {
+            vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+            if (!v3_finite(p))
+                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
+                               C->file, mname, i + 1);
+        }
+    }
+
+    uint32_t stackidx[64];
+    for (unsigned f = 0; f < am->mNumFaces; f++) {
+        const struct aiFace *face = &am->mFaces[f];
+        unsigned n = face->mNumIndices;
+        if (n < 3) continue;   /* points and lines carry no surface */
+        uint32_t *idx = n <= 64 ? stackidx : malloc(n * sizeof *idx);
+        uint32_t verts_before = s->nverts, tris_before = s->ntris;
+        if (!idx) return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", C->file);
+        int rc = CT_OK;
+        for (unsigned k = 0; k < n && rc == CT_OK; k++) {
+            unsigned src = face->mIndices[flip ? n - 1 - k : k];
+            if (src >= am->mNumVertices) {
+                rc = ct_fail(L->err, CT_ERANGE, "%s: mesh '%s' face %u: vertex index %u out of range (%u vertices)",
+                             C->file, mname, f + 1, src + 1, am->mNumVertices);
+                break;
+            }
+            if (has_n) {
+                idx[k] = base + src;
+            } else {
+                vec3 p = m4_point(xf, v3(am->mVertices[src].x, am->mVertices[src].y, am->mVertices[src].z));
+                int64_t r = scene_add_vertex(s, p, v3s(0), L->err);
+                if (r < 0) rc = (int)r;
+                else idx[k] = (uint32_t)r;
+            }
+        }
+        if (rc == CT_OK) {
+            vec3 fn = polygon_normal(s, idx, (int)n);
+            /* Flat shading for files without normals; repair for broken ones. */
+            for (unsigned k = 0; k < n; k++)
+                if (v3_len2(s->nrm[idx[k]]) == 0.0f) s->nrm[idx[k]] = fn;
+            rc = scene_add_polygon(s, idx, (int)n, L->err);
+            if (rc) ct_error_prefix(L->err, C->file);
+            /* A dropped (degenerate) polygon leaves no orphan vertex behind. */
+            if (rc == CT_OK && !has_n && s->ntris == tris_before) s->nverts = verts_before;
+        }
+        if (idx != stackidx) free(idx);
+        if (rc) return rc;
+    }
+    return CT_OK;
+}
+
+/* Scene material for an assimp material, added on first use so unused
+ * materials of a file (assimp's DefaultMaterial, say) do not appear. A name
+ * the JSON (or an earlier file) defined wins: that is the override rule. */
+static int resolve_material(mesh_ctx *C, unsigned ai_index)
+{
+    const struct aiMaterial *am = C->ai->mMaterials[ai_index];
+    struct aiString an;
+    char mname[SCENE_NAME_LEN];
+    if (aiGetMaterialString(am, AI_MATKEY_NAME, &an) == aiReturn_SUCCESS && an.length)
+        snprintf(mname, sizeof mname, "%s", an.data);
+    else
+        snprintf(mname, sizeof mname, "material%u", ai_index);
+    int idx = scene_find_material(C->L->s, mname);
+    if (idx < 0) {
+        scene_material m = convert_ai_material(am, mname);
+        idx = scene_add_material(C->L->s, &m, C->L->err);
+    }
+    if (idx >= 0) C->matmap[ai_index] = idx;
+    return idx;
+}
+
+static unsigned subtree_meshes(const struct aiNode *n)
+{
+    unsigned c = n->mNumMeshes;
+    for (unsigned i = 0; i < n->mNumChildren; i++) c += subtree_meshes(n->mChildren[i]);
+    return c;
+}
+
+static int import_node(mesh_ctx *C, const struct aiNode *an, mat4 parent_xf, int is_root)
+{
+    loader *L = C->L;
+    ct_scene *s = L->s;
+    mat4 xf = m4_mul(parent_xf, ai_to_m4(&an->mTransformation));
+    int rc;
+    if (!is_root) {
+        if (subtree_meshes(an) == 0) return CT_OK;
+        const char *nm = an->mName.length ? an->mName.data : "group";
+        if ((rc = scene_begin_node(s, nm, SCENE_NODE_GROUP, UINT32_MAX, L->err)) < 0) return rc;
+    }
+    for (unsigned i = 0; i < an->mNumMeshes; i++) {
+        if (an->mMeshes[i] >= C->ai->mNumMeshes)
+            return ct_fail(L->err, CT_EPARSE, "%s: node references mesh %u of %u", C->file,
+                           an->mMeshes[i], C->ai->mNumMeshes);
+        const struct aiMesh *am = C->ai->mMeshes[an->mMeshes[i]];
+        if (am->mMaterialIndex >= C->ai->mNumMaterials)
+            return ct_fail(L->err, CT_EPARSE, "%s: mesh references material %u of %u", C->file,
+                           am->mMaterialIndex, C->ai->mNumMaterials);
+        int mat = C->matmap[am->mMaterialIndex];
+        if (mat < 0 && (mat = resolve_material(C, am->mMaterialIndex)) < 0) return mat;
+        /* Parts are named by their material: assimp names only some meshes. */
+        if ((rc = scene_begin_node(s, s->mats[mat].name, SCENE_NODE_PART, (uint32_t)mat, L->err)) < 0)
+            return rc;
+        if ((rc = import_mesh(C, am, &xf))) return rc;
+        if ((rc = scene_end_node(s, L->err))) return rc;
+    }
+    for (unsigned i = 0; i < an->mNumChildren; i++)
+        if ((rc = import_node(C, an->mChildren[i], xf, 0))) return rc;
+    if (!is_root && (rc = scene_end_node(s, L->err))) return rc;
+    return CT_OK;
+}
+
+static int parse_transform(loader *L, const cJSON *entry, const char *ctx, mat4 *out)
+{
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(entry, "transform");
+    const cJSON *m = cJSON_GetObjectItemCaseSensitive(entry, "matrix");
+    *out = m4_identity();
+    if (t && m) return bad(L, ctx, "has both 'transform' and 'matrix'");
+    int rc;
+    if (m) {
+        float f[16];
+        if ((rc = get_floats(L, m, "matrix", ctx, f, 16))) return rc;
+        for (int i = 0; i < 16; i++) out->m[i / 4][i % 4] = f[i];
+    } else if (t) {
+        char c2[160];
+        snprintf(c2, sizeof c2, "%s.transform", ctx);
+        if (!cJSON_IsObject(t)) return bad(L, c2, "must be an object");
+        static const char *const tk[] = {"scale", "rotate", "translate", NULL};
+        if ((rc = check_keys(L, t, c2, tk))) return rc;
+        vec3 sc = v3s(1), tr = v3s(0);
+        const cJSON *sj = cJSON_GetObjectItemCaseSensitive(t, "scale");
+        if (sj && cJSON_IsNumber(sj)) {
+            float u;
+            if ((rc = get_num(L, t, "scale", c2, 1, 1, &u))) return rc;
+            sc = v3s(u);
+        } else if ((rc = get_vec3(L, t, "scale", c2, 0, v3s(1), &sc))) {
+            return rc;
+        }
+        if (sc.x == 0.0f || sc.y == 0.0f || sc.z == 0.0f) return bad(L, c2, "'scale' must not be zero");
+        if ((rc = get_vec3(L, t, "translate", c2, 0, v3s(0), &tr))) return rc;
+        mat4 rot = m4_identity();
+        const cJSON *rj = cJSON_GetObjectItemCaseSensitive(t, "rotate");
+        if (rj) {
+            float r[4];
+            if ((rc = get_floats(L, rj, "rotate", c2, r, 4))) return rc;
+            if (r[0] == 0.0f && r[1] == 0.0f && r[2] == 0.0f) return bad(L, c2, "'rotate' axis is zero");
+            rot = m4_rotate(v3(r[0], r[1], r[2]), r[3] * CT_PI / 180.0f);
+        }
+        *out = m4_mul(m4_translate(tr), m4_mul(rot, m4_scale(sc)));
+    }
+    if (!m4_invert(*out, &(mat4){0})) return bad(L, ctx, "transform is singular");
+    return CT_OK;
+}
+
+static void basename_noext(const char *path, char *out, size_t cap)
+{
+    const char *b = strrchr(path, '/');
+    snprintf(out, cap, "%s", b ? b + 1 : path);
+    char *dot = strrchr(out, '.');
+    if (dot && dot != out) *dot = '\0';
+}
+
+static int import_mesh_entry(loader *L, const cJSON *entry, int index)
+{
+    char ctx[64];
+    snprintf(ctx, sizeof ctx, "meshes[%d]", index);
+    if (!cJSON_IsObject(entry)) return bad(L, ctx, "must be an object");
+    static const char *const keys[] = {"file", "name", "transform", "matrix", "material", NULL};
+    int rc = check_keys(L, entry, ctx, keys);
+    if (rc) return rc;
+    const char *file, *name, *matname;
+    if ((rc = get_str(L, entry, "file", ctx, 1, &file))) return rc;
+    if ((rc = get_str(L, entry, "name", ctx, 0, &name))) return rc;
+    if ((rc = get_str(L, entry, "material", ctx, 0, &matname))) return rc;
+    mat4 xf;
+    if ((rc = parse_transform(L, entry, ctx, &xf))) return rc;
+    int forced = -1;
+    if (matname && (forced = scene_find_material(L->s, matname)) < 0)
+        return ct_fail(L->err, CT_EPARSE, "%s: %s: unknown material '%s'", L->path, ctx, matname);
+
+    char full[4096];
+    fs_join(L->dir, file, full, sizeof full);
+    FILE *probe = fopen(full, "rb");
+    if (!probe) return ct_fail(L->err, CT_EIO, "%s: cannot open mesh file: %s", full, strerror(errno));
+    fclose(probe);
+
+    struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
+    const struct aiScene *ai = aiImportFileEx(full, aiProcess_ValidateDataStructure, &io);
+    if (!ai) return ct_fail(L->err, CT_EPARSE, "%s: %s", full, aiGetErrorString());
+    if (!ai->mRootNode || (ai->mFlags & AI_SCENE_FLAGS_INCOMPLETE)) {
+        aiReleaseImport(ai);
+        return ct_fail(L->err, CT_EPARSE, "%s: incomplete mesh file (no geometry)", full);
+    }
+    int *matmap = calloc(ai->mNumMaterials ? ai->mNumMaterials : 1, sizeof *matmap);
+    if (!matmap) { aiReleaseImport(ai); return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", full); }
+    for (unsigned i = 0; i < ai->mNumMaterials; i++) matmap[i] = forced;
+    char nodename[SCENE_NAME_LEN];
+    if (name) snprintf(nodename, sizeof nodename, "%s", name);
+    else basename_noext(file, nodename, sizeof nodename);
+    uint32_t dropped_before = L->s->dropped_degenerate;
+    if (rc == CT_OK && (rc = scene_begin_node(L->s, nodename, SCENE_NODE_FILE, UINT32_MAX, L->err)) >= 0) {
+        mesh_ctx C = {L, full, ai, matmap};
+        rc = import_node(&C, ai->mRootNode, xf, 1);
+        if (rc == CT_OK) rc = scene_end_node(L->s, L->err);
+    }
+    free(matmap);
+    aiReleaseImport(ai);
+    if (rc < 0) return rc;
+    uint32_t dropped = L->s->dropped_degenerate - dropped_before;
+    if (dropped) ct_warn("scene", "%s: dropped %u degenerate triangle%s", full, dropped, dropped == 1 ? "" : "s");
+    return CT_OK;
+}
+
+/* --- lights, cameras, paths ------------------------------------------------- */
+
+static int import_lights(loader *L, const cJSON *lights)
+{
+    if (!cJSON_IsArray(lights)) return bad(L, "lights", "must be an array");
+    if (cJSON_GetArraySize(lights) == 0) return CT_OK;
+    int rc = scene_begin_node(L->s, "lights", SCENE_NODE_FILE, UINT32_MAX, L->err);
+    if (rc < 0) return rc;
+    int i = 0;
+    for (const cJSON *l = lights->child; l; l = l->next, i++) {
+        char ctx[64];
+        snprintf(ctx, sizeof ctx, "lights[%d]", i);
+        if (!cJSON_IsObject(l)) return bad(L, ctx, "must be an object");
+        static const char *const keys[] = {"name", "type", "corner", "edge1", "edge2", "emission", "material", NULL};
+        if ((rc = check_keys(L, l, ctx, keys))) return rc;
+        const char *type, *name, *matname;
+        if ((rc = get_str(L, l, "type", ctx, 1, &type))) return rc;
+        if (strcmp(type, "quad") != 0)
+            return ct_fail(L->err, CT_EPARSE, "%s: %s: unknown light type '%s' (expected 'quad')", L->path, ctx, type);
+        if ((rc = get_str(L, l, "name", ctx, 0, &name))) return rc;
+        if ((rc = get_str(L, l, "material", ctx, 0, &matname))) return rc;
+        vec3 p, e1, e2, em;
+        if ((rc = get_vec3(L, l, "corner", ctx, 1, v3s(0), &p))) return rc;
+        if ((rc = get_vec3(L, l, "edge1", ctx, 1, v3s(0), &e1))) return rc;
+        if ((rc = get_vec3(L, l, "edge2", ctx, 1, v3s(0), &e2))) return rc;
+        vec3 n = v3_cross(e1, e2);
+        if (!(v3_len2(n) > 0.0f)) return bad(L, ctx, "edges are parallel or zero (no area)");
+        char lname[SCENE_NAME_LEN];
+        if (name) snprintf(lname, sizeof lname, "%s", name);
+        else snprintf(lname, sizeof lname, "light%d", i);
+        int mat;
+        if (matname) {
+            if (cJSON_GetObjectItemCaseSensitive(l, "emission"))
+                return bad(L, ctx, "has both 'material' and 'emission'");
+            if ((mat = scene_find_material(L->s, matname)) < 0)
+                return ct_fail(L->err, CT_EPARSE, "%s: %s: unknown material '%s'", L->path, ctx, matname);
+            if (v3_maxc(L->s->mats[mat].emission) <= 0.0f)
+                return ct_fail(L->err, CT_EPARSE, "%s: %s: material '%s' has no emission", L->path, ctx, matname);
+        } else {
+            if ((rc = get_vec3(L, l, "emission", ctx, 1, v3s(0), &em))) return rc;
+            if (em.x < 0 || em.y < 0 || em.z < 0 || v3_maxc(em) <= 0.0f)
+                return bad(L, ctx, "'emission' must be non-negative and not all zero");
+            char mname[SCENE_NAME_LEN];
+            snprintf(mname, sizeof mname, "light:%s", lname);
+            scene_material m = scene_material_default(mname);
+            m.emission = em;
+            if ((mat = scene_add_material(L->s, &m, L->err)) < 0) return mat;
+        }
+        if ((rc = scene_begin_node(L->s, lname, SCENE_NODE_PART, (uint32_t)mat, L->err)) < 0) return rc;
+        vec3 nn = v3_norm(n);
+        vec3 corners[4] = {p, v3_add(p, e1), v3_add(v3_add(p, e1), e2), v3_add(p, e2)};
+        uint32_t idx[4];
+        for (int k = 0; k < 4; k++) {
+            int64_t r = scene_add_vertex(L->s, corners[k], nn, L->err);
+            if (r < 0) return (int)r;
+            idx[k] = (uint32_t)r;
+        }
+        if ((rc = scene_add_polygon(L->s, idx, 4, L->err))) return rc;
+        if ((rc = scene_end_node(L->s, L->err))) return rc;
+    }
+    return scene_end_node(L->s, L->err);
+}
+
+static int import_cameras(loader *L, const cJSON *cams)
+{
+    if (!cJSON_IsArray(cams)) return bad(L, "cameras", "must be an array");
+    int i = 0, rc;
+    for (const cJSON *c = cams->child; c; c = c->next, i++) {
+        char ctx[64];
+        snprintf(ctx, sizeof ctx, "cameras[%d]", i);
+        if (!cJSON_IsObject(c)) return bad(L, ctx, "must be an object");
+        static const char *const keys[] = {"name", "eye", "target", "up", "fov", NULL};
+        if ((rc = check_keys(L, c, ctx, keys))) return rc;
+        const char *name;
+        vec3 eye, target, up;
+        float fov;
+        if ((rc = get_str(L, c, "name", ctx, 1, &name))) return rc;
+        if ((rc = get_vec3(L, c, "eye", ctx, 1, v3s(0), &eye))) return rc;
+        if ((rc = get_vec3(L, c, "target", ctx, 1, v3s(0), &target))) return rc;
+        if ((rc = get_vec3(L, c, "up", ctx, 0, v3(0, 1, 0), &up))) return rc;
+        if ((rc = get_num(L, c, "fov", ctx, 0, 45.0f, &fov))) return rc;
+        if ((rc = scene_add_camera(L->s, name, eye, target, up, fov, L->err))) {
+            ct_error_prefix(L->err, L->path);
+            return rc;
+        }
+    }
+    return CT_OK;
+}
+
+static int import_paths(loader *L, const cJSON *paths)
+{
+    if (!cJSON_IsArray(paths)) return bad(L, "paths", "must be an array");
+    int i = 0, rc;
+    for (const cJSON *p = paths->child; p; p = p->next, i++) {
+        char ctx[64];
+        snprintf(ctx, sizeof ctx, "paths[%d]", i);
+        if (!cJSON_IsObject(p)) return bad(L, ctx, "must be an object");
+        static const char *const keys[] = {"name", "file", "keys", "up", NULL};
+        if ((rc = check_keys(L, p, ctx, keys))) return rc;
+        const char *name, *file;
+        if ((rc = get_str(L, p, "name", ctx, 1, &name))) return rc;
+        if ((rc = get_str(L, p, "file", ctx, 0, &file))) return rc;
+        const cJSON *keysj = cJSON_GetObjectItemCaseSensitive(p, "keys");
+        if (!!file == !!keysj) return bad(L, ctx, "needs exactly one of 'file' and 'keys'");
+        ct_campath path;
+        if (file) {
+            if (cJSON_GetObjectItemCaseSensitive(p, "up")) return bad(L, ctx, "'up' belongs in the path file");
+            char full[4096];
+            fs_join(L->dir, file, full, sizeof full);
+            char *text;
+            size_t len;
+            if ((rc = fs_read_all(full, 16u << 20, &text, &len, L->err))) return rc;
+            L->hash = ct_hash_bytes(L->hash, text, len);
+            rc = campath_parse(text, full, &path, L->err);
+            free(text);
+            if (rc) return rc;
+        } else {
+            vec3 up;
+            if ((rc = get_vec3(L, p, "up", ctx, 0, v3(0, 1, 0), &up))) return rc;
+            if (!cJSON_IsArray(keysj)) return bad(L, ctx, "'keys' must be an array");
+            int n = cJSON_GetArraySize(keysj), k = 0;
+            if (n > 100000) return bad(L, ctx, "too many keys");
+            campath_key *keys_arr = calloc(n ? (size_t)n : 1, sizeof *keys_arr);
+            if (!keys_arr) return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", L->path);
+            for (const cJSON *kj = keysj->child; kj; kj = kj->next, k++) {
+                float f[8];
+                int cnt = cJSON_GetArraySize(kj);
+                char kc[96];
+                snprintf(kc, sizeof kc, "%s.keys[%d]", ctx, k);
+                if (cnt != 7 && cnt != 8) { free(keys_arr); return bad(L, kc, "needs 7 or 8 numbers"); }
+                f[7] = 45.0f;
+                if ((rc = get_floats(L, kj, "key", kc, f, cnt))) { free(keys_arr); return rc; }
+                keys_arr[k] = (campath_key){f[0], v3(f[1], f[2], f[3]), v3(f[4], f[5], f[6]), f[7]};
+            }
+            char origin[256];
+            snprintf(origin, sizeof origin, "%s: %s", L->path, ctx);
+            rc = campath_from_keys(keys_arr, n, up, origin, &path, L->err);
+            free(keys_arr);
+            if (rc) return rc;
+        }
+        snprintf(path.name, sizeof path.name, "%s", name);
+        if ((rc = scene_add_path(L->s, &path, L->err))) {
+            campath_free(&path);
+            ct_error_prefix(L->err, L->path);
+            return rc;
+        }
+    }
+    return CT_OK;
+}
+
+/* --- the scene file ---------------------------------------------------------- */
+
+static void line_col(const char *text, const char *at, int *line, int *col)
+{
+    *line = 1;
+    *col = 1;
+    for (const char *p = text; p < at && *p; p++) {
+        if (*p == '\n') { (*line)++; *col = 1; }
+        else (*col)++;
+    }
+}
+
+static int load_json(loader *L, const char *text, size_t len)
+{
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithLengthOpts(text, len, &end, 0);
+    if (!root) {
+        int line, col;
+        line_col(text, end ? end : text + len, &line, &col);
+        return ct_fail(L->err, CT_EPARSE, "%s:%d:%d: JSON syntax error", L->path, line, col);
+    }
+    int rc = CT_OK;
+    if (!cJSON_IsObject(root)) {
+        rc = bad(L, "top level", "must be a JSON object");
+        goto done;
+    }
+    static const char *const keys[] = {"name", "meshes", "materials", "lights", "cameras", "paths", NULL};
+    if ((rc = check_keys(L, root, "top level", keys))) goto done;
+    const char *name;
+    if ((rc = get_str(L, root, "name", "top level", 0, &name))) goto done;
+    if (name) {
+        snprintf(L->s->name, sizeof L->s->name, "%s", name);
+        snprintf(L->s->nodes[0].name, sizeof L->s->nodes[0].name, "%s", name);
+    }
+
+    const cJSON *mats = cJSON_GetObjectItemCaseSensitive(root, "materials");
+    if (mats) {
+        if (!cJSON_IsObject(mats)) { rc = bad(L, "materials", "must be an object"); goto done; }
+        for (const cJSON *m = mats->child; m; m = m->next) {
+            if (strlen(m->string) >= SCENE_NAME_LEN || !m->string[0]) {
+                rc = bad(L, "materials", "material names must have 1 to 63 characters");
+                goto done;
+            }
+            if (scene_find_material(L->s, m->string) >= 0) {
+                rc = ct_fail(L->err, CT_EPARSE, "%s: materials: '%s' defined twice", L->path, m->string);
+                goto done;
+            }
+            scene_material sm;
+            if ((rc = parse_material(L, m, m->string, &sm))) goto done;
+            if ((rc = scene_add_material(L->s, &sm, L->err)) < 0) goto done;
+            rc = CT_OK;
+        }
+    }
+    const cJSON *meshes = cJSON_GetObjectItemCaseSensitive(root, "meshes");
+    if (meshes) {
+        if (!cJSON_IsArray(meshes)) { rc = bad(L, "meshes", "must be an array"); goto done; }
+        int i = 0;
+        for (const cJSON *m = meshes->child; m; m = m->next, i++)
+            if ((rc = import_mesh_entry(L, m, i))) goto done;
+    }
+    const cJSON *lights = cJSON_GetObjectItemCaseSensitive(root, "lights");
+    if (lights && (rc = import_lights(L, lights))) goto done;
+    const cJSON *cams = cJSON_GetObjectItemCaseSensitive(root, "cameras");
+    if (cams && (rc = import_cameras(L, cams))) goto done;
+    const cJSON *paths = cJSON_GetObjectItemCaseSensitive(root, "paths");
+    if (paths && (rc = import_paths(L, paths))) goto done;
+done:
+    cJSON_Delete(root);
+    return rc;
+}
+
+int scene_load(const char *path, ct_scene **out, ct_error *err)
+{
+    *out = NULL;
+    char *text;
+    size_t len;
+    int rc = fs_read_all(path, SCENE_JSON_MAX, &text, &len, err);
+    if (rc) return rc;
+    char name[SCENE_NAME_LEN];
+    basename_noext(path, name, sizeof name);
+    ct_scene *s = scene_new(name);
+    if (!s) {
+        free(text);
+        return ct_fail(err, CT_ENOMEM, "%s: out of memory", path);
+    }
+    loader L = {.s = s, .path = path, .err = err};
+    fs_dirname(path, L.dir, sizeof L.dir);
+    L.hash = ct_hash_bytes(CT_HASH_INIT, text, len);
+    rc = load_json(&L, text, len);
+    free(text);
+    if (rc == CT_OK) {
+        rc = scene_finalize(s, err);
+        if (rc) ct_error_prefix(err, path);
+    }
+    if (rc) {
+        scene_free(s);
+        return rc < 0 ? rc : CT_EPARSE;
+    }
+    snprintf(s->source, sizeof s->source, "%s", path);
+    s->source_hash = L.hash;
+    *out = s;
+    return CT_OK;
+}

@@ -1,0 +1,112 @@
+#!/usr/bin/env bash
+# End-to-end test of `corrtex compare`: metrics, --json keys and exit codes
+# 0 (ok), 1 (--max-rmse exceeded) and 2 (bad input or usage), on the tiny
+# EXR files in tests/data/ (written and checked by tests/unit/test_image.c:
+# compare-test.exr is compare-ref.exr with +-0.05 on every value).
+set -u
+root=$(cd "$(dirname "$0")/../.." && pwd)
+bin=${CORRTEX_BIN:-bin}
+[[ $bin == /* ]] || bin="$root/$bin"
+corrtex="$bin/corrtex"
+data="$root/tests/data"
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-compare-XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+# run EXPECTED_RC ARGS...: runs corrtex with ARGS, logs the command, keeps
+# stdout in $out and stderr in $err, and checks the exit status.
+run() {
+  local want=$1; shift
+  echo "+ $corrtex $*"
+  "$corrtex" "$@" >"$tmp/out" 2>"$tmp/err"
+  rc=$?
+  out=$(cat "$tmp/out"); err=$(cat "$tmp/err")
+  [[ -n $out ]] && sed 's/^/  stdout: /' "$tmp/out"
+  [[ -n $err ]] && sed 's/^/  stderr: /' "$tmp/err"
+  if ((rc != want)); then fail "exit status $rc, expected $want: corrtex $*"; fi
+}
+
+# expect_error FILE_OR_TEXT: stderr is exactly one line
+# "error corrtex compare: <text>..."
+expect_error() {
+  local lines
+  lines=$(wc -l <"$tmp/err")
+  ((lines == 1)) || fail "expected one error line, got $lines"
+  [[ $err == "error corrtex compare: $1"* ]] || fail "error line does not start with 'error corrtex compare: $1': $err"
+}
+
+# json_get KEY: the number (or null) after "KEY": in $out.
+json_get() { sed -nE "s/.*\"$1\":(null|[-+0-9.eE]+).*/\1/p" <<<"$out"; }
+
+# near A B TOL: |A - B| <= TOL
+near() { awk -v a="$1" -v b="$2" -v t="$3" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(d <= t) }'; }
+
+[[ -x $corrtex ]] || { echo "error: $corrtex not built"; exit 1; }
+ref="$data/compare-ref.exr"; test="$data/compare-test.exr"
+for f in "$ref" "$test" "$data/compare-small.exr" "$data/compare-luminance.exr"; do
+  [[ -f $f ]] || { echo "error: missing test data $f"; exit 1; }
+done
+
+echo "== identical images"
+run 0 compare "$ref" "$ref"
+grep -qx 'rmse 0' <<<"$out" || fail "rmse of identical images is not 0"
+grep -qx 'psnr inf dB' <<<"$out" || fail "psnr of identical images is not inf"
+grep -qx 'ssim 1.000000' <<<"$out" || fail "ssim of identical images is not 1"
+
+echo "== --json"
+run 0 compare "$test" "$ref" --json
+for k in rmse rel_mse psnr ssim width height; do
+  grep -q "\"$k\":" <<<"$out" || fail "JSON lacks key $k"
+done
+if command -v python3 >/dev/null; then
+  echo "+ python3 -m json.tool (validates the JSON)"
+  python3 -m json.tool <<<"$out" >/dev/null || fail "output is not valid JSON"
+fi
+rmse=$(json_get rmse); psnr=$(json_get psnr); ssim=$(json_get ssim); rel=$(json_get rel_mse)
+echo "metric: rmse=$rmse rel_mse=$rel psnr=$psnr ssim=$ssim (compare-test vs compare-ref)"
+near "$rmse" 0.05 1e-6 || fail "rmse $rmse, expected 0.05"
+[[ $(json_get width) == 16 && $(json_get height) == 16 ]] || fail "size is not 16x16"
+awk -v s="$ssim" 'BEGIN { exit !(s > 0 && s < 1) }' || fail "ssim $ssim not in (0, 1)"
+awk -v p="$psnr" 'BEGIN { exit !(p > 10 && p < 60) }' || fail "psnr $psnr implausible"
+run 0 compare --json "$ref" "$ref"
+[[ $(json_get psnr) == null ]] || fail "psnr of identical images should be null in JSON"
+
+echo "== --max-rmse"
+run 0 compare "$test" "$ref" --max-rmse 0.06
+run 1 compare "$test" "$ref" --max-rmse 0.04
+grep -q "exceeds --max-rmse 0.04" <<<"$err" || fail "exit 1 without the limit in the message"
+grep -q "rmse 0.05" <<<"$err" || fail "exit 1 without the rmse in the message"
+run 0 compare "$ref" "$ref" --max-rmse 0
+
+echo "== bad input"
+head -c 300 "$test" >"$tmp/truncated.exr"
+run 2 compare "$tmp/truncated.exr" "$ref"
+expect_error "$tmp/truncated.exr: "
+head -c 600 "$test" >"$tmp/cut.exr"
+run 2 compare "$ref" "$tmp/cut.exr"
+expect_error "$tmp/cut.exr: "
+run 2 compare "$tmp/missing.exr" "$ref"
+expect_error "$tmp/missing.exr: cannot open"
+run 2 compare "$data/compare-luminance.exr" "$ref"
+expect_error "$data/compare-luminance.exr: EXR has no channel R, G, B"
+run 2 compare "$data/compare-small.exr" "$ref"
+expect_error "$data/compare-small.exr: image sizes differ"
+echo "not an image" >"$tmp/text.exr"
+run 2 compare "$tmp/text.exr" "$ref"
+expect_error "$tmp/text.exr: "
+
+echo "== usage"
+run 2 compare "$ref"
+expect_error "expected two images"
+run 2 compare "$ref" "$ref" "$ref"
+run 2 compare "$ref" "$ref" --max-rmse abc
+expect_error "--max-rmse"
+run 2 compare "$ref" "$ref" --max-rmse -1
+run 2 compare "$ref" "$ref" --frobnicate
+run 0 compare --help
+grep -q "default" <<<"$out" || fail "--help prints no defaults"
+
+if ((fails)); then echo "compare.sh: $fails check(s) failed"; exit 1; fi
+echo "compare.sh: all checks passed"

@@ -1,0 +1,156 @@
+/* Unit tests of common/camera: rays and projections agree with each other
+ * and with the GL matrices (pixel origin top-left, y down). */
+#include <criterion/criterion.h>
+
+#include <math.h>
+
+#include "common/camera.h"
+#include "common/rng.h"
+
+typedef struct cam_case {
+    ct_camera cam;
+    int w, h;
+} cam_case;
+
+static vec3 rand_unit(ct_rng *r)
+{
+    for (;;) {
+        vec3 v = v3(2 * rng_float(r) - 1, 2 * rng_float(r) - 1, 2 * rng_float(r) - 1);
+        float l = v3_len(v);
+        if (l > 0.1f && l <= 1.0f) return v3_scale(v, 1.0f / l);
+    }
+}
+
+/* Random cameras: positions, directions, fields of view 20..110 degrees,
+ * square, wide and tall images. */
+static cam_case rand_case(ct_rng *r, int k)
+{
+    static const int sizes[][2] = {{64, 64}, {128, 72}, {33, 97}, {1024, 768}};
+    cam_case c;
+    vec3 eye = v3_scale(rand_unit(r), 20.0f * rng_float(r));
+    vec3 dir = rand_unit(r);
+    vec3 up = fabsf(dir.y) > 0.95f ? v3(1, 0, 0) : v3(0, 1, 0);
+    c.cam = cam_look_at(eye, v3_add(eye, v3_scale(dir, 3.0f)), up, 20.0f + 90.0f * rng_float(r));
+    c.w = sizes[k % 4][0];
+    c.h = sizes[k % 4][1];
+    return c;
+}
+
+Test(camera, look_at_axes)
+{
+    ct_camera c = cam_look_at(v3(0, 1, 5), v3(0, 1, 0), v3(0, 1, 0), 60.0f);
+    vec3 r, u, f;
+    cam_axes(&c, &r, &u, &f);
+    cr_assert_float_eq(f.z, -1.0f, 1e-6, "forward towards the target");
+    cr_assert_float_eq(u.y, 1.0f, 1e-6);
+    cr_assert_float_eq(r.x, 1.0f, 1e-6, "right = forward x up");
+    cr_assert_float_eq(c.fov_y, 60.0f * CT_PI / 180.0f, 1e-6);
+    /* Looking straight along the up vector still yields an orthonormal frame. */
+    ct_camera d = cam_look_at(v3(0, 0, 0), v3(0, 5, 0), v3(0, 1, 0), 45.0f);
+    cam_axes(&d, &r, &u, &f);
+    cr_assert(v3_finite(r) && v3_finite(u) && v3_finite(f));
+    cr_assert_float_eq(f.y, 1.0f, 1e-6);
+    cr_assert_float_eq(v3_dot(r, f), 0.0f, 1e-6);
+    cr_assert_float_eq(v3_dot(u, f), 0.0f, 1e-6);
+}
+
+Test(camera, centre_and_edge_rays)
+{
+    ct_camera c = cam_look_at(v3(1, 2, 3), v3(4, 2, -1), v3(0, 1, 0), 50.0f);
+    vec3 r, u, f;
+    cam_axes(&c, &r, &u, &f);
+    vec3 d = cam_ray_dir(&c, 200, 100, 100.0f, 50.0f);
+    cr_assert_float_eq(v3_dot(d, f), 1.0f, 1e-6, "centre ray is the view direction");
+    /* The top edge's centre is fov/2 above the axis, towards +up. */
+    vec3 t = cam_ray_dir(&c, 200, 100, 100.0f, 0.0f);
+    cr_assert_float_eq(acosf(v3_dot(t, f)), 25.0f * CT_PI / 180.0f, 1e-5);
+    cr_assert_gt(v3_dot(t, u), 0.0f);
+    /* Pixel columns grow to the right. */
+    cr_assert_gt(v3_dot(cam_ray_dir(&c, 200, 100, 199.5f, 50.0f), r), 0.0f);
+    cr_assert_float_eq(v3_len(cam_ray_dir(&c, 200, 100, 3.5f, 91.25f)), 1.0f, 1e-6);
+}
+
+Test(camera, project_inverts_ray_dir)
+{
+    ct_rng r = rng_make(21, 0, 0, 0);
+    for (int k = 0; k < 400; k++) {
+        cam_case cc = rand_case(&r, k);
+        float px = (float)cc.w * rng_float(&r), py = (float)cc.h * rng_float(&r);
+        float dist = 0.05f + 50.0f * rng_float(&r);
+        vec3 p = v3_madd(cc.cam.eye, cam_ray_dir(&cc.cam, cc.w, cc.h, px, py), dist);
+        float qx, qy, depth;
+        cr_assert(cam_project(&cc.cam, cc.w, cc.h, p, &qx, &qy, &depth));
+        cr_assert_float_eq(qx, px, 1e-3, "case %d: x %g -> %g", k, (double)px, (double)qx);
+        cr_assert_float_eq(qy, py, 1e-3, "case %d: y %g -> %g", k, (double)py, (double)qy);
+        cr_assert_gt(depth, 0.0f);
+        cr_assert_leq(depth, dist * 1.0001f);
+    }
+}
+
+Test(camera, project_rejects_points_behind)
+{
+    ct_camera c = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 60.0f);
+    float x, y, depth;
+    cr_assert(!cam_project(&c, 64, 64, v3(0.2f, 0.1f, 1.0f), &x, &y, &depth));
+    cr_assert_lt(depth, 0.0f);
+    cr_assert(!cam_project(&c, 64, 64, v3(1.0f, 0.0f, 0.0f), &x, &y, &depth), "depth 0");
+    cr_assert(cam_project(&c, 64, 64, v3(0, 0, -2), &x, &y, NULL));
+    cr_assert_float_eq(x, 32.0f, 1e-5);
+    cr_assert_float_eq(y, 32.0f, 1e-5);
+}
+
+Test(camera, gl_matrices_match_project)
+{
+    /* clip = P V p; ndc = clip / w; pixel x = (ndc.x + 1) / 2 W, pixel y =
+     * (1 - ndc.y) / 2 H (GL's y is up, ours is down). */
+    ct_rng r = rng_make(22, 0, 0, 0);
+    const float znear = 0.01f, zfar = 100.0f;
+    int tested = 0;
+    for (int k = 0; k < 400; k++) {
+        cam_case cc = rand_case(&r, k);
+        mat4 pv = m4_mul(cam_proj(&cc.cam, cc.w, cc.h, znear, zfar), cam_view(&cc.cam));
+        /* Points in and somewhat outside the frustum, in front of the eye. */
+        float px = (float)cc.w * (1.4f * rng_float(&r) - 0.2f);
+        float py = (float)cc.h * (1.4f * rng_float(&r) - 0.2f);
+        float dist = 0.1f + 30.0f * rng_float(&r);
+        vec3 p = v3_madd(cc.cam.eye, cam_ray_dir(&cc.cam, cc.w, cc.h, px, py), dist);
+        float qx, qy, depth;
+        if (!cam_project(&cc.cam, cc.w, cc.h, p, &qx, &qy, &depth)) continue;
+        vec4 clip = m4_point4(&pv, p);
+        cr_assert_gt(clip.w, 0.0f);
+        float gx = 0.5f * (clip.x / clip.w + 1.0f) * (float)cc.w;
+        float gy = 0.5f * (1.0f - clip.y / clip.w) * (float)cc.h;
+        /* Float view matrices carry -dot(axis, eye) in their translation, so a
+         * point much closer to the eye than the eye is to the origin loses
+         * precision (on the GPU too): 3.5e-3 px at depth 0.17 with the eye
+         * 12.7 units out, 1024 px wide. From depth 1 on, 1e-3 px holds. */
+        double tol = depth >= 1.0f ? 1e-3 : 2e-2;
+        cr_assert_float_eq(gx, qx, tol, "case %d: GL x %g vs project %g", k, (double)gx, (double)qx);
+        cr_assert_float_eq(gy, qy, tol, "case %d: GL y %g vs project %g", k, (double)gy, (double)qy);
+        /* Eye-space depth is GL's w. */
+        cr_assert_float_eq(clip.w, depth, 1e-4 * (1 + depth));
+        float nz = clip.z / clip.w;
+        cr_assert(nz > -1.0f && nz < 1.0f, "ndc z %g inside the depth range", (double)nz);
+        tested++;
+    }
+    cr_assert_gt(tested, 300);
+}
+
+Test(camera, lerp_endpoints)
+{
+    ct_camera a = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 40.0f);
+    ct_camera b = cam_look_at(v3(2, 4, 6), v3(3, 4, 6), v3(0, 1, 0), 80.0f);
+    ct_camera m0 = cam_lerp(&a, &b, 0.0f), m1 = cam_lerp(&a, &b, 1.0f), mh = cam_lerp(&a, &b, 0.5f);
+    cr_assert_eq(m0.eye.y, 0.0f);
+    cr_assert_float_eq(m1.eye.z, 6.0f, 1e-6);
+    cr_assert_float_eq(mh.fov_y, 60.0f * CT_PI / 180.0f, 1e-6);
+    vec3 f0, f1, fh;
+    cam_axes(&m0, NULL, NULL, &f0);
+    cam_axes(&m1, NULL, NULL, &f1);
+    cam_axes(&mh, NULL, NULL, &fh);
+    cr_assert_float_eq(f0.z, -1.0f, 1e-6);
+    cr_assert_float_eq(f1.x, 1.0f, 1e-6);
+    /* Half way between -z and +x about the up axis. */
+    cr_assert_float_eq(fh.x, sqrtf(0.5f), 1e-5);
+    cr_assert_float_eq(fh.z, -sqrtf(0.5f), 1e-5);
+}

@@ -1,0 +1,191 @@
+/* Unit tests of common/metrics.c against values computed by hand on tiny
+ * images (the arithmetic is in the comments). */
+#include <criterion/criterion.h>
+
+#include <math.h>
+#include <string.h>
+
+#include "common/metrics.h"
+#include "common/rng.h"
+
+static ct_image make(int w, int h, float r, float g, float b)
+{
+    ct_image img;
+    ct_error err;
+    cr_assert_eq(img_alloc(&img, w, h, &err), 0, "%s", err.msg);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) img_set(&img, x, y, v3(r, g, b));
+    return img;
+}
+
+static img_metrics compare_ok(const ct_image *a, const ct_image *b)
+{
+    img_metrics m;
+    ct_error err;
+    cr_assert_eq(metrics_compare(a, b, &m, &err), 0, "%s", err.msg);
+    return m;
+}
+
+Test(metrics, rmse_relmse_psnr_two_pixels)
+{
+    /* a = [(1,1,1), (0,0,0)], ref = black: three of six values differ by 1.
+     * MSE = 3/6 = 0.5, RMSE = sqrt(0.5) = 0.7071068.
+     * relMSE = (3 * 1 / (0 + 0.01)) / 6 = 50.
+     * sRGB values are the same (0 and 1), so PSNR = 10 log10(1 / 0.5) = 3.0103 dB. */
+    ct_image a = make(2, 1, 0, 0, 0), ref = make(2, 1, 0, 0, 0);
+    img_set(&a, 0, 0, v3(1, 1, 1));
+    img_metrics m = compare_ok(&a, &ref);
+    cr_assert_float_eq(m.rmse, 0.70710678, 1e-7);
+    cr_assert_float_eq(m.rel_mse, 50.0, 1e-9);
+    cr_assert_float_eq(m.psnr, 3.0102999566, 1e-6);
+    img_free(&a);
+    img_free(&ref);
+}
+
+Test(metrics, grey_levels)
+{
+    /* a = 0.5 grey, ref = 0.25 grey (linear).
+     * RMSE = 0.25; relMSE = 0.0625 / (0.0625 + 0.01) = 0.862069.
+     * sRGB(0.5) = 0.735357, sRGB(0.25) = 0.537099: MSE = 0.198258^2 = 0.039306,
+     * PSNR = 10 log10(1 / 0.039306) = 14.05537 dB.
+     * Flat windows have zero variance and covariance, so SSIM reduces to the
+     * luminance term (2 mu_a mu_b + C1) / (mu_a^2 + mu_b^2 + C1) = 0.952604. */
+    ct_image a = make(12, 9, 0.5f, 0.5f, 0.5f), ref = make(12, 9, 0.25f, 0.25f, 0.25f);
+    img_metrics m = compare_ok(&a, &ref);
+    cr_assert_float_eq(m.rmse, 0.25, 1e-9);
+    cr_assert_float_eq(m.rel_mse, 0.86206897, 1e-7);
+    cr_assert_float_eq(m.psnr, 14.0553745, 1e-4);
+    cr_assert_float_eq(m.ssim, 0.9526044, 1e-5);
+    /* Swapping the roles changes relMSE (it divides by the reference). */
+    img_metrics r = compare_ok(&ref, &a);
+    cr_assert_float_eq(r.rmse, 0.25, 1e-9);
+    cr_assert_float_eq(r.rel_mse, 0.0625 / (0.25 + 0.01), 1e-7);
+    img_free(&a);
+    img_free(&ref);
+}
+
+Test(metrics, per_channel_and_clamping)
+{
+    /* Only green differs, by 2 (linear), in one of 4 pixels: MSE = 4 / 12,
+     * RMSE = 0.5773503. Green 3.0 vs 1.0 both tone-map to 1.0, so PSNR is
+     * infinite and SSIM is 1: they only see displayable values. */
+    ct_image a = make(2, 2, 0.2f, 1.0f, 0.1f), ref = make(2, 2, 0.2f, 1.0f, 0.1f);
+    img_set(&a, 1, 1, v3(0.2f, 3.0f, 0.1f));
+    img_metrics m = compare_ok(&a, &ref);
+    cr_assert_float_eq(m.rmse, sqrt(4.0 / 12.0), 1e-7);
+    cr_assert_float_eq(m.rel_mse, (4.0 / 1.01) / 12.0, 1e-7);
+    cr_assert(isinf(m.psnr) && m.psnr > 0);
+    cr_assert_float_eq(m.ssim, 1.0, 1e-12);
+    img_free(&a);
+    img_free(&ref);
+}
+
+Test(metrics, identical_images)
+{
+    ct_image a = make(37, 21, 0, 0, 0);
+    ct_rng r = rng_make(1, 2, 3, 4);
+    for (size_t i = 0; i < 37 * 21 * 3; i++) a.px[i] = 2.0f * rng_float(&r);
+    img_metrics m = compare_ok(&a, &a);
+    cr_assert_eq(m.rmse, 0.0);
+    cr_assert_eq(m.rel_mse, 0.0);
+    cr_assert(isinf(m.psnr));
+    cr_assert_float_eq(m.ssim, 1.0, 1e-12);
+    img_free(&a);
+}
+
+Test(metrics, ssim_drops_with_noise)
+{
+    /* A smooth gradient with increasing amounts of noise: SSIM < 1 and
+     * decreasing, PSNR decreasing, RMSE increasing. */
+    int w = 64, h = 48;
+    ct_image ref = make(w, h, 0, 0, 0), a = make(w, h, 0, 0, 0);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            float v = 0.05f + 0.8f * (float)(x + y) / (float)(w + h);
+            img_set(&ref, x, y, v3(v, 0.5f * v, 0.25f + 0.5f * v));
+        }
+    double prev_ssim = 1.0, prev_psnr = INFINITY, prev_rmse = 0.0;
+    const float sigmas[] = {0.01f, 0.03f, 0.1f, 0.3f};
+    for (int k = 0; k < 4; k++) {
+        ct_rng r = rng_make(7, (uint64_t)k, 0, 0);
+        for (size_t i = 0; i < (size_t)w * h * 3; i++)
+            a.px[i] = ref.px[i] + sigmas[k] * (2.0f * rng_float(&r) - 1.0f);
+        img_metrics m = compare_ok(&a, &ref);
+        cr_assert_lt(m.ssim, prev_ssim, "sigma %g: ssim %g not below %g", (double)sigmas[k], m.ssim, prev_ssim);
+        cr_assert_lt(m.psnr, prev_psnr);
+        cr_assert_gt(m.rmse, prev_rmse);
+        /* Uniform noise in [-s, s] has RMS s / sqrt(3). */
+        cr_assert_float_eq(m.rmse, sigmas[k] / sqrt(3.0), 0.05 * sigmas[k]);
+        prev_ssim = m.ssim; prev_psnr = m.psnr; prev_rmse = m.rmse;
+    }
+    cr_assert_lt(prev_ssim, 0.8);
+    cr_assert_gt(prev_ssim, -1.0);
+    img_free(&a);
+    img_free(&ref);
+}
+
+Test(metrics, ssim_checkerboard_vs_inverse)
+{
+    /* 8x8: one window. Checkerboard of 0/1 against its inverse: both means
+     * 0.5, variances 0.25, covariance -0.25.
+     * SSIM = (2*0.25 + C1)(-0.5 + C2) / ((0.5 + C1)(0.5 + C2))
+     *      = -0.4991 / 0.5009 = -0.9964064. */
+    ct_image a = make(8, 8, 0, 0, 0), b = make(8, 8, 0, 0, 0);
+    for (int y = 0; y < 8; y++)
+        for (int x = 0; x < 8; x++) {
+            float v = (float)((x + y) % 2);
+            img_set(&a, x, y, v3s(v));
+            img_set(&b, x, y, v3s(1.0f - v));
+        }
+    img_metrics m = compare_ok(&a, &b);
+    cr_assert_float_eq(m.ssim, -0.4991 / 0.5009, 1e-5);
+    cr_assert_float_eq(m.rmse, 1.0, 1e-12);
+    cr_assert_float_eq(m.psnr, 0.0, 1e-12);
+    img_free(&a);
+    img_free(&b);
+}
+
+Test(metrics, ssim_covers_edges_and_tiny_images)
+{
+    /* 13 x 9: windows at x = 0, 4 and 5 (flush right), y = 0 and 1. A change in
+     * the last column and last row must lower SSIM. */
+    ct_image a = make(13, 9, 0.3f, 0.3f, 0.3f), b = make(13, 9, 0.3f, 0.3f, 0.3f);
+    img_set(&a, 12, 8, v3s(0.9f));
+    img_metrics m = compare_ok(&a, &b);
+    cr_assert_lt(m.ssim, 0.999);
+    /* Images smaller than a window: one window of the whole image. */
+    ct_image c = make(3, 2, 0.5f, 0.5f, 0.5f), d = make(3, 2, 0.25f, 0.25f, 0.25f);
+    m = compare_ok(&c, &d);
+    cr_assert_float_eq(m.ssim, 0.9526044, 1e-5);
+    ct_image e = make(1, 1, 0.5f, 0.5f, 0.5f);
+    m = compare_ok(&e, &e);
+    cr_assert_float_eq(m.ssim, 1.0, 1e-12);
+    img_free(&a); img_free(&b); img_free(&c); img_free(&d); img_free(&e);
+}
+
+Test(metrics, size_mismatch_is_an_error)
+{
+    ct_image a = make(4, 3, 0, 0, 0), b = make(3, 4, 0, 0, 0);
+    img_metrics m;
+    ct_error err;
+    cr_assert_eq(metrics_compare(&a, &b, &m, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "4x3") != NULL && strstr(err.msg, "3x4") != NULL, "%s", err.msg);
+    img_free(&a);
+    img_free(&b);
+}
+
+Test(metrics, non_finite_is_an_error)
+{
+    ct_image a = make(4, 3, 0, 0, 0), b = make(4, 3, 0, 0, 0);
+    img_metrics m;
+    ct_error err;
+    img_set(&a, 2, 1, v3(0, NAN, 0));
+    cr_assert_eq(metrics_compare(&a, &b, &m, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "(2, 1)") != NULL, "%s", err.msg);
+    img_set(&a, 2, 1, v3(0, 0, 0));
+    img_set(&b, 3, 2, v3(INFINITY, 0, 0));
+    cr_assert_eq(metrics_compare(&a, &b, &m, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "reference") != NULL && strstr(err.msg, "(3, 2)") != NULL, "%s", err.msg);
+    img_free(&a);
+    img_free(&b);
+}

@@ -1,0 +1,181 @@
+/* Unit tests of the request heap (master/rq_heap.c) and the sampled-pixel
+ * mask with its remaining-pixel list (master/rq_mask.c). */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/rng.h"
+#include "master/rq_heap.h"
+#include "master/rq_mask.h"
+
+typedef struct ref { float prio; uint32_t seq; } ref;
+
+static int cmp_ref(const void *a, const void *b)
+{
+    const ref *x = a, *y = b;
+    if (x->prio != y->prio) return x->prio > y->prio ? -1 : 1;
+    return x->seq < y->seq ? -1 : (x->seq > y->seq ? 1 : 0);
+}
+
+Test(rq_heap, key_orders_priority_then_sequence)
+{
+    cr_assert(rq_key(2.0f, 0) > rq_key(1.0f, 0));
+    cr_assert(rq_key(1.0f, 0) > rq_key(1.0f, 1), "equal priority: earlier push first");
+    cr_assert(rq_key(1e-30f, 5) > rq_key(0.0f, 0));
+    cr_assert(rq_key(INFINITY, 9) > rq_key(3e38f, 0));
+    cr_assert_eq(rq_key(-1.0f, 3), rq_key(0.0f, 3), "negative priorities count as 0");
+    cr_assert_eq(rq_key(NAN, 3), rq_key(0.0f, 3), "NaN counts as 0");
+    cr_assert_eq(rq_key_priority(rq_key(0.375f, 77)), 0.375f);
+}
+
+Test(rq_heap, pops_in_priority_order_with_fifo_ties)
+{
+    rq_heap h;
+    ct_error err;
+    cr_assert_eq(rq_heap_init(&h, 16, 0, &err), 0);
+    enum { N = 20000 };
+    ref *r = malloc(N * sizeof *r);
+    ct_rng g = rng_make(7, 0, 0, 0);
+    for (uint32_t i = 0; i < N; i++) {
+        /* Few distinct values, so ties are frequent. */
+        r[i].prio = (float)rng_below(&g, 50) * 0.25f;
+        r[i].seq = i;
+        rq_item it = {rq_key(r[i].prio, i), i, (float)i, 0, 1, 0};
+        cr_assert_eq(rq_heap_push(&h, &it), 0);
+    }
+    qsort(r, N, sizeof *r, cmp_ref);
+    for (uint32_t i = 0; i < N; i++) {
+        rq_item it;
+        cr_assert(rq_heap_pop(&h, &it));
+        cr_assert_eq(rq_key_priority(it.key), r[i].prio, "pop %u: priority", i);
+        cr_assert_eq(it.parent, r[i].seq, "pop %u: tie order", i);
+    }
+    rq_item it;
+    cr_assert_not(rq_heap_pop(&h, &it));
+    cr_assert_eq((uintptr_t)(h.a + 1) % 64, 0u, "children groups start on a cache line");
+    cr_assert_lt(h.grows, 20, "doubling growth, not one allocation per push (%llu)",
+                 (unsigned long long)h.grows);
+    free(r);
+    rq_heap_free(&h);
+}
+
+Test(rq_heap, interleaved_push_pop_matches_reference)
+{
+    rq_heap h;
+    cr_assert_eq(rq_heap_init(&h, 4, 0, NULL), 0);
+    ref pool[4096];
+    int np = 0;
+    uint32_t seq = 0;
+    ct_rng g = rng_make(11, 0, 0, 0);
+    for (int step = 0; step < 20000; step++) {
+        if (np < 4096 && (np == 0 || rng_below(&g, 3) != 0)) {
+            float p = rng_float(&g) * 100.0f;
+            rq_item it = {rq_key(p, seq), seq, 0, 0, 0, 0};
+            cr_assert_eq(rq_heap_push(&h, &it), 0);
+            pool[np].prio = p;
+            pool[np].seq = seq++;
+            np++;
+        } else {
+            int best = 0;
+            for (int i = 1; i < np; i++)
+                if (cmp_ref(&pool[i], &pool[best]) < 0) best = i;
+            rq_item it;
+            cr_assert(rq_heap_pop(&h, &it));
+            cr_assert_eq(it.parent, pool[best].seq, "step %d", step);
+            pool[best] = pool[--np];
+        }
+        cr_assert_eq(h.n, (size_t)np);
+    }
+    rq_heap_free(&h);
+}
+
+Test(rq_heap, cap_refuses_and_keeps_heap_intact)
+{
+    rq_heap h;
+    cr_assert_eq(rq_heap_init(&h, 2, 40, NULL), 0);
+    for (uint32_t i = 0; i < 40; i++) {
+        rq_item it = {rq_key((float)i, i), i, 0, 0, 0, 0};
+        cr_assert_eq(rq_heap_push(&h, &it), 0);
+    }
+    rq_item extra = {rq_key(1000.0f, 99), 99, 0, 0, 0, 0};
+    cr_assert_eq(rq_heap_push(&h, &extra), CT_ENOMEM);
+    cr_assert_eq(h.n, 40u);
+    rq_item it;
+    cr_assert(rq_heap_pop(&h, &it));
+    cr_assert_eq(it.parent, 39u, "the refused item did not enter");
+    rq_heap_clear(&h);
+    cr_assert_eq(rq_heap_top_key(&h), 0u);
+    rq_heap_free(&h);
+}
+
+Test(rq_mask, test_set_counts_each_pixel_once)
+{
+    rq_mask m;
+    cr_assert_eq(rq_mask_init(&m, 13, 7, NULL), 0);
+    cr_assert_not(rq_mask_test_set(&m, 0));
+    cr_assert(rq_mask_test_set(&m, 0));
+    cr_assert_not(rq_mask_test_set(&m, 90));
+    cr_assert(rq_mask_test(&m, 90));
+    cr_assert_not(rq_mask_test(&m, 89));
+    cr_assert_eq(m.count, 2u);
+    rq_mask_clear(&m);
+    cr_assert_eq(m.count, 0u);
+    cr_assert_not(rq_mask_test(&m, 90));
+    rq_mask_free(&m);
+}
+
+Test(rq_mask, bad_size_is_an_error)
+{
+    rq_mask m;
+    ct_error err;
+    cr_assert_eq(rq_mask_init(&m, 0, 5, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "0x5") != NULL, "%s", err.msg);
+}
+
+Test(rq_mask, remaining_list_holds_exactly_the_unset_pixels_shuffled)
+{
+    enum { W = 37, H = 11 };   /* not a multiple of 64: checks the tail word */
+    rq_mask m;
+    cr_assert_eq(rq_mask_init(&m, W, H, NULL), 0);
+    ct_rng g = rng_make(3, 0, 0, 0);
+    for (int i = 0; i < 300; i++) rq_mask_test_set(&m, rng_below(&g, W * H));
+    uint64_t unset = W * H - m.count;
+    cr_assert_eq(rq_mask_build_list(&m, 5, 2, NULL), 0);
+    cr_assert_eq(m.list_n, unset);
+    int seen[W * H] = {0};
+    bool sorted = true;
+    for (size_t i = 0; i < m.list_n; i++) {
+        cr_assert_lt(m.list[i], (uint32_t)(W * H));
+        cr_assert_not(rq_mask_test(&m, m.list[i]));
+        seen[m.list[i]]++;
+        if (i && m.list[i] < m.list[i - 1]) sorted = false;
+    }
+    for (int p = 0; p < W * H; p++) cr_assert_eq(seen[p], rq_mask_test(&m, (uint32_t)p) ? 0 : 1);
+    cr_assert_not(sorted, "the list is shuffled");
+    /* A pixel set after the list was built is skipped. */
+    uint32_t skip = m.list[1];
+    rq_mask_test_set(&m, skip);
+    uint32_t p, n = 0;
+    while (rq_mask_list_next(&m, &p)) {
+        cr_assert_neq(p, skip);
+        n++;
+    }
+    cr_assert_eq(n, unset - 1);
+    cr_assert_eq(m.count, (uint64_t)(W * H));
+    rq_mask_free(&m);
+}
+
+Test(rq_mask, shuffle_is_deterministic)
+{
+    rq_mask a, b;
+    cr_assert_eq(rq_mask_init(&a, 16, 16, NULL), 0);
+    cr_assert_eq(rq_mask_init(&b, 16, 16, NULL), 0);
+    cr_assert_eq(rq_mask_build_list(&a, 9, 1, NULL), 0);
+    cr_assert_eq(rq_mask_build_list(&b, 9, 1, NULL), 0);
+    cr_assert_eq(memcmp(a.list, b.list, a.list_n * sizeof *a.list), 0);
+    cr_assert_eq(rq_mask_build_list(&b, 9, 2, NULL), 0);
+    cr_assert_neq(memcmp(a.list, b.list, a.list_n * sizeof *a.list), 0, "another epoch, another order");
+    rq_mask_free(&a);
+    rq_mask_free(&b);
+}

@@ -1,0 +1,734 @@
+/* Unit tests of the adaptive sample acquisition (master/sampler.h, §3.7):
+ * priorities, children formulas, discarding, coverage of a still camera,
+ * concentration on large errors, reprojection, epochs and determinism. The
+ * "tracer" here is a plane z = -10 seen by a pinhole camera and a synthetic
+ * error field over the image; no component is replaced by a mock. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "master/sampler.h"
+
+#define PLANE_Z (-10.0f)
+
+static ct_camera cam_a(void)
+{
+    return cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 60.0f);
+}
+
+/* The sample a tracer would return for request r: the hit on the plane. */
+static ct_sample trace(const ct_camera *c, int w, int h, const ct_request *r)
+{
+    ct_sample s;
+    memset(&s, 0, sizeof s);
+    s.request_id = r->id;
+    s.epoch = r->epoch;
+    s.flags = CT_SAMPLE_HIT;
+    s.px = r->px;
+    s.py = r->py;
+    s.node = 1;
+    vec3 d = cam_ray_dir(c, w, h, r->px, r->py);
+    float t = (PLANE_Z - c->eye.z) / d.z;
+    s.hit = v3_madd(c->eye, d, t);
+    return s;
+}
+
+/* Synthetic error: a bright disc (|E| = 1) on a dim background (0.02). */
+static const float DISC_X = 40.0f, DISC_Y = 24.0f, DISC_R = 10.0f;
+static bool in_disc(float px, float py)
+{
+    float dx = px - DISC_X, dy = py - DISC_Y;
+    return dx * dx + dy * dy < DISC_R * DISC_R;
+}
+static vec3 disc_error(float px, float py)
+{
+    return in_disc(px, py) ? v3(1.0f, 0.5f, -0.25f) : v3(0.02f, -0.01f, 0.0f);
+}
+
+/* A smooth field with distinct values, for significance order. */
+static vec3 smooth_error(float px, float py)
+{
+    return v3s(0.01f + 0.5f * (1.0f + sinf(px * 0.3f) * cosf(py * 0.2f)) + px * 1e-4f + py * 1e-6f);
+}
+
+static rq_engine *make(int w, int h, const rq_options *o, uint64_t seed)
+{
+    rq_engine *e = NULL;
+    ct_error err;
+    ct_camera c = cam_a();
+    int rc = rq_new(&e, w, h, &c, o, seed, &err);
+    cr_assert_eq(rc, 0, "rq_new: %s", err.msg);
+    return e;
+}
+
+static int batch(rq_engine *e, ct_request *out, int n)
+{
+    ct_error err;
+    int k = rq_next_batch(e, out, n, &err);
+    cr_assert_geq(k, 0, "rq_next_batch: %s", err.msg);
+    return k;
+}
+
+static int report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown)
+{
+    ct_error err;
+    int rc = rq_report(e, s, E, shown, &err);
+    cr_assert_geq(rc, 0, "rq_report: %s", err.msg);
+    return rc;
+}
+
+Test(sampler, error_norms)
+{
+    vec3 E = v3(0.1f, -0.5f, 0.2f);
+    cr_assert_float_eq(rq_error_norm(E, RQ_NORM_MAX), 0.5f, 1e-7f);
+    cr_assert_float_eq(rq_error_norm(E, RQ_NORM_AVG), 0.8f / 3.0f, 1e-6f);
+    cr_assert_float_eq(rq_error_norm(E, RQ_NORM_LUM), 0.2126f * 0.1f + 0.7152f * 0.5f + 0.0722f * 0.2f,
+                       1e-6f);
+    /* Signed channels do not cancel. */
+    cr_assert_float_eq(rq_error_norm(v3(-1, 1, 0), RQ_NORM_AVG), 2.0f / 3.0f, 1e-6f);
+}
+
+Test(sampler, initial_grid_is_uniform_high_priority_and_spread)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 16;
+    rq_engine *e = make(128, 64, &o, 1);
+    ct_request r[64];
+    int k = batch(e, r, 32);
+    cr_assert_eq(k, 32);
+    int cells[8][4] = {{0}};
+    int left = 0;
+    for (int i = 0; i < k; i++) {
+        cr_assert_eq(r[i].priority, o.prio_seed);
+        cr_assert_eq(r[i].radius, 16.0f, "radius = spacing");
+        cr_assert_eq(r[i].parent, 0u);
+        cr_assert_eq(r[i].id, (uint64_t)i + 1, "ids count from 1 in hand-out order");
+        cells[(int)(r[i].px / 16)][(int)(r[i].py / 16)]++;
+        if (r[i].px < 64) left++;
+    }
+    for (int x = 0; x < 8; x++)
+        for (int y = 0; y < 4; y++) cr_assert_leq(cells[x][y], 1, "one request per grid cell");
+    /* The first 32 of 32 cells' requests are shuffled over the whole image. */
+    cr_assert(left >= 8 && left <= 24, "first batch spread left/right: %d of 32 left", left);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.seeds, 32u);
+    rq_free(e);
+}
+
+Test(sampler, children_radius_priority_and_domain)
+{
+    const int ns[] = {4, 9, 2};
+    for (int t = 0; t < 3; t++) {
+        rq_options o;
+        rq_options_default(&o);
+        o.children = ns[t];
+        o.seed_spacing = 64;
+        rq_engine *e = make(128, 128, &o, 5);
+        ct_camera c = cam_a();
+        ct_request r[16];
+        cr_assert_eq(batch(e, r, 1), 1);
+        ct_request p = r[0];
+        cr_assert_eq(p.radius, 64.0f);
+        ct_sample s = trace(&c, 128, 128, &p);
+        vec3 E = v3(0.1f, -0.5f, 0.2f);   /* |E| = 0.5 under the max norm */
+        cr_assert_eq(report(e, &s, E, 1), 0);
+        int k = batch(e, r, 16);
+        float sc = 64.0f / sqrtf((float)ns[t]);
+        int nchild = 0;
+        bool seen_global = false;
+        for (int i = 0; i < k; i++) {
+            if (i < 3) {
+                cr_assert_eq(r[i].parent, 0u, "the other seeds come first");
+                cr_assert_eq(r[i].priority, o.prio_seed);
+                continue;
+            }
+            if (r[i].parent != p.id) {
+                /* Then the queue is dry: global requests. */
+                cr_assert_eq(r[i].parent, 0u);
+                cr_assert_eq(r[i].priority, o.prio_seed);
+                seen_global = true;
+                continue;
+            }
+            cr_assert_not(seen_global, "children before global requests");
+            nchild++;
+            cr_assert_float_eq(r[i].radius, sc, 1e-5f, "s_c = s / sqrt(N)");
+            cr_assert_float_eq(r[i].priority, 0.5f * sc, 1e-5f, "priority = |E| * s_c");
+            cr_assert(fabsf(r[i].px - p.px) <= 32.0f && fabsf(r[i].py - p.py) <= 32.0f,
+                      "child inside the parent's domain");
+        }
+        rq_stats st;
+        rq_stats_get(e, &st);
+        cr_assert_eq((uint64_t)nchild, st.children);
+        cr_assert_eq(st.children + st.discarded_outside + st.discarded_mask, (uint64_t)ns[t],
+                     "N=%d: every child queued or counted as discarded", ns[t]);
+        cr_assert_gt(nchild, 0);
+        rq_free(e);
+    }
+}
+
+Test(sampler, children_cover_distinct_subcells)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 64;
+    rq_engine *e = make(256, 256, &o, 2);
+    ct_camera c = cam_a();
+    ct_request r[32];
+    /* Take all 16 seeds and report one near the middle, away from borders. */
+    int k = batch(e, r, 16);
+    cr_assert_eq(k, 16);
+    int pick = -1;
+    for (int i = 0; i < k; i++)
+        if (r[i].px > 64 && r[i].px < 192 && r[i].py > 64 && r[i].py < 192) pick = i;
+    cr_assert_geq(pick, 0);
+    ct_request p = r[pick];
+    ct_sample s = trace(&c, 256, 256, &p);
+    report(e, &s, v3s(1.0f), 1);
+    k = batch(e, r, 32);
+    cr_assert_eq(k, 32);
+    int quad[4] = {0};
+    for (int i = 0; i < 4; i++) {
+        cr_assert_eq(r[i].parent, p.id);
+        int q = (r[i].px >= p.px) + 2 * (r[i].py >= p.py);
+        quad[q]++;
+    }
+    for (int q = 0; q < 4; q++) cr_assert_eq(quad[q], 1, "one child per quadrant");
+    rq_free(e);
+}
+
+Test(sampler, children_under_threshold_are_discarded)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 64;
+    o.min_priority = 0.01f;
+    rq_engine *e = make(128, 128, &o, 3);
+    ct_camera c = cam_a();
+    ct_request r[8];
+    cr_assert_eq(batch(e, r, 2), 2);
+    /* s_c = 32: |E| * 32 = 0.0096 < 0.01 is discarded; 0.0128 is kept. */
+    ct_sample s0 = trace(&c, 128, 128, &r[0]);
+    report(e, &s0, v3(0.0003f, 0, 0), 1);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.discarded_threshold, 4u);
+    cr_assert_eq(st.children, 0u);
+    ct_sample s1 = trace(&c, 128, 128, &r[1]);
+    report(e, &s1, v3(0, 0, -0.0004f), 1);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.discarded_threshold, 4u);
+    cr_assert_eq(st.children + st.discarded_outside, 4u);
+    rq_free(e);
+}
+
+Test(sampler, no_children_below_min_radius)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 2;   /* children radius 1: made; their children 0.5: not */
+    rq_engine *e = make(8, 8, &o, 4);
+    ct_camera c = cam_a();
+    ct_request r[64];
+    int k = batch(e, r, 16);
+    cr_assert_eq(k, 16);
+    ct_sample s = trace(&c, 8, 8, &r[0]);
+    report(e, &s, v3s(1), 1);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.children + st.discarded_mask + st.discarded_outside, 4u);
+    cr_assert_eq(st.leaves, 0u);
+    k = batch(e, r, 64);
+    for (int i = 0; i < k; i++) {
+        if (r[i].radius != 1.0f) continue;
+        ct_sample cs = trace(&c, 8, 8, &r[i]);
+        report(e, &cs, v3s(1), 1);
+        rq_stats_get(e, &st);
+        cr_assert_geq(st.leaves, 1u);
+        break;
+    }
+    rq_free(e);
+}
+
+Test(sampler, mask_discards_children_on_sampled_pixels)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 1;
+    o.min_radius = 0.25f;
+    rq_engine *e = make(2, 2, &o, 6);
+    ct_camera c = cam_a();
+    ct_request r[8];
+    cr_assert_eq(batch(e, r, 8), 4, "one request per pixel, then nothing");
+    for (int i = 0; i < 4; i++) {
+        ct_sample s = trace(&c, 2, 2, &r[i]);
+        report(e, &s, v3s(1), 1);
+    }
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.children, 0u);
+    cr_assert_gt(st.discarded_mask, 0u);
+    cr_assert_eq(st.discarded_mask + st.discarded_outside, 16u);
+    cr_assert_eq(batch(e, r, 8), 0, "every pixel handed out");
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.coverage, 1.0);
+    rq_free(e);
+}
+
+Test(sampler, mismatch_is_counted_and_refined_at_high_priority)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 64;
+    rq_engine *e = make(128, 128, &o, 7);
+    ct_camera c = cam_a();
+    ct_request r[16];
+    cr_assert_eq(batch(e, r, 4), 4);
+    ct_sample s = trace(&c, 128, 128, &r[0]);
+    /* Zero error would be discarded, but the interactive image shows node 7. */
+    cr_assert_eq(report(e, &s, v3s(0), 7), RQ_REPORT_MISMATCH);
+    ct_sample s1 = trace(&c, 128, 128, &r[1]);
+    cr_assert_eq(report(e, &s1, v3s(0), RQ_NODE_UNKNOWN), 0, "unknown: no check");
+    ct_sample s2 = trace(&c, 128, 128, &r[2]);
+    s2.flags = 0;   /* missed everything, and the interactive image shows background */
+    cr_assert_eq(report(e, &s2, v3s(0), RQ_NODE_NONE), 0);
+    ct_sample s3 = trace(&c, 128, 128, &r[3]);
+    s3.flags = 0;   /* missed, but the interactive image shows node 1 */
+    cr_assert_eq(report(e, &s3, v3s(0), 1), RQ_REPORT_MISMATCH);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.mismatches, 2u);
+    uint64_t id0 = r[0].id, id3 = r[3].id;
+    int k = batch(e, r, 16);
+    int nm = 0;
+    for (int i = 0; i < k; i++) {
+        if (r[i].parent == 0) {
+            cr_assert_eq(r[i].priority, o.prio_seed, "then global requests");
+            continue;
+        }
+        cr_assert_eq(i, nm, "mismatch children first");
+        cr_assert(r[i].parent == id0 || r[i].parent == id3, "only mismatches have children");
+        cr_assert_eq(r[i].priority, o.prio_mismatch);
+        cr_assert_float_eq(r[i].radius, 32.0f, 1e-6f);
+        nm++;
+    }
+    cr_assert_gt(nm, 0);
+    rq_free(e);
+}
+
+/* Drives a still camera until every pixel is handed out; returns the hand-out
+ * order as pixel indices. */
+static int *converge(rq_engine *e, int w, int h, vec3 (*field)(float, float), int bs, int *count)
+{
+    ct_camera c = cam_a();
+    int *order = malloc((size_t)w * (size_t)h * 2 * sizeof *order);
+    int n = 0;
+    ct_request r[64];
+    for (;;) {
+        int k = batch(e, r, bs);
+        if (k == 0) break;
+        for (int i = 0; i < k; i++) {
+            int p = (int)r[i].py * w + (int)r[i].px;
+            cr_assert_lt(n, w * h * 2);
+            order[n++] = p;
+            ct_sample s = trace(&c, w, h, &r[i]);
+            report(e, &s, field(r[i].px, r[i].py), 1);
+        }
+    }
+    *count = n;
+    return order;
+}
+
+Test(sampler, still_camera_covers_every_pixel_once_and_concentrates_on_error)
+{
+    /* Eight seeds, each run to full coverage; concentration is measured on
+     * the first K samples of each: their share inside the disc against the
+     * disc's share of the image area. */
+    enum { W = 64, H = 64, K = 256, RUNS = 8 };
+    int disc_px = 0;
+    for (int p = 0; p < W * H; p++) disc_px += in_disc((float)(p % W) + 0.5f, (float)(p / W) + 0.5f);
+    double area_share = (double)disc_px / (W * H);
+    double sum_share = 0, min_share = 1;
+    for (uint64_t seed = 1; seed <= RUNS; seed++) {
+        rq_engine *e = make(W, H, NULL, seed);
+        int n;
+        int *order = converge(e, W, H, disc_error, 16, &n);
+        cr_assert_eq(n, W * H, "seed %d: handed out %d requests for %d pixels", (int)seed, n, W * H);
+        static int hits[W * H];
+        memset(hits, 0, sizeof hits);
+        for (int i = 0; i < n; i++) hits[order[i]]++;
+        for (int p = 0; p < W * H; p++) cr_assert_eq(hits[p], 1, "pixel %d sampled %d times", p, hits[p]);
+        rq_stats st;
+        rq_stats_get(e, &st);
+        cr_assert_eq(st.coverage, 1.0);
+        cr_assert_eq(st.popped, (uint64_t)(W * H));
+        cr_assert_eq(st.list_mode, 1);
+        cr_assert_gt(st.from_list, 0u);
+        cr_assert_gt(st.global, 0u);
+        cr_assert_lt(st.allocations, 40u, "buffers grow by doubling, not per request");
+        int first_in = 0;
+        for (int i = 0; i < K; i++)
+            first_in += in_disc((float)(order[i] % W) + 0.5f, (float)(order[i] / W) + 0.5f);
+        double share = (double)first_in / K;
+        sum_share += share;
+        if (share < min_share) min_share = share;
+        free(order);
+        rq_free(e);
+    }
+    double mean_share = sum_share / RUNS;
+    cr_log_info("disc: %.1f%% of the area; %.1f%% of the first %d samples on average (%.1fx), "
+                "%.1f%% at least (%.1fx)",
+                100 * area_share, 100 * mean_share, K, mean_share / area_share, 100 * min_share,
+                min_share / area_share);
+    cr_assert_gt(mean_share, 4.0 * area_share, "samples concentrate where the error is large: %.3f vs %.3f",
+                 mean_share, area_share);
+    cr_assert_gt(min_share, 2.0 * area_share, "in every run: %.3f vs %.3f", min_share, area_share);
+}
+
+static vec3 zero_error(float px, float py)
+{
+    (void)px;
+    (void)py;
+    return v3s(0);
+}
+
+Test(sampler, zero_error_is_covered_by_global_requests_and_the_list)
+{
+    enum { W = 32, H = 32 };
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 16;
+    rq_engine *e = make(W, H, &o, 8);
+    ct_camera c = cam_a();
+    ct_request r[8];
+    cr_assert_eq(batch(e, r, 4), 4);
+    for (int i = 0; i < 4; i++) {
+        ct_sample s = trace(&c, W, H, &r[i]);
+        report(e, &s, v3s(0), 1);
+    }
+    /* The queue is dry: the next requests are global ones. */
+    cr_assert_eq(batch(e, r, 8), 8);
+    for (int i = 0; i < 8; i++) {
+        cr_assert_eq(r[i].parent, 0u);
+        cr_assert_eq(r[i].priority, o.prio_seed);
+    }
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.global, (uint64_t)o.global_batch);
+    cr_assert_float_eq(r[0].radius, sqrtf((float)(W * H - 4) / (float)o.global_batch), 1e-5f);
+    for (int i = 0; i < 8; i++) {
+        ct_sample s = trace(&c, W, H, &r[i]);
+        report(e, &s, v3s(0), 1);
+    }
+    int n;
+    int *order = converge(e, W, H, zero_error, 8, &n);
+    cr_assert_eq(n + 12, W * H);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.coverage, 1.0);
+    cr_assert_eq(st.children, 0u);
+    cr_assert_gt(st.from_list, 0u);
+    free(order);
+    rq_free(e);
+}
+
+typedef struct logged { uint64_t id; float err; float radius; vec3 hit; } logged;
+
+static int cmp_logged(const void *a, const void *b)
+{
+    const logged *x = a, *y = b;
+    if (x->err != y->err) return x->err > y->err ? -1 : 1;
+    return x->id < y->id ? -1 : 1;
+}
+
+Test(sampler, significant_samples_reproject_to_their_world_points)
+{
+    enum { W = 64, H = 48, NSIG = 20, NREP = 300 };
+    rq_options o;
+    rq_options_default(&o);
+    o.n_sig = NSIG;
+    rq_engine *e = make(W, H, &o, 9);
+    ct_camera a = cam_a();
+    static logged log[NREP];
+    ct_request r[NREP];
+    int k = batch(e, r, NREP);
+    cr_assert_eq(k, NREP);
+    for (int i = 0; i < k; i++) {
+        ct_sample s = trace(&a, W, H, &r[i]);
+        vec3 E = smooth_error(r[i].px, r[i].py);
+        report(e, &s, E, 1);
+        log[i] = (logged){r[i].id, rq_error_norm(E, o.norm), r[i].radius, s.hit};
+    }
+    qsort(log, NREP, sizeof *log, cmp_logged);
+
+    ct_camera b = cam_look_at(v3(0.6f, 0.3f, 0.5f), v3(0.4f, 0.1f, -10.0f), v3(0, 1, 0), 55.0f);
+    ct_error err;
+    cr_assert_eq(rq_set_camera(e, &b, 1, &err), 0, "%s", err.msg);
+    k = batch(e, r, NSIG);
+    int j = 0, seen_px[W * H] = {0};
+    int expected = 0;
+    for (int i = 0; i < NSIG; i++) {
+        float px, py;
+        if (!cam_project(&b, W, H, log[i].hit, &px, &py, NULL) || px < 0 || py < 0 || px >= W || py >= H)
+            continue;
+        int p = (int)py * W + (int)px;
+        if (seen_px[p]++) continue;   /* a second one on the same pixel is masked */
+        expected++;
+        cr_assert_lt(j, k);
+        cr_assert_eq(r[j].px, px, "request %d: x %g, its world point projects to %g", j, (double)r[j].px, (double)px);
+        cr_assert_eq(r[j].py, py);
+        cr_assert_eq((int)r[j].px + W * (int)r[j].py, p, "same pixel");
+        cr_assert_eq(r[j].parent, log[i].id, "parent = the significant sample's request");
+        cr_assert_eq(r[j].radius, log[i].radius);
+        cr_assert_eq(r[j].priority, o.prio_reproject);
+        cr_assert_eq(r[j].epoch, 1u);
+        j++;
+    }
+    cr_assert_geq(expected, NSIG / 2, "most reproject into the new view");
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.reprojected + st.reproject_dropped, (uint64_t)NSIG);
+    /* After them, global requests (reseed is off). */
+    for (int i = j; i < k; i++) cr_assert_eq(r[i].priority, o.prio_seed);
+    rq_free(e);
+}
+
+Test(sampler, epochs_drop_old_requests_and_samples)
+{
+    enum { W = 32, H = 32 };
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 8;
+    o.n_sig = 0;
+    rq_engine *e = make(W, H, &o, 10);
+    ct_camera a = cam_a();
+    ct_request r[16];
+    cr_assert_eq(batch(e, r, 8), 8);
+    ct_sample s0 = trace(&a, W, H, &r[0]);
+    report(e, &s0, v3s(1), 1);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_gt(st.queued, 8u);
+    cr_assert_eq(st.in_flight, 7u);
+
+    ct_error err;
+    cr_assert_eq(rq_set_camera(e, &a, 0, &err), CT_EINVAL, "epoch must grow");
+    ct_camera bad = a;
+    bad.fov_y = NAN;
+    cr_assert_eq(rq_set_camera(e, &bad, 5, &err), CT_EINVAL);
+    cr_assert_eq(rq_set_camera(e, &a, 3, &err), 0);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.epoch, 3u);
+    cr_assert_eq(st.queued, 0u, "old requests dropped");
+    cr_assert_eq(st.in_flight, 0u);
+    cr_assert_eq(st.coverage, 0.0, "the mask belongs to the old view");
+
+    /* An in-flight sample of epoch 0 comes back: ignored, no children. */
+    ct_sample s1 = trace(&a, W, H, &r[1]);
+    cr_assert_eq(rq_report(e, &s1, v3s(1), 1, &err), RQ_REPORT_STALE);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.stale, 1u);
+    cr_assert_eq(st.queued, 0u);
+
+    int k = batch(e, r, 16);
+    cr_assert_eq(k, 16);
+    for (int i = 0; i < k; i++) {
+        cr_assert_eq(r[i].epoch, 3u);
+        cr_assert_gt(r[i].id, 8u, "ids keep growing across epochs");
+    }
+    /* Protocol errors: future epoch, unknown id, duplicate, non-finite E. */
+    ct_sample f = trace(&a, W, H, &r[0]);
+    f.epoch = 4;
+    cr_assert_eq(rq_report(e, &f, v3s(1), 1, &err), CT_EPROTO);
+    cr_assert(strstr(err.msg, "epoch 4") != NULL, "%s", err.msg);
+    f.epoch = 3;
+    f.request_id = 999;
+    cr_assert_eq(rq_report(e, &f, v3s(1), 1, &err), CT_EPROTO);
+    ct_sample g = trace(&a, W, H, &r[0]);
+    cr_assert_eq(rq_report(e, &g, v3(NAN, 0, 0), 1, &err), CT_EINVAL);
+    cr_assert_eq(rq_report(e, &g, v3s(1), 1, &err), 0);
+    cr_assert_eq(rq_report(e, &g, v3s(1), 1, &err), CT_EPROTO, "reported twice");
+    cr_assert(strstr(err.msg, "not outstanding") != NULL, "%s", err.msg);
+    rq_free(e);
+}
+
+Test(sampler, reseed_option_queues_a_new_grid)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 16;
+    o.n_sig = 0;
+    o.reseed = 1;
+    rq_engine *e = make(64, 64, &o, 12);
+    ct_camera a = cam_a();
+    cr_assert_eq(rq_set_camera(e, &a, 1, NULL), 0);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.seeds, 32u);
+    cr_assert_eq(st.queued, 16u);
+    rq_free(e);
+}
+
+/* Runs a fixed scenario with out-of-order reports and a camera change and
+ * writes every request handed out into out; returns their number. */
+static int scenario(uint64_t seed, ct_request *out, int cap)
+{
+    enum { W = 48, H = 40 };
+    rq_engine *e = make(W, H, NULL, seed);
+    ct_camera a = cam_a();
+    ct_camera b = cam_look_at(v3(0.3f, 0, 0), v3(0.2f, 0.1f, -10), v3(0, 1, 0), 60.0f);
+    int n = 0;
+    ct_request r[3][37];
+    bool handed[W * H] = {false};
+    for (int round = 0; round < 40 && n + 3 * 37 <= cap; round++) {
+        if (round == 20) {
+            cr_assert_eq(rq_set_camera(e, &b, 1, NULL), 0);
+            memset(handed, 0, sizeof handed);
+        }
+        const ct_camera *c = round < 20 ? &a : &b;
+        int k[3];
+        for (int t = 0; t < 3; t++) {
+            k[t] = batch(e, r[t], 37);
+            /* Three batches in flight: still never the same pixel twice. */
+            for (int i = 0; i < k[t]; i++) {
+                int p = (int)r[t][i].py * W + (int)r[t][i].px;
+                cr_assert_not(handed[p], "pixel %d handed out twice in one epoch", p);
+                handed[p] = true;
+            }
+            memcpy(out + n, r[t], (size_t)k[t] * sizeof *out);
+            n += k[t];
+        }
+        /* Tracers finish out of order: batch 2, then 0, then 1 backwards. */
+        const int tord[3] = {2, 0, 1};
+        for (int ti = 0; ti < 3; ti++) {
+            int t = tord[ti];
+            for (int i = 0; i < k[t]; i++) {
+                int ii = t == 1 ? k[t] - 1 - i : i;
+                ct_sample s = trace(c, W, H, &r[t][ii]);
+                report(e, &s, disc_error(r[t][ii].px, r[t][ii].py), 1);
+            }
+        }
+    }
+    rq_free(e);
+    return n;
+}
+
+static bool same_requests(const ct_request *a, const ct_request *b, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (a[i].id != b[i].id || a[i].parent != b[i].parent || a[i].epoch != b[i].epoch ||
+            a[i].px != b[i].px || a[i].py != b[i].py || a[i].radius != b[i].radius ||
+            a[i].priority != b[i].priority)
+            return false;
+    return true;
+}
+
+Test(sampler, same_seed_and_values_give_identical_requests)
+{
+    enum { CAP = 5000 };
+    ct_request *a = malloc(CAP * sizeof *a), *b = malloc(CAP * sizeof *b), *c = malloc(CAP * sizeof *c);
+    int na = scenario(77, a, CAP), nb = scenario(77, b, CAP), nc = scenario(78, c, CAP);
+    cr_assert_gt(na, 2000);
+    cr_assert_eq(na, nb);
+    cr_assert(same_requests(a, b, na), "same seed, same sequence");
+    cr_assert_not(nc == na && same_requests(a, c, na), "another seed, another sequence");
+    free(a);
+    free(b);
+    free(c);
+}
+
+Test(sampler, options_parse_check_and_usage)
+{
+    rq_options o;
+    rq_options_default(&o);
+    ct_error err;
+    cr_assert_eq(rq_options_set(&o, "children", "9", &err), 0);
+    cr_assert_eq(o.children, 9);
+    cr_assert_eq(rq_options_set(&o, "coverage-switch", "0.75", &err), 0);
+    cr_assert_float_eq(o.coverage_switch, 0.75f, 1e-7f);
+    cr_assert_eq(rq_options_set(&o, "error-norm", "lum", &err), 0);
+    cr_assert_eq(o.norm, RQ_NORM_LUM);
+    cr_assert_eq(rq_options_set(&o, "max-queue", "1000", &err), 0);
+    cr_assert_eq(o.max_queue, 1000);
+    cr_assert_eq(rq_options_set(&o, "children", "4x", &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "--children") != NULL, "%s", err.msg);
+    cr_assert_eq(rq_options_set(&o, "error-norm", "l2", &err), CT_EINVAL);
+    cr_assert_eq(rq_options_set(&o, "min-priority", "nan", &err), CT_EINVAL);
+    cr_assert_eq(rq_options_set(&o, "bogus", "1", &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "unknown") != NULL, "%s", err.msg);
+    cr_assert_eq(rq_options_check(&o, &err), 0, "%s", err.msg);
+    o.children = 0;
+    cr_assert_eq(rq_options_check(&o, &err), CT_EINVAL);
+    rq_options_default(&o);
+    o.coverage_switch = 1.5f;
+    cr_assert_eq(rq_options_check(&o, &err), CT_EINVAL);
+
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    rq_options_usage(f);
+    fclose(f);
+    cr_assert(strstr(buf, "--children N") != NULL && strstr(buf, "(default 4)") != NULL, "%s", buf);
+    cr_assert(strstr(buf, "--coverage-switch F") != NULL && strstr(buf, "(default 0.9)") != NULL, "%s", buf);
+    free(buf);
+
+    rq_engine *e = NULL;
+    ct_camera c = cam_a();
+    cr_assert_eq(rq_new(&e, 0, 10, &c, NULL, 1, &err), CT_EINVAL);
+    cr_assert_null(e);
+    o.children = 65;
+    cr_assert_eq(rq_new(&e, 10, 10, &c, &o, 1, &err), CT_EINVAL);
+}
+
+Test(sampler, queue_cap_drops_and_counts)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 4;
+    o.max_queue = 20;
+    rq_engine *e = make(32, 32, &o, 13);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.queued, 20u);
+    cr_assert_eq(st.discarded_full, 64u - 20u);
+    rq_free(e);
+}
+
+Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
+{
+    enum { W = 32, H = 32 };
+    rq_options o;
+    rq_options_default(&o);
+    o.n_sig = 50;
+    o.seed_spacing = 8;
+    rq_engine *e = make(W, H, &o, 14);
+    ct_camera a = cam_a();
+    ct_request r[16];
+    int k = batch(e, r, 16);
+    for (int i = 0; i < k; i++) {
+        ct_sample s = trace(&a, W, H, &r[i]);
+        if (i == 0) s.hit = v3(1e-3f, 0, -1e-30f);     /* projects to ~1e27 px */
+        if (i == 1) s.hit = v3(NAN, 0, -10);           /* not a point: never significant */
+        report(e, &s, v3s(1.0f + (float)i), 1);
+    }
+    /* The same view again: the far-off point is dropped, the others return. */
+    cr_assert_eq(rq_set_camera(e, &a, 1, NULL), 0);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.reprojected, (uint64_t)(k - 2));
+    cr_assert_eq(st.reproject_dropped, 1u);
+    k = batch(e, r, 16);
+    for (int i = 0; i < k; i++) {
+        ct_sample s = trace(&a, W, H, &r[i]);
+        report(e, &s, v3s(1.0f), 1);
+    }
+    /* Turn around: every significant point is behind the eye. */
+    ct_camera back = cam_look_at(v3(0, 0, 0), v3(0, 0, 1), v3(0, 1, 0), 60.0f);
+    cr_assert_eq(rq_set_camera(e, &back, 2, NULL), 0);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.reprojected, (uint64_t)(k - 2));
+    cr_assert_eq(st.reproject_dropped, 1u + (uint64_t)k);
+    cr_assert_eq(st.queued, 0u);
+    rq_free(e);
+}

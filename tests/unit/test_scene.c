@@ -1,0 +1,313 @@
+/* Scene import: the mini test scene's counts, the MTL mapping, overrides,
+ * transforms, cameras and paths, and every bad-input case with its message. */
+#include <criterion/criterion.h>
+#include <string.h>
+
+#include "common/log.h"
+#include "common/scene.h"
+#include "tests/support/fixtures.h"
+
+#define MINI "tests/data/scenes/mini.json"
+
+static ct_scene *load_ok(const char *path)
+{
+    ct_error err;
+    ct_scene *s = NULL;
+    int rc = scene_load(path, &s, &err);
+    cr_assert_eq(rc, CT_OK, "loading %s failed: %s", path, err.msg);
+    return s;
+}
+
+static const scene_material *mat(const ct_scene *s, const char *name)
+{
+    int i = scene_find_material(s, name);
+    cr_assert_geq(i, 0, "material %s missing", name);
+    return &s->mats[i];
+}
+
+static void quiet(void) { ct_log_set_level(CT_LOG_ERROR); }
+
+TestSuite(scene, .init = quiet);
+TestSuite(scene_bad, .init = quiet);
+
+Test(scene, mini_counts)
+{
+    ct_scene *s = load_ok(MINI);
+    cr_expect_str_eq(s->name, "mini");
+    cr_expect_eq(s->nprims, 8);      /* 6 triangles + floor quad + light quad */
+    cr_expect_eq(s->nquads, 2);
+    cr_expect_eq(s->ntris, 10);
+    cr_expect_eq(s->dropped_degenerate, 1);
+    cr_expect_eq(s->nnodes, 14);
+    cr_expect_eq(s->nmats, 9);       /* 6 used MTL + JSON brushed + unused mirror + light */
+    cr_expect_eq(s->nemitters, 3);   /* glow triangle + light quad */
+    cr_expect_eq(s->ncams, 2);
+    cr_expect_eq(s->npaths, 2);
+    cr_expect_eq(s->nodes[0].kind, SCENE_NODE_ROOT);
+    cr_expect_eq(s->nodes[0].node_end, s->nnodes);
+    cr_expect_eq(s->nodes[0].tri_end, s->ntris);
+    scene_free(s);
+}
+
+Test(scene, hierarchy_ranges_nest)
+{
+    ct_scene *s = load_ok(MINI);
+    for (uint32_t n = 1; n < s->nnodes; n++) {
+        const scene_node *c = &s->nodes[n], *p = &s->nodes[c->parent];
+        cr_assert_lt((uint32_t)c->parent, n);
+        cr_expect_leq(p->tri_begin, c->tri_begin);
+        cr_expect_geq(p->tri_end, c->tri_end);
+        cr_expect_leq(c->node_end, p->node_end);
+        if (c->kind == SCENE_NODE_PART)
+            for (uint32_t t = c->tri_begin; t < c->tri_end; t++) {
+                cr_expect_eq(s->tri_node[t], n);
+                cr_expect_eq(s->tri_mat[t], c->material);
+            }
+    }
+    /* modeling hierarchy: file "stuff" contains the groups of the OBJ */
+    cr_expect_str_eq(s->nodes[1].name, "stuff");
+    cr_expect_eq(s->nodes[1].kind, SCENE_NODE_FILE);
+    cr_expect_eq(s->nodes[2].kind, SCENE_NODE_GROUP);
+    scene_free(s);
+}
+
+Test(scene, mtl_mapping)
+{
+    ct_scene *s = load_ok(MINI);
+    const scene_material *m = mat(s, "matte");
+    cr_expect_str_eq(scene_material_kind(m), "diffuse");
+    cr_expect_float_eq(m->diffuse.x, 0.5f, 1e-6);
+    cr_expect_eq(m->glossy, SCENE_GLOSSY_NONE);
+
+    m = mat(s, "plastic");
+    cr_expect_eq(m->glossy, SCENE_GLOSSY_PHONG);
+    cr_expect_float_eq(m->specular.x, 0.3f, 1e-6);
+    cr_expect_float_eq(m->phong_exp, 80.0f, 1e-6);
+
+    m = mat(s, "chrome");                 /* illum 3: mirror = Ks */
+    cr_expect_str_eq(scene_material_kind(m), "mirror");
+    cr_expect_float_eq(m->mirror.x, 0.8f, 1e-6);
+    cr_expect_float_eq(m->diffuse.x, 0.1f, 1e-6);
+
+    m = mat(s, "glass");                  /* illum 7: dielectric, ior = Ni, transmission = Tf */
+    cr_expect(m->dielectric);
+    cr_expect_float_eq(m->ior, 1.52f, 1e-6);
+    cr_expect_float_eq(m->transmission.y, 0.95f, 1e-6);
+    cr_expect_float_eq(m->diffuse.x, 0.0f, 1e-6);
+
+    m = mat(s, "tinted");                 /* d < 1: dielectric */
+    cr_expect(m->dielectric);
+    cr_expect_float_eq(m->ior, 1.33f, 1e-6);
+
+    m = mat(s, "glow");
+    cr_expect_str_eq(scene_material_kind(m), "emissive");
+    cr_expect_float_eq(m->emission.x, 4.0f, 1e-6);
+    scene_free(s);
+}
+
+Test(scene, json_override_replaces_mtl)
+{
+    ct_scene *s = load_ok(MINI);
+    const scene_material *m = mat(s, "brushed");
+    cr_expect_eq(m->glossy, SCENE_GLOSSY_WARD);
+    cr_expect_float_eq(m->specular.x, 0.7f, 1e-6);
+    cr_expect_float_eq(m->ward_ax, 0.05f, 1e-6);
+    cr_expect_float_eq(m->ward_ay, 0.3f, 1e-6);
+    cr_expect_float_eq(m->diffuse.x, 0.1f, 1e-6);
+    scene_free(s);
+}
+
+Test(scene, transform_and_normals)
+{
+    ct_scene *s = load_ok(MINI);
+    /* floor corner (1,0,1): scale 2, rotate 90 deg about y, translate (0,1,0) -> (2,1,-2) */
+    int found = 0;
+    for (uint32_t v = 0; v < s->nverts; v++)
+        if (fabsf(s->pos[v].x - 2.0f) < 1e-5f && fabsf(s->pos[v].y - 1.0f) < 1e-5f &&
+            fabsf(s->pos[v].z + 2.0f) < 1e-5f)
+            found = 1;
+    cr_expect(found, "transformed floor corner not found");
+    for (uint32_t t = 0; t < 3 * s->ntris; t++) cr_expect_float_eq(v3_len(s->nrm[s->tris[t]]), 1.0f, 1e-4);
+    /* floor faces up after the transform (OBJ winding 1 4 3 2 is CCW from above) */
+    uint32_t floor = s->nodes[3].tri_begin;
+    cr_expect_gt(scene_tri_normal(s, floor).y, 0.99f);
+    /* the light emits downwards: edge1 x edge2 = (0,0,1) x (1,0,0) = (0,1,0)... */
+    uint32_t lt = s->emitters[s->nemitters - 1];
+    cr_expect_gt(scene_tri_normal(s, lt).y, 0.99f);
+    cr_expect_float_eq(s->bounds.hi.y, 3.0f, 1e-5);
+    scene_free(s);
+}
+
+Test(scene, cameras_and_paths)
+{
+    ct_scene *s = load_ok(MINI);
+    int c = scene_find_camera(s, "front");
+    cr_assert_geq(c, 0);
+    vec3 f;
+    cam_axes(&s->cams[c].cam, NULL, NULL, &f);
+    cr_expect_float_eq(f.z, -1.0f, 1e-5);
+    cr_expect_float_eq(s->cams[c].cam.fov_y, 50.0f * CT_PI / 180.0f, 1e-5);
+    cr_expect_float_eq(s->cams[scene_find_camera(s, "top")].fov_deg, 45.0f, 1e-6);
+    int p = scene_find_path(s, "walk");
+    cr_assert_geq(p, 0);
+    cr_expect_eq(s->paths[p].nkeys, 3);
+    cr_expect_float_eq(campath_duration(&s->paths[p]), 4.0f, 1e-6);
+    ct_camera mid = campath_eval(&s->paths[p], 2.0f);
+    cr_expect_float_eq(mid.eye.x, 2.0f, 1e-5);
+    int q = scene_find_path(s, "inline");
+    cr_assert_geq(q, 0);
+    cr_expect_float_eq(s->paths[q].keys[1].fov_deg, 30.0f, 1e-6);
+    scene_free(s);
+}
+
+Test(scene, hash_changes_with_content)
+{
+    const char *d = fx_tmpdir();
+    const char *obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    fx_write(d, "a.obj", obj);
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    ct_scene *s1 = load_ok(p);
+    fx_write(d, "a.obj", "v 0 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\n");
+    ct_scene *s2 = load_ok(p);
+    cr_expect_neq(s1->source_hash, s2->source_hash, "mesh content must be part of the scene hash");
+    scene_free(s1);
+    scene_free(s2);
+}
+
+/* --- bad input: each case gives one line naming the file and the problem --- */
+
+static void expect_fail(const char *path, int code, const char *needle1, const char *needle2)
+{
+    ct_error err;
+    ct_error_clear(&err);
+    ct_scene *s = (ct_scene *)1;
+    int rc = scene_load(path, &s, &err);
+    cr_assert_eq(rc, code, "%s: expected code %d (%s), got %d: %s", path, code, ct_strerror(code), rc, err.msg);
+    cr_expect_null(s);
+    cr_expect(strstr(err.msg, needle1) != NULL, "message '%s' lacks '%s'", err.msg, needle1);
+    if (needle2) cr_expect(strstr(err.msg, needle2) != NULL, "message '%s' lacks '%s'", err.msg, needle2);
+    cr_expect(strchr(err.msg, '\n') == NULL, "message is not one line");
+}
+
+Test(scene_bad, missing_file)
+{
+    expect_fail("tests/data/scenes/nope.json", CT_EIO, "nope.json", "cannot open");
+}
+
+Test(scene_bad, json_syntax_error_line_col)
+{
+    const char *d = fx_tmpdir();
+    const char *p = fx_write(d, "s.json", "{\n  \"meshes\": [\n    { \"file\": \"a.obj\" ,, }\n  ]\n}\n");
+    expect_fail(p, CT_EPARSE, "s.json:3:", "JSON syntax error");
+}
+
+Test(scene_bad, obj_index_out_of_range)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    expect_fail(p, CT_EPARSE, "a.obj", "out of range");
+}
+
+Test(scene_bad, nan_coordinate)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n");
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    expect_fail(p, CT_EPARSE, "a.obj", "non-finite");
+}
+
+Test(scene_bad, infinite_coordinate)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n");
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    expect_fail(p, CT_EPARSE, "a.obj", "non-finite");
+}
+
+Test(scene_bad, degenerate_only_is_empty)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    expect_fail(p, CT_EEMPTY, "s.json", "no triangles");
+}
+
+Test(scene_bad, degenerate_dropped_and_counted)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 3 3 3\n");
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    ct_scene *s = load_ok(p);
+    cr_expect_eq(s->ntris, 1);
+    cr_expect_eq(s->dropped_degenerate, 2);
+    scene_free(s);
+}
+
+Test(scene_bad, unknown_material_key)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const char *p = fx_write(d, "s.json",
+                             "{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"difuse\":[1,1,1]}}}");
+    expect_fail(p, CT_EPARSE, "material 'm'", "unknown key 'difuse'");
+}
+
+Test(scene_bad, unknown_top_level_key)
+{
+    const char *d = fx_tmpdir();
+    const char *p = fx_write(d, "s.json", "{\"mesh\":[]}");
+    expect_fail(p, CT_EPARSE, "s.json", "unknown key 'mesh'");
+}
+
+Test(scene_bad, empty_scene)
+{
+    const char *d = fx_tmpdir();
+    const char *p = fx_write(d, "s.json", "{\"name\":\"empty\"}");
+    expect_fail(p, CT_EEMPTY, "s.json", "no triangles");
+}
+
+Test(scene_bad, missing_mesh_file)
+{
+    const char *d = fx_tmpdir();
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"gone.obj\"}]}");
+    expect_fail(p, CT_EIO, "gone.obj", "cannot open");
+}
+
+Test(scene_bad, garbage_mesh_file)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n");
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.ply\"}]}");
+    ct_error err;
+    ct_scene *s = NULL;
+    cr_expect_neq(scene_load(p, &s, &err), CT_OK);
+    cr_expect(strstr(err.msg, "a.ply") != NULL, "%s", err.msg);
+}
+
+Test(scene_bad, wrong_types_and_values)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    struct { const char *json; const char *needle; } cases[] = {
+        {"{\"meshes\":[{\"file\":\"a.obj\",\"material\":\"nope\"}]}", "unknown material 'nope'"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,0,0],\"target\":[0,0,0]}]}", "coincide"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,0,1],\"target\":[0,0,0],\"fov\":200}]}", "fov"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"diffuse\":[2,0,0]}}}", "energy"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"diffuse\":[0.5,0.5]}}}", "array of 3"},
+        {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"scale\":0}}]}", "zero"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"lights\":[{\"type\":\"disc\"}]}", "unknown light type"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"keys\":[[1,0,0,1,0,0,0],[0,0,0,2,0,0,0]]}]}", "not after"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"file\":\"x.path\"}]}", "x.path"},
+        {"{\"meshes\":{}}", "must be an array"},
+        {"[1,2]", "must be a JSON object"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        const char *p = fx_write(d, "s.json", cases[i].json);
+        ct_error err;
+        ct_scene *s = NULL;
+        int rc = scene_load(p, &s, &err);
+        cr_expect_neq(rc, CT_OK, "case %zu loaded", i);
+        cr_expect(strstr(err.msg, cases[i].needle) != NULL, "case %zu: '%s' lacks '%s'", i, err.msg, cases[i].needle);
+    }
+}
