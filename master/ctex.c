@@ -477,7 +477,10 @@ static int make_room(ctex *c, size_t need)
 static int32_t new_slot(ctex *c, ct_error *err)
 {
     for (uint32_t i = 0; i < c->nslots; i++)
-        if (!c->slots[i].live) return (int32_t)i;
+        if (!c->slots[i].live) {
+            memset(&c->slots[i], 0, sizeof c->slots[i]);
+            return (int32_t)i;
+        }
     if (c->nslots == c->cap_slots) {
         uint32_t nc = c->cap_slots ? 2 * c->cap_slots : 64;
         slot *ns = realloc(c->slots, nc * sizeof *ns);
@@ -563,6 +566,7 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
             if (rc) return rc;
             c->bytes = c->bytes - ob + tex_bytes(nw, nh);
             c->st.resizes++;
+            if (s->active) ev_alloc(c, id);
         }
         return CT_OK;
     }
@@ -588,6 +592,7 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
     ctex_tex_resample(t, src, 1, 0.0f);
     free(old.tx);
     c->bytes += tex_bytes(w, h);
+    if (s->active && (w != old.w || h != old.h)) ev_alloc(c, id);
     return CT_OK;
 }
 
@@ -677,7 +682,7 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
             if (rc) return rc;
             s->last_epoch = c->epoch;
             s->last_eye = c->cam.eye;
-            ev_proj(c, i);
+            if (s->t.kind == CTEX_PROJ_CAMERA) ev_proj(c, i);   /* object-local: unchanged */
             continue;
         }
         int related = 0;
