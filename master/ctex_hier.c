@@ -248,16 +248,20 @@ static int emit_items(builder *B, item *it, uint32_t k, int32_t parent, int dept
     return rc;
 }
 
-/* Bounds, normal, spread, flat frame, material and glossiness of node n
- * from its triangles. */
-static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
-                          const ctex_hier *h, ctex_hnode *n, float flat_deg, float flat_thickness)
+#define MINF(a, b) ((a) < (b) ? (a) : (b))
+#define MAXF(a, b) ((a) > (b) ? (a) : (b))
+
+/* Leaf geometry from its triangles: bounds, area, normal (and nsum, the
+ * area-weighted normal sum), exact normal spread, material, glossiness. */
+static void leaf_geometry(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
+                          const ctex_hier *h, ctex_hnode *n, vec3 *nsum)
 {
     bounds3 b = b3_empty();
     vec3 ns = v3s(0.0f);
     double area = 0.0;
     uint32_t mat = NOMAT;
     float gloss = 0.0f;
+    uint32_t last_mat = UINT32_MAX;
     for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
         const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
         vec3 a = m->pos[v[0]], bb = m->pos[v[1]], c = m->pos[v[2]];
@@ -266,15 +270,18 @@ static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint3
         ns = v3_add(ns, cr);
         area += 0.5 * (double)v3_len(cr);
         uint32_t tm = m->tri_mat[h->tris[i]];
-        mat = mat_merge(mat, tm);
-        if (tm < nmats) gloss = fmaxf(gloss, scene_material_glossiness(&mats[tm]));
+        if (tm != last_mat) {
+            last_mat = tm;
+            mat = mat_merge(mat, tm);
+            if (tm < nmats) gloss = MAXF(gloss, scene_material_glossiness(&mats[tm]));
+        }
     }
+    *nsum = ns;
     n->bounds = b;
     n->area = (float)area;
     n->material = mat == NOMAT ? MIXED : mat;
     n->gloss = gloss;
     n->normal = v3_len2(ns) > 0.0f ? v3_norm(ns) : v3s(0.0f);
-    n->flat = 0;
     if (v3_is_zero(n->normal) || area <= 0.0) {
         n->spread_deg = 180.0f;
         return;
@@ -284,11 +291,60 @@ static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint3
         const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
         vec3 a = m->pos[v[0]];
         vec3 cr = v3_cross(v3_sub(m->pos[v[1]], a), v3_sub(m->pos[v[2]], a));
-        if (!(v3_len2(cr) > 0.0f)) continue;
-        float c = v3_dot(v3_norm(cr), n->normal);
+        float l2 = v3_len2(cr);
+        if (!(l2 > 0.0f)) continue;
+        float c = v3_dot(cr, n->normal) / sqrtf(l2);
         if (c < mincos) mincos = c;
     }
-    n->spread_deg = acosf(fmaxf(-1.0f, fminf(1.0f, mincos))) * 180.0f / CT_PI;
+    n->spread_deg = acosf(MAXF(-1.0f, MINF(1.0f, mincos))) * 180.0f / CT_PI;
+}
+
+/* Inner node from its children: bounds, area, normal, material and
+ * glossiness combine exactly; the spread is the merged normal cones'
+ * (max over children of the angle to the new normal plus the child's
+ * spread), a bound that is exact for single-normal children. */
+static void inner_geometry(ctex_hier *h, uint32_t id, vec3 *nsum)
+{
+    ctex_hnode *n = &h->nodes[id];
+    bounds3 b = b3_empty();
+    vec3 ns = v3s(0.0f);
+    double area = 0.0;
+    uint32_t mat = NOMAT;
+    float gloss = 0.0f;
+    for (uint32_t c = id + 1; c < n->end; c = h->nodes[c].end) {
+        const ctex_hnode *k = &h->nodes[c];
+        b = b3_union(b, k->bounds);
+        ns = v3_add(ns, nsum[c]);
+        area += k->area;
+        mat = mat_merge(mat, k->material);
+        gloss = MAXF(gloss, k->gloss);
+    }
+    nsum[id] = ns;
+    n->bounds = b;
+    n->area = (float)area;
+    n->material = mat == NOMAT ? MIXED : mat;
+    n->gloss = gloss;
+    n->normal = v3_len2(ns) > 0.0f ? v3_norm(ns) : v3s(0.0f);
+    if (v3_is_zero(n->normal) || area <= 0.0) {
+        n->spread_deg = 180.0f;
+        return;
+    }
+    float spread = 0.0f;
+    for (uint32_t c = id + 1; c < n->end; c = h->nodes[c].end) {
+        const ctex_hnode *k = &h->nodes[c];
+        if (k->area <= 0.0f) continue;
+        float cosang = v3_dot(k->normal, n->normal);
+        float ang = acosf(MAXF(-1.0f, MINF(1.0f, cosang))) * 180.0f / CT_PI;
+        spread = MAXF(spread, ang + k->spread_deg);
+    }
+    n->spread_deg = MINF(spread, 180.0f);
+}
+
+/* §3.2: flat test (normal spread, coplanarity) and the object-local frame. */
+static void flat_frame(const ct_radmesh *m, const ctex_hier *h, ctex_hnode *n, float flat_deg,
+                       float flat_thickness)
+{
+    n->flat = 0;
     if (!(n->spread_deg < flat_deg)) return;
     /* In-plane principal axis (2D covariance of the vertices) gives a tight
      * rectangle for rotated parts. */
@@ -303,7 +359,7 @@ static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint3
             double x = v3_dot(p, t0), y = v3_dot(p, b0);
             float d = v3_dot(p, n->normal);
             sx += x; sy += y; sxx += x * x; syy += y * y; sxy += x * y; cnt += 1;
-            dmin = fminf(dmin, d); dmax = fmaxf(dmax, d);
+            dmin = MINF(dmin, d); dmax = MAXF(dmax, d);
         }
     }
     double mx = sx / cnt, my = sy / cnt;
@@ -314,7 +370,7 @@ static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint3
     float best_area = INFINITY;
     vec3 tu = t0, tv = b0;
     float umin = 0, umax = 0, vmin = 0, vmax = 0;
-    uint32_t ncand = n->tri_end - n->tri_begin < 32 ? n->tri_end - n->tri_begin : 32;
+    uint32_t ncand = n->tri_end - n->tri_begin < 8 ? n->tri_end - n->tri_begin : 8;
     for (uint32_t cidx = 0; cidx <= 3 * ncand; cidx++) {
         vec3 cu;
         if (cidx == 0) {
@@ -335,8 +391,8 @@ static void node_geometry(const ct_radmesh *m, const scene_material *mats, uint3
             for (int k = 0; k < 3; k++) {
                 vec3 p = m->pos[v[k]];
                 float u = v3_dot(p, cu), w = v3_dot(p, cv);
-                a0 = fminf(a0, u); a1 = fmaxf(a1, u);
-                b0m = fminf(b0m, w); b1 = fmaxf(b1, w);
+                a0 = MINF(a0, u); a1 = MAXF(a1, u);
+                b0m = MINF(b0m, w); b1 = MAXF(b1, w);
             }
         }
         float rect = (a1 - a0) * (b1 - b0m);
@@ -401,9 +457,11 @@ int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nm
             st[n].own_b = b3_add(st[n].own_b, m->pos[v[k]]);
         }
         st[n].own++;
-        st[n].own_mat = mat_merge(st[n].own_mat, m->tri_mat[t]);
-        if (m->tri_mat[t] < nmats)
-            st[n].own_gloss = fmaxf(st[n].own_gloss, scene_material_glossiness(&mats[m->tri_mat[t]]));
+        if (m->tri_mat[t] != st[n].own_mat) {
+            st[n].own_mat = mat_merge(st[n].own_mat, m->tri_mat[t]);
+            if (m->tri_mat[t] < nmats)
+                st[n].own_gloss = fmaxf(st[n].own_gloss, scene_material_glossiness(&mats[m->tri_mat[t]]));
+        }
     }
     for (uint32_t i = 0; i < N; i++) {
         st[i].total = st[i].own; st[i].sub_b = st[i].own_b;
@@ -449,8 +507,17 @@ int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nm
                     n->tri_end = start[n->leaf_end];
                 }
                 free(fill);
-                for (uint32_t i = 0; i < h->nnodes; i++)
-                    node_geometry(m, mats, nmats, h, &h->nodes[i], flat_deg, flat_thickness);
+                vec3 *nsum = malloc(h->nnodes * sizeof *nsum);
+                if (!nsum) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+                else {
+                    /* children before parents: reverse pre-order */
+                    for (uint32_t i = h->nnodes; i-- > 0;) {
+                        if (h->nodes[i].end == i + 1) leaf_geometry(m, mats, nmats, h, &h->nodes[i], &nsum[i]);
+                        else inner_geometry(h, i, nsum);
+                        flat_frame(m, h, &h->nodes[i], flat_deg, flat_thickness);
+                    }
+                    free(nsum);
+                }
             }
             free(start);
         }
