@@ -57,6 +57,7 @@ ctex_options ctex_options_default(void)
     o.flat_deg = 10.0f;      /* §3.2: flat when normals deviate less than 10° */
     o.flat_thickness = 0.01f;
     o.blend = 1.0f;
+    o.splat_max = 64;
     o.splat_lo = 1.0f;
     o.splat_hi = 5.0f;
     o.splat_window = 64;
@@ -87,6 +88,7 @@ static const optdef OPTS[] = {
     {"--flat-deg", 0, OF(flat_deg), 0, 180, "normal spread (degrees) under which a node is flat: object-local (§3.2)"},
     {"--flat-thickness", 0, OF(flat_thickness), 0, 1e9, "flat nodes' extent along the normal / in-plane extent"},
     {"--blend", 0, OF(blend), 0, 1e6, "validity band (texels) blended at splat borders; 0 = off (§3.4)"},
+    {"--splat-max", 1, OF(splat_max), 0, 65536, "largest splat radius (texels), bounds the cost of a sample in an empty region; 0 = none"},
     {"--splat-lo", 0, OF(splat_lo), 0, 1e6, "mean splat radius (texels) under which the resolution doubles (§3.6)"},
     {"--splat-hi", 0, OF(splat_hi), 0, 1e6, "mean splat radius (texels) over which the resolution halves (§3.6)"},
     {"--splat-window", 1, OF(splat_window), 1, 1e6, "samples in the running mean of splat radii (§3.6)"},
@@ -775,8 +777,9 @@ static void adapt_resolution(ctex *c, uint32_t id, int r)
         if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
     } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
         if (t->last_resize < 0 && t->since_resize < 4 * win) return;
-        nw = 2 * t->w > s->max_w ? (t->w > s->max_w ? t->w : s->max_w) : 2 * t->w;
-        nh = 2 * t->h > s->max_h ? (t->h > s->max_h ? t->h : s->max_h) : 2 * t->h;
+        /* exact doublings only: an axis that would pass its bound stays */
+        nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;
+        nh = 2 * t->h <= s->max_h ? 2 * t->h : t->h;
         size_t grow = tex_bytes(nw, nh) - tex_bytes(t->w, t->h);
         if (!make_room(c, grow)) return;   /* the memory cap denies growth */
     } else {
@@ -826,7 +829,7 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     /* §3.7: E = L - (L' + ΔL) against what is displayed now */
     info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
     info->tex = id;
-    int r = ctex_tex_splat(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->o.blend);
+    int r = ctex_tex_splat(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->o.blend, c->o.splat_max);
     info->radius = r;
     c->st.inserted++;
     adapt_resolution(c, (uint32_t)id, r);

@@ -61,7 +61,7 @@ static inline int put(ctex_texel *x, float vn, vec3 val, float blend)
     return 0;
 }
 
-int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend)
+int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
 {
     const int W = t->w, H = t->h;
     ctex_texel *T = t->tx;
@@ -77,6 +77,7 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend)
     if (W - 1 - ci > kmax) kmax = W - 1 - ci;
     if (cj > kmax) kmax = cj;
     if (H - 1 - cj > kmax) kmax = H - 1 - cj;
+    if (max_r > 0 && max_r < kmax) kmax = max_r;
     for (; k <= kmax; k++) {
         const float vn = vmax - (float)k;   /* §3.4: validity v_max - d */
         int changed = 0;
@@ -101,7 +102,7 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend)
     }
     /* Dirty: everything up to the ring that stopped the splat (it may have
      * been blended). */
-    int e = k;
+    int e = k > kmax ? kmax : k;
     int x0 = ci - e < 0 ? 0 : ci - e, x1 = ci + e + 1 > W ? W : ci + e + 1;
     int y0 = cj - e < 0 ? 0 : cj - e, y1 = cj + e + 1 > H ? H : cj + e + 1;
     if (t->dx0 >= t->dx1 || t->dy0 >= t->dy1) {
@@ -162,6 +163,84 @@ static bool sample_valid(const ctex_tex *t, float x, float y, vec3 *out)
     return true;
 }
 
+/* Exact doubling along each axis with factor fx, fy in {1, 2} (not both 1):
+ * a doubled axis gives new texel 2i+a weights 3/4 for old texel i and 1/4
+ * for its neighbour towards the new centre (bilinear at the new centres,
+ * clamp to edge); a kept axis weight 1. Weights are renormalized over valid
+ * texels; the validity is texel i's with distances scaled by the factor.
+ * The same values as the generic path, without its per-texel searches. */
+static void double_exact(const ctex_tex *t, ctex_texel *nt, int fx, int fy)
+{
+    const int w = t->w, h = t->h, nw = fx * w;
+    const float vmax = t->vmax, vs = (float)(fx > fy ? fx : fy);
+    const float wx1 = fx == 2 ? 0.25f : 0.0f, wy1 = fy == 2 ? 0.25f : 0.0f;
+    for (int j = 0; j < h; j++) {
+        for (int b = 0; b < fy; b++) {
+            int jn = fy == 1 ? j : (b ? (j + 1 < h ? j + 1 : j) : (j > 0 ? j - 1 : 0));
+            const ctex_texel *r0 = t->tx + (size_t)j * (size_t)w, *r1 = t->tx + (size_t)jn * (size_t)w;
+            ctex_texel *o = nt + (size_t)(fy * j + b) * (size_t)nw;
+            for (int i = 0; i < w; i++) {
+                for (int a = 0; a < fx; a++) {
+                    int in = fx == 1 ? i : (a ? (i + 1 < w ? i + 1 : i) : (i > 0 ? i - 1 : 0));
+                    const ctex_texel *ps[4] = {r0 + i, r0 + in, r1 + i, r1 + in};
+                    const float ws[4] = {(1.0f - wx1) * (1.0f - wy1), wx1 * (1.0f - wy1), (1.0f - wx1) * wy1, wx1 * wy1};
+                    ctex_texel *q = o + fx * i + a;
+                    float sw = 0.0f, cr = 0.0f, cg = 0.0f, cb = 0.0f;
+                    for (int k = 0; k < 4; k++)
+                        if (ps[k]->v != -INFINITY && ws[k] > 0.0f) {
+                            sw += ws[k]; cr += ws[k] * ps[k]->r; cg += ws[k] * ps[k]->g; cb += ws[k] * ps[k]->b;
+                        }
+                    if (!(sw > 0.0f)) {
+                        q->r = q->g = q->b = 0.0f;
+                        q->v = -INFINITY;
+                        continue;
+                    }
+                    float inv = 1.0f / sw;
+                    q->r = cr * inv; q->g = cg * inv; q->b = cb * inv;
+                    /* an empty covering texel next to valid ones: one texel off */
+                    float v = ps[0]->v == -INFINITY ? vmax - 1.0f : ps[0]->v;
+                    q->v = vmax + (v - vmax) * vs;
+                }
+            }
+        }
+    }
+}
+
+/* Exact halving with block sizes bx, by in {1, 2} (odd sizes: the last block
+ * is one texel wide): the mean of each block's valid texels, the best
+ * validity, distances scaled down. */
+static void halve_exact(const ctex_tex *t, ctex_texel *nt, int nw, int nh, int bx, int by)
+{
+    const int w = t->w, h = t->h;
+    const float vmax = t->vmax, vs = 1.0f / (float)(bx > by ? bx : by);
+    for (int j = 0; j < nh; j++) {
+        int y0 = by * j, y1 = y0 + by > h ? h : y0 + by;
+        ctex_texel *o = nt + (size_t)j * (size_t)nw;
+        for (int i = 0; i < nw; i++) {
+            int x0 = bx * i, x1 = x0 + bx > w ? w : x0 + bx;
+            float cr = 0.0f, cg = 0.0f, cb = 0.0f, best = -INFINITY;
+            int n = 0;
+            for (int y = y0; y < y1; y++)
+                for (int x = x0; x < x1; x++) {
+                    const ctex_texel *p = t->tx + (size_t)y * (size_t)w + (size_t)x;
+                    if (p->v == -INFINITY) continue;
+                    cr += p->r; cg += p->g; cb += p->b;
+                    if (p->v > best) best = p->v;
+                    n++;
+                }
+            ctex_texel *q = o + i;
+            if (!n) {
+                q->r = q->g = q->b = 0.0f;
+                q->v = -INFINITY;
+                continue;
+            }
+            float inv = 1.0f / (float)n;
+            q->r = cr * inv; q->g = cg * inv; q->b = cb * inv;
+            q->v = vmax + (best - vmax) * vs;
+        }
+    }
+}
+
 int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
 {
     if (nw < 1 || nh < 1 || nw > 65536 || nh > 65536)
@@ -169,6 +248,18 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
     if (nw == t->w && nh == t->h) return CT_OK;
     ctex_texel *nt = malloc((size_t)nw * (size_t)nh * sizeof *nt);
     if (!nt) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", nw, nh);
+    {
+        int fx = nw == 2 * t->w ? 2 : (nw == t->w ? 1 : 0), fy = nh == 2 * t->h ? 2 : (nh == t->h ? 1 : 0);
+        if (fx && fy) {
+            double_exact(t, nt, fx, fy);
+            goto done;
+        }
+        int bx = nw == (t->w + 1) / 2 ? 2 : (nw == t->w ? 1 : 0), by = nh == (t->h + 1) / 2 ? 2 : (nh == t->h ? 1 : 0);
+        if (bx && by) {
+            halve_exact(t, nt, nw, nh, bx, by);
+            goto done;
+        }
+    }
     const float sx = (float)t->w / (float)nw, sy = (float)t->h / (float)nh;
     /* Validities are distances in texels: rescale them relative to v_max. */
     const float vs = 1.0f / fmaxf(sx, sy);
@@ -223,6 +314,7 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
             }
         }
     }
+done:
     free(t->tx);
     t->tx = nt;
     t->w = nw;

@@ -49,9 +49,10 @@ void ctex_tex_release(ctex_tex *t);
 /* Splats value at texel (ci, cj) with the texture's v_max (§3.4): the centre
  * texel is always overwritten; ring k (Chebyshev distance k) overwrites texels
  * whose validity is below v_max - k, and blends texels within `blend` of it;
- * stops after the first ring that overwrote nothing. Returns the splat
- * radius (last overwriting ring) and grows the dirty rectangle. */
-int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend);
+ * stops after the first ring that overwrote nothing, or after ring max_r
+ * (0 = no limit). Returns the splat radius (last overwriting ring) and grows
+ * the dirty rectangle. */
+int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r);
 
 /* Bilinear correction at texture position (u, v), clamp-to-edge (GL_LINEAR). */
 static inline vec3 ctex_tex_sample(const ctex_tex *t, float u, float v)

@@ -33,7 +33,7 @@ static void voronoi_case(int W, int H, int n, uint64_t seed)
         } while (used[y * W + x]);
         used[y * W + x] = 1;
         sx[k] = x; sy[k] = y;
-        ctex_tex_splat(&t, x, y, v3((float)k, (float)-k, 0.5f), 0.0f);
+        ctex_tex_splat(&t, x, y, v3((float)k, (float)-k, 0.5f), 0.0f, 0);
     }
     int ties = 0;
     for (int y = 0; y < H; y++)
@@ -65,13 +65,13 @@ Test(ctex_tex, splat_radius_and_dirty_rect)
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, 32, 32, NULL), 0);
     t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
-    int r = ctex_tex_splat(&t, 5, 5, v3(1, 1, 1), 0.0f);
+    int r = ctex_tex_splat(&t, 5, 5, v3(1, 1, 1), 0.0f, 0);
     cr_assert_eq(r, 26, "first sample floods the texture: radius %d", r);
     cr_assert_eq(t.dx0, 0); cr_assert_eq(t.dx1, 32); cr_assert_eq(t.dy0, 0); cr_assert_eq(t.dy1, 32);
     t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
     /* a second sample 8 texels away: its radius is the farthest texel it
      * takes over (strictly closer to it than to the first) */
-    r = ctex_tex_splat(&t, 13, 5, v3(2, 2, 2), 0.0f);
+    r = ctex_tex_splat(&t, 13, 5, v3(2, 2, 2), 0.0f, 0);
     int expect = 0;
     for (int y = 0; y < 32; y++)
         for (int x = 0; x < 32; x++)
@@ -90,8 +90,8 @@ Test(ctex_tex, blending_is_between_neighbours)
 {
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, 32, 8, NULL), 0);
-    ctex_tex_splat(&t, 4, 4, v3(0, 0, 0), 1.0f);
-    ctex_tex_splat(&t, 12, 4, v3(1, 1, 1), 1.0f);
+    ctex_tex_splat(&t, 4, 4, v3(0, 0, 0), 1.0f, 0);
+    ctex_tex_splat(&t, 12, 4, v3(1, 1, 1), 1.0f, 0);
     /* the tie at x = 8 is blended half-half, interior texels are not */
     cr_assert_float_eq(t.tx[4 * 32 + 8].r, 0.5f, 1e-6);
     cr_assert_eq(t.tx[4 * 32 + 6].r, 0.0f);
@@ -105,12 +105,12 @@ Test(ctex_tex, newer_sample_wins_after_aging)
     const int W = 48, H = 16;
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, W, H, NULL), 0);
-    ctex_tex_splat(&t, 10, 8, v3(1, 0, 0), 0.0f);
-    ctex_tex_splat(&t, 40, 8, v3(3, 0, 0), 0.0f);
+    ctex_tex_splat(&t, 10, 8, v3(1, 0, 0), 0.0f, 0);
+    ctex_tex_splat(&t, 40, 8, v3(3, 0, 0), 0.0f, 0);
     const float age = 5.0f;
     ctex_tex_age(&t, age);
     cr_assert_eq(t.vmax, age);
-    ctex_tex_splat(&t, 25, 8, v3(2, 0, 0), 0.0f);
+    ctex_tex_splat(&t, 25, 8, v3(2, 0, 0), 0.0f, 0);
     int won = 0;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
@@ -188,4 +188,69 @@ Test(ctex_tex, empty_texture_stays_empty_on_resize)
     ct_error err;
     cr_assert_eq(ctex_tex_resize(&t, 0, 4, &err), CT_EINVAL);
     ctex_tex_release(&t);
+}
+
+Test(ctex_tex, doubling_is_bilinear_at_new_centres)
+{
+    ctex_tex t = {0}, old = {0};
+    cr_assert_eq(ctex_tex_init(&t, 9, 6, NULL), 0);
+    cr_assert_eq(ctex_tex_init(&old, 9, 6, NULL), 0);
+    fill_random(&t, 9);
+    for (int i = 0; i < 9 * 6; i++) old.tx[i] = t.tx[i];
+    cr_assert_eq(ctex_tex_resize(&t, 18, 12, NULL), 0);
+    for (int j = 0; j < 12; j++)
+        for (int i = 0; i < 18; i++) {
+            vec3 e = ctex_tex_sample(&old, ((float)i + 0.5f) / 18.0f, ((float)j + 0.5f) / 12.0f);
+            const ctex_texel *p = &t.tx[j * 18 + i];
+            cr_assert_float_eq(p->r, e.x, 1e-5, "texel (%d,%d)", i, j);
+            cr_assert_float_eq(p->g, e.y, 1e-5);
+            cr_assert_float_eq(p->b, e.z, 1e-5);
+            /* validity: the covering old texel's, distances doubled */
+            cr_assert_float_eq(p->v, 2.0f * old.tx[(j / 2) * 9 + i / 2].v, 1e-5);
+        }
+    ctex_tex_release(&t);
+    ctex_tex_release(&old);
+}
+
+Test(ctex_tex, splat_max_bounds_the_radius)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 64, 64, NULL), 0);
+    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    int r = ctex_tex_splat(&t, 30, 20, v3(1, 1, 1), 1.0f, 5);
+    cr_assert_eq(r, 5);
+    for (int y = 0; y < 64; y++)
+        for (int x = 0; x < 64; x++) {
+            int inside = cheb(x, y, 30, 20) <= 5;
+            cr_assert_eq(t.tx[y * 64 + x].v == -INFINITY, !inside, "texel (%d,%d)", x, y);
+        }
+    cr_assert_eq(t.dx0, 25); cr_assert_eq(t.dx1, 36); cr_assert_eq(t.dy0, 15); cr_assert_eq(t.dy1, 26);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, doubling_one_axis_and_odd_halving)
+{
+    ctex_tex t = {0}, old = {0};
+    cr_assert_eq(ctex_tex_init(&t, 7, 5, NULL), 0);
+    cr_assert_eq(ctex_tex_init(&old, 7, 5, NULL), 0);
+    fill_random(&t, 13);
+    for (int i = 0; i < 7 * 5; i++) old.tx[i] = t.tx[i];
+    cr_assert_eq(ctex_tex_resize(&t, 14, 5, NULL), 0);
+    for (int j = 0; j < 5; j++)
+        for (int i = 0; i < 14; i++) {
+            vec3 e = ctex_tex_sample(&old, ((float)i + 0.5f) / 14.0f, ((float)j + 0.5f) / 5.0f);
+            cr_assert_float_eq(t.tx[j * 14 + i].r, e.x, 1e-5, "texel (%d,%d)", i, j);
+        }
+    /* halving 7x5 -> 4x3: 2x2 blocks, the last column and row one texel wide */
+    cr_assert_eq(ctex_tex_resize(&old, 4, 3, NULL), 0);
+    ctex_tex ref = {0};
+    cr_assert_eq(ctex_tex_init(&ref, 7, 5, NULL), 0);
+    fill_random(&ref, 13);
+    float e = (ref.tx[6].r + ref.tx[13].r) / 2.0f;   /* block (3, 0): column 6, rows 0-1 */
+    cr_assert_float_eq(old.tx[3].r, e, 1e-6);
+    float e2 = ref.tx[4 * 7 + 6].r;                  /* block (3, 2): texel (6, 4) alone */
+    cr_assert_float_eq(old.tx[2 * 4 + 3].r, e2, 1e-6);
+    ctex_tex_release(&t);
+    ctex_tex_release(&old);
+    ctex_tex_release(&ref);
 }
