@@ -30,6 +30,7 @@ struct ctex {
     int32_t *node_tex;     /* hierarchy node -> live slot, -1 */
     int32_t *leaf_owner;   /* leaf -> active slot, -1 */
     uint8_t *assigned;     /* hierarchy node -> assigned in the current view */
+    char *names;           /* the mesh's node names (SCENE_NAME_LEN each) */
     uint32_t *list;        /* scratch: assigned nodes */
     uint32_t nlist;
     int32_t *srcs;         /* scratch: source slots */
@@ -227,6 +228,29 @@ const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n)
     return c->h.leaf_part + hn->leaf_begin;
 }
 
+void ctex_export_nodes(const ctex *c, rmesh_node *out)
+{
+    for (uint32_t i = 0; i < c->h.nnodes; i++) {
+        const ctex_hnode *n = &c->h.nodes[i];
+        rmesh_node *o = &out[i];
+        memset(o, 0, sizeof *o);
+        if (n->scene_node >= 0 && (uint32_t)n->scene_node < c->h.npart_map && c->names)
+            snprintf(o->name, sizeof o->name, "%s", c->names + (size_t)n->scene_node * SCENE_NAME_LEN);
+        else
+            snprintf(o->name, sizeof o->name, "bvh:%u", i);
+        o->parent = n->parent;
+        o->node_end = n->end;
+        o->material = n->material;
+        o->bounds = n->bounds;
+    }
+}
+
+uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part)
+{
+    if (part >= c->h.npart_map || c->h.part_leaf[part] < 0) return UINT32_MAX;
+    return c->h.leaf_node[c->h.part_leaf[part]];
+}
+
 /* --- lifecycle ------------------------------------------------------------------------ */
 
 int ctex_new(const ct_radmesh *mesh, const scene_material *mats, uint32_t nmats,
@@ -249,11 +273,14 @@ int ctex_new(const ct_radmesh *mesh, const scene_material *mats, uint32_t nmats,
     c->leaf_owner = malloc((c->h.nleaves ? c->h.nleaves : 1) * sizeof *c->leaf_owner);
     c->assigned = calloc(N, 1);
     c->list = malloc(N * sizeof *c->list);
-    if (!c->node_tex || !c->leaf_owner || !c->assigned || !c->list) {
+    c->names = malloc((size_t)mesh->nnodes * SCENE_NAME_LEN);
+    if (!c->node_tex || !c->leaf_owner || !c->assigned || !c->list || !c->names) {
         ctex_free(c);
         return ct_fail(err, CT_ENOMEM, "out of memory for the texture engine");
     }
     for (uint32_t i = 0; i < N; i++) c->node_tex[i] = -1;
+    for (uint32_t i = 0; i < mesh->nnodes; i++)
+        memcpy(c->names + (size_t)i * SCENE_NAME_LEN, mesh->nodes[i].name, SCENE_NAME_LEN);
     for (uint32_t i = 0; i < c->h.nleaves; i++) c->leaf_owner[i] = -1;
     bounds3 b = c->h.nodes[0].bounds;
     c->znear = 1e-4f * fmaxf(v3_len(b3_extent(b)), 1e-6f);
@@ -272,6 +299,7 @@ void ctex_free(ctex *c)
     free(c->leaf_owner);
     free(c->assigned);
     free(c->list);
+    free(c->names);
     free(c->srcs);
     free(c->retire);
     free(c->ev);

@@ -173,6 +173,18 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
  * its texture). */
 const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n);
 
+/* The texture hierarchy as a mesh node table in pre-order (modeling nodes
+ * keep their names, BVH nodes are named "bvh:<id>"), for the display: the
+ * node of a texture event is a hierarchy node, so the display server ships
+ * this table as the SCENE's node table and maps each triangle's part node
+ * with ctex_hnode_of_part; a texture then corrects the triangles of its
+ * node's subtree. out holds ctex_get_stats(c).hier_nodes entries. */
+void ctex_export_nodes(const ctex *c, rmesh_node *out);
+
+/* The hierarchy leaf of scene part node `part`, or UINT32_MAX when it has no
+ * triangles. */
+uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part);
+
 /* --- queries ----------------------------------------------------------------- */
 
 /* The texture id that corrects scene part node `node` in the current view, or -1. */

@@ -630,3 +630,49 @@ Test(ctex_engine, bad_mesh_is_rejected)
     cr_assert_null(c);
     release(&t);
 }
+
+Test(ctex_engine, exported_node_table_for_the_display)
+{
+    tscene t;
+    build(&t);
+    ctex *c = engine(&t, ctex_options_default());
+    uint32_t n = ctex_get_stats(c).hier_nodes;
+    rmesh_node *nodes = calloc(n, sizeof *nodes);
+    ctex_export_nodes(c, nodes);
+    cr_assert_eq(nodes[0].parent, -1);
+    cr_assert_eq(nodes[0].node_end, n);
+    for (uint32_t i = 1; i < n; i++) {
+        cr_assert(nodes[i].parent >= 0 && (uint32_t)nodes[i].parent < i, "pre-order parent of %u", i);
+        cr_assert(nodes[i].node_end > i && nodes[i].node_end <= nodes[nodes[i].parent].node_end);
+    }
+    /* every part maps to a leaf whose exported name is the part's, and a
+     * node's subtree holds exactly the parts ctex_node_parts lists */
+    for (uint32_t p = 0; p < t.s->nnodes; p++) {
+        uint32_t h = ctex_hnode_of_part(c, p);
+        if (t.s->nodes[p].kind != SCENE_NODE_PART) {
+            cr_assert_eq(h, UINT32_MAX);
+            continue;
+        }
+        cr_assert_lt(h, n);
+        cr_assert_eq(nodes[h].node_end, h + 1, "leaf");
+        cr_assert_str_eq(nodes[h].name, t.s->nodes[p].name);
+    }
+    for (uint32_t h = 0; h < n; h++) {
+        uint32_t np;
+        const uint32_t *parts = ctex_node_parts(c, h, &np);
+        uint32_t inside = 0;
+        for (uint32_t p = 0; p < t.s->nnodes; p++) {
+            uint32_t l = ctex_hnode_of_part(c, p);
+            if (l != UINT32_MAX && l >= h && l < nodes[h].node_end) inside++;
+        }
+        cr_assert_eq(inside, np, "node %u", h);
+        for (uint32_t k = 0; k < np; k++) {
+            uint32_t l = ctex_hnode_of_part(c, parts[k]);
+            cr_assert(l >= h && l < nodes[h].node_end);
+        }
+    }
+    cr_assert_eq(ctex_hnode_of_part(c, 99999), UINT32_MAX);
+    free(nodes);
+    ctex_free(c);
+    release(&t);
+}
