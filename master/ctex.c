@@ -71,6 +71,7 @@ ctex_options ctex_options_default(void)
     o.age_brdf = 10.0f;
     o.resample_age = 1.0f;
     o.bvh_mat_weight = 1.0f;
+    o.cluster_tris = 4096;
     return o;
 }
 
@@ -102,6 +103,7 @@ static const optdef OPTS[] = {
     {"--age-brdf", 0, OF(age_brdf), 0, 1e9, "aging weight of BRDF change: texture sizes per radian at glossiness 1 (§3.5)"},
     {"--resample-age", 0, OF(resample_age), 0, 1e9, "validity (texels) a resampled texel loses to fresh samples"},
     {"--bvh-mat-weight", 0, OF(bvh_mat_weight), 0, 1e9, "BVH cost factor for groups mixing materials (§3.3)"},
+    {"--cluster-tris", 1, OF(cluster_tris), 0, 1e9, "parts with more triangles are split into clusters of at most this many; 0 = never"},
 };
 #undef OF
 
@@ -236,6 +238,9 @@ void ctex_export_nodes(const ctex *c, rmesh_node *out)
         memset(o, 0, sizeof *o);
         if (n->scene_node >= 0 && (uint32_t)n->scene_node < c->h.npart_map && c->names)
             snprintf(o->name, sizeof o->name, "%s", c->names + (size_t)n->scene_node * SCENE_NAME_LEN);
+        else if (c->h.part_leaf[c->h.leaf_part[n->leaf_begin]] == -2 &&
+                 c->h.leaf_part[n->leaf_begin] == c->h.leaf_part[n->leaf_end - 1])
+            snprintf(o->name, sizeof o->name, "cluster:%u", i);   /* inside a split part */
         else
             snprintf(o->name, sizeof o->name, "bvh:%u", i);
         o->parent = n->parent;
@@ -247,8 +252,14 @@ void ctex_export_nodes(const ctex *c, rmesh_node *out)
 
 uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part)
 {
-    if (part >= c->h.npart_map || c->h.part_leaf[part] < 0) return UINT32_MAX;
-    return c->h.leaf_node[c->h.part_leaf[part]];
+    if (part >= c->h.npart_map || c->h.part_hnode[part] < 0) return UINT32_MAX;
+    return (uint32_t)c->h.part_hnode[part];
+}
+
+uint32_t ctex_hnode_of_tri(const ctex *c, uint32_t tri)
+{
+    if (tri >= c->h.ntris) return UINT32_MAX;
+    return c->h.leaf_node[c->h.tri_leaf[tri]];
 }
 
 /* --- lifecycle ------------------------------------------------------------------------ */
@@ -263,7 +274,7 @@ int ctex_new(const ct_radmesh *mesh, const scene_material *mats, uint32_t nmats,
     if (c->o.tex_min > c->o.tex_max) c->o.tex_min = c->o.tex_max;
     if (c->o.tex_init < c->o.tex_min) c->o.tex_init = c->o.tex_min;
     int rc = ctex_hier_build(mesh, mats, nmats, c->o.flat_deg, c->o.flat_thickness, c->o.bvh_mat_weight,
-                             &c->h, err);
+                             (uint32_t)c->o.cluster_tris, &c->h, err);
     if (rc) {
         free(c);
         return rc;
@@ -776,10 +787,33 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
 
 /* --- samples ----------------------------------------------------------------------- */
 
-static inline int32_t owner_of(const ctex *c, uint32_t node)
+/* The leaf a hit belongs to: its part's leaf, or for a part split into
+ * clusters the leaf of its triangle (or, when the triangle is unknown, the
+ * cluster whose bounds are nearest to the hit point). -1 when none. */
+static int32_t leaf_of_hit(const ctex *c, uint32_t node, uint32_t tri, vec3 p)
 {
     if (node >= c->h.npart_map) return -1;
     int32_t l = c->h.part_leaf[node];
+    if (l != -2) return l;
+    if (tri < c->h.ntris) {
+        uint32_t tl = c->h.tri_leaf[tri];
+        if (c->h.leaf_part[tl] == node) return (int32_t)tl;
+    }
+    const ctex_hnode *pn = &c->h.nodes[c->h.part_hnode[node]];
+    int32_t best = -1;
+    float bd = INFINITY;
+    for (uint32_t k = pn->leaf_begin; k < pn->leaf_end; k++) {
+        bounds3 b = c->h.nodes[c->h.leaf_node[k]].bounds;
+        vec3 d = v3_max(v3_sub(b.lo, p), v3_max(v3_sub(p, b.hi), v3s(0.0f)));
+        float d2 = v3_len2(d);
+        if (d2 < bd) { bd = d2; best = (int32_t)k; }
+    }
+    return best;
+}
+
+static inline int32_t owner_of(const ctex *c, uint32_t node, uint32_t tri, vec3 p)
+{
+    int32_t l = leaf_of_hit(c, node, tri, p);
     return l < 0 ? -1 : c->leaf_owner[l];
 }
 
@@ -833,7 +867,7 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     info->radius = 0;
     info->correction = v3s(0.0f);
     info->error = v3_sub(s->l_hq, s->l_base);
-    int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node) : -1;
+    int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node, s->tri, s->hit) : -1;
     float u, v;
     if (id < 0 || !v3_finite(s->l_hq) || !v3_finite(s->l_base) || !v3_finite(s->hit) ||
         !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) {
@@ -867,7 +901,7 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
 /* Prefetches the texel rows a sample will read and splat first. */
 static inline void prefetch_sample(const ctex *c, const ct_sample *s)
 {
-    int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node) : -1;
+    int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node, s->tri, s->hit) : -1;
     float u, v;
     if (id < 0 || !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) return;
     const ctex_tex *t = &c->slots[id].t;
@@ -892,9 +926,9 @@ size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info
     return done;
 }
 
-vec3 ctex_lookup(const ctex *c, uint32_t node, vec3 p)
+vec3 ctex_lookup(const ctex *c, uint32_t node, uint32_t tri, vec3 p)
 {
-    int32_t id = owner_of(c, node);
+    int32_t id = owner_of(c, node, tri, p);
     float u, v;
     if (id < 0 || !ctex_tex_project(&c->slots[id].t, p, &u, &v)) return v3s(0.0f);
     return ctex_tex_sample(&c->slots[id].t, u, v);
@@ -902,9 +936,9 @@ vec3 ctex_lookup(const ctex *c, uint32_t node, vec3 p)
 
 /* --- queries ------------------------------------------------------------------------ */
 
-int32_t ctex_owner(const ctex *c, uint32_t node)
+int32_t ctex_owner(const ctex *c, uint32_t node, uint32_t tri, vec3 p)
 {
-    return owner_of(c, node);
+    return owner_of(c, node, tri, p);
 }
 
 int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int *h,
@@ -955,7 +989,7 @@ int ctex_composite(const ctex *c, const ctex_hit *hits, int width, int height, c
         for (int x = 0; x < width; x++) {
             const ctex_hit *h = &hits[(size_t)y * (size_t)width + (size_t)x];
             vec3 v = h->l_base;
-            if (h->node != UINT32_MAX) v = v3_add(v, ctex_lookup(c, h->node, h->p));
+            if (h->node != UINT32_MAX) v = v3_add(v, ctex_lookup(c, h->node, h->tri, h->p));
             img_set(out, x, y, v);
         }
     return CT_OK;

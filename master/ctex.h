@@ -49,6 +49,7 @@ typedef struct ctex_options {
     float age_brdf;       /* §3.5: weight of the BRDF term, texture sizes per radian at glossiness 1 */
     float resample_age;   /* validity (texels) a resampled texel loses against fresh samples */
     float bvh_mat_weight; /* BVH: cost factor for groups that mix materials */
+    int cluster_tris;     /* parts with more triangles are split into clusters; 0 = never */
 } ctex_options;
 
 /* The defaults (the paper's values where it gives one). */
@@ -98,6 +99,7 @@ typedef struct ctex_insert_info {
 /* A primary hit per pixel for the compositor: node = UINT32_MAX for a miss. */
 typedef struct ctex_hit {
     uint32_t node;     /* scene part node id */
+    uint32_t tri;      /* radiosity mesh triangle (UINT32_MAX: unknown) */
     vec3 p;            /* world hit point */
     vec3 l_base;       /* interactive value at the pixel */
 } ctex_hit;
@@ -149,9 +151,10 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
  * Returns how many were splatted. */
 size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info);
 
-/* The correction the display shows at world point p on scene node `node`
- * (zero when the node has no texture). */
-vec3 ctex_lookup(const ctex *c, uint32_t node, vec3 p);
+/* The correction the display shows at world point p on mesh triangle tri of
+ * scene part `node` (tri = UINT32_MAX when unknown; only parts split into
+ * clusters need it); zero when it has no texture. */
+vec3 ctex_lookup(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
 
 /* --- display events -------------------------------------------------------- */
 
@@ -174,21 +177,27 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
 const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n);
 
 /* The texture hierarchy as a mesh node table in pre-order (modeling nodes
- * keep their names, BVH nodes are named "bvh:<id>"), for the display: the
- * node of a texture event is a hierarchy node, so the display server ships
- * this table as the SCENE's node table and maps each triangle's part node
- * with ctex_hnode_of_part; a texture then corrects the triangles of its
- * node's subtree. out holds ctex_get_stats(c).hier_nodes entries. */
+ * keep their names, BVH nodes are named "bvh:<id>", nodes inside a part
+ * split into clusters "cluster:<id>"), for the display: the node of a
+ * texture event is a hierarchy node, so the display server ships this table
+ * as the SCENE's node table and writes ctex_hnode_of_tri as each triangle's
+ * node; a texture then corrects the triangles of its node's subtree. out
+ * holds ctex_get_stats(c).hier_nodes entries. */
 void ctex_export_nodes(const ctex *c, rmesh_node *out);
 
-/* The hierarchy leaf of scene part node `part`, or UINT32_MAX when it has no
- * triangles. */
+/* The hierarchy node of scene part node `part` (its leaf, or the root of its
+ * clusters), or UINT32_MAX when it has no triangles. */
 uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part);
+
+/* The hierarchy leaf of mesh triangle tri (what the display server writes as
+ * the triangle's node), or UINT32_MAX. */
+uint32_t ctex_hnode_of_tri(const ctex *c, uint32_t tri);
 
 /* --- queries ----------------------------------------------------------------- */
 
-/* The texture id that corrects scene part node `node` in the current view, or -1. */
-int32_t ctex_owner(const ctex *c, uint32_t node);
+/* The texture id that corrects a hit on scene part `node` (triangle tri,
+ * point p, as ctex_lookup) in the current view, or -1. */
+int32_t ctex_owner(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
 
 /* Hierarchy node of texture tex, its size and projection; -1 when not live. */
 int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int *h,

@@ -43,6 +43,12 @@ typedef struct builder {
     uint32_t cap;
     float mat_weight;
     int32_t *leaf_of_node;    /* modeling node -> leaf index of its own triangles */
+    uint32_t *sorted;         /* mesh triangles grouped by node */
+    uint32_t *node_start;     /* first entry of each node in sorted */
+    uint32_t fill;            /* triangles placed in h->tris so far */
+    uint32_t cluster_max;     /* split parts with more triangles (0: never) */
+    float flat_cos;           /* cos(flat_deg): normal agreement of a flat cluster */
+    struct tkey { float k; uint32_t t; } *keys;   /* scratch for partitioning */
     ct_error *err;
 } builder;
 
@@ -60,16 +66,128 @@ static int new_node(builder *B, int32_t parent, int32_t snode, uint32_t *id)
 
 static int emit_items(builder *B, item *it, uint32_t k, int32_t parent, int depth);
 
-/* A leaf for node's own triangles. */
-static int emit_leaf(builder *B, uint32_t node, int32_t parent)
+/* A leaf over triangles [begin, end) of h->tris, of scene part `part`. */
+static int tri_leaf(builder *B, uint32_t part, int32_t snode, uint32_t begin, uint32_t end, int32_t parent)
 {
     uint32_t id = 0;
-    int rc = new_node(B, parent, (int32_t)node, &id);
+    int rc = new_node(B, parent, snode, &id);
     if (rc) return rc;
     uint32_t li = B->h->nleaves++;
     B->h->leaf_node[li] = id;
-    B->h->leaf_part[li] = node;
-    B->leaf_of_node[node] = (int32_t)li;
+    B->h->leaf_part[li] = part;
+    ctex_hnode *n = &B->h->nodes[id];
+    n->tri_begin = begin;
+    n->tri_end = end;
+    n->end = B->h->nnodes;
+    n->leaf_end = B->h->nleaves;
+    return CT_OK;
+}
+
+/* Quickselect: reorders keys[0, n) so that keys[k] is in sorted position. */
+static void select_k(struct tkey *a, uint32_t n, uint32_t k)
+{
+    uint32_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        /* median of three as pivot */
+        if (a[mid].k < a[lo].k) { struct tkey t = a[mid]; a[mid] = a[lo]; a[lo] = t; }
+        if (a[hi].k < a[lo].k) { struct tkey t = a[hi]; a[hi] = a[lo]; a[lo] = t; }
+        if (a[hi].k < a[mid].k) { struct tkey t = a[hi]; a[hi] = a[mid]; a[mid] = t; }
+        float piv = a[mid].k;
+        uint32_t i = lo, j = hi;
+        while (i <= j) {
+            while (a[i].k < piv) i++;
+            while (a[j].k > piv) j--;
+            if (i <= j) {
+                struct tkey t = a[i]; a[i] = a[j]; a[j] = t;
+                i++;
+                if (j == 0) break;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+}
+
+/* Splits a large part's triangles [begin, end) into clusters: by the normal
+ * component that varies most while the normals disagree (so walls meeting at
+ * a corner separate), else at the median centroid along the longest axis. */
+static int emit_tris(builder *B, uint32_t part, uint32_t begin, uint32_t end, int32_t parent, int depth)
+{
+    uint32_t n = end - begin;
+    if (n <= B->cluster_max || depth > 64) return tri_leaf(B, part, -1, begin, end, parent);
+    const ct_radmesh *m = B->m;
+    uint32_t *tris = B->h->tris;
+    vec3 nsum = v3s(0.0f), nsq = v3s(0.0f);
+    bounds3 cb = b3_empty();
+    for (uint32_t i = begin; i < end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)tris[i];
+        vec3 a = m->pos[v[0]], b = m->pos[v[1]], c = m->pos[v[2]];
+        vec3 nn = v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        nsum = v3_add(nsum, nn);
+        nsq = v3_add(nsq, v3_mul(nn, nn));
+        cb = b3_add(cb, v3_scale(v3_add(a, v3_add(b, c)), 1.0f / 3.0f));
+    }
+    float inv = 1.0f / (float)n;
+    vec3 mean = v3_scale(nsum, inv);
+    vec3 var = v3_sub(v3_scale(nsq, inv), v3_mul(mean, mean));
+    int by_normal = v3_len(mean) < B->flat_cos;
+    int axis;
+    if (by_normal) axis = var.x >= var.y && var.x >= var.z ? 0 : (var.y >= var.z ? 1 : 2);
+    else {
+        vec3 e = b3_extent(cb);
+        axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+    }
+    struct tkey *k = B->keys;
+    for (uint32_t i = begin; i < end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)tris[i];
+        vec3 a = m->pos[v[0]], b = m->pos[v[1]], c = m->pos[v[2]];
+        vec3 key = by_normal ? v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a))) : v3_add(a, v3_add(b, c));
+        k[i - begin].k = v3_get(key, axis);
+        k[i - begin].t = tris[i];
+    }
+    uint32_t half = n / 2;
+    select_k(k, n, half);
+    for (uint32_t i = 0; i < n; i++) tris[begin + i] = k[i].t;
+    uint32_t mid = begin + half;
+    for (int side = 0; side < 2; side++) {
+        uint32_t a = side ? mid : begin, b = side ? end : mid;
+        if (b - a <= B->cluster_max) {
+            int rc = tri_leaf(B, part, -1, a, b, parent);
+            if (rc) return rc;
+            continue;
+        }
+        uint32_t id = 0;
+        int rc = new_node(B, parent, -1, &id);
+        if (!rc) rc = emit_tris(B, part, a, b, (int32_t)id, depth + 1);
+        if (rc) return rc;
+        B->h->nodes[id].end = B->h->nnodes;
+        B->h->nodes[id].leaf_end = B->h->nleaves;
+    }
+    return CT_OK;
+}
+
+/* A leaf for node's own triangles, or a node over clusters of them when
+ * there are more than cluster_max. */
+static int emit_leaf(builder *B, uint32_t node, int32_t parent)
+{
+    uint32_t count = B->st[node].own, begin = B->fill;
+    memcpy(B->h->tris + begin, B->sorted + B->node_start[node], count * sizeof(uint32_t));
+    B->fill += count;
+    if (!B->cluster_max || count <= B->cluster_max) {
+        B->leaf_of_node[node] = (int32_t)B->h->nleaves;
+        B->h->part_hnode[node] = (int32_t)B->h->nnodes;
+        return tri_leaf(B, node, (int32_t)node, begin, begin + count, parent);
+    }
+    uint32_t id = 0;
+    int rc = new_node(B, parent, (int32_t)node, &id);
+    if (rc) return rc;
+    B->leaf_of_node[node] = -2;   /* split: leaves by triangle */
+    B->h->part_hnode[node] = (int32_t)id;
+    rc = emit_tris(B, node, begin, begin + count, (int32_t)id, 0);
+    if (rc) return rc;
     B->h->nodes[id].end = B->h->nnodes;
     B->h->nodes[id].leaf_end = B->h->nleaves;
     return CT_OK;
@@ -416,8 +534,8 @@ static void flat_frame(const ct_radmesh *m, const ctex_hier *h, ctex_hnode *n, f
 }
 
 int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
-                    float flat_deg, float flat_thickness, float mat_weight, ctex_hier *h,
-                    ct_error *err)
+                    float flat_deg, float flat_thickness, float mat_weight, uint32_t cluster_tris,
+                    ctex_hier *h, ct_error *err)
 {
     memset(h, 0, sizeof *h);
     if (m->nnodes == 0 || m->ntris == 0)
@@ -476,52 +594,70 @@ int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nm
     }
     builder B = {0};
     B.m = m; B.st = st; B.h = h; B.mat_weight = mat_weight; B.leaf_of_node = leaf_of_node; B.err = err;
-    B.cap = 3 * N + 2;
+    B.cluster_max = cluster_tris;
+    B.flat_cos = cosf(flat_deg * CT_PI / 180.0f);
+    /* nodes: modeling ones, BVH nodes above them, pseudo leaves, and at most
+     * 2 n / cluster_max cluster nodes per split part */
+    size_t cap = 3 * (size_t)N + 2 + (cluster_tris ? 4 * ((size_t)m->ntris / cluster_tris + N) : 0);
+    B.cap = cap > UINT32_MAX / 2 ? UINT32_MAX / 2 : (uint32_t)cap;
     h->nodes = calloc(B.cap, sizeof *h->nodes);
-    h->leaf_node = calloc(N, sizeof *h->leaf_node);
-    h->leaf_part = calloc(N, sizeof *h->leaf_part);
+    h->leaf_node = calloc(B.cap, sizeof *h->leaf_node);
+    h->leaf_part = calloc(B.cap, sizeof *h->leaf_part);
     h->part_leaf = malloc(N * sizeof *h->part_leaf);
+    h->part_hnode = malloc(N * sizeof *h->part_hnode);
     h->tris = malloc((size_t)m->ntris * sizeof *h->tris);
+    h->tri_leaf = malloc((size_t)m->ntris * sizeof *h->tri_leaf);
+    B.sorted = malloc((size_t)m->ntris * sizeof *B.sorted);
+    B.node_start = calloc((size_t)N + 1, sizeof *B.node_start);
+    B.keys = cluster_tris ? malloc((size_t)m->ntris * sizeof *B.keys) : NULL;
     int rc = CT_OK;
-    if (!h->nodes || !h->leaf_node || !h->leaf_part || !h->part_leaf || !h->tris)
+    if (!h->nodes || !h->leaf_node || !h->leaf_part || !h->part_leaf || !h->part_hnode || !h->tris ||
+        !h->tri_leaf || !B.sorted || !B.node_start || (cluster_tris && !B.keys))
         rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+    if (!rc) {
+        /* triangles grouped by node (counting sort, stable) */
+        for (uint32_t t = 0; t < m->ntris; t++) B.node_start[m->tri_node[t] + 1]++;
+        for (uint32_t i = 0; i < N; i++) B.node_start[i + 1] += B.node_start[i];
+        uint32_t *fill = malloc(((size_t)N + 1) * sizeof *fill);
+        if (!fill) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+        else {
+            memcpy(fill, B.node_start, ((size_t)N + 1) * sizeof *fill);
+            for (uint32_t t = 0; t < m->ntris; t++) B.sorted[fill[m->tri_node[t]]++] = t;
+            free(fill);
+        }
+        for (uint32_t i = 0; i < N; i++) h->part_hnode[i] = -1;
+    }
     if (!rc) rc = emit_modeling(&B, 0, -1, 0);
     if (!rc) {
-        /* triangles grouped by leaf (counting sort) */
         h->npart_map = N;
+        h->ntris = m->ntris;
         for (uint32_t i = 0; i < N; i++) h->part_leaf[i] = leaf_of_node[i];
-        uint32_t *start = calloc(h->nleaves + 1, sizeof *start);
-        if (!start) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
+        for (uint32_t l = 0; l < h->nleaves; l++) {
+            const ctex_hnode *n = &h->nodes[h->leaf_node[l]];
+            for (uint32_t i = n->tri_begin; i < n->tri_end; i++) h->tri_leaf[h->tris[i]] = l;
+        }
+        /* inner nodes: the triangles of their leaves, which are contiguous */
+        for (uint32_t i = 0; i < h->nnodes; i++) {
+            ctex_hnode *n = &h->nodes[i];
+            if (n->end == i + 1) continue;
+            n->tri_begin = h->nodes[h->leaf_node[n->leaf_begin]].tri_begin;
+            n->tri_end = h->nodes[h->leaf_node[n->leaf_end - 1]].tri_end;
+        }
+        vec3 *nsum = malloc(h->nnodes * sizeof *nsum);
+        if (!nsum) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
         else {
-            for (uint32_t t = 0; t < m->ntris; t++) start[h->part_leaf[m->tri_node[t]] + 1]++;
-            for (uint32_t l = 0; l < h->nleaves; l++) start[l + 1] += start[l];
-            uint32_t *fill = malloc((h->nleaves + 1) * sizeof *fill);
-            if (!fill) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
-            else {
-                memcpy(fill, start, (h->nleaves + 1) * sizeof *fill);
-                for (uint32_t t = 0; t < m->ntris; t++) h->tris[fill[h->part_leaf[m->tri_node[t]]]++] = t;
-                h->ntris = m->ntris;
-                for (uint32_t i = 0; i < h->nnodes; i++) {
-                    ctex_hnode *n = &h->nodes[i];
-                    n->tri_begin = start[n->leaf_begin];
-                    n->tri_end = start[n->leaf_end];
-                }
-                free(fill);
-                vec3 *nsum = malloc(h->nnodes * sizeof *nsum);
-                if (!nsum) rc = ct_fail(err, CT_ENOMEM, "out of memory building the texture hierarchy");
-                else {
-                    /* children before parents: reverse pre-order */
-                    for (uint32_t i = h->nnodes; i-- > 0;) {
-                        if (h->nodes[i].end == i + 1) leaf_geometry(m, mats, nmats, h, &h->nodes[i], &nsum[i]);
-                        else inner_geometry(h, i, nsum);
-                        flat_frame(m, h, &h->nodes[i], flat_deg, flat_thickness);
-                    }
-                    free(nsum);
-                }
+            /* children before parents: reverse pre-order */
+            for (uint32_t i = h->nnodes; i-- > 0;) {
+                if (h->nodes[i].end == i + 1) leaf_geometry(m, mats, nmats, h, &h->nodes[i], &nsum[i]);
+                else inner_geometry(h, i, nsum);
+                flat_frame(m, h, &h->nodes[i], flat_deg, flat_thickness);
             }
-            free(start);
+            free(nsum);
         }
     }
+    free(B.sorted);
+    free(B.node_start);
+    free(B.keys);
     free(st);
     free(leaf_of_node);
     if (rc) ctex_hier_free(h);
@@ -534,6 +670,8 @@ void ctex_hier_free(ctex_hier *h)
     free(h->leaf_node);
     free(h->leaf_part);
     free(h->part_leaf);
+    free(h->part_hnode);
     free(h->tris);
+    free(h->tri_leaf);
     memset(h, 0, sizeof *h);
 }

@@ -2,7 +2,8 @@
  * (the radiosity mesh's node table) refined, wherever a node has more than
  * two children, by a bounding-volume hierarchy that groups children by space
  * and by material ("a modified hierarchical bounding volume method"). Leaves
- * are single mesh parts. Nodes are in depth-first pre-order, so a subtree is
+ * are single mesh parts, or, for a part with more than cluster_tris
+ * triangles, clusters of its triangles (split by normal, then by space). Nodes are in depth-first pre-order, so a subtree is
  * the node range [id, end), its leaves the range [leaf_begin, leaf_end) and
  * its triangles the range [tri_begin, tri_end) of the permuted arrays. Each
  * node carries what assignment and projection need: bounds, area-weighted
@@ -42,16 +43,19 @@ typedef struct ctex_hier {
     uint32_t *leaf_node;   /* leaf index -> hierarchy node */
     uint32_t *leaf_part;   /* leaf index -> scene part node */
     uint32_t npart_map;
-    int32_t *part_leaf;    /* scene node id -> leaf index, -1 if not a part */
+    int32_t *part_leaf;    /* scene node id -> leaf index; -1 not a part, -2 split into clusters */
+    int32_t *part_hnode;   /* scene node id -> its hierarchy node (leaf or cluster root), -1 */
     uint32_t ntris;
     uint32_t *tris;        /* mesh triangle ids, grouped by leaf in leaf order */
+    uint32_t *tri_leaf;    /* mesh triangle id -> leaf index */
 } ctex_hier;
 
 /* Builds the hierarchy. flat_deg / flat_thickness: §3.2 flatness test;
- * mat_weight: BVH cost factor for groups mixing materials. */
+ * mat_weight: BVH cost factor for groups mixing materials; cluster_tris:
+ * largest part kept as one leaf (0: parts are never split). */
 int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
-                    float flat_deg, float flat_thickness, float mat_weight, ctex_hier *h,
-                    ct_error *err);
+                    float flat_deg, float flat_thickness, float mat_weight, uint32_t cluster_tris,
+                    ctex_hier *h, ct_error *err);
 
 /* Frees the arrays. */
 void ctex_hier_free(ctex_hier *h);

@@ -112,7 +112,7 @@ Test(ctex_engine, hierarchy_groups_parts)
     tscene t;
     build(&t);
     ctex_hier h;
-    cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, &h, &err), 0, "%s", err.msg);
+    cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, 0, &h, &err), 0, "%s", err.msg);
     /* leaves = parts: floor, 3 x (box, plate), panel, behind */
     cr_assert_eq(h.nleaves, 9);
     uint32_t ntri = 0;
@@ -169,7 +169,7 @@ Test(ctex_engine, bvh_groups_by_material)
     ct_radmesh m;
     cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
     ctex_hier h;
-    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 100.0f, &h, &err), 0);
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 100.0f, 0, &h, &err), 0);
     /* the root's two BVH children each hold one material */
     int groups = 0;
     for (uint32_t c = 1; c < h.nodes[0].end; c = h.nodes[c].end) {
@@ -179,7 +179,7 @@ Test(ctex_engine, bvh_groups_by_material)
     cr_assert_eq(groups, 2);
     ctex_hier_free(&h);
     /* with no material weight, space wins: neighbours are paired */
-    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 0.0f, &h, &err), 0);
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 0.0f, 0, &h, &err), 0);
     for (uint32_t c = 1; c < h.nodes[0].end; c = h.nodes[c].end) cr_assert_eq(h.nodes[c].material, UINT32_MAX);
     ctex_hier_free(&h);
     rmesh_free(&m);
@@ -217,8 +217,8 @@ Test(ctex_engine, eps_zero_gives_leaf_textures)
     uint32_t n = count_textures(c, &leaves, &covered);
     cr_assert(leaves, "ε = 0: every texture on a single part");
     cr_assert_eq(n, 8, "all parts but the one behind the camera: %u", n);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.behind), -1, "frustum culling");
-    cr_assert_geq(ctex_owner(c, (uint32_t)t.floor), 0);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f)), -1, "frustum culling");
+    cr_assert_geq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), 0);
     ctex_free(c);
     release(&t);
 }
@@ -240,7 +240,7 @@ Test(ctex_engine, eps_huge_gives_one_per_top_node)
     /* the top nodes are the root's two BVH children */
     uint32_t top = 0;
     ctex_hier h;
-    cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, &h, &err), 0);
+    cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, 0, &h, &err), 0);
     for (uint32_t ch = 1; ch < h.nodes[0].end; ch = h.nodes[ch].end) top++;
     ctex_hier_free(&h);
     cr_assert_eq(n, top, "%u textures, %u top nodes", n, top);
@@ -274,9 +274,9 @@ Test(ctex_engine, frustum_culling_looking_away)
     ctex *c = engine(&t, ctex_options_default());
     ct_camera cam = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 40.0f);
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
-    cr_assert_geq(ctex_owner(c, (uint32_t)t.behind), 0, "the box in front now has a texture");
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.panel), -1);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1]), -1);
+    cr_assert_geq(ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f)), 0, "the box in front now has a texture");
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.panel, UINT32_MAX, v3s(0.0f)), -1);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), -1);
     ctex_free(c);
     release(&t);
 }
@@ -291,7 +291,7 @@ Test(ctex_engine, camera_local_maps_bounding_rect_to_unit_square)
     ct_camera cam = front_cam();
     const int W = 96, H = 64;
     cr_assert_eq(ctex_set_camera(c, &cam, W, H, &err), 0);
-    int32_t id = ctex_owner(c, (uint32_t)t.box[1]);
+    int32_t id = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f));
     cr_assert_geq(id, 0);
     ctex_proj_kind kind;
     mat4 m;
@@ -330,7 +330,7 @@ Test(ctex_engine, object_local_projection_along_normal)
     ctex *c = engine(&t, o);
     ct_camera cam = front_cam();
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
-    int32_t id = ctex_owner(c, (uint32_t)t.plate[0]);
+    int32_t id = ctex_owner(c, (uint32_t)t.plate[0], UINT32_MAX, v3s(0.0f));
     ctex_proj_kind kind;
     mat4 m;
     cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, &m, NULL), 1);
@@ -381,7 +381,7 @@ Test(ctex_engine, insert_reads_correction_and_error)
     cr_assert_float_eq(info.correction.x, 0.0f, 1e-7, "empty texture: no correction yet");
     cr_assert_float_eq(info.error.x, 0.3f, 1e-6);
     cr_assert_float_eq(info.error.z, -0.1f, 1e-6);
-    vec3 l = ctex_lookup(c, (uint32_t)t.floor, v3(1, 0, 2));
+    vec3 l = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(1, 0, 2));
     cr_assert_float_eq(l.x, 0.3f, 1e-6, "the first sample floods its texture");
     cr_assert_float_eq(l.z, -0.1f, 1e-6);
     /* the same sample again: the error is now zero */
@@ -424,7 +424,7 @@ Test(ctex_engine, diffuse_object_local_does_not_age)
     ct_camera cam = front_cam();
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
     fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
-    int32_t id = ctex_owner(c, (uint32_t)t.floor);
+    int32_t id = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
     ct_sample sp = mk_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
     ctex_insert_info info;
     cr_assert_eq(ctex_insert(c, &sp, &info), 1);
@@ -432,17 +432,17 @@ Test(ctex_engine, diffuse_object_local_does_not_age)
     float v0, pv0;
     ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v0);
     ctex_texture_info(c, (uint32_t)pid, NULL, NULL, NULL, NULL, NULL, &pv0);
-    vec3 before = ctex_lookup(c, (uint32_t)t.floor, v3(2, 0, 3));
+    vec3 before = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(2, 0, 3));
     /* move and turn the camera */
     ct_camera cam2 = cam_look_at(v3(6, 5, 10), v3(-1, 0, 0), v3(0, 1, 0), 50.0f);
     cr_assert_eq(ctex_set_camera(c, &cam2, 64, 64, &err), 0);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor), id, "the floor keeps its texture");
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), id, "the floor keeps its texture");
     float v1, pv1;
     ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v1);
     ctex_texture_info(c, (uint32_t)pid, NULL, NULL, NULL, NULL, NULL, &pv1);
     cr_assert_eq(v1, v0, "a diffuse object-local texture never ages");
     cr_assert_gt(pv1, pv0 + 1.0f, "a glossy one ages (%g -> %g)", (double)pv0, (double)pv1);
-    vec3 after = ctex_lookup(c, (uint32_t)t.floor, v3(2, 0, 3));
+    vec3 after = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(2, 0, 3));
     cr_assert_eq(after.x, before.x, "and keeps its contents");
     ctex_free(c);
     release(&t);
@@ -457,7 +457,7 @@ Test(ctex_engine, split_and_merge_resample_contents)
     /* far away: the group g1 (box + plate) shares one texture */
     ct_camera far = cam_look_at(v3(0, 30, 60), v3(0, 0.5f, 0), v3(0, 1, 0), 20.0f);
     cr_assert_eq(ctex_set_camera(c, &far, 64, 64, &err), 0);
-    int32_t a = ctex_owner(c, (uint32_t)t.box[1]), b = ctex_owner(c, (uint32_t)t.plate[1]);
+    int32_t a = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), b = ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f));
     cr_assert_geq(a, 0);
     cr_assert_eq(a, b, "box and plate share a texture from far away");
     ctex_insert_info info;
@@ -466,21 +466,21 @@ Test(ctex_engine, split_and_merge_resample_contents)
         ct_sample s = mk_sample((uint32_t)t.plate[1], v3(x, 1.01f, z), v3s(0.75f), v3s(0.25f));
         ctex_insert(c, &s, &info);
     }
-    vec3 l0 = ctex_lookup(c, (uint32_t)t.plate[1], v3(0.1f, 1.01f, 0.1f));
+    vec3 l0 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
     cr_assert_float_eq(l0.x, 0.5f, 1e-5);
     /* close up: the group splits; the plate's new texture is resampled */
     ct_camera near = cam_look_at(v3(0, 2.2f, 2.2f), v3(0, 0.8f, 0), v3(0, 1, 0), 60.0f);
     cr_assert_eq(ctex_set_camera(c, &near, 64, 64, &err), 0);
-    int32_t a2 = ctex_owner(c, (uint32_t)t.box[1]), b2 = ctex_owner(c, (uint32_t)t.plate[1]);
+    int32_t a2 = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), b2 = ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f));
     cr_assert_geq(a2, 0);
     cr_assert_geq(b2, 0);
     cr_assert_neq(a2, b2, "split into box and plate");
-    vec3 l1 = ctex_lookup(c, (uint32_t)t.plate[1], v3(0.1f, 1.01f, 0.1f));
+    vec3 l1 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
     cr_assert_float_eq(l1.x, 0.5f, 1e-4, "split texture resampled from the old one (%g)", (double)l1.x);
     /* back far away: merged again, still carrying the correction */
     cr_assert_eq(ctex_set_camera(c, &far, 64, 64, &err), 0);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1]), ctex_owner(c, (uint32_t)t.plate[1]));
-    vec3 l2 = ctex_lookup(c, (uint32_t)t.plate[1], v3(0.1f, 1.01f, 0.1f));
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f)));
+    vec3 l2 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
     cr_assert_float_eq(l2.x, 0.5f, 1e-3, "merged texture resampled (%g)", (double)l2.x);
     ctex_free(c);
     release(&t);
@@ -533,8 +533,8 @@ Test(ctex_engine, events_alloc_proj_patch_free)
     /* coming back reuses the parked texture with its contents */
     ctex_events_clear(c);
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor), info.tex);
-    cr_assert_float_eq(ctex_lookup(c, (uint32_t)t.floor, v3(1, 0, 2)).x, 0.5f, 1e-6);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), info.tex);
+    cr_assert_float_eq(ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(1, 0, 2)).x, 0.5f, 1e-6);
     ctex_free(c);
     release(&t);
 }
@@ -550,12 +550,12 @@ Test(ctex_engine, memory_cap_evicts_invisible_first)
     ctex *c = engine(&t, o);
     ct_camera cam = front_cam();
     cr_assert_eq(ctex_set_camera(c, &cam, 256, 256, &err), 0);
-    int32_t fl = ctex_owner(c, (uint32_t)t.floor);
+    int32_t fl = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
     ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
     cr_assert_eq(ctex_set_camera(c, &away, 256, 256, &err), 0);
     cr_assert_gt(ctex_get_stats(c).parked, 0);
     /* the visible box grows by dense samples until the cap bites */
-    int32_t id = ctex_owner(c, (uint32_t)t.behind);
+    int32_t id = ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f));
     cr_assert_geq(id, 0);
     ctex_insert_info info;
     for (int k = 0; k < 20000; k++) {
@@ -586,6 +586,7 @@ Test(ctex_engine, compositor_adds_bilinear_correction)
     ctex_hit hits[64];
     for (int i = 0; i < 64; i++) {
         hits[i].node = i % 2 ? UINT32_MAX : (uint32_t)t.floor;
+        hits[i].tri = UINT32_MAX;
         hits[i].p = v3(0.1f * (float)i - 3.0f, 0.0f, 1.0f);
         hits[i].l_base = v3s(0.1f);
     }
@@ -675,4 +676,93 @@ Test(ctex_engine, exported_node_table_for_the_display)
     free(nodes);
     ctex_free(c);
     release(&t);
+}
+
+/* One part: a floor of n x n quads and a back wall of n x n quads meeting
+ * at a corner (an L), one material. */
+static ct_scene *l_scene(int n)
+{
+    ct_scene *s = scene_new("L");
+    scene_material w = scene_material_default("w");
+    w.diffuse = v3s(0.5f);
+    scene_add_material(s, &w, &err);
+    cr_assert_geq(scene_begin_node(s, "L", SCENE_NODE_PART, 0, &err), 0);
+    for (int side = 0; side < 2; side++)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) {
+                float x0 = -5.0f + 10.0f * (float)i / (float)n, x1 = -5.0f + 10.0f * (float)(i + 1) / (float)n;
+                float a0 = 10.0f * (float)j / (float)n, a1 = 10.0f * (float)(j + 1) / (float)n;
+                vec3 p[4];
+                if (side == 0) { p[0] = v3(x0, 0, a0 - 10); p[1] = v3(x0, 0, a1 - 10); p[2] = v3(x1, 0, a1 - 10); p[3] = v3(x1, 0, a0 - 10); }
+                else { p[0] = v3(x0, a0, -10); p[1] = v3(x1, a0, -10); p[2] = v3(x1, a1, -10); p[3] = v3(x0, a1, -10); }
+                uint32_t idx[4];
+                vec3 nn = side == 0 ? v3(0, 1, 0) : v3(0, 0, 1);
+                for (int k = 0; k < 4; k++) idx[k] = (uint32_t)scene_add_vertex(s, p[k], nn, &err);
+                cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+            }
+    cr_assert_eq(scene_end_node(s, &err), 0);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    return s;
+}
+
+Test(ctex_engine, large_parts_split_into_flat_clusters)
+{
+    ct_scene *s = l_scene(32);   /* 2 x 2048 triangles */
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
+    cr_assert_eq(h.nleaves, 8, "4096 triangles in clusters of 512");
+    uint32_t part = 1;
+    cr_assert_eq(h.part_leaf[part], -2);
+    for (uint32_t l = 0; l < h.nleaves; l++) {
+        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
+        cr_assert_leq(n->tri_end - n->tri_begin, 512u);
+        cr_assert(n->flat, "cluster %u is flat (the normal split separated floor and wall)", l);
+        cr_assert_eq(h.leaf_part[l], part);
+        for (uint32_t i = n->tri_begin; i < n->tri_end; i++) cr_assert_eq(h.tri_leaf[h.tris[i]], l);
+    }
+    /* the part's node has both, the first split is by normal: each half flat */
+    const ctex_hnode *pn = &h.nodes[h.part_hnode[part]];
+    cr_assert(!pn->flat);
+    for (uint32_t c = h.part_hnode[part] + 1; c < pn->end; c = h.nodes[c].end) cr_assert(h.nodes[c].flat);
+    ctex_hier_free(&h);
+
+    /* through the engine: a sample goes into its triangle's cluster, the
+     * lookup without a triangle finds the same texture by position */
+    ctex_options o = ctex_options_default();
+    o.cluster_tris = 512;
+    o.eps = 0.0f;
+    ctex *c = NULL;
+    cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &o, &c, &err), 0);
+    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    cr_assert_eq(ctex_get_stats(c).textures, 8, "one texture per visible cluster (ε = 0)");
+    uint32_t tri = 100;   /* a floor triangle */
+    const uint32_t *v = m.tris + 3 * tri;
+    vec3 p = v3_scale(v3_add(m.pos[v[0]], v3_add(m.pos[v[1]], m.pos[v[2]])), 1.0f / 3.0f);
+    ct_sample smp;
+    memset(&smp, 0, sizeof smp);
+    smp.flags = CT_SAMPLE_HIT;
+    smp.node = part;
+    smp.tri = tri;
+    smp.hit = p;
+    smp.l_hq = v3s(1.0f);
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(c, &smp, &info), 1);
+    cr_assert_eq(info.tex, ctex_owner(c, part, tri, p));
+    cr_assert_eq(ctex_owner(c, part, UINT32_MAX, p), info.tex, "bounds fallback");
+    cr_assert_float_eq(ctex_lookup(c, part, tri, p).x, 1.0f, 1e-6);
+    uint32_t hl = ctex_hnode_of_tri(c, tri);
+    uint32_t hn;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)info.tex, &hn, NULL, NULL, NULL, NULL, NULL), 1);
+    cr_assert_eq(hn, hl);
+    rmesh_node *nodes = calloc(ctex_get_stats(c).hier_nodes, sizeof *nodes);
+    ctex_export_nodes(c, nodes);
+    cr_assert_str_eq(nodes[ctex_hnode_of_part(c, part)].name, "L");
+    cr_assert(strncmp(nodes[hl].name, "cluster:", 8) == 0, "%s", nodes[hl].name);
+    free(nodes);
+    ctex_free(c);
+    rmesh_free(&m);
+    scene_free(s);
 }
