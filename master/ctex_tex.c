@@ -185,6 +185,15 @@ static void double_exact(const ctex_tex *t, ctex_texel *nt, int fx, int fy)
                     const ctex_texel *ps[4] = {r0 + i, r0 + in, r1 + i, r1 + in};
                     const float ws[4] = {(1.0f - wx1) * (1.0f - wy1), wx1 * (1.0f - wy1), (1.0f - wx1) * wy1, wx1 * wy1};
                     ctex_texel *q = o + fx * i + a;
+                    if (ps[0]->v != -INFINITY && ps[1]->v != -INFINITY && ps[2]->v != -INFINITY &&
+                        ps[3]->v != -INFINITY) {
+                        /* all valid (the common case): the weights sum to 1 */
+                        q->r = ws[0] * ps[0]->r + ws[1] * ps[1]->r + ws[2] * ps[2]->r + ws[3] * ps[3]->r;
+                        q->g = ws[0] * ps[0]->g + ws[1] * ps[1]->g + ws[2] * ps[2]->g + ws[3] * ps[3]->g;
+                        q->b = ws[0] * ps[0]->b + ws[1] * ps[1]->b + ws[2] * ps[2]->b + ws[3] * ps[3]->b;
+                        q->v = vmax + (ps[0]->v - vmax) * vs;
+                        continue;
+                    }
                     float sw = 0.0f, cr = 0.0f, cg = 0.0f, cb = 0.0f;
                     for (int k = 0; k < 4; k++)
                         if (ps[k]->v != -INFINITY && ws[k] > 0.0f) {
