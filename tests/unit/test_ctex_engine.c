@@ -766,3 +766,57 @@ Test(ctex_engine, large_parts_split_into_flat_clusters)
     rmesh_free(&m);
     scene_free(s);
 }
+
+/* Fills the box part's camera-local texture with samples whose value is
+ * their x coordinate, on the faces seen from the front. */
+static void fill_box(ctex *c, uint32_t node, float x0)
+{
+    ctex_insert_info info;
+    for (int i = 0; i <= 40; i++)
+        for (int j = 0; j <= 40; j++) {
+            vec3 p = v3(x0 - 0.5f + (float)i / 40.0f, (float)j / 40.0f, 0.5f);   /* front face z = 0.5 */
+            ct_sample s = mk_sample(node, p, v3s(p.x - x0 + 0.5f), v3s(0.0f));
+            ctex_insert(c, &s, &info);
+        }
+}
+
+Test(ctex_engine, camera_local_rotation_keeps_contents_and_does_not_age)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = cam_look_at(v3(0, 1.5f, 6), v3(0, 0.5f, 0), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 128, 128, &err), 0);
+    uint32_t box = (uint32_t)t.box[1];
+    int32_t id = ctex_owner(c, box, UINT32_MAX, v3(0, 0.5f, 0.5f));
+    ctex_proj_kind kind;
+    float v0;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, NULL, &v0), 1);
+    cr_assert_eq(kind, CTEX_PROJ_CAMERA);
+    fill_box(c, box, 0.0f);
+    vec3 pts[3] = {v3(-0.3f, 0.5f, 0.5f), v3(0.0f, 0.2f, 0.5f), v3(0.3f, 0.8f, 0.5f)};
+    float before[3];
+    for (int k = 0; k < 3; k++) before[k] = ctex_lookup(c, box, UINT32_MAX, pts[k]).x;
+    /* turn the camera a little about its eye: the box moves on screen, the
+     * reprojected texture stays on it */
+    ct_camera turned = cam_look_at(cam.eye, v3(0.4f, 0.7f, 0), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &turned, 128, 128, &err), 0);
+    cr_assert_eq(ctex_owner(c, box, UINT32_MAX, pts[0]), id);
+    float v1;
+    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v1);
+    cr_assert_float_eq(v1, v0, 1e-6, "a rotation about the eye does not age (%g -> %g)", (double)v0, (double)v1);
+    for (int k = 0; k < 3; k++) {
+        float after = ctex_lookup(c, box, UINT32_MAX, pts[k]).x;
+        cr_assert_float_eq(after, before[k], 0.06, "point %d: %g -> %g", k, (double)before[k], (double)after);
+    }
+    /* a translation ages a camera-local texture (texture flow, §3.5) */
+    ct_camera moved = cam_look_at(v3(1.0f, 1.5f, 6), v3(0.4f, 0.7f, 0), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &moved, 128, 128, &err), 0);
+    float v2;
+    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v2);
+    cr_assert_gt(v2, v1 + 0.01f, "moving the eye ages the camera-local texture (%g -> %g)", (double)v1, (double)v2);
+    ctex_free(c);
+    release(&t);
+}
