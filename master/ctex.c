@@ -914,12 +914,23 @@ static inline void prefetch_sample(const ctex *c, const ct_sample *s)
     }
 }
 
+/* First prefetch stage: the triangle's leaf entry, which the texel address
+ * depends on. */
+static inline void prefetch_leaf(const ctex *c, const ct_sample *s)
+{
+    if (s->tri < c->h.ntris) __builtin_prefetch(&c->h.tri_leaf[s->tri], 0, 1);
+}
+
 size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info)
 {
-    enum { AHEAD = 4 };   /* samples prefetched ahead: hides DRAM latency */
+    /* two stages ahead: the leaf entries 8 samples ahead, the texel rows 4
+     * ahead (their address needs the leaf); hides DRAM latency */
+    enum { AHEAD = 4, AHEAD2 = 8 };
     size_t done = 0;
+    for (size_t i = 0; i < n && i < AHEAD2; i++) prefetch_leaf(c, &s[i]);
     for (size_t i = 0; i < n && i < AHEAD; i++) prefetch_sample(c, &s[i]);
     for (size_t i = 0; i < n; i++) {
+        if (i + AHEAD2 < n) prefetch_leaf(c, &s[i + AHEAD2]);
         if (i + AHEAD < n) prefetch_sample(c, &s[i + AHEAD]);
         done += (size_t)ctex_insert(c, &s[i], &info[i]);
     }
