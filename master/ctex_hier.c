@@ -7,6 +7,8 @@
 #include <string.h>
 
 #define MIXED UINT32_MAX
+#define MINF(a, b) ((a) < (b) ? (a) : (b))
+#define MAXF(a, b) ((a) > (b) ? (a) : (b))
 
 /* Per modeling node: statistics of its own triangles and of its subtree. */
 typedef struct mstat {
@@ -48,6 +50,7 @@ typedef struct builder {
     uint32_t fill;            /* triangles placed in h->tris so far */
     uint32_t cluster_max;     /* split parts with more triangles (0: never) */
     float flat_cos;           /* cos(flat_deg): normal agreement of a flat cluster */
+    float flat_thickness;     /* coplanarity of a flat cluster */
     struct tkey { float k; uint32_t t; } *keys;   /* scratch for partitioning */
     ct_error *err;
 } builder;
@@ -111,13 +114,47 @@ static void select_k(struct tkey *a, uint32_t n, uint32_t k)
     }
 }
 
+/* Whether triangles [begin, end) of h->tris are flat: their unit normals'
+ * mean is longer than cos(flat_deg) and they are coplanar (extent along it at
+ * most flat_thickness times the largest box extent). A flat set stays one
+ * leaf whatever its size: its clusters would interleave (a radiosity mesh
+ * has long slivers) and split one object-local texture into strips. */
+static int tris_flat(const builder *B, uint32_t begin, uint32_t end)
+{
+    const ct_radmesh *m = B->m;
+    const uint32_t *tris = B->h->tris;
+    vec3 nsum = v3s(0.0f);
+    bounds3 bb = b3_empty();
+    for (uint32_t i = begin; i < end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)tris[i];
+        vec3 a = m->pos[v[0]], b = m->pos[v[1]], c = m->pos[v[2]];
+        nsum = v3_add(nsum, v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a))));
+        bb = b3_add(b3_add(b3_add(bb, a), b), c);
+    }
+    vec3 mean = v3_scale(nsum, 1.0f / (float)(end - begin));
+    if (!(v3_len(mean) >= B->flat_cos)) return 0;
+    vec3 n = v3_norm(mean);
+    float dmin = INFINITY, dmax = -INFINITY;
+    for (uint32_t i = begin; i < end; i++) {
+        const uint32_t *v = m->tris + 3 * (size_t)tris[i];
+        for (int k = 0; k < 3; k++) {
+            float d = v3_dot(m->pos[v[k]], n);
+            dmin = MINF(dmin, d);
+            dmax = MAXF(dmax, d);
+        }
+    }
+    return dmax - dmin <= B->flat_thickness * v3_maxc(b3_extent(bb));
+}
+
 /* Splits a large part's triangles [begin, end) into clusters: by the normal
  * component that varies most while the normals disagree (so walls meeting at
- * a corner separate), else at the median centroid along the longest axis. */
+ * a corner separate), else at the median centroid along the longest axis;
+ * a flat set is not split. */
 static int emit_tris(builder *B, uint32_t part, uint32_t begin, uint32_t end, int32_t parent, int depth)
 {
     uint32_t n = end - begin;
-    if (n <= B->cluster_max || depth > 64) return tri_leaf(B, part, -1, begin, end, parent);
+    if (n <= B->cluster_max || depth > 64 || tris_flat(B, begin, end))
+        return tri_leaf(B, part, -1, begin, end, parent);
     const ct_radmesh *m = B->m;
     uint32_t *tris = B->h->tris;
     vec3 nsum = v3s(0.0f), nsq = v3s(0.0f);
@@ -176,7 +213,7 @@ static int emit_leaf(builder *B, uint32_t node, int32_t parent)
     uint32_t count = B->st[node].own, begin = B->fill;
     memcpy(B->h->tris + begin, B->sorted + B->node_start[node], count * sizeof(uint32_t));
     B->fill += count;
-    if (!B->cluster_max || count <= B->cluster_max) {
+    if (!B->cluster_max || count <= B->cluster_max || tris_flat(B, begin, begin + count)) {
         B->leaf_of_node[node] = (int32_t)B->h->nleaves;
         B->h->part_hnode[node] = (int32_t)B->h->nnodes;
         return tri_leaf(B, node, (int32_t)node, begin, begin + count, parent);
@@ -366,8 +403,6 @@ static int emit_items(builder *B, item *it, uint32_t k, int32_t parent, int dept
     return rc;
 }
 
-#define MINF(a, b) ((a) < (b) ? (a) : (b))
-#define MAXF(a, b) ((a) > (b) ? (a) : (b))
 
 /* Leaf geometry from its triangles: bounds, area, normal (and nsum, the
  * area-weighted normal sum), exact normal spread, material, glossiness. */
@@ -596,6 +631,7 @@ int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nm
     B.m = m; B.st = st; B.h = h; B.mat_weight = mat_weight; B.leaf_of_node = leaf_of_node; B.err = err;
     B.cluster_max = cluster_tris;
     B.flat_cos = cosf(flat_deg * CT_PI / 180.0f);
+    B.flat_thickness = flat_thickness;
     /* nodes: modeling ones, BVH nodes above them, pseudo leaves, and at most
      * 2 n / cluster_max cluster nodes per split part */
     size_t cap = 3 * (size_t)N + 2 + (cluster_tris ? 4 * ((size_t)m->ntris / cluster_tris + N) : 0);

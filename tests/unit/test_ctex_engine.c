@@ -712,12 +712,12 @@ Test(ctex_engine, large_parts_split_into_flat_clusters)
     cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
     ctex_hier h;
     cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
-    cr_assert_eq(h.nleaves, 8, "4096 triangles in clusters of 512");
+    cr_assert_eq(h.nleaves, 2, "4096 triangles: split by normal into floor and wall, flat halves stay whole");
     uint32_t part = 1;
     cr_assert_eq(h.part_leaf[part], -2);
     for (uint32_t l = 0; l < h.nleaves; l++) {
         const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
-        cr_assert_leq(n->tri_end - n->tri_begin, 512u);
+        cr_assert_eq(n->tri_end - n->tri_begin, 2048u);
         cr_assert(n->flat, "cluster %u is flat (the normal split separated floor and wall)", l);
         cr_assert_eq(h.leaf_part[l], part);
         for (uint32_t i = n->tri_begin; i < n->tri_end; i++) cr_assert_eq(h.tri_leaf[h.tris[i]], l);
@@ -737,7 +737,7 @@ Test(ctex_engine, large_parts_split_into_flat_clusters)
     cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &o, &c, &err), 0);
     ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
-    cr_assert_eq(ctex_get_stats(c).textures, 8, "one texture per visible cluster (ε = 0)");
+    cr_assert_eq(ctex_get_stats(c).textures, 2, "one texture per visible cluster (ε = 0)");
     uint32_t tri = 100;   /* a floor triangle */
     const uint32_t *v = m.tris + 3 * tri;
     vec3 p = v3_scale(v3_add(m.pos[v[0]], v3_add(m.pos[v[1]], m.pos[v[2]])), 1.0f / 3.0f);
@@ -819,4 +819,45 @@ Test(ctex_engine, camera_local_rotation_keeps_contents_and_does_not_age)
     cr_assert_gt(v2, v1 + 0.01f, "moving the eye ages the camera-local texture (%g -> %g)", (double)v1, (double)v2);
     ctex_free(c);
     release(&t);
+}
+
+Test(ctex_engine, non_flat_large_parts_split_by_space)
+{
+    /* a corrugated sheet: strips tilted +-20 degrees, one part of 4096
+     * triangles; the normal split gives two sets of parallel, not coplanar
+     * strips, which split by space down to clusters of at most 512 */
+    ct_scene *s = scene_new("corrugated");
+    scene_material w = scene_material_default("w");
+    w.diffuse = v3s(0.5f);
+    scene_add_material(s, &w, &err);
+    cr_assert_geq(scene_begin_node(s, "sheet", SCENE_NODE_PART, 0, &err), 0);
+    const int nx = 64, nz = 32;
+    for (int i = 0; i < nx; i++)
+        for (int j = 0; j < nz; j++) {
+            float x0 = (float)i * 0.2f, x1 = x0 + 0.2f, z0 = (float)j * 0.2f, z1 = z0 + 0.2f;
+            float y0 = (i % 2) ? 0.0728f : 0.0f, y1 = (i % 2) ? 0.0f : 0.0728f;   /* tan(20°) * 0.2 */
+            vec3 p[4] = {v3(x0, y0, z0), v3(x0, y0, z1), v3(x1, y1, z1), v3(x1, y1, z0)};
+            uint32_t idx[4];
+            for (int k = 0; k < 4; k++) idx[k] = (uint32_t)scene_add_vertex(s, p[k], v3(0, 1, 0), &err);
+            cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+        }
+    cr_assert_eq(scene_end_node(s, &err), 0);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
+    cr_assert_geq(h.nleaves, 8u);
+    uint32_t total = 0;
+    for (uint32_t l = 0; l < h.nleaves; l++) {
+        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
+        cr_assert_leq(n->tri_end - n->tri_begin, 512u);
+        total += n->tri_end - n->tri_begin;
+        /* each cluster holds strips of one tilt only */
+        cr_assert_lt(n->spread_deg, 1.0f, "cluster %u mixes tilts (spread %g)", l, (double)n->spread_deg);
+    }
+    cr_assert_eq(total, 4096u);
+    ctex_hier_free(&h);
+    rmesh_free(&m);
+    scene_free(s);
 }
