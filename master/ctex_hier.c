@@ -146,10 +146,10 @@ static int tris_flat(const builder *B, uint32_t begin, uint32_t end)
     return dmax - dmin <= B->flat_thickness * v3_maxc(b3_extent(bb));
 }
 
-/* Splits a large part's triangles [begin, end) into clusters: by the normal
- * component that varies most while the normals disagree (so walls meeting at
- * a corner separate), else at the median centroid along the longest axis;
- * a flat set is not split. */
+/* Splits a large part's triangles [begin, end) into clusters: at the middle
+ * of the range of the normal component that varies most while the normals
+ * disagree (so walls meeting at a corner separate), else at the median
+ * centroid along the longest axis; a flat set is not split. */
 static int emit_tris(builder *B, uint32_t part, uint32_t begin, uint32_t end, int32_t parent, int depth)
 {
     uint32_t n = end - begin;
@@ -186,7 +186,20 @@ static int emit_tris(builder *B, uint32_t part, uint32_t begin, uint32_t end, in
         k[i - begin].t = tris[i];
     }
     uint32_t half = n / 2;
-    select_k(k, n, half);
+    if (by_normal) {
+        /* split at the middle of the component's range, not at its median:
+         * equal normals (one wall) must not straddle the split */
+        float kmin = INFINITY, kmax = -INFINITY;
+        for (uint32_t i = 0; i < n; i++) { kmin = MINF(kmin, k[i].k); kmax = MAXF(kmax, k[i].k); }
+        float cut = 0.5f * (kmin + kmax);
+        uint32_t lo = 0;
+        for (uint32_t i = 0; i < n; i++)
+            if (k[i].k < cut) { struct tkey t = k[i]; k[i] = k[lo]; k[lo] = t; lo++; }
+        if (lo > 0 && lo < n) half = lo;
+        else select_k(k, n, half);
+    } else {
+        select_k(k, n, half);
+    }
     for (uint32_t i = 0; i < n; i++) tris[begin + i] = k[i].t;
     uint32_t mid = begin + half;
     for (int side = 0; side < 2; side++) {
