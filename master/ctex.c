@@ -138,7 +138,9 @@ void ctex_options_help(FILE *f)
         if (OPTS[i].type == 0) snprintf(val, sizeof val, "%g", (double)*(const float *)(const void *)p);
         else if (OPTS[i].type == 1) snprintf(val, sizeof val, "%d", *(const int *)(const void *)p);
         else snprintf(val, sizeof val, "%g", *(const double *)(const void *)p);
-        fprintf(f, "  %-18s X  %s (default %s)\n", OPTS[i].flag, OPTS[i].help, val);
+        char flag[48];
+        snprintf(flag, sizeof flag, "%s %s", OPTS[i].flag, OPTS[i].type == 1 ? "N" : "X");
+        fprintf(f, "  %-30s %s (default %s)\n", flag, OPTS[i].help, val);
     }
 }
 
