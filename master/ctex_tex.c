@@ -334,12 +334,20 @@ done:
 
 void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, float penalty)
 {
+    /* The unprojection is affine in (u, v) for both kinds (object-local: the
+     * frame; camera-local: eye + depth * (forward + right sx + up sy) with
+     * sx, sy affine in the pixel position), so three calls give it all. */
+    vec3 x0 = ctex_tex_unproject(dst, 0.0f, 0.0f);
+    vec3 xu = v3_sub(ctex_tex_unproject(dst, 1.0f, 0.0f), x0);
+    vec3 xv = v3_sub(ctex_tex_unproject(dst, 0.0f, 1.0f), x0);
+    const float iw = 1.0f / (float)dst->w, ih = 1.0f / (float)dst->h;
     for (int j = 0; j < dst->h; j++) {
+        vec3 row = v3_madd(x0, xv, ((float)j + 0.5f) * ih);
         for (int i = 0; i < dst->w; i++) {
             ctex_texel *o = dst->tx + (size_t)j * (size_t)dst->w + (size_t)i;
             o->r = o->g = o->b = 0.0f;
             o->v = -INFINITY;
-            vec3 p = ctex_tex_unproject(dst, ((float)i + 0.5f) / (float)dst->w, ((float)j + 0.5f) / (float)dst->h);
+            vec3 p = v3_madd(row, xu, ((float)i + 0.5f) * iw);
             float best = -INFINITY;
             for (int s = 0; s < nsrc; s++) {
                 const ctex_tex *st = src[s];
