@@ -45,7 +45,9 @@ static inline int put(ctex_texel *x, float vn, vec3 val, float blend)
     float m = vn - x->v;
     if (m > 0.0f) {
         if (m >= blend) {
-            x->r = val.x; x->g = val.y; x->b = val.z;
+            /* one 16-byte store */
+            *x = (ctex_texel){val.x, val.y, val.z, vn};
+            return 1;
         } else {
             /* §3.4: blend new and old by their validities at splat borders */
             float w = 0.5f + 0.5f * m / blend;
