@@ -23,6 +23,7 @@
 #include "common/timer.h"
 #include "master/ctex.h"
 #include "master/sampler.h"
+#include "tracer/radiosity.h"
 #include "tracer/tracer.h"
 
 #define COMPONENT "corrtex converge"
@@ -49,9 +50,12 @@ static void usage(FILE *f)
             "  --move-to NAME         then move to this camera without updates (moved.exr) ...\n"
             "  --samples-after LIST   ... and trace these many more samples (after_*.png)\n"
             "  --reference-after REF  reference for the moved camera     default: none\n"
+            "  --mesh FILE.ctmesh     radiosity cache: loaded when it holds this scene's solution,\n"
+            "                         else solved (default parameters) and written there\n"
+            "                                                            default: solve, no cache\n"
             "  --stand-in A           interactive solution: the constant stand-in (emission +\n"
-            "                         diffuse x A per material; the radiosity solver is not\n"
-            "                         on main yet)                       default: 0.3\n"
+            "                         diffuse x A per material) instead of radiosity (tests)\n"
+            "                                                            default: off\n"
             "  --batch B              requests per batch                 default: 256\n"
             "  --threads T            tracing threads                    default: 2\n"
             "  --seed S               seed of the queue and the tracer   default: 1\n"
@@ -474,20 +478,47 @@ static int parse_int(const char *flag, const char *v, int lo, int hi, int *out, 
     return CT_OK;
 }
 
-/* The interactive solution. The radiosity solver has not landed on main yet,
- * so the only one available is the constant stand-in (common/radmesh.h);
- * --mesh will load `corrtex radiosity` caches once radmesh_io.c exists. */
-static int load_mesh(const ct_scene *s, float stand_in, ct_radmesh *m, ct_error *err)
+static void rad_progress(void *user, double fraction, const char *what)
 {
-    if (stand_in < 0.0f) stand_in = 0.3f;
-    ct_info(COMPONENT, "interactive solution: the constant stand-in (ambient %g)", (double)stand_in);
-    return rmesh_from_scene(s, v3s(stand_in), m, err);
+    (void)user;
+    ct_progress("radiosity", fraction, fraction >= 1.0, "%s", what);
+}
+
+/* The interactive solution: the constant stand-in when asked for (tests,
+ * throughput), else hierarchical radiosity with default parameters, loaded
+ * from or written to the cache file when one is given (stale caches are
+ * recomputed). */
+static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_radmesh *m, ct_error *err)
+{
+    if (stand_in >= 0.0f) {
+        ct_info(COMPONENT, "interactive solution: the constant stand-in (ambient %g)", (double)stand_in);
+        return rmesh_from_scene(s, v3s(stand_in), m, err);
+    }
+    rad_params p;
+    rad_params_default(&p);
+    rad_stats st;
+    int from_cache = 0, rc;
+    ct_error why;
+    double t0 = ct_now();
+    if (cache)
+        rc = rad_cached_solve(s, &p, cache, rad_progress, NULL, m, &st, &from_cache, &why, err);
+    else
+        rc = rad_solve(s, &p, rad_progress, NULL, m, &st, err);
+    if (rc) return rc;
+    if (from_cache)
+        ct_info(COMPONENT, "interactive solution: %s (%u triangles, cached)", cache, m->ntris);
+    else if (cache)
+        ct_info(COMPONENT, "interactive solution: radiosity, %u triangles in %.1f s, written to %s (%s)",
+                m->ntris, ct_now() - t0, cache, why.msg);
+    else
+        ct_info(COMPONENT, "interactive solution: radiosity, %u triangles in %.1f s", m->ntris, ct_now() - t0);
+    return CT_OK;
 }
 
 int cmd_converge(int argc, char **argv)
 {
     ct_error err = {{0}};
-    const char *scene_path = NULL, *cam_name = NULL, *move_name = NULL, *out = NULL;
+    const char *scene_path = NULL, *cam_name = NULL, *move_name = NULL, *out = NULL, *mesh_path = NULL;
     const char *ref_path = NULL, *ref2_path = NULL, *samples_arg = NULL, *after_arg = NULL;
     int W = 512, H = 512, batch = 256, threads = 2, time_ins = 0;
     int shadow = -1, branch = -1, depth = -1;
@@ -527,6 +558,9 @@ int cmd_converge(int argc, char **argv)
             char *end;
             exposure = v ? strtof(v, &end) : 0.0f;
             if (!v || end == v || *end || !isfinite(exposure)) rc = ct_fail(&err, CT_EINVAL, "--exposure: '%s' is not a number", v ? v : "");
+        } else if (strcmp(a, "--mesh") == 0) {
+            mesh_path = v;
+            if (!v) rc = ct_fail(&err, CT_EINVAL, "--mesh needs a file name");
         } else if (strcmp(a, "--stand-in") == 0) {
             char *end;
             stand_in = v ? strtof(v, &end) : -1.0f;
@@ -600,7 +634,11 @@ int cmd_converge(int argc, char **argv)
     }
     ct_camera cam = scene->cams[ci].cam, cam2 = ci2 >= 0 ? scene->cams[ci2].cam : cam;
     if ((rc = fs_mkdirs(out, &err))) goto fail;
-    if ((rc = load_mesh(scene, stand_in, &mesh, &err))) goto fail;
+    if (mesh_path && stand_in >= 0.0f) {
+        rc = ct_fail(&err, CT_EINVAL, "give --mesh or --stand-in, not both");
+        goto fail;
+    }
+    if ((rc = load_mesh(scene, stand_in, mesh_path, &mesh, &err))) goto fail;
     trc_options to;
     trc_options_default(&to, mode);
     to.seed = (uint64_t)seed;

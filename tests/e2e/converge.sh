@@ -93,5 +93,17 @@ expect_error "missing.json"
 run 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet
 expect_error "48x48"
 
+run 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --mesh "$tmp/m.ctmesh" --quiet
+expect_error "not both"
+
+# The real interactive solution: radiosity solved once into the cache, then
+# loaded from it (the log says which).
+run 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/m.ctmesh" --out "$tmp/rad1"
+grep -q "written to" "$tmp/err" || fail "first --mesh run did not solve and write the cache"
+[[ -s $tmp/m.ctmesh ]] || fail "no cache file written"
+run 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/m.ctmesh" --out "$tmp/rad2"
+grep -q "cached" "$tmp/err" || fail "second --mesh run did not use the cache"
+cmp -s "$tmp/rad1/corrected_200.exr" "$tmp/rad2/corrected_200.exr" || fail "cached and solved runs differ"
+
 if ((fails)); then echo "converge e2e: $fails failure(s)"; exit 1; fi
 echo "converge e2e: ok"
