@@ -44,6 +44,12 @@ static struct {
 int mpil_init(int *argc, char ***argv, int *rank, int *size, ct_error *err)
 {
     int provided = 0;
+    /* Open MPI's shared-memory transport reads large messages straight from
+     * the sender's memory (CMA); when the sender dies mid-transfer the
+     * receiver fails inside MPI and the master dies before it can tell the
+     * display. Copying through the shared segment instead costs one memcpy
+     * of messages under a megabyte. A value the user set wins. */
+    setenv("OMPI_MCA_btl_vader_single_copy_mechanism", "none", 0);
     MPI_CHECK(MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided), err);
     L.active = 1;
     /* Errors come back to us (and are reported with file:line) rather than
