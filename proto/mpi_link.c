@@ -205,14 +205,19 @@ int mpil_wait(int source, int tag, unsigned sleep_time_us, double timeout_s, mpi
         return 1;
     }
     double end = timeout_s < 0 ? 0 : ct_now() + timeout_s;
+    unsigned nap = sleep_time_us < 20 ? sleep_time_us : 20;
     for (;;) {
         int rc = mpil_probe(source, tag, info, err);
         if (rc != 0) return rc;
         if (mpil_progress(err) < 0) return CT_EIO;
         if (timeout_s >= 0 && ct_now() > end) return 0;
         /* Sleeping between probes leaves the core to the ranks that work
-         * (MPI's blocking probe spins, which hurts oversubscribed runs). */
-        if (sleep_time_us) sleep_us(sleep_time_us);
+         * (MPI's blocking probe spins, which hurts oversubscribed runs);
+         * the nap grows while nothing comes, so a busy link stays fast. */
+        if (nap) {
+            sleep_us(nap);
+            nap = nap * 2 > sleep_time_us ? sleep_time_us : nap * 2;
+        }
     }
 }
 

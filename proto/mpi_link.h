@@ -74,9 +74,9 @@ void mpil_cancel_pending(void);
  * blocking: 1 with *info filled when one is there, 0 when none. */
 int mpil_probe(int source, int tag, mpil_info *info, ct_error *err);
 
-/* Waits for a message, polling every sleep_us microseconds (0: MPI's own
- * blocking probe, which spins a core) up to timeout_s (< 0: no limit);
- * 1 when one arrived, 0 on timeout. */
+/* Waits for a message, sleeping between probes (from 20 us doubling up to
+ * sleep_us; 0 with timeout_s < 0: MPI's own blocking probe, which spins a
+ * core) up to timeout_s (< 0: no limit); 1 when one arrived, 0 on timeout. */
 int mpil_wait(int source, int tag, unsigned sleep_us, double timeout_s, mpil_info *info, ct_error *err);
 
 /* Receives the message info describes (from a probe) into out (replacing its
