@@ -7,6 +7,7 @@
 
 const cli_command cli_commands[] = {
     {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
+    {"radiosity", "hierarchical radiosity solution as a .ctmesh cache", cmd_radiosity},
     {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
     {"reference", "render the high-quality reference image(s) (path, drt, reuse-diffuse)", cmd_reference},
     {NULL, NULL, NULL}
