@@ -26,4 +26,8 @@ extern const cli_command cli_commands[];
 /* corrtex compare A.exr B.exr [--json] [--max-rmse X] (cmd_compare.c). */
 int cmd_compare(int argc, char **argv);
 
+/* corrtex converge SCENE --samples N[,N2,...] --out DIR [options] (cmd_converge.c):
+ * the master engine and the tracer in one process (docs/textures.md). */
+int cmd_converge(int argc, char **argv);
+
 #endif

@@ -10,6 +10,7 @@ const cli_command cli_commands[] = {
     {"radiosity", "hierarchical radiosity solution as a .ctmesh cache", cmd_radiosity},
     {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
     {"reference", "render the high-quality reference image(s) (path, drt, reuse-diffuse)", cmd_reference},
+    {"converge", "corrective textures converging for a still camera (master + tracer, one process)", cmd_converge},
     {NULL, NULL, NULL}
 };
 
