@@ -95,7 +95,7 @@ all: $(PROGS) scenes
 $(BUILD)/%.o: %.c
 	@mkdir -p $(dir $@)
 	@[ "$(V)" = 1 ] || echo "  CC      $<"
-	$(Q)$(CC) $(CFLAGS) $(if $(filter master/%,$<),$(MPICF)) -c $< -o $@
+	$(Q)$(CC) $(CFLAGS) $(if $(filter master/% proto/%,$<),$(MPICF)) -c $< -o $@
 
 lib_objs = $(or $(call objs_of,$(1)),$(BUILD)/empty.o)
 define LIBRULE

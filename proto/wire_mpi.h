@@ -4,7 +4,7 @@
  * (shutdown, seed and mode). Encoded like the display protocol: explicit
  * little-endian, field by field, every count checked against the buffer and
  * a maximum; MPI delimits messages, so a buffer must be exactly one message.
- * The MPI transport itself lives in master/ and tracer/. Spec:
+ * The MPI transport is proto/mpi_link.h. Spec:
  * docs/protocol.md, "MPI messages". */
 #ifndef CT_PROTO_WIRE_MPI_H
 #define CT_PROTO_WIRE_MPI_H

@@ -1,0 +1,379 @@
+/* dsrv.c: the display server (dsrv.h). Connections go through three stages:
+ * pending (handshake: HELLO, AUTH), waiting for SETTINGS, active (the one
+ * display). Everything is non-blocking and driven by one poll() per step, so
+ * a peer that stalls or misbehaves costs the others nothing. */
+#include "master/dsrv.h"
+
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "common/log.h"
+#include "common/timer.h"
+#include "proto/chan.h"
+#include "proto/xport.h"
+
+#define COMPONENT "display-server"
+#define MAX_EVENTS 64
+
+typedef struct pconn {
+    chan *c;
+    double deadline;     /* handshake + SETTINGS must be done by then */
+    int ready_logged;
+} pconn;
+
+struct dsrv {
+    dsrv_config cfg;
+    xport_listener *l;
+    char addr[XPORT_ADDR_LEN];
+    pconn pend[DSRV_MAX_PENDING];
+    int npend;
+    chan *disp;          /* the active display */
+    char disp_peer[XPORT_ADDR_LEN];
+    uint64_t sent_closed;   /* bytes sent on connections already closed */
+    dsrv_event ev[MAX_EVENTS];
+    int ev_head, ev_n;
+};
+
+void dsrv_default_listen(char *out, size_t cap)
+{
+    const char *dir = getenv("XDG_RUNTIME_DIR");
+    if (!dir || !*dir) dir = "/tmp";
+    snprintf(out, cap, "unix:%s/corrtex-%ld.sock", dir, (long)getpid());
+}
+
+int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
+{
+    xport_addr a;
+    int rc = xport_parse(cfg->listen, true, &a, err);
+    if (rc) return rc;
+    if (a.kind == XPORT_TCP && !cfg->token)
+        return ct_fail(err, CT_EINVAL,
+                       "%s: TCP needs a token (--token-file FILE or %s): without one anyone who reaches the port "
+                       "could drive the master",
+                       cfg->listen, AUTH_TOKEN_ENV);
+    dsrv *s = calloc(1, sizeof *s);
+    if (!s) return ct_fail(err, CT_ENOMEM, "display server: out of memory");
+    s->cfg = *cfg;
+    if (a.kind == XPORT_UNIX) {
+        /* The socket file is created with this mode: only our user may connect. */
+        mode_t old = umask(0077);
+        rc = xport_listen(cfg->listen, &s->l, err);
+        umask(old);
+        if (rc == 0 && chmod(a.path, 0600) != 0)
+            rc = ct_fail(err, CT_ESYS, "%s: cannot set mode 0600 on the socket file", a.path);
+    } else {
+        rc = xport_listen(cfg->listen, &s->l, err);
+    }
+    if (rc) {
+        if (s->l) xport_listener_close(s->l);
+        free(s);
+        return rc;
+    }
+    snprintf(s->addr, sizeof s->addr, "%s", xport_listener_addr(s->l));
+    *out = s;
+    return 0;
+}
+
+static void add_event(dsrv *s, dsrv_event_kind kind, const wire_msg *m, const char *text)
+{
+    if (s->ev_n == MAX_EVENTS) {
+        /* Only cameras can pile up; the oldest is the least useful. */
+        s->ev_head = (s->ev_head + 1) % MAX_EVENTS;
+        s->ev_n--;
+    }
+    dsrv_event *e = &s->ev[(s->ev_head + s->ev_n) % MAX_EVENTS];
+    memset(e, 0, sizeof *e);
+    e->kind = kind;
+    if (m) e->msg = *m;
+    if (text) snprintf(e->text, sizeof e->text, "%s", text);
+    s->ev_n++;
+}
+
+static void count_closed(dsrv *s, chan *c)
+{
+    uint64_t rx, tx;
+    chan_byte_counts(c, &rx, &tx);
+    s->sent_closed += tx;
+}
+
+static void close_pending(dsrv *s, int i)
+{
+    count_closed(s, s->pend[i].c);
+    chan_free(s->pend[i].c);
+    s->pend[i] = s->pend[--s->npend];
+}
+
+static void close_display(dsrv *s, const char *why)
+{
+    if (!s->disp) return;
+    count_closed(s, s->disp);
+    chan_free(s->disp);
+    s->disp = NULL;
+    add_event(s, DSRV_EV_DISCONNECTED, NULL, why);
+    s->disp_peer[0] = 0;
+}
+
+void dsrv_free(dsrv *s)
+{
+    if (!s) return;
+    while (s->npend) close_pending(s, s->npend - 1);
+    if (s->disp) chan_free(s->disp);
+    xport_listener_close(s->l);
+    free(s);
+}
+
+const char *dsrv_addr(const dsrv *s)
+{
+    return s->addr;
+}
+
+bool dsrv_has_display(const dsrv *s)
+{
+    return s->disp != NULL;
+}
+
+const char *dsrv_peer(const dsrv *s)
+{
+    return s->disp ? s->disp_peer : "";
+}
+
+uint64_t dsrv_bytes_sent(const dsrv *s)
+{
+    uint64_t total = s->sent_closed, rx, tx;
+    for (int i = 0; i < s->npend; i++) {
+        chan_byte_counts(s->pend[i].c, &rx, &tx);
+        total += tx;
+    }
+    if (s->disp) {
+        chan_byte_counts(s->disp, &rx, &tx);
+        total += tx;
+    }
+    return total;
+}
+
+static void accept_all(dsrv *s)
+{
+    for (;;) {
+        xport_conn *conn = NULL;
+        ct_error e;
+        if (xport_accept(s->l, &conn, &e) != 0) {
+            ct_warn(COMPONENT, "%s", e.msg);
+            return;
+        }
+        if (!conn) return;
+        if (s->npend == DSRV_MAX_PENDING) {
+            ct_warn(COMPONENT, "%s: dropped: %d connections already in handshake", xport_peer(conn),
+                    DSRV_MAX_PENDING);
+            xport_close(conn);
+            continue;
+        }
+        chan_config cc = {.role = AUTH_ROLE_MASTER,
+                          .token = s->cfg.token,
+                          .require_auth = s->cfg.token != NULL,
+                          .queue_bytes = s->cfg.queue_bytes,
+                          .handshake_ms = s->cfg.handshake_timeout_ms};
+        chan *c = NULL;
+        if (chan_new(conn, &cc, &c, &e) != 0) {
+            ct_warn(COMPONENT, "dropped a connection: %s", e.msg);
+            continue;
+        }
+        ct_debug(COMPONENT, "%s: connected, handshake started", chan_peer(c));
+        s->pend[s->npend++] = (pconn){c, ct_now() + s->cfg.handshake_timeout_ms / 1000.0, 0};
+    }
+}
+
+/* Advances pending connection i; 1 when it was closed or promoted. */
+static int service_pending(dsrv *s, int i)
+{
+    pconn *p = &s->pend[i];
+    ct_error e;
+    if (chan_pump(p->c, &e) != 0) {
+        ct_warn(COMPONENT, "dropped a peer: %s", e.msg);
+        close_pending(s, i);
+        return 1;
+    }
+    if (chan_ready(p->c)) {
+        if (s->disp) {
+            char why[CT_ERROR_LEN];
+            snprintf(why, sizeof why, "the master already serves a display (%s); one display at a time",
+                     s->disp_peer);
+            ct_warn(COMPONENT, "refused %s: %s", chan_peer(p->c), why);
+            chan_send_error(p->c, WIRE_ERR_BUSY, why, 200);
+            close_pending(s, i);
+            return 1;
+        }
+        wire_msg m;
+        int rc = chan_recv(p->c, &m, &e);
+        if (rc == WIRE_OK) {
+            if (m.type != WIRE_SETTINGS) {
+                char why[CT_ERROR_LEN];
+                snprintf(why, sizeof why, "expected SETTINGS after the handshake, got %s", wire_type_name(m.type));
+                ct_warn(COMPONENT, "dropped %s: %s", chan_peer(p->c), why);
+                chan_send_error(p->c, WIRE_ERR_PROTOCOL, why, 200);
+                close_pending(s, i);
+                return 1;
+            }
+            s->disp = p->c;
+            snprintf(s->disp_peer, sizeof s->disp_peer, "%s", chan_peer(p->c));
+            s->pend[i] = s->pend[--s->npend];
+            ct_info(COMPONENT, "display %s connected (%s)", s->disp_peer,
+                    m.u.settings.samples_per_frame ? "lockstep" : "free-running");
+            add_event(s, DSRV_EV_CONNECTED, &m, NULL);
+            return 1;
+        }
+        if (rc < 0) {
+            ct_warn(COMPONENT, "dropped a peer: %s", e.msg);
+            close_pending(s, i);
+            return 1;
+        }
+    }
+    if (ct_now() > p->deadline) {
+        char why[CT_ERROR_LEN];
+        snprintf(why, sizeof why, "handshake not completed within %d ms", s->cfg.handshake_timeout_ms);
+        ct_warn(COMPONENT, "dropped %s: %s", chan_peer(p->c), why);
+        chan_send_error(p->c, WIRE_ERR_PROTOCOL, why, 50);
+        close_pending(s, i);
+        return 1;
+    }
+    return 0;
+}
+
+static void service_display(dsrv *s)
+{
+    ct_error e;
+    if (chan_pump(s->disp, &e) != 0) {
+        ct_warn(COMPONENT, "display dropped: %s", e.msg);
+        close_display(s, e.msg);
+        return;
+    }
+    for (;;) {
+        wire_msg m;
+        int rc = chan_recv(s->disp, &m, &e);
+        if (rc == WIRE_NEED_MORE) return;
+        if (rc < 0) {
+            ct_info(COMPONENT, "display left: %s", e.msg);
+            close_display(s, e.msg);
+            return;
+        }
+        switch (m.type) {
+        case WIRE_CAMERA:
+            add_event(s, DSRV_EV_MESSAGE, &m, NULL);
+            break;
+        case WIRE_PING: {
+            wire_msg pong = m;
+            pong.type = WIRE_PONG;
+            if (chan_send(s->disp, &pong, &e) < 0) {
+                close_display(s, e.msg);
+                return;
+            }
+            break;
+        }
+        case WIRE_PONG:
+            break;
+        case WIRE_BYE: {
+            char why[64];
+            snprintf(why, sizeof why, "the display said BYE (reason %u)", m.u.bye.reason);
+            ct_info(COMPONENT, "display %s left: %s", s->disp_peer, why);
+            close_display(s, why);
+            return;
+        }
+        case WIRE_ERROR: {
+            char why[CT_ERROR_LEN];
+            snprintf(why, sizeof why, "the display reported an error: %s", m.u.error.text);
+            ct_warn(COMPONENT, "display %s: %s", s->disp_peer, why);
+            close_display(s, why);
+            return;
+        }
+        default: {
+            char why[CT_ERROR_LEN];
+            snprintf(why, sizeof why, "unexpected %s message from a display", wire_type_name(m.type));
+            ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, why);
+            chan_send_error(s->disp, WIRE_ERR_PROTOCOL, why, 200);
+            close_display(s, why);
+            return;
+        }
+        }
+    }
+}
+
+int dsrv_step(dsrv *s, int timeout_ms, ct_error *err)
+{
+    (void)err;
+    struct pollfd fds[DSRV_MAX_PENDING + 2];
+    int n = 0;
+    fds[n++] = (struct pollfd){.fd = xport_listener_fd(s->l), .events = POLLIN};
+    for (int i = 0; i < s->npend; i++) fds[n++] = (struct pollfd){.fd = chan_fd(s->pend[i].c), .events = chan_events(s->pend[i].c)};
+    if (s->disp) fds[n++] = (struct pollfd){.fd = chan_fd(s->disp), .events = chan_events(s->disp)};
+    /* Pending handshakes have deadlines: do not sleep past them by much. */
+    if (s->npend && (timeout_ms < 0 || timeout_ms > 100)) timeout_ms = 100;
+    int r = poll(fds, (nfds_t)n, timeout_ms);
+    if (r < 0) return 0;   /* EINTR (a signal): the caller checks its flags */
+    if (fds[0].revents & POLLIN) accept_all(s);
+    for (int i = 0; i < s->npend;)
+        if (!service_pending(s, i)) i++;
+    if (s->disp) service_display(s);
+    return 0;
+}
+
+int dsrv_next_event(dsrv *s, dsrv_event *ev)
+{
+    if (!s->ev_n) return 0;
+    *ev = s->ev[s->ev_head];
+    s->ev_head = (s->ev_head + 1) % MAX_EVENTS;
+    s->ev_n--;
+    return 1;
+}
+
+int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err)
+{
+    if (!s->disp) return 0;
+    ct_error e;
+    double end = ct_now() + timeout_ms / 1000.0;
+    for (;;) {
+        int rc = chan_send(s->disp, m, &e);
+        if (rc == 0) return 0;
+        if (rc < 0) {
+            ct_info(COMPONENT, "display %s lost: %s", s->disp_peer, e.msg);
+            close_display(s, e.msg);
+            return 0;
+        }
+        /* Queue full: write until there is room (patches are merged in the
+         * queue, so this only happens when the display stops reading). */
+        if (chan_pump(s->disp, &e) != 0) {
+            close_display(s, e.msg);
+            return 0;
+        }
+        if (ct_now() > end) {
+            char why[CT_ERROR_LEN];
+            snprintf(why, sizeof why, "the display read nothing for %d ms with a full send queue", timeout_ms);
+            ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, why);
+            chan_send_error(s->disp, WIRE_ERR_LIMIT, why, 100);
+            close_display(s, why);
+            return 0;
+        }
+        struct pollfd p = {.fd = chan_fd(s->disp), .events = POLLOUT};
+        poll(&p, 1, 10);
+    }
+    (void)err;
+}
+
+void dsrv_drop(dsrv *s, uint32_t code, const char *text)
+{
+    if (!s->disp) return;
+    chan_send_error(s->disp, code, text, 500);
+    close_display(s, text);
+}
+
+void dsrv_bye(dsrv *s, uint32_t reason, int timeout_ms)
+{
+    if (!s->disp) return;
+    wire_msg m = {.type = WIRE_BYE};
+    m.u.bye.reason = reason;
+    ct_error e;
+    if (chan_send(s->disp, &m, &e) == 0) chan_flush(s->disp, timeout_ms, &e);
+    close_display(s, "the master said BYE");
+}

@@ -1,0 +1,83 @@
+/* dsrv.h: the master's display server: listens on a UNIX socket (default,
+ * mode 0600) or TCP (token required), runs every connection's handshake in
+ * parallel without blocking, serves one display at a time and refuses a
+ * second one with an ERROR saying why, drops misbehaving peers (garbage,
+ * oversized lengths, wrong token, handshake timeout) with a log line while
+ * the active display goes on undisturbed, and turns the active display's
+ * messages into events for the scheduling loop. Owns the dsrv_ prefix. */
+#ifndef CT_MASTER_DSRV_H
+#define CT_MASTER_DSRV_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/error.h"
+#include "proto/auth.h"
+#include "proto/wire.h"
+
+#define DSRV_MAX_PENDING 16   /* connections in handshake at once; more are closed */
+
+typedef struct dsrv dsrv;
+
+typedef struct dsrv_config {
+    const char *listen;          /* "unix:PATH" or "tcp:HOST:PORT" */
+    const auth_token *token;     /* NULL: none (then TCP is refused at start) */
+    int handshake_timeout_ms;    /* a peer must finish HELLO/AUTH/SETTINGS within this */
+    size_t queue_bytes;          /* send queue bound of the display connection */
+} dsrv_config;
+
+typedef enum dsrv_event_kind {
+    DSRV_EV_CONNECTED = 1,     /* a display finished its handshake and sent SETTINGS */
+    DSRV_EV_MESSAGE = 2,       /* a message from the display (CAMERA, ...) */
+    DSRV_EV_DISCONNECTED = 3   /* the display left (reason in text) */
+} dsrv_event_kind;
+
+typedef struct dsrv_event {
+    dsrv_event_kind kind;
+    wire_msg msg;                /* CONNECTED: the SETTINGS; MESSAGE: the message */
+    char text[CT_ERROR_LEN];     /* DISCONNECTED: why */
+} dsrv_event;
+
+/* The default listen address: unix:$XDG_RUNTIME_DIR/corrtex-<pid>.sock, or
+ * /tmp when XDG_RUNTIME_DIR is not set. */
+void dsrv_default_listen(char *out, size_t cap);
+
+/* Starts listening (a UNIX socket file gets mode 0600). TCP without a token
+ * fails: the socket would be open to anyone who can reach the port. */
+int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err);
+
+/* Closes every connection and the listener (removing a UNIX socket file). */
+void dsrv_free(dsrv *s);
+
+/* The address actually bound ("tcp:127.0.0.1:40123"). */
+const char *dsrv_addr(const dsrv *s);
+
+/* Waits up to timeout_ms for socket activity, then accepts, advances
+ * handshakes, reads and writes. Events are queued for dsrv_next_event. */
+int dsrv_step(dsrv *s, int timeout_ms, ct_error *err);
+
+/* The next event (1), or 0 when none is queued. */
+int dsrv_next_event(dsrv *s, dsrv_event *ev);
+
+/* Whether a display is connected (after its SETTINGS). */
+bool dsrv_has_display(const dsrv *s);
+
+/* The display's address (for logs), "" when none. */
+const char *dsrv_peer(const dsrv *s);
+
+/* Queues a message to the display (nothing when none is connected). When the
+ * send queue is full it writes (blocking up to timeout_ms) until there is
+ * room; a display that does not read for that long is dropped. */
+int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err);
+
+/* Bytes sent to displays since the start. */
+uint64_t dsrv_bytes_sent(const dsrv *s);
+
+/* Drops the display after a best-effort ERROR (code, text). */
+void dsrv_drop(dsrv *s, uint32_t code, const char *text);
+
+/* Sends BYE (reason) to the display and flushes within timeout_ms. */
+void dsrv_bye(dsrv *s, uint32_t reason, int timeout_ms);
+
+#endif

@@ -1,0 +1,274 @@
+/* mpi_link.c: the MPI transport (mpi_link.h). Single-threaded use: the
+ * pending-send list is process state, touched only by the thread that
+ * called mpil_init (MPI_THREAD_FUNNELED). */
+#include "proto/mpi_link.h"
+
+#include <limits.h>
+#include <mpi.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "common/timer.h"
+
+/* Turns a failed MPI call into a ct_error naming file:line, the call and
+ * MPI's error string (IOR's MPI_CHECK), and returns from the function. */
+#define MPI_CHECK(call, err)                                                         \
+    do {                                                                             \
+        int mpi_rc_ = (call);                                                        \
+        if (mpi_rc_ != MPI_SUCCESS) return mpi_fail((err), mpi_rc_, #call, __FILE__, __LINE__); \
+    } while (0)
+
+static int mpi_fail(ct_error *err, int rc, const char *call, const char *file, int line)
+{
+    char msg[MPI_MAX_ERROR_STRING];
+    int len = 0;
+    if (MPI_Error_string(rc, msg, &len) != MPI_SUCCESS) snprintf(msg, sizeof msg, "MPI error %d", rc);
+    const char *paren = strchr(call, '(');
+    int name_len = paren ? (int)(paren - call) : (int)strlen(call);
+    return ct_fail(err, CT_EIO, "%s:%d: %.*s failed: %s", file, line, name_len, call, msg);
+}
+
+typedef struct pending_send {
+    MPI_Request req;
+    wire_buf buf;
+} pending_send;
+
+static struct {
+    int active;
+    pending_send *sends;
+    size_t n, cap;
+} L;
+
+int mpil_init(int *argc, char ***argv, int *rank, int *size, ct_error *err)
+{
+    int provided = 0;
+    /* Open MPI's shared-memory transport reads large messages straight from
+     * the sender's memory (CMA); when the sender dies mid-transfer the
+     * receiver fails inside MPI and the master dies before it can tell the
+     * display. Copying through the shared segment instead costs one memcpy
+     * of messages under a megabyte. A value the user set wins. */
+    setenv("OMPI_MCA_btl_vader_single_copy_mechanism", "none", 0);
+    MPI_CHECK(MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided), err);
+    L.active = 1;
+    /* Errors come back to us (and are reported with file:line) rather than
+     * aborting the job inside MPI with a less useful message. */
+    MPI_CHECK(MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN), err);
+    MPI_CHECK(MPI_Comm_rank(MPI_COMM_WORLD, rank), err);
+    MPI_CHECK(MPI_Comm_size(MPI_COMM_WORLD, size), err);
+    if (provided < MPI_THREAD_FUNNELED)
+        return ct_fail(err, CT_ESYS, "MPI_Init_thread: the MPI library offers thread level %d, FUNNELED needed",
+                       provided);
+    return 0;
+}
+
+int mpil_active(void)
+{
+    return L.active;
+}
+
+void mpil_host(char *out, size_t cap)
+{
+    char name[MPI_MAX_PROCESSOR_NAME];
+    int len = 0;
+    if (!L.active || MPI_Get_processor_name(name, &len) != MPI_SUCCESS) {
+        snprintf(out, cap, "?");
+        return;
+    }
+    snprintf(out, cap, "%.*s", len, name);
+}
+
+int mpil_finalize(ct_error *err)
+{
+    if (!L.active) return 0;
+    int rc = mpil_drain(5.0, err);
+    if (rc < 0) mpil_cancel_pending();
+    free(L.sends);
+    L.sends = NULL;
+    L.n = L.cap = 0;
+    L.active = 0;
+    MPI_CHECK(MPI_Finalize(), err);
+    return rc;
+}
+
+void mpil_abort(int code)
+{
+    if (L.active) MPI_Abort(MPI_COMM_WORLD, code);
+}
+
+static int check_len(size_t len, ct_error *err)
+{
+    if (len > MPIL_MAX_MESSAGE || len > INT_MAX)
+        return ct_fail(err, CT_ERANGE, "MPI message of %zu bytes over the limit %zu", len, MPIL_MAX_MESSAGE);
+    return 0;
+}
+
+int mpil_send(int dest, int tag, const void *data, size_t len, ct_error *err)
+{
+    if (check_len(len, err) < 0) return CT_ERANGE;
+    MPI_CHECK(MPI_Send(data, (int)len, MPI_BYTE, dest, tag, MPI_COMM_WORLD), err);
+    return 0;
+}
+
+int mpil_isend(int dest, int tag, wire_buf *buf, ct_error *err)
+{
+    if (check_len(buf->len, err) < 0) return CT_ERANGE;
+    if (L.n == L.cap) {
+        size_t cap = L.cap ? 2 * L.cap : 16;
+        pending_send *p = realloc(L.sends, cap * sizeof *p);
+        if (!p) return ct_fail(err, CT_ENOMEM, "MPI send list: out of memory for %zu entries", cap);
+        L.sends = p;
+        L.cap = cap;
+    }
+    pending_send *s = &L.sends[L.n];
+    s->buf = *buf;
+    MPI_CHECK(MPI_Isend(s->buf.data, (int)s->buf.len, MPI_BYTE, dest, tag, MPI_COMM_WORLD, &s->req), err);
+    memset(buf, 0, sizeof *buf);
+    L.n++;
+    return 0;
+}
+
+int mpil_progress(ct_error *err)
+{
+    size_t j = 0;
+    for (size_t i = 0; i < L.n; i++) {
+        int done = 0;
+        MPI_CHECK(MPI_Test(&L.sends[i].req, &done, MPI_STATUS_IGNORE), err);
+        if (done)
+            wire_buf_free(&L.sends[i].buf);
+        else
+            L.sends[j++] = L.sends[i];
+    }
+    L.n = j;
+    return (int)L.n;
+}
+
+static void sleep_us(unsigned us)
+{
+    struct timespec ts = {.tv_sec = us / 1000000u, .tv_nsec = (long)(us % 1000000u) * 1000L};
+    nanosleep(&ts, NULL);
+}
+
+int mpil_drain(double timeout_s, ct_error *err)
+{
+    double end = ct_now() + timeout_s;
+    for (;;) {
+        int left = mpil_progress(err);
+        if (left <= 0) return left;
+        if (ct_now() > end)
+            return ct_fail(err, CT_EIO, "%d MPI sends still pending after %.1f s (a peer stopped receiving)",
+                           left, timeout_s);
+        sleep_us(200);
+    }
+}
+
+void mpil_cancel_pending(void)
+{
+    for (size_t i = 0; i < L.n; i++) {
+        MPI_Cancel(&L.sends[i].req);
+        MPI_Request_free(&L.sends[i].req);
+        /* The buffer may still be read by MPI after a failed cancel: leak it
+         * rather than free memory a transfer might touch. */
+    }
+    L.n = 0;
+}
+
+int mpil_probe(int source, int tag, mpil_info *info, ct_error *err)
+{
+    int flag = 0;
+    MPI_Status st;
+    MPI_CHECK(MPI_Iprobe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
+                         MPI_COMM_WORLD, &flag, &st),
+              err);
+    if (!flag) return 0;
+    int count = 0;
+    MPI_CHECK(MPI_Get_count(&st, MPI_BYTE, &count), err);
+    info->source = st.MPI_SOURCE;
+    info->tag = st.MPI_TAG;
+    info->size = count < 0 ? 0 : (size_t)count;
+    return 1;
+}
+
+int mpil_wait(int source, int tag, unsigned sleep_time_us, double timeout_s, mpil_info *info, ct_error *err)
+{
+    if (sleep_time_us == 0 && timeout_s < 0) {
+        MPI_Status st;
+        MPI_CHECK(MPI_Probe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
+                            MPI_COMM_WORLD, &st),
+                  err);
+        int count = 0;
+        MPI_CHECK(MPI_Get_count(&st, MPI_BYTE, &count), err);
+        info->source = st.MPI_SOURCE;
+        info->tag = st.MPI_TAG;
+        info->size = count < 0 ? 0 : (size_t)count;
+        return 1;
+    }
+    double end = timeout_s < 0 ? 0 : ct_now() + timeout_s;
+    unsigned nap = sleep_time_us < 20 ? sleep_time_us : 20;
+    for (;;) {
+        int rc = mpil_probe(source, tag, info, err);
+        if (rc != 0) return rc;
+        if (mpil_progress(err) < 0) return CT_EIO;
+        if (timeout_s >= 0 && ct_now() > end) return 0;
+        /* Sleeping between probes leaves the core to the ranks that work
+         * (MPI's blocking probe spins, which hurts oversubscribed runs);
+         * the nap grows while nothing comes, so a busy link stays fast. */
+        if (nap) {
+            sleep_us(nap);
+            nap = nap * 2 > sleep_time_us ? sleep_time_us : nap * 2;
+        }
+    }
+}
+
+int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err)
+{
+    if (check_len(info->size, err) < 0) return CT_ERANGE;
+    out->len = 0;
+    if (wire_buf_reserve(out, info->size ? info->size : 1, err) < 0) return CT_ENOMEM;
+    MPI_CHECK(MPI_Recv(out->data, (int)info->size, MPI_BYTE, info->source, info->tag, MPI_COMM_WORLD,
+                       MPI_STATUS_IGNORE),
+              err);
+    out->len = info->size;
+    return 0;
+}
+
+int mpil_bcast_u64(int root, uint64_t *v, ct_error *err)
+{
+    MPI_CHECK(MPI_Bcast(v, 1, MPI_UINT64_T, root, MPI_COMM_WORLD), err);
+    return 0;
+}
+
+int mpil_bcast(int root, wire_buf *buf, ct_error *err)
+{
+    int rank = 0;
+    MPI_CHECK(MPI_Comm_rank(MPI_COMM_WORLD, &rank), err);
+    uint64_t len = rank == root ? buf->len : 0;
+    if (mpil_bcast_u64(root, &len, err) < 0) return CT_EIO;
+    if (rank != root) {
+        if (len > (uint64_t)SIZE_MAX / 2)
+            return ct_fail(err, CT_ERANGE, "broadcast of %llu bytes too large", (unsigned long long)len);
+        buf->len = 0;
+        if (wire_buf_reserve(buf, len ? (size_t)len : 1, err) < 0) return CT_ENOMEM;
+        buf->len = (size_t)len;
+    }
+    /* MPI counts are ints: large payloads go in steps. */
+    for (uint64_t off = 0; off < len; off += MPIL_BCAST_CHUNK) {
+        size_t n = (size_t)(len - off < MPIL_BCAST_CHUNK ? len - off : MPIL_BCAST_CHUNK);
+        MPI_CHECK(MPI_Bcast(buf->data + off, (int)n, MPI_BYTE, root, MPI_COMM_WORLD), err);
+    }
+    return 0;
+}
+
+int mpil_allreduce_max(int *v, ct_error *err)
+{
+    int in = *v;
+    MPI_CHECK(MPI_Allreduce(&in, v, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD), err);
+    return 0;
+}
+
+int mpil_barrier(ct_error *err)
+{
+    MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD), err);
+    return 0;
+}

@@ -1,0 +1,173 @@
+# tests/e2e/lib/mpi.sh: shared helpers of the distributed end-to-end tests
+# (sourced, not run). The one place that builds an mpirun command line (IOR
+# style): every test logs the exact command it ran, with the environment it
+# needs (root, oversubscription), so a failure can be replayed by hand.
+#
+#   source "$(dirname "$0")/lib/mpi.sh"      sets root, bin, tmp, fail(), ...
+#   master_start NAME NP ARGS...             mpirun -np NP corrtex-render ARGS in the background
+#   master_wait_listen NAME                  waits for "listening on ADDR"; sets ADDR
+#   master_wait NAME SECONDS                 waits for the job to end; sets MASTER_RC
+#   display_run NAME ARGS...                 corrtex-display ARGS (foreground, logged)
+#   cornell_args                             scene + a small radiosity mesh in $tmp
+set -u
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)
+bin=${CORRTEX_BIN:-bin}
+[[ $bin == /* ]] || bin="$root/$bin"
+render="$bin/corrtex-render"
+display="$bin/corrtex-display"
+corrtex="$bin/corrtex"
+test_name=$(basename "$0" .sh)
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-$test_name-XXXXXX")
+fails=0
+declare -A MASTER_PID=()
+
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+skip() { echo "skip: $*"; cleanup; exit 0; }
+
+# Ends every job this test started (by its own pid) and removes $tmp.
+cleanup() {
+  local n
+  for n in "${!MASTER_PID[@]}"; do
+    if kill -0 "${MASTER_PID[$n]}" 2>/dev/null; then
+      kill -TERM "${MASTER_PID[$n]}" 2>/dev/null
+      sleep 1
+      kill -KILL "${MASTER_PID[$n]}" 2>/dev/null
+    fi
+  done
+  if [[ ${KEEP_TMP:-0} == 1 ]]; then echo "kept $tmp"; else rm -rf "$tmp"; fi
+}
+trap cleanup EXIT
+
+# Prints a command the way it can be pasted into a shell.
+log_cmd() {
+  local s="+" a
+  for a in "$@"; do s+=" $(printf '%q' "$a")"; done
+  echo "$s"
+}
+
+# The mpirun command for NP ranks of corrtex-render with ARGS, in MPI_CMD.
+# Root needs Open MPI's two consent variables; a small machine needs
+# --oversubscribe to start more ranks than cores. MPIRUN_EXTRA adds options
+# (e.g. a host list).
+mpi_cmd() {
+  local np=$1; shift
+  MPI_CMD=(mpirun --oversubscribe ${MPIRUN_EXTRA:-} -np "$np" "$render" "$@")
+  MPI_ENV=()
+  if [[ $(id -u) == 0 ]]; then MPI_ENV=(OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1); fi
+  # Sanitizer builds: Open MPI's own allocations live until exit (lsan-mpi.supp).
+  # Open MPI is built without frame pointers: only the slow unwinder finds
+  # the MPI frames the suppressions match.
+  if [[ -n ${ASAN_OPTIONS:-} ]]; then
+    MPI_ENV+=("LSAN_OPTIONS=${LSAN_OPTIONS:+$LSAN_OPTIONS:}suppressions=$root/tests/e2e/lib/lsan-mpi.supp:print_suppressions=0"
+      "ASAN_OPTIONS=$ASAN_OPTIONS:fast_unwind_on_malloc=0")
+  fi
+}
+
+# master_start NAME NP ARGS...: the job in the background, output in $tmp/NAME.log.
+master_start() {
+  local name=$1 np=$2; shift 2
+  mpi_cmd "$np" "$@"
+  log_cmd env "${MPI_ENV[@]}" "${MPI_CMD[@]}"
+  env "${MPI_ENV[@]}" "${MPI_CMD[@]}" >"$tmp/$name.log" 2>&1 &
+  MASTER_PID[$name]=$!
+}
+
+# master_wait_listen NAME [SECONDS]: waits for the master's listening line; ADDR.
+master_wait_listen() {
+  local name=$1 limit=${2:-60} i
+  ADDR=
+  for ((i = 0; i < limit * 10; i++)); do
+    ADDR=$(sed -n 's/^corrtex-render: listening on //p' "$tmp/$name.log" | head -n 1)
+    [[ -n $ADDR ]] && return 0
+    kill -0 "${MASTER_PID[$name]}" 2>/dev/null || break
+    sleep 0.1
+  done
+  fail "$name: the master did not start listening"
+  sed 's/^/  master: /' "$tmp/$name.log" | tail -n 30
+  return 1
+}
+
+# master_wait NAME SECONDS: waits for the job; MASTER_RC (124 after SECONDS).
+master_wait() {
+  local name=$1 limit=$2 pid=${MASTER_PID[$1]} i
+  for ((i = 0; i < limit * 10; i++)); do
+    if ! kill -0 "$pid" 2>/dev/null; then
+      wait "$pid"; MASTER_RC=$?
+      unset "MASTER_PID[$name]"
+      return 0
+    fi
+    sleep 0.1
+  done
+  MASTER_RC=124
+  return 1
+}
+
+# rank_pid NAME RANK: the pid of one rank of job NAME (a child of its mpirun
+# whose environment says OMPI_COMM_WORLD_RANK=RANK); empty when not found.
+rank_pid() {
+  local mp=${MASTER_PID[$1]} p
+  for p in $(pgrep -P "$mp"); do
+    if tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2"; then
+      echo "$p"; return 0
+    fi
+  done
+}
+
+# Prints the master's log indented (for the test log).
+master_log() { sed "s/^/  $1: /" "$tmp/$1.log"; }
+
+# display_run NAME ARGS...: the display in the foreground (60 s at most),
+# output in $tmp/NAME.log; DISPLAY_RC.
+display_run() {
+  local name=$1; shift
+  log_cmd timeout 60 "$display" "$@"
+  timeout 60 "$display" "$@" >"$tmp/$name.log" 2>&1
+  DISPLAY_RC=$?
+  sed "s/^/  $name: /" "$tmp/$name.log" | tail -n 15
+}
+
+# display_start NAME ARGS...: the display in the background; DISPLAY_PID.
+display_start() {
+  local name=$1; shift
+  log_cmd "$display" "$@"
+  "$display" "$@" >"$tmp/$name.log" 2>&1 &
+  DISPLAY_PID=$!
+}
+
+# The scene and a small radiosity mesh (cached in $tmp: the first job solves
+# it in a fraction of a second, later ones load it).
+cornell_args() {
+  CORNELL=("$root/scenes/cornell/cornell.json" --rad-cache "$tmp/cornell.ctmesh" --rad-max-triangles 20000)
+}
+
+# Headless display options every test uses.
+HEADLESS=(--backend egl --width 64 --height 64 --quiet)
+
+# A 5-frame camera path that moves slowly into the Cornell box (t, eye, target, fov).
+slow_path() {
+  cat >"$tmp/slow.path" <<'EOF'
+up 0 1 0
+0   278 273 -800   278 273 0   39.3
+4   278 263 -700   278 260 0   39.3
+EOF
+  echo "$tmp/slow.path"
+}
+
+# Needs the programs this test runs; skips when MPI cannot start at all.
+need_programs() {
+  local p
+  for p in "$render" "$display" "$@"; do
+    [[ -x $p ]] || { fail "missing program $p (run make)"; exit 1; }
+  done
+  command -v mpirun >/dev/null || skip "mpirun not found (install openmpi-bin)"
+}
+
+finish() {
+  if ((fails)); then
+    echo "$test_name: $fails failure(s)"
+    KEEP_TMP=${KEEP_TMP:-0}
+    exit 1
+  fi
+  echo "$test_name: ok"
+  exit 0
+}

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# The display socket over TCP: the master refuses to listen on TCP without a
+# token; with one (--token-file, mode 0600), a display with the token gets 3
+# lockstep frames; a display without a token and one with a wrong token are
+# refused with a message that says so, and the job goes on.
+source "$(dirname "$0")/lib/mpi.sh"
+need_programs
+cornell_args
+head -c 32 /dev/urandom | base64 >"$tmp/token"; chmod 600 "$tmp/token"
+head -c 32 /dev/urandom | base64 >"$tmp/wrong"; chmod 600 "$tmp/wrong"
+
+# No token: refused at start, exit status 2, with the reason.
+master_start notoken 2 "${CORNELL[@]}" --listen tcp:127.0.0.1:0
+master_wait notoken 30 || fail "the job without a token did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC without a token, expected 2"
+grep -q 'TCP needs a token' "$tmp/notoken.log" || { fail "no reason given"; master_log notoken; }
+
+master_start job 3 "${CORNELL[@]}" --listen tcp:127.0.0.1:0 --token-file "$tmp/token" --exit-when-display-leaves
+master_wait_listen job || finish
+[[ $ADDR == tcp:127.0.0.1:* ]] || fail "listening on $ADDR"
+
+display_run bad --connect "$ADDR" "${HEADLESS[@]}" --samples-per-frame 500 --frames 1 --out "$tmp/bad"
+((DISPLAY_RC != 0)) || fail "a display without the token was served"
+grep -qi 'token\|auth' "$tmp/bad.log" || fail "the refused display does not say why"
+display_run wrong --connect "$ADDR" --token-file "$tmp/wrong" "${HEADLESS[@]}" --samples-per-frame 500 --frames 1 \
+  --out "$tmp/wrong"
+((DISPLAY_RC != 0)) || fail "a display with a wrong token was served"
+grep -qi 'auth\|token\|proof' "$tmp/wrong.log" || fail "the display with a wrong token does not say why"
+
+display_run good --connect "$ADDR" --token-file "$tmp/token" "${HEADLESS[@]}" --samples-per-frame 800 \
+  --path "$(slow_path)" --frames 3 --out "$tmp/out"
+((DISPLAY_RC == 0)) || fail "display with the token: exit status $DISPLAY_RC"
+for k in 0 1 2; do [[ -f $tmp/out/$(printf 'frame_%05d.exr' $k) ]] || fail "frame $k missing"; done
+master_wait job 20 || fail "the job did not end after the display left"
+((MASTER_RC == 0)) || fail "job exit status $MASTER_RC"
+master_log job | grep -v progress | tail -n 12
+grep -q 'dropped a peer: .*auth' "$tmp/job.log" || fail "the master did not log the refused peers"
+finish

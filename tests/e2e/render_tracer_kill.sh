@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# A tracer rank that dies ends the job quickly and says so: mpirun -np 3
+# with a free-running display connected; kill -9 of tracer rank 1. Open MPI 4
+# cannot continue without a rank: mpirun notices the death and sends SIGTERM
+# to the other ranks; the master tells the display (ERROR) before it exits.
+# Checks: the job is gone in under 10 s, mpirun names the dead rank, the
+# master logs the shutdown, the display reports the master's message and
+# exits with status 3 (connection lost), no process is left.
+source "$(dirname "$0")/lib/mpi.sh"
+need_programs
+cornell_args
+master_start job 3 "${CORNELL[@]}" --listen "unix:$tmp/r.sock"
+master_wait_listen job || finish
+display_start display --connect "$ADDR" "${HEADLESS[@]}" --path "$root/scenes/cornell/walk.path" --seconds 30
+for ((i = 0; i < 100; i++)); do grep -q 'display .* connected' "$tmp/job.log" && break; sleep 0.1; done
+grep -q 'display .* connected' "$tmp/job.log" || fail "the display did not connect"
+sleep 0.5
+victim=$(rank_pid job 1)
+[[ -n $victim ]] || { fail "tracer rank 1 not found"; finish; }
+echo "+ kill -9 $victim   (tracer rank 1)"
+t0=$(date +%s.%N)
+kill -9 "$victim"
+master_wait job 15 || fail "the job did not end within 15 s"
+t1=$(date +%s.%N)
+secs=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.1f", b - a }')
+echo "metric: job ended ${secs} s after the tracer was killed"
+awk -v s="$secs" 'BEGIN { exit !(s < 10) }' || fail "the job took ${secs} s to end (limit 10 s)"
+((MASTER_RC != 0)) || fail "mpirun exit status 0 after a rank died"
+for ((i = 0; i < 50; i++)); do kill -0 "$DISPLAY_PID" 2>/dev/null || break; sleep 0.1; done
+if kill -0 "$DISPLAY_PID" 2>/dev/null; then fail "the display is still running"; kill -9 "$DISPLAY_PID"; fi
+wait "$DISPLAY_PID"; drc=$?
+master_log job | grep -v progress | tail -n 12
+sed 's/^/  display: /' "$tmp/display.log" | tail -n 5
+grep -q 'rank 1 .*exited on signal 9' "$tmp/job.log" || fail "mpirun did not name the dead rank"
+grep -q 'signal 15: shutting down' "$tmp/job.log" || fail "the master did not log its shutdown"
+grep -q 'MPI job is ending' "$tmp/display.log" || fail "the display did not show the master's message"
+((drc == 3)) || fail "display exit status $drc, expected 3 (connection lost)"
+left=$(pgrep -f "$tmp/r.sock" | wc -l)
+((left == 0)) || fail "$left processes of the job are left"
+finish

@@ -1,0 +1,295 @@
+/* test_dsrv.c: the master's display server (master/dsrv.h) with real
+ * sockets: the UNIX socket's mode, TCP refused without a token, a legitimate
+ * display's SETTINGS and CAMERA as events, PING answered, a second display
+ * refused with ERROR BUSY, and hostile peers (garbage, an oversized length,
+ * a wrong token, a silent peer) dropped while the legitimate display goes on
+ * undisturbed. The server runs in its own thread, as in the master's loop. */
+#include <criterion/criterion.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "common/timer.h"
+#include "master/dsrv.h"
+#include "proto/chan.h"
+#include "proto/xport.h"
+
+typedef struct server {
+    dsrv *s;
+    pthread_t th;
+    pthread_mutex_t mu;
+    volatile int stop;
+    dsrv_event ev[64];
+    int nev;
+} server;
+
+static void *serve(void *arg)
+{
+    server *sv = arg;
+    while (!sv->stop) {
+        ct_error err;
+        dsrv_step(sv->s, 5, &err);
+        dsrv_event e;
+        while (dsrv_next_event(sv->s, &e)) {
+            pthread_mutex_lock(&sv->mu);
+            if (sv->nev < 64) sv->ev[sv->nev++] = e;
+            pthread_mutex_unlock(&sv->mu);
+        }
+    }
+    return NULL;
+}
+
+static void start(server *sv, const char *listen, const auth_token *tok, int handshake_ms)
+{
+    memset(sv, 0, sizeof *sv);
+    dsrv_config c = {.listen = listen, .token = tok, .handshake_timeout_ms = handshake_ms, .queue_bytes = 0};
+    ct_error err = {{0}};
+    cr_assert_eq(dsrv_new(&c, &sv->s, &err), 0, "%s", err.msg);
+    pthread_mutex_init(&sv->mu, NULL);
+    cr_assert_eq(pthread_create(&sv->th, NULL, serve, sv), 0);
+}
+
+static void stop(server *sv)
+{
+    sv->stop = 1;
+    pthread_join(sv->th, NULL);
+    dsrv_free(sv->s);
+    pthread_mutex_destroy(&sv->mu);
+}
+
+/* Waits up to 3 s for the n-th event (0-based) and returns its kind. */
+static int wait_event(server *sv, int n, dsrv_event *out)
+{
+    double end = ct_now() + 3.0;
+    while (ct_now() < end) {
+        pthread_mutex_lock(&sv->mu);
+        int have = sv->nev > n;
+        if (have && out) *out = sv->ev[n];
+        pthread_mutex_unlock(&sv->mu);
+        if (have) return (int)out->kind;
+        usleep(2000);
+    }
+    return 0;
+}
+
+static void sock_spec(char *out, size_t cap, const char *tag)
+{
+    snprintf(out, cap, "unix:/tmp/ct-dsrv-%s-%d.sock", tag, (int)getpid());
+}
+
+static chan *display(const char *spec, const auth_token *tok, uint32_t k)
+{
+    chan_config cc = {.role = AUTH_ROLE_DISPLAY, .token = tok};
+    chan *c = NULL;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_connect(spec, &cc, 3000, &c, &err), 0, "%s", err.msg);
+    wire_msg m = {.type = WIRE_SETTINGS};
+    m.u.settings.samples_per_frame = k;
+    cr_assert_eq(chan_send(c, &m, &err), 0, "%s", err.msg);
+    cr_assert_eq(chan_flush(c, 2000, &err), 0, "%s", err.msg);
+    return c;
+}
+
+static void send_camera(chan *c, uint32_t epoch)
+{
+    wire_msg m = {.type = WIRE_CAMERA};
+    m.u.camera.epoch = epoch;
+    m.u.camera.width = 64;
+    m.u.camera.height = 48;
+    m.u.camera.cam = cam_look_at(v3(0, 0, 5), v3(0, 0, 0), v3(0, 1, 0), 45.0f);
+    ct_error err = {{0}};
+    cr_assert_eq(chan_send(c, &m, &err), 0, "%s", err.msg);
+    cr_assert_eq(chan_flush(c, 2000, &err), 0, "%s", err.msg);
+}
+
+/* A PING must come back as PONG with the same token: the display is served. */
+static void ping_pong(chan *c, uint64_t token)
+{
+    wire_msg m = {.type = WIRE_PING};
+    m.u.ping.token = token;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_send(c, &m, &err), 0, "%s", err.msg);
+    cr_assert_eq(chan_flush(c, 2000, &err), 0, "%s", err.msg);
+    wire_msg r;
+    cr_assert_eq(chan_recv_wait(c, &r, 3000, &err), WIRE_OK, "%s", err.msg);
+    cr_assert_eq(r.type, WIRE_PONG, "got %s", wire_type_name(r.type));
+    cr_assert_eq(r.u.ping.token, token);
+}
+
+/* Reads from a raw connection until EOF (1) or 3 s pass (0). */
+static int closed_by_peer(xport_conn *x)
+{
+    double end = ct_now() + 3.0;
+    uint8_t buf[4096];
+    while (ct_now() < end) {
+        size_t got = 0;
+        ct_error err;
+        int rc = xport_read(x, buf, sizeof buf, &got, &err);
+        if (rc == XPORT_EOF || rc < 0) return 1;
+        if (got == 0) xport_wait(x, POLLIN, 50, &err);
+    }
+    return 0;
+}
+
+static void token(auth_token *t, char fill)
+{
+    memset(t, 0, sizeof *t);
+    memset(t->bytes, fill, 32);
+    t->len = 32;
+}
+
+Test(dsrv, unix_socket_mode_and_default_address)
+{
+    char spec[128];
+    sock_spec(spec, sizeof spec, "mode");
+    server sv;
+    start(&sv, spec, NULL, 1000);
+    struct stat st;
+    cr_assert_eq(stat(spec + 5, &st), 0);
+    cr_assert_eq(st.st_mode & 0777, 0600, "mode %o", st.st_mode & 0777);
+    stop(&sv);
+    cr_assert_neq(access(spec + 5, F_OK), 0, "the socket file is removed");
+    char def[300];
+    dsrv_default_listen(def, sizeof def);
+    cr_assert(strncmp(def, "unix:", 5) == 0 && strstr(def, "corrtex-"), "%s", def);
+}
+
+Test(dsrv, tcp_needs_a_token)
+{
+    dsrv_config c = {.listen = "tcp:127.0.0.1:0", .token = NULL, .handshake_timeout_ms = 1000};
+    dsrv *s = NULL;
+    ct_error err = {{0}};
+    cr_assert_eq(dsrv_new(&c, &s, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "TCP needs a token"), "%s", err.msg);
+}
+
+Test(dsrv, display_events_ping_and_busy)
+{
+    char spec[128];
+    sock_spec(spec, sizeof spec, "busy");
+    server sv;
+    start(&sv, spec, NULL, 2000);
+    chan *d = display(spec, NULL, 7);
+    dsrv_event e;
+    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    cr_assert_eq(e.msg.u.settings.samples_per_frame, 7u);
+    send_camera(d, 1);
+    cr_assert_eq(wait_event(&sv, 1, &e), DSRV_EV_MESSAGE);
+    cr_assert_eq(e.msg.type, WIRE_CAMERA);
+    cr_assert_eq(e.msg.u.camera.width, 64u);
+    ping_pong(d, 42);
+
+    /* A second display is told why it is refused. */
+    chan_config cc = {.role = AUTH_ROLE_DISPLAY};
+    chan *d2 = NULL;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_connect(spec, &cc, 3000, &d2, &err), 0, "%s", err.msg);
+    wire_msg r;
+    cr_assert_eq(chan_recv_wait(d2, &r, 3000, &err), WIRE_OK, "%s", err.msg);
+    cr_assert_eq(r.type, WIRE_ERROR);
+    cr_assert_eq(r.u.error.code, (uint32_t)WIRE_ERR_BUSY);
+    cr_assert(strstr(r.u.error.text, "already serves a display"), "%s", r.u.error.text);
+    chan_free(d2);
+    ping_pong(d, 43);
+
+    /* The display leaves; the next one is served. */
+    chan_free(d);
+    cr_assert_eq(wait_event(&sv, 2, &e), DSRV_EV_DISCONNECTED);
+    chan *d3 = display(spec, NULL, 0);
+    cr_assert_eq(wait_event(&sv, 3, &e), DSRV_EV_CONNECTED);
+    ping_pong(d3, 44);
+    chan_free(d3);
+    stop(&sv);
+}
+
+Test(dsrv, hostile_peers_next_to_a_display)
+{
+    char spec[128];
+    sock_spec(spec, sizeof spec, "hostile");
+    auth_token good, bad;
+    token(&good, 'g');
+    token(&bad, 'b');
+    server sv;
+    start(&sv, spec, &good, 400);
+    chan *d = display(spec, &good, 0);
+    dsrv_event e;
+    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    ct_error err = {{0}};
+
+    /* Garbage instead of a HELLO. */
+    xport_conn *g = NULL;
+    cr_assert_eq(xport_connect(spec, 1000, &g, &err), 0, "%s", err.msg);
+    const char junk[] = "GET / HTTP/1.1\r\nHost: x\r\n\r\n";
+    cr_assert_eq(xport_write_all(g, junk, sizeof junk - 1, 1000, &err), 0);
+    cr_assert(closed_by_peer(g), "garbage peer not dropped");
+    xport_close(g);
+    ping_pong(d, 1);
+
+    /* A wrong token. */
+    chan_config cc = {.role = AUTH_ROLE_DISPLAY, .token = &bad};
+    chan *w = NULL;
+    int rc = chan_connect(spec, &cc, 3000, &w, &err);
+    cr_assert_lt(rc, 0, "a wrong token was accepted");
+    ping_pong(d, 2);
+
+    /* A silent peer (or a very slow writer): dropped at the deadline. */
+    xport_conn *q = NULL;
+    cr_assert_eq(xport_connect(spec, 1000, &q, &err), 0, "%s", err.msg);
+    double t0 = ct_now();
+    cr_assert(closed_by_peer(q), "silent peer not dropped");
+    cr_assert_lt(ct_now() - t0, 2.5);
+    xport_close(q);
+    ping_pong(d, 3);
+
+    /* An oversized length: a HELLO dribbled byte by byte, then a frame
+     * header announcing 2 GiB. The handshake fails first (the master wants
+     * AUTH); either way the peer is dropped without reading 2 GiB. */
+    xport_conn *o = NULL;
+    cr_assert_eq(xport_connect(spec, 1000, &o, &err), 0, "%s", err.msg);
+    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {1};
+    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    for (size_t i = 0; i < sizeof hello; i++) {
+        cr_assert_eq(xport_write_all(o, hello + i, 1, 1000, &err), 0);
+        usleep(1000);
+    }
+    uint8_t huge[8] = {WIRE_CAMERA, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
+    xport_write_all(o, huge, sizeof huge, 1000, &err);
+    cr_assert(closed_by_peer(o), "oversized peer not dropped");
+    xport_close(o);
+    ping_pong(d, 4);
+
+    /* The display never noticed: its camera still arrives as the next event. */
+    send_camera(d, 1);
+    int n = 1;
+    for (; n < 64; n++) {
+        int k = wait_event(&sv, n, &e);
+        cr_assert_neq(k, 0, "no camera event");
+        if (k == DSRV_EV_MESSAGE) break;
+        cr_assert_neq(k, DSRV_EV_DISCONNECTED, "the display was disconnected: %s", e.text);
+    }
+    cr_assert_eq(e.msg.type, WIRE_CAMERA);
+    chan_free(d);
+    stop(&sv);
+}
+
+Test(dsrv, oversized_frame_from_an_authenticated_display)
+{
+    char spec[128];
+    sock_spec(spec, sizeof spec, "oversize");
+    server sv;
+    start(&sv, spec, NULL, 2000);
+    chan *d = display(spec, NULL, 0);
+    dsrv_event e;
+    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    uint8_t huge[8] = {WIRE_CAMERA, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
+    ct_error err = {{0}};
+    cr_assert_eq(xport_write_all(chan_conn(d), huge, sizeof huge, 1000, &err), 0);
+    cr_assert_eq(wait_event(&sv, 1, &e), DSRV_EV_DISCONNECTED);
+    cr_assert(strstr(e.text, "body length 2147483647"), "%s", e.text);
+    chan_free(d);
+    stop(&sv);
+}

@@ -1,0 +1,35 @@
+/* rank.h: the main loop of a tracer rank (ranks 1..T of corrtex-render):
+ * receives request batches from the master over MPI (proto/mpi_link.h),
+ * traces them with the per-sample API (tracer.h), optionally on several
+ * threads, and sends the sample batches back. Camera changes raise the
+ * rank's epoch; queued batches of older epochs are answered empty without
+ * tracing, so a camera change reaches the rank within one batch. Owns the
+ * trank_ prefix. docs/distributed.md describes the loop. */
+#ifndef CT_TRACER_RANK_H
+#define CT_TRACER_RANK_H
+
+#include <stdint.h>
+
+#include "common/error.h"
+#include "tracer/tracer.h"
+
+typedef struct trank_config {
+    const trc_tracer *tracer;   /* built from the broadcast mesh */
+    int rank;                   /* this rank (>= 1) */
+    int threads;                /* threads tracing one batch (>= 1) */
+    unsigned idle_sleep_us;     /* sleep between probes while idle (0: spin) */
+    volatile int *stop;         /* set by a signal handler: leave the loop */
+} trank_config;
+
+typedef struct trank_stats {
+    uint64_t batches;           /* request batches answered */
+    uint64_t stale_batches;     /* answered empty: their epoch was old */
+    uint64_t samples;           /* samples traced */
+    double busy_s;              /* seconds spent tracing */
+} trank_stats;
+
+/* Runs until the master sends SHUTDOWN (0), *stop is set (0), or an MPI or
+ * protocol error (negative, err filled). */
+int trank_run(const trank_config *c, trank_stats *st, ct_error *err);
+
+#endif
