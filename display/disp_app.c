@@ -53,6 +53,7 @@ typedef struct app {
     bool have_path;
     disp_fly fly;
     bool have_cam;            /* fly.cam was set from the options or the scene */
+    bool frame_taken;         /* lockstep: a frame was drawn, the next one is not asked for yet */
     disp_render_opts ropts;
     /* the master connection */
     disp_client *client;
@@ -237,13 +238,17 @@ static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_
     const disp_app_opts *o = a->o;
     int st = service(a, 0, err);
     if (st) return st == 1 ? STEP_END : STEP_LOST;
-    if (a->client && (!a->cam_sent || !same_camera(cam, &a->last_cam))) {
+    /* In lockstep every CAMERA asks for one frame, so a still camera sends
+     * its (unchanged) camera again once the previous frame was drawn. */
+    bool ask_frame = o->samples_per_frame > 0 && a->frame_taken;
+    if (a->client && (!a->cam_sent || ask_frame || !same_camera(cam, &a->last_cam))) {
         ct_error e;
         if (disp_client_send_camera(a->client, cam, o->width, o->height, &e)) {
             if (connection_lost(a, &e, ct_now(), err)) return STEP_LOST;
         } else {
             a->cam_sent = true;
             a->last_cam = *cam;
+            a->frame_taken = false;
         }
     }
     if (!disp_session_scene_of(a->session)) {
@@ -261,7 +266,10 @@ static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_
         if (!handle_keys(a, in)) return STEP_QUIT;
         if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
     }
-    if (a->client) disp_client_take_frame(a->client);
+    if (a->client) {
+        disp_client_take_frame(a->client);
+        a->frame_taken = true;
+    }
     return STEP_DRAW;
 }
 

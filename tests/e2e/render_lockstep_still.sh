@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Lockstep with a camera that does not move: every CAMERA asks for one frame,
+# so the display re-sends its unchanged camera after each drawn frame. With
+# K samples a frame, 4 frames of a still camera must all arrive (no wait for a
+# camera change), and the error against a high-quality reference of that view
+# must not grow as the corrections accumulate (it falls from frame 0 to 3).
+source "$(dirname "$0")/lib/mpi.sh"
+need_programs "$corrtex"
+cornell_args
+sock="$tmp/still.sock"
+K=800
+cam=278,273,-800,278,273,0,39.3
+
+ref=("$corrtex" reference "${CORNELL[0]}" --camera front --width 64 --height 64 --spp 16 --mode drt
+  --threads 2 -o "$tmp/ref/frame_00000.exr")
+mkdir -p "$tmp/ref"
+log_cmd "${ref[@]}"
+"${ref[@]}" >"$tmp/ref.log" 2>&1 || { fail "corrtex reference failed"; cat "$tmp/ref.log"; finish; }
+for k in 1 2 3; do cp "$tmp/ref/frame_00000.exr" "$tmp/ref/frame_0000$k.exr"; done
+
+master_start master 2 "${CORNELL[@]}" --listen "unix:$sock" --exit-when-display-leaves
+master_wait_listen master || finish
+display_run display --connect "$ADDR" "${HEADLESS[@]}" --samples-per-frame $K --camera "$cam" --frames 4 \
+  --seconds 60 --out "$tmp/out" --reference "$tmp/ref"
+((DISPLAY_RC == 0)) || fail "display exit status $DISPLAY_RC"
+master_wait master 20 || fail "the job did not end after the display left"
+n=$(ls "$tmp/out"/frame_0000?.exr 2>/dev/null | wc -l)
+((n == 4)) || fail "$n frames written, expected 4 (a still camera must still get lockstep frames)"
+[[ -f $tmp/out/frames.csv ]] || { fail "no frames.csv"; finish; }
+col() { head -n 1 "$1" | tr ',' '\n' | grep -n -x "$2" | cut -d: -f1; }
+val() { awk -F, -v c="$(col "$1" "$3")" -v r=$(($2 + 2)) 'NR == r { print $c }' "$1"; }
+p0=$(val "$tmp/out/frames.csv" 0 psnr_db); p3=$(val "$tmp/out/frames.csv" 3 psnr_db)
+echo "metric: still camera, lockstep K=$K: PSNR frame 0 $p0 dB, frame 3 $p3 dB"
+awk -v a="$p0" -v b="$p3" 'BEGIN { exit !(b > a) }' || fail "PSNR did not rise from frame 0 to frame 3"
+finish
