@@ -20,4 +20,7 @@ extern const cli_command cli_commands[];
 /* corrtex compare A.exr B.exr [--json] [--max-rmse X] (cmd_compare.c). */
 int cmd_compare(int argc, char **argv);
 
+/* corrtex montage -o SHEET.png IMAGE... (cmd_montage.c). */
+int cmd_montage(int argc, char **argv);
+
 #endif
