@@ -126,7 +126,7 @@ $(BINDIR)/corrtex-display: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_display_SR
 	@[ "$(V)" = 1 ] || echo "  LD      $@"
 	$(Q)$(CC) $(LDFLAGS_BASE) -o $@ $^ $(LIBS_GL) $(LIBS_PROTO) $(LIBS_COMMON)
 
-$(BUILD)/gen/%: scenes/gen/%.c
+$(BUILD)/gen/%: scenes/gen/%.c $(wildcard scenes/gen/*.h)
 	@mkdir -p $(dir $@)
 	@[ "$(V)" = 1 ] || echo "  GEN     $@"
 	$(Q)$(CC) -std=c11 -D_GNU_SOURCE -O2 $(WARN) -o $@ $< -lm
