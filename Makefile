@@ -195,3 +195,28 @@ clean:
 	rm -rf build bin
 
 -include $(shell find build -name '*.d' 2>/dev/null)
+
+# libFuzzer targets (tests/fuzz/fuzz_*.c, clang): `make fuzz` builds each
+# with the proto sources instrumented and runs it FUZZ_SECONDS seconds from
+# its generated seeds plus tests/fuzz/corpus/<name>/.
+FUZZ_SECONDS ?= 20
+FUZZ_CC      ?= clang
+FUZZ_SRCS    := $(sort $(wildcard tests/fuzz/fuzz_*.c))
+FUZZ_BINS    := $(patsubst tests/fuzz/fuzz_%.c,build/fuzz/fuzz_%,$(FUZZ_SRCS))
+FUZZ_DEPS    := $(call srcs_of,proto) tests/support/proto_fixtures.c
+
+build/fuzz/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_DEPS) $(wildcard proto/*.h tests/support/*.h) $(LIB_common)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  FUZZ-LD $@"
+	$(Q)$(FUZZ_CC) -std=c11 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
+	  -I. $(PKGCF) -o $@ $< $(FUZZ_DEPS) $(LIB_common) $(LIBS_PROTO) $(LIBS_COMMON)
+
+fuzz: $(FUZZ_BINS)
+	@for b in $(FUZZ_BINS); do n=$${b##*/fuzz_}; c=build/fuzz/corpus/$$n; mkdir -p $$c; \
+	  FUZZ_WRITE_SEEDS=$$c $$b >/dev/null 2>&1; \
+	  [ -d tests/fuzz/corpus/$$n ] && cp tests/fuzz/corpus/$$n/* $$c/ 2>/dev/null; \
+	  echo "  FUZZ    $$n ($(FUZZ_SECONDS) s)"; \
+	  $$b -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -timeout=10 -rss_limit_mb=2048 \
+	    -artifact_prefix=build/fuzz/$$n- $$c >build/fuzz/$$n.log 2>&1 \
+	    || { echo "fuzz: $$n failed; see build/fuzz/$$n.log and build/fuzz/$$n-*"; tail -n 30 build/fuzz/$$n.log; exit 1; }; \
+	  grep -E '^(Done|#[0-9]+.*DONE)' build/fuzz/$$n.log | tail -n 1; done

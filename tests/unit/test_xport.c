@@ -1,0 +1,930 @@
+/* test_xport.c: the transports (UNIX, TCP over 127.0.0.1 and ::1) with the
+ * handshake and framing on top (chan.h): every message through 1-byte reads
+ * and writes, authentication over TCP, a peer that disconnects mid-message,
+ * a non-corrtex peer, address parsing errors, and the patch-merging send
+ * queue (newest wins, barriers, bound). */
+#include <criterion/criterion.h>
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "proto/chan.h"
+#include "proto/wire_io.h"
+#include "tests/support/proto_fixtures.h"
+
+/* --- addresses -------------------------------------------------------------- */
+
+typedef struct addr_case {
+    const char *spec;
+    bool listen;
+    const char *text;  /* canonical text, or NULL when it must fail */
+    const char *err;
+} addr_case;
+
+static const addr_case addr_cases[] = {
+    {"unix:/tmp/x.sock", false, "unix:/tmp/x.sock", NULL},
+    {"tcp:127.0.0.1:5000", false, "tcp:127.0.0.1:5000", NULL},
+    {"tcp:[::1]:5000", false, "tcp:[::1]:5000", NULL},
+    {"tcp:localhost:65535", false, "tcp:localhost:65535", NULL},
+    {"tcp:*:0", true, "tcp:*:0", NULL},
+    {"", false, NULL, "address is empty (expected unix:PATH or tcp:HOST:PORT)"},
+    {"http://x", false, NULL, "address 'http://x': unknown scheme (expected unix:PATH or tcp:HOST:PORT)"},
+    {"unix:", false, NULL, "address 'unix:': missing socket path (expected unix:PATH)"},
+    {"tcp:host", false, NULL, "address 'tcp:host': missing port (expected tcp:HOST:PORT)"},
+    {"tcp::5000", false, NULL, "address 'tcp::5000': missing host (expected tcp:HOST:PORT)"},
+    {"tcp:::1:5000", false, NULL, "address 'tcp:::1:5000': an IPv6 address needs brackets (tcp:[::1]:PORT)"},
+    {"tcp:[::1:5000", false, NULL, "address 'tcp:[::1:5000': missing ']' after the IPv6 address"},
+    {"tcp:[::1]5000", false, NULL, "address 'tcp:[::1]5000': expected ':PORT' after ']'"},
+    {"tcp:[]:5000", false, NULL, "address 'tcp:[]:5000': empty IPv6 address"},
+    {"tcp:h:65536", false, NULL, "address 'tcp:h:65536': port 65536 out of range 1..65535"},
+    {"tcp:h:0", false, NULL, "address 'tcp:h:0': port 0 out of range 1..65535"},
+    {"tcp:h:12a", false, NULL, "address 'tcp:h:12a': port '12a' is not a number"},
+    {"tcp:h:", false, NULL, "address 'tcp:h:': missing port (expected tcp:HOST:PORT)"},
+    {"tcp:*:80", false, NULL, "address 'tcp:*:80': '*' (any address) is only for listening"},
+};
+
+Test(addr, parse_table)
+{
+    for (size_t i = 0; i < sizeof addr_cases / sizeof addr_cases[0]; i++) {
+        const addr_case *c = &addr_cases[i];
+        xport_addr a;
+        ct_error err = {{0}};
+        int rc = xport_parse(c->spec, c->listen, &a, &err);
+        if (c->text) {
+            cr_expect_eq(rc, 0, "'%s': %s", c->spec, err.msg);
+            cr_expect_str_eq(a.text, c->text);
+        } else {
+            cr_expect_eq(rc, CT_EINVAL, "'%s' parsed", c->spec);
+            cr_expect_str_eq(err.msg, c->err);
+        }
+    }
+    char longpath[200] = "unix:/";
+    memset(longpath + 6, 'p', 150);
+    xport_addr a;
+    ct_error err;
+    cr_assert_eq(xport_parse(longpath, false, &a, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "socket path is 151 bytes, the limit is 107"), "%s", err.msg);
+}
+
+Test(addr, connect_errors_name_the_address)
+{
+    xport_conn *c;
+    ct_error err;
+    char spec[128];
+    snprintf(spec, sizeof spec, "unix:/tmp/ct-none-%d.sock", (int)getpid());
+    cr_assert_eq(xport_connect(spec, 1000, &c, &err), CT_EIO);
+    char want[200];
+    snprintf(want, sizeof want, "%s: connect: No such file or directory", spec);
+    cr_assert_str_eq(err.msg, want);
+    cr_assert_eq(xport_connect("tcp:no-such-host.invalid:5000", 1000, &c, &err), CT_EIO);
+    cr_assert(strncmp(err.msg, "tcp:no-such-host.invalid:5000: cannot resolve host 'no-such-host.invalid': ", 75) == 0,
+              "%s", err.msg);
+}
+
+/* --- helpers ----------------------------------------------------------------- */
+
+static int sock_counter;
+
+static void unix_spec(char *out, size_t cap)
+{
+    snprintf(out, cap, "unix:/tmp/ct-xport-%d-%d.sock", (int)getpid(), sock_counter++);
+}
+
+/* Listens on spec, connects and accepts: *srv is the master side. */
+static void connect_pair(const char *spec, xport_listener **l, xport_conn **srv, xport_conn **cli)
+{
+    ct_error err = {{0}};
+    cr_assert_eq(xport_listen(spec, l, &err), 0, "%s", err.msg);
+    cr_assert_eq(xport_connect(xport_listener_addr(*l), 2000, cli, &err), 0, "%s", err.msg);
+    *srv = NULL;
+    for (int i = 0; i < 200 && !*srv; i++) {
+        struct pollfd p = {xport_listener_fd(*l), POLLIN, 0};
+        poll(&p, 1, 10);
+        cr_assert_eq(xport_accept(*l, srv, &err), 0, "%s", err.msg);
+    }
+    cr_assert(*srv, "accept timed out");
+}
+
+/* Pumps both channels until cond(ctx) holds or errors happen; returns the
+ * first error code (0 when cond was reached). */
+typedef bool (*cond_fn)(void *ctx);
+
+static int pump_both(chan *a, chan *b, cond_fn cond, void *ctx, int max_ms, ct_error *err)
+{
+    for (int t = 0; t < max_ms; t++) {
+        int rc = chan_pump(a, err);
+        if (rc) return rc;
+        rc = chan_pump(b, err);
+        if (rc) return rc;
+        if (cond(ctx)) return 0;
+        struct pollfd p[2] = {{chan_fd(a), chan_events(a), 0}, {chan_fd(b), chan_events(b), 0}};
+        poll(p, 2, 1);
+    }
+    return ct_fail(err, CT_EIO, "test: condition not reached in %d ms", max_ms);
+}
+
+typedef struct pair {
+    chan *m, *d;
+} pair;
+
+static bool both_ready(void *ctx)
+{
+    pair *p = ctx;
+    return chan_ready(p->m) && chan_ready(p->d);
+}
+
+static void make_chans(const char *spec, const auth_token *mt, const auth_token *dt, pair *p, xport_listener **l)
+{
+    xport_conn *srv, *cli;
+    connect_pair(spec, l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER, .token = mt, .require_auth = mt != NULL};
+    chan_config dc = {.role = AUTH_ROLE_DISPLAY, .token = dt};
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &p->m, &err), 0, "%s", err.msg);
+    cr_assert_eq(chan_new(cli, &dc, &p->d, &err), 0, "%s", err.msg);
+}
+
+static auth_token token_of(const char *s)
+{
+    auth_token t;
+    memset(&t, 0, sizeof t);
+    t.len = strlen(s);
+    memcpy(t.bytes, s, t.len);
+    return t;
+}
+
+/* Receives n messages on `to` (pumping both) and checks each re-encodes to
+ * the bytes of the matching sent message. */
+static void expect_messages(pair *p, chan *to, const wire_msg *sent, size_t n)
+{
+    ct_error err = {{0}};
+    chan *other = to == p->m ? p->d : p->m;
+    size_t got = 0;
+    for (int t = 0; t < 20000 && got < n; t++) {
+        wire_msg m;
+        int rc = chan_recv(to, &m, &err);
+        cr_assert_geq(rc, 0, "%s", err.msg);
+        if (rc == WIRE_OK) {
+            wire_buf a = {0}, b = {0};
+            cr_assert_eq(wire_encode(&sent[got], &a, NULL), 0);
+            cr_assert_eq(wire_encode(&m, &b, NULL), 0);
+            cr_assert_eq(a.len, b.len, "message %zu (%s)", got, wire_type_name(m.type));
+            cr_assert(memcmp(a.data, b.data, a.len) == 0, "message %zu (%s) differs", got, wire_type_name(m.type));
+            wire_buf_free(&a);
+            wire_buf_free(&b);
+            got++;
+            continue;
+        }
+        cr_assert_eq(chan_pump(other, &err), 0, "%s", err.msg);
+        cr_assert_eq(chan_pump(to, &err), 0, "%s", err.msg);
+        struct pollfd pf[2] = {{chan_fd(to), chan_events(to), 0}, {chan_fd(other), chan_events(other), 0}};
+        poll(pf, 2, 1);
+    }
+    cr_assert_eq(got, n, "received %zu of %zu messages", got, n);
+}
+
+static void exchange_everything(const char *spec, const auth_token *mt, const auth_token *dt, size_t io_limit)
+{
+    pair p;
+    xport_listener *l;
+    make_chans(spec, mt, dt, &p, &l);
+    xport_set_io_limit(chan_conn(p.m), io_limit);
+    xport_set_io_limit(chan_conn(p.d), io_limit);
+    ct_error err = {{0}};
+    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 5000, &err), 0, "%s", err.msg);
+    wire_msg msgs[FX_NMSG];
+    size_t n = fx_messages(msgs);
+    /* Master -> display: everything; display -> master: everything too (the
+     * framing does not care about direction). */
+    for (size_t i = 0; i < n; i++) {
+        cr_assert_eq(chan_send(p.m, &msgs[i], &err), 0, "%s", err.msg);
+        cr_assert_eq(chan_send(p.d, &msgs[i], &err), 0, "%s", err.msg);
+    }
+    expect_messages(&p, p.d, msgs, n);
+    expect_messages(&p, p.m, msgs, n);
+    uint64_t rx, tx;
+    chan_byte_counts(p.m, &rx, &tx);
+    cr_assert_gt(rx, 1000);
+    cr_assert_gt(tx, 1000);
+    chan_free(p.m);
+    chan_free(p.d);
+    xport_listener_close(l);
+}
+
+/* --- transports ---------------------------------------------------------------- */
+
+Test(xport, unix_one_byte_io)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    exchange_everything(spec, NULL, NULL, 1);
+    cr_assert(access(spec + 5, F_OK) != 0, "socket file left behind");
+}
+
+Test(xport, unix_with_token)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    auth_token t = token_of("a unix socket token");
+    exchange_everything(spec, &t, &t, 0);
+}
+
+Test(xport, tcp4_one_byte_io_authenticated)
+{
+    auth_token t = token_of("the tcp shared token");
+    exchange_everything("tcp:127.0.0.1:0", &t, &t, 1);
+}
+
+Test(xport, tcp6_authenticated)
+{
+    xport_listener *l;
+    ct_error err;
+    if (xport_listen("tcp:[::1]:0", &l, &err) != 0) {
+        cr_log_warn("skip: IPv6 loopback not available (%s)", err.msg);
+        cr_skip_test("IPv6 loopback not available: %s", err.msg);
+    }
+    cr_assert(strncmp(xport_listener_addr(l), "tcp:[::1]:", 10) == 0, "%s", xport_listener_addr(l));
+    xport_listener_close(l);
+    auth_token t = token_of("the tcp shared token");
+    exchange_everything("tcp:[::1]:0", &t, &t, 1);
+}
+
+Test(xport, tcp_requires_a_token)
+{
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair("tcp:127.0.0.1:0", &l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER};
+    chan *m;
+    ct_error err;
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), CT_EAUTH);
+    cr_assert(strstr(err.msg, ": tcp connections require a token (--token-file or CORRTEX_TOKEN)"), "%s", err.msg);
+    cr_assert(strncmp(err.msg, "tcp:127.0.0.1:", 14) == 0, "error does not name the peer: %s", err.msg);
+    /* A display without a token against an authenticating master. */
+    xport_conn *srv2, *cli2;
+    xport_listener *l2;
+    connect_pair("tcp:127.0.0.1:0", &l2, &srv2, &cli2);
+    auth_token t = token_of("the tcp shared token");
+    pair p;
+    chan_config mc2 = {.role = AUTH_ROLE_MASTER, .token = &t};
+    chan_config dc2 = {.role = AUTH_ROLE_DISPLAY};
+    cr_assert_eq(chan_new(srv2, &mc2, &p.m, &err), 0, "%s", err.msg);
+    cr_assert_eq(chan_new(cli2, &dc2, &p.d, &err), 0, "%s", err.msg);
+    int rc = pump_both(p.d, p.m, both_ready, &p, 3000, &err);
+    cr_assert_eq(rc, CT_EAUTH, "%s", err.msg);
+    cr_assert(strstr(err.msg, ": the master requires a token; give --token-file or set CORRTEX_TOKEN"), "%s",
+              err.msg);
+    chan_free(p.m);
+    chan_free(p.d);
+    xport_close(cli);
+    xport_listener_close(l);
+    xport_listener_close(l2);
+}
+
+Test(xport, tcp_wrong_token)
+{
+    auth_token a = token_of("the tcp shared token"), b = token_of("not the shared token");
+    pair p;
+    xport_listener *l;
+    make_chans("tcp:127.0.0.1:0", &a, &b, &p, &l);
+    ct_error err = {{0}};
+    /* Each side must fail on its own, naming the other. */
+    int mrc = 0, drc = 0;
+    for (int t = 0; t < 3000 && (!mrc || !drc); t++) {
+        if (!mrc) mrc = chan_pump(p.m, &err);
+        if (mrc && strstr(err.msg, "display")) break;
+        if (!drc) {
+            ct_error de = {{0}};
+            drc = chan_pump(p.d, &de);
+            if (drc) {
+                cr_assert_eq(drc, CT_EAUTH, "%s", de.msg);
+                cr_assert(strstr(de.msg, ": authentication failed: the peer's proof does not match our token"), "%s",
+                          de.msg);
+            }
+        }
+        usleep(1000);
+    }
+    cr_assert_eq(drc, CT_EAUTH);
+    cr_assert_eq(mrc, CT_EAUTH, "%s", err.msg);
+    cr_assert(!chan_ready(p.m) && !chan_ready(p.d));
+    chan_free(p.m);
+    chan_free(p.d);
+    xport_listener_close(l);
+}
+
+Test(xport, peer_disconnects_mid_message)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair(spec, &l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    /* A raw display: a valid HELLO, then 10 bytes of a 16-byte PING frame, then gone. */
+    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {7};
+    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    uint8_t part[10] = {WIRE_PING, 0, 0, 0, 8, 0, 0, 0, 1, 2};
+    cr_assert_eq(xport_write_all(cli, hello, sizeof hello, 1000, &err), 0);
+    cr_assert_eq(xport_write_all(cli, part, sizeof part, 1000, &err), 0);
+    xport_close(cli);
+    wire_msg msg;
+    int rc = chan_recv_wait(m, &msg, 2000, &err);
+    cr_assert_eq(rc, CT_EIO, "rc %d: %s", rc, err.msg);
+    char want[300];
+    snprintf(want, sizeof want, "%s (pid %d): connection closed in the middle of a message (10 of 16 bytes received)",
+             spec, (int)getpid());
+    cr_assert_str_eq(err.msg, want);
+    /* Sticky. */
+    cr_assert_eq(chan_recv(m, &msg, &err), CT_EIO);
+    cr_assert_str_eq(err.msg, want);
+    chan_free(m);
+    xport_listener_close(l);
+}
+
+Test(xport, peer_closes_between_messages_after_bye)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    pair p;
+    xport_listener *l;
+    make_chans(spec, NULL, NULL, &p, &l);
+    ct_error err = {{0}};
+    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 3000, &err), 0, "%s", err.msg);
+    wire_msg bye = {.type = WIRE_BYE, .u.bye.reason = WIRE_BYE_QUIT};
+    cr_assert_eq(chan_send(p.d, &bye, &err), 0);
+    cr_assert_eq(chan_flush(p.d, 1000, &err), 0, "%s", err.msg);
+    chan_free(p.d);
+    wire_msg m;
+    cr_assert_eq(chan_recv_wait(p.m, &m, 2000, &err), WIRE_OK, "%s", err.msg);
+    cr_assert_eq(m.type, WIRE_BYE);
+    cr_assert_eq(chan_recv_wait(p.m, &m, 2000, &err), CT_EIO);
+    cr_assert(strstr(err.msg, ": the peer closed the connection"), "%s", err.msg);
+    /* Sending to a closed peer fails cleanly (no SIGPIPE). */
+    wire_msg ping = {.type = WIRE_PING};
+    for (int i = 0; i < 100; i++) {
+        if (chan_send(p.m, &ping, &err) < 0) break;
+        chan_pump(p.m, &err);
+    }
+    chan_free(p.m);
+    xport_listener_close(l);
+}
+
+Test(xport, raw_write_to_vanished_peer_is_an_error_not_sigpipe)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair(spec, &l, &srv, &cli);
+    xport_close(cli);
+    static uint8_t junk[1 << 16];
+    ct_error err = {{0}};
+    int rc = 0;
+    for (int i = 0; i < 64 && rc == 0; i++) rc = xport_write_all(srv, junk, sizeof junk, 1000, &err);
+    cr_assert_eq(rc, CT_EIO);
+    cr_assert(strstr(err.msg, "the peer closed the connection") || strstr(err.msg, "reset"), "%s", err.msg);
+    xport_close(srv);
+    xport_listener_close(l);
+}
+
+Test(xport, not_a_corrtex_peer)
+{
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair("tcp:127.0.0.1:0", &l, &srv, &cli);
+    auth_token t = token_of("the tcp shared token");
+    chan_config mc = {.role = AUTH_ROLE_MASTER, .token = &t};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    const char *http = "GET / HTTP/1.1\r\nHost: x\r\n\r\n";
+    cr_assert_eq(xport_write_all(cli, http, strlen(http), 1000, &err), 0);
+    int rc = 0;
+    for (int i = 0; i < 2000 && rc == 0; i++) {
+        rc = chan_pump(m, &err);
+        usleep(500);
+    }
+    cr_assert_eq(rc, CT_EPROTO);
+    cr_assert(strstr(err.msg, ": bad magic byte 0x47 at offset 0 (not a corrtex peer?)"), "%s", err.msg);
+    /* The stray client got our HELLO and an ERROR frame explaining it. */
+    uint8_t buf[512];
+    size_t got = 0, n;
+    for (int i = 0; i < 200 && got < AUTH_HELLO_SIZE + WIRE_HEADER_SIZE; i++) {
+        if (xport_read(cli, buf + got, sizeof buf - got, &n, &err) != 0) break;
+        got += n;
+        usleep(1000);
+    }
+    cr_assert_geq(got, AUTH_HELLO_SIZE + WIRE_HEADER_SIZE);
+    cr_assert(memcmp(buf, AUTH_MAGIC, AUTH_MAGIC_SIZE) == 0);
+    cr_assert_eq(wio_get_u16(buf + AUTH_HELLO_SIZE), WIRE_ERROR);
+    chan_free(m);
+    xport_close(cli);
+    xport_listener_close(l);
+}
+
+Test(xport, listen_errors)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l, *l2;
+    ct_error err;
+    cr_assert_eq(xport_listen(spec, &l, &err), 0, "%s", err.msg);
+    cr_assert_eq(xport_listen(spec, &l2, &err), CT_EIO);
+    char want[200];
+    snprintf(want, sizeof want, "%s: another process is listening there", spec);
+    cr_assert_str_eq(err.msg, want);
+    xport_listener_close(l);
+    /* A regular file in the way is not removed. */
+    FILE *f = fopen(spec + 5, "w");
+    fclose(f);
+    cr_assert_eq(xport_listen(spec, &l2, &err), CT_EIO);
+    snprintf(want, sizeof want, "%s: path exists and is not a socket", spec);
+    cr_assert_str_eq(err.msg, want);
+    unlink(spec + 5);
+}
+
+Test(xport, scene_over_a_socket)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    pair p;
+    xport_listener *l;
+    make_chans(spec, NULL, NULL, &p, &l);
+    ct_error err = {{0}};
+    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 3000, &err), 0, "%s", err.msg);
+    ct_radmesh mesh, got;
+    fx_mesh(&mesh, 30000);
+    wire_scene_tx tx;
+    cr_assert_eq(wire_scene_tx_init(&tx, &mesh, &err), 0, "%s", err.msg);
+    wire_scene_rx *rx;
+    wire_scene_rx_new(chan_peer(p.d), &rx, NULL);
+    wire_msg m;
+    wire_scene_tx_begin(&tx, false, &m);
+    uint32_t nchunks = m.u.scene_begin.nchunks, next = 0;
+    cr_assert_eq(chan_send(p.m, &m, &err), 0);
+    int done = 0;
+    for (int t = 0; t < 20000 && done != 1; t++) {
+        /* The master keeps the queue fed without blocking. */
+        while (next <= nchunks) {
+            if (next < nchunks) wire_scene_tx_chunk(&tx, next, &m);
+            else wire_scene_tx_end(&tx, &m);
+            int rc = chan_send(p.m, &m, &err);
+            cr_assert_geq(rc, 0, "%s", err.msg);
+            if (rc == XPORT_QUEUE_FULL) break;
+            next++;
+        }
+        chan_pump(p.m, &err);
+        chan_pump(p.d, &err);
+        while (chan_recv(p.d, &m, &err) == WIRE_OK) {
+            done = wire_scene_rx_feed(rx, &m, &err);
+            cr_assert_geq(done, 0, "%s", err.msg);
+        }
+        struct pollfd pf[2] = {{chan_fd(p.m), chan_events(p.m), 0}, {chan_fd(p.d), chan_events(p.d), 0}};
+        poll(pf, 2, 1);
+    }
+    cr_assert_eq(done, 1, "scene not received");
+    cr_assert_eq(wire_scene_rx_take(rx, &got, &err), 0);
+    cr_assert_eq(got.nverts, mesh.nverts);
+    cr_assert(memcmp(got.rad, mesh.rad, mesh.nverts * sizeof(vec3)) == 0);
+    rmesh_free(&got);
+    rmesh_free(&mesh);
+    wire_scene_tx_free(&tx);
+    wire_scene_rx_free(rx);
+    chan_free(p.m);
+    chan_free(p.d);
+    xport_listener_close(l);
+}
+
+/* --- the merging send queue ---------------------------------------------------------- */
+
+/* A patch of texture tex at (x, y, w, h) whose texels all hold value v. */
+static wire_msg patch(uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t h, float v, uint16_t *store)
+{
+    for (size_t i = 0; i < (size_t)w * h * 3; i++) store[i] = wire_half_from_float(v);
+    wire_msg m;
+    memset(&m, 0, sizeof m);
+    m.type = WIRE_TEX_PATCH;
+    m.u.tex_patch = (wire_tex_patch){.tex = tex, .x = x, .y = y, .w = w, .h = h, .texels = store};
+    return m;
+}
+
+/* Drains the queue, applying patches to a 64x64 RGB image per texture id
+ * (0..3); returns the message types in order. */
+typedef struct drained {
+    float img[4][64][64];
+    unsigned types[1024];
+    size_t n;
+} drained;
+
+static void drain(xport_queue *q, drained *out)
+{
+    memset(out, 0, sizeof *out);
+    wire_decoder *d;
+    wire_decoder_new("queue", &d, NULL);
+    for (;;) {
+        const uint8_t *data;
+        size_t len;
+        cr_assert_eq(xport_queue_head(q, &data, &len, NULL), 0);
+        if (!len) break;
+        wire_decoder_feed(d, data, len, NULL);
+        xport_queue_advance(q, len);
+        wire_msg m;
+        while (wire_decoder_next(d, &m, NULL) == WIRE_OK) {
+            if (out->n < 1024) out->types[out->n] = m.type;
+            out->n++;
+            if (m.type != WIRE_TEX_PATCH) continue;
+            const wire_tex_patch *p = &m.u.tex_patch;
+            for (uint32_t y = 0; y < p->h; y++)
+                for (uint32_t x = 0; x < p->w; x++)
+                    out->img[p->tex][p->y + y][p->x + x] = wire_half_to_float(p->texels[3 * (y * p->w + x)]);
+        }
+    }
+    cr_assert(xport_queue_empty(q));
+    wire_decoder_free(d);
+}
+
+Test(queue, newer_patch_covering_older_replaces_it)
+{
+    xport_queue *q;
+    xport_queue_new(1 << 20, &q, NULL);
+    static uint16_t s[64 * 64 * 3];
+    wire_msg m = patch(1, 8, 8, 4, 4, 1.0f, s);
+    cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+    m = patch(1, 0, 0, 16, 16, 2.0f, s);
+    cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+    xport_queue_stats st = xport_queue_get_stats(q);
+    cr_assert_eq(st.entries, 1);
+    cr_assert_eq(st.merged, 1);
+    drained d;
+    drain(q, &d);
+    cr_assert_eq(d.n, 1);
+    cr_assert_eq(d.img[1][9][9], 2.0f);
+    xport_queue_free(q);
+}
+
+Test(queue, newer_patch_inside_older_is_written_into_it)
+{
+    xport_queue *q;
+    xport_queue_new(1 << 20, &q, NULL);
+    static uint16_t s[64 * 64 * 3];
+    wire_msg m = patch(1, 0, 0, 16, 16, 1.0f, s);
+    xport_queue_push(q, &m, NULL);
+    m = patch(1, 4, 4, 2, 2, 3.0f, s);
+    xport_queue_push(q, &m, NULL);
+    cr_assert_eq(xport_queue_get_stats(q).entries, 1);
+    drained d;
+    drain(q, &d);
+    cr_assert_eq(d.n, 1);
+    cr_assert_eq(d.img[1][4][4], 3.0f);
+    cr_assert_eq(d.img[1][5][5], 3.0f);
+    cr_assert_eq(d.img[1][6][6], 1.0f);
+    xport_queue_free(q);
+}
+
+Test(queue, adjacent_rows_merge_into_one_rectangle)
+{
+    xport_queue *q;
+    xport_queue_new(1 << 20, &q, NULL);
+    static uint16_t s[64 * 64 * 3];
+    for (uint32_t y = 0; y < 8; y++) {
+        wire_msg m = patch(2, 3, y, 10, 1, (float)y, s);
+        cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+    }
+    cr_assert_eq(xport_queue_get_stats(q).entries, 1);
+    drained d;
+    drain(q, &d);
+    cr_assert_eq(d.n, 1);
+    for (uint32_t y = 0; y < 8; y++) cr_assert_eq(d.img[2][y][5], (float)y);
+    xport_queue_free(q);
+}
+
+Test(queue, different_textures_and_barriers_do_not_merge)
+{
+    xport_queue *q;
+    xport_queue_new(1 << 20, &q, NULL);
+    static uint16_t s[64 * 64 * 3];
+    wire_msg m = patch(1, 0, 0, 8, 8, 1.0f, s);
+    xport_queue_push(q, &m, NULL);
+    m = patch(2, 0, 0, 8, 8, 2.0f, s);
+    xport_queue_push(q, &m, NULL);
+    wire_msg frame = {.type = WIRE_FRAME, .u.frame = {.frame = 1}};
+    xport_queue_push(q, &frame, NULL);
+    m = patch(1, 0, 0, 8, 8, 5.0f, s); /* after FRAME 1: must not replace frame 1's patch */
+    xport_queue_push(q, &m, NULL);
+    wire_msg stats = {.type = WIRE_STATS};
+    xport_queue_push(q, &stats, NULL); /* not a barrier */
+    m = patch(1, 0, 0, 8, 8, 6.0f, s);
+    xport_queue_push(q, &m, NULL);
+    drained d;
+    drain(q, &d);
+    unsigned want[] = {WIRE_TEX_PATCH, WIRE_TEX_PATCH, WIRE_FRAME, WIRE_TEX_PATCH, WIRE_STATS};
+    cr_assert_eq(d.n, 5, "%zu messages", d.n);
+    for (size_t i = 0; i < 5; i++) cr_assert_eq(d.types[i], want[i], "message %zu", i);
+    cr_assert_eq(d.img[1][0][0], 6.0f);
+    cr_assert_eq(d.img[2][0][0], 2.0f);
+    xport_queue_free(q);
+}
+
+Test(queue, newest_wins_with_partial_overlaps)
+{
+    /* A random sequence of patches on one texture; after merging, the image
+     * the display builds must equal applying every patch in order. */
+    xport_queue *q;
+    xport_queue_new(64u << 20, &q, NULL);
+    static uint16_t s[64 * 64 * 3];
+    static float want[64][64];
+    memset(want, 0, sizeof want);
+    uint32_t seed = 12345;
+    for (int i = 0; i < 400; i++) {
+        seed = seed * 1664525u + 1013904223u;
+        uint32_t x = (seed >> 8) % 48, y = (seed >> 16) % 48, w = 1 + (seed >> 4) % 16, h = 1 + (seed >> 24) % 16;
+        float v = (float)(i + 1);
+        wire_msg m = patch(3, x, y, w, h, v, s);
+        cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+        for (uint32_t yy = y; yy < y + h; yy++)
+            for (uint32_t xx = x; xx < x + w; xx++) want[yy][xx] = wire_half_to_float(wire_half_from_float(v));
+    }
+    xport_queue_stats st = xport_queue_get_stats(q);
+    cr_assert_gt(st.merged, 0);
+    cr_assert_lt(st.entries, 400);
+    drained d;
+    drain(q, &d);
+    for (int y = 0; y < 64; y++)
+        for (int x = 0; x < 64; x++) cr_assert_eq(d.img[3][y][x], want[y][x], "texel %d,%d", x, y);
+    xport_queue_free(q);
+}
+
+Test(queue, bounded)
+{
+    xport_queue *q;
+    xport_queue_new(10000, &q, NULL);
+    static uint16_t s[64 * 64 * 3];
+    /* Distinct areas of distinct textures cannot merge: the queue fills. */
+    int full = 0;
+    for (uint32_t i = 0; i < 100 && !full; i++) {
+        uint32_t cell = (i / 4) % 9; /* 8x8 patches 12 texels apart: nothing touches */
+        wire_msg m = patch(i % 4, (cell % 3) * 20, (cell / 3) * 20, 8, 8, 1.0f, s);
+        int rc = xport_queue_push(q, &m, NULL);
+        cr_assert_geq(rc, 0);
+        full = rc == XPORT_QUEUE_FULL;
+    }
+    cr_assert(full, "queue never filled");
+    cr_assert_leq(xport_queue_get_stats(q).bytes, 10000);
+    /* A patch that covers queued ones still goes in (it frees their room). */
+    wire_msg big = patch(0, 0, 0, 64, 8, 9.0f, s);
+    cr_assert_eq(xport_queue_push(q, &big, NULL), 0);
+    cr_assert_leq(xport_queue_get_stats(q).bytes, 10000 + 64 * 8 * 6 + 32);
+    drained d;
+    drain(q, &d);
+    cr_assert_eq(d.img[0][3][40], 9.0f);
+    xport_queue_free(q);
+}
+
+Test(queue, slow_display_over_a_socket)
+{
+    /* The master sends a stream of patches over the same area to a display
+     * that does not read; the queue stays bounded by merging, and once the
+     * display reads, it ends with the newest texels. */
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    pair p;
+    xport_listener *l;
+    make_chans(spec, NULL, NULL, &p, &l);
+    ct_error err = {{0}};
+    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 3000, &err), 0, "%s", err.msg);
+    static uint16_t s[64 * 64 * 3];
+    for (int i = 1; i <= 3000; i++) {
+        wire_msg m = patch(1, 0, (uint32_t)(i % 4) * 16, 64, 16, (float)i, s);
+        cr_assert_eq(chan_send(p.m, &m, &err), 0, "%s", err.msg);
+        chan_pump(p.m, &err); /* the socket buffer fills, then the queue merges */
+    }
+    xport_queue_stats st = chan_queue_stats(p.m);
+    cr_assert_gt(st.merged, 0, "no merging happened");
+    cr_assert_leq(st.entries, 4);
+    static float img[64][64];
+    const float h3000 = wire_half_to_float(wire_half_from_float(3000.0f));
+    const float h2999 = wire_half_to_float(wire_half_from_float(2999.0f));
+    for (int t = 0; t < 20000; t++) {
+        chan_pump(p.m, &err);
+        chan_pump(p.d, &err);
+        wire_msg m;
+        while (chan_recv(p.d, &m, &err) == WIRE_OK) {
+            const wire_tex_patch *q = &m.u.tex_patch;
+            for (uint32_t y = 0; y < q->h; y++)
+                for (uint32_t x = 0; x < q->w; x++) img[q->y + y][q->x + x] = wire_half_to_float(q->texels[3 * (y * q->w + x)]);
+        }
+        if (chan_flushed(p.m) && img[0][0] == h3000 && img[63][63] == h2999) break;
+        usleep(100);
+    }
+    /* Newest values: rows 0-15 were last written by i = 3000 (i % 4 == 0),
+     * rows 16-31 by 2997, rows 48-63 by 2999 (as halves). */
+    cr_assert_eq(img[0][0], h3000);
+    cr_assert_eq(img[20][5], wire_half_to_float(wire_half_from_float(2997.0f)));
+    cr_assert_eq(img[40][60], wire_half_to_float(wire_half_from_float(2998.0f)));
+    cr_assert_eq(img[63][63], h2999);
+    chan_free(p.m);
+    chan_free(p.d);
+    xport_listener_close(l);
+}
+
+/* --- blocking helpers: a master thread and a display using chan_connect ------------- */
+
+#include <pthread.h>
+
+typedef struct master_ctx {
+    xport_listener *l;
+    const auth_token *token;
+    int rc;
+    ct_error err;
+    uint32_t epoch;
+} master_ctx;
+
+static void *master_main(void *arg)
+{
+    master_ctx *mc = arg;
+    chan_config cfg = {.role = AUTH_ROLE_MASTER, .token = mc->token};
+    chan *c = NULL;
+    for (int i = 0; i < 500 && !c; i++) {
+        struct pollfd p = {xport_listener_fd(mc->l), POLLIN, 0};
+        poll(&p, 1, 10);
+        if ((mc->rc = chan_accept(mc->l, &cfg, &c, &mc->err)) != 0) return NULL;
+    }
+    if (!c) {
+        mc->rc = ct_fail(&mc->err, CT_EIO, "master: no display connected");
+        return NULL;
+    }
+    if ((mc->rc = chan_handshake(c, 3000, &mc->err)) != 0) goto done;
+    wire_msg m;
+    mc->rc = chan_recv_wait(c, &m, 3000, &mc->err);
+    if (mc->rc == WIRE_OK && m.type == WIRE_CAMERA) mc->epoch = m.u.camera.epoch;
+    wire_msg bye = {.type = WIRE_BYE, .u.bye.reason = WIRE_BYE_SHUTDOWN};
+    if (mc->rc == WIRE_OK && (mc->rc = chan_send(c, &bye, &mc->err)) == 0) mc->rc = chan_flush(c, 3000, &mc->err);
+done:
+    chan_free(c);
+    return NULL;
+}
+
+Test(xport, chan_connect_and_accept_tcp)
+{
+    auth_token t = token_of("the tcp shared token");
+    master_ctx mc = {.token = &t};
+    ct_error err = {{0}};
+    cr_assert_eq(xport_listen("tcp:127.0.0.1:0", &mc.l, &err), 0, "%s", err.msg);
+    pthread_t th;
+    pthread_create(&th, NULL, master_main, &mc);
+    chan_config dc = {.role = AUTH_ROLE_DISPLAY, .token = &t};
+    chan *d;
+    int rc = chan_connect(xport_listener_addr(mc.l), &dc, 3000, &d, &err);
+    cr_assert_eq(rc, 0, "%s", err.msg);
+    cr_assert(chan_ready(d));
+    wire_msg cam = {.type = WIRE_CAMERA};
+    cam.u.camera = (wire_camera){.epoch = 41, .width = 128, .height = 96,
+                                 .cam = cam_look_at(v3(0, 1, 5), v3(0, 1, 0), v3(0, 1, 0), 50.0f)};
+    cr_assert_eq(chan_send(d, &cam, &err), 0);
+    cr_assert_eq(chan_flush(d, 3000, &err), 0, "%s", err.msg);
+    wire_msg m;
+    cr_assert_eq(chan_recv_wait(d, &m, 3000, &err), WIRE_OK, "%s", err.msg);
+    cr_assert_eq(m.type, WIRE_BYE);
+    cr_assert_eq(m.u.bye.reason, WIRE_BYE_SHUTDOWN);
+    pthread_join(th, NULL);
+    cr_assert_eq(mc.rc, 0, "master: %s", mc.err.msg);
+    cr_assert_eq(mc.epoch, 41);
+    chan_free(d);
+    xport_listener_close(mc.l);
+}
+
+Test(xport, chan_connect_errors)
+{
+    chan_config dc = {.role = AUTH_ROLE_DISPLAY};
+    chan *d;
+    ct_error err;
+    cr_assert_eq(chan_connect("tcp:[::1", &dc, 1000, &d, &err), CT_EINVAL);
+    cr_assert_str_eq(err.msg, "address 'tcp:[::1': missing ']' after the IPv6 address");
+    /* Nobody listens on a freshly closed port. */
+    xport_listener *l;
+    cr_assert_eq(xport_listen("tcp:127.0.0.1:0", &l, &err), 0);
+    char spec[XPORT_ADDR_LEN];
+    snprintf(spec, sizeof spec, "%s", xport_listener_addr(l));
+    xport_listener_close(l);
+    cr_assert_eq(chan_connect(spec, &dc, 1000, &d, &err), CT_EIO);
+    char want[400];
+    snprintf(want, sizeof want, "%s: connect: Connection refused", spec);
+    cr_assert_str_eq(err.msg, want);
+}
+
+/* --- hostile peers and listening on any address -------------------------------------- */
+
+Test(xport, handshake_deadline)
+{
+    /* A client that connects and sends nothing must not hold the master. */
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair(spec, &l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER, .handshake_ms = 100};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    int rc = 0;
+    for (int i = 0; i < 400 && rc == 0; i++) {
+        rc = chan_pump(m, &err);
+        usleep(1000);
+    }
+    cr_assert_eq(rc, CT_EPROTO);
+    char want[300];
+    snprintf(want, sizeof want, "%s (pid %d): handshake not completed within 100 ms", spec, (int)getpid());
+    cr_assert_str_eq(err.msg, want);
+    chan_free(m);
+    xport_close(cli);
+    xport_listener_close(l);
+}
+
+Test(xport, oversized_frame_after_handshake)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    xport_listener *l;
+    xport_conn *srv, *cli;
+    connect_pair(spec, &l, &srv, &cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {9};
+    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    uint8_t huge[8] = {WIRE_SCENE_CHUNK, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
+    cr_assert_eq(xport_write_all(cli, hello, sizeof hello, 1000, &err), 0);
+    cr_assert_eq(xport_write_all(cli, huge, sizeof huge, 1000, &err), 0);
+    wire_msg msg;
+    int rc = chan_recv_wait(m, &msg, 2000, &err);
+    cr_assert_eq(rc, CT_EPROTO, "%s", err.msg);
+    char want[300];
+    snprintf(want, sizeof want, "%s (pid %d): SCENE_CHUNK body length 2147483647 over the limit %zu", spec,
+             (int)getpid(), wire_max_body(WIRE_SCENE_CHUNK));
+    cr_assert_str_eq(err.msg, want);
+    chan_send_error(m, WIRE_ERR_PROTOCOL, err.msg, 500);
+    /* The raw client reads our HELLO, then the ERROR with the reason. */
+    uint8_t buf[1024];
+    size_t got = 0, n;
+    for (int i = 0; i < 500; i++) {
+        if (xport_read(cli, buf + got, sizeof buf - got, &n, &err) != 0) break;
+        got += n;
+        if (got >= AUTH_HELLO_SIZE + WIRE_HEADER_SIZE &&
+            got >= AUTH_HELLO_SIZE + WIRE_HEADER_SIZE + wio_get_u32(buf + AUTH_HELLO_SIZE + 4))
+            break;
+        usleep(1000);
+    }
+    wire_msg e;
+    wire_scratch s = {0};
+    cr_assert_eq(wire_decode(buf + AUTH_HELLO_SIZE, got - AUTH_HELLO_SIZE, "master", &e, &s, &err), 0, "%s", err.msg);
+    cr_assert_eq(e.type, WIRE_ERROR);
+    cr_assert(strstr(e.u.error.text, "SCENE_CHUNK body length 2147483647 over the limit"), "%s", e.u.error.text);
+    wire_scratch_free(&s);
+    chan_free(m);
+    xport_close(cli);
+    xport_listener_close(l);
+}
+
+Test(xport, listen_on_any_address)
+{
+    xport_listener *l;
+    ct_error err = {{0}};
+    cr_assert_eq(xport_listen("tcp:*:0", &l, &err), 0, "%s", err.msg);
+    const char *bound = xport_listener_addr(l);
+    const char *port = strrchr(bound, ':') + 1;
+    char spec[64];
+    snprintf(spec, sizeof spec, "tcp:127.0.0.1:%s", port);
+    xport_conn *c, *s;
+    cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
+    s = NULL;
+    for (int i = 0; i < 200 && !s; i++) {
+        usleep(1000);
+        xport_accept(l, &s, &err);
+    }
+    cr_assert(s, "IPv4 client not accepted on %s", bound);
+    cr_assert(strncmp(xport_peer(s), "tcp:127.0.0.1:", 14) == 0, "%s", xport_peer(s));
+    xport_close(c);
+    xport_close(s);
+    if (strncmp(bound, "tcp:[", 5) == 0) { /* dual-stack IPv6 socket: IPv6 clients too */
+        snprintf(spec, sizeof spec, "tcp:[::1]:%s", port);
+        cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
+        s = NULL;
+        for (int i = 0; i < 200 && !s; i++) {
+            usleep(1000);
+            xport_accept(l, &s, &err);
+        }
+        cr_assert(s, "IPv6 client not accepted on %s", bound);
+        cr_assert(strncmp(xport_peer(s), "tcp:[::1]:", 10) == 0, "%s", xport_peer(s));
+        xport_close(c);
+        xport_close(s);
+    } else {
+        cr_log_warn("skip: IPv6 part, listening on %s", bound);
+    }
+    xport_listener_close(l);
+}
