@@ -190,7 +190,7 @@ static int build(const montage_opts *o, char **files, int nfiles, ct_error *err)
         if (o->labels && lab >= 0) draw_label(&sheet, x0, y0, lab, lscale);
         ct_progress(COMPONENT, (double)(k + 1) / n, 0, "tile %d/%d", k + 1, n);
     }
-    ct_progress(COMPONENT, 1.0, 1, "tile %d/%d", n, n);
+    if (!rc) ct_progress(COMPONENT, 1.0, 1, "tile %d/%d", n, n);
     img_free(&first);
     if (!rc) rc = img_write_png(o->out, &sheet, o->exposure, err);
     if (!rc) ct_info(COMPONENT, "%s: %d tiles (%dx%d), %dx%d pixels", o->out, n, cols, rows, sheet.width,
