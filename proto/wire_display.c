@@ -275,28 +275,6 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
 
 /* --- encode ----------------------------------------------------------------- */
 
-static void put_camera(wio_w *w, const ct_camera *c)
-{
-    ww_vec3(w, c->eye);
-    ww_f32(w, c->orient.w);
-    ww_f32(w, c->orient.x);
-    ww_f32(w, c->orient.y);
-    ww_f32(w, c->orient.z);
-    ww_f32(w, c->fov_y);
-}
-
-static ct_camera get_camera(wio_r *r)
-{
-    ct_camera c;
-    c.eye = wr_vec3(r);
-    c.orient.w = wr_f32(r);
-    c.orient.x = wr_f32(r);
-    c.orient.y = wr_f32(r);
-    c.orient.z = wr_f32(r);
-    c.fov_y = wr_f32(r);
-    return c;
-}
-
 /* Appends header + LZ4 body for the two compressed types. hdr_len bytes of
  * fixed header fields are already in fixed[]. */
 static int encode_compressed(unsigned type, const uint8_t *fixed, size_t hdr_len, const uint8_t *raw,
@@ -381,7 +359,7 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
         ww_u32(&w, m->u.camera.epoch);
         ww_u32(&w, m->u.camera.width);
         ww_u32(&w, m->u.camera.height);
-        put_camera(&w, &m->u.camera.cam);
+        ww_camera(&w, &m->u.camera.cam);
         break;
     case WIRE_TEX_ALLOC:
         ww_u32(&w, m->u.tex_alloc.tex);
@@ -519,7 +497,7 @@ int wire_decode_body(unsigned type, const uint8_t *body, size_t len, const char 
         out->u.camera.epoch = wr_u32(&r);
         out->u.camera.width = wr_u32(&r);
         out->u.camera.height = wr_u32(&r);
-        out->u.camera.cam = get_camera(&r);
+        out->u.camera.cam = wr_camera(&r);
         break;
     case WIRE_TEX_ALLOC:
         out->u.tex_alloc.tex = wr_u32(&r);

@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "common/camera.h"
 #include "common/vecmath.h"
 
 static inline void wio_put_u16(uint8_t *p, uint16_t v)
@@ -106,6 +107,29 @@ static inline vec3 wr_vec3(wio_r *r)
     v.y = wr_f32(r);
     v.z = wr_f32(r);
     return v;
+}
+
+/* A camera: eye, orientation quaternion (w, x, y, z), vertical fov; 32 bytes. */
+static inline void ww_camera(wio_w *w, const ct_camera *c)
+{
+    ww_vec3(w, c->eye);
+    ww_f32(w, c->orient.w);
+    ww_f32(w, c->orient.x);
+    ww_f32(w, c->orient.y);
+    ww_f32(w, c->orient.z);
+    ww_f32(w, c->fov_y);
+}
+
+static inline ct_camera wr_camera(wio_r *r)
+{
+    ct_camera c;
+    c.eye = wr_vec3(r);
+    c.orient.w = wr_f32(r);
+    c.orient.x = wr_f32(r);
+    c.orient.y = wr_f32(r);
+    c.orient.z = wr_f32(r);
+    c.fov_y = wr_f32(r);
+    return c;
 }
 
 #endif

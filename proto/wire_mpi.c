@@ -74,28 +74,6 @@ static bool cam_ok(uint32_t w, uint32_t h, const ct_camera *c)
            isfinite(c->orient.y) && isfinite(c->orient.z) && c->fov_y > 0.0f && c->fov_y < 3.14159f;
 }
 
-static void put_cam(wio_w *w, const ct_camera *c)
-{
-    ww_vec3(w, c->eye);
-    ww_f32(w, c->orient.w);
-    ww_f32(w, c->orient.x);
-    ww_f32(w, c->orient.y);
-    ww_f32(w, c->orient.z);
-    ww_f32(w, c->fov_y);
-}
-
-static ct_camera get_cam(wio_r *r)
-{
-    ct_camera c;
-    c.eye = wr_vec3(r);
-    c.orient.w = wr_f32(r);
-    c.orient.x = wr_f32(r);
-    c.orient.y = wr_f32(r);
-    c.orient.z = wr_f32(r);
-    c.fov_y = wr_f32(r);
-    return c;
-}
-
 static int check_request(const ct_request *q, const char *who, uint32_t i, ct_error *err)
 {
     if (!isfinite(q->px) || !isfinite(q->py) || !isfinite(q->priority) || !isfinite(q->radius) || q->radius < 0.0f)
@@ -156,7 +134,7 @@ int wire_mpi_encode_requests(const wire_mpi_requests *h, const ct_request *reqs,
     ww_u32(&w, h->epoch);
     ww_u32(&w, h->width);
     ww_u32(&w, h->height);
-    put_cam(&w, &h->cam);
+    ww_camera(&w, &h->cam);
     for (uint32_t i = 0; i < count; i++) {
         const ct_request *q = &reqs[i];
         ww_u64(&w, q->id);
@@ -185,7 +163,7 @@ int wire_mpi_decode_requests(const uint8_t *buf, size_t len, const char *peer, w
     h->epoch = wr_u32(&r);
     h->width = wr_u32(&r);
     h->height = wr_u32(&r);
-    h->cam = get_cam(&r);
+    h->cam = wr_camera(&r);
     if (!cam_ok(h->width, h->height, &h->cam))
         return ct_fail(err, CT_EPROTO, "%s: MPI REQUESTS has an invalid camera", peer);
     for (uint32_t i = 0; i < n; i++) {
@@ -280,7 +258,7 @@ int wire_mpi_encode_camera(const wire_mpi_camera *c, wire_buf *out, ct_error *er
     ww_u32(&w, c->epoch);
     ww_u32(&w, c->width);
     ww_u32(&w, c->height);
-    put_cam(&w, &c->cam);
+    ww_camera(&w, &c->cam);
     return 0;
 }
 
@@ -296,7 +274,7 @@ int wire_mpi_decode_camera(const uint8_t *buf, size_t len, const char *peer, wir
     c->epoch = wr_u32(&r);
     c->width = wr_u32(&r);
     c->height = wr_u32(&r);
-    c->cam = get_cam(&r);
+    c->cam = wr_camera(&r);
     if (!cam_ok(c->width, c->height, &c->cam))
         return ct_fail(err, CT_EPROTO, "%s: MPI CAMERA has an invalid camera", peer);
     return 0;

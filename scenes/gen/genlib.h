@@ -532,27 +532,39 @@ static inline void gen_count(gcounts *c, const gobj *o)
 }
 
 /* Writes dir/name.counts atomically: one "key value" line per count. */
-static inline int gen_write_counts(const char *dir, const char *name, const gcounts *c)
+/* Writes text to dir/file atomically (temporary + rename); one error line
+ * naming the file on failure. */
+static inline int gen_write_file(const char *dir, const char *file, const char *generator,
+                                 const char *text)
 {
     char path[1024], tmp[1100];
-    snprintf(path, sizeof path, "%s/%s.counts", dir, name);
+    snprintf(path, sizeof path, "%s/%s", dir, file);
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
     FILE *f = fopen(tmp, "w");
     if (!f) {
-        fprintf(stderr, "error %s: cannot write %s: %s\n", name, tmp, strerror(errno));
+        fprintf(stderr, "error %s: cannot write %s: %s\n", generator, tmp, strerror(errno));
         return -1;
     }
-    fprintf(f, "# %s.counts: what scenes/gen/%s.c wrote (input polygons; run make scenes)\n"
-               "files %ld\nobjects %ld\nprimitives %ld\nquads %ld\ntriangles %ld\nngons %ld\n",
-            name, name, c->files, c->objects, c->prims, c->quads, c->tris, c->ngons);
+    fputs(text, f);
     int bad = ferror(f) != 0;
     if (fclose(f) != 0) bad = 1;
     if (bad || rename(tmp, path) != 0) {
-        fprintf(stderr, "error %s: writing %s failed\n", name, path);
+        fprintf(stderr, "error %s: writing %s failed\n", generator, path);
         remove(tmp);
         return -1;
     }
     return 0;
+}
+
+static inline int gen_write_counts(const char *dir, const char *name, const gcounts *c)
+{
+    char file[256], text[1024];
+    snprintf(file, sizeof file, "%s.counts", name);
+    snprintf(text, sizeof text,
+             "# %s.counts: what scenes/gen/%s.c wrote (input polygons; run make scenes)\n"
+             "files %ld\nobjects %ld\nprimitives %ld\nquads %ld\ntriangles %ld\nngons %ld\n",
+             name, name, c->files, c->objects, c->prims, c->quads, c->tris, c->ngons);
+    return gen_write_file(dir, file, name, text);
 }
 
 #endif
