@@ -10,6 +10,11 @@ need_programs
 scene="$root/scenes/cornell/cornell.json"
 [[ -f $scene ]] || { echo "error: $scene missing (make scenes)"; exit 1; }
 
+# Job control: without it bash starts background commands with SIGINT
+# ignored, and a shell cannot trap a signal ignored on entry; a launcher
+# started from a terminal (the real Ctrl-C case) has SIGINT at its default.
+set -m
+
 one() {  # one SIGNAL
   local sig=$1 out="$tmp/walk-$1" sock="$tmp/w-$1.sock"
   local cmd=("$walk" cornell --path walk --frames 100000 --samples-per-frame 100 --width 32 --height 32
