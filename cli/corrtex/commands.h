@@ -14,6 +14,9 @@ typedef struct cli_command {
 /* corrtex info: scene counts and bounds. */
 int cmd_info(int argc, char **argv);
 
+/* corrtex reference: the offline high-quality renderer (cmd_reference.c). */
+int cmd_reference(int argc, char **argv);
+
 /* The table, terminated by a NULL name (main.c). */
 extern const cli_command cli_commands[];
 

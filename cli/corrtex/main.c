@@ -8,6 +8,7 @@
 const cli_command cli_commands[] = {
     {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
     {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
+    {"reference", "render the high-quality reference image(s) (path, drt, reuse-diffuse)", cmd_reference},
     {"montage", "contact sheet PNG of walkthrough frames (PNG or EXR)", cmd_montage},
     {NULL, NULL, NULL}
 };

@@ -1,0 +1,387 @@
+/* corrtex reference: the offline high-quality renderer (tracer/render.h):
+ * one image of a scene camera or of a camera path frame, or every frame of
+ * a path into a folder, written as EXR (and an optional PNG preview). */
+#include <errno.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli/corrtex/commands.h"
+#include "common/campath.h"
+#include "common/fsutil.h"
+#include "common/image.h"
+#include "common/log.h"
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "common/timer.h"
+#include "tracer/render.h"
+#include "tracer/tracer.h"
+
+#define CMD "corrtex reference"
+
+typedef struct ref_args {
+    const char *scene, *camera, *path, *out;
+    int frame, frames;      /* -1: not given */
+    int width, height, spp, threads, tile;
+    trc_mode mode;
+    int shadow_rays, branch, depth;   /* 0: the mode's default */
+    int branch_depth;                 /* -1: the mode's default */
+    uint64_t seed;
+    float exposure;
+    int png, half, raw_embree;
+    float stand_in;         /* < 0: no stand-in radiosity */
+    long raw_cap;
+} ref_args;
+
+static void help(FILE *f)
+{
+    trc_options p, d;
+    trc_options_default(&p, TRC_MODE_PATH);
+    trc_options_default(&d, TRC_MODE_DRT);
+    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    fprintf(f,
+        "usage: corrtex reference SCENE [--camera NAME | --path PATH [--frame K] --frames N]\n"
+        "                         --width W --height H --spp S --mode MODE [options] -o OUT\n"
+        "\n"
+        "Renders the high-quality reference (docs/tracer.md) and prints the rays/s and\n"
+        "samples/s it reached.\n"
+        "\n"
+        "  SCENE             scene file (docs/scene-format.md)\n"
+        "  --camera NAME     a camera of the scene (default: its first camera)\n"
+        "  --path PATH       a camera path: the name of one of the scene's paths, or a path file\n"
+        "  --frames N        the path's frame count (frames spread evenly over it); without\n"
+        "                    --frame, renders all N frames into the folder OUT as\n"
+        "                    frame_00000.exr, frame_00001.exr, ...\n"
+        "  --frame K         render only frame K (0-based) of the N frames\n"
+        "  --width W, --height H   image size in pixels (1..65536; required)\n"
+        "  --spp S           samples per pixel, jittered in the pixel (required)\n"
+        "  --mode MODE       path | drt | reuse-diffuse (required)\n"
+        "                      path: unbiased path tracing with next-event estimation and MIS\n"
+        "                      drt: distributed ray tracing; indirect diffuse light from the\n"
+        "                           radiosity mesh; without one (radiosity meshes cannot be\n"
+        "                           loaded here yet) it is path-traced\n"
+        "                      reuse-diffuse: the diffuse part from a radiosity mesh, only\n"
+        "                           specular transport traced; needs --stand-in-radiosity until\n"
+        "                           radiosity meshes can be loaded\n"
+        "  --stand-in-radiosity A   use a stand-in interactive solution (every surface\n"
+        "                    L_e + rho_d * A, no shadows; rmesh_from_scene) for drt and\n"
+        "                    reuse-diffuse: for tests and throughput only, the images are\n"
+        "                    not references (default: none)\n"
+        "  --threads T       render threads (default: %ld, the online CPUs)\n"
+        "  --shadow-rays K   light samples per shading point (default: path %d, drt %d)\n"
+        "  --branch B        drt: rays per glossy lobe at a hit (default %d)\n"
+        "  --branch-depth L  drt: levels that split into B glossy rays and both Fresnel\n"
+        "                    branches; deeper levels trace one ray per event, so a sample\n"
+        "                    costs about B * D rays, not B^D (default %d)\n"
+        "  --depth D         drt: recursion depth (default %d); path: maximum bounces\n"
+        "                    (default %d, Russian roulette after 3)\n"
+        "  --seed N          random seed (default %llu)\n"
+        "  --tile N          tile edge in pixels (default 16)\n"
+        "  --half            write half-float EXR (default: 32-bit float)\n"
+        "  --png             also write a PNG preview beside each EXR\n"
+        "  --exposure E      PNG preview exposure in stops (default 0)\n"
+        "  --raw-embree      benchmark: log rays and replay them with raw Embree queries\n"
+        "  --raw-cap N       rays logged per thread, a uniform random subset of all\n"
+        "                    traced rays (default 2000000)\n"
+        "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
+        "  --quiet, --verbose\n",
+        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
+        (unsigned long long)p.seed);
+}
+
+static int bad(const char *fmt, const char *a, const char *b)
+{
+    char msg[512];
+    snprintf(msg, sizeof msg, fmt, a, b);
+    ct_log(CT_LOG_ERROR, CMD, "%s", msg);
+    return 2;
+}
+
+/* Parses a whole decimal integer in [lo, hi]. */
+static int parse_int(const char *opt, const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi) {
+        char range[64];
+        snprintf(range, sizeof range, "%ld..%ld", lo, hi);
+        ct_log(CT_LOG_ERROR, CMD, "%s: '%s' is not an integer in %s", opt, s, range);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+static int parse_args(int argc, char **argv, ref_args *a)
+{
+    memset(a, 0, sizeof *a);
+    a->frame = a->frames = -1;
+    a->width = a->height = a->spp = -1;
+    a->mode = (trc_mode)-1;
+    a->tile = 16;
+    a->branch_depth = -1;
+    a->seed = 1;
+    a->raw_cap = 2000000;
+    a->stand_in = -1.0f;
+    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    a->threads = ncpu > 0 ? (int)(ncpu < 256 ? ncpu : 256) : 1;
+    for (int i = 1; i < argc; i++) {
+        const char *o = argv[i];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            help(stdout);
+            return 1;
+        }
+        if (!strcmp(o, "--quiet")) { ct_log_set_level(CT_LOG_WARN); continue; }
+        if (!strcmp(o, "--verbose")) { ct_log_set_level(CT_LOG_DEBUG); continue; }
+        if (!strcmp(o, "--half")) { a->half = 1; continue; }
+        if (!strcmp(o, "--png")) { a->png = 1; continue; }
+        if (!strcmp(o, "--raw-embree")) { a->raw_embree = 1; continue; }
+        if (o[0] != '-') {
+            if (a->scene) return bad("unexpected argument '%s' (the scene is '%s')", o, a->scene), -1;
+            a->scene = o;
+            continue;
+        }
+        if (i + 1 >= argc) return bad("option %s needs a value%s", o, ""), -1;
+        const char *v = argv[++i];
+        long n;
+        ct_error err;
+        if (!strcmp(o, "--camera")) a->camera = v;
+        else if (!strcmp(o, "--path")) a->path = v;
+        else if (!strcmp(o, "-o")) a->out = v;
+        else if (!strcmp(o, "--mode")) {
+            if (trc_mode_parse(v, &a->mode, &err)) return bad("%s%s", err.msg, ""), -1;
+        } else if (!strcmp(o, "--exposure")) {
+            char *end;
+            a->exposure = strtof(v, &end);
+            if (end == v || *end || !isfinite(a->exposure)) return bad("--exposure: '%s' is not a number%s", v, ""), -1;
+        } else if (!strcmp(o, "--stand-in-radiosity")) {
+            char *end;
+            a->stand_in = strtof(v, &end);
+            if (end == v || *end || !isfinite(a->stand_in) || a->stand_in < 0.0f)
+                return bad("--stand-in-radiosity: '%s' is not a number >= 0%s", v, ""), -1;
+        } else if (!strcmp(o, "--seed")) {
+            char *end;
+            errno = 0;
+            a->seed = strtoull(v, &end, 10);
+            if (errno || end == v || *end || v[0] == '-') return bad("--seed: '%s' is not an unsigned integer%s", v, ""), -1;
+        } else {
+            static const struct { const char *name; long lo, hi; } ints[] = {
+                {"--width", 1, 65536}, {"--height", 1, 65536}, {"--spp", 1, 1 << 20},
+                {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
+                {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
+                {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024}};
+            size_t k = 0;
+            while (k < sizeof ints / sizeof ints[0] && strcmp(o, ints[k].name)) k++;
+            if (k == sizeof ints / sizeof ints[0]) return bad("unknown option '%s' (try --help)%s", o, ""), -1;
+            if (parse_int(o, v, ints[k].lo, ints[k].hi, &n)) return -1;
+            int *dst[] = {&a->width, &a->height, &a->spp, &a->threads, &a->frame, &a->frames,
+                          &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth};
+            if (k == 10) a->raw_cap = n;
+            else *dst[k] = (int)n;
+        }
+    }
+    if (!a->scene) return bad("missing SCENE (try --help)%s%s", "", ""), -1;
+    if (a->width < 0 || a->height < 0) return bad("missing --width or --height%s%s", "", ""), -1;
+    if (a->spp < 0) return bad("missing --spp%s%s", "", ""), -1;
+    if ((int)a->mode < 0) return bad("missing --mode (path, drt, reuse-diffuse)%s%s", "", ""), -1;
+    if (!a->out) return bad("missing -o OUT%s%s", "", ""), -1;
+    if (a->camera && a->path) return bad("--camera and --path exclude each other%s%s", "", ""), -1;
+    if (!a->path && (a->frame >= 0 || a->frames >= 0)) return bad("--frame/--frames need --path%s%s", "", ""), -1;
+    if (a->path && a->frames < 0) return bad("--path needs --frames N (the path's frame count)%s%s", "", ""), -1;
+    if (a->frame >= 0 && a->frame >= a->frames) {
+        char f[32], n[32];
+        snprintf(f, sizeof f, "%d", a->frame);
+        snprintf(n, sizeof n, "%d", a->frames);
+        return bad("--frame %s is not below --frames %s", f, n), -1;
+    }
+    if (a->mode == TRC_MODE_REUSE && a->stand_in < 0.0f)
+        return bad("mode reuse-diffuse needs a radiosity mesh: give --stand-in-radiosity A "
+                   "(radiosity meshes cannot be loaded here yet)%s%s", "", ""), -1;
+    return 0;
+}
+
+/* Replaces the extension of path (or appends one) into out. */
+static void with_ext(const char *path, const char *ext, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s", path);
+    char *dot = strrchr(out, '.'), *slash = strrchr(out, '/');
+    if (dot && (!slash || dot > slash)) *dot = '\0';
+    size_t l = strlen(out);
+    snprintf(out + l, cap - l, "%s", ext);
+}
+
+static int write_outputs(const ref_args *a, const char *exr, const ct_image *img, ct_error *err)
+{
+    int rc = img_write_exr(exr, img, a->half ? IMG_HALF : IMG_FLOAT, err);
+    if (rc) return rc;
+    if (a->png) {
+        char png[4096];
+        with_ext(exr, ".png", png, sizeof png);
+        rc = img_write_png(png, img, a->exposure, err);
+    }
+    return rc;
+}
+
+static void report(const ref_args *a, const render_result *r, double total_s, int nimages)
+{
+    uint64_t rays = trc_stats_rays(&r->stats);
+    double s = r->seconds > 0 ? r->seconds : 1e-9;
+    printf("reference: %dx%d, %d spp, mode %s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
+           a->width, a->height, a->spp, trc_mode_name(a->mode), a->threads, a->threads == 1 ? "" : "s",
+           nimages, nimages == 1 ? "" : "s", r->seconds, total_s);
+    printf("reference: %llu samples, %.0f samples/s; %llu rays (%llu primary, %llu secondary, "
+           "%llu shadow), %.0f rays/s\n",
+           (unsigned long long)r->stats.samples, (double)r->stats.samples / s, (unsigned long long)rays,
+           (unsigned long long)r->stats.primary, (unsigned long long)r->stats.secondary,
+           (unsigned long long)r->stats.shadow, (double)rays / s);
+    if (r->logged) {
+        printf("reference: raw embree on %llu logged rays: rtcIntersect1 %.0f rays/s, as traced "
+               "(shadow rays rtcOccluded1) %.0f rays/s; tracer at %.0f%% of raw rtcIntersect1\n",
+               (unsigned long long)r->logged, (double)r->logged / r->replay_isect_s,
+               (double)r->logged / r->replay_traced_s,
+               100.0 * ((double)rays / s) / ((double)r->logged / r->replay_isect_s));
+    }
+    /* One machine-readable line for scripts (scripts/bench-tracer). */
+    printf("stats: mode=%s threads=%d width=%d height=%d spp=%d seconds=%.6f samples=%llu rays=%llu "
+           "samples_per_s=%.1f rays_per_s=%.1f logged=%llu raw_isect_rays_per_s=%.1f "
+           "raw_traced_rays_per_s=%.1f\n",
+           trc_mode_name(a->mode), a->threads, a->width, a->height, a->spp, r->seconds,
+           (unsigned long long)r->stats.samples, (unsigned long long)rays, (double)r->stats.samples / s,
+           (double)rays / s, (unsigned long long)r->logged,
+           r->logged ? (double)r->logged / r->replay_isect_s : 0.0,
+           r->logged ? (double)r->logged / r->replay_traced_s : 0.0);
+}
+
+static void add_result(render_result *sum, const render_result *r)
+{
+    sum->seconds += r->seconds;
+    sum->stats.primary += r->stats.primary;
+    sum->stats.secondary += r->stats.secondary;
+    sum->stats.shadow += r->stats.shadow;
+    sum->stats.samples += r->stats.samples;
+    sum->logged += r->logged;
+    sum->replay_isect_s += r->replay_isect_s;
+    sum->replay_traced_s += r->replay_traced_s;
+}
+
+int cmd_reference(int argc, char **argv)
+{
+    ref_args a;
+    int prc = parse_args(argc, argv, &a);
+    if (prc) return prc > 0 ? 0 : 2;
+    double t0 = ct_now();
+    ct_error err;
+    ct_error_clear(&err);
+    ct_scene *s = NULL;
+    trc_tracer *t = NULL;
+    ct_campath own_path;
+    memset(&own_path, 0, sizeof own_path);
+    const ct_campath *path = NULL;
+    ct_camera cam;
+    ct_image img = {0, 0, NULL};
+    ct_radmesh rad;
+    memset(&rad, 0, sizeof rad);
+    bool have_rad = false;
+    int status = 2, rc;
+
+    if ((rc = scene_load(a.scene, &s, &err))) goto fail;
+    if (a.path) {
+        int pi = scene_find_path(s, a.path);
+        if (pi >= 0) {
+            path = &s->paths[pi];
+        } else if ((rc = campath_load(a.path, &own_path, &err))) {
+            ct_error why = err;
+            ct_fail(&err, rc, "path '%s' is neither a path of %s nor a readable path file (%s)", a.path,
+                    a.scene, why.msg);
+            goto fail;
+        } else {
+            path = &own_path;
+        }
+    } else if (a.camera) {
+        int ci = scene_find_camera(s, a.camera);
+        if (ci < 0) {
+            ct_fail(&err, CT_EINVAL, "camera '%s' is not in %s (%u cameras)", a.camera, a.scene, s->ncams);
+            goto fail;
+        }
+        cam = s->cams[ci].cam;
+    } else {
+        if (s->ncams == 0) {
+            ct_fail(&err, CT_EINVAL, "%s has no camera: give --path", a.scene);
+            goto fail;
+        }
+        cam = s->cams[0].cam;
+    }
+
+    trc_options to;
+    trc_options_default(&to, a.mode);
+    if (a.shadow_rays) to.shadow_rays = a.shadow_rays;
+    if (a.branch) to.branch = a.branch;
+    if (a.branch_depth >= 0) to.branch_depth = a.branch_depth;
+    if (a.depth) to.depth = a.depth;
+    to.seed = a.seed;
+    double tb = ct_now();
+    if (a.stand_in >= 0.0f) {
+        if ((rc = rmesh_from_scene(s, v3s(a.stand_in), &rad, &err))) goto fail;
+        have_rad = true;
+        ct_warn(CMD, "stand-in radiosity (L_e + rho_d * %g): throughput and tests only, not a reference",
+                (double)a.stand_in);
+    }
+    if ((rc = trc_new(s, have_rad ? &rad : NULL, &to, &t, &err))) goto fail;
+    ct_info(CMD, "%s: %u triangles, %u lights; Embree scene built in %.2f s", a.scene, s->ntris, s->nemitters,
+            ct_now() - tb);
+    img.width = a.width;
+    img.height = a.height;
+    img.px = calloc((size_t)a.width * (size_t)a.height * 3, sizeof(float));
+    if (!img.px) {
+        ct_fail(&err, CT_ENOMEM, "out of memory for a %dx%d image", a.width, a.height);
+        goto fail;
+    }
+    render_options ro;
+    render_options_default(&ro, a.width, a.height);
+    ro.spp = a.spp;
+    ro.threads = a.threads;
+    ro.tile = a.tile;
+    ro.progress = ct_log_get_level() >= CT_LOG_INFO ? "reference" : NULL;
+    if (a.raw_embree) ro.raylog_cap = (size_t)a.raw_cap;
+    render_result total;
+    memset(&total, 0, sizeof total);
+    int first = path ? (a.frame >= 0 ? a.frame : 0) : 0;
+    int last = path ? (a.frame >= 0 ? a.frame : a.frames - 1) : 0;
+    bool folder = path && a.frame < 0;
+    char outdir[4096];
+    fs_dirname(a.out, outdir, sizeof outdir);
+    if ((rc = fs_mkdirs(folder ? a.out : outdir, &err))) goto fail;
+    for (int k = first; k <= last; k++) {
+        if (path) cam = campath_frame(path, k, a.frames);
+        ro.epoch = (uint32_t)k;
+        render_result r;
+        if ((rc = render_image(t, &cam, &ro, img.px, &r, &err))) goto fail;
+        add_result(&total, &r);
+        char name[4096];
+        if (folder) {
+            char leaf[32];
+            snprintf(leaf, sizeof leaf, "frame_%05d.exr", k);
+            fs_join(a.out, leaf, name, sizeof name);
+        } else {
+            snprintf(name, sizeof name, "%s", a.out);
+        }
+        if ((rc = write_outputs(&a, name, &img, &err))) goto fail;
+        ct_info(CMD, "wrote %s", name);
+    }
+    report(&a, &total, ct_now() - t0, last - first + 1);
+    status = 0;
+    goto done;
+fail:
+    ct_log(CT_LOG_ERROR, CMD, "%s", err.msg);
+done:
+    free(img.px);
+    trc_free(t);
+    if (have_rad) rmesh_free(&rad);
+    if (own_path.keys) campath_free(&own_path);
+    scene_free(s);
+    return status;
+}

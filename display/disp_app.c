@@ -1,0 +1,486 @@
+#include "display/disp_app.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "common/campath.h"
+#include "common/log.h"
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "common/timer.h"
+#include "display/disp_camera_control.h"
+#include "display/disp_capture.h"
+#include "display/disp_client.h"
+#include "display/disp_keys.h"
+#include "display/disp_session.h"
+#include "display/disp_synthetic.h"
+#include "display/gl_load.h"
+
+#define COMP "corrtex-display"
+
+void disp_app_defaults(disp_app_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->backend = gl_backend_default();
+    o->width = 1024;    /* §5: the paper displays at 1024x1024 */
+    o->height = 1024;
+    o->exposure = 0.0f;
+    o->passes = 1;
+    o->view = DISP_VIEW_FULL;
+    o->vsync = true;
+    o->float_format = GL_RGBA32F;
+    o->ambient = 0.3f;
+    o->reconnect = false;
+}
+
+const char *disp_app_keys_help(void)
+{
+    return disp_keys_help();
+}
+
+typedef struct app {
+    const disp_app_opts *o;
+    gl_backend *backend;
+    disp_session *session;
+    disp_compositor *comp;
+    disp_capture *capture;
+    ct_radmesh mesh;          /* kept for synthetic textures */
+    bool have_mesh;
+    ct_campath path;
+    bool have_path;
+    disp_fly fly;
+    bool have_cam;            /* fly.cam was set from the options or the scene */
+    disp_render_opts ropts;
+    /* the master connection */
+    disp_client *client;
+    disp_scene_cache *cache;
+    double retry_at, backoff;     /* next reconnection attempt, its delay */
+    bool cam_sent;                /* last_cam went to this connection */
+    bool ever_connected;
+    ct_camera last_cam;
+    /* title statistics */
+    double stat_t0;
+    uint32_t stat_frames;
+    disp_counters stat_c0;
+    char status[160];
+} app;
+
+static int load_solution(app *a, ct_error *err)
+{
+    const disp_app_opts *o = a->o;
+    int rc;
+    if (o->mesh) {
+        /* rmesh_load (common/radmesh_io.c) is not on main yet. */
+        return ct_fail(err, CT_EINVAL, "--mesh %s: this build cannot read .ctmesh files yet "
+                       "(use --scene for a stand-in radiosity)", o->mesh);
+        a->have_mesh = true;
+        ct_info(COMP, "%s: %u vertices, %u triangles, %u nodes", o->mesh, a->mesh.nverts,
+                a->mesh.ntris, a->mesh.nnodes);
+    } else if (o->scene) {
+        ct_scene *s = NULL;
+        rc = scene_load(o->scene, &s, err);
+        if (rc) return rc;
+        /* A stand-in interactive solution: constant radiance per material. */
+        rc = rmesh_from_scene(s, v3s(o->ambient), &a->mesh, err);
+        if (!rc) {
+            a->have_mesh = true;
+            if (!a->have_cam && (o->camera_name || s->ncams)) {
+                int c = o->camera_name ? scene_find_camera(s, o->camera_name) : 0;
+                if (c < 0)
+                    rc = ct_fail(err, CT_EINVAL, "%s: no camera named '%s'", o->scene, o->camera_name);
+                else {
+                    a->fly.cam = s->cams[c].cam;
+                    a->have_cam = true;
+                }
+            }
+            ct_info(COMP, "%s: %u triangles, %u nodes (stand-in radiosity, ambient %.2f)", o->scene,
+                    a->mesh.ntris, a->mesh.nnodes, o->ambient);
+        }
+        scene_free(s);
+        if (rc) return rc;
+    } else if (!o->connect) {
+        return ct_fail(err, CT_EINVAL, "nothing to show: give --mesh, --scene or --connect");
+    }
+    return CT_OK;
+}
+
+static void set_title(app *a, double now, bool force)
+{
+    double dt = now - a->stat_t0;
+    if (!force && dt < 0.5) return;
+    disp_counters c = disp_session_counters(a->session);
+    double fps = dt > 0 ? (double)a->stat_frames / dt : 0;
+    double sps = dt > 0 ? (double)(c.samples - a->stat_c0.samples) / dt : 0;
+    double bps = dt > 0 ? (double)(c.bytes - a->stat_c0.bytes) / dt : 0;
+    char title[256];
+    snprintf(title, sizeof title,
+             "corrtex | %.1f fps | %.0f samples/s | %u textures | %.1f kB/s | %s, %d-pass, exp %+.1f%s%s | H: help",
+             fps, sps, disp_textures_count(disp_session_textures(a->session)), bps / 1024.0,
+             disp_view_name(a->ropts.view), a->ropts.passes, a->ropts.exposure,
+             a->status[0] ? " | " : "", a->status);
+    gl_backend_set_title(a->backend, title);
+    a->stat_t0 = now;
+    a->stat_frames = 0;
+    a->stat_c0 = c;
+}
+
+/* Handles key presses; false when the user asked to quit. */
+static bool handle_keys(app *a, const gl_input *in)
+{
+    for (int i = 0; i < in->npresses; i++) {
+        switch (disp_keys_apply(in->presses[i], &a->ropts)) {
+        case DISP_KEY_CHANGED: set_title(a, ct_now(), true); break;
+        case DISP_KEY_HELP: fputs(disp_keys_help(), stdout); fflush(stdout); break;
+        case DISP_KEY_CAMERA: {
+            vec3 f;
+            cam_axes(&a->fly.cam, NULL, NULL, &f);
+            vec3 t = v3_add(a->fly.cam.eye, f);
+            printf("0  %.4f %.4f %.4f  %.4f %.4f %.4f  %.2f\n", a->fly.cam.eye.x, a->fly.cam.eye.y,
+                   a->fly.cam.eye.z, t.x, t.y, t.z, a->fly.cam.fov_y * 180.0f / CT_PI);
+            fflush(stdout);
+            break;
+        }
+        case DISP_KEY_QUIT: return false;
+        case DISP_KEY_NONE: break;
+        }
+    }
+    return !in->close;
+}
+
+/* CPU seconds of the whole process (all threads: llvmpipe renders on its
+ * own threads), for frame costs that do not depend on other processes. */
+static double cpu_now(void)
+{
+    struct timespec ts;
+    if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts)) return 0.0;
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Reconnection back-off: 0.5 s doubling to 8 s. */
+#define BACKOFF_FIRST 0.5
+#define BACKOFF_MAX 8.0
+
+static int try_connect(app *a, ct_error *err)
+{
+    /* 3 s for connect + handshake: a master answers at once or not at all,
+     * and a reconnecting display must not freeze for long. */
+    disp_client_opts co = {a->o->connect, a->o->token_file, (uint32_t)a->o->samples_per_frame, 3000};
+    int rc = disp_client_connect(&co, a->cache, &a->client, err);
+    if (rc) return rc;
+    a->cam_sent = false;
+    a->ever_connected = true;
+    a->backoff = BACKOFF_FIRST;
+    a->status[0] = '\0';
+    return CT_OK;
+}
+
+/* The connection failed or was lost: with --reconnect schedule a retry and
+ * keep showing the last image; else fail with DISP_EXIT_LOST. */
+static int connection_lost(app *a, ct_error *cause, double now, ct_error *err)
+{
+    disp_client_close(a->client);
+    a->client = NULL;
+    if (!a->o->reconnect) {
+        ct_fail(err, CT_EIO, a->ever_connected ? "connection to %s lost: %s" : "cannot connect to %s: %s",
+                a->o->connect, cause->msg);
+        return DISP_EXIT_LOST;
+    }
+    if (a->backoff <= 0) a->backoff = BACKOFF_FIRST;
+    a->retry_at = now + a->backoff;
+    ct_warn(COMP, "%s %s: %s; retrying in %.1f s", a->ever_connected ? "connection lost to" : "cannot connect to",
+            a->o->connect, cause->msg, a->backoff);
+    snprintf(a->status, sizeof a->status, "CONNECTION LOST (%.60s), retrying", cause->msg);
+    a->backoff = a->backoff * 2 > BACKOFF_MAX ? BACKOFF_MAX : a->backoff * 2;
+    set_title(a, now, true);
+    return CT_OK;
+}
+
+/* Services the connection without waiting (or up to wait_ms); reconnects
+ * when due. Returns 0, or DISP_EXIT_LOST with err filled. */
+static int service(app *a, int wait_ms, ct_error *err)
+{
+    if (!a->o->connect) return CT_OK;
+    double now = ct_now();
+    ct_error e;
+    ct_error_clear(&e);
+    if (!a->client) {
+        if (now < a->retry_at) return CT_OK;
+        if (try_connect(a, &e)) return connection_lost(a, &e, now, err);
+        ct_info(COMP, "reconnected to %s", a->o->connect);
+        return CT_OK;
+    }
+    if (disp_client_service(a->client, a->session, wait_ms, &e)) {
+        if (disp_client_ended(a->client)) {
+            ct_info(COMP, "%s", e.msg);
+            return 1;   /* orderly end */
+        }
+        return connection_lost(a, &e, now, err);
+    }
+    return CT_OK;
+}
+
+static bool same_camera(const ct_camera *x, const ct_camera *y)
+{
+    return memcmp(x, y, sizeof *x) == 0;
+}
+
+/* What the connection says about the frame about to be drawn. */
+enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4 };
+
+/* With --connect: services the connection, sends the camera when it changed,
+ * and in lockstep waits for the master's FRAME of the current epoch. */
+static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_start, ct_error *err)
+{
+    const disp_app_opts *o = a->o;
+    int st = service(a, 0, err);
+    if (st) return st == 1 ? STEP_END : STEP_LOST;
+    if (a->client && (!a->cam_sent || !same_camera(cam, &a->last_cam))) {
+        ct_error e;
+        if (disp_client_send_camera(a->client, cam, o->width, o->height, &e)) {
+            if (connection_lost(a, &e, ct_now(), err)) return STEP_LOST;
+        } else {
+            a->cam_sent = true;
+            a->last_cam = *cam;
+        }
+    }
+    if (!disp_session_scene_of(a->session)) {
+        if (a->client) snprintf(a->status, sizeof a->status, "waiting for the scene from %s", o->connect);
+        set_title(a, ct_now(), false);
+        st = service(a, 20, err);
+        return st == 1 ? STEP_END : st ? STEP_LOST : STEP_WAIT;
+    }
+    if (!strncmp(a->status, "waiting", 7)) a->status[0] = '\0';
+    /* Lockstep (docs/protocol.md): draw frame k only after FRAME k. */
+    while (a->client && o->samples_per_frame > 0 && !disp_client_frame_ready(a->client, NULL)) {
+        st = service(a, 20, err);
+        if (st) return st == 1 ? STEP_END : STEP_LOST;
+        gl_backend_poll(a->backend, in);
+        if (!handle_keys(a, in)) return STEP_QUIT;
+        if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
+    }
+    if (a->client) disp_client_take_frame(a->client);
+    return STEP_DRAW;
+}
+
+/* The run loop; returns 0, a negative CT_E* code, or DISP_EXIT_LOST. */
+static int run(app *a, ct_error *err)
+{
+    const disp_app_opts *o = a->o;
+    bool window = gl_backend_is_window(a->backend);
+    int nframes = o->frames;
+    if (!window && nframes == 0 && !a->have_path && !o->connect) nframes = 1;
+    double t_start = ct_now(), t_last = t_start;
+    a->stat_t0 = t_start;
+    a->stat_c0 = disp_session_counters(a->session);
+    disp_counters prev = a->stat_c0;
+    float dur = a->have_path ? campath_duration(&a->path) : 0.0f;
+    float t_first = a->have_path ? a->path.keys[0].t : 0.0f;
+    size_t npx = (size_t)o->width * (size_t)o->height;
+    float *rgb = NULL;
+    if (a->capture) {
+        rgb = malloc(npx * 3 * sizeof *rgb);
+        if (!rgb) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d frame", o->width, o->height);
+    }
+    double render_ms_sum = 0, first_ms = 0, cpu_ms_sum = 0;
+    uint32_t k = 0;
+    int rc = CT_OK;
+    bool fly_ready = disp_session_scene_of(a->session) != NULL;
+    bool path_done = false;
+    gl_input in;
+    memset(&in, 0, sizeof in);
+    set_title(a, t_start, true);
+    while (nframes <= 0 || k < (uint32_t)nframes) {
+        double now = ct_now();
+        double dt = now - t_last;
+        t_last = now;
+        gl_backend_poll(a->backend, &in);
+        if (!handle_keys(a, &in)) break;
+        if (o->max_seconds > 0 && now - t_start >= o->max_seconds) break;
+        if (!fly_ready && disp_session_scene_of(a->session)) {
+            /* The master's scene arrived: start the fly camera over it. */
+            bounds3 b = disp_scene_bounds(disp_session_scene_of(a->session));
+            if (!a->have_cam) a->fly.cam = disp_camera_overview(b, 50.0f);
+            disp_fly_init(&a->fly, &a->fly.cam, b);
+            fly_ready = true;
+        }
+        double ftime = now - t_start;
+        ct_camera cam;
+        if (a->have_path) {
+            if (nframes > 0) {
+                cam = campath_frame(&a->path, (int)k, nframes);
+                ftime = nframes > 1 ? (double)dur * k / (double)(nframes - 1) : 0.0;
+            } else {
+                /* Real time: the frame at or after the path's end is its last. */
+                if (ftime >= dur) {
+                    ftime = dur;
+                    path_done = true;
+                }
+                cam = campath_eval(&a->path, t_first + (float)ftime);
+            }
+        } else {
+            disp_fly_update(&a->fly, &in, dt);
+            cam = a->fly.cam;
+        }
+        bool last = path_done;
+        if (o->connect) {
+            int st = connection_step(a, &cam, &in, t_start, err);
+            if (st == STEP_QUIT) break;
+            /* The master ended the run: draw (and capture) what arrived, then stop. */
+            if (st == STEP_END) {
+                if (!disp_session_scene_of(a->session)) break;
+                last = true;
+            }
+            if (st == STEP_LOST) {
+                rc = DISP_EXIT_LOST;
+                break;
+            }
+            if (st == STEP_WAIT) {
+                /* Nothing to draw yet: a dark grey window, the title says why. */
+                if (window) {
+                    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+                    gl.Viewport(0, 0, in.fb_width, in.fb_height);
+                    gl.ClearColor(0.1f, 0.1f, 0.1f, 1.0f);
+                    gl.Clear(GL_COLOR_BUFFER_BIT);
+                    gl_backend_present(a->backend);
+                }
+                continue;
+            }
+        }
+        double t0 = ct_now(), c0 = cpu_now();
+        disp_render_stats rs;
+        a->ropts.all_positive = disp_session_all_positive(a->session);
+        rc = disp_compositor_render(a->comp, disp_session_scene_of(a->session),
+                                    disp_session_textures(a->session), &cam, &a->ropts, &rs, err);
+        uint32_t nxy = 0, nwp = 0;
+        const float *xy = disp_session_sample_xy(a->session, &nxy);
+        const float *wp = disp_session_patch_points(a->session, &nwp);
+        if (!rc)
+            rc = disp_compositor_present(a->comp, &a->ropts, xy, nxy, wp, nwp, window, in.fb_width,
+                                         in.fb_height, err);
+        if (rc) break;
+        if (window) gl_backend_present(a->backend);
+        else gl.Finish();
+        double frame_ms = 1000.0 * (ct_now() - t0);
+        /* The first frame pays for shader compilation (JIT on llvmpipe). */
+        if (k == 0) {
+            first_ms = frame_ms;
+        } else {
+            render_ms_sum += frame_ms;
+            cpu_ms_sum += 1000.0 * (cpu_now() - c0);
+        }
+        a->stat_frames++;
+        if (a->capture) {
+            disp_counters c = disp_session_counters(a->session);
+            disp_frame_info fi = {k, ftime, cam, frame_ms, c.samples - prev.samples, c.texels - prev.texels,
+                                  c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session))};
+            prev = c;
+            disp_compositor_read_linear(a->comp, rgb);
+            double rmse = 0, psnr = 0;
+            rc = disp_capture_frame(a->capture, &fi, rgb, o->width, o->height, &rmse, &psnr, err);
+            if (rc) break;
+            if (o->ref_dir) ct_info(COMP, "frame %u: rmse %.5f, psnr %.2f dB", k, rmse, psnr);
+        }
+        set_title(a, ct_now(), false);
+        k++;
+        if (!window && nframes > 1) ct_progress(COMP, (double)k / nframes, 0, "frame %u/%d", k, nframes);
+        if (last) break;
+    }
+    if (!window && nframes > 1) ct_progress(COMP, (double)k / nframes, 1, "frame %u/%d", k, nframes);
+    double total = ct_now() - t_start;
+    if (k > 0) {
+        double steady = k > 1 ? render_ms_sum / (k - 1) : first_ms;
+        double cpu = k > 1 ? cpu_ms_sum / (k - 1) : 0.0;
+        printf("display: %u frames in %.3f s; first frame %.1f ms; steady %.3f ms per frame = %.2f fps "
+               "(render + present), %.3f CPU ms per frame; %u textures, %s view, %d-pass, %s\n",
+               k, total, first_ms, steady, steady > 0 ? 1000.0 / steady : 0.0, cpu,
+               disp_textures_count(disp_session_textures(a->session)), disp_view_name(a->ropts.view),
+               a->ropts.passes, gl_backend_name(gl_backend_kind_of(a->backend)));
+    }
+    free(rgb);
+    return rc;
+}
+
+int disp_app_run(const disp_app_opts *o, ct_error *err)
+{
+    app a;
+    memset(&a, 0, sizeof a);
+    a.o = o;
+    a.ropts.passes = o->passes;
+    a.ropts.view = o->view;
+    a.ropts.exposure = o->exposure;
+    int status = DISP_EXIT_ERROR;
+    int rc = CT_OK;
+    if (o->path) {
+        rc = campath_load(o->path, &a.path, err);
+        if (rc) return DISP_EXIT_USAGE;
+        a.have_path = true;
+    }
+    /* Input files first, so bad input fails before any window opens. */
+    if (o->has_camera) {
+        a.fly.cam = o->camera;
+        a.have_cam = true;
+    }
+    rc = load_solution(&a, err);
+    if (rc && rc != CT_ENOMEM && rc != CT_ESYS) status = DISP_EXIT_USAGE;
+    if (!rc) rc = gl_backend_open(o->backend, o->width, o->height, "corrtex", o->vsync, &a.backend, err);
+    if (!rc) {
+        ct_info(COMP, "backend %s: %s, %s", gl_backend_name(o->backend), (const char *)gl.GetString(GL_RENDERER),
+                (const char *)gl.GetString(GL_VERSION));
+        rc = disp_session_new(&a.session, err);
+    }
+    if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
+    if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
+    if (!rc && o->connect) {
+        rc = disp_scene_cache_new(o->cache_dir, &a.cache, err);
+        ct_error e;
+        ct_error_clear(&e);
+        if (!rc && try_connect(&a, &e) && connection_lost(&a, &e, ct_now(), err)) {
+            status = DISP_EXIT_LOST;
+            rc = CT_EIO;
+        }
+    }
+    if (!rc && disp_session_scene_of(a.session)) {
+        const disp_scene *sc = disp_session_scene_of(a.session);
+        if (!a.have_cam) a.fly.cam = disp_camera_overview(disp_scene_bounds(sc), 50.0f);
+        disp_fly_init(&a.fly, &a.fly.cam, disp_scene_bounds(sc));
+        if (o->synthetic && a.have_mesh) {
+            ct_camera c0 = a.have_path ? campath_frame(&a.path, 0, o->frames > 0 ? o->frames : 2) : a.fly.cam;
+            uint32_t made = 0;
+            rc = disp_synthetic_textures(a.session, &a.mesh, &c0, o->width, o->height, o->synthetic,
+                                         o->synthetic_tiles, o->synthetic_positive, &made, err);
+            if (!rc)
+                ct_info(COMP, "%u synthetic correction textures (%llu texels)", made,
+                        (unsigned long long)disp_textures_texels(disp_session_textures(a.session)));
+        }
+    }
+    if (!rc && o->out_dir) {
+        rc = disp_capture_open(o->out_dir, o->ref_dir, o->exposure, &a.capture, err);
+        if (rc) status = DISP_EXIT_USAGE;
+    }
+    if (!rc) {
+        if (gl_backend_is_window(a.backend)) fputs("H or F1 in the window prints the keys\n", stdout);
+        rc = run(&a, err);
+        if (rc == DISP_EXIT_LOST) status = DISP_EXIT_LOST;
+        if (!rc && a.capture) {
+            rc = disp_capture_close(a.capture, err);
+            a.capture = NULL;
+        }
+        if (!rc) status = DISP_EXIT_OK;
+        else if (rc == CT_EPARSE || rc == CT_EINVAL || rc == CT_ESTALE) status = DISP_EXIT_USAGE;
+    }
+    if (a.capture) {
+        ct_error e2;
+        disp_capture_close(a.capture, &e2);
+    }
+    disp_client_close(a.client);
+    disp_scene_cache_free(a.cache);
+    disp_compositor_free(a.comp);
+    disp_session_free(a.session);
+    gl_backend_close(a.backend);
+    if (a.have_mesh) rmesh_free(&a.mesh);
+    if (a.have_path) campath_free(&a.path);
+    return status;
+}

@@ -1,0 +1,54 @@
+#include "display/disp_camera_control.h"
+
+#include <math.h>
+
+void disp_fly_init(disp_fly *f, const ct_camera *cam, bounds3 scene)
+{
+    f->cam = *cam;
+    cam_axes(cam, NULL, &f->world_up, NULL);
+    float diag = b3_is_empty(scene) ? 1.0f : v3_len(b3_extent(scene));
+    f->speed = 0.25f * (diag > 0 ? diag : 1.0f);
+    f->look = 0.004f;
+}
+
+bool disp_fly_update(disp_fly *f, const gl_input *in, double dt)
+{
+    bool changed = false;
+    if (in->scroll != 0.0) f->speed *= powf(1.25f, (float)in->scroll);
+    vec3 r, u, fw;
+    cam_axes(&f->cam, &r, &u, &fw);
+    vec3 move = v3s(0);
+    if (in->down['W'] || in->down[GL_KEY_UP]) move = v3_add(move, fw);
+    if (in->down['S'] || in->down[GL_KEY_DOWN]) move = v3_sub(move, fw);
+    if (in->down['D'] || in->down[GL_KEY_RIGHT]) move = v3_add(move, r);
+    if (in->down['A'] || in->down[GL_KEY_LEFT]) move = v3_sub(move, r);
+    if (in->down['E'] || in->down[GL_KEY_PAGE_UP]) move = v3_add(move, f->world_up);
+    if (in->down['Q'] || in->down[GL_KEY_PAGE_DOWN]) move = v3_sub(move, f->world_up);
+    if (!v3_is_zero(move)) {
+        float step = f->speed * (float)dt * (in->down[GL_KEY_SHIFT] ? 4.0f : 1.0f);
+        f->cam.eye = v3_add(f->cam.eye, v3_scale(v3_norm(move), step));
+        changed = true;
+    }
+    if (in->mouse_dx != 0.0 || in->mouse_dy != 0.0) {
+        /* Pitch is clamped to +-85 degrees about the horizon, so the camera
+         * never flips over; yaw turns about the world up. */
+        float pitch = asinf(fmaxf(-1.0f, fminf(1.0f, v3_dot(fw, f->world_up))));
+        float lim = 85.0f * CT_PI / 180.0f;
+        float want = fmaxf(-lim, fminf(lim, pitch - (float)in->mouse_dy * f->look));
+        quat yaw = q_axis_angle(f->world_up, -(float)in->mouse_dx * f->look);
+        quat tilt = q_axis_angle(v3(1, 0, 0), want - pitch);
+        f->cam.orient = q_normalize(q_mul(yaw, q_mul(f->cam.orient, tilt)));
+        changed = true;
+    }
+    return changed;
+}
+
+ct_camera disp_camera_overview(bounds3 b, float fov_deg)
+{
+    vec3 c = b3_center(b);
+    float r = 0.5f * v3_len(b3_extent(b));
+    if (!(r > 0)) r = 1.0f;
+    float d = r / sinf(0.5f * fov_deg * CT_PI / 180.0f);
+    vec3 eye = v3_add(c, v3(0.0f, 0.15f * r, d));
+    return cam_look_at(eye, c, v3(0, 1, 0), fov_deg);
+}

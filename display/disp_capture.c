@@ -1,0 +1,131 @@
+#include "display/disp_capture.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/fsutil.h"
+#include "common/image.h"
+#include "common/metrics.h"
+
+/* frames.csv is rewritten every this many frames (and at the end). */
+#define CSV_EVERY 25
+
+struct disp_capture {
+    char dir[2048];
+    char ref_dir[2048];
+    bool has_ref;
+    float exposure;
+    char *csv;          /* rows so far */
+    size_t len, cap;
+    uint32_t rows;
+};
+
+static const char *header =
+    "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures";
+
+int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp_capture **out,
+                      ct_error *err)
+{
+    *out = NULL;
+    int rc = fs_mkdirs(dir, err);
+    if (rc) return rc;
+    disp_capture *c = calloc(1, sizeof *c);
+    if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for frame capture");
+    snprintf(c->dir, sizeof c->dir, "%s", dir);
+    if (ref_dir) {
+        snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref_dir);
+        c->has_ref = true;
+    }
+    c->exposure = exposure;
+    *out = c;
+    return CT_OK;
+}
+
+static int append(disp_capture *c, const char *s, ct_error *err)
+{
+    size_t n = strlen(s);
+    if (c->len + n + 1 > c->cap) {
+        size_t cap = c->cap ? c->cap : 4096;
+        while (cap < c->len + n + 1) cap *= 2;
+        char *p = realloc(c->csv, cap);
+        if (!p) return ct_fail(err, CT_ENOMEM, "out of memory for frames.csv");
+        c->csv = p;
+        c->cap = cap;
+    }
+    memcpy(c->csv + c->len, s, n + 1);
+    c->len += n;
+    return CT_OK;
+}
+
+static int write_csv(disp_capture *c, ct_error *err)
+{
+    char path[4096];
+    fs_join(c->dir, "frames.csv", path, sizeof path);
+    fs_atomic a;
+    int rc = fs_atomic_open(&a, path, err);
+    if (rc) return rc;
+    fprintf(a.f, "%s%s\n", header, c->has_ref ? ",rmse,psnr_db" : "");
+    if (c->len) fwrite(c->csv, 1, c->len, a.f);
+    return fs_atomic_commit(&a, err);
+}
+
+int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width,
+                       int height, double *rmse, double *psnr, ct_error *err)
+{
+    char name[64], path[4096];
+    ct_image img = {width, height, (float *)rgb};
+    snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
+    fs_join(c->dir, name, path, sizeof path);
+    int rc = img_write_exr(path, &img, IMG_HALF, err);
+    if (rc) return rc;
+    snprintf(name, sizeof name, "frame_%05u.png", fi->frame);
+    fs_join(c->dir, name, path, sizeof path);
+    rc = img_write_png(path, &img, c->exposure, err);
+    if (rc) return rc;
+
+    char row[768];
+    int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u",
+                     fi->frame, fi->time, fi->cam.eye.x, fi->cam.eye.y, fi->cam.eye.z,
+                     fi->cam.orient.w, fi->cam.orient.x, fi->cam.orient.y, fi->cam.orient.z,
+                     fi->cam.fov_y * 180.0f / CT_PI, fi->frame_ms, (unsigned long long)fi->samples,
+                     (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures);
+    if (c->has_ref) {
+        snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
+        fs_join(c->ref_dir, name, path, sizeof path);
+        ct_image ref = {0, 0, NULL};
+        rc = img_read_exr(path, &ref, err);
+        if (rc) {
+            ct_error_prefix(err, "reference");
+            return rc;
+        }
+        img_metrics m;
+        rc = metrics_compare(&img, &ref, &m, err);
+        img_free(&ref);
+        if (rc) {
+            ct_error_prefix(err, path);
+            return rc;
+        }
+        if (rmse) *rmse = m.rmse;
+        if (psnr) *psnr = m.psnr;
+        snprintf(row + n, sizeof row - (size_t)n, ",%.6g,%.4f", m.rmse, isinf(m.psnr) ? 999.0 : m.psnr);
+    }
+    size_t len = strlen(row);
+    if (len > sizeof row - 2) len = sizeof row - 2;
+    row[len] = '\n';
+    row[len + 1] = '\0';
+    rc = append(c, row, err);
+    if (rc) return rc;
+    if (++c->rows % CSV_EVERY == 0) return write_csv(c, err);
+    return CT_OK;
+}
+
+int disp_capture_close(disp_capture *c, ct_error *err)
+{
+    if (!c) return CT_OK;
+    int rc = write_csv(c, err);
+    free(c->csv);
+    free(c);
+    return rc;
+}

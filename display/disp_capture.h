@@ -1,0 +1,42 @@
+/* disp_capture.h: frame output for --out DIR: frame_NNNNN.exr (linear RGB,
+ * half) and frame_NNNNN.png (exposure + sRGB, 8 bit) per frame, and
+ * frames.csv with one row per frame (camera, timings, per-frame counts and,
+ * with --reference DIR, the RMSE and PSNR against DIR/frame_NNNNN.exr).
+ * Every file is written atomically; frames.csv is rewritten every few
+ * frames and at the end so it is always complete up to some frame. */
+#ifndef CT_DISP_CAPTURE_H
+#define CT_DISP_CAPTURE_H
+
+#include <stdint.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+
+/* What one captured frame reports in frames.csv. */
+typedef struct disp_frame_info {
+    uint32_t frame;
+    double time;          /* seconds since the run started (path time for paths) */
+    ct_camera cam;
+    double frame_ms;      /* render + present time of this frame */
+    uint64_t samples;     /* samples inserted since the previous frame */
+    uint64_t texels;      /* texels received since the previous frame */
+    uint64_t bytes;       /* bytes received since the previous frame */
+    uint32_t textures;    /* textures allocated now */
+} disp_frame_info;
+
+typedef struct disp_capture disp_capture;
+
+/* Creates dir (mkdir -p); ref_dir may be NULL. */
+int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp_capture **out,
+                      ct_error *err);
+
+/* Writes the frame's EXR and PNG (rgb: linear, 3 floats per pixel, top row
+ * first) and records its row; with a reference, also its RMSE and PSNR,
+ * returned in *rmse / *psnr when not NULL. */
+int disp_capture_frame(disp_capture *c, const disp_frame_info *info, const float *rgb, int width,
+                       int height, double *rmse, double *psnr, ct_error *err);
+
+/* Writes frames.csv (atomically) and frees c; NULL is fine. */
+int disp_capture_close(disp_capture *c, ct_error *err);
+
+#endif

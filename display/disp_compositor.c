@@ -1,0 +1,483 @@
+#include "display/disp_compositor.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "display/gl_shaders.h"
+#include "display/gl_target.h"
+
+typedef struct mesh_prog {
+    GLuint id;
+    GLint u_mvp, u_texproj, u_rad_scale, u_color, u_tex[GL_ONE_PASS_MAX_TEX];
+} mesh_prog;
+
+struct disp_compositor {
+    int width, height;
+    gl_target hdr;       /* linear float image + depth */
+    gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
+    mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
+    mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
+    GLuint tonemap, points, points_world;
+    GLint pw_mvp, pw_point, pw_color;
+    GLuint pw_vao, pw_vbo;
+    mat4 last_mvp;       /* the camera of the last render (for world points) */
+    GLint tm_image, tm_exposure, tm_mode, tm_dim;
+    GLint pt_size, pt_point, pt_color;
+    GLuint empty_vao, pt_vao, pt_vbo;
+    /* one-pass segments, reused between frames */
+    uint32_t *bounds;
+    size_t bounds_cap;
+    const disp_texture **seg_tex;
+    size_t seg_tex_cap;
+};
+
+const char *disp_view_name(disp_view v)
+{
+    static const char *const names[] = {"full", "radiosity", "corrections", "assignment", "samples"};
+    return (unsigned)v < DISP_VIEW_COUNT ? names[v] : "?";
+}
+
+static int build_mesh_prog(mesh_prog *p, int pass, int ntex, ct_error *err)
+{
+    char defs[64], name[32];
+    snprintf(defs, sizeof defs, "#define PASS %d\n#define NTEX %d\n", pass, ntex);
+    snprintf(name, sizeof name, "mesh-pass-%d-%d", pass, ntex);
+    int rc = gl_program_build(name, gl_src_mesh_vs, gl_src_mesh_fs, defs, &p->id, err);
+    if (rc) return rc;
+    p->u_mvp = gl.GetUniformLocation(p->id, "u_mvp");
+    p->u_texproj = gl.GetUniformLocation(p->id, "u_texproj");
+    p->u_rad_scale = gl.GetUniformLocation(p->id, "u_rad_scale");
+    p->u_color = gl.GetUniformLocation(p->id, "u_color");
+    gl.UseProgram(p->id);
+    for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++) {
+        char u[16];
+        snprintf(u, sizeof u, "u_tex%d", k);
+        p->u_tex[k] = gl.GetUniformLocation(p->id, u);
+        if (p->u_tex[k] >= 0) gl.Uniform1i(p->u_tex[k], k);
+    }
+    gl.UseProgram(0);
+    return CT_OK;
+}
+
+int disp_compositor_new(int width, int height, unsigned float_format, disp_compositor **out,
+                        ct_error *err)
+{
+    *out = NULL;
+    if (!float_format) float_format = GL_RGBA32F;
+    if (float_format != GL_RGBA32F && float_format != GL_RGBA16F)
+        return ct_fail(err, CT_EINVAL, "float framebuffer format 0x%x is not RGBA32F or RGBA16F",
+                       float_format);
+    disp_compositor *c = calloc(1, sizeof *c);
+    if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for the compositor");
+    c->width = width;
+    c->height = height;
+    int rc = gl_target_init(&c->hdr, width, height, float_format, true, err);
+    if (!rc) rc = gl_target_init(&c->ldr, width, height, GL_RGBA8, false, err);
+    for (int p = 0; p < GL_PASS_COUNT && !rc; p++)
+        if (p != GL_PASS_ONE) rc = build_mesh_prog(&c->mesh[p], p, 1, err);
+    for (int k = 0; k < GL_ONE_PASS_MAX_TEX && !rc; k++)
+        rc = build_mesh_prog(&c->one[k], GL_PASS_ONE, k + 1, err);
+    if (!rc) rc = gl_program_build("tonemap", gl_src_screen_vs, gl_src_tonemap_fs, NULL, &c->tonemap, err);
+    if (!rc) rc = gl_program_build("points", gl_src_points_vs, gl_src_points_fs, NULL, &c->points, err);
+    if (!rc)
+        rc = gl_program_build("points-world", gl_src_points_world_vs, gl_src_points_fs, NULL, &c->points_world, err);
+    if (rc) {
+        disp_compositor_free(c);
+        return rc;
+    }
+    c->tm_image = gl.GetUniformLocation(c->tonemap, "u_image");
+    c->tm_exposure = gl.GetUniformLocation(c->tonemap, "u_exposure");
+    c->tm_mode = gl.GetUniformLocation(c->tonemap, "u_mode");
+    c->tm_dim = gl.GetUniformLocation(c->tonemap, "u_dim");
+    c->pt_size = gl.GetUniformLocation(c->points, "u_size");
+    c->pt_point = gl.GetUniformLocation(c->points, "u_point");
+    c->pt_color = gl.GetUniformLocation(c->points, "u_color");
+    c->pw_mvp = gl.GetUniformLocation(c->points_world, "u_mvp");
+    c->pw_point = gl.GetUniformLocation(c->points_world, "u_point");
+    c->pw_color = gl.GetUniformLocation(c->points_world, "u_color");
+    c->last_mvp = m4_identity();
+    gl.GenVertexArrays(1, &c->pw_vao);
+    gl.GenBuffers(1, &c->pw_vbo);
+    gl.BindVertexArray(c->pw_vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, c->pw_vbo);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), (const void *)0);
+    gl.BindVertexArray(0);
+    gl.GenVertexArrays(1, &c->empty_vao);
+    gl.GenVertexArrays(1, &c->pt_vao);
+    gl.GenBuffers(1, &c->pt_vbo);
+    gl.BindVertexArray(c->pt_vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, c->pt_vbo);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), (const void *)0);
+    gl.BindVertexArray(0);
+    rc = gl_check("compositor set-up", err);
+    if (rc) {
+        disp_compositor_free(c);
+        return rc;
+    }
+    *out = c;
+    return CT_OK;
+}
+
+void disp_compositor_free(disp_compositor *c)
+{
+    if (!c) return;
+    gl_target_free(&c->hdr);
+    gl_target_free(&c->ldr);
+    for (int p = 0; p < GL_PASS_COUNT; p++)
+        if (c->mesh[p].id) gl.DeleteProgram(c->mesh[p].id);
+    for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++)
+        if (c->one[k].id) gl.DeleteProgram(c->one[k].id);
+    if (c->tonemap) gl.DeleteProgram(c->tonemap);
+    if (c->points) gl.DeleteProgram(c->points);
+    if (c->points_world) gl.DeleteProgram(c->points_world);
+    if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
+    if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
+    if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
+    if (c->pt_vao) gl.DeleteVertexArrays(1, &c->pt_vao);
+    if (c->pt_vbo) gl.DeleteBuffers(1, &c->pt_vbo);
+    free(c->bounds);
+    free(c->seg_tex);
+    free(c);
+}
+
+void disp_compositor_depth_range(const disp_scene *s, const ct_camera *cam, float *znear,
+                                 float *zfar)
+{
+    bounds3 b = disp_scene_bounds(s);
+    vec3 f;
+    cam_axes(cam, NULL, NULL, &f);
+    float dmax = 0.0f;
+    for (int i = 0; i < 8; i++) {
+        float d = v3_dot(v3_sub(b3_corner(b, i), cam->eye), f);
+        if (d > dmax) dmax = d;
+    }
+    float diag = v3_len(b3_extent(b));
+    *zfar = fmaxf(dmax * 1.01f + 1e-3f * diag, 1e-3f);
+    /* 24-bit depth keeps ~1e-4 relative resolution at this ratio. */
+    *znear = fmaxf(*zfar * 1e-4f, 1e-6f);
+}
+
+static void set_texproj(const mesh_prog *p, const disp_texture *const *tex, int n)
+{
+    float m[GL_ONE_PASS_MAX_TEX][16];
+    for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++) {
+        mat4 x = k < n ? tex[k]->proj : m4_identity();
+        memcpy(m[k], x.m, sizeof m[k]);
+    }
+    /* Row-major mat4: upload transposed (vecmath.h). */
+    gl.UniformMatrix4fv(p->u_texproj, GL_ONE_PASS_MAX_TEX, GL_TRUE, &m[0][0]);
+    for (int k = 0; k < n && k < GL_ONE_PASS_MAX_TEX; k++) {
+        gl.ActiveTexture(GL_TEXTURE0 + (GLenum)k);
+        gl.BindTexture(GL_TEXTURE_2D, tex[k]->gl_tex);
+    }
+    gl.ActiveTexture(GL_TEXTURE0);
+}
+
+static void use_mesh(const mesh_prog *p, const float *mvp, float rad_scale)
+{
+    gl.UseProgram(p->id);
+    gl.UniformMatrix4fv(p->u_mvp, 1, GL_TRUE, mvp);
+    if (p->u_rad_scale >= 0) gl.Uniform1f(p->u_rad_scale, rad_scale);
+}
+
+static bool drawable(const disp_texture *x, uint32_t ntris)
+{
+    return x->has_proj && x->tri_end > x->tri_begin && x->tri_end <= ntris;
+}
+
+/* Passes 2 and 3 (§4.3) for the given textures. */
+static void correction_passes(disp_compositor *c, const disp_scene *s,
+                              const disp_texture *const *tex, uint32_t n, const float *mvp,
+                              bool all_positive, disp_render_stats *st)
+{
+    if (!n) return;
+    gl.Enable(GL_BLEND);
+    gl.BlendFunc(GL_ONE, GL_ONE);
+    gl.DepthMask(GL_FALSE);
+    gl.DepthFunc(GL_LEQUAL);
+    gl.BlendEquation(GL_FUNC_ADD);
+    use_mesh(&c->mesh[GL_PASS_POS], mvp, 1.0f);
+    for (uint32_t i = 0; i < n; i++) {
+        set_texproj(&c->mesh[GL_PASS_POS], &tex[i], 1);
+        disp_scene_draw(s, tex[i]->tri_begin, tex[i]->tri_end);
+        st->draws++;
+    }
+    if (!all_positive) {
+        gl.BlendEquation(GL_FUNC_REVERSE_SUBTRACT);
+        use_mesh(&c->mesh[GL_PASS_NEG], mvp, 1.0f);
+        for (uint32_t i = 0; i < n; i++) {
+            if (!tex[i]->negative) continue;
+            set_texproj(&c->mesh[GL_PASS_NEG], &tex[i], 1);
+            disp_scene_draw(s, tex[i]->tri_begin, tex[i]->tri_end);
+            st->draws++;
+            st->pass3 = true;
+        }
+        gl.BlendEquation(GL_FUNC_ADD);
+    }
+    gl.Disable(GL_BLEND);
+    gl.DepthMask(GL_TRUE);
+    gl.DepthFunc(GL_LESS);
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static int grow(void **p, size_t *cap, size_t need, size_t elem, ct_error *err)
+{
+    if (need <= *cap) return CT_OK;
+    size_t n = need < 64 ? 64 : 2 * need;
+    void *q = realloc(*p, n * elem);
+    if (!q) return ct_fail(err, CT_ENOMEM, "out of memory for %zu draw segments", n);
+    *p = q;
+    *cap = n;
+    return CT_OK;
+}
+
+/* One pass: the mesh is cut at every textured range's ends into segments;
+ * each segment is drawn once with the radiosity plus the signed corrections
+ * of the (up to 4) textures covering it. Any further textures on a segment
+ * (rare: more than 4 textures stacked on one node) go through passes 2/3. */
+static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex,
+                    uint32_t n, const float *mvp, float rad_scale, bool all_positive,
+                    disp_render_stats *st, ct_error *err)
+{
+    uint32_t ntris = disp_scene_ntris(s);
+    int rc = grow((void **)&c->bounds, &c->bounds_cap, 2 * (size_t)n + 2, sizeof *c->bounds, err);
+    if (!rc) rc = grow((void **)&c->seg_tex, &c->seg_tex_cap, (size_t)n + 1, sizeof *c->seg_tex, err);
+    if (rc) return rc;
+    size_t nb = 0;
+    c->bounds[nb++] = 0;
+    c->bounds[nb++] = ntris;
+    for (uint32_t i = 0; i < n; i++) {
+        c->bounds[nb++] = tex[i]->tri_begin;
+        c->bounds[nb++] = tex[i]->tri_end;
+    }
+    qsort(c->bounds, nb, sizeof *c->bounds, cmp_u32);
+    for (size_t k = 0; k + 1 < nb; k++) {
+        uint32_t b = c->bounds[k], e = c->bounds[k + 1];
+        if (b == e) continue;
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < n; i++)
+            if (tex[i]->tri_begin <= b && e <= tex[i]->tri_end) c->seg_tex[m++] = tex[i];
+        /* Merge following untextured segments into this one when it has none. */
+        if (m == 0) {
+            while (k + 2 < nb) {
+                uint32_t b2 = c->bounds[k + 1], e2 = c->bounds[k + 2];
+                bool covered = false;
+                for (uint32_t i = 0; i < n && !covered && b2 < e2; i++)
+                    covered = tex[i]->tri_begin <= b2 && e2 <= tex[i]->tri_end;
+                if (covered) break;
+                e = e2;
+                k++;
+            }
+        }
+        uint32_t first = m < GL_ONE_PASS_MAX_TEX ? m : GL_ONE_PASS_MAX_TEX;
+        /* Untextured runs: the plain radiosity program (no fetches). */
+        const mesh_prog *p = first ? &c->one[first - 1] : &c->mesh[GL_PASS_RAD];
+        use_mesh(p, mvp, rad_scale);
+        if (first) set_texproj(p, c->seg_tex, (int)first);
+        disp_scene_draw(s, b, e);
+        st->draws++;
+        if (m > first) {
+            /* Extra textures stacked on this segment: additive passes, then
+             * back to the one-pass program. */
+            const disp_texture **rest = c->seg_tex + first;
+            uint32_t nrest = m - first;
+            for (uint32_t i = 0; i < nrest; i++) {
+                disp_texture tmp = *rest[i];
+                tmp.tri_begin = b;
+                tmp.tri_end = e;
+                const disp_texture *one = &tmp;
+                correction_passes(c, s, &one, 1, mvp, all_positive, st);
+            }
+        }
+    }
+    return CT_OK;
+}
+
+static vec3 id_colour(uint32_t id)
+{
+    uint32_t h = id * 2654435761u;
+    h ^= h >> 15;
+    h *= 2246822519u;
+    h ^= h >> 13;
+    return v3(0.25f + 0.75f * (float)(h & 255) / 255.0f, 0.25f + 0.75f * (float)((h >> 8) & 255) / 255.0f,
+              0.25f + 0.75f * (float)((h >> 16) & 255) / 255.0f);
+}
+
+int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_textures *t,
+                           const ct_camera *cam, const disp_render_opts *o,
+                           disp_render_stats *stats, ct_error *err)
+{
+    disp_render_stats st = {0, 0, false};
+    if (o->passes != 1 && o->passes != 3)
+        return ct_fail(err, CT_EINVAL, "passes must be 1 or 3, not %d", o->passes);
+    float zn, zf;
+    disp_compositor_depth_range(s, cam, &zn, &zf);
+    mat4 mvp = m4_mul(cam_proj(cam, c->width, c->height, zn, zf), cam_view(cam));
+    c->last_mvp = mvp;
+
+    /* The drawable textures, in table order. */
+    uint32_t ntex = t ? disp_textures_count(t) : 0, n = 0;
+    int rc = grow((void **)&c->seg_tex, &c->seg_tex_cap, (size_t)ntex + 1, sizeof *c->seg_tex, err);
+    if (rc) return rc;
+    const disp_texture **tex = malloc(((size_t)ntex + 1) * sizeof *tex);
+    if (!tex) return ct_fail(err, CT_ENOMEM, "out of memory listing %u textures", ntex);
+    for (uint32_t i = 0; i < ntex; i++) {
+        const disp_texture *x = disp_textures_at(t, i);
+        if (drawable(x, disp_scene_ntris(s))) tex[n++] = x;
+    }
+
+    gl_target_bind(&c->hdr, 0, 0);
+    gl.ClearColor(0, 0, 0, 1);
+    gl.ClearDepth(1.0);
+    gl.Enable(GL_DEPTH_TEST);
+    gl.DepthFunc(GL_LESS);
+    gl.DepthMask(GL_TRUE);
+    gl.Disable(GL_BLEND);
+    gl.Disable(GL_CULL_FACE);
+    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    disp_scene_bind(s);
+
+    bool corrections = o->view == DISP_VIEW_FULL || o->view == DISP_VIEW_CORRECTIONS ||
+                       o->view == DISP_VIEW_SAMPLES;
+    float rad_scale = o->view == DISP_VIEW_CORRECTIONS ? 0.0f : 1.0f;
+    if (corrections && o->passes == 1) {
+        rc = one_pass(c, s, tex, n, &mvp.m[0][0], rad_scale, o->all_positive, &st, err);
+    } else {
+        use_mesh(&c->mesh[GL_PASS_RAD], &mvp.m[0][0], rad_scale);
+        disp_scene_draw(s, 0, disp_scene_ntris(s));
+        st.draws++;
+        if (corrections) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
+    }
+    if (!rc && o->view == DISP_VIEW_ASSIGNMENT && n) {
+        /* Fig. 5: each textured node in its texture's colour over the radiosity. */
+        gl.Enable(GL_BLEND);
+        gl.BlendColor(0, 0, 0, 0.6f);
+        gl.BlendFunc(GL_CONSTANT_ALPHA, GL_ONE_MINUS_CONSTANT_ALPHA);
+        gl.DepthMask(GL_FALSE);
+        gl.DepthFunc(GL_LEQUAL);
+        const mesh_prog *p = &c->mesh[GL_PASS_FLAT];
+        use_mesh(p, &mvp.m[0][0], 1.0f);
+        for (uint32_t i = 0; i < n; i++) {
+            vec3 col = id_colour(tex[i]->id);
+            gl.Uniform3f(p->u_color, col.x, col.y, col.z);
+            disp_scene_draw(s, tex[i]->tri_begin, tex[i]->tri_end);
+            st.draws++;
+        }
+        gl.Disable(GL_BLEND);
+        gl.DepthMask(GL_TRUE);
+        gl.DepthFunc(GL_LESS);
+    }
+    st.textures_drawn = corrections ? n : 0;
+    free(tex);
+    gl.BindVertexArray(0);
+    gl.UseProgram(0);
+    if (stats) *stats = st;
+    return rc ? rc : gl_check("frame rendering", err);
+}
+
+int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const float *xy,
+                            uint32_t n, const float *world, uint32_t nworld, bool to_window, int win_w,
+                            int win_h, ct_error *err)
+{
+    gl_target_bind(to_window ? NULL : &c->ldr, win_w, win_h);
+    gl.Disable(GL_DEPTH_TEST);
+    gl.Disable(GL_BLEND);
+    gl.UseProgram(c->tonemap);
+    gl.ActiveTexture(GL_TEXTURE0);
+    gl.BindTexture(GL_TEXTURE_2D, c->hdr.color);
+    gl.Uniform1i(c->tm_image, 0);
+    gl.Uniform1f(c->tm_exposure, o->exposure);
+    gl.Uniform1i(c->tm_mode, o->view == DISP_VIEW_CORRECTIONS ? 1 : 0);
+    gl.Uniform1f(c->tm_dim, o->view == DISP_VIEW_SAMPLES ? 0.35f : 1.0f);
+    gl.BindVertexArray(c->empty_vao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+    if (o->view == DISP_VIEW_SAMPLES && n && xy) {
+        gl.BindVertexArray(c->pt_vao);
+        gl.BindBuffer(GL_ARRAY_BUFFER, c->pt_vbo);
+        gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)n * 2 * sizeof(float)), xy, GL_STREAM_DRAW);
+        gl.Enable(GL_PROGRAM_POINT_SIZE);
+        gl.UseProgram(c->points);
+        gl.Uniform2f(c->pt_size, (float)c->width, (float)c->height);
+        gl.Uniform1f(c->pt_point, c->width >= 512 ? 3.0f : 1.0f);
+        gl.Uniform3f(c->pt_color, 1.0f, 0.85f, 0.1f);
+        gl.DrawArrays(GL_POINTS, 0, (GLsizei)n);
+        gl.Disable(GL_PROGRAM_POINT_SIZE);
+    }
+    if (o->view == DISP_VIEW_SAMPLES && nworld && world) {
+        /* Patch centres, through the camera of the last render. */
+        gl.BindVertexArray(c->pw_vao);
+        gl.BindBuffer(GL_ARRAY_BUFFER, c->pw_vbo);
+        gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)nworld * 3 * sizeof(float)), world, GL_STREAM_DRAW);
+        gl.Enable(GL_PROGRAM_POINT_SIZE);
+        gl.UseProgram(c->points_world);
+        gl.UniformMatrix4fv(c->pw_mvp, 1, GL_TRUE, &c->last_mvp.m[0][0]);
+        gl.Uniform1f(c->pw_point, c->width >= 512 ? 3.0f : 1.0f);
+        gl.Uniform3f(c->pw_color, 0.2f, 0.9f, 1.0f);
+        gl.DrawArrays(GL_POINTS, 0, (GLsizei)nworld);
+        gl.Disable(GL_PROGRAM_POINT_SIZE);
+    }
+    gl.BindVertexArray(0);
+    gl.UseProgram(0);
+    gl.Enable(GL_DEPTH_TEST);
+    return gl_check("tone mapping", err);
+}
+
+void disp_compositor_read_linear(disp_compositor *c, float *rgb)
+{
+    size_t w = (size_t)c->width, h = (size_t)c->height;
+    float *rgba = malloc(w * h * 4 * sizeof *rgba);
+    if (!rgba) {
+        memset(rgb, 0, w * h * 3 * sizeof *rgb);
+        return;
+    }
+    gl_target_read_f32(&c->hdr, rgba);
+    for (size_t y = 0; y < h; y++)
+        for (size_t x = 0; x < w; x++) {
+            const float *src = rgba + 4 * ((h - 1 - y) * w + x);
+            float *dst = rgb + 3 * (y * w + x);
+            dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+        }
+    free(rgba);
+}
+
+static void flip_rgb(const uint8_t *rgba, int w, int h, uint8_t *rgb)
+{
+    for (size_t y = 0; y < (size_t)h; y++)
+        for (size_t x = 0; x < (size_t)w; x++) {
+            const uint8_t *src = rgba + 4 * (((size_t)h - 1 - y) * (size_t)w + x);
+            uint8_t *dst = rgb + 3 * (y * (size_t)w + x);
+            dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+        }
+}
+
+void disp_compositor_read_display(disp_compositor *c, uint8_t *rgb)
+{
+    uint8_t *rgba = malloc((size_t)c->width * (size_t)c->height * 4);
+    if (!rgba) {
+        memset(rgb, 0, (size_t)c->width * (size_t)c->height * 3);
+        return;
+    }
+    gl_target_read_u8(&c->ldr, 0, 0, rgba);
+    flip_rgb(rgba, c->width, c->height, rgb);
+    free(rgba);
+}
+
+void disp_compositor_read_window(int win_w, int win_h, uint8_t *rgb)
+{
+    uint8_t *rgba = malloc((size_t)win_w * (size_t)win_h * 4);
+    if (!rgba) {
+        memset(rgb, 0, (size_t)win_w * (size_t)win_h * 3);
+        return;
+    }
+    gl_target_read_u8(NULL, win_w, win_h, rgba);
+    flip_rgb(rgba, win_w, win_h, rgb);
+    free(rgba);
+}

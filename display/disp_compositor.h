@@ -1,0 +1,84 @@
+/* disp_compositor.h: draws one frame. Into a float framebuffer (RGBA32F by
+ * default): pass 1 the radiosity mesh (Gouraud), then per textured node pass
+ * 2 adds the positive part of its correction and pass 3 subtracts the
+ * negative part with GL_FUNC_REVERSE_SUBTRACT (§4.3; skipped when all
+ * corrections are positive), or all of it in one shader pass (--passes 1).
+ * Then exposure and sRGB tone mapping to the window or to an 8-bit target,
+ * plus the debug views (radiosity only, corrections only, texture
+ * assignment as in the paper's Fig. 5, sample positions as in Fig. 7). */
+#ifndef CT_DISP_COMPOSITOR_H
+#define CT_DISP_COMPOSITOR_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "display/disp_scene.h"
+#include "display/disp_textures.h"
+
+typedef enum disp_view {
+    DISP_VIEW_FULL        = 0,   /* radiosity + corrections */
+    DISP_VIEW_RADIOSITY   = 1,   /* the interactive solution alone */
+    DISP_VIEW_CORRECTIONS = 2,   /* corrections alone, signed: grey = 0 */
+    DISP_VIEW_ASSIGNMENT  = 3,   /* one colour per texture (Fig. 5) */
+    DISP_VIEW_SAMPLES     = 4,   /* positions of the last frames' samples (Fig. 7) */
+    DISP_VIEW_COUNT       = 5
+} disp_view;
+
+/* Name of a view ("full", "radiosity", ...). */
+const char *disp_view_name(disp_view v);
+
+typedef struct disp_render_opts {
+    int passes;           /* 1 or 3 */
+    disp_view view;
+    float exposure;       /* stops: displayed = linear * 2^exposure */
+    bool all_positive;    /* the master says no correction is negative: no pass 3 */
+} disp_render_opts;
+
+/* What the last render drew. */
+typedef struct disp_render_stats {
+    uint32_t draws;           /* glDrawElements calls */
+    uint32_t textures_drawn;  /* textures with a projection that were applied */
+    bool pass3;               /* the subtractive pass ran */
+} disp_render_stats;
+
+typedef struct disp_compositor disp_compositor;
+
+/* Compiles the programs and creates width x height targets; float_format is
+ * GL_RGBA32F or GL_RGBA16F (0: RGBA32F). Needs a current context. */
+int disp_compositor_new(int width, int height, unsigned float_format, disp_compositor **out,
+                        ct_error *err);
+
+/* Deletes programs and targets. NULL is fine. */
+void disp_compositor_free(disp_compositor *c);
+
+/* Renders the linear image of scene s with textures t (may be NULL) seen by
+ * cam into the float target. */
+int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_textures *t,
+                           const ct_camera *cam, const disp_render_opts *o,
+                           disp_render_stats *stats, ct_error *err);
+
+/* Tone-maps the float target into the window's default framebuffer of size
+ * win_w x win_h (to_window) or into the 8-bit target. In the samples view
+ * it also draws the n image positions xy[2n] (pixels, y down; yellow) and
+ * the nworld world points world[3n] seen by the last render's camera (cyan). */
+int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const float *xy,
+                            uint32_t n, const float *world, uint32_t nworld, bool to_window, int win_w,
+                            int win_h, ct_error *err);
+
+/* The float image as linear RGB, row 0 at the top (3 * width * height floats). */
+void disp_compositor_read_linear(disp_compositor *c, float *rgb);
+
+/* The 8-bit presented image as RGB, row 0 at the top (3 * width * height). */
+void disp_compositor_read_display(disp_compositor *c, uint8_t *rgb);
+
+/* The window's back buffer (win_w x win_h) as RGB, row 0 at the top. */
+void disp_compositor_read_window(int win_w, int win_h, uint8_t *rgb);
+
+/* Near and far planes that bound the scene seen from cam (also what the
+ * render uses). */
+void disp_compositor_depth_range(const disp_scene *s, const ct_camera *cam, float *znear,
+                                 float *zfar);
+
+#endif

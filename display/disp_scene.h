@@ -1,0 +1,43 @@
+/* disp_scene.h: the interactive solution on the GPU: the radiosity mesh's
+ * vertices (position, per-vertex radiance) and its triangles sorted by part
+ * node. Nodes are in depth-first pre-order, so after the sort every node's
+ * subtree (a part, or an inner node a texture may cover) is one contiguous
+ * triangle range, drawn with a single glDrawElements. */
+#ifndef CT_DISP_SCENE_H
+#define CT_DISP_SCENE_H
+
+#include <stdint.h>
+
+#include "common/error.h"
+#include "common/radmesh.h"
+
+typedef struct disp_scene disp_scene;
+
+/* Validates m (indices, node table) and uploads it; needs a current context. */
+int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err);
+
+/* Deletes the GL objects. NULL is fine. */
+void disp_scene_free(disp_scene *s);
+
+/* Replaces the per-vertex radiance (same vertex count as at creation). */
+int disp_scene_set_radiance(disp_scene *s, const vec3 *rad, uint32_t nverts, ct_error *err);
+
+/* Counts. */
+uint32_t disp_scene_ntris(const disp_scene *s);
+uint32_t disp_scene_nnodes(const disp_scene *s);
+
+/* World bounds of all vertices. */
+bounds3 disp_scene_bounds(const disp_scene *s);
+
+/* Triangle range [*begin, *end) of node n's subtree in drawing order;
+ * CT_ERANGE when n is not a node. */
+int disp_scene_node_range(const disp_scene *s, uint32_t n, uint32_t *begin, uint32_t *end,
+                          ct_error *err);
+
+/* Binds the vertex array (call once before drawing ranges). */
+void disp_scene_bind(const disp_scene *s);
+
+/* Draws triangles [begin, end) of the sorted order (vertex array bound). */
+void disp_scene_draw(const disp_scene *s, uint32_t begin, uint32_t end);
+
+#endif

@@ -1,0 +1,175 @@
+#include "display/disp_textures.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "display/gl_load.h"
+
+struct disp_textures {
+    disp_texture *items;
+    uint32_t count, cap;
+    unsigned clear_fbo;   /* zeroes new textures on the GPU (no CPU buffer) */
+};
+
+int disp_textures_new(disp_textures **out, ct_error *err)
+{
+    *out = calloc(1, sizeof **out);
+    return *out ? CT_OK : ct_fail(err, CT_ENOMEM, "out of memory for the texture table");
+}
+
+void disp_textures_clear(disp_textures *t)
+{
+    for (uint32_t i = 0; i < t->count; i++) gl.DeleteTextures(1, &t->items[i].gl_tex);
+    t->count = 0;
+}
+
+void disp_textures_free(disp_textures *t)
+{
+    if (!t) return;
+    disp_textures_clear(t);
+    if (t->clear_fbo) gl.DeleteFramebuffers(1, &t->clear_fbo);
+    free(t->items);
+    free(t);
+}
+
+static disp_texture *find(const disp_textures *t, uint32_t id)
+{
+    for (uint32_t i = 0; i < t->count; i++)
+        if (t->items[i].id == id) return &t->items[i];
+    return NULL;
+}
+
+const disp_texture *disp_textures_find(const disp_textures *t, uint32_t id) { return find(t, id); }
+
+int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
+                        uint32_t tri_end, int width, int height, disp_proj_kind kind,
+                        ct_error *err)
+{
+    GLint max = 0;
+    gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &max);
+    if (max > DISP_TEX_MAX_SIZE) max = DISP_TEX_MAX_SIZE;
+    if (width < 1 || height < 1 || width > max || height > max)
+        return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, width,
+                       height, (int)max);
+    disp_texture *x = find(t, id);
+    if (!x) {
+        if (t->count == t->cap) {
+            uint32_t cap = t->cap ? 2 * t->cap : 64;
+            disp_texture *n = realloc(t->items, cap * sizeof *n);
+            if (!n) return ct_fail(err, CT_ENOMEM, "out of memory for %u textures", cap);
+            t->items = n;
+            t->cap = cap;
+        }
+        x = &t->items[t->count++];
+        memset(x, 0, sizeof *x);
+        x->id = id;
+        x->proj = m4_identity();
+        gl.GenTextures(1, &x->gl_tex);
+    }
+    x->node = node;
+    x->tri_begin = tri_begin;
+    x->tri_end = tri_end;
+    x->width = width;
+    x->height = height;
+    x->kind = kind;
+    /* A re-allocation of a live id (the master resized it) keeps its
+     * projection until a new one arrives; a new id waits for one. */
+    x->negative = false;
+    /* Stored as RGBA16F: llvmpipe samples it faster than RGB16F, GPUs pad
+     * RGB16F to four channels anyway, and it is colour-renderable, so the
+     * zeroing below needs no CPU buffer of the texture's size. */
+    gl.BindTexture(GL_TEXTURE_2D, x->gl_tex);
+    gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, NULL);
+    /* Zeroed contents: a fresh texture corrects nothing. */
+    if (!t->clear_fbo) gl.GenFramebuffers(1, &t->clear_fbo);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, x->gl_tex, 0);
+    GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    if (st == GL_FRAMEBUFFER_COMPLETE) {
+        gl.ClearColor(0, 0, 0, 0);
+        gl.Clear(GL_COLOR_BUFFER_BIT);
+    }
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (st != GL_FRAMEBUFFER_COMPLETE)
+        return ct_fail(err, CT_ESYS, "texture %u: cannot clear a %dx%d RGBA16F texture (0x%04x)", id, width,
+                       height, (unsigned)st);
+    /* Bilinear filtering (§4.3: the hardware interpolates between texels). */
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    return gl_check("texture allocation", err);
+}
+
+int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *world_to_tex,
+                                 ct_error *err)
+{
+    disp_texture *x = find(t, id);
+    if (!x) return ct_fail(err, CT_EPROTO, "projection for unknown texture %u", id);
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            if (!isfinite(world_to_tex->m[r][c]))
+                return ct_fail(err, CT_ERANGE, "texture %u: projection is not finite", id);
+    x->proj = *world_to_tex;
+    x->has_proj = true;
+    return CT_OK;
+}
+
+static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, const void *rgb,
+                 GLenum type, bool negative, ct_error *err)
+{
+    disp_texture *d = find(t, id);
+    if (!d) return ct_fail(err, CT_EPROTO, "patch for unknown texture %u", id);
+    if (x < 0 || y < 0 || w < 1 || h < 1 || x > d->width - w || y > d->height - h)
+        return ct_fail(err, CT_ERANGE, "texture %u: patch %dx%d at (%d,%d) outside %dx%d", id, w,
+                       h, x, y, d->width, d->height);
+    gl.BindTexture(GL_TEXTURE_2D, d->gl_tex);
+    gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl.TexSubImage2D(GL_TEXTURE_2D, 0, x, y, w, h, GL_RGB, type, rgb);
+    d->negative = d->negative || negative;
+    return gl_check("texture patch", err);
+}
+
+int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w, int h,
+                             const uint16_t *rgb, ct_error *err)
+{
+    bool neg = false;
+    size_t n = (w > 0 && h > 0) ? (size_t)w * (size_t)h * 3 : 0;
+    /* Negative: sign bit set and not -0. */
+    for (size_t i = 0; i < n && !neg; i++) neg = (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
+    return patch(t, id, x, y, w, h, rgb, GL_HALF_FLOAT, neg, err);
+}
+
+int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w, int h,
+                              const float *rgb, ct_error *err)
+{
+    bool neg = false;
+    size_t n = (w > 0 && h > 0) ? (size_t)w * (size_t)h * 3 : 0;
+    for (size_t i = 0; i < n && !neg; i++) neg = rgb[i] < 0.0f;
+    return patch(t, id, x, y, w, h, rgb, GL_FLOAT, neg, err);
+}
+
+int disp_textures_release(disp_textures *t, uint32_t id, ct_error *err)
+{
+    disp_texture *x = find(t, id);
+    if (!x) return ct_fail(err, CT_EPROTO, "free of unknown texture %u", id);
+    gl.DeleteTextures(1, &x->gl_tex);
+    *x = t->items[--t->count];
+    return CT_OK;
+}
+
+uint32_t disp_textures_count(const disp_textures *t) { return t->count; }
+
+const disp_texture *disp_textures_at(const disp_textures *t, uint32_t i)
+{
+    return i < t->count ? &t->items[i] : NULL;
+}
+
+uint64_t disp_textures_texels(const disp_textures *t)
+{
+    uint64_t n = 0;
+    for (uint32_t i = 0; i < t->count; i++) n += (uint64_t)t->items[i].width * (uint64_t)t->items[i].height;
+    return n;
+}

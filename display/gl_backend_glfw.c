@@ -1,0 +1,166 @@
+/* GLFW backend: the interactive window, GL 3.3 core forward-compatible.
+ * Input arrives through GLFW callbacks into a pending gl_input that
+ * gl_backend_poll hands over. */
+#include "display/gl_load.h"
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "display/gl_backend_impl.h"
+
+typedef struct glfw_state {
+    GLFWwindow *win;
+    gl_input pending;
+    double last_x, last_y;
+    bool have_last;
+} glfw_state;
+
+static char glfw_msg[200];
+
+static void on_error(int code, const char *desc)
+{
+    snprintf(glfw_msg, sizeof glfw_msg, "%s (GLFW error 0x%x)", desc, (unsigned)code);
+}
+
+static gl_proc getproc(const char *name)
+{
+    return (gl_proc)glfwGetProcAddress(name);
+}
+
+static int map_key(int k)
+{
+    if (k >= GLFW_KEY_A && k <= GLFW_KEY_Z) return 'A' + (k - GLFW_KEY_A);
+    if (k >= GLFW_KEY_0 && k <= GLFW_KEY_9) return '0' + (k - GLFW_KEY_0);
+    switch (k) {
+    case GLFW_KEY_SPACE: return GL_KEY_SPACE;
+    case GLFW_KEY_ESCAPE: return GL_KEY_ESCAPE;
+    case GLFW_KEY_UP: return GL_KEY_UP;
+    case GLFW_KEY_DOWN: return GL_KEY_DOWN;
+    case GLFW_KEY_LEFT: return GL_KEY_LEFT;
+    case GLFW_KEY_RIGHT: return GL_KEY_RIGHT;
+    case GLFW_KEY_PAGE_UP: return GL_KEY_PAGE_UP;
+    case GLFW_KEY_PAGE_DOWN: return GL_KEY_PAGE_DOWN;
+    case GLFW_KEY_LEFT_SHIFT: case GLFW_KEY_RIGHT_SHIFT: return GL_KEY_SHIFT;
+    case GLFW_KEY_F1: return GL_KEY_F1;
+    case GLFW_KEY_EQUAL: case GLFW_KEY_KP_ADD: return '+';
+    case GLFW_KEY_MINUS: case GLFW_KEY_KP_SUBTRACT: return '-';
+    case GLFW_KEY_SLASH: return '?';
+    default: return GL_KEY_NONE;
+    }
+}
+
+static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
+{
+    (void)scancode;
+    (void)mods;
+    glfw_state *s = glfwGetWindowUserPointer(w);
+    int k = map_key(key);
+    if (k == GL_KEY_NONE) return;
+    if (action == GLFW_PRESS) {
+        s->pending.down[k] = true;
+        if (s->pending.npresses < GL_INPUT_MAX_PRESSES) s->pending.presses[s->pending.npresses++] = k;
+    } else if (action == GLFW_RELEASE) {
+        s->pending.down[k] = false;
+    }
+}
+
+static void on_cursor(GLFWwindow *w, double x, double y)
+{
+    glfw_state *s = glfwGetWindowUserPointer(w);
+    bool held = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS ||
+                glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+    if (held && s->have_last) {
+        s->pending.mouse_dx += x - s->last_x;
+        s->pending.mouse_dy += y - s->last_y;
+    }
+    s->last_x = x;
+    s->last_y = y;
+    s->have_last = true;
+}
+
+static void on_scroll(GLFWwindow *w, double dx, double dy)
+{
+    (void)dx;
+    glfw_state *s = glfwGetWindowUserPointer(w);
+    s->pending.scroll += dy;
+}
+
+static void glfw_poll(gl_backend *b, gl_input *in)
+{
+    glfw_state *s = b->state;
+    glfwPollEvents();
+    memcpy(in->down, s->pending.down, sizeof in->down);
+    memcpy(in->presses, s->pending.presses, sizeof in->presses);
+    in->npresses = s->pending.npresses;
+    in->mouse_dx = s->pending.mouse_dx;
+    in->mouse_dy = s->pending.mouse_dy;
+    in->scroll = s->pending.scroll;
+    in->close = glfwWindowShouldClose(s->win);
+    glfwGetFramebufferSize(s->win, &in->fb_width, &in->fb_height);
+    s->pending.npresses = 0;
+    s->pending.mouse_dx = s->pending.mouse_dy = s->pending.scroll = 0;
+}
+
+static void glfw_present(gl_backend *b)
+{
+    glfw_state *s = b->state;
+    glfwSwapBuffers(s->win);
+}
+
+static void glfw_title(gl_backend *b, const char *title)
+{
+    glfw_state *s = b->state;
+    glfwSetWindowTitle(s->win, title);
+}
+
+static void glfw_close(gl_backend *b)
+{
+    glfw_state *s = b->state;
+    if (!s) return;
+    if (s->win) glfwDestroyWindow(s->win);
+    glfwTerminate();
+    free(s);
+    b->state = NULL;
+}
+
+static const gl_backend_ops glfw_ops = {glfw_poll, glfw_present, glfw_title, glfw_close};
+
+int gl_backend_open_glfw(gl_backend *b, const char *title, bool vsync, ct_error *err)
+{
+    glfw_msg[0] = '\0';
+    glfwSetErrorCallback(on_error);
+    if (!glfwInit())
+        return ct_fail(err, CT_ESYS, "glfw: cannot initialise: %s (is $DISPLAY set? try "
+                       "--backend egl)", glfw_msg[0] ? glfw_msg : "unknown error");
+    glfw_state *s = calloc(1, sizeof *s);
+    if (!s) {
+        glfwTerminate();
+        return ct_fail(err, CT_ENOMEM, "glfw: out of memory");
+    }
+    b->state = s;
+    b->ops = &glfw_ops;
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+    glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+    glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+    glfwWindowHint(GLFW_RESIZABLE, GLFW_FALSE);
+    glfwWindowHint(GLFW_SRGB_CAPABLE, GLFW_FALSE);
+    s->win = glfwCreateWindow(b->width, b->height, title, NULL, NULL);
+    if (!s->win) {
+        glfw_close(b);
+        return ct_fail(err, CT_ESYS, "glfw: cannot create a %dx%d GL 3.3 core window: %s",
+                       b->width, b->height, glfw_msg[0] ? glfw_msg : "unknown error");
+    }
+    glfwSetWindowUserPointer(s->win, s);
+    glfwSetKeyCallback(s->win, on_key);
+    glfwSetCursorPosCallback(s->win, on_cursor);
+    glfwSetScrollCallback(s->win, on_scroll);
+    glfwMakeContextCurrent(s->win);
+    glfwSwapInterval(vsync ? 1 : 0);
+    int rc = gl_load(getproc, "glfw", err);
+    if (rc) glfw_close(b);
+    return rc;
+}

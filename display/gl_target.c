@@ -1,0 +1,76 @@
+#include "display/gl_target.h"
+
+#include <string.h>
+
+int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err)
+{
+    memset(t, 0, sizeof *t);
+    t->width = width;
+    t->height = height;
+    t->format = format;
+    gl.GenFramebuffers(1, &t->fbo);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, t->fbo);
+    gl.GenTextures(1, &t->color);
+    gl.BindTexture(GL_TEXTURE_2D, t->color);
+    GLenum type = format == GL_RGBA8 ? GL_UNSIGNED_BYTE : GL_FLOAT;
+    gl.TexImage2D(GL_TEXTURE_2D, 0, (GLint)format, width, height, 0, GL_RGBA, type, NULL);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, t->color, 0);
+    if (depth) {
+        gl.GenRenderbuffers(1, &t->depth);
+        gl.BindRenderbuffer(GL_RENDERBUFFER, t->depth);
+        gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->depth);
+    }
+    GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (st != GL_FRAMEBUFFER_COMPLETE) {
+        gl_target_free(t);
+        return ct_fail(err, CT_ESYS, "framebuffer %dx%d (format 0x%04x) incomplete: 0x%04x", width,
+                       height, (unsigned)format, (unsigned)st);
+    }
+    return gl_check("render target creation", err);
+}
+
+void gl_target_free(gl_target *t)
+{
+    if (t->fbo) gl.DeleteFramebuffers(1, &t->fbo);
+    if (t->color) gl.DeleteTextures(1, &t->color);
+    if (t->depth) gl.DeleteRenderbuffers(1, &t->depth);
+    memset(t, 0, sizeof *t);
+}
+
+void gl_target_bind(const gl_target *t, int w, int h)
+{
+    gl.BindFramebuffer(GL_FRAMEBUFFER, t ? t->fbo : 0);
+    if (t) {
+        w = t->width;
+        h = t->height;
+    }
+    gl.Viewport(0, 0, w, h);
+}
+
+void gl_target_read_f32(const gl_target *t, float *rgba)
+{
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t->fbo);
+    gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+    gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
+    gl.ReadPixels(0, 0, t->width, t->height, GL_RGBA, GL_FLOAT, rgba);
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+}
+
+void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgba)
+{
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t ? t->fbo : 0);
+    gl.ReadBuffer(t ? GL_COLOR_ATTACHMENT0 : GL_BACK);
+    if (t) {
+        w = t->width;
+        h = t->height;
+    }
+    gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+}

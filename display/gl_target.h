@@ -1,0 +1,36 @@
+/* gl_target.h: off-screen render targets (a colour texture, optionally a
+ * depth buffer, in one framebuffer object) and pixel read-back. Pixels come
+ * back in GL order: row 0 is the bottom row. */
+#ifndef CT_GL_TARGET_H
+#define CT_GL_TARGET_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "display/gl_load.h"
+
+typedef struct gl_target {
+    GLuint fbo, color, depth;
+    GLenum format;      /* GL_RGBA32F, GL_RGBA16F or GL_RGBA8 */
+    int width, height;
+} gl_target;
+
+/* Creates a width x height target with the given colour format and an
+ * optional 24-bit depth buffer; checks completeness. */
+int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err);
+
+/* Deletes the GL objects and zeroes t. */
+void gl_target_free(gl_target *t);
+
+/* Binds t for drawing (or the default framebuffer when t is NULL) and sets
+ * the viewport to its size (w, h for the default framebuffer). */
+void gl_target_bind(const gl_target *t, int w, int h);
+
+/* Reads t's colour as RGBA floats (4 * width * height). */
+void gl_target_read_f32(const gl_target *t, float *rgba);
+
+/* Reads the colour of t (or of the default framebuffer's back buffer when t
+ * is NULL, size w x h) as RGBA bytes. */
+void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgba);
+
+#endif

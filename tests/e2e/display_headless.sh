@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# corrtex-display without a master: scripted path on a small scene with
+# synthetic corrections, headless under OSMesa and EGL and in a GLFW window
+# under Xvfb; frames and frames.csv written; the backends and 1-pass vs
+# 3-pass agree (RMSE through --reference); bad input exits 2 with one line.
+set -u
+BIN=${CORRTEX_BIN:-bin}
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+fail=0
+run() { echo "+ $*"; "$@"; }
+SCENE=tests/data/scenes/mini.json
+PATHF=tests/data/scenes/mini.path
+COMMON=(--scene "$SCENE" --path "$PATHF" --frames 4 --width 64 --height 48 --synthetic 6 --quiet)
+
+run "$BIN/corrtex-display" --backend osmesa "${COMMON[@]}" --out "$tmp/osm" || { echo "FAIL: osmesa run"; exit 1; }
+for k in 0 1 2 3; do
+  for ext in exr png; do
+    f=$(printf '%s/osm/frame_%05d.%s' "$tmp" "$k" "$ext")
+    [[ -s $f ]] || { echo "FAIL: missing $f"; fail=1; }
+  done
+done
+lines=$(wc -l <"$tmp/osm/frames.csv")
+[[ $lines -eq 5 ]] || { echo "FAIL: frames.csv has $lines lines, want 5"; fail=1; }
+head -n 1 "$tmp/osm/frames.csv" | grep -q '^frame,time_s,eye_x' || { echo "FAIL: frames.csv header"; fail=1; }
+ls "$tmp/osm" | grep -q '\.tmp' && { echo "FAIL: temporary files left"; fail=1; }
+
+# EGL with OSMesa's frames as the reference: the same pixels, up to the half
+# float rounding of the reference EXR (relative 2^-11; the light is bright).
+run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --out "$tmp/egl" --reference "$tmp/osm" || { echo "FAIL: egl run"; exit 1; }
+max_rmse() { awk -F, 'NR > 1 { if ($16 > m) m = $16 } END { printf "%.3g", m + 0 }' "$1"; }
+r=$(max_rmse "$tmp/egl/frames.csv")
+echo "metric: egl vs osmesa frames: max RMSE $r (tolerance 1e-3)"
+awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: egl differs from osmesa"; fail=1; }
+
+# Three passes against one pass.
+run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --passes 3 --out "$tmp/p3" --reference "$tmp/osm" || { echo "FAIL: 3-pass run"; exit 1; }
+r=$(max_rmse "$tmp/p3/frames.csv")
+echo "metric: 3-pass vs 1-pass frames: max RMSE $r (tolerance 1e-3)"
+awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: 3-pass differs from 1-pass"; fail=1; }
+
+# The corrections change the image (the comparison above is not vacuous).
+run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --synthetic 0 --out "$tmp/rad" --reference "$tmp/osm" || { echo "FAIL: radiosity run"; exit 1; }
+r=$(max_rmse "$tmp/rad/frames.csv")
+echo "metric: radiosity alone vs corrected frames: max RMSE $r (must exceed 5e-3)"
+awk -v r="$r" 'BEGIN { exit !(r > 5e-3) }' || { echo "FAIL: synthetic corrections had no effect"; fail=1; }
+
+# The window backend under Xvfb writes the same frames.
+if command -v xvfb-run >/dev/null; then
+  run xvfb-run -a "$BIN/corrtex-display" --backend glfw --no-vsync "${COMMON[@]}" --out "$tmp/win" --reference "$tmp/osm" || { echo "FAIL: glfw run"; exit 1; }
+  r=$(max_rmse "$tmp/win/frames.csv")
+  echo "metric: glfw window vs osmesa frames: max RMSE $r (tolerance 1e-3)"
+  awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: glfw differs"; fail=1; }
+else
+  echo "skip: xvfb-run not installed"
+fi
+
+# Bad input: exit 2 and one error line naming the problem.
+bad() { # expected-substring args...
+  local want=$1; shift
+  "$BIN/corrtex-display" "$@" >"$tmp/o" 2>"$tmp/e"; rc=$?
+  echo "+ $BIN/corrtex-display $*  -> exit $rc: $(cat "$tmp/e")"
+  [[ $rc -eq 2 ]] || { echo "FAIL: exit $rc, want 2"; fail=1; }
+  [[ $(grep -c "^error" "$tmp/e") -eq 1 ]] || { echo "FAIL: want exactly one error line"; fail=1; }
+  grep -q -- "$want" "$tmp/e" || { echo "FAIL: error does not mention '$want'"; fail=1; }
+}
+bad "nope.json" --backend osmesa --scene "$tmp/nope.json"
+bad "--passes" --backend osmesa --scene "$SCENE" --passes 2
+bad "unknown option" --backend osmesa --scene "$SCENE" --bogus
+bad "backend" --backend vulkan --scene "$SCENE"
+bad "exactly one" --backend osmesa
+printf '0 0 0 1 0 0 0\n0 1 1 1 0 0 0\n' >"$tmp/bad.path"
+bad "bad.path" --backend osmesa --scene "$SCENE" --path "$tmp/bad.path"
+bad "no camera named" --backend osmesa --scene "$SCENE" --camera-name nope
+# No master at the address and no --reconnect: exit 3, one error line.
+"$BIN/corrtex-display" --backend osmesa --connect "unix:$tmp/none.sock" --width 32 --height 32 >"$tmp/o" 2>"$tmp/e"; rc=$?
+echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock  -> exit $rc: $(cat "$tmp/e")"
+[[ $rc -eq 3 ]] || { echo "FAIL: exit $rc, want 3"; fail=1; }
+[[ $(grep -c "^error" "$tmp/e") -eq 1 ]] && grep -q "none.sock" "$tmp/e" || { echo "FAIL: want one error line naming the socket"; fail=1; }
+exit $fail

@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# corrtex reference end to end: EXR output that OpenEXR's own exrheader reads,
+# PNG preview, --frames into a folder, --frame equal to the same frame of the
+# folder, bit-identical output for 1 and 2 threads, and bad input -> exit 2
+# with exactly one error line.
+set -u
+BIN=${CORRTEX_BIN:-bin}
+SCENE=tests/data/scenes/mini.json
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+fail=0
+run() { echo "+ $*"; "$@"; }
+die() { echo "FAIL: $*"; fail=1; }
+
+run "$BIN/corrtex" reference "$SCENE" --width 32 --height 24 --spp 2 --mode drt --threads 2 --png \
+    -o "$tmp/a.exr" >"$tmp/out" 2>"$tmp/err" || { cat "$tmp/err"; die "drt render failed"; }
+cat "$tmp/out"
+run exrheader "$tmp/a.exr" >"$tmp/hdr" 2>&1 || die "exrheader cannot read a.exr"
+cat "$tmp/hdr"
+grep -q 'dataWindow.*(0 0) - (31 23)' "$tmp/hdr" || die "wrong data window"
+for c in R G B; do grep -qE "^ +$c, 32-bit floating-point" "$tmp/hdr" || die "channel $c missing or not float"; done
+[[ -s $tmp/a.png ]] || die "no PNG preview"
+grep -q 'samples/s' "$tmp/out" && grep -q 'rays/s' "$tmp/out" || die "no rays/s and samples/s line"
+sed -nE 's/^stats: .*samples_per_s=([^ ]+) rays_per_s=([^ ]+).*/metric: drt 32x24 samples_per_s=\1 rays_per_s=\2/p' "$tmp/out"
+
+run "$BIN/corrtex" reference "$SCENE" --camera top --width 32 --height 24 --spp 2 --mode path --half \
+    --threads 1 --quiet -o "$tmp/h.exr" >/dev/null || die "path --half failed"
+run exrheader "$tmp/h.exr" >"$tmp/hdr2" 2>&1 || die "exrheader cannot read h.exr"
+grep -qE '^ +R, 16-bit floating-point' "$tmp/hdr2" || die "--half did not write half floats"
+
+# reuse-diffuse needs a radiosity mesh (here the stand-in).
+run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode reuse-diffuse \
+    --stand-in-radiosity 0.1 --quiet -o "$tmp/r.exr" >/dev/null 2>&1 || die "reuse-diffuse with a stand-in failed"
+exrheader "$tmp/r.exr" >/dev/null 2>&1 || die "reuse-diffuse wrote no readable EXR"
+
+# Same image for 1 and 2 threads, byte for byte.
+run "$BIN/corrtex" reference "$SCENE" --width 32 --height 24 --spp 2 --mode drt --threads 1 --quiet \
+    -o "$tmp/a1.exr" >/dev/null || die "1-thread render failed"
+cmp -s "$tmp/a.exr" "$tmp/a1.exr" || die "1-thread and 2-thread images differ"
+
+# A camera path: all frames into a folder, then one frame alone.
+run "$BIN/corrtex" reference "$SCENE" --path walk --frames 3 --width 16 --height 16 --spp 1 --mode path \
+    --quiet -o "$tmp/frames" >/dev/null || die "--frames failed"
+for k in 0 1 2; do
+  f=$tmp/frames/frame_0000$k.exr
+  exrheader "$f" >/dev/null 2>&1 || die "frame $k missing or unreadable"
+done
+run "$BIN/corrtex" reference "$SCENE" --path walk --frame 1 --frames 3 --width 16 --height 16 --spp 1 \
+    --mode path --quiet -o "$tmp/f1.exr" >/dev/null || die "--frame failed"
+cmp -s "$tmp/f1.exr" "$tmp/frames/frame_00001.exr" || die "--frame 1 differs from frame_00001.exr"
+
+check() { # expected-substring, then the arguments after "reference"
+  local want=$1; shift
+  "$BIN/corrtex" reference "$@" >"$tmp/o" 2>"$tmp/e"; local rc=$?
+  echo "+ $BIN/corrtex reference $*  -> exit $rc: $(cat "$tmp/e")"
+  [[ $rc -eq 2 ]] || die "exit $rc, want 2"
+  [[ $(grep -c '^error ' "$tmp/e") -eq 1 ]] || die "want exactly one error line"
+  grep -q -- "$want" "$tmp/e" || die "message lacks '$want'"
+}
+common=(--width 8 --height 8 --spp 1 -o "$tmp/x.exr")
+check "unknown mode 'whitted'" "$SCENE" "${common[@]}" --mode whitted
+check "camera 'nope'" "$SCENE" "${common[@]}" --mode path --camera nope
+check "--width: '0'" "$SCENE" --width 0 --height 8 --spp 1 --mode path -o "$tmp/x.exr"
+check "--height: 'abc'" "$SCENE" --width 8 --height abc --spp 1 --mode path -o "$tmp/x.exr"
+check "--spp: '-3'" "$SCENE" --width 8 --height 8 --spp -3 --mode path -o "$tmp/x.exr"
+check "missing --mode" "$SCENE" "${common[@]}"
+check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
+check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
+check "missing.json" "$tmp/missing.json" "${common[@]}" --mode path
+check "--frame 3 is not below --frames 3" "$SCENE" "${common[@]}" --mode path --path walk --frame 3 --frames 3
+check "needs a radiosity mesh" "$SCENE" "${common[@]}" --mode reuse-diffuse
+check "--stand-in-radiosity: '-1'" "$SCENE" "${common[@]}" --mode drt --stand-in-radiosity -1
+check "path 'nowhere'" "$SCENE" "${common[@]}" --mode path --path nowhere --frames 2
+[[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"
+exit $fail

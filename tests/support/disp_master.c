@@ -1,0 +1,176 @@
+#include "tests/support/disp_master.h"
+
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "proto/chan.h"
+#include "proto/wire.h"
+#include "tests/support/disp_fixture.h"
+
+
+static float tex_rgb[8 * 6 * 3];
+
+const float *fxm_tex_rgb(void)
+{
+    for (int i = 0; i < 8 * 6 * 3; i++) tex_rgb[i] = (float)((i * 29) % 64 - 32) / 128.0f;
+    return tex_rgb;
+}
+
+mat4 fxm_wall_proj(void)
+{
+    mat4 m;
+    memset(&m, 0, sizeof m);
+    m.m[0][0] = 0.5f; m.m[0][3] = 0.5f;
+    m.m[1][1] = 0.5f; m.m[1][3] = 0.5f;
+    m.m[3][3] = 1.0f;
+    return m;
+}
+
+static int send_all(chan *c, const wire_msg *m)
+{
+    ct_error err;
+    if (chan_send(c, m, &err) != 0) return -1;
+    return chan_flush(c, 5000, &err);
+}
+
+/* The master: accepts one display, checks SETTINGS and CAMERA, sends the box
+ * scene, one texture in two patches and FRAME 0 for the display's epoch. */
+static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h, const char *token)
+{
+    ct_error err;
+    chan_config cfg;
+    memset(&cfg, 0, sizeof cfg);
+    cfg.role = AUTH_ROLE_MASTER;
+    auth_token tok;
+    if (token) {
+        memset(&tok, 0, sizeof tok);
+        tok.len = strlen(token);
+        memcpy(tok.bytes, token, tok.len);
+        cfg.token = &tok;
+        cfg.require_auth = true;
+    }
+    chan *c = NULL;
+    struct pollfd p = {xport_listener_fd(l), POLLIN, 0};
+    for (int i = 0; i < 100 && !c; i++) {
+        poll(&p, 1, 100);
+        if (chan_accept(l, &cfg, &c, &err)) return 10;
+    }
+    /* Nobody else may connect: removing the socket file makes a display's
+     * reconnection fail at once. */
+    xport_listener_close(l);
+    if (!c || chan_handshake(c, 5000, &err)) return 11;
+    wire_msg m;
+    if (chan_recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_SETTINGS) return 12;
+    if (m.u.settings.samples_per_frame != want_k) return 13;
+    uint8_t cached[WIRE_HASH_SIZE];
+    memcpy(cached, m.u.settings.cached_scene, WIRE_HASH_SIZE);
+    if (chan_recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 14;
+    uint32_t epoch = m.u.camera.epoch;
+    if (m.u.camera.width != (uint32_t)w || m.u.camera.height != (uint32_t)h) return 15;
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    if (fx_box_mesh(4, &mesh, &nd, &err)) return 16;
+    wire_scene_tx tx;
+    if (wire_scene_tx_init(&tx, &mesh, &err)) return 17;
+    /* A display that announces this scene's hash gets it as CACHED. */
+    bool is_cached = memcmp(cached, tx.hash, WIRE_HASH_SIZE) == 0;
+    wire_scene_tx_begin(&tx, is_cached, &m);
+    if (send_all(c, &m)) return 18;
+    for (uint32_t i = 0; !is_cached && i < tx.begin.nchunks; i++) {
+        wire_scene_tx_chunk(&tx, i, &m);
+        if (send_all(c, &m)) return 19;
+    }
+    wire_scene_tx_end(&tx, &m);
+    if (send_all(c, &m)) return 20;
+    wire_scene_tx_free(&tx);
+    memset(&m, 0, sizeof m);
+    m.type = WIRE_TEX_ALLOC;
+    m.u.tex_alloc = (wire_tex_alloc){5, nd.back, 8, 6, WIRE_PROJ_OBJECT_PARALLEL};
+    if (send_all(c, &m)) return 21;
+    m.type = WIRE_TEX_PROJECTION;
+    m.u.tex_projection.tex = 5;
+    m.u.tex_projection.epoch = epoch;
+    m.u.tex_projection.world_to_tex = fxm_wall_proj();
+    if (send_all(c, &m)) return 22;
+    uint16_t half[8 * 6 * 3];
+    for (int i = 0; i < 8 * 6 * 3; i++) half[i] = wire_half_from_float(fxm_tex_rgb()[i]);
+    m.type = WIRE_TEX_PATCH;
+    m.u.tex_patch = (wire_tex_patch){5, 0, 0, 8, 3, half};
+    if (send_all(c, &m)) return 23;
+    m.u.tex_patch = (wire_tex_patch){5, 0, 3, 8, 3, half + 8 * 3 * 3};
+    if (send_all(c, &m)) return 24;
+    memset(&m, 0, sizeof m);
+    m.type = WIRE_FRAME;
+    m.u.frame = (wire_frame){0, epoch, 0, 123, 2};
+    if (send_all(c, &m)) return 25;
+    rmesh_free(&mesh);
+    if (end == FXM_END_BYE) {
+        m.type = WIRE_BYE;
+        m.u.bye.reason = WIRE_BYE_DONE;
+        send_all(c, &m);
+    } else if (end == FXM_END_BAD) {
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_PATCH;
+        m.u.tex_patch = (wire_tex_patch){77, 0, 0, 1, 1, half};
+        if (send_all(c, &m)) return 30;
+        int got = 31;
+        for (int i = 0; i < 50 && got == 31; i++) {
+            int rc = chan_recv_wait(c, &m, 100, &err);
+            if (rc < 0) break;
+            if (rc == WIRE_OK && m.type == WIRE_ERROR)
+                got = m.u.error.code == WIRE_ERR_PROTOCOL && strstr(m.u.error.text, "77") ? 0 : 32;
+        }
+        chan_free(c);
+        return got;
+    } else if (end == FXM_END_STAY) {
+        /* Wait for the display's BYE. */
+        for (int i = 0; i < 50; i++) {
+            int rc = chan_recv_wait(c, &m, 100, &err);
+            if (rc < 0 || (rc == WIRE_OK && m.type == WIRE_BYE)) break;
+        }
+    }
+    chan_free(c);
+    return 0;
+}
+
+int fxm_start(fxm_peer *p, fxm_end end, uint32_t k, int w, int h)
+{
+    ct_error err;
+    p->msg[0] = '\0';
+    snprintf(p->dir, sizeof p->dir, "/tmp/ctdisp-XXXXXX");
+    if (!mkdtemp(p->dir)) {
+        snprintf(p->msg, sizeof p->msg, "mkdtemp failed");
+        return -1;
+    }
+    snprintf(p->addr, sizeof p->addr, p->token ? "tcp:127.0.0.1:0" : "unix:%s/sock", p->dir);
+    p->l = NULL;
+    if (xport_listen(p->addr, &p->l, &err)) {
+        snprintf(p->msg, sizeof p->msg, "%s", err.msg);
+        return -1;
+    }
+    if (p->token) snprintf(p->addr, sizeof p->addr, "%s", xport_listener_addr(p->l));
+    fflush(NULL);
+    p->pid = fork();
+    if (p->pid < 0) {
+        snprintf(p->msg, sizeof p->msg, "fork failed");
+        return -1;
+    }
+    if (p->pid == 0) _exit(master(p->l, end, k, w, h, p->token));
+    return 0;
+}
+
+int fxm_stop(fxm_peer *p)
+{
+    int st = 0;
+    waitpid(p->pid, &st, 0);
+    xport_listener_close(p->l);
+    char path[160];
+    snprintf(path, sizeof path, "%s/sock", p->dir);
+    unlink(path);
+    rmdir(p->dir);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : 100;
+}

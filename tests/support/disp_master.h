@@ -1,0 +1,47 @@
+/* disp_master.h: a scripted master peer for display tests: a child process
+ * that speaks the real display protocol (proto/chan.h) over a UNIX socket:
+ * accepts one display, checks its SETTINGS (lockstep K) and CAMERA (image
+ * size), sends the box scene of disp_fixture.h (as CACHED when SETTINGS
+ * announced its hash), one 8x6 texture on the back
+ * wall (object-local parallel, fxm_wall_proj, contents fxm_tex_rgb) in two
+ * patches and FRAME 0 of the display's epoch with 123 samples, then ends
+ * the way the test asks. */
+#ifndef CT_TESTS_DISP_MASTER_H
+#define CT_TESTS_DISP_MASTER_H
+
+#include <stdint.h>
+#include <sys/types.h>
+
+#include "common/vecmath.h"
+#include "proto/xport.h"
+
+typedef enum fxm_end {
+    FXM_END_CLOSE = 0,   /* close the socket without a word */
+    FXM_END_BYE   = 1,   /* send BYE (run finished), then close */
+    FXM_END_STAY  = 2,   /* wait (up to 5 s) for the display's BYE */
+    FXM_END_BAD   = 3    /* send a patch for an unknown texture; expect the display's ERROR */
+} fxm_end;
+
+typedef struct fxm_peer {
+    pid_t pid;
+    xport_listener *l;   /* kept open by the parent: closing it removes the socket file */
+    char addr[300];      /* "unix:DIR/sock" */
+    char dir[64];
+    char msg[256];       /* why fxm_start failed */
+    const char *token;   /* set before fxm_start: listen on TCP (loopback) and require this token */
+} fxm_peer;
+
+/* Starts the master child on a UNIX socket (or on TCP with p->token); 0 or
+ * -1 (msg says why). The child exits 0 when everything it checked and sent
+ * went as planned. */
+int fxm_start(fxm_peer *p, fxm_end end, uint32_t samples_per_frame, int width, int height);
+
+/* Waits for the child, removes the socket; returns the child's exit status. */
+int fxm_stop(fxm_peer *p);
+
+/* The texture the master sends (8 x 6 RGB floats, exact in half) and its
+ * projection (back wall of the box, x, y in [-1, 1] -> [0, 1]). */
+const float *fxm_tex_rgb(void);
+mat4 fxm_wall_proj(void);
+
+#endif

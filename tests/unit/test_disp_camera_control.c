@@ -1,0 +1,88 @@
+/* The fly camera: keys move along the view axes at the set speed (Shift 4x),
+ * mouse motion turns about the start camera's up vector and pitches without
+ * rolling, scrolling scales the speed; the overview camera sees the bounds. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <string.h>
+
+#include "display/disp_camera_control.h"
+
+static gl_input none(void)
+{
+    gl_input in;
+    memset(&in, 0, sizeof in);
+    return in;
+}
+
+static void expect_vec(vec3 a, vec3 b, float tol, const char *what)
+{
+    cr_expect(fabsf(a.x - b.x) <= tol && fabsf(a.y - b.y) <= tol && fabsf(a.z - b.z) <= tol,
+              "%s: (%g %g %g) vs (%g %g %g)", what, a.x, a.y, a.z, b.x, b.y, b.z);
+}
+
+Test(disp_camera_control, keys_move_along_the_view_axes)
+{
+    ct_camera c = cam_look_at(v3(0, 1, 5), v3(0, 1, 0), v3(0, 1, 0), 50);
+    bounds3 b = {v3(-2, -2, -2), v3(2, 2, 2)};
+    disp_fly f;
+    disp_fly_init(&f, &c, b);
+    cr_expect_float_eq(f.speed, 0.25f * v3_len(v3(4, 4, 4)), 1e-5f);
+    f.speed = 2.0f;
+    gl_input in = none();
+    cr_expect_not(disp_fly_update(&f, &in, 0.5), "no input, no change");
+    in.down['W'] = true;
+    cr_expect(disp_fly_update(&f, &in, 0.5));
+    expect_vec(f.cam.eye, v3(0, 1, 4), 1e-5f, "forward 1 unit");
+    in.down['W'] = false;
+    in.down[GL_KEY_RIGHT] = true;
+    in.down[GL_KEY_SHIFT] = true;
+    disp_fly_update(&f, &in, 0.25);
+    expect_vec(f.cam.eye, v3(2, 1, 4), 1e-5f, "right 4x speed");
+    in = none();
+    in.down['E'] = true;
+    disp_fly_update(&f, &in, 0.5);
+    expect_vec(f.cam.eye, v3(2, 2, 4), 1e-5f, "up along the world up");
+    in = none();
+    in.scroll = 2;
+    disp_fly_update(&f, &in, 0.1);
+    cr_expect_float_eq(f.speed, 2.0f * 1.5625f, 1e-5f);
+}
+
+Test(disp_camera_control, mouse_turns_without_roll)
+{
+    ct_camera c = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 50);
+    bounds3 b = {v3(-1, -1, -1), v3(1, 1, 1)};
+    disp_fly f;
+    disp_fly_init(&f, &c, b);
+    gl_input in = none();
+    /* 90 degrees of yaw to the right: forward becomes +x. */
+    in.mouse_dx = (CT_PI / 2) / f.look;
+    cr_expect(disp_fly_update(&f, &in, 0.01));
+    vec3 r, u, fw;
+    cam_axes(&f.cam, &r, &u, &fw);
+    expect_vec(fw, v3(1, 0, 0), 1e-4f, "yaw right");
+    expect_vec(u, v3(0, 1, 0), 1e-4f, "no roll");
+    /* Pitch up 30 degrees, then far past the zenith: clamped at 85 degrees. */
+    in = none();
+    in.mouse_dy = -(CT_PI / 6) / f.look;
+    disp_fly_update(&f, &in, 0.01);
+    cam_axes(&f.cam, &r, &u, &fw);
+    cr_expect_float_eq(fw.y, sinf(CT_PI / 6), 1e-4f);
+    cr_expect_float_eq(r.y, 0.0f, 1e-4f, "the right axis stays level");
+    in.mouse_dy = -(CT_PI) / f.look;
+    disp_fly_update(&f, &in, 0.01);
+    cam_axes(&f.cam, &r, &u, &fw);
+    cr_expect_float_eq(fw.y, sinf(85.0f * CT_PI / 180.0f), 1e-4f, "pitch stops at 85 degrees");
+    cr_expect_gt(u.y, 0.0f, "not upside down");
+}
+
+Test(disp_camera_control, overview_sees_the_bounds)
+{
+    bounds3 b = {v3(-3, 0, -1), v3(5, 2, 4)};
+    ct_camera c = disp_camera_overview(b, 50);
+    for (int i = 0; i < 8; i++) {
+        float px, py, depth;
+        cr_expect(cam_project(&c, 100, 100, b3_corner(b, i), &px, &py, &depth));
+        cr_expect(px >= 0 && px <= 100 && py >= 0 && py <= 100, "corner %d at (%g, %g)", i, px, py);
+    }
+}

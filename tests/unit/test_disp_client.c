@@ -1,0 +1,272 @@
+/* The display's socket client against a master peer speaking the real
+ * protocol over a UNIX socket (a child process using proto/'s channel): the
+ * scene, texture allocation / projection / patches and FRAME arrive as
+ * session events and render exactly like the same events applied directly;
+ * lockstep frames; a lost connection and an orderly BYE are reported as such. */
+#include <criterion/criterion.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "display/disp_client.h"
+#include "proto/chan.h"
+#include "proto/wire.h"
+#include "tests/support/disp_fixture.h"
+#include "tests/support/disp_master.h"
+
+#define W 64
+#define H 48
+
+/* Renders the session's state (display bytes). */
+static void render(disp_session *s, uint8_t *out)
+{
+    ct_error err;
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    disp_compositor_read_display(c, out);
+    disp_compositor_free(c);
+}
+
+/* The same state applied directly. */
+static void render_direct(uint8_t *out)
+{
+    ct_error err;
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    cr_assert_eq(disp_session_scene(s, &mesh, &err), 0, "%s", err.msg);
+    mat4 p = fxm_wall_proj();
+    cr_assert_eq(disp_session_tex_alloc(s, 5, nd.back, 8, 6, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(s, 5, &p, &err), 0);
+    cr_assert_eq(disp_session_tex_patch_float(s, 5, 0, 0, 8, 6, fxm_tex_rgb(), &err), 0);
+    render(s, out);
+    rmesh_free(&mesh);
+    disp_session_free(s);
+}
+
+static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_ended,
+                        const char *token_file)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_scene_cache *cache = NULL;
+    cr_assert_eq(disp_scene_cache_new(NULL, &cache, &err), 0);
+    disp_client *c = NULL;
+    disp_client_opts o = {p->addr, token_file, k, 5000};
+    cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_client_epoch(c), 1u);
+    int rc = 0;
+    for (int i = 0; i < 200 && !disp_client_frame_ready(c, NULL); i++) {
+        rc = disp_client_service(c, s, 25, &err);
+        if (rc) break;
+    }
+    uint64_t frame = 99;
+    cr_assert(disp_client_frame_ready(c, &frame), "no FRAME (rc %d: %s)", rc, err.msg);
+    cr_expect_eq(frame, 0u);
+    disp_client_take_frame(c);
+    cr_expect_not(disp_client_frame_ready(c, NULL), "a frame is taken once");
+    cr_expect(disp_client_has_scene(c));
+    disp_counters cnt = disp_session_counters(s);
+    cr_expect_eq(cnt.samples, 123u);
+    cr_expect_eq(cnt.texels, 48u);
+    cr_expect_eq(cnt.patches, 2u);
+    cr_expect_gt(cnt.bytes, 1000u);
+    cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
+    uint8_t got[W * H * 3], want[W * H * 3];
+    render(s, got);
+    render_direct(want);
+    int dmax = 0;
+    for (size_t i = 0; i < sizeof got; i++) {
+        int d = abs((int)got[i] - (int)want[i]);
+        if (d > dmax) dmax = d;
+    }
+    printf("metric: image from the socket vs direct events: max %d/255\n", dmax);
+    cr_expect_eq(dmax, 0);
+    /* What happens next: the master closes, says BYE, or stays. */
+    rc = 0;
+    for (int i = 0; i < 100 && rc == 0 && expect_end_rc; i++) rc = disp_client_service(c, s, 25, &err);
+    cr_expect_eq(rc, expect_end_rc, "end: rc %d (%s)", rc, err.msg);
+    if (expect_end_rc) printf("end of session reported as: %s\n", err.msg);
+    cr_expect_eq(disp_client_ended(c), expect_ended);
+    disp_client_close(c);
+    disp_scene_cache_free(cache);
+    disp_session_free(s);
+    gl_backend_close(b);
+}
+
+Test(disp_client, events_render_like_direct_calls_then_lost_connection)
+{
+        fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
+    run_display(&p, 0, CT_EIO, false, NULL);
+    cr_expect_eq(fxm_stop(&p), 0, "master child failed");
+}
+
+Test(disp_client, lockstep_settings_and_bye)
+{
+        fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_BYE, 500, W, H), 0, "%s", p.msg);
+    run_display(&p, 500, CT_EIO, true, NULL);
+    cr_expect_eq(fxm_stop(&p), 0, "master child failed");
+}
+
+Test(disp_client, display_says_bye)
+{
+        fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_STAY, 0, W, H), 0, "%s", p.msg);
+    run_display(&p, 0, 0, false, NULL);
+    cr_expect_eq(fxm_stop(&p), 0, "master child failed (did it get BYE?)");
+}
+
+Test(disp_client, no_master_is_an_error)
+{
+    ct_error err;
+    disp_client *c = NULL;
+    disp_client_opts o = {"unix:/nonexistent-dir/sock", NULL, 0, 1000};
+    int rc = disp_client_connect(&o, NULL, &c, &err);
+    cr_expect_lt(rc, 0);
+    cr_expect(strstr(err.msg, "nonexistent-dir") != NULL, "message: %s", err.msg);
+    printf("no master: %s\n", err.msg);
+}
+
+static const char *const TOKEN = "a-test-token-of-sufficient-length";
+
+static void write_token(char *path, size_t cap, const char *text)
+{
+    snprintf(path, cap, "/tmp/ctdisp-token-XXXXXX");
+    int fd = mkstemp(path);
+    cr_assert_geq(fd, 0);
+    cr_assert_eq(write(fd, text, strlen(text)), (ssize_t)strlen(text));
+    close(fd);
+}
+
+Test(disp_client, tcp_with_token)
+{
+    fxm_peer p = {0};
+    p.token = TOKEN;
+    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
+    char tf[64];
+    write_token(tf, sizeof tf, TOKEN);
+    printf("master at %s\n", p.addr);
+    run_display(&p, 0, CT_EIO, false, tf);
+    cr_expect_eq(fxm_stop(&p), 0, "master child failed");
+    unlink(tf);
+}
+
+Test(disp_client, tcp_with_a_wrong_token_fails)
+{
+    fxm_peer p = {0};
+    p.token = TOKEN;
+    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
+    char tf[64];
+    write_token(tf, sizeof tf, "another-token-of-sufficient-length");
+    ct_error err;
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, tf, 0, 5000};
+    int rc = disp_client_connect(&o, NULL, &c, &err);
+    printf("wrong token: %s\n", err.msg);
+    cr_expect_lt(rc, 0);
+    cr_expect_null(c);
+    cr_expect_neq(fxm_stop(&p), 0, "the master must refuse the display");
+    unlink(tf);
+}
+
+/* Runs one session against a master that stays until BYE; returns the bytes received. */
+static uint64_t session_bytes(disp_scene_cache *cache)
+{
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_STAY, 0, W, H), 0, "%s", p.msg);
+    ct_error err;
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    for (int i = 0; i < 200 && !disp_client_frame_ready(c, NULL); i++)
+        cr_assert_eq(disp_client_service(c, s, 25, &err), 0, "%s", err.msg);
+    cr_assert(disp_client_has_scene(c));
+    cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
+    uint8_t img[W * H * 3], want[W * H * 3];
+    render(s, img);
+    render_direct(want);
+    cr_expect_eq(memcmp(img, want, sizeof img), 0, "the cached scene renders the same");
+    uint64_t bytes = disp_session_counters(s).bytes;
+    disp_client_close(c);
+    disp_session_free(s);
+    cr_expect_eq(fxm_stop(&p), 0);
+    return bytes;
+}
+
+Test(disp_client, scene_cache_on_disk)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    char dir[64];
+    snprintf(dir, sizeof dir, "/tmp/ctdisp-cache-XXXXXX");
+    cr_assert(mkdtemp(dir));
+    disp_scene_cache *cache = NULL;
+    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    uint64_t first = session_bytes(cache);
+    disp_scene_cache_free(cache);
+    /* A new display process: the cache comes from the directory. */
+    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    uint64_t second = session_bytes(cache);
+    disp_scene_cache_free(cache);
+    printf("metric: bytes received: %llu with the scene, %llu with it cached\n",
+           (unsigned long long)first, (unsigned long long)second);
+    cr_expect_lt(second + 1000, first, "the cached scene was sent again");
+    /* A corrupted cache file is ignored (the scene is sent again). */
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "for f in %s/*.ctscene; do printf 'x' >> \"$f\"; done", dir);
+    cr_assert_eq(system(cmd), 0);
+    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    uint64_t third = session_bytes(cache);
+    disp_scene_cache_free(cache);
+    cr_expect_gt(third, second + 1000, "a corrupt cache must not be announced");
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    cr_expect_eq(system(cmd), 0);
+    gl_backend_close(b);
+}
+
+Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_BAD, 0, W, H), 0, "%s", p.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, NULL, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    int rc = 0;
+    for (int i = 0; i < 200 && rc == 0; i++) rc = disp_client_service(c, s, 25, &err);
+    printf("bad patch: %s\n", err.msg);
+    cr_expect_eq(rc, CT_EPROTO);
+    cr_expect(strstr(err.msg, "unknown texture 77") != NULL, "%s", err.msg);
+    disp_client_close(c);
+    cr_expect_eq(fxm_stop(&p), 0, "the master did not get a PROTOCOL error naming texture 77");
+    disp_session_free(s);
+    gl_backend_close(b);
+}

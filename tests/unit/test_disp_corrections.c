@@ -1,0 +1,528 @@
+/* Corrective textures on the box: a node with a known synthetic correction
+ * (object-local parallel on a wall, camera-local perspective on an inner
+ * node) gives the expected pixels; one-pass equals three-pass; the
+ * subtractive pass is skipped when every correction is positive. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "display/gl_load.h"
+#include "tests/support/disp_fixture.h"
+
+#define W 96
+#define H 72
+/* Expected-pixel tolerance (linear): bilinear weights are computed in
+ * reduced precision by some rasterisers; corrections here are <= 0.5. */
+#define TOL_TEX 4e-3
+
+typedef struct fx_tex {
+    uint32_t id, node;
+    int w, h;
+    disp_proj_kind kind;
+    mat4 proj;
+    float *rgb;
+    bool half;
+} fx_tex;
+
+typedef struct fx_setup {
+    fx_tex tex[8];
+    int ntex;
+} fx_setup;
+
+/* A synthetic correction with both signs, values k/256 (exact in half). */
+static float *pattern(int w, int h, int seed, bool positive)
+{
+    float *p = malloc((size_t)w * (size_t)h * 3 * sizeof *p);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++)
+            for (int c = 0; c < 3; c++) {
+                float v = 0.45f * sinf(0.9f * (float)x + 1.3f * (float)y + 2.1f * (float)c + (float)seed);
+                if (positive) v = fabsf(v);
+                p[3 * ((size_t)y * (size_t)w + (size_t)x) + (size_t)c] = roundf(v * 256.0f) / 256.0f;
+            }
+    return p;
+}
+
+/* Object-local parallel projection of the back wall (z = -1) onto the
+ * rectangle [x0, x0+sx] x [y0, y0+sy]: s = (x - x0) / sx, t = (y - y0) / sy. */
+static mat4 wall_proj(float x0, float y0, float sx, float sy)
+{
+    mat4 m;
+    memset(&m, 0, sizeof m);
+    m.m[0][0] = 1.0f / sx; m.m[0][3] = -x0 / sx;
+    m.m[1][1] = 1.0f / sy; m.m[1][3] = -y0 / sy;
+    m.m[3][3] = 1.0f;
+    return m;
+}
+
+/* Camera-local perspective projection: the image-plane rectangle
+ * [a, b] x [c, d] (NDC) of camera cam mapped to [0,1]^2. */
+static mat4 camera_proj(const ct_camera *cam, float a, float b, float c, float d)
+{
+    mat4 s = m4_identity();
+    s.m[0][0] = 1.0f / (b - a); s.m[0][3] = -a / (b - a);
+    s.m[1][1] = 1.0f / (d - c); s.m[1][3] = -c / (d - c);
+    mat4 pv = m4_mul(cam_proj(cam, W, H, 0.01f, 100.0f), cam_view(cam));
+    /* x, y in NDC after the divide; s acts on (x, y, w) since ndc = clip / w. */
+    mat4 r = m4_mul(s, pv);
+    for (int k = 0; k < 4; k++) {
+        r.m[0][k] = s.m[0][0] * pv.m[0][k] + s.m[0][3] * pv.m[3][k];
+        r.m[1][k] = s.m[1][1] * pv.m[1][k] + s.m[1][3] * pv.m[3][k];
+        r.m[2][k] = 0.0f;
+        r.m[3][k] = pv.m[3][k];
+    }
+    return r;
+}
+
+static int setup(disp_session *s, void *ctx, ct_error *err)
+{
+    fx_setup *f = ctx;
+    ct_radmesh m;
+    int rc = fx_box_mesh(4, &m, NULL, err);
+    if (!rc) rc = disp_session_scene(s, &m, err);
+    rmesh_free(&m);
+    for (int i = 0; i < f->ntex && !rc; i++) {
+        fx_tex *t = &f->tex[i];
+        rc = disp_session_tex_alloc(s, t->id, t->node, t->w, t->h, t->kind, err);
+        if (!rc) rc = disp_session_tex_projection(s, t->id, &t->proj, err);
+        if (rc) break;
+        if (t->half) {
+            size_t n = (size_t)t->w * (size_t)t->h * 3;
+            uint16_t *hv = malloc(n * sizeof *hv);
+            for (size_t k = 0; k < n; k++) hv[k] = fx_half(t->rgb[k]);
+            /* Two patches: the top half of the rows, then the rest. */
+            int h1 = t->h / 2;
+            rc = disp_session_tex_patch(s, t->id, 0, 0, t->w, h1, hv, err);
+            if (!rc) rc = disp_session_tex_patch(s, t->id, 0, h1, t->w, t->h - h1, hv + (size_t)h1 * (size_t)t->w * 3, err);
+            free(hv);
+        } else {
+            rc = disp_session_tex_patch_float(s, t->id, 0, 0, t->w, t->h, t->rgb, err);
+        }
+    }
+    return rc;
+}
+
+static bool in_subtree(uint32_t node, uint32_t root, const ct_radmesh *m)
+{
+    return node >= root && node < m->nodes[root].node_end;
+}
+
+/* Expected linear pixels: reference Gouraud plus each texture's bilinear
+ * correction where the world point projects into [0,1]^2. Pixels too close
+ * to a texture's border (or not smooth) are marked unusable. */
+static void expected(const fx_ref *ref, const ct_radmesh *m, const fx_setup *f, float *out, bool *use)
+{
+    for (size_t p = 0; p < (size_t)W * H; p++) {
+        use[p] = ref->smooth[p];
+        vec3 c = v3(ref->rgb[3 * p], ref->rgb[3 * p + 1], ref->rgb[3 * p + 2]);
+        if (ref->node[p] >= 0) {
+            vec3 w = v3(ref->world[3 * p], ref->world[3 * p + 1], ref->world[3 * p + 2]);
+            for (int i = 0; i < f->ntex; i++) {
+                const fx_tex *t = &f->tex[i];
+                if (!in_subtree((uint32_t)ref->node[p], t->node, m)) continue;
+                vec4 q = m4_point4(&t->proj, w);
+                if (q.w <= 0) continue;
+                float s = q.x / q.w, tt = q.y / q.w;
+                float margin = 0.03f;
+                if (s > -margin && s < 1 + margin && tt > -margin && tt < 1 + margin &&
+                    (s < margin || s > 1 - margin || tt < margin || tt > 1 - margin))
+                    use[p] = false;
+                if (s < 0 || s > 1 || tt < 0 || tt > 1) continue;
+                c = v3_add(c, fx_bilinear(t->rgb, t->w, t->h, s, tt));
+            }
+        }
+        out[3 * p] = c.x; out[3 * p + 1] = c.y; out[3 * p + 2] = c.z;
+    }
+}
+
+static void check_expected(fx_setup *f, int passes, const char *what)
+{
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, NULL, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    fx_ref ref;
+    cr_assert_eq(fx_rasterise(&m, &cam, W, H, &ref), 0);
+    float *exp = malloc((size_t)W * H * 3 * sizeof *exp);
+    bool *use = malloc((size_t)W * H * sizeof *use);
+    expected(&ref, &m, f, exp, use);
+    disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false};
+    const gl_backend_kind kinds[2] = {GL_BACKEND_OSMESA, GL_BACKEND_EGL};
+    for (int k = 0; k < 2; k++) {
+        fx_frame fr;
+        char msg[256];
+        cr_assert_eq(fx_render(kinds[k], W, H, &cam, &o, setup, f, &fr, msg, sizeof msg), 0, "%s", msg);
+        size_t used = 0, corrected = 0;
+        double mx = 0;
+        for (size_t p = 0; p < (size_t)W * H; p++) {
+            if (!use[p]) continue;
+            used++;
+            bool has = false;
+            for (int c = 0; c < 3; c++) {
+                double d = fabs((double)fr.linear[3 * p + (size_t)c] - exp[3 * p + (size_t)c]);
+                if (d > mx) mx = d;
+                if (fabsf(exp[3 * p + (size_t)c] - ref.rgb[3 * p + (size_t)c]) > 1e-3f) has = true;
+            }
+            corrected += has;
+        }
+        printf("metric: %s, %d-pass, %s: max |diff| %.2e vs expected over %zu pixels (%zu corrected), tolerance %.0e\n",
+               what, passes, gl_backend_name(kinds[k]), mx, used, corrected, TOL_TEX);
+        cr_expect_gt(corrected, (size_t)200, "%s: only %zu corrected pixels checked", what, corrected);
+        cr_expect_leq(mx, TOL_TEX, "%s %s %d-pass: max error %.3e", what, gl_backend_name(kinds[k]), passes, mx);
+        fx_frame_free(&fr);
+    }
+    free(exp);
+    free(use);
+    fx_ref_free(&ref);
+    rmesh_free(&m);
+}
+
+Test(disp_corrections, object_local_parallel)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    rmesh_free(&m);
+    fx_setup f = {.ntex = 1};
+    f.tex[0] = (fx_tex){7, nd.back, 8, 6, DISP_PROJ_OBJECT_PARALLEL, wall_proj(-0.8f, -0.5f, 1.4f, 1.4f),
+                        pattern(8, 6, 1, false), true};
+    check_expected(&f, 3, "object-local parallel");
+    check_expected(&f, 1, "object-local parallel");
+    free(f.tex[0].rgb);
+}
+
+Test(disp_corrections, camera_local_perspective_on_inner_node)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    rmesh_free(&m);
+    /* The texture was made from an earlier eye position (it floats with the
+     * camera), covers part of the image and the whole "room" group. */
+    ct_camera old = cam_look_at(v3(0.3f, 0.2f, 3.0f), v3(0, 0, 0), v3(0, 1, 0), 50.0f);
+    fx_setup f = {.ntex = 1};
+    f.tex[0] = (fx_tex){3, nd.room, 16, 12, DISP_PROJ_CAMERA_PERSPECTIVE,
+                        camera_proj(&old, -0.7f, 0.5f, -0.6f, 0.8f), pattern(16, 12, 2, false), false};
+    check_expected(&f, 3, "camera-local perspective");
+    check_expected(&f, 1, "camera-local perspective");
+    free(f.tex[0].rgb);
+}
+
+/* In-process rendering of the same setup with 1 and 3 passes. */
+static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, float *lin3,
+                        disp_render_stats *st1, disp_render_stats *st3, bool all_positive)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(setup(s, f, &err), 0, "%s", err.msg);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, st1, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    disp_compositor_read_display(c, one);
+    disp_compositor_read_linear(c, lin1);
+    o.passes = 3;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, st3, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    disp_compositor_read_display(c, three);
+    disp_compositor_read_linear(c, lin3);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
+}
+
+static void compare_passes(fx_setup *f, bool all_positive, bool expect_pass3, const char *what)
+{
+    size_t n = (size_t)W * H * 3;
+    uint8_t *one = malloc(n), *three = malloc(n);
+    float *l1 = malloc(n * sizeof *l1), *l3 = malloc(n * sizeof *l3);
+    disp_render_stats s1, s3;
+    render_both(f, one, three, l1, l3, &s1, &s3, all_positive);
+    int dmax = 0;
+    size_t ndiff = 0;
+    for (size_t i = 0; i < n; i++) {
+        int d = abs((int)one[i] - (int)three[i]);
+        if (d > dmax) dmax = d;
+        ndiff += d != 0;
+    }
+    double mx, mean;
+    fx_diff(l1, l3, n, &mx, &mean);
+    printf("metric: %s: 1-pass vs 3-pass: max %d/255 (%zu of %zu values differ), linear max %.2e; draws %u vs %u, pass 3 %s\n",
+           what, dmax, ndiff, n, mx, s1.draws, s3.draws, s3.pass3 ? "ran" : "skipped");
+    cr_expect_leq(dmax, 1, "%s: 1-pass and 3-pass differ by %d/255", what, dmax);
+    cr_expect_leq(mx, 1e-5, "%s: linear difference %.3e", what, mx);
+    cr_expect_eq(s3.pass3, expect_pass3, "%s: pass 3 %s", what, s3.pass3 ? "ran" : "skipped");
+    free(one); free(three); free(l1); free(l3);
+}
+
+Test(disp_corrections, one_pass_equals_three_pass)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    rmesh_free(&m);
+    ct_camera old = cam_look_at(v3(0.3f, 0.2f, 3.0f), v3(0, 0, 0), v3(0, 1, 0), 50.0f);
+    fx_setup f = {.ntex = 8};
+    /* Six textures stacked on the back wall (more than the one-pass shader
+     * samples at once), one on the block, one camera-local on the room. */
+    for (int i = 0; i < 6; i++)
+        f.tex[i] = (fx_tex){(uint32_t)(10 + i), nd.back, 4 + i, 5, DISP_PROJ_OBJECT_PARALLEL,
+                            wall_proj(-1.0f + 0.2f * (float)i, -0.9f + 0.1f * (float)i, 1.0f, 1.2f),
+                            pattern(4 + i, 5, 3 + i, false), i % 2 == 0};
+    f.tex[6] = (fx_tex){20, nd.block, 6, 6, DISP_PROJ_CAMERA_PERSPECTIVE, camera_proj(&old, -0.9f, 0.2f, -0.9f, 0.1f),
+                        pattern(6, 6, 11, false), true};
+    f.tex[7] = (fx_tex){21, nd.room, 9, 7, DISP_PROJ_CAMERA_PERSPECTIVE, camera_proj(&old, -0.2f, 0.9f, -0.3f, 0.9f),
+                        pattern(9, 7, 12, false), false};
+    compare_passes(&f, false, true, "mixed signs, 8 textures");
+    for (int i = 0; i < 8; i++) free(f.tex[i].rgb);
+}
+
+Test(disp_corrections, pass3_skipped_when_all_positive)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    rmesh_free(&m);
+    fx_setup f = {.ntex = 2};
+    f.tex[0] = (fx_tex){1, nd.back, 8, 8, DISP_PROJ_OBJECT_PARALLEL, wall_proj(-1, -1, 2, 2), pattern(8, 8, 5, true), true};
+    f.tex[1] = (fx_tex){2, nd.floor, 8, 8, DISP_PROJ_OBJECT_PARALLEL, wall_proj(-1, -1, 2, 2), pattern(8, 8, 6, true), false};
+    /* No texel is negative: pass 3 has nothing to do even without the master's flag. */
+    compare_passes(&f, false, false, "positive textures");
+    compare_passes(&f, true, false, "master says all positive");
+    free(f.tex[0].rgb);
+    free(f.tex[1].rgb);
+}
+
+/* The debug views: corrections only (signed grey), radiosity only, texture
+ * assignment colours (Fig. 5), sample positions (Fig. 7). */
+Test(disp_corrections, debug_views)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    ct_camera cam = fx_box_camera();
+    fx_ref ref;
+    cr_assert_eq(fx_rasterise(&m, &cam, W, H, &ref), 0);
+    const float cval[3] = {0.25f, -0.125f, 0.5f};
+    float rgb[4 * 4 * 3];
+    for (int i = 0; i < 48; i++) rgb[i] = cval[i % 3];
+    fx_setup f = {.ntex = 1};
+    f.tex[0] = (fx_tex){9, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, wall_proj(-1, -1, 2, 2), rgb, false};
+
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(setup(s, &f, &err), 0, "%s", err.msg);
+    float pts[4] = {10.5f, 20.5f, 40.5f, 7.5f};
+    disp_session_samples(s, pts, 2);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
+    size_t n = (size_t)W * H;
+    float *lin = malloc(n * 3 * sizeof *lin);
+    uint8_t *disp = malloc(n * 3);
+    disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false};
+    uint32_t npts = 0;
+    const float *xy = disp_session_sample_xy(s, &npts);
+    cr_expect_eq(npts, 2u);
+
+    /* Corrections only: 0.5 + 0.5 * value, no sRGB; grey where none. */
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, NULL, 0, false, W, H, &err), 0);
+    disp_compositor_read_display(c, disp);
+    size_t on_wall = 0, bad = 0;
+    for (size_t p = 0; p < n; p++) {
+        if (!ref.smooth[p]) continue;
+        bool wall = ref.node[p] == (int32_t)nd.back;
+        on_wall += wall;
+        for (int k = 0; k < 3; k++) {
+            int want = (int)lroundf(255.0f * (0.5f + 0.5f * (wall ? cval[k] : 0.0f)));
+            if (abs(want - (int)disp[3 * p + (size_t)k]) > 1) bad++;
+        }
+    }
+    cr_expect_gt(on_wall, (size_t)300);
+    cr_expect_eq(bad, 0u, "corrections view: %zu wrong values", bad);
+
+    /* Radiosity only: the Gouraud reference, no correction. */
+    o.view = DISP_VIEW_RADIOSITY;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, lin);
+    double mx = 0;
+    for (size_t p = 0; p < n; p++)
+        if (ref.smooth[p])
+            for (int k = 0; k < 3; k++) mx = fmax(mx, fabs(lin[3 * p + (size_t)k] - ref.rgb[3 * p + (size_t)k]));
+    cr_expect_leq(mx, 2e-3, "radiosity view differs from Gouraud by %g", mx);
+
+    /* Assignment: the back wall is 0.6 * colour + 0.4 * radiosity with one
+     * colour for the whole texture; other parts keep their radiosity. */
+    o.view = DISP_VIEW_ASSIGNMENT;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, lin);
+    float col[3] = {-1, -1, -1};
+    double spread = 0, other = 0;
+    for (size_t p = 0; p < n; p++) {
+        if (!ref.smooth[p] || ref.node[p] < 0) continue;
+        for (int k = 0; k < 3; k++) {
+            float v = lin[3 * p + (size_t)k], r = ref.rgb[3 * p + (size_t)k];
+            if (ref.node[p] == (int32_t)nd.back) {
+                float cc = (v - 0.4f * r) / 0.6f;
+                if (col[k] < 0) col[k] = cc;
+                spread = fmax(spread, fabs(cc - col[k]));
+            } else {
+                other = fmax(other, fabs(v - r));
+            }
+        }
+    }
+    printf("metric: assignment colour of texture 9: (%.3f %.3f %.3f), spread %.1e; other parts off by %.1e\n",
+           col[0], col[1], col[2], spread, other);
+    cr_expect_leq(spread, 1e-3);
+    cr_expect_leq(other, 2e-3);
+    cr_expect(col[0] >= 0.25f && col[1] >= 0.25f && col[2] >= 0.25f);
+
+    /* Samples: dots at the sample positions over the image dimmed to 35 %. */
+    o.view = DISP_VIEW_SAMPLES;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, NULL, 0, false, W, H, &err), 0);
+    disp_compositor_read_display(c, disp);
+    for (int i = 0; i < 2; i++) {
+        size_t p = (size_t)pts[2 * i + 1] * W + (size_t)pts[2 * i];
+        cr_expect(disp[3 * p] == 255 && disp[3 * p + 1] >= 200 && disp[3 * p + 2] <= 40,
+                  "sample %d pixel (%u %u %u)", i, disp[3 * p], disp[3 * p + 1], disp[3 * p + 2]);
+    }
+    size_t p0 = (size_t)30 * W + 30;
+    uint8_t full[3];
+    o.view = DISP_VIEW_FULL;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    uint8_t *d2 = malloc(n * 3);
+    disp_compositor_read_display(c, d2);
+    memcpy(full, d2 + 3 * p0, 3);
+    for (int k = 0; k < 3; k++)
+        cr_expect_leq(abs((int)disp[3 * p0 + (size_t)k] - (int)lroundf(0.35f * (float)full[k])), 1,
+                      "dimmed value %u vs full %u", disp[3 * p0 + (size_t)k], full[k]);
+    free(d2);
+    free(lin);
+    free(disp);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
+    fx_ref_free(&ref);
+    rmesh_free(&m);
+}
+
+/* Patch centres: with an invertible object-local projection (third row =
+ * distance from the wall's plane), a patch's centre becomes a world point on
+ * the wall, which the samples view draws at its pixel. */
+Test(disp_corrections, patch_centres_in_the_samples_view)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(disp_session_scene(s, &m, &err), 0);
+    mat4 p = wall_proj(-1, -1, 2, 2);
+    p.m[2][2] = 1.0f;   /* z + 1: distance from the back wall z = -1 */
+    p.m[2][3] = 1.0f;
+    cr_assert_eq(disp_session_tex_alloc(s, 4, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(s, 4, &p, &err), 0);
+    float one[3] = {0.1f, 0.1f, 0.1f};
+    cr_assert_eq(disp_session_tex_patch_float(s, 4, 1, 2, 1, 1, one, &err), 0);
+    uint32_t n = 0;
+    const float *wp = disp_session_patch_points(s, &n);
+    cr_assert_eq(n, 1u);
+    printf("patch centre at (%g %g %g)\n", wp[0], wp[1], wp[2]);
+    cr_expect_float_eq(wp[0], -0.25f, 1e-5f);
+    cr_expect_float_eq(wp[1], 0.25f, 1e-5f);
+    cr_expect_float_eq(wp[2], -1.0f, 1e-5f);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0);
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_SAMPLES, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, wp, n, false, W, H, &err), 0);
+    uint8_t *disp = malloc((size_t)W * H * 3);
+    disp_compositor_read_display(c, disp);
+    float px, py;
+    cr_assert(cam_project(&cam, W, H, v3(wp[0], wp[1], wp[2]), &px, &py, NULL));
+    size_t q = (size_t)py * W + (size_t)px;
+    cr_expect(disp[3 * q] <= 70 && disp[3 * q + 1] >= 200 && disp[3 * q + 2] == 255,
+              "pixel (%g, %g) is (%u %u %u), want the cyan dot", px, py, disp[3 * q], disp[3 * q + 1], disp[3 * q + 2]);
+    /* Frames later the point is gone. */
+    for (uint32_t f = 0; f <= DISP_SAMPLE_FRAMES; f++) disp_session_frame_end(s, f, 0, false);
+    disp_session_patch_points(s, &n);
+    cr_expect_eq(n, 0u);
+    free(disp);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
+    rmesh_free(&m);
+}
+
+/* A texture that got no patch corrects nothing (allocation zeroes it on the
+ * GPU), also after a resize of a texture that held values. */
+Test(disp_corrections, fresh_and_resized_textures_are_zero)
+{
+    fx_box_nodes nd;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    cr_assert_eq(disp_session_scene(s, &m, &err), 0);
+    mat4 p = wall_proj(-1, -1, 2, 2);
+    cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 64, 64, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0);
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0);
+    ct_camera cam = fx_box_camera();
+    size_t n = (size_t)W * H * 3;
+    float *full = malloc(n * sizeof *full), *rad = malloc(n * sizeof *rad);
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, rad);
+    o.view = DISP_VIEW_FULL;
+    /* Rounds: fresh 64x64; re-allocated at the same size after holding
+     * values; re-allocated at 32x16 after holding values. */
+    const int sizes[3][2] = {{64, 64}, {64, 64}, {32, 16}};
+    for (int round = 0; round < 3; round++) {
+        for (int passes = 1; passes <= 3; passes += 2) {
+            o.passes = passes;
+            cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+            disp_compositor_read_linear(c, full);
+            cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "round %d, %d-pass: a zero texture changed pixels", round, passes);
+        }
+        /* Fill it, then resize: the new texels must be zero again. */
+        const disp_texture *t = disp_textures_find(disp_session_textures(s), 1);
+        int tw = t->width, th = t->height;
+        float *v = malloc((size_t)tw * (size_t)th * 3 * sizeof *v);
+        for (int i = 0; i < tw * th * 3; i++) v[i] = 0.5f;
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, tw, th, v, &err), 0, "%s", err.msg);
+        free(v);
+        if (round < 2)
+            cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, sizes[round + 1][0], sizes[round + 1][1],
+                                                DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    }
+    free(full);
+    free(rad);
+    disp_compositor_free(c);
+    disp_session_free(s);
+    gl_backend_close(b);
+    rmesh_free(&m);
+}

@@ -1,0 +1,323 @@
+/* The tracer against analytic answers: white furnace, a plane under a
+ * rectangular area light (point-to-rectangle form factor), a glass slab's
+ * Fresnel energy balance, a mirror showing a known emitter; determinism
+ * across batch orders and threads; reuse-diffuse corrections never negative. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/radmesh.h"
+#include "tests/support/testscenes.h"
+#include "tracer/bsdf.h"
+#include "tracer/embree_scene.h"
+#include "tracer/tracer.h"
+
+#define CHECK(x) do { int rc_ = (x); cr_assert_eq(rc_, 0, "%s: %s", #x, err.msg); } while (0)
+
+static trc_tracer *make_tracer(const ct_scene *s, const ct_radmesh *rad, trc_mode mode, int k, int b, int d)
+{
+    trc_options o;
+    trc_options_default(&o, mode);
+    if (k) o.shadow_rays = k;
+    if (b) o.branch = b;
+    if (d) o.depth = d;
+    trc_tracer *t;
+    ct_error err;
+    int rc = trc_new(s, rad, &o, &t, &err);
+    cr_assert_eq(rc, 0, "trc_new: %s", err.msg);
+    return t;
+}
+
+/* Mean L_hq of n samples at image position (px, py) (request ids id0..). */
+static vec3 mean_at(const trc_tracer *t, const trc_view *v, float px, float py, int n, uint64_t id0,
+                    ct_sample *last)
+{
+    ct_request *req = calloc((size_t)n, sizeof *req);
+    ct_sample *out = calloc((size_t)n, sizeof *out);
+    cr_assert(req && out);
+    for (int i = 0; i < n; i++) {
+        req[i].id = id0 + (uint64_t)i;
+        req[i].px = px;
+        req[i].py = py;
+    }
+    trc_stats st = {0};
+    trc_trace(t, v, req, (size_t)n, out, &st);
+    double sx = 0, sy = 0, sz = 0;
+    for (int i = 0; i < n; i++) {
+        sx += out[i].l_hq.x;
+        sy += out[i].l_hq.y;
+        sz += out[i].l_hq.z;
+    }
+    if (last) *last = out[n - 1];
+    free(req);
+    free(out);
+    return v3((float)(sx / n), (float)(sy / n), (float)(sz / n));
+}
+
+static trc_view view_of(vec3 eye, vec3 target, float fov, int w, int h)
+{
+    trc_view v;
+    v.cam = cam_look_at(eye, target, v3(0, 1, 0), fov);
+    v.width = w;
+    v.height = h;
+    return v;
+}
+
+/* --- white furnace ------------------------------------------------------- */
+
+static void furnace(trc_mode mode)
+{
+    ct_error err;
+    ct_scene *s = scene_new("furnace");
+    cr_assert(s);
+    int m = ts_diffuse(s, "white", v3s(0.5f), v3s(1.0f), &err);
+    cr_assert(m >= 0);
+    cr_assert(ts_sphere(s, "sphere", (uint32_t)m, v3(0, 0, 0), 1.0f, 24, 12, true, &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    trc_tracer *t = make_tracer(s, NULL, mode, 1, 1, 0);
+    trc_view v = view_of(v3(0.1f, 0.2f, 0.0f), v3(0.5f, 0.3f, 1.0f), 90.0f, 8, 8);
+    /* Analytic: L = L_e / (1 - rho) = 2 everywhere in a closed enclosure. */
+    double sum = 0.0;
+    int cells = 0;
+    for (int y = 0; y < 8; y += 2)
+        for (int x = 0; x < 8; x += 2) {
+            vec3 l = mean_at(t, &v, x + 0.5f, y + 0.5f, 256, 1000u * (uint64_t)(y * 8 + x), NULL);
+            cr_expect(fabsf(l.x - 2.0f) < 0.1f, "%s: pixel (%d,%d) L = %g, expected 2", trc_mode_name(mode),
+                      x, y, (double)l.x);
+            sum += l.x;
+            cells++;
+        }
+    double mean = sum / cells;
+    cr_expect(fabs(mean - 2.0) < 0.02, "%s furnace: mean L = %g, expected 2", trc_mode_name(mode), mean);
+    trc_free(t);
+    scene_free(s);
+}
+
+Test(tracer, white_furnace_path) { furnace(TRC_MODE_PATH); }
+Test(tracer, white_furnace_drt_path_traced_indirect) { furnace(TRC_MODE_DRT); }
+
+/* --- form factor ---------------------------------------------------------- */
+
+/* Form factor from a point to a parallel rectangle [0,a]x[0,b] at height c
+ * whose corner lies straight above it; odd in a and b. */
+static double ff_corner(double a, double b, double c)
+{
+    double x = a / c, y = b / c;
+    return (x / sqrt(1 + x * x) * atan(y / sqrt(1 + x * x)) + y / sqrt(1 + y * y) * atan(x / sqrt(1 + y * y))) /
+           (2 * M_PI);
+}
+
+/* Point (px, pz) under the rectangle [x0,x1]x[z0,z1] at height c. */
+static double ff_rect(double px, double pz, double x0, double x1, double z0, double z1, double c)
+{
+    return ff_corner(x1 - px, z1 - pz, c) - ff_corner(x0 - px, z1 - pz, c) - ff_corner(x1 - px, z0 - pz, c) +
+           ff_corner(x0 - px, z0 - pz, c);
+}
+
+static void form_factor(trc_mode mode, bool with_rad)
+{
+    ct_error err;
+    ct_scene *s = scene_new("plane");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(10, 5, 2), &err);
+    cr_assert(floor_m >= 0 && lamp >= 0);
+    /* Floor y = 0 facing up; light 1 x 0.6 at height 1 facing down. */
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    ct_radmesh rad;
+    if (with_rad) CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
+    trc_tracer *t = make_tracer(s, with_rad ? &rad : NULL, mode, 4, 0, 0);
+    trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
+    static const float pix[][2] = {{8, 8}, {4, 12}, {12, 10}, {8, 15}, {2, 14}};
+    for (size_t k = 0; k < sizeof pix / sizeof pix[0]; k++) {
+        ct_sample last;
+        vec3 l = mean_at(t, &v, pix[k][0], pix[k][1], 2000, 100000u * (k + 1), &last);
+        cr_assert(last.flags & CT_SAMPLE_HIT);
+        cr_assert(fabsf(last.hit.y) < 1e-4f, "must hit the floor");
+        double f = ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
+        /* L = rho / pi * E = rho / pi * (L_e pi F) = rho L_e F. */
+        double want = 0.5 * 10.0 * f;
+        cr_expect(fabs(l.x - want) < 0.02 * want + 1e-5, "%s: at (%g, %g) L = %g, analytic %g (F = %g)",
+                  trc_mode_name(mode), (double)last.hit.x, (double)last.hit.z, (double)l.x, want, f);
+        cr_expect(fabs(l.z - want * 0.2) < 0.02 * want * 0.2 + 1e-5);
+    }
+    trc_free(t);
+    if (with_rad) rmesh_free(&rad);
+    scene_free(s);
+}
+
+Test(tracer, plane_under_area_light_path) { form_factor(TRC_MODE_PATH, false); }
+Test(tracer, plane_under_area_light_drt) { form_factor(TRC_MODE_DRT, false); }
+Test(tracer, plane_under_area_light_drt_radmesh) { form_factor(TRC_MODE_DRT, true); }
+
+/* --- glass slab ----------------------------------------------------------- */
+
+/* A 0.1 thick glass slab at y in [-0.1, 0] seen at 45 degrees; emitters
+ * (L_e = 1) below (transmitted light), above (reflected light) or both. */
+static vec3 slab(trc_mode mode, bool below, bool above, int n, int branch_depth)
+{
+    ct_error err;
+    ct_scene *s = scene_new("slab");
+    scene_material g = scene_material_default("glass");
+    g.dielectric = 1;
+    g.ior = 1.5f;
+    g.transmission = v3s(1.0f);
+    int gm = scene_add_material(s, &g, &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(1.0f), &err);
+    cr_assert(gm >= 0 && lamp >= 0);
+    cr_assert(ts_box(s, "slab", (uint32_t)gm, v3(-50, -0.1f, -50), v3(50, 0, 50), false, &err) >= 0);
+    if (below)
+        cr_assert(ts_quad(s, "below", (uint32_t)lamp, v3(-100, -1, -100), v3(0, 0, 200), v3(200, 0, 0), &err) >= 0);
+    if (above)
+        cr_assert(ts_quad(s, "above", (uint32_t)lamp, v3(-100, 5, -100), v3(200, 0, 0), v3(0, 0, 200), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    trc_options o;
+    trc_options_default(&o, mode);
+    o.shadow_rays = 1;
+    o.branch_depth = branch_depth;
+    trc_tracer *t;
+    CHECK(trc_new(s, NULL, &o, &t, &err));
+    trc_view v = view_of(v3(0, 1, -1), v3(0, 0, 0), 30.0f, 9, 9);
+    vec3 l = mean_at(t, &v, 4.5f, 4.5f, n, 1, NULL);
+    trc_free(t);
+    scene_free(s);
+    return l;
+}
+
+Test(tracer, glass_slab_fresnel_energy_balance)
+{
+    float ct;
+    double r = bsdf_fresnel(cosf(CT_PI / 4), 1.0f / 1.5f, &ct);
+    double t_slab = (1 - r) / (1 + r), r_slab = 2 * r / (1 + r);
+    /* drt splitting into both Fresnel branches on every level: deterministic
+     * and exact. */
+    vec3 lt = slab(TRC_MODE_DRT, true, false, 1, 5);
+    vec3 lr = slab(TRC_MODE_DRT, false, true, 1, 5);
+    vec3 lb = slab(TRC_MODE_DRT, true, true, 1, 5);
+    cr_expect(fabs(lt.x - t_slab) < 1e-4, "drt: slab transmits %g, analytic %g", (double)lt.x, t_slab);
+    cr_expect(fabs(lr.x - r_slab) < 1e-4, "drt: slab reflects %g, analytic %g", (double)lr.x, r_slab);
+    cr_expect(fabs(lb.x - 1.0) < 1e-4, "drt: R + T = %g, not 1", (double)lb.x);
+    /* Default drt (split on the first level, one branch by Fresnel below) and
+     * path (one branch everywhere): unbiased on average. */
+    vec3 dt = slab(TRC_MODE_DRT, true, false, 20000, 1);
+    cr_expect(fabs(dt.x - t_slab) < 0.01, "drt (branch depth 1): slab transmits %g, analytic %g", (double)dt.x,
+              t_slab);
+    vec3 pt = slab(TRC_MODE_PATH, true, false, 20000, 1);
+    vec3 pb = slab(TRC_MODE_PATH, true, true, 2000, 1);
+    cr_expect(fabs(pt.x - t_slab) < 0.01, "path: slab transmits %g, analytic %g", (double)pt.x, t_slab);
+    cr_expect(fabs(pb.x - 1.0) < 0.01, "path: R + T = %g, not 1", (double)pb.x);
+}
+
+/* --- mirror ---------------------------------------------------------------- */
+
+Test(tracer, mirror_shows_known_emitter)
+{
+    ct_error err;
+    ct_scene *s = scene_new("mirror");
+    scene_material mm = scene_material_default("mirror");
+    mm.mirror = v3s(0.8f);
+    int mi = scene_add_material(s, &mm, &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(3, 2, 1), &err);
+    cr_assert(mi >= 0 && lamp >= 0);
+    cr_assert(ts_quad(s, "mirror", (uint32_t)mi, v3(-5, 0, -5), v3(0, 0, 10), v3(10, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "lamp", (uint32_t)lamp, v3(-20, 2, -20), v3(40, 0, 0), v3(0, 0, 40), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
+    trc_view v = view_of(v3(0, 1, -3), v3(0, 0, 0), 40.0f, 8, 8);
+    for (int mode = TRC_MODE_PATH; mode <= TRC_MODE_REUSE; mode++) {
+        trc_tracer *t = make_tracer(s, mode == TRC_MODE_REUSE ? &rad : NULL, (trc_mode)mode, 0, 0, 0);
+        ct_sample last;
+        vec3 l = mean_at(t, &v, 4.5f, 5.5f, 16, 1, &last);
+        cr_expect(fabsf(l.x - 2.4f) < 1e-4f && fabsf(l.y - 1.6f) < 1e-4f && fabsf(l.z - 0.8f) < 1e-4f,
+                  "%s: mirror shows (%g %g %g), expected 0.8 * (3 2 1)", trc_mode_name((trc_mode)mode),
+                  (double)l.x, (double)l.y, (double)l.z);
+        cr_expect(last.node == 1, "hit node %u is not the mirror part", last.node);
+        trc_free(t);
+    }
+    rmesh_free(&rad);
+    scene_free(s);
+}
+
+/* --- drt takes its indirect diffuse light from the radiosity mesh ---------- */
+
+Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
+{
+    ct_error err;
+    ct_scene *s = scene_new("plane");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(10, 5, 2), &err);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    /* Stand-in radiosity: rad = L_e + rho * A, rad_direct = L_e, so the
+     * indirect part on the floor is rho * A = 0.5 * (0.2, 0.4, 0.6). */
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3(0.2f, 0.4f, 0.6f), &rad, &err));
+    trc_tracer *t = make_tracer(s, &rad, TRC_MODE_DRT, 4, 0, 0);
+    trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
+    ct_sample last;
+    vec3 l = mean_at(t, &v, 8, 8, 2000, 1, &last);
+    double f = ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
+    double want_x = 0.5 * 10.0 * f + 0.1, want_z = 0.5 * 2.0 * f + 0.3;
+    cr_expect(fabs(l.x - want_x) < 0.02 * want_x, "L.x = %g, want direct + indirect %g", (double)l.x, want_x);
+    cr_expect(fabs(l.z - want_z) < 0.02 * want_z, "L.z = %g, want %g", (double)l.z, want_z);
+    cr_expect(last.flags & CT_SAMPLE_HAS_BASE);
+    vec3 base = rmesh_eval(&rad, last.tri, last.u, last.v);
+    cr_expect(memcmp(&base, &last.l_base, sizeof base) == 0, "l_base is not the Gouraud value at the hit");
+    trc_free(t);
+    rmesh_free(&rad);
+    scene_free(s);
+}
+
+/* --- shadows of transparent objects ----------------------------------------- */
+
+static vec3 under_slab(trc_mode mode, bool with_slab)
+{
+    ct_error err;
+    ct_scene *s = scene_new("shadow");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(100.0f), &err);
+    scene_material g = scene_material_default("glass");
+    g.dielectric = 1;
+    g.ior = 1.5f;
+    g.transmission = v3(1.0f, 0.5f, 1.0f);
+    int gm = scene_add_material(s, &g, &err);
+    cr_assert(floor_m >= 0 && lamp >= 0 && gm >= 0);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
+    /* A small light high above: shadow rays cross the slab almost normally. */
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.05f, 5, -0.05f), v3(0.1f, 0, 0), v3(0, 0, 0.1f), &err) >= 0);
+    if (with_slab)
+        cr_assert(ts_box(s, "slab", (uint32_t)gm, v3(-3, 1, -3), v3(3, 1.2f, 3), false, &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    /* Direct light only: path stops after one bounce, drt takes a zero
+     * indirect part from a stand-in radiosity mesh (the floor and the glass
+     * would otherwise interreflect). */
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
+    trc_tracer *t = make_tracer(s, mode == TRC_MODE_DRT ? &rad : NULL, mode, 4, 0, 1);
+    trc_view v = view_of(v3(0, 0.5f, -1.0f), v3(0, 0, 0), 30.0f, 9, 9);
+    vec3 l = mean_at(t, &v, 4.5f, 4.5f, 500, 1, NULL);
+    trc_free(t);
+    rmesh_free(&rad);
+    scene_free(s);
+    return l;
+}
+
+Test(tracer, glass_attenuates_shadow_rays_instead_of_blocking)
+{
+    for (int mode = TRC_MODE_PATH; mode <= TRC_MODE_DRT; mode++) {
+        vec3 open = under_slab((trc_mode)mode, false), shaded = under_slab((trc_mode)mode, true);
+        /* Two crossings at (nearly) normal incidence: (1 - F0)^2 * transmission. */
+        double f0 = 0.04, want = (1 - f0) * (1 - f0);
+        cr_assert(open.x > 0.0f);
+        double rx = shaded.x / open.x, ry = shaded.y / open.y;
+        cr_expect(fabs(rx - want) < 0.01, "%s: glass passes %g of the light, want %g", trc_mode_name((trc_mode)mode),
+                  rx, want);
+        cr_expect(fabs(ry - want * 0.25) < 0.01, "%s: green passes %g, want %g", trc_mode_name((trc_mode)mode), ry,
+                  want * 0.25);
+    }
+}

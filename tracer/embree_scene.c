@@ -1,0 +1,340 @@
+#include "tracer/embree_scene.h"
+
+#include <embree3/rtcore.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct emb_scene {
+    emb_mesh mesh;
+    RTCDevice device;
+    RTCScene scene;
+    float *verts;         /* padded copy of the positions (Embree reads 16 bytes) */
+    uint32_t *index;      /* triangles grouped by part node */
+    uint32_t *order;      /* grouped position -> mesh triangle */
+    uint32_t *geom_base;  /* geomID -> first grouped position */
+    uint32_t ngeoms;
+    vec3 *face_n;         /* unit front normal per mesh triangle */
+    ct_error dev_err;     /* last device error (filled by the callback) */
+    int dev_code;
+};
+
+emb_mesh emb_mesh_of_scene(const ct_scene *s)
+{
+    emb_mesh m;
+    m.nverts = s->nverts;
+    m.pos = s->pos;
+    m.nrm = s->nrm;
+    m.ntris = s->ntris;
+    m.tris = s->tris;
+    m.tri_node = s->tri_node;
+    m.tri_mat = s->tri_mat;
+    m.nnodes = s->nnodes;
+    m.nmats = s->nmats;
+    m.mats = s->mats;
+    return m;
+}
+
+emb_mesh emb_mesh_of_radmesh(const ct_radmesh *r, const ct_scene *s)
+{
+    emb_mesh m;
+    m.nverts = r->nverts;
+    m.pos = r->pos;
+    m.nrm = r->nrm;
+    m.ntris = r->ntris;
+    m.tris = r->tris;
+    m.tri_node = r->tri_node;
+    m.tri_mat = r->tri_mat;
+    m.nnodes = r->nnodes;
+    m.nmats = s->nmats;
+    m.mats = s->mats;
+    return m;
+}
+
+static const char *rtc_error_name(enum RTCError code)
+{
+    switch (code) {
+    case RTC_ERROR_NONE: return "none";
+    case RTC_ERROR_UNKNOWN: return "unknown error";
+    case RTC_ERROR_INVALID_ARGUMENT: return "invalid argument";
+    case RTC_ERROR_INVALID_OPERATION: return "invalid operation";
+    case RTC_ERROR_OUT_OF_MEMORY: return "out of memory";
+    case RTC_ERROR_UNSUPPORTED_CPU: return "unsupported CPU";
+    case RTC_ERROR_CANCELLED: return "cancelled";
+    }
+    return "error";
+}
+
+/* Embree calls this on every device error; we keep the first one so the
+ * builder can report it as one ct_error line. */
+static void device_error(void *user, enum RTCError code, const char *str)
+{
+    emb_scene *e = user;
+    if (e->dev_code) return;
+    e->dev_code = code == RTC_ERROR_OUT_OF_MEMORY ? CT_ENOMEM : CT_ESYS;
+    ct_fail(&e->dev_err, e->dev_code, "embree: %s: %s", rtc_error_name(code), str ? str : "");
+}
+
+static int check_device(emb_scene *e, ct_error *err, const char *what)
+{
+    if (!e->dev_code && rtcGetDeviceError(e->device) == RTC_ERROR_NONE) return CT_OK;
+    if (!e->dev_code) {
+        e->dev_code = CT_ESYS;
+        ct_fail(&e->dev_err, CT_ESYS, "embree: error");
+    }
+    ct_fail(err, e->dev_code, "%s while %s", e->dev_err.msg, what);
+    return e->dev_code;
+}
+
+static int validate(const emb_mesh *m, ct_error *err)
+{
+    if (m->ntris == 0) return ct_fail(err, CT_EEMPTY, "mesh has no triangles");
+    if (m->nmats == 0) return ct_fail(err, CT_EINVAL, "mesh has no materials");
+    for (uint32_t v = 0; v < m->nverts; v++)
+        if (!v3_finite(m->pos[v]))
+            return ct_fail(err, CT_EINVAL, "vertex %u has a non-finite position", v);
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        for (int k = 0; k < 3; k++)
+            if (m->tris[3 * (size_t)t + k] >= m->nverts)
+                return ct_fail(err, CT_ERANGE, "triangle %u: vertex index %u out of range (%u vertices)",
+                               t, m->tris[3 * (size_t)t + k], m->nverts);
+        if (m->tri_mat[t] >= m->nmats)
+            return ct_fail(err, CT_ERANGE, "triangle %u: material %u out of range (%u materials)", t,
+                           m->tri_mat[t], m->nmats);
+        if (m->tri_node[t] >= m->nnodes)
+            return ct_fail(err, CT_ERANGE, "triangle %u: node %u out of range (%u nodes)", t,
+                           m->tri_node[t], m->nnodes);
+    }
+    return CT_OK;
+}
+
+/* Groups the triangles by part node (counting sort, stable) so each node's
+ * triangles form one Embree geometry. */
+static int group_by_node(emb_scene *e, ct_error *err)
+{
+    const emb_mesh *m = &e->mesh;
+    uint32_t *count = calloc((size_t)m->nnodes + 1, sizeof *count);
+    e->order = malloc((size_t)m->ntris * sizeof *e->order);
+    e->index = malloc((size_t)m->ntris * 3 * sizeof *e->index);
+    if (!count || !e->order || !e->index) {
+        free(count);
+        return ct_fail(err, CT_ENOMEM, "out of memory grouping %u triangles", m->ntris);
+    }
+    for (uint32_t t = 0; t < m->ntris; t++) count[m->tri_node[t] + 1]++;
+    uint32_t used = 0;
+    for (uint32_t n = 0; n < m->nnodes; n++) used += count[n + 1] > 0;
+    for (uint32_t n = 0; n < m->nnodes; n++) count[n + 1] += count[n];
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        uint32_t at = count[m->tri_node[t]]++;
+        e->order[at] = t;
+        memcpy(e->index + 3 * (size_t)at, m->tris + 3 * (size_t)t, 3 * sizeof(uint32_t));
+    }
+    free(count);
+    e->geom_base = malloc(((size_t)used + 1) * sizeof *e->geom_base);
+    if (!e->geom_base) return ct_fail(err, CT_ENOMEM, "out of memory for %u geometries", used);
+    /* Geometry boundaries: where the node changes in the grouped order. */
+    uint32_t g = 0;
+    for (uint32_t i = 0; i < m->ntris; i++)
+        if (i == 0 || m->tri_node[e->order[i]] != m->tri_node[e->order[i - 1]]) e->geom_base[g++] = i;
+    e->geom_base[g] = m->ntris;
+    e->ngeoms = g;
+    return CT_OK;
+}
+
+int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct_error *err)
+{
+    *out = NULL;
+    int rc = validate(mesh, err);
+    if (rc) return rc;
+    emb_scene *e = calloc(1, sizeof *e);
+    if (!e) return ct_fail(err, CT_ENOMEM, "out of memory");
+    e->mesh = *mesh;
+    rc = group_by_node(e, err);
+    if (rc) goto fail;
+    e->verts = malloc(((size_t)mesh->nverts * 3 + 4) * sizeof(float));
+    if (!e->verts) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u vertices", mesh->nverts);
+        goto fail;
+    }
+    for (uint32_t v = 0; v < mesh->nverts; v++) {
+        e->verts[3 * (size_t)v] = mesh->pos[v].x;
+        e->verts[3 * (size_t)v + 1] = mesh->pos[v].y;
+        e->verts[3 * (size_t)v + 2] = mesh->pos[v].z;
+    }
+    memset(e->verts + 3 * (size_t)mesh->nverts, 0, 4 * sizeof(float));
+
+    e->face_n = malloc((size_t)mesh->ntris * sizeof *e->face_n);
+    if (!e->face_n) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u triangles", mesh->ntris);
+        goto fail;
+    }
+    for (uint32_t t = 0; t < mesh->ntris; t++) e->face_n[t] = emb_tri_normal(mesh, t);
+
+    e->device = rtcNewDevice(device_config && *device_config ? device_config : NULL);
+    if (!e->device) {
+        enum RTCError code = rtcGetDeviceError(NULL);
+        rc = ct_fail(err, CT_ESYS, "embree: cannot create a device (%s) with config '%s'",
+                     rtc_error_name(code), device_config ? device_config : "");
+        goto fail;
+    }
+    rtcSetDeviceErrorFunction(e->device, device_error, e);
+    e->scene = rtcNewScene(e->device);
+    if ((rc = check_device(e, err, "creating the scene"))) goto fail;
+    /* Robust mode off (watertight-enough for closed meshes, faster); high
+     * quality build: the scene is static and traced millions of times. */
+    rtcSetSceneFlags(e->scene, RTC_SCENE_FLAG_NONE);
+    rtcSetSceneBuildQuality(e->scene, RTC_BUILD_QUALITY_HIGH);
+    for (uint32_t g = 0; g < e->ngeoms; g++) {
+        uint32_t first = e->geom_base[g], n = e->geom_base[g + 1] - first;
+        RTCGeometry geom = rtcNewGeometry(e->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        if ((rc = check_device(e, err, "creating a geometry"))) goto fail;
+        rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_HIGH);
+        rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, e->verts, 0,
+                                   3 * sizeof(float), mesh->nverts);
+        rtcSetSharedGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, e->index,
+                                   (size_t)first * 3 * sizeof(uint32_t), 3 * sizeof(uint32_t), n);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometryByID(e->scene, geom, g);
+        rtcReleaseGeometry(geom);
+        if ((rc = check_device(e, err, "adding a geometry"))) goto fail;
+    }
+    rtcCommitScene(e->scene);
+    if ((rc = check_device(e, err, "building the BVH"))) goto fail;
+    *out = e;
+    return CT_OK;
+fail:
+    emb_free(e);
+    return rc;
+}
+
+void emb_free(emb_scene *e)
+{
+    if (!e) return;
+    if (e->scene) rtcReleaseScene(e->scene);
+    if (e->device) rtcReleaseDevice(e->device);
+    free(e->verts);
+    free(e->index);
+    free(e->order);
+    free(e->geom_base);
+    free(e->face_n);
+    free(e);
+}
+
+const emb_mesh *emb_get_mesh(const emb_scene *e) { return &e->mesh; }
+
+static inline void make_ray(struct RTCRay *r, vec3 o, vec3 d, float tnear, float tfar)
+{
+    r->org_x = o.x;
+    r->org_y = o.y;
+    r->org_z = o.z;
+    r->tnear = tnear;
+    r->dir_x = d.x;
+    r->dir_y = d.y;
+    r->dir_z = d.z;
+    r->time = 0.0f;
+    r->tfar = tfar;
+    r->mask = 0xffffffffu;
+    r->id = 0;
+    r->flags = 0;
+}
+
+bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    make_ray(&rh.ray, o, d, tnear, tfar);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(e->scene, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    uint32_t tri = e->order[e->geom_base[rh.hit.geomID] + rh.hit.primID];
+    hit->t = rh.ray.tfar;
+    hit->u = rh.hit.u;
+    hit->v = rh.hit.v;
+    hit->tri = tri;
+    hit->node = e->mesh.tri_node[tri];
+    hit->mat = e->mesh.tri_mat[tri];
+    return true;
+}
+
+bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay r;
+    make_ray(&r, o, d, tnear, tfar);
+    rtcOccluded1(e->scene, &ctx, &r);
+    return r.tfar < 0.0f;
+}
+
+float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    make_ray(&rh.ray, o, d, tnear, tfar);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(e->scene, &ctx, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? INFINITY : rh.ray.tfar;
+}
+
+bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
+{
+    return emb_occluded(e, o, d, tnear, tfar);
+}
+
+void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
+{
+    const emb_mesh *m = &e->mesh;
+    const uint32_t *i = m->tris + 3 * (size_t)h->tri;
+    float u = h->u, v = h->v, w = 1.0f - u - v;
+    vec3 a = m->pos[i[0]], b = m->pos[i[1]], c = m->pos[i[2]];
+    *p = v3_add(a, v3_add(v3_scale(v3_sub(b, a), u), v3_scale(v3_sub(c, a), v)));
+    *ng = e->face_n[h->tri];
+    if (m->nrm) {
+        vec3 na = m->nrm[i[0]], nb = m->nrm[i[1]], nc = m->nrm[i[2]];
+        vec3 n = v3(w * na.x + u * nb.x + v * nc.x, w * na.y + u * nb.y + v * nc.y,
+                    w * na.z + u * nb.z + v * nc.z);
+        float l2 = v3_len2(n);
+        if (l2 > 1e-12f && isfinite(l2)) {
+            *ns = v3_scale(n, 1.0f / sqrtf(l2));
+            return;
+        }
+    }
+    *ns = *ng;
+}
+
+vec3 emb_tri_normal(const emb_mesh *m, uint32_t t)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    return v3_norm(v3_cross(v3_sub(m->pos[i[1]], m->pos[i[0]]), v3_sub(m->pos[i[2]], m->pos[i[0]])));
+}
+
+float emb_tri_area(const emb_mesh *m, uint32_t t)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    return 0.5f * v3_len(v3_cross(v3_sub(m->pos[i[1]], m->pos[i[0]]), v3_sub(m->pos[i[2]], m->pos[i[0]])));
+}
+
+vec3 emb_tri_point(const emb_mesh *m, uint32_t t, float u, float v)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    vec3 a = m->pos[i[0]], b = m->pos[i[1]], c = m->pos[i[2]];
+    return v3_add(a, v3_add(v3_scale(v3_sub(b, a), u), v3_scale(v3_sub(c, a), v)));
+}
+
+vec3 emb_tri_shading_normal(const emb_mesh *m, uint32_t t, float u, float v)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    if (m->nrm) {
+        float w = 1.0f - u - v;
+        vec3 a = m->nrm[i[0]], b = m->nrm[i[1]], c = m->nrm[i[2]];
+        vec3 n = v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
+        float l2 = v3_len2(n);
+        if (l2 > 1e-12f && isfinite(l2)) return v3_scale(n, 1.0f / sqrtf(l2));
+    }
+    return emb_tri_normal(m, t);
+}

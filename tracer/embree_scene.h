@@ -1,0 +1,90 @@
+/* embree_scene.h: the Embree 3 scene the tracer intersects, built from a
+ * corrtex scene or from a radiosity mesh (the interactive solution that
+ * tracer ranks must hit so L_base is interpolated on the very triangle GL
+ * draws). One Embree geometry per mesh part node; geomID and primID map back
+ * to the mesh triangle, its part node and its material. Embree device errors
+ * are routed into ct_error. The scene is read-only after emb_new, so any
+ * number of threads may query it at once. */
+#ifndef CT_TRACER_EMBREE_SCENE_H
+#define CT_TRACER_EMBREE_SCENE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "common/error.h"
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "common/vecmath.h"
+
+/* A read-only view of the triangles to intersect and their materials. The
+ * arrays belong to the scene or radiosity mesh it was made from. */
+typedef struct emb_mesh {
+    uint32_t nverts;
+    const vec3 *pos, *nrm;
+    uint32_t ntris;
+    const uint32_t *tris;      /* 3 vertex indices per triangle */
+    const uint32_t *tri_node;  /* part node per triangle */
+    const uint32_t *tri_mat;   /* material per triangle */
+    uint32_t nnodes;
+    uint32_t nmats;
+    const scene_material *mats;
+} emb_mesh;
+
+/* The view of a scene's own triangles. */
+emb_mesh emb_mesh_of_scene(const ct_scene *s);
+
+/* The view of a radiosity mesh's triangles with the scene's materials. */
+emb_mesh emb_mesh_of_radmesh(const ct_radmesh *m, const ct_scene *s);
+
+/* A ray hit mapped back to the mesh. */
+typedef struct emb_hit {
+    float t, u, v;      /* distance, Embree barycentrics */
+    uint32_t tri;       /* mesh triangle */
+    uint32_t node;      /* its part node */
+    uint32_t mat;       /* its material */
+} emb_hit;
+
+typedef struct emb_scene emb_scene;
+
+/* Validates the mesh (indices, materials, finite positions) and builds the
+ * Embree scene (high build quality, robust mode off). device_config is passed
+ * to rtcNewDevice (NULL or "" for Embree's defaults). */
+int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct_error *err);
+
+/* Releases the Embree scene and device (NULL is fine). */
+void emb_free(emb_scene *e);
+
+/* The mesh the scene was built from. */
+const emb_mesh *emb_get_mesh(const emb_scene *e);
+
+/* Closest hit of the ray o + t d, t in (tnear, tfar); false on a miss. */
+bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit);
+
+/* True when anything blocks o + t d for t in (tnear, tfar). */
+bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
+
+/* Raw rtcIntersect1 without mapping the hit back (benchmark baseline); returns
+ * the hit distance or INFINITY. */
+float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
+
+/* Raw rtcOccluded1 (benchmark baseline). */
+bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
+
+/* Point, unit front (winding) normal and unit shading normal of a hit, from
+ * one read of the triangle (face normals are precomputed at build). */
+void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns);
+
+/* Geometric normal of mesh triangle t (unit; winding e1 x e2 = front side). */
+vec3 emb_tri_normal(const emb_mesh *m, uint32_t t);
+
+/* Area of mesh triangle t. */
+float emb_tri_area(const emb_mesh *m, uint32_t t);
+
+/* Point of triangle t at barycentrics (u, v), computed from the vertices. */
+vec3 emb_tri_point(const emb_mesh *m, uint32_t t, float u, float v);
+
+/* Interpolated shading normal of triangle t at (u, v) (unit; the geometric
+ * normal when the vertex normals are missing or degenerate). */
+vec3 emb_tri_shading_normal(const emb_mesh *m, uint32_t t, float u, float v);
+
+#endif

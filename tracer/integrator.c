@@ -1,0 +1,403 @@
+#include "tracer/integrator.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "tracer/bsdf.h"
+
+/* Crossings a shadow ray may make through dielectrics before it is counted
+ * as blocked (a stack of glasses; also bounds the work per shadow ray). */
+#define MAX_GLASS_CROSSINGS 16
+/* Bounces of the path-traced indirect light of drt without a radiosity mesh. */
+#define DRT_INDIRECT_DEPTH 64
+/* Russian roulette starts after this many bounces of a path. */
+#define RR_START 3
+
+typedef enum emis_mode { EMIS_FULL = 0, EMIS_NONE = 1, EMIS_MIS = 2 } emis_mode;
+
+/* How emission found by a ray counts: fully (camera rays, delta bounces),
+ * not at all, or MIS-weighted against light sampling. Light that a shading
+ * point's shadow rays received through glass (straight, attenuated) must not
+ * be counted again by its scattered rays passing the same glass: a ray that
+ * is only refracted keeps FULL, and turns MIS into NONE (see after_delta). */
+typedef struct emis_w {
+    emis_mode mode;
+    float pdf;    /* solid-angle pdf of the direction (EMIS_MIS) */
+    int n;        /* rays of that strategy (EMIS_MIS) */
+} emis_w;
+
+typedef enum direct_mode {
+    DIRECT_ALL,         /* path: f_d + f_g, MIS against the whole bsdf's sampling */
+    DIRECT_GLOSSY_MIS,  /* drt: f_d with weight 1, f_g MIS against the B glossy rays */
+    DIRECT_GLOSSY_ONLY  /* reuse-diffuse: f_g only (diffuse comes from radiosity) */
+} direct_mode;
+
+/* The emission mode of a ray leaving a mirror or dielectric: reflections see
+ * lights fully; a refraction continues a straight line that shadow rays
+ * already looked along, unless it started at the camera or a reflection. */
+static inline emis_w after_delta(emis_w in, bool transmit)
+{
+    emis_w out = {EMIS_FULL, 0.0f, 1};
+    if (transmit && in.mode != EMIS_FULL) out.mode = EMIS_NONE;
+    return out;
+}
+
+static inline float power_heuristic(float a, float b)
+{
+    float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
+
+static inline float rnd(integ_ctx *c) { return rng_float(&c->rng); }
+
+static inline bool finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+
+static inline vec3 clamp0(vec3 a) { return v3(fmaxf(a.x, 0.0f), fmaxf(a.y, 0.0f), fmaxf(a.z, 0.0f)); }
+
+/* Offsets a point along n past the float error of the intersection (Waechter
+ * & Binder, Ray Tracing Gems ch. 6): integer ULP steps far from the origin,
+ * a small absolute step near it. Scale independent, so no scene-size epsilon. */
+static inline vec3 offset_ray(vec3 p, vec3 n)
+{
+    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    float pc[3] = {p.x, p.y, p.z}, nc[3] = {n.x, n.y, n.z}, out[3];
+    for (int i = 0; i < 3; i++) {
+        int32_t of = (int32_t)(int_scale * nc[i]), bits;
+        memcpy(&bits, &pc[i], sizeof bits);
+        bits += pc[i] < 0.0f ? -of : of;
+        float moved;
+        memcpy(&moved, &bits, sizeof moved);
+        out[i] = fabsf(pc[i]) < origin ? pc[i] + float_scale * nc[i] : moved;
+    }
+    return v3(out[0], out[1], out[2]);
+}
+
+static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t shadow)
+{
+    trc_raylog *l = c->st->log;
+    if (!l || !l->cap) return;
+    uint64_t seq = l->seen++;
+    size_t slot;
+    if (l->n < l->cap) {
+        slot = l->n++;
+    } else {
+        /* Reservoir sampling: keep ray seq with probability cap / (seq + 1). */
+        l->state = ct_hash64(l->state + 0x9e3779b97f4a7c15ULL);
+        uint64_t k = l->state % (seq + 1);
+        if (k >= l->cap) return;
+        slot = (size_t)k;
+    }
+    trc_ray *r = &l->rays[slot];
+    r->seq = seq;
+    r->o[0] = o.x; r->o[1] = o.y; r->o[2] = o.z;
+    r->d[0] = d.x; r->d[1] = d.y; r->d[2] = d.z;
+    r->tnear = 0.0f;
+    r->tfar = tfar;
+    r->shadow = shadow;
+}
+
+static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
+{
+    s->h = *h;
+    emb_surface(c->emb, h, &s->p, &s->ng, &s->ns);
+    s->m = &c->mesh->mats[h->mat];
+}
+
+bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
+{
+    emb_hit h;
+    c->st->primary++;
+    log_ray(c, o, d, INFINITY, 0);
+    if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return false;
+    make_surf(c, &h, s);
+    return true;
+}
+
+static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
+{
+    emb_hit h;
+    c->st->secondary++;
+    log_ray(c, o, d, INFINITY, 0);
+    if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return false;
+    make_surf(c, &h, s);
+    return true;
+}
+
+/* Fraction of light reaching o from target along a straight line: 0 behind
+ * an opaque surface; through dielectrics, their transmission colour times
+ * (1 - Fresnel) per crossing (refraction of the shadow ray itself is
+ * ignored, so glass casts a lighter, unfocused shadow as in the paper). */
+static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
+{
+    *crossed = false;
+    vec3 d = v3_sub(target, o);
+    float dist = v3_len(d);
+    if (!(dist > 0.0f)) return v3s(0.0f);
+    d = v3_scale(d, 1.0f / dist);
+    c->st->shadow++;
+    log_ray(c, o, d, dist, 1);
+    if (!emb_occluded(c->emb, o, d, 0.0f, dist)) return v3s(1.0f);
+    if (!c->has_dielectric) return v3s(0.0f);
+    vec3 att = v3s(1.0f);
+    for (int k = 0; k < MAX_GLASS_CROSSINGS; k++) {
+        emb_hit h;
+        c->st->shadow++;
+        log_ray(c, o, d, dist, 0);
+        if (!emb_intersect(c->emb, o, d, 0.0f, dist, &h)) return att;
+        const scene_material *m = &c->mesh->mats[h.mat];
+        if (!m->dielectric) return v3s(0.0f);
+        *crossed = true;
+        vec3 ng = emb_tri_normal(c->mesh, h.tri);
+        float cosd = v3_dot(d, ng), ct;
+        float ior = m->ior > 0.0f ? m->ior : 1.0f;
+        /* Entering when the ray runs against the outside (front) normal. */
+        float f = bsdf_fresnel(fabsf(cosd), cosd < 0.0f ? 1.0f / ior : ior, &ct);
+        att = v3_scale(v3_mul(att, m->transmission), 1.0f - f);
+        if (!(v3_maxc(att) > 0.0f)) return v3s(0.0f);
+        vec3 p = emb_tri_point(c->mesh, h.tri, h.u, h.v);
+        o = offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
+        d = v3_sub(target, o);
+        dist = v3_len(d);
+        if (!(dist > 0.0f) || v3_dot(d, d) <= 0.0f) return att;
+        d = v3_scale(d, 1.0f / dist);
+    }
+    return v3s(0.0f);
+}
+
+/* Direct light at s from K light samples (see direct_mode); nb and the
+ * glossy/whole pdf give the competing strategy of the MIS weights. */
+static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode,
+                         int nb)
+{
+    int k_rays = c->opt->shadow_rays;
+    vec3 sum = v3s(0.0f);
+    if (light_count(c->lights) == 0) return sum;
+    if (mode == DIRECT_GLOSSY_ONLY ? b->p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
+    vec3 origin = offset_ray(s->p, b->ng);
+    for (int k = 0; k < k_rays; k++) {
+        float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
+        light_point lp;
+        if (!light_sample(c->lights, u0, u1, u2, &lp)) break;
+        if (lp.tri == s->h.tri) continue;
+        vec3 wi = v3_sub(lp.p, s->p);
+        float d2 = v3_len2(wi);
+        if (!(d2 > 0.0f)) continue;
+        wi = v3_scale(wi, 1.0f / sqrtf(d2));
+        float cos_l = -v3_dot(wi, lp.n);
+        if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
+        float pl = lp.pdf_area * d2 / cos_l;
+        if (!(pl > 0.0f)) continue;
+        float pb = 0.0f;
+        vec3 f, fg = v3s(0.0f);
+        if (mode == DIRECT_ALL) {
+            f = bsdf_eval(b, wo, wi, &pb);
+        } else {
+            fg = bsdf_eval_glossy(b, wo, wi);
+            pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
+            f = mode == DIRECT_GLOSSY_MIS ? v3_add(fg, bsdf_eval_diffuse(b, wi)) : fg;
+        }
+        if (v3_is_zero(f)) continue;
+        bool crossed;
+        vec3 tr = transmittance(c, origin, offset_ray(lp.p, lp.n), &crossed);
+        if (v3_is_zero(tr)) continue;
+        /* MIS against the scattered rays, except through glass: scattered
+         * rays do not count lights seen through it (after_delta). */
+        float w = crossed ? 1.0f : power_heuristic((float)k_rays * pl, (float)nb * pb);
+        if (mode == DIRECT_ALL) f = v3_scale(f, w);
+        else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(f, fg), v3_scale(fg, w));
+        else f = v3_scale(fg, w);
+        float g = v3_dot(wi, b->n) / (pl * (float)k_rays);
+        sum = v3_add(sum, v3_scale(v3_mul(v3_mul(f, lp.le), tr), g));
+    }
+    return sum;
+}
+
+/* Emission of s towards wo = -d, weighted as ew says. */
+static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
+{
+    float cos_front = -v3_dot(d, s->ng);
+    if (cos_front <= 0.0f || v3_is_zero(s->m->emission) || ew.mode == EMIS_NONE) return v3s(0.0f);
+    if (ew.mode == EMIS_FULL) return s->m->emission;
+    float pl = light_pdf_area(c->lights, s->h.tri) * s->h.t * s->h.t / cos_front;
+    return v3_scale(s->m->emission,
+                    power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
+}
+
+/* Unbiased path tracing from o along d; first (if given) is the first hit. */
+static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool count_first, int max_depth)
+{
+    vec3 L = v3s(0.0f), beta = v3s(1.0f);
+    emis_w ew = {count_first ? EMIS_FULL : EMIS_NONE, 0.0f, 1};
+    integ_surf s;
+    for (int depth = 0;; depth++) {
+        if (depth == 0 && first) s = *first;
+        else if (!trace_secondary(c, o, d, &s)) break;
+        vec3 wo = v3_neg(d);
+        L = v3_add(L, v3_mul(beta, emitted(c, &s, d, ew)));
+        if (depth >= max_depth) break;
+        bsdf b;
+        bsdf_init(&b, s.m, s.ns, s.ng, wo);
+        L = v3_add(L, v3_mul(beta, direct_light(c, &s, &b, wo, DIRECT_ALL, 1)));
+        float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
+        bsdf_sample bs;
+        if (!bsdf_sample_all(&b, wo, u0, u1, u2, &bs)) break;
+        beta = v3_mul(beta, bs.weight);
+        if (bs.delta) {
+            ew = after_delta(ew, bs.transmit);
+        } else {
+            ew.mode = EMIS_MIS;
+            ew.pdf = bs.pdf;
+            ew.n = 1;
+        }
+        if (depth >= RR_START) {
+            float q = fminf(0.95f, v3_maxc(beta));
+            if (!(rnd(c) < q)) break;
+            beta = v3_scale(beta, 1.0f / q);
+        }
+        if (!(v3_maxc(beta) > 0.0f)) break;
+        o = offset_ray(s.p, bs.transmit ? v3_neg(b.ng) : b.ng);
+        d = bs.wi;
+    }
+    return L;
+}
+
+typedef vec3 (*radiance_fn)(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
+
+static vec3 drt_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
+static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
+
+/* Glossy rays at a hit on recursion level depth: B on the first
+ * branch_depth levels, 1 below (so a sample's cost grows linearly with D,
+ * not as B^D), none at the last level or without a glossy lobe. */
+static int glossy_rays(const trc_options *opt, const bsdf *b, int depth)
+{
+    if (depth >= opt->depth || b->p_g <= 0.0f) return 0;
+    return depth < opt->branch_depth ? opt->branch : 1;
+}
+
+/* The traced non-diffuse transport at s (drt, reuse-diffuse): nb glossy
+ * rays MIS-weighted against light sampling, the mirror ray, and the Fresnel
+ * reflection and refraction: both on the first branch_depth levels, below
+ * one of them chosen with probability F (unbiased). li continues a ray. */
+static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, int depth, emis_w ew,
+                             int nb, radiance_fn li)
+{
+    vec3 L = v3s(0.0f);
+    emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
+    vec3 up = offset_ray(s->p, b->ng);
+    for (int i = 0; i < nb; i++) {
+        bsdf_sample bs;
+        float u1 = rnd(c), u2 = rnd(c);
+        if (!bsdf_sample_glossy(b, wo, u1, u2, &bs)) continue;
+        emis_w mis = {EMIS_MIS, bs.pdf, nb};
+        vec3 l = li(c, up, bs.wi, depth + 1, mis);
+        L = v3_add(L, v3_scale(v3_mul(bs.weight, l), 1.0f / (float)nb));
+    }
+    if (v3_maxc(b->km) > 0.0f) {
+        vec3 wr = bsdf_reflect(wo, b->n);
+        if (bsdf_same_side(b, wr)) L = v3_add(L, v3_mul(b->km, li(c, up, wr, depth + 1, refl)));
+    }
+    if (b->dielectric) {
+        vec3 wr, wt;
+        bool ok;
+        float f = bsdf_dielectric(b, wo, &wr, &wt, &ok);
+        float wrefl = f, wrefr = 1.0f - f;
+        if (ok && depth >= c->opt->branch_depth) {
+            /* One branch, picked by Fresnel: the weights F/F and (1-F)/(1-F). */
+            if (rnd(c) < f) wrefr = 0.0f, wrefl = 1.0f;
+            else wrefl = 0.0f, wrefr = 1.0f;
+        }
+        if (wrefl > 0.0f) L = v3_add(L, v3_scale(li(c, up, wr, depth + 1, refl), wrefl));
+        if (ok && wrefr > 0.0f) {
+            vec3 lt = li(c, offset_ray(s->p, v3_neg(b->ng)), wt, depth + 1, refr);
+            L = v3_add(L, v3_mul(lt, v3_scale(b->kt, wrefr * b->eta * b->eta)));
+        }
+    }
+    return L;
+}
+
+/* Distributed ray tracing (Cook 1984) at recursion level depth. */
+static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int depth, emis_w ew)
+{
+    integ_surf s;
+    if (first) s = *first;
+    else if (!trace_secondary(c, o, d, &s)) return v3s(0.0f);
+    const trc_options *opt = c->opt;
+    vec3 wo = v3_neg(d);
+    vec3 L = emitted(c, &s, d, ew);
+    bsdf b;
+    bsdf_init(&b, s.m, s.ns, s.ng, wo);
+    bool recurse = depth < opt->depth;
+    int nb = glossy_rays(opt, &b, depth);
+    L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
+    if (b.p_d > 0.0f) {
+        if (c->rad) {
+            /* The radiosity solution's indirect part at this very point. */
+            vec3 ind = v3_sub(rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v),
+                              rmesh_eval_direct(c->rad, s.h.tri, s.h.u, s.h.v));
+            L = v3_add(L, clamp0(ind));
+        } else {
+            bsdf_sample bs;
+            float u1 = rnd(c), u2 = rnd(c);
+            if (bsdf_sample_diffuse(&b, u1, u2, &bs)) {
+                vec3 li = path_li(c, offset_ray(s.p, b.ng), bs.wi, NULL, false, DRT_INDIRECT_DEPTH);
+                L = v3_add(L, v3_mul(bs.weight, li));
+            }
+        }
+    }
+    if (recurse) L = v3_add(L, scatter_specular(c, &s, &b, wo, depth, ew, nb, drt_next));
+    return L;
+}
+
+static vec3 drt_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew)
+{
+    return drt_li(c, o, d, NULL, depth, ew);
+}
+
+/* reuse-diffuse (§4.1): the interpolated radiosity plus the traced glossy,
+ * mirror and refractive transport. *base receives the radiosity part. */
+static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int depth, emis_w ew,
+                     vec3 *base_out)
+{
+    integ_surf s;
+    if (first) s = *first;
+    else if (!trace_secondary(c, o, d, &s)) return v3s(0.0f);
+    const trc_options *opt = c->opt;
+    vec3 base = rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v);
+    if (ew.mode != EMIS_FULL) {
+        /* The radiosity includes the emitter's L_e; a glossy ray that found
+         * it only carries its MIS share (light sampling has the rest). */
+        vec3 le = emitted(c, &s, d, (emis_w){EMIS_FULL, 0.0f, 1});
+        vec3 keep = emitted(c, &s, d, ew);
+        base = clamp0(v3_sub(base, v3_sub(le, keep)));
+    }
+    vec3 wo = v3_neg(d);
+    bsdf b;
+    bsdf_init(&b, s.m, s.ns, s.ng, wo);
+    bool recurse = depth < opt->depth;
+    int nb = glossy_rays(opt, &b, depth);
+    vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);
+    if (recurse) extra = v3_add(extra, scatter_specular(c, &s, &b, wo, depth, ew, nb, reuse_next));
+    /* Every term of extra is >= 0; a NaN from a degenerate frame must not
+     * break that guarantee, so it is dropped. */
+    extra = clamp0(extra);
+    if (!finite3(extra)) extra = v3s(0.0f);
+    if (base_out) *base_out = base;
+    return v3_add(base, extra);
+}
+
+static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew)
+{
+    return reuse_li(c, o, d, NULL, depth, ew, NULL);
+}
+
+vec3 integ_radiance(integ_ctx *c, vec3 o, vec3 d, const integ_surf *s, vec3 *base)
+{
+    emis_w full = {EMIS_FULL, 0.0f, 1};
+    switch (c->opt->mode) {
+    case TRC_MODE_PATH: return path_li(c, o, d, s, true, c->opt->depth);
+    case TRC_MODE_DRT: return drt_li(c, o, d, s, 0, full);
+    case TRC_MODE_REUSE: return reuse_li(c, o, d, s, 0, full, base);
+    }
+    return v3s(0.0f);
+}

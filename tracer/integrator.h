@@ -1,0 +1,47 @@
+/* integrator.h: the light transport of the three tracer modes (tracer.h):
+ * path (NEE + MIS with the power heuristic), drt and reuse-diffuse, plus the
+ * ray helpers they share (self-intersection offsets, shadow rays that pass
+ * dielectrics attenuated by their transmission and Fresnel, ray counting).
+ * Internal to tracer/: tracer.c owns the public API. No allocation per ray:
+ * everything lives on the stack of the calling thread. */
+#ifndef CT_TRACER_INTEGRATOR_H
+#define CT_TRACER_INTEGRATOR_H
+
+#include <stdbool.h>
+
+#include "common/radmesh.h"
+#include "common/rng.h"
+#include "tracer/embree_scene.h"
+#include "tracer/lights.h"
+#include "tracer/tracer.h"
+
+/* What one thread needs to trace one sample. */
+typedef struct integ_ctx {
+    const emb_scene *emb;
+    const emb_mesh *mesh;
+    const light_set *lights;
+    const ct_radmesh *rad;     /* NULL: no interactive solution */
+    const trc_options *opt;
+    bool has_dielectric;       /* shadow rays must look through glass */
+    ct_rng rng;
+    trc_stats *st;
+} integ_ctx;
+
+/* A surface hit. */
+typedef struct integ_surf {
+    emb_hit h;
+    vec3 p;            /* point on the triangle at (u, v) */
+    vec3 ng;           /* front (winding) normal, unit */
+    vec3 ns;           /* shading normal, unit */
+    const scene_material *m;
+} integ_surf;
+
+/* Traces a primary ray (counted as primary); false on a miss. */
+bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s);
+
+/* Radiance along the primary ray o + t d whose first hit is s (the mode in
+ * c->opt). In reuse-diffuse mode *base receives the radiosity part (the
+ * result is *base + a non-negative remainder); otherwise it is untouched. */
+vec3 integ_radiance(integ_ctx *c, vec3 o, vec3 d, const integ_surf *s, vec3 *base);
+
+#endif

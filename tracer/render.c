@@ -1,0 +1,221 @@
+#include "tracer/render.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "common/log.h"
+#include "common/rng.h"
+#include "common/timer.h"
+
+#define MAX_THREADS 256
+
+void render_options_default(render_options *o, int width, int height)
+{
+    memset(o, 0, sizeof *o);
+    o->width = width;
+    o->height = height;
+    o->spp = 1;
+    o->threads = 1;
+    o->tile = 16;
+}
+
+typedef struct job {
+    const trc_tracer *t;
+    const render_options *o;
+    trc_view view;
+    float *rgb;
+    int tiles_x, ntiles;
+    atomic_int next;
+    atomic_int done;
+} job;
+
+typedef struct worker {
+    job *j;
+    pthread_t th;
+    trc_stats st;
+    trc_raylog log;
+    ct_request *req;
+    ct_sample *out;
+    int replay_as_traced;
+    uint64_t hits;        /* replay result, kept so the work is observable */
+} worker;
+
+static void render_tile(worker *w, int tile)
+{
+    job *j = w->j;
+    const render_options *o = j->o;
+    int x0 = (tile % j->tiles_x) * o->tile, y0 = (tile / j->tiles_x) * o->tile;
+    int x1 = x0 + o->tile < o->width ? x0 + o->tile : o->width;
+    int y1 = y0 + o->tile < o->height ? y0 + o->tile : o->height;
+    uint64_t seed = trc_get_options(j->t)->seed;
+    for (int y = y0; y < y1; y++)
+        for (int x = x0; x < x1; x++) {
+            uint64_t pix = (uint64_t)y * (uint64_t)o->width + (uint64_t)x;
+            for (int s = 0; s < o->spp; s++) {
+                ct_request *r = &w->req[s];
+                r->id = pix * (uint64_t)o->spp + (uint64_t)s + 1;
+                r->parent = 0;
+                r->epoch = o->epoch;
+                ct_rng g = rng_make(seed, r->id, o->epoch, TRC_DIM_PIXEL);
+                r->px = (float)x + rng_float(&g);
+                r->py = (float)y + rng_float(&g);
+                r->radius = 0.5f;
+                r->priority = 0.0f;
+            }
+            w->st.log = w->log.cap > 0 ? &w->log : NULL;
+            trc_trace(j->t, &j->view, w->req, (size_t)o->spp, w->out, &w->st);
+            double sx = 0.0, sy = 0.0, sz = 0.0;
+            for (int s = 0; s < o->spp; s++) {
+                sx += w->out[s].l_hq.x;
+                sy += w->out[s].l_hq.y;
+                sz += w->out[s].l_hq.z;
+            }
+            float *p = j->rgb + 3 * pix;
+            p[0] = (float)(sx / o->spp);
+            p[1] = (float)(sy / o->spp);
+            p[2] = (float)(sz / o->spp);
+        }
+    w->st.log = NULL;
+}
+
+static void *run_worker(void *arg)
+{
+    worker *w = arg;
+    job *j = w->j;
+    for (;;) {
+        int tile = atomic_fetch_add(&j->next, 1);
+        if (tile >= j->ntiles) break;
+        render_tile(w, tile);
+        atomic_fetch_add(&j->done, 1);
+    }
+    return NULL;
+}
+
+static void *run_replay(void *arg)
+{
+    worker *w = arg;
+    w->hits = trc_replay(w->j->t, &w->log, w->replay_as_traced);
+    return NULL;
+}
+
+static void free_workers(worker *ws, int n)
+{
+    for (int i = 0; i < n; i++) {
+        free(ws[i].req);
+        free(ws[i].out);
+        free(ws[i].log.rays);
+    }
+    free(ws);
+}
+
+static int start_all(worker *ws, int n, void *(*fn)(void *), ct_error *err)
+{
+    for (int i = 0; i < n; i++) {
+        int rc = pthread_create(&ws[i].th, NULL, fn, &ws[i]);
+        if (rc) {
+            for (int k = 0; k < i; k++) pthread_join(ws[k].th, NULL);
+            return ct_fail(err, CT_ESYS, "cannot start render thread %d of %d", i + 1, n);
+        }
+    }
+    return CT_OK;
+}
+
+/* Wall time of replaying every worker's log on its own thread; the best of
+ * two runs, so a burst of load from other processes counts less. */
+static double replay(worker *ws, int n, int as_traced, ct_error *err, int *rc)
+{
+    double best = 0.0;
+    for (int run = 0; run < 2; run++) {
+        for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
+        double t0 = ct_now();
+        *rc = start_all(ws, n, run_replay, err);
+        if (*rc) return 0.0;
+        for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
+        double dt = ct_now() - t0;
+        if (run == 0 || dt < best) best = dt;
+    }
+    return best;
+}
+
+int render_image(const trc_tracer *t, const ct_camera *cam, const render_options *o, float *rgb,
+                 render_result *res, ct_error *err)
+{
+    memset(res, 0, sizeof *res);
+    if (o->width < 1 || o->height < 1 || o->width > 65536 || o->height > 65536)
+        return ct_fail(err, CT_EINVAL, "image size %dx%d outside 1..65536", o->width, o->height);
+    if (o->spp < 1 || o->spp > (1 << 20)) return ct_fail(err, CT_EINVAL, "spp %d outside 1..1048576", o->spp);
+    if (o->threads < 1 || o->threads > MAX_THREADS)
+        return ct_fail(err, CT_EINVAL, "threads %d outside 1..%d", o->threads, MAX_THREADS);
+    if (o->tile < 1) return ct_fail(err, CT_EINVAL, "tile %d must be >= 1", o->tile);
+    job j;
+    j.t = t;
+    j.o = o;
+    j.view.cam = *cam;
+    j.view.width = o->width;
+    j.view.height = o->height;
+    j.rgb = rgb;
+    j.tiles_x = (o->width + o->tile - 1) / o->tile;
+    j.ntiles = j.tiles_x * ((o->height + o->tile - 1) / o->tile);
+    atomic_init(&j.next, 0);
+    atomic_init(&j.done, 0);
+    worker *ws = calloc((size_t)o->threads, sizeof *ws);
+    if (!ws) return ct_fail(err, CT_ENOMEM, "out of memory");
+    for (int i = 0; i < o->threads; i++) {
+        ws[i].j = &j;
+        ws[i].req = malloc((size_t)o->spp * sizeof *ws[i].req);
+        ws[i].out = malloc((size_t)o->spp * sizeof *ws[i].out);
+        if (o->raylog_cap) {
+            ws[i].log.rays = malloc(o->raylog_cap * sizeof *ws[i].log.rays);
+            ws[i].log.cap = ws[i].log.rays ? o->raylog_cap : 0;
+            ws[i].log.state = (uint64_t)i + 1;
+        }
+        if (o->raylog_cap && !ws[i].log.rays) {
+            free_workers(ws, o->threads);
+            return ct_fail(err, CT_ENOMEM, "out of memory for a ray log of %zu rays per thread", o->raylog_cap);
+        }
+        if (!ws[i].req || !ws[i].out) {
+            free_workers(ws, o->threads);
+            return ct_fail(err, CT_ENOMEM, "out of memory for %d samples per pixel", o->spp);
+        }
+    }
+    double t0 = ct_now();
+    int rc = start_all(ws, o->threads, run_worker, err);
+    if (rc) {
+        free_workers(ws, o->threads);
+        return rc;
+    }
+    if (o->progress) {
+        /* Short naps so a small render is not timed up to a nap too long;
+         * ct_progress itself limits how often a line is printed. */
+        const struct timespec nap = {0, 2 * 1000 * 1000};
+        for (;;) {
+            int done = atomic_load(&j.done);
+            double el = ct_now() - t0;
+            if (done >= j.ntiles) break;
+            double f = (double)done / j.ntiles;
+            ct_progress(o->progress, f, 0, "%d/%d tiles, %.1f s, about %.0f s left", done, j.ntiles, el,
+                        f > 0 ? el / f - el : 0.0);
+            nanosleep(&nap, NULL);
+        }
+    }
+    for (int i = 0; i < o->threads; i++) pthread_join(ws[i].th, NULL);
+    res->seconds = ct_now() - t0;
+    if (o->progress) ct_progress(o->progress, 1.0, 1, "%d tiles, %.2f s", j.ntiles, res->seconds);
+    for (int i = 0; i < o->threads; i++) {
+        res->stats.primary += ws[i].st.primary;
+        res->stats.secondary += ws[i].st.secondary;
+        res->stats.shadow += ws[i].st.shadow;
+        res->stats.samples += ws[i].st.samples;
+        res->logged += ws[i].log.n;
+    }
+    if (res->logged) {
+        for (int i = 0; i < o->threads; i++) trc_raylog_sort(&ws[i].log);
+        res->replay_isect_s = replay(ws, o->threads, 0, err, &rc);
+        if (!rc) res->replay_traced_s = replay(ws, o->threads, 1, err, &rc);
+    }
+    free_workers(ws, o->threads);
+    return rc;
+}

@@ -1,0 +1,46 @@
+/* render.h: the offline reference renderer: every pixel of a view traced
+ * with spp jittered requests through the per-sample API (tracer.h), on T
+ * pthreads pulling square tiles from a shared counter, with a progress line.
+ * Request ids are ((y * W + x) * spp + s + 1), the jitter comes from
+ * rng_make(seed, id, epoch, TRC_DIM_PIXEL), so an image is bit-identical
+ * for any thread count. Optionally logs (a random subset of) the rays it
+ * traced and replays them with raw Embree queries in the order they were
+ * traced: the benchmark's physical limit for the same rays. */
+#ifndef CT_TRACER_RENDER_H
+#define CT_TRACER_RENDER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "tracer/tracer.h"
+
+typedef struct render_options {
+    int width, height;
+    int spp;              /* samples per pixel */
+    int threads;          /* worker threads (>= 1) */
+    int tile;             /* tile edge in pixels */
+    uint32_t epoch;       /* the requests' epoch (frame index for --frames) */
+    size_t raylog_cap;    /* rays logged per thread for the raw replay (0: none);
+                             a uniform random subset of the traced rays */
+    const char *progress; /* progress line component, NULL: silent */
+} render_options;
+
+/* Defaults: 1 sample, 1 thread, 16-pixel tiles, epoch 0, no ray log. */
+void render_options_default(render_options *o, int width, int height);
+
+typedef struct render_result {
+    double seconds;        /* wall time of the render */
+    trc_stats stats;       /* summed over threads (log unset) */
+    uint64_t logged;       /* rays logged for the replay */
+    double replay_isect_s; /* wall time replaying them all with rtcIntersect1 */
+    double replay_traced_s;/* wall time replaying them as traced (shadow: rtcOccluded1) */
+} render_result;
+
+/* Renders the view into rgb (width * height * 3 floats, row 0 at the top:
+ * the mean L_hq of each pixel). */
+int render_image(const trc_tracer *t, const ct_camera *cam, const render_options *o, float *rgb,
+                 render_result *res, ct_error *err);
+
+#endif

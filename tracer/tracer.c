@@ -1,0 +1,254 @@
+#include "tracer/tracer.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "tracer/embree_scene.h"
+#include "tracer/integrator.h"
+#include "tracer/lights.h"
+
+#if defined(__x86_64__) || defined(__SSE__)
+#include <xmmintrin.h>
+/* Flush-to-zero and denormals-are-zero while tracing: Embree runs much
+ * slower on denormals (it warns about it), and setting them on every entry
+ * keeps results identical whatever the calling thread's own mode is. */
+static unsigned fpu_enter(void)
+{
+    unsigned old = _mm_getcsr();
+    _mm_setcsr(old | 0x8040u);
+    return old;
+}
+static void fpu_leave(unsigned old) { _mm_setcsr(old); }
+#else
+static unsigned fpu_enter(void) { return 0; }
+static void fpu_leave(unsigned old) { (void)old; }
+#endif
+
+struct trc_tracer {
+    trc_options opt;
+    const ct_scene *scene;
+    const ct_radmesh *rad;
+    emb_scene *emb;
+    light_set *lights;
+    bool has_dielectric;
+};
+
+void trc_options_default(trc_options *o, trc_mode mode)
+{
+    memset(o, 0, sizeof *o);
+    o->mode = mode;
+    o->seed = 1;
+    if (mode == TRC_MODE_PATH) {
+        o->shadow_rays = 1;
+        o->branch = 1;
+        o->branch_depth = 1;
+        o->depth = 64;
+    } else {
+        o->shadow_rays = 4;
+        o->branch = 4;
+        o->branch_depth = 1;
+        o->depth = 5;
+    }
+}
+
+const char *trc_mode_name(trc_mode m)
+{
+    switch (m) {
+    case TRC_MODE_PATH: return "path";
+    case TRC_MODE_DRT: return "drt";
+    case TRC_MODE_REUSE: return "reuse-diffuse";
+    }
+    return "?";
+}
+
+int trc_mode_parse(const char *name, trc_mode *out, ct_error *err)
+{
+    for (int m = TRC_MODE_PATH; m <= TRC_MODE_REUSE; m++)
+        if (strcmp(name, trc_mode_name((trc_mode)m)) == 0) {
+            *out = (trc_mode)m;
+            return CT_OK;
+        }
+    return ct_fail(err, CT_EINVAL, "unknown mode '%s' (path, drt, reuse-diffuse)", name);
+}
+
+int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, trc_tracer **out,
+            ct_error *err)
+{
+    *out = NULL;
+    if (o->mode == TRC_MODE_REUSE && !rad)
+        return ct_fail(err, CT_EINVAL, "mode reuse-diffuse needs a radiosity mesh");
+    if (o->shadow_rays < 1 || o->shadow_rays > 4096)
+        return ct_fail(err, CT_EINVAL, "shadow rays %d outside 1..4096", o->shadow_rays);
+    if (o->branch < 1 || o->branch > 4096)
+        return ct_fail(err, CT_EINVAL, "branch %d outside 1..4096", o->branch);
+    if (o->branch_depth < 0 || o->branch_depth > 1024)
+        return ct_fail(err, CT_EINVAL, "branch depth %d outside 0..1024", o->branch_depth);
+    if (o->depth < 0 || o->depth > 1024)
+        return ct_fail(err, CT_EINVAL, "depth %d outside 0..1024", o->depth);
+    if (rad && rad->nnodes != scene->nnodes)
+        return ct_fail(err, CT_ESTALE, "radiosity mesh has %u nodes, the scene %u", rad->nnodes,
+                       scene->nnodes);
+    /* The node tables must agree, or node ids and materials would refer to
+     * another scene's parts. */
+    for (uint32_t n = 0; rad && n < rad->nnodes; n++)
+        if (strcmp(rad->nodes[n].name, scene->nodes[n].name) != 0 ||
+            rad->nodes[n].material != scene->nodes[n].material)
+            return ct_fail(err, CT_ESTALE, "radiosity mesh node %u ('%s') does not match the scene's ('%s')", n,
+                           rad->nodes[n].name, scene->nodes[n].name);
+    trc_tracer *t = calloc(1, sizeof *t);
+    if (!t) return ct_fail(err, CT_ENOMEM, "out of memory");
+    t->opt = *o;
+    t->opt.device_config = NULL;
+    t->scene = scene;
+    t->rad = rad;
+    emb_mesh mesh = rad ? emb_mesh_of_radmesh(rad, scene) : emb_mesh_of_scene(scene);
+    int rc = emb_new(&mesh, o->device_config, &t->emb, err);
+    if (rc) goto fail;
+    rc = light_build(emb_get_mesh(t->emb), &t->lights, err);
+    if (rc) goto fail;
+    for (uint32_t i = 0; i < scene->nmats; i++)
+        if (scene->mats[i].dielectric) t->has_dielectric = true;
+    *out = t;
+    return CT_OK;
+fail:
+    trc_free(t);
+    return rc;
+}
+
+void trc_free(trc_tracer *t)
+{
+    if (!t) return;
+    light_free(t->lights);
+    emb_free(t->emb);
+    free(t);
+}
+
+const trc_options *trc_get_options(const trc_tracer *t) { return &t->opt; }
+
+static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
+{
+    c->emb = t->emb;
+    c->mesh = emb_get_mesh(t->emb);
+    c->lights = t->lights;
+    c->rad = t->rad;
+    c->opt = &t->opt;
+    c->has_dielectric = t->has_dielectric;
+    c->st = st;
+}
+
+/* A view's camera axes and tangents, computed once per batch; cam_dir then
+ * does exactly cam_ray_dir's arithmetic (same results, bit for bit). */
+typedef struct view_pre {
+    vec3 r, u, f;
+    float th, tw;
+} view_pre;
+
+static void view_prepare(const trc_view *v, view_pre *p)
+{
+    p->th = tanf(0.5f * v->cam.fov_y);
+    p->tw = p->th * (float)v->width / (float)v->height;
+    cam_axes(&v->cam, &p->r, &p->u, &p->f);
+}
+
+static vec3 cam_dir(const view_pre *p, const trc_view *v, float px, float py)
+{
+    float sx = (2.0f * px / (float)v->width - 1.0f) * p->tw;
+    float sy = (1.0f - 2.0f * py / (float)v->height) * p->th;
+    return v3_norm(v3_add(p->f, v3_add(v3_scale(p->r, sx), v3_scale(p->u, sy))));
+}
+
+/* The primary part of a record: request fields, hit, L_base. */
+static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const view_pre *vp,
+                    const ct_request *r, ct_sample *out, integ_surf *s, vec3 *d)
+{
+    memset(out, 0, sizeof *out);
+    out->request_id = r->id;
+    out->epoch = r->epoch;
+    out->px = r->px;
+    out->py = r->py;
+    out->node = UINT32_MAX;
+    out->tri = UINT32_MAX;
+    /* A position that is not a number has no ray: a miss, not an Embree query. */
+    if (!isfinite(r->px) || !isfinite(r->py)) return false;
+    *d = cam_dir(vp, v, r->px, r->py);
+    if (!integ_primary(c, v->cam.eye, *d, s)) return false;
+    out->flags |= CT_SAMPLE_HIT;
+    if (!v3_is_zero(s->m->emission)) out->flags |= CT_SAMPLE_EMISSIVE;
+    out->node = s->h.node;
+    out->tri = s->h.tri;
+    out->u = s->h.u;
+    out->v = s->h.v;
+    out->hit = s->p;
+    if (t->rad) {
+        out->l_base = rmesh_eval(t->rad, s->h.tri, s->h.u, s->h.v);
+        out->flags |= CT_SAMPLE_HAS_BASE;
+    }
+    return true;
+}
+
+void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
+               ct_sample *out, trc_stats *st)
+{
+    integ_ctx c;
+    init_ctx(t, &c, st);
+    view_pre vp;
+    view_prepare(v, &vp);
+    unsigned fpu = fpu_enter();
+    for (size_t i = 0; i < n; i++) {
+        integ_surf s;
+        vec3 d;
+        c.rng = rng_make(t->opt.seed, req[i].id, req[i].epoch, TRC_DIM_TRACE);
+        st->samples++;
+        if (!primary(t, &c, v, &vp, &req[i], &out[i], &s, &d)) continue;
+        vec3 base = out[i].l_base;
+        vec3 l = integ_radiance(&c, v->cam.eye, d, &s, &base);
+        /* A NaN or infinity (a degenerate frame) would poison every average
+         * it enters; such a sample counts as black. */
+        if (!(isfinite(l.x) && isfinite(l.y) && isfinite(l.z))) l = v3s(0.0f);
+        out[i].l_hq = l;
+    }
+    fpu_leave(fpu);
+}
+
+void trc_trace_primary(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
+                       ct_sample *out, trc_stats *st)
+{
+    integ_ctx c;
+    init_ctx(t, &c, st);
+    view_pre vp;
+    view_prepare(v, &vp);
+    unsigned fpu = fpu_enter();
+    for (size_t i = 0; i < n; i++) {
+        integ_surf s;
+        vec3 d;
+        st->samples++;
+        primary(t, &c, v, &vp, &req[i], &out[i], &s, &d);
+    }
+    fpu_leave(fpu);
+}
+
+static int by_seq(const void *a, const void *b)
+{
+    uint64_t x = ((const trc_ray *)a)->seq, y = ((const trc_ray *)b)->seq;
+    return x < y ? -1 : x > y;
+}
+
+void trc_raylog_sort(trc_raylog *log)
+{
+    if (log->n > 1) qsort(log->rays, log->n, sizeof *log->rays, by_seq);
+}
+
+uint64_t trc_replay(const trc_tracer *t, const trc_raylog *log, int as_traced)
+{
+    uint64_t hits = 0;
+    unsigned fpu = fpu_enter();
+    for (size_t i = 0; i < log->n; i++) {
+        const trc_ray *r = &log->rays[i];
+        vec3 o = v3(r->o[0], r->o[1], r->o[2]), d = v3(r->d[0], r->d[1], r->d[2]);
+        if (as_traced && r->shadow) hits += emb_raw_occluded(t->emb, o, d, r->tnear, r->tfar);
+        else hits += emb_raw_intersect(t->emb, o, d, r->tnear, r->tfar) < INFINITY;
+    }
+    fpu_leave(fpu);
+    return hits;
+}

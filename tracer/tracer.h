@@ -1,0 +1,124 @@
+/* tracer.h: the high-quality sample client (§4.1): a tracer over an Embree
+ * scene built from a corrtex scene or its radiosity mesh, with three modes
+ *   path           unbiased path tracing, next-event estimation + MIS (ground truth)
+ *   drt            distributed ray tracing (Cook 1984): K shadow rays, B rays at
+ *                  glossy surfaces (on the first branch-depth levels, then 1), one
+ *                  per mirror and per Fresnel branch, to depth D; indirect
+ *                  diffuse from the radiosity mesh (total - direct), or
+ *                  path-traced when no mesh is given
+ *   reuse-diffuse  the diffuse part is the interpolated radiosity; only glossy,
+ *                  mirror and refractive transport is traced (corrections >= 0)
+ * The per-sample API traces a batch of requests and returns sample records.
+ * A sample's randomness is rng_make(seed, request id, epoch, TRC_DIM_*), so a
+ * request gives the same record on any rank, thread or batch order. A tracer
+ * is read-only after trc_new: threads share it, each with its own trc_stats. */
+#ifndef CT_TRACER_TRACER_H
+#define CT_TRACER_TRACER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "proto/records.h"
+
+typedef enum trc_mode {
+    TRC_MODE_PATH  = 0,
+    TRC_MODE_DRT   = 1,
+    TRC_MODE_REUSE = 2
+} trc_mode;
+
+/* Random stream dimensions (the third id of rng_make). */
+enum {
+    TRC_DIM_TRACE = 0,   /* everything the integrator draws */
+    TRC_DIM_PIXEL = 1    /* the reference renderer's sub-pixel jitter */
+};
+
+typedef struct trc_options {
+    trc_mode mode;
+    int shadow_rays;     /* K: light samples per shading point */
+    int branch;          /* B: rays per glossy lobe (drt, reuse-diffuse) */
+    int branch_depth;    /* levels that split (B glossy rays, both Fresnel branches); 1 below */
+    int depth;           /* D: bounces (drt, reuse-diffuse: recursion; path: maximum length) */
+    uint64_t seed;
+    const char *device_config;   /* rtcNewDevice config, NULL for defaults */
+} trc_options;
+
+/* Defaults of a mode: path K=1, D=64 (Russian roulette from bounce 3);
+ * drt and reuse-diffuse K=4, B=4, D=5, splitting on the first level only.
+ * Seed 1. */
+void trc_options_default(trc_options *o, trc_mode mode);
+
+/* "path", "drt", "reuse-diffuse". */
+const char *trc_mode_name(trc_mode m);
+
+/* Parses a mode name; CT_EINVAL for an unknown one. */
+int trc_mode_parse(const char *name, trc_mode *out, ct_error *err);
+
+/* A recorded ray (benchmark replay of the very rays a run traced). */
+typedef struct trc_ray {
+    float o[3], d[3];
+    float tnear, tfar;
+    uint32_t shadow;     /* 1: traced with rtcOccluded1 */
+    uint64_t seq;        /* position in the thread's ray stream */
+} trc_ray;
+
+/* A bounded per-thread ray log: a uniform random subset (reservoir
+ * sampling) of all rays the thread traced, so a capped log still represents
+ * the whole image; trc_raylog_sort restores the traced order for replay. */
+typedef struct trc_raylog {
+    trc_ray *rays;
+    size_t n, cap;
+    uint64_t seen;       /* rays offered to the log */
+    uint64_t state;      /* the reservoir's own random state */
+} trc_raylog;
+
+/* Sorts a log's rays back into the order they were traced. */
+void trc_raylog_sort(trc_raylog *log);
+
+/* Per-thread counters (and optional ray log). */
+typedef struct trc_stats {
+    uint64_t primary, secondary, shadow;   /* rays by kind */
+    uint64_t samples;
+    trc_raylog *log;                      /* NULL: no recording */
+} trc_stats;
+
+/* Total rays of a stats record. */
+static inline uint64_t trc_stats_rays(const trc_stats *s) { return s->primary + s->secondary + s->shadow; }
+
+/* The view requests refer to: camera and image size (camera.h positions). */
+typedef struct trc_view {
+    ct_camera cam;
+    int width, height;
+} trc_view;
+
+typedef struct trc_tracer trc_tracer;
+
+/* A tracer over the scene, intersecting rad's triangles when rad is given
+ * (then samples carry L_base), else the scene's. reuse-diffuse needs rad.
+ * scene and rad must outlive the tracer. */
+int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, trc_tracer **out,
+            ct_error *err);
+
+/* Releases the tracer (NULL is fine). */
+void trc_free(trc_tracer *t);
+
+/* The options it was made with. */
+const trc_options *trc_get_options(const trc_tracer *t);
+
+/* Traces n requests into n sample records (full L_hq). */
+void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
+               ct_sample *out, trc_stats *st);
+
+/* Primary hits only: the records without L_hq (zero), with L_base. */
+void trc_trace_primary(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
+                       ct_sample *out, trc_stats *st);
+
+/* Replays logged rays with raw Embree queries: every ray with rtcIntersect1
+ * (as_traced 0) or shadow rays with rtcOccluded1 (as_traced 1). Returns the
+ * number of hits (so the work cannot be optimized away). */
+uint64_t trc_replay(const trc_tracer *t, const trc_raylog *log, int as_traced);
+
+#endif
