@@ -211,6 +211,9 @@ build/fuzz/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_DEPS) $(wildcard proto/*.h tests/s
 	$(Q)$(FUZZ_CC) -std=c11 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
 	  -I. $(PKGCF) -o $@ $< $(FUZZ_DEPS) $(LIB_common) $(LIBS_PROTO) $(LIBS_COMMON)
 
+# The .ctmesh decoder is instrumented too (it lives in libcommon).
+build/fuzz/fuzz_ctmesh: FUZZ_DEPS += common/radmesh_io.c common/radmesh.c
+
 fuzz: $(FUZZ_BINS)
 	@for b in $(FUZZ_BINS); do n=$${b##*/fuzz_}; c=build/fuzz/corpus/$$n; mkdir -p $$c; \
 	  FUZZ_WRITE_SEEDS=$$c $$b >/dev/null 2>&1; \

@@ -8,6 +8,7 @@
 #ifndef CT_RADMESH_H
 #define CT_RADMESH_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "common/error.h"
@@ -54,6 +55,14 @@ int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err);
 /* Reads a .ctmesh file; checks magic, version, endianness and sizes. When
  * expect_hash is not 0, a file whose scene_hash differs fails with CT_ESTALE. */
 int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *err);
+
+/* The .ctmesh bytes of m in a new buffer (*out, freed by the caller). */
+int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error *err);
+
+/* Decodes .ctmesh bytes with every check of rmesh_load; name (a path) goes
+ * into error messages. */
+int rmesh_decode(const unsigned char *data, size_t len, const char *name, uint64_t expect_hash,
+                 ct_radmesh *m, ct_error *err);
 
 /* Gouraud interpolation on triangle t at Embree barycentrics (u, v):
  * (1-u-v) * v0 + u * v1 + v * v2, exactly the value GL draws there. */

@@ -24,6 +24,7 @@
 
 typedef struct ref_args {
     const char *scene, *camera, *path, *out;
+    const char *radmesh;    /* .ctmesh interactive solution, or NULL */
     int frame, frames;      /* -1: not given */
     int width, height, spp, threads, tile;
     trc_mode mode;
@@ -61,11 +62,11 @@ static void help(FILE *f)
         "  --mode MODE       path | drt | reuse-diffuse (required)\n"
         "                      path: unbiased path tracing with next-event estimation and MIS\n"
         "                      drt: distributed ray tracing; indirect diffuse light from the\n"
-        "                           radiosity mesh; without one (radiosity meshes cannot be\n"
-        "                           loaded here yet) it is path-traced\n"
+        "                           radiosity mesh (--radmesh); without one it is path-traced\n"
         "                      reuse-diffuse: the diffuse part from a radiosity mesh, only\n"
-        "                           specular transport traced; needs --stand-in-radiosity until\n"
-        "                           radiosity meshes can be loaded\n"
+        "                           specular transport traced; needs --radmesh\n"
+        "  --radmesh FILE    the interactive solution (a .ctmesh from corrtex radiosity): rays\n"
+        "                    intersect its triangles and drt/reuse-diffuse take its radiosity\n"
         "  --stand-in-radiosity A   use a stand-in interactive solution (every surface\n"
         "                    L_e + rho_d * A, no shadows; rmesh_from_scene) for drt and\n"
         "                    reuse-diffuse: for tests and throughput only, the images are\n"
@@ -152,6 +153,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
         if (!strcmp(o, "--camera")) a->camera = v;
         else if (!strcmp(o, "--path")) a->path = v;
         else if (!strcmp(o, "-o")) a->out = v;
+        else if (!strcmp(o, "--radmesh")) a->radmesh = v;
         else if (!strcmp(o, "--mode")) {
             if (trc_mode_parse(v, &a->mode, &err)) return bad("%s%s", err.msg, ""), -1;
         } else if (!strcmp(o, "--exposure")) {
@@ -198,9 +200,10 @@ static int parse_args(int argc, char **argv, ref_args *a)
         snprintf(n, sizeof n, "%d", a->frames);
         return bad("--frame %s is not below --frames %s", f, n), -1;
     }
-    if (a->mode == TRC_MODE_REUSE && a->stand_in < 0.0f)
-        return bad("mode reuse-diffuse needs a radiosity mesh: give --stand-in-radiosity A "
-                   "(radiosity meshes cannot be loaded here yet)%s%s", "", ""), -1;
+    if (a->radmesh && a->stand_in >= 0.0f)
+        return bad("give --radmesh or --stand-in-radiosity, not both%s%s", "", ""), -1;
+    if (a->mode == TRC_MODE_REUSE && a->stand_in < 0.0f && !a->radmesh)
+        return bad("mode reuse-diffuse needs a radiosity mesh: give --radmesh FILE.ctmesh%s%s", "", ""), -1;
     return 0;
 }
 
@@ -324,7 +327,13 @@ int cmd_reference(int argc, char **argv)
     if (a.depth) to.depth = a.depth;
     to.seed = a.seed;
     double tb = ct_now();
-    if (a.stand_in >= 0.0f) {
+    if (a.radmesh) {
+        /* Any solution hash: trc_new checks that the mesh's nodes and
+         * materials are this scene's. */
+        if ((rc = rmesh_load(a.radmesh, 0, &rad, &err))) goto fail;
+        have_rad = true;
+        ct_info(CMD, "%s: %u triangles of radiosity mesh", a.radmesh, rad.ntris);
+    } else if (a.stand_in >= 0.0f) {
         if ((rc = rmesh_from_scene(s, v3s(a.stand_in), &rad, &err))) goto fail;
         have_rad = true;
         ct_warn(CMD, "stand-in radiosity (L_e + rho_d * %g): throughput and tests only, not a reference",

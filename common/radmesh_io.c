@@ -1,0 +1,259 @@
+/* radmesh_io.c: the .ctmesh cache file (docs/radiosity.md, "Cache file"):
+ * a fixed header (magic, version, endianness check, scene hash, counts),
+ * vertex, triangle and node records, and an FNV-1a checksum, all explicit
+ * little-endian field by field. Loading checks every count against the file
+ * size and a cap before allocating. */
+#include "common/radmesh.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/fsutil.h"
+
+#define RMESH_MAGIC       "CTMESH\r\n\x1a\n"   /* 10 bytes: catches text-mode and truncating transfers */
+#define RMESH_MAGIC_LEN   10
+#define RMESH_VERSION     1u
+#define RMESH_ENDIAN      0x01020304u
+#define RMESH_HEADER      48
+#define RMESH_VERT_BYTES  48
+#define RMESH_TRI_BYTES   20
+#define RMESH_NODE_BYTES  (SCENE_NAME_LEN + 12 + 24)
+#define RMESH_MAX_VERTS   (1u << 28)
+#define RMESH_MAX_TRIS    (1u << 28)
+#define RMESH_MAX_NODES   (1u << 24)
+#define RMESH_MAX_FILE    ((size_t)1 << 34)
+
+static uint64_t fnv(uint64_t h, const unsigned char *p, size_t n)
+{
+    for (size_t i = 0; i < n; i++) h = (h ^ p[i]) * 1099511628211ULL;
+    return h;
+}
+
+static unsigned char *wu32(unsigned char *p, uint32_t v)
+{
+    p[0] = (unsigned char)v;
+    p[1] = (unsigned char)(v >> 8);
+    p[2] = (unsigned char)(v >> 16);
+    p[3] = (unsigned char)(v >> 24);
+    return p + 4;
+}
+
+static unsigned char *wu64(unsigned char *p, uint64_t v) { return wu32(wu32(p, (uint32_t)v), (uint32_t)(v >> 32)); }
+
+static unsigned char *wf32(unsigned char *p, float f)
+{
+    uint32_t v;
+    memcpy(&v, &f, 4);
+    return wu32(p, v);
+}
+
+static unsigned char *wvec(unsigned char *p, vec3 v) { return wf32(wf32(wf32(p, v.x), v.y), v.z); }
+
+int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error *err)
+{
+    *out = NULL;
+    *len = 0;
+    if (m->nverts > RMESH_MAX_VERTS || m->ntris > RMESH_MAX_TRIS || m->nnodes > RMESH_MAX_NODES)
+        return ct_fail(err, CT_ERANGE, "mesh too large to encode (%u vertices, %u triangles, %u nodes)",
+                       m->nverts, m->ntris, m->nnodes);
+    size_t n = (size_t)RMESH_HEADER + (size_t)m->nverts * RMESH_VERT_BYTES + (size_t)m->ntris * RMESH_TRI_BYTES +
+               (size_t)m->nnodes * RMESH_NODE_BYTES + 8;
+    unsigned char *buf = malloc(n), *p = buf;
+    if (!buf) return ct_fail(err, CT_ENOMEM, "out of memory for a %zu-byte mesh", n);
+    memcpy(p, RMESH_MAGIC, RMESH_MAGIC_LEN);
+    p += RMESH_MAGIC_LEN;
+    *p++ = 0;
+    *p++ = 0;
+    p = wu32(p, RMESH_VERSION);
+    p = wu32(p, RMESH_ENDIAN);
+    p = wu64(p, m->scene_hash);
+    p = wu32(p, m->nverts);
+    p = wu32(p, m->ntris);
+    p = wu32(p, m->nnodes);
+    p = wu32(p, 0);
+    p = wu32(p, 0);
+    for (uint32_t i = 0; i < m->nverts; i++) {
+        p = wvec(p, m->pos[i]);
+        p = wvec(p, m->nrm[i]);
+        p = wvec(p, m->rad[i]);
+        p = wvec(p, m->rad_direct[i]);
+    }
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        for (int k = 0; k < 3; k++) p = wu32(p, m->tris[3 * (size_t)t + (size_t)k]);
+        p = wu32(p, m->tri_node[t]);
+        p = wu32(p, m->tri_mat[t]);
+    }
+    for (uint32_t i = 0; i < m->nnodes; i++) {
+        const rmesh_node *d = &m->nodes[i];
+        /* NUL-padded: the bytes after the name are zero, so encoding is a
+         * function of the mesh alone. */
+        memset(p, 0, SCENE_NAME_LEN);
+        memcpy(p, d->name, strnlen(d->name, SCENE_NAME_LEN - 1));
+        p += SCENE_NAME_LEN;
+        p = wu32(p, (uint32_t)d->parent);
+        p = wu32(p, d->node_end);
+        p = wu32(p, d->material);
+        p = wvec(p, d->bounds.lo);
+        p = wvec(p, d->bounds.hi);
+    }
+    p = wu64(p, fnv(1469598103934665603ULL, buf, (size_t)(p - buf)));
+    *out = buf;
+    *len = (size_t)(p - buf);
+    return CT_OK;
+}
+
+int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err)
+{
+    unsigned char *buf;
+    size_t len;
+    int rc = rmesh_encode(m, &buf, &len, err);
+    if (rc) {
+        ct_error_prefix(err, path);
+        return rc;
+    }
+    fs_atomic a;
+    rc = fs_atomic_open(&a, path, err);
+    if (rc) {
+        free(buf);
+        return rc;
+    }
+    if (fwrite(buf, 1, len, a.f) != len) {
+        free(buf);
+        fs_atomic_abort(&a);
+        return ct_fail(err, CT_EIO, "%s: write failed", path);
+    }
+    free(buf);
+    return fs_atomic_commit(&a, err);
+}
+
+static uint32_t ru32(const unsigned char *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static uint64_t ru64(const unsigned char *p) { return (uint64_t)ru32(p) | (uint64_t)ru32(p + 4) << 32; }
+
+static float rf32(const unsigned char *p)
+{
+    uint32_t v = ru32(p);
+    float f;
+    memcpy(&f, &v, 4);
+    return f;
+}
+
+static vec3 rvec(const unsigned char *p) { return v3(rf32(p), rf32(p + 4), rf32(p + 8)); }
+
+int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t expect_hash, ct_radmesh *m,
+                 ct_error *err)
+{
+    memset(m, 0, sizeof *m);
+    int rc;
+    if (len < RMESH_MAGIC_LEN || memcmp(d, RMESH_MAGIC, RMESH_MAGIC_LEN) != 0) {
+        return ct_fail(err, CT_EPARSE, "%s: not a corrtex mesh cache (bad magic)", path);
+    }
+    if (len < RMESH_HEADER) {
+        return ct_fail(err, CT_EPARSE, "%s: truncated header (%zu bytes, need %d)", path, len, RMESH_HEADER);
+    }
+    uint32_t version = ru32(d + 12), endian = ru32(d + 16);
+    if (version != RMESH_VERSION) {
+        return ct_fail(err, CT_EPARSE, "%s: mesh cache version %u not supported (this build reads %u)",
+                       path, version, RMESH_VERSION);
+    }
+    if (endian != RMESH_ENDIAN) {
+        return ct_fail(err, CT_EPARSE, "%s: endianness check 0x%08x, expected 0x%08x (written byte-swapped?)",
+                       path, endian, RMESH_ENDIAN);
+    }
+    uint64_t hash = ru64(d + 20);
+    uint32_t nv = ru32(d + 28), nt = ru32(d + 32), nn = ru32(d + 36);
+    if (ru32(d + 40) != 0 || ru32(d + 44) != 0) {
+        return ct_fail(err, CT_EPARSE, "%s: reserved header fields are not zero", path);
+    }
+    if (nv > RMESH_MAX_VERTS || nt > RMESH_MAX_TRIS || nn > RMESH_MAX_NODES) {
+        return ct_fail(err, CT_EPARSE, "%s: counts out of range (%u vertices, %u triangles, %u nodes)",
+                       path, nv, nt, nn);
+    }
+    uint64_t need = (uint64_t)RMESH_HEADER + (uint64_t)nv * RMESH_VERT_BYTES +
+                    (uint64_t)nt * RMESH_TRI_BYTES + (uint64_t)nn * RMESH_NODE_BYTES + 8;
+    if (len != need) {
+        return ct_fail(err, CT_EPARSE, "%s: %s (%zu bytes, header says %llu)", path,
+                       len < need ? "truncated" : "trailing bytes", len, (unsigned long long)need);
+    }
+    if (fnv(1469598103934665603ULL, d, len - 8) != ru64(d + len - 8)) {
+        return ct_fail(err, CT_EPARSE, "%s: checksum mismatch (corrupted cache)", path);
+    }
+    if (expect_hash && hash != expect_hash) {
+        return ct_fail(err, CT_ESTALE, "%s: stale cache (scene hash %016llx, expected %016llx)", path,
+                       (unsigned long long)hash, (unsigned long long)expect_hash);
+    }
+    rc = rmesh_alloc(m, nv, nt, nn, err);
+    if (rc) {
+        return rc;
+    }
+    m->scene_hash = hash;
+    const unsigned char *p = d + RMESH_HEADER;
+    for (uint32_t i = 0; i < nv; i++, p += RMESH_VERT_BYTES) {
+        m->pos[i] = rvec(p);
+        m->nrm[i] = rvec(p + 12);
+        m->rad[i] = rvec(p + 24);
+        m->rad_direct[i] = rvec(p + 36);
+        if (!v3_finite(m->pos[i]) || !v3_finite(m->rad[i]) || !v3_finite(m->rad_direct[i])) {
+            rc = ct_fail(err, CT_EPARSE, "%s: vertex %u is not finite", path, i);
+            goto fail;
+        }
+    }
+    for (uint32_t t = 0; t < nt; t++, p += RMESH_TRI_BYTES) {
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = ru32(p + 4 * k);
+            if (v >= nv) {
+                rc = ct_fail(err, CT_EPARSE, "%s: triangle %u: vertex %u out of range (%u vertices)", path, t, v, nv);
+                goto fail;
+            }
+            m->tris[3 * (size_t)t + (size_t)k] = v;
+        }
+        m->tri_node[t] = ru32(p + 12);
+        m->tri_mat[t] = ru32(p + 16);
+        if (m->tri_node[t] >= nn) {
+            rc = ct_fail(err, CT_EPARSE, "%s: triangle %u: node %u out of range (%u nodes)", path, t,
+                         m->tri_node[t], nn);
+            goto fail;
+        }
+    }
+    for (uint32_t n = 0; n < nn; n++, p += RMESH_NODE_BYTES) {
+        rmesh_node *q = &m->nodes[n];
+        memcpy(q->name, p, SCENE_NAME_LEN);
+        const char *nul = memchr(q->name, '\0', SCENE_NAME_LEN);
+        int padded = nul != NULL;
+        for (const char *z = nul; padded && z < q->name + SCENE_NAME_LEN; z++) padded = *z == '\0';
+        if (!padded) {
+            rc = ct_fail(err, CT_EPARSE, "%s: node %u: name not NUL-terminated and NUL-padded", path, n);
+            goto fail;
+        }
+        q->parent = (int32_t)ru32(p + SCENE_NAME_LEN);
+        q->node_end = ru32(p + SCENE_NAME_LEN + 4);
+        q->material = ru32(p + SCENE_NAME_LEN + 8);
+        q->bounds.lo = rvec(p + SCENE_NAME_LEN + 12);
+        q->bounds.hi = rvec(p + SCENE_NAME_LEN + 24);
+        if (q->parent < -1 || q->parent >= (int32_t)n || q->node_end <= n || q->node_end > nn) {
+            rc = ct_fail(err, CT_EPARSE, "%s: node %u: parent %d or end %u out of range", path, n,
+                         q->parent, q->node_end);
+            goto fail;
+        }
+    }
+    return CT_OK;
+fail:
+    rmesh_free(m);
+    return rc;
+}
+
+int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *err)
+{
+    memset(m, 0, sizeof *m);
+    char *data = NULL;
+    size_t len = 0;
+    int rc = fs_read_all(path, RMESH_MAX_FILE, &data, &len, err);
+    if (rc) return rc;
+    rc = rmesh_decode((const unsigned char *)data, len, path, expect_hash, m, err);
+    free(data);
+    return rc;
+}

@@ -1,0 +1,219 @@
+/* ctex.h: the corrective textures of the master (§3.2-3.6): the texture
+ * hierarchy (modeling hierarchy refined by a space-and-material BVH), the
+ * per-view texture assignment with frustum culling, object-local parallel
+ * and camera-local perspective projections as world -> texture matrices,
+ * texels with signed RGB correction and validity, ring splatting, aging,
+ * adaptive resolution under a memory cap, the event list for the display
+ * (allocation, projection, patch, free) and a software compositor that draws
+ * the same image as the display. docs/textures.md describes the algorithms.
+ *
+ * Texture coordinates: texel (i, j) of a w x h texture covers
+ * [i/w, (i+1)/w) x [j/h, (j+1)/h); row j = 0 is stored first (GL uploads it
+ * first, so it sits at t = 0). Lookups are bilinear with clamp-to-edge, like
+ * GL_LINEAR + GL_CLAMP_TO_EDGE. A projection matrix M (row-major, column
+ * vectors, common/vecmath.h) maps a world point p to q = M (p, 1) and the
+ * texture position is (q.x / q.w, q.y / q.w); q.z is unused by the display. */
+#ifndef CT_MASTER_CTEX_H
+#define CT_MASTER_CTEX_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "common/image.h"
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "common/vecmath.h"
+#include "proto/records.h"
+
+/* Every tunable of the texture engine; ctex_options_default() fills the
+ * defaults, ctex_options_parse() sets one from a command-line flag. */
+typedef struct ctex_options {
+    float eps;            /* §3.3: parallax threshold Δr/d < eps, 0.3 */
+    float max_proj;       /* §3.3: split nodes whose projected size exceeds this fraction of max(W,H); 0 = off */
+    float flat_deg;       /* §3.2: normal spread under which a node is flat, 10 degrees */
+    float flat_thickness; /* flat nodes must also be coplanar: extent along the normal / in-plane extent */
+    float blend;          /* §3.4: validity band (texels) over which splat borders are blended; 0 = off */
+    int splat_max;        /* largest splat radius (texels); 0 = no limit */
+    float splat_lo;       /* §3.6: mean splat radius under which the resolution doubles (texels) */
+    float splat_hi;       /* §3.6: mean splat radius over which the resolution halves (texels) */
+    int splat_window;     /* §3.6: samples in the running mean, and between two resolution changes */
+    int tex_min;          /* §3.6: minimum texture size per axis, 4 */
+    int tex_init;         /* size of a new texture along its longer axis */
+    float tex_rate;       /* §3.6: maximum texels per screen pixel per axis, 2 */
+    int tex_max;          /* absolute maximum size per axis */
+    double mem_mb;        /* memory cap for all texels, MiB */
+    float age_flow;       /* §3.5: weight of the texture-flow term (camera-local) */
+    float age_brdf;       /* §3.5: weight of the BRDF term, texture sizes per radian at glossiness 1 */
+    float resample_age;   /* validity (texels) a resampled texel loses against fresh samples */
+    float bvh_mat_weight; /* BVH: cost factor for groups that mix materials */
+    int cluster_tris;     /* parts with more triangles are split into clusters; 0 = never */
+} ctex_options;
+
+/* The defaults (the paper's values where it gives one). */
+ctex_options ctex_options_default(void);
+
+/* Sets the option named by a command-line flag ("--eps", ...) from value.
+ * Returns 1 when the flag is a texture option, 0 when it is not, or a
+ * negative CT_E* code for a bad value (err names the flag). */
+int ctex_options_parse(ctex_options *o, const char *flag, const char *value, ct_error *err);
+
+/* Prints one help line per option with its default. */
+void ctex_options_help(FILE *f);
+
+/* Projection kind of a texture (§3.2). */
+typedef enum ctex_proj_kind {
+    CTEX_PROJ_OBJECT = 1,   /* object-local parallel along the node's normal */
+    CTEX_PROJ_CAMERA = 2    /* camera-local perspective from the eye */
+} ctex_proj_kind;
+
+/* What the display must do, in order (ctex_events). A texture id is reused
+ * after its FREE. ALLOC of a live id is a resize: its contents follow as a
+ * full PATCH. */
+typedef enum ctex_event_kind {
+    CTEX_EV_ALLOC = 1,   /* tex, node, kind, w, h */
+    CTEX_EV_PROJ  = 2,   /* tex, matrix */
+    CTEX_EV_PATCH = 3,   /* tex, x, y, w, h: read the texels with ctex_read_patch */
+    CTEX_EV_FREE  = 4    /* tex */
+} ctex_event_kind;
+
+typedef struct ctex_event {
+    ctex_event_kind kind;
+    uint32_t tex;
+    uint32_t node;        /* hierarchy node (ALLOC) */
+    ctex_proj_kind proj;  /* ALLOC */
+    int x, y, w, h;       /* ALLOC: w, h; PATCH: the rectangle */
+    mat4 m;               /* PROJ: world -> texture */
+} ctex_event;
+
+/* Result of inserting one sample. */
+typedef struct ctex_insert_info {
+    vec3 correction;   /* ΔL read at the hit before the splat (bilinear, as displayed) */
+    vec3 error;        /* E = l_hq - (l_base + ΔL), §3.7 */
+    int32_t tex;       /* texture it went into, -1 when dropped */
+    int radius;        /* splat radius r (texels) */
+} ctex_insert_info;
+
+/* A primary hit per pixel for the compositor: node = UINT32_MAX for a miss. */
+typedef struct ctex_hit {
+    uint32_t node;     /* scene part node id */
+    uint32_t tri;      /* radiosity mesh triangle (UINT32_MAX: unknown) */
+    vec3 p;            /* world hit point */
+    vec3 l_base;       /* interactive value at the pixel */
+} ctex_hit;
+
+/* Counters for logs, CSV files and the display's STATS. */
+typedef struct ctex_stats {
+    uint32_t textures;        /* assigned (visible) textures */
+    uint32_t parked;          /* textures kept for culled nodes */
+    uint64_t texels;          /* texels of all live textures */
+    size_t bytes;             /* their memory */
+    double splat_radius_mean; /* mean of the visible textures' running means */
+    uint64_t inserted;        /* samples splatted */
+    uint64_t dropped;         /* samples with no texture (miss, culled, off the texture) */
+    uint64_t resizes;         /* resolution changes */
+    uint64_t evictions;       /* parked textures evicted for memory */
+    uint32_t hier_nodes;      /* nodes of the texture hierarchy */
+    uint32_t hier_leaves;     /* its leaves (mesh parts) */
+} ctex_stats;
+
+typedef struct ctex ctex;
+
+/* --- lifecycle ------------------------------------------------------------ */
+
+/* Builds the texture hierarchy over the radiosity mesh's node table and
+ * triangles (mats: the scene's materials, indexed by the mesh's tri_mat, for
+ * glossiness and material grouping). The mesh is not kept. */
+int ctex_new(const ct_radmesh *mesh, const scene_material *mats, uint32_t nmats,
+             const ctex_options *opt, ctex **out, ct_error *err);
+
+/* Frees the engine and all textures (NULL is fine). */
+void ctex_free(ctex *c);
+
+/* --- per view ------------------------------------------------------------- */
+
+/* Sets the camera for a width x height image: ages the surviving textures
+ * (§3.5), reassigns textures (§3.3), updates camera-local projections and
+ * resamples split or merged nodes' textures from the old ones. */
+int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_error *err);
+
+/* --- per sample ----------------------------------------------------------- */
+
+/* Inserts a sample (§3.4): maps its hit point into the texture of its node,
+ * reads the displayed correction, computes the error and splats
+ * l_hq - l_base. Returns 1 when splatted, 0 when dropped (info->tex = -1). */
+int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
+
+/* Inserts n samples in order, as n ctex_insert calls, prefetching the
+ * texels of the samples ahead (the loop is bound by memory latency).
+ * Returns how many were splatted. */
+size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info);
+
+/* The correction the display shows at world point p on mesh triangle tri of
+ * scene part `node` (tri = UINT32_MAX when unknown; only parts split into
+ * clusters need it); zero when it has no texture. */
+vec3 ctex_lookup(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
+
+/* --- display events -------------------------------------------------------- */
+
+/* Turns every texture's dirty rectangle into a PATCH event and clears it. */
+void ctex_flush_patches(ctex *c);
+
+/* The pending events in order (valid until the next call that changes c). */
+const ctex_event *ctex_events(const ctex *c, size_t *n);
+
+/* Forgets the pending events (after the server has sent them). */
+void ctex_events_clear(ctex *c);
+
+/* Copies a rectangle of texture tex's corrections (RGB floats, rows top
+ * first) into out (w*h*3 floats). */
+int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, float *out,
+                    ct_error *err);
+
+/* The scene part nodes a hierarchy node covers (what the display draws with
+ * its texture). */
+const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n);
+
+/* The texture hierarchy as a mesh node table in pre-order (modeling nodes
+ * keep their names, BVH nodes are named "bvh:<id>", nodes inside a part
+ * split into clusters "cluster:<id>"), for the display: the node of a
+ * texture event is a hierarchy node, so the display server ships this table
+ * as the SCENE's node table and writes ctex_hnode_of_tri as each triangle's
+ * node; a texture then corrects the triangles of its node's subtree. out
+ * holds ctex_get_stats(c).hier_nodes entries. */
+void ctex_export_nodes(const ctex *c, rmesh_node *out);
+
+/* The hierarchy node of scene part node `part` (its leaf, or the root of its
+ * clusters), or UINT32_MAX when it has no triangles. */
+uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part);
+
+/* The hierarchy leaf of mesh triangle tri (what the display server writes as
+ * the triangle's node), or UINT32_MAX. */
+uint32_t ctex_hnode_of_tri(const ctex *c, uint32_t tri);
+
+/* --- queries ----------------------------------------------------------------- */
+
+/* The texture id that corrects a hit on scene part `node` (triangle tri,
+ * point p, as ctex_lookup) in the current view, or -1. */
+int32_t ctex_owner(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
+
+/* Hierarchy node of texture tex, its size and projection; -1 when not live. */
+int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int *h,
+                      ctex_proj_kind *kind, mat4 *m, float *vmax);
+
+/* Counters. */
+ctex_stats ctex_get_stats(const ctex *c);
+
+/* --- compositor ---------------------------------------------------------------- */
+
+/* The image the display draws: per pixel l_base plus the bilinear correction
+ * of the pixel's node at its hit point. out must be width x height. */
+int ctex_composite(const ctex *c, const ctex_hit *hits, int width, int height, ct_image *out,
+                   ct_error *err);
+
+/* A distinct colour for texture tex (the paper's Fig. 5 debug view). */
+vec3 ctex_debug_color(int32_t tex);
+
+#endif

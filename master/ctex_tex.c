@@ -1,0 +1,388 @@
+/* ctex_tex.c: texel storage, ring splatting, resizing and resampling of one
+ * corrective texture (see ctex_tex.h and docs/textures.md). */
+#include "master/ctex_tex.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static void clear_texels(ctex_texel *tx, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        tx[i].r = tx[i].g = tx[i].b = 0.0f;
+        tx[i].v = -INFINITY;
+    }
+}
+
+int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
+{
+    if (w < 1 || h < 1 || w > 65536 || h > 65536)
+        return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", w, h);
+    ctex_texel *tx = malloc((size_t)w * (size_t)h * sizeof *tx);
+    if (!tx) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
+    clear_texels(tx, (size_t)w * (size_t)h);
+    free(t->tx);
+    t->tx = tx;
+    t->w = w;
+    t->h = h;
+    t->vmax = 0.0f;   /* §3.4: the first samples start at validity 0 */
+    t->mean_r = 0.0f;
+    t->since_resize = 0;
+    t->last_resize = 0;
+    t->dx0 = 0; t->dy0 = 0; t->dx1 = w; t->dy1 = h;
+    return CT_OK;
+}
+
+void ctex_tex_release(ctex_tex *t)
+{
+    free(t->tx);
+    t->tx = NULL;
+    t->w = t->h = 0;
+}
+
+/* Writes value into texel x with margin m = v_new - v_old; blend: band. */
+static inline int put(ctex_texel *x, float vn, vec3 val, float blend)
+{
+    float m = vn - x->v;
+    if (m > 0.0f) {
+        if (m >= blend) {
+            /* one 16-byte store */
+            *x = (ctex_texel){val.x, val.y, val.z, vn};
+            return 1;
+        } else {
+            /* §3.4: blend new and old by their validities at splat borders */
+            float w = 0.5f + 0.5f * m / blend;
+            x->r += w * (val.x - x->r); x->g += w * (val.y - x->g); x->b += w * (val.z - x->b);
+        }
+        x->v = vn;
+        return 1;
+    }
+    if (m > -blend) {
+        float w = 0.5f + 0.5f * m / blend;
+        x->r += w * (val.x - x->r); x->g += w * (val.y - x->g); x->b += w * (val.z - x->b);
+    }
+    return 0;
+}
+
+int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
+{
+    const int W = t->w, H = t->h;
+    ctex_texel *T = t->tx;
+    const float vmax = t->vmax;
+    if (blend < 0.0f) blend = 0.0f;
+    /* The centre texel always takes the newest sample. */
+    ctex_texel *c = T + (size_t)cj * (size_t)W + (size_t)ci;
+    c->r = val.x; c->g = val.y; c->b = val.z;
+    c->v = vmax > c->v ? vmax : c->v;
+    int r = 0, k = 1;
+    /* The largest ring that still has a texel inside the texture. */
+    int kmax = ci;
+    if (W - 1 - ci > kmax) kmax = W - 1 - ci;
+    if (cj > kmax) kmax = cj;
+    if (H - 1 - cj > kmax) kmax = H - 1 - cj;
+    if (max_r > 0 && max_r < kmax) kmax = max_r;
+    for (; k <= kmax; k++) {
+        const float vn = vmax - (float)k;   /* §3.4: validity v_max - d */
+        int changed = 0;
+        int xa = ci - k < 0 ? 0 : ci - k, xb = ci + k > W - 1 ? W - 1 : ci + k;
+        /* top and bottom rows of the ring */
+        if (cj - k >= 0) {
+            ctex_texel *row = T + (size_t)(cj - k) * (size_t)W;
+            for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, val, blend);
+        }
+        if (cj + k <= H - 1) {
+            ctex_texel *row = T + (size_t)(cj + k) * (size_t)W;
+            for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, val, blend);
+        }
+        /* left and right columns without the corners */
+        int ya = cj - k + 1 < 0 ? 0 : cj - k + 1, yb = cj + k - 1 > H - 1 ? H - 1 : cj + k - 1;
+        if (ci - k >= 0)
+            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * (size_t)W + (size_t)(ci - k), vn, val, blend);
+        if (ci + k <= W - 1)
+            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * (size_t)W + (size_t)(ci + k), vn, val, blend);
+        if (!changed) break;
+        r = k;
+    }
+    /* Dirty: everything up to the ring that stopped the splat (it may have
+     * been blended). */
+    int e = k > kmax ? kmax : k;
+    int x0 = ci - e < 0 ? 0 : ci - e, x1 = ci + e + 1 > W ? W : ci + e + 1;
+    int y0 = cj - e < 0 ? 0 : cj - e, y1 = cj + e + 1 > H ? H : cj + e + 1;
+    if (t->dx0 >= t->dx1 || t->dy0 >= t->dy1) {
+        t->dx0 = x0; t->dx1 = x1; t->dy0 = y0; t->dy1 = y1;
+    } else {
+        if (x0 < t->dx0) t->dx0 = x0;
+        if (x1 > t->dx1) t->dx1 = x1;
+        if (y0 < t->dy0) t->dy0 = y0;
+        if (y1 > t->dy1) t->dy1 = y1;
+    }
+    return r;
+}
+
+vec3 ctex_tex_unproject(const ctex_tex *t, float u, float v)
+{
+    if (t->kind == CTEX_PROJ_OBJECT)
+        return v3_add(t->o, v3_add(v3_scale(t->t, u), v3_scale(t->b, v)));
+    float px = t->x0 + u * (t->x1 - t->x0), py = t->y0 + v * (t->y1 - t->y0);
+    vec3 d = cam_ray_dir(&t->cam, t->cam_w, t->cam_h, px, py);
+    vec3 f;
+    cam_axes(&t->cam, NULL, NULL, &f);
+    float c = v3_dot(d, f);
+    if (c < 1e-6f) c = 1e-6f;
+    return v3_madd(t->cam.eye, d, t->ref_depth / c);
+}
+
+/* Nearest texel of position (u, v), clamped. */
+static inline const ctex_texel *nearest(const ctex_tex *t, float u, float v)
+{
+    int i = (int)floorf(u * (float)t->w), j = (int)floorf(v * (float)t->h);
+    i = i < 0 ? 0 : (i >= t->w ? t->w - 1 : i);
+    j = j < 0 ? 0 : (j >= t->h ? t->h - 1 : j);
+    return t->tx + (size_t)j * (size_t)t->w + (size_t)i;
+}
+
+/* Bilinear over valid texels only (weights renormalized); false if none. */
+static bool sample_valid(const ctex_tex *t, float x, float y, vec3 *out)
+{
+    float fx0 = floorf(x), fy0 = floorf(y);
+    float fx = x - fx0, fy = y - fy0;
+    int xs[2] = {(int)fx0, (int)fx0 + 1}, ys[2] = {(int)fy0, (int)fy0 + 1};
+    float wx[2] = {1.0f - fx, fx}, wy[2] = {1.0f - fy, fy};
+    float sw = 0.0f;
+    vec3 acc = v3s(0.0f);
+    for (int b = 0; b < 2; b++) {
+        int yy = ys[b] < 0 ? 0 : (ys[b] >= t->h ? t->h - 1 : ys[b]);
+        for (int a = 0; a < 2; a++) {
+            int xx = xs[a] < 0 ? 0 : (xs[a] >= t->w ? t->w - 1 : xs[a]);
+            const ctex_texel *p = t->tx + (size_t)yy * (size_t)t->w + (size_t)xx;
+            float w = wx[a] * wy[b];
+            if (p->v == -INFINITY || w <= 0.0f) continue;
+            acc = v3_add(acc, v3(p->r * w, p->g * w, p->b * w));
+            sw += w;
+        }
+    }
+    if (sw <= 0.0f) return false;
+    *out = v3_scale(acc, 1.0f / sw);
+    return true;
+}
+
+/* Exact doubling along each axis with factor fx, fy in {1, 2} (not both 1):
+ * a doubled axis gives new texel 2i+a weights 3/4 for old texel i and 1/4
+ * for its neighbour towards the new centre (bilinear at the new centres,
+ * clamp to edge); a kept axis weight 1. Weights are renormalized over valid
+ * texels; the validity is texel i's with distances scaled by the factor.
+ * The same values as the generic path, without its per-texel searches. */
+static void double_exact(const ctex_tex *t, ctex_texel *nt, int fx, int fy)
+{
+    const int w = t->w, h = t->h, nw = fx * w;
+    const float vmax = t->vmax, vs = (float)(fx > fy ? fx : fy);
+    const float wx1 = fx == 2 ? 0.25f : 0.0f, wy1 = fy == 2 ? 0.25f : 0.0f;
+    for (int j = 0; j < h; j++) {
+        for (int b = 0; b < fy; b++) {
+            int jn = fy == 1 ? j : (b ? (j + 1 < h ? j + 1 : j) : (j > 0 ? j - 1 : 0));
+            const ctex_texel *r0 = t->tx + (size_t)j * (size_t)w, *r1 = t->tx + (size_t)jn * (size_t)w;
+            ctex_texel *o = nt + (size_t)(fy * j + b) * (size_t)nw;
+            for (int i = 0; i < w; i++) {
+                for (int a = 0; a < fx; a++) {
+                    int in = fx == 1 ? i : (a ? (i + 1 < w ? i + 1 : i) : (i > 0 ? i - 1 : 0));
+                    const ctex_texel *ps[4] = {r0 + i, r0 + in, r1 + i, r1 + in};
+                    const float ws[4] = {(1.0f - wx1) * (1.0f - wy1), wx1 * (1.0f - wy1), (1.0f - wx1) * wy1, wx1 * wy1};
+                    ctex_texel *q = o + fx * i + a;
+                    if (ps[0]->v != -INFINITY && ps[1]->v != -INFINITY && ps[2]->v != -INFINITY &&
+                        ps[3]->v != -INFINITY) {
+                        /* all valid (the common case): the weights sum to 1 */
+                        q->r = ws[0] * ps[0]->r + ws[1] * ps[1]->r + ws[2] * ps[2]->r + ws[3] * ps[3]->r;
+                        q->g = ws[0] * ps[0]->g + ws[1] * ps[1]->g + ws[2] * ps[2]->g + ws[3] * ps[3]->g;
+                        q->b = ws[0] * ps[0]->b + ws[1] * ps[1]->b + ws[2] * ps[2]->b + ws[3] * ps[3]->b;
+                        q->v = vmax + (ps[0]->v - vmax) * vs;
+                        continue;
+                    }
+                    float sw = 0.0f, cr = 0.0f, cg = 0.0f, cb = 0.0f;
+                    for (int k = 0; k < 4; k++)
+                        if (ps[k]->v != -INFINITY && ws[k] > 0.0f) {
+                            sw += ws[k]; cr += ws[k] * ps[k]->r; cg += ws[k] * ps[k]->g; cb += ws[k] * ps[k]->b;
+                        }
+                    if (!(sw > 0.0f)) {
+                        q->r = q->g = q->b = 0.0f;
+                        q->v = -INFINITY;
+                        continue;
+                    }
+                    float inv = 1.0f / sw;
+                    q->r = cr * inv; q->g = cg * inv; q->b = cb * inv;
+                    /* an empty covering texel next to valid ones: one texel off */
+                    float v = ps[0]->v == -INFINITY ? vmax - 1.0f : ps[0]->v;
+                    q->v = vmax + (v - vmax) * vs;
+                }
+            }
+        }
+    }
+}
+
+/* Exact halving with block sizes bx, by in {1, 2} (odd sizes: the last block
+ * is one texel wide): the mean of each block's valid texels, the best
+ * validity, distances scaled down. */
+static void halve_exact(const ctex_tex *t, ctex_texel *nt, int nw, int nh, int bx, int by)
+{
+    const int w = t->w, h = t->h;
+    const float vmax = t->vmax, vs = 1.0f / (float)(bx > by ? bx : by);
+    for (int j = 0; j < nh; j++) {
+        int y0 = by * j, y1 = y0 + by > h ? h : y0 + by;
+        ctex_texel *o = nt + (size_t)j * (size_t)nw;
+        for (int i = 0; i < nw; i++) {
+            int x0 = bx * i, x1 = x0 + bx > w ? w : x0 + bx;
+            float cr = 0.0f, cg = 0.0f, cb = 0.0f, best = -INFINITY;
+            int n = 0;
+            for (int y = y0; y < y1; y++)
+                for (int x = x0; x < x1; x++) {
+                    const ctex_texel *p = t->tx + (size_t)y * (size_t)w + (size_t)x;
+                    if (p->v == -INFINITY) continue;
+                    cr += p->r; cg += p->g; cb += p->b;
+                    if (p->v > best) best = p->v;
+                    n++;
+                }
+            ctex_texel *q = o + i;
+            if (!n) {
+                q->r = q->g = q->b = 0.0f;
+                q->v = -INFINITY;
+                continue;
+            }
+            float inv = 1.0f / (float)n;
+            q->r = cr * inv; q->g = cg * inv; q->b = cb * inv;
+            q->v = vmax + (best - vmax) * vs;
+        }
+    }
+}
+
+int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
+{
+    if (nw < 1 || nh < 1 || nw > 65536 || nh > 65536)
+        return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", nw, nh);
+    if (nw == t->w && nh == t->h) return CT_OK;
+    ctex_texel *nt = malloc((size_t)nw * (size_t)nh * sizeof *nt);
+    if (!nt) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", nw, nh);
+    {
+        int fx = nw == 2 * t->w ? 2 : (nw == t->w ? 1 : 0), fy = nh == 2 * t->h ? 2 : (nh == t->h ? 1 : 0);
+        if (fx && fy) {
+            double_exact(t, nt, fx, fy);
+            goto done;
+        }
+        int bx = nw == (t->w + 1) / 2 ? 2 : (nw == t->w ? 1 : 0), by = nh == (t->h + 1) / 2 ? 2 : (nh == t->h ? 1 : 0);
+        if (bx && by) {
+            halve_exact(t, nt, nw, nh, bx, by);
+            goto done;
+        }
+    }
+    const float sx = (float)t->w / (float)nw, sy = (float)t->h / (float)nh;
+    /* Validities are distances in texels: rescale them relative to v_max. */
+    const float vs = 1.0f / fmaxf(sx, sy);
+    const bool shrink = nw <= t->w && nh <= t->h;
+    for (int j = 0; j < nh; j++) {
+        for (int i = 0; i < nw; i++) {
+            ctex_texel *o = nt + (size_t)j * (size_t)nw + (size_t)i;
+            o->r = o->g = o->b = 0.0f;
+            o->v = -INFINITY;
+            if (shrink) {
+                /* §3.6: box filter, area-weighted over the old texels the new
+                 * one covers; empty texels do not count. */
+                float ax = (float)i * sx, bx = (float)(i + 1) * sx;
+                float ay = (float)j * sy, by = (float)(j + 1) * sy;
+                int ix0 = (int)floorf(ax), ix1 = (int)ceilf(bx), iy0 = (int)floorf(ay), iy1 = (int)ceilf(by);
+                if (ix1 > t->w) ix1 = t->w;
+                if (iy1 > t->h) iy1 = t->h;
+                double acc[3] = {0, 0, 0}, sw = 0;
+                float best = -INFINITY;
+                for (int y = iy0; y < iy1; y++) {
+                    float wy = fminf(by, (float)(y + 1)) - fmaxf(ay, (float)y);
+                    if (wy <= 0.0f) continue;
+                    for (int x = ix0; x < ix1; x++) {
+                        float wx = fminf(bx, (float)(x + 1)) - fmaxf(ax, (float)x);
+                        if (wx <= 0.0f) continue;
+                        const ctex_texel *p = t->tx + (size_t)y * (size_t)t->w + (size_t)x;
+                        if (p->v == -INFINITY) continue;
+                        double w = (double)wx * (double)wy;
+                        acc[0] += w * p->r; acc[1] += w * p->g; acc[2] += w * p->b;
+                        sw += w;
+                        if (p->v > best) best = p->v;
+                    }
+                }
+                if (sw > 0.0) {
+                    o->r = (float)(acc[0] / sw); o->g = (float)(acc[1] / sw); o->b = (float)(acc[2] / sw);
+                    o->v = t->vmax + (best - t->vmax) * vs;
+                }
+            } else {
+                /* §3.6: bilinear refinement (texel centres, clamp to edge). */
+                float x = ((float)i + 0.5f) * sx - 0.5f, y = ((float)j + 0.5f) * sy - 0.5f;
+                vec3 val;
+                if (sample_valid(t, x, y, &val)) {
+                    const ctex_texel *p = nearest(t, ((float)i + 0.5f) / (float)nw, ((float)j + 0.5f) / (float)nh);
+                    float best = p->v;
+                    if (best == -INFINITY) {
+                        /* next to the valid region: take the neighbours' best */
+                        best = t->vmax - 1.0f;
+                    }
+                    o->r = val.x; o->g = val.y; o->b = val.z;
+                    o->v = t->vmax + (best - t->vmax) * vs;
+                }
+            }
+        }
+    }
+done:
+    free(t->tx);
+    t->tx = nt;
+    t->w = nw;
+    t->h = nh;
+    t->dx0 = 0; t->dy0 = 0; t->dx1 = nw; t->dy1 = nh;
+    return CT_OK;
+}
+
+void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, float penalty)
+{
+    /* The unprojection is affine in (u, v) for both kinds (object-local: the
+     * frame; camera-local: eye + depth * (forward + right sx + up sy) with
+     * sx, sy affine in the pixel position), so three calls give it all. */
+    vec3 x0 = ctex_tex_unproject(dst, 0.0f, 0.0f);
+    vec3 xu = v3_sub(ctex_tex_unproject(dst, 1.0f, 0.0f), x0);
+    vec3 xv = v3_sub(ctex_tex_unproject(dst, 0.0f, 1.0f), x0);
+    const float iw = 1.0f / (float)dst->w, ih = 1.0f / (float)dst->h;
+    for (int j = 0; j < dst->h; j++) {
+        vec3 row = v3_madd(x0, xv, ((float)j + 0.5f) * ih);
+        for (int i = 0; i < dst->w; i++) {
+            ctex_texel *o = dst->tx + (size_t)j * (size_t)dst->w + (size_t)i;
+            o->r = o->g = o->b = 0.0f;
+            o->v = -INFINITY;
+            vec3 p = v3_madd(row, xu, ((float)i + 0.5f) * iw);
+            float best = -INFINITY;
+            for (int s = 0; s < nsrc; s++) {
+                const ctex_tex *st = src[s];
+                float u, v;
+                if (!ctex_tex_project(st, p, &u, &v)) continue;
+                /* half a texel of slack at the borders */
+                float mu = 0.5f / (float)st->w, mv = 0.5f / (float)st->h;
+                if (u < -mu || u > 1.0f + mu || v < -mv || v > 1.0f + mv) continue;
+                const ctex_texel *n = nearest(st, u, v);
+                if (n->v == -INFINITY) continue;
+                float rel = n->v - st->vmax;
+                if (rel <= best) continue;
+                vec3 val;
+                if (!sample_valid(st, u * (float)st->w - 0.5f, v * (float)st->h - 0.5f, &val)) continue;
+                best = rel;
+                o->r = val.x; o->g = val.y; o->b = val.z;
+            }
+            if (best > -INFINITY) o->v = dst->vmax + best - penalty;
+        }
+    }
+    dst->dx0 = 0; dst->dy0 = 0; dst->dx1 = dst->w; dst->dy1 = dst->h;
+}
+
+vec3 ctex_tex_mean(const ctex_tex *t, uint32_t *nvalid)
+{
+    double acc[3] = {0, 0, 0};
+    uint32_t n = 0;
+    for (size_t i = 0; i < (size_t)t->w * (size_t)t->h; i++) {
+        if (t->tx[i].v == -INFINITY) continue;
+        acc[0] += t->tx[i].r; acc[1] += t->tx[i].g; acc[2] += t->tx[i].b;
+        n++;
+    }
+    if (nvalid) *nvalid = n;
+    if (!n) return v3s(0.0f);
+    return v3((float)(acc[0] / n), (float)(acc[1] / n), (float)(acc[2] / n));
+}

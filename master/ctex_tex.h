@@ -1,0 +1,116 @@
+/* ctex_tex.h: one corrective texture's texels and the operations on them:
+ * ring splatting with validities (§3.4), v_max aging (§3.5), resolution
+ * changes by box filter and bilinear interpolation (§3.6), bilinear lookup
+ * and resampling from other textures through their projections. Used by the
+ * engine in ctex.c; public so tests can drive a single texture. */
+#ifndef CT_MASTER_CTEX_TEX_H
+#define CT_MASTER_CTEX_TEX_H
+
+#include <math.h>
+#include <stdint.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "common/vecmath.h"
+#include "master/ctex.h"
+
+/* One texel: signed RGB correction and validity (-INFINITY when empty). */
+typedef struct ctex_texel {
+    float r, g, b, v;
+} ctex_texel;
+
+/* A texture with its projection. */
+typedef struct ctex_tex {
+    int w, h;
+    ctex_texel *tx;        /* w * h, row 0 first */
+    float vmax;            /* §3.5: validity of a new sample's centre texel */
+    ctex_proj_kind kind;
+    mat4 m;                /* world -> texture */
+    /* Unprojection of a texel centre to a world point (resampling): */
+    vec3 o, t, b, n;       /* object-local: p = o + t*u + b*v (u, v in [0,1]) */
+    ct_camera cam;         /* camera-local: the camera it was made for */
+    int cam_w, cam_h;
+    float x0, y0, x1, y1;  /* camera-local: the pixel rectangle mapped to [0,1]^2 */
+    float ref_depth;       /* camera-local: depth of the plane used to unproject */
+    /* §3.6 running mean of splat radii */
+    float mean_r;
+    uint32_t since_resize;
+    int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
+    /* dirty rectangle [dx0, dx1) x [dy0, dy1), empty when dx0 >= dx1 */
+    int dx0, dy0, dx1, dy1;
+} ctex_tex;
+
+/* Allocates w x h empty texels (validity -inf, correction 0), vmax = 0. */
+int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err);
+
+/* Frees the texels. */
+void ctex_tex_release(ctex_tex *t);
+
+/* Splats value at texel (ci, cj) with the texture's v_max (§3.4): the centre
+ * texel is always overwritten; ring k (Chebyshev distance k) overwrites texels
+ * whose validity is below v_max - k, and blends texels within `blend` of it;
+ * stops after the first ring that overwrote nothing, or after ring max_r
+ * (0 = no limit). Returns the splat radius (last overwriting ring) and grows
+ * the dirty rectangle. */
+int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r);
+
+/* Bilinear correction at texture position (u, v), clamp-to-edge (GL_LINEAR). */
+static inline vec3 ctex_tex_sample(const ctex_tex *t, float u, float v)
+{
+    float x = u * (float)t->w - 0.5f, y = v * (float)t->h - 0.5f;
+    float fx0 = floorf(x), fy0 = floorf(y);
+    float fx = x - fx0, fy = y - fy0;
+    int x0 = (int)fx0, y0 = (int)fy0, x1 = x0 + 1, y1 = y0 + 1;
+    int wm = t->w - 1, hm = t->h - 1;
+    x0 = x0 < 0 ? 0 : (x0 > wm ? wm : x0);
+    x1 = x1 < 0 ? 0 : (x1 > wm ? wm : x1);
+    y0 = y0 < 0 ? 0 : (y0 > hm ? hm : y0);
+    y1 = y1 < 0 ? 0 : (y1 > hm ? hm : y1);
+    const ctex_texel *a = t->tx + (size_t)y0 * (size_t)t->w + (size_t)x0;
+    const ctex_texel *b = t->tx + (size_t)y0 * (size_t)t->w + (size_t)x1;
+    const ctex_texel *c = t->tx + (size_t)y1 * (size_t)t->w + (size_t)x0;
+    const ctex_texel *d = t->tx + (size_t)y1 * (size_t)t->w + (size_t)x1;
+    float wa = (1.0f - fx) * (1.0f - fy), wb = fx * (1.0f - fy), wc = (1.0f - fx) * fy, wd = fx * fy;
+    return v3(wa * a->r + wb * b->r + wc * c->r + wd * d->r,
+              wa * a->g + wb * b->g + wc * c->g + wd * d->g,
+              wa * a->b + wb * b->b + wc * c->b + wd * d->b);
+}
+
+/* Texture position of world point p through the projection; false when p is
+ * behind a camera-local projection's eye. */
+static inline bool ctex_tex_project(const ctex_tex *t, vec3 p, float *u, float *v)
+{
+    vec4 q = m4_point4(&t->m, p);
+    if (!(q.w > 0.0f)) return false;
+    float iw = 1.0f / q.w;
+    *u = q.x * iw;
+    *v = q.y * iw;
+    return true;
+}
+
+/* World point of texture position (u, v): on the node's mid-plane for an
+ * object-local texture, on the plane at ref_depth for a camera-local one. */
+vec3 ctex_tex_unproject(const ctex_tex *t, float u, float v);
+
+/* §3.5: raises v_max by offset (texels). */
+static inline void ctex_tex_age(ctex_tex *t, float offset)
+{
+    if (offset > 0.0f) t->vmax += offset;
+}
+
+/* §3.6: changes the resolution to nw x nh: box filter (area average of valid
+ * texels) when shrinking, bilinear when growing; validities are rescaled to
+ * the new texel size relative to v_max. The whole texture becomes dirty. */
+int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err);
+
+/* Fills dst's texels from the sources: each texel centre is unprojected to a
+ * world point, projected into every source, and takes the bilinear value of
+ * the source whose nearest texel is most valid (relative to its v_max), with
+ * that relative validity minus `penalty`. Texels no source covers stay
+ * empty. dst's texels must be allocated; it becomes dirty. */
+void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, float penalty);
+
+/* Mean correction over the valid texels (tests, stats); 0 when none. */
+vec3 ctex_tex_mean(const ctex_tex *t, uint32_t *nvalid);
+
+#endif

@@ -1,0 +1,97 @@
+#!/usr/bin/env bash
+# End-to-end test of `corrtex converge` (master engine + tracer in one
+# process) on cornell at 48x48 with the constant radiosity stand-in and
+# path-traced samples (the reference is path-traced too, so the samples are
+# unbiased against it; drt would carry the stand-in's indirect light): the
+# output files, convergence.csv rows, PSNR against a path-traced reference
+# rising with the samples, the --move-to phase (Fig. 7), the insertion timer,
+# and exit status 2 with one error line on bad input.
+set -u
+root=$(cd "$(dirname "$0")/../.." && pwd)
+bin=${CORRTEX_BIN:-bin}
+[[ $bin == /* ]] || bin="$root/$bin"
+corrtex="$bin/corrtex"
+scene="$root/scenes/cornell/cornell.json"
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-converge-XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+
+fails=0
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+# run EXPECTED_RC ARGS...: runs corrtex, logs the command, checks the status.
+run() {
+  local want=$1; shift
+  echo "+ $corrtex $*"
+  "$corrtex" "$@" >"$tmp/out" 2>"$tmp/err"
+  rc=$?
+  sed 's/^/  stdout: /' "$tmp/out" | tail -n 20
+  sed 's/^/  stderr: /' "$tmp/err" | tail -n 20
+  if ((rc != want)); then fail "exit status $rc, expected $want: corrtex $*"; fi
+}
+
+# csv_col ROW_PREFIX COLUMN_NAME: the value of a column in the first row
+# whose "phase,samples" starts with ROW_PREFIX.
+csv_col() {
+  awk -F, -v pre="$1" -v col="$2" '
+    NR == 1 { for (i = 1; i <= NF; i++) if ($i == col) c = i; next }
+    index($1 "," $2, pre) == 1 { print $c; exit }' "$tmp/out1/convergence.csv"
+}
+
+run 0 reference "$scene" --camera front --width 48 --height 48 --spp 32 --mode path --seed 7 -o "$tmp/ref.exr"
+run 0 reference "$scene" --camera spheres --width 48 --height 48 --spp 32 --mode path --seed 7 -o "$tmp/ref2.exr"
+
+run 0 converge "$scene" --camera front --samples 100,800,all --width 48 --height 48 --stand-in 0.3 --mode path \
+  --reference "$tmp/ref.exr" --move-to spheres --samples-after 600 --reference-after "$tmp/ref2.exr" \
+  --time-insert --out "$tmp/out1"
+for f in convergence.csv radiosity.exr radiosity.png assignment.png corrected_100.exr corrected_100.png \
+         samples_100.png corrected_800.exr corrected_2304.exr samples_2304.png hq_samples.exr \
+         moved.exr moved.png after_assignment.png after_corrected_600.exr after_samples_600.png \
+         after_hq_samples.exr; do
+  [[ -s $tmp/out1/$f ]] || fail "missing output $f"
+done
+cat "$tmp/out1/convergence.csv"
+rows=$(($(wc -l <"$tmp/out1/convergence.csv") - 1))
+((rows == 6)) || fail "expected 6 rows (radiosity, 3 still, moved, after), got $rows"
+p0=$(csv_col "radiosity,0" psnr); p1=$(csv_col "still,100" psnr)
+p2=$(csv_col "still,800" psnr); p3=$(csv_col "still,2304" psnr)
+pm=$(csv_col "moved,0" psnr); pa=$(csv_col "after,600" psnr)
+cov=$(csv_col "still,2304" coverage)
+echo "metric: converge_psnr_radiosity=$p0"
+echo "metric: converge_psnr_100=$p1"
+echo "metric: converge_psnr_800=$p2"
+echo "metric: converge_psnr_all=$p3"
+echo "metric: converge_psnr_moved=$pm"
+echo "metric: converge_psnr_after600=$pa"
+# 1-spp path samples are noisy: from 800 samples on, more samples replace
+# interpolated corrections by single noisy ones, so the last step may lose a
+# little (at most 1 dB here); the gain over radiosity alone is large
+awk -v a="$p0" -v b="$p1" -v c="$p2" -v d="$p3" 'BEGIN { exit !(a < b && b < c && d > c - 1 && d > a + 3) }' ||
+  fail "PSNR does not rise with the samples: $p0 $p1 $p2 $p3"
+awk -v m="$pm" -v a="$pa" 'BEGIN { exit !(a > m) }' || fail "PSNR after the move does not rise: $pm -> $pa"
+[[ $cov == 100 ]] || fail "coverage at 'all' is $cov, expected 100"
+grep -q '^metric: insert_rate=' "$tmp/out" || fail "--time-insert printed no insert_rate"
+
+# bad input: exit 2 and one error line naming the problem
+expect_error() {
+  local lines
+  lines=$(wc -l <"$tmp/err")
+  ((lines == 1)) || fail "expected one error line, got $lines"
+  grep -q "^error corrtex converge: .*$1" "$tmp/err" || fail "error line does not mention '$1'"
+}
+run 2 converge "$scene" --out "$tmp/bad" --quiet
+expect_error "--samples"
+run 2 converge "$scene" --samples 10 --out "$tmp/bad" --camera nope --stand-in 0.3 --quiet
+expect_error "nope"
+run 2 converge "$scene" --samples 100,50 --out "$tmp/bad" --quiet
+expect_error "increase"
+run 2 converge "$scene" --samples 10 --out "$tmp/bad" --eps abc --quiet
+expect_error "--eps"
+run 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
+expect_error "frobnicate"
+run 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand-in 0.3 --quiet
+expect_error "missing.json"
+run 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet
+expect_error "48x48"
+
+if ((fails)); then echo "converge e2e: $fails failure(s)"; exit 1; fi
+echo "converge e2e: ok"

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# corrtex radiosity end to end: solves the Cornell box at a coarse error,
+# checks the stats it prints and the .ctmesh it writes, that the result does
+# not depend on the thread count (byte-identical files), that --reuse keeps a
+# fresh cache and recomputes a stale one, and that bad input exits 2 with one
+# error line and a blown memory cap exits 1 naming the cap.
+set -u
+BIN=${CORRTEX_BIN:-bin}
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+fail=0
+exec 3>&1   # commands are logged to the original stdout even when output is redirected
+run() { echo "+ $*" >&3; "$@"; }
+scene=scenes/cornell/cornell.json
+[[ -f scenes/cornell/cornell.obj ]] || { echo "missing $scene meshes (run make scenes)"; exit 1; }
+
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --threads 1 >"$tmp/a.out" 2>"$tmp/a.err" \
+  || { echo "FAIL: solve exited $?"; cat "$tmp/a.err"; exit 1; }
+cat "$tmp/a.out"
+for key in patches links iterations residual triangles seconds; do
+  grep -q "^$key " "$tmp/a.out" || { echo "FAIL: stats lack '$key'"; fail=1; }
+done
+grep -q "^info radiosity: .*triangles.* s$" "$tmp/a.err" || { echo "FAIL: no final stats line on stderr"; fail=1; }
+grep -q "^progress radiosity" "$tmp/a.err" || { echo "FAIL: no progress line"; fail=1; }
+tris=$(awk '$1 == "triangles" { print $2 }' "$tmp/a.out")
+patches=$(awk '$1 == "patches" { print $2 }' "$tmp/a.out")
+(( tris > 2 * patches )) || { echo "FAIL: $tris triangles for $patches patches: no refinement"; fail=1; }
+# Header of the cache: magic, version 1, little-endian check.
+head -c 10 "$tmp/a.ctmesh" | od -An -c | tr -s ' ' | grep -q 'C T M E S H \\r \\n 032 \\n' \
+  || { echo "FAIL: bad magic"; od -An -c -N 16 "$tmp/a.ctmesh"; fail=1; }
+[[ $(od -An -tu4 -j12 -N4 "$tmp/a.ctmesh" | tr -d ' ') == 1 ]] || { echo "FAIL: version is not 1"; fail=1; }
+echo "metric: cornell_triangles=$tris"
+
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/b.ctmesh" --error 1e-4 --threads 2 --quiet >/dev/null \
+  || { echo "FAIL: 2-thread solve"; fail=1; }
+cmp "$tmp/a.ctmesh" "$tmp/b.ctmesh" || { echo "FAIL: 1 and 2 threads give different meshes"; fail=1; }
+
+# --image: the Gouraud view from a scene camera, PNG and EXR.
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --reuse --image "$tmp/v.png" --camera front \
+  --width 64 --height 48 --spp 2 --quiet >/dev/null || { echo "FAIL: --image png"; fail=1; }
+[[ $(head -c 8 "$tmp/v.png" | od -An -tx1 | tr -d ' ') == 89504e470d0a1a0a ]] || { echo "FAIL: not a PNG"; fail=1; }
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --reuse --image "$tmp/v.exr" --width 64 \
+  --height 48 --quiet >/dev/null || { echo "FAIL: --image exr"; fail=1; }
+run "$BIN/corrtex" compare "$tmp/v.exr" "$tmp/v.exr" --max-rmse 0 >/dev/null || { echo "FAIL: the EXR does not read back"; fail=1; }
+
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 1e-4 --reuse >"$tmp/r.out" 2>"$tmp/r.err" || fail=1
+grep -q "^cached 1" "$tmp/r.out" || { echo "FAIL: --reuse did not keep a fresh cache"; cat "$tmp/r.err"; fail=1; }
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/a.ctmesh" --error 2e-4 --reuse >"$tmp/r.out" 2>"$tmp/r.err" || fail=1
+grep -q "^cached 1" "$tmp/r.out" && { echo "FAIL: --reuse kept a stale cache"; fail=1; }
+grep -q "stale" "$tmp/r.err" || { echo "FAIL: no 'stale' reason logged"; cat "$tmp/r.err"; fail=1; }
+
+# Bad input: exit 2, exactly one error line naming the problem.
+printf 'v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n' > "$tmp/dark.obj"
+printf '{"meshes":[{"file":"dark.obj"}]}' > "$tmp/dark.json"
+check() { # expected-exit expected-substring args...
+  local want=$1 msg=$2; shift 2
+  "$BIN/corrtex" radiosity "$@" >"$tmp/o" 2>"$tmp/e"; rc=$?
+  echo "+ $BIN/corrtex radiosity $*  -> exit $rc: $(grep '^error' "$tmp/e")"
+  [[ $rc -eq $want ]] || { echo "FAIL: exit $rc, want $want"; fail=1; }
+  [[ $(grep -c '^error ' "$tmp/e") -eq 1 ]] || { echo "FAIL: want exactly one error line"; cat "$tmp/e"; fail=1; }
+  grep -q -- "$msg" "$tmp/e" || { echo "FAIL: message lacks '$msg'"; fail=1; }
+}
+check 2 "missing -o" "$scene"
+check 2 "expected one scene file" -o "$tmp/x.ctmesh"
+check 2 "missing.json" "$tmp/missing.json" -o "$tmp/x.ctmesh"
+check 2 "no emitting surface" "$tmp/dark.json" -o "$tmp/x.ctmesh"
+check 2 "\-\-error: 'abc'" "$scene" -o "$tmp/x.ctmesh" --error abc
+check 2 "\-\-threads" "$scene" -o "$tmp/x.ctmesh" --threads 0
+check 2 "unknown or incomplete option '--bogus'" "$scene" -o "$tmp/x.ctmesh" --bogus
+check 2 "cannot create" "$scene" -o "$tmp/no/such/dir/x.ctmesh" --error 1e-2
+check 2 "no camera named 'nope'" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/x.png" --camera nope
+check 1 "memory cap of 16 MB" "$scene" -o "$tmp/x.ctmesh" --error 1e-9 --min-area 1e-12 --memory-cap 16
+[[ -e $tmp/x.ctmesh ]] && { echo "FAIL: a failed run left an output"; fail=1; }
+exit $fail

@@ -1,0 +1,27 @@
+/* rad_fixtures.h: scenes built in code for the radiosity tests: a closed box
+ * of gridded quads with an emitting patch in its ceiling, and two parallel
+ * squares. Every builder returns a finalized scene or NULL. */
+#ifndef CT_TESTS_RAD_FIXTURES_H
+#define CT_TESTS_RAD_FIXTURES_H
+
+#include "common/scene.h"
+
+/* Adds a part node `name` with material mat holding an n x n grid of quads
+ * spanning corner, corner + e1, corner + e1 + e2, corner + e2 (front side
+ * towards e1 x e2). Returns 0 or < 0. */
+int rfx_add_grid(ct_scene *s, const char *name, uint32_t mat, vec3 corner, vec3 e1, vec3 e2, int n);
+
+/* The unit cube [0,1]^3 seen from inside: floor, four walls and a ceiling of
+ * n x n quads each (n odd >= 3), the ceiling's centre quad an emitter of
+ * radiance le (a separate part); walls reflect rho. */
+ct_scene *rfx_closed_box(int n, float rho, float le);
+
+/* Two unit squares facing each other at distance d: an emitter of radiance
+ * le at z = d facing down and a black receiver at z = 0 facing up. */
+ct_scene *rfx_parallel_squares(float d, float le);
+
+/* A box room (floor, walls, ceiling lamp) with a table-like block standing
+ * on the floor: shadows that force uneven refinement. */
+ct_scene *rfx_room_with_block(void);
+
+#endif

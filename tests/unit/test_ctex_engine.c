@@ -1,0 +1,863 @@
+/* Engine tests of the corrective textures (master/ctex.h): the texture
+ * hierarchy, per-view assignment with frustum culling (§3.3), projections
+ * (§3.2), aging (§3.5), resampling on split/merge, events and the
+ * compositor, on small scenes built in code. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "master/ctex.h"
+#include "master/ctex_hier.h"
+
+static ct_error err;
+
+static void quad_part(ct_scene *s, const char *name, uint32_t mat, vec3 a, vec3 b, vec3 c, vec3 d)
+{
+    cr_assert_geq(scene_begin_node(s, name, SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
+    vec3 n = v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+    uint32_t idx[4];
+    vec3 p[4] = {a, b, c, d};
+    for (int i = 0; i < 4; i++) idx[i] = (uint32_t)scene_add_vertex(s, p[i], n, &err);
+    cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0, "%s", err.msg);
+    cr_assert_eq(scene_end_node(s, &err), 0);
+}
+
+/* A closed box as one part (not flat). */
+static void box_part(ct_scene *s, const char *name, uint32_t mat, vec3 lo, vec3 hi)
+{
+    cr_assert_geq(scene_begin_node(s, name, SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
+    static const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+    for (int f = 0; f < 6; f++) {
+        uint32_t idx[4];
+        for (int k = 0; k < 4; k++) {
+            bounds3 b = {lo, hi};
+            idx[k] = (uint32_t)scene_add_vertex(s, b3_corner(b, faces[f][k]), v3(0, 1, 0), &err);
+        }
+        cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+    }
+    cr_assert_eq(scene_end_node(s, &err), 0);
+}
+
+/* Three groups of objects on a floor, spread along x:
+ *   floor (flat, diffuse); group g<i> = box + flat top plate, i = 0..2;
+ *   a glossy flat panel; a box far behind the default camera. */
+typedef struct tscene {
+    ct_scene *s;
+    ct_radmesh m;
+    int floor, panel, behind, box[3], plate[3];
+} tscene;
+
+static void build(tscene *t)
+{
+    memset(t, 0, sizeof *t);
+    t->s = scene_new("test");
+    cr_assert_not_null(t->s);
+    scene_material dif = scene_material_default("white");
+    dif.diffuse = v3(0.7f, 0.7f, 0.7f);
+    scene_material red = scene_material_default("red");
+    red.diffuse = v3(0.7f, 0.1f, 0.1f);
+    scene_material gl = scene_material_default("glossy");
+    gl.diffuse = v3(0.1f, 0.1f, 0.1f);
+    gl.glossy = SCENE_GLOSSY_PHONG;
+    gl.specular = v3(0.8f, 0.8f, 0.8f);
+    gl.phong_exp = 200.0f;
+    uint32_t mw = (uint32_t)scene_add_material(t->s, &dif, &err);
+    uint32_t mr = (uint32_t)scene_add_material(t->s, &red, &err);
+    uint32_t mg = (uint32_t)scene_add_material(t->s, &gl, &err);
+    t->floor = (int)t->s->nnodes;
+    quad_part(t->s, "floor", mw, v3(-10, 0, -10), v3(-10, 0, 10), v3(10, 0, 10), v3(10, 0, -10));
+    for (int i = 0; i < 3; i++) {
+        char name[16];
+        snprintf(name, sizeof name, "g%d", i);
+        cr_assert_geq(scene_begin_node(t->s, name, SCENE_NODE_GROUP, UINT32_MAX, &err), 0);
+        float x = -4.0f + 4.0f * (float)i;
+        t->box[i] = (int)t->s->nnodes;
+        box_part(t->s, "box", mr, v3(x - 0.5f, 0, -0.5f), v3(x + 0.5f, 1, 0.5f));
+        t->plate[i] = (int)t->s->nnodes;
+        quad_part(t->s, "plate", mw, v3(x - 0.6f, 1.01f, -0.6f), v3(x - 0.6f, 1.01f, 0.6f),
+                  v3(x + 0.6f, 1.01f, 0.6f), v3(x + 0.6f, 1.01f, -0.6f));
+        cr_assert_eq(scene_end_node(t->s, &err), 0);
+    }
+    t->panel = (int)t->s->nnodes;
+    quad_part(t->s, "panel", mg, v3(-3, 0.5f, -5), v3(-3, 3, -5), v3(3, 3, -5), v3(3, 0.5f, -5));
+    t->behind = (int)t->s->nnodes;
+    box_part(t->s, "behind", mr, v3(-1, 0, 30), v3(1, 2, 32));
+    cr_assert_eq(scene_finalize(t->s, &err), 0, "%s", err.msg);
+    cr_assert_eq(rmesh_from_scene(t->s, v3s(0.5f), &t->m, &err), 0);
+}
+
+static void release(tscene *t)
+{
+    rmesh_free(&t->m);
+    scene_free(t->s);
+}
+
+static ctex *engine(tscene *t, ctex_options o)
+{
+    ctex *c = NULL;
+    cr_assert_eq(ctex_new(&t->m, t->s->mats, t->s->nmats, &o, &c, &err), 0, "%s", err.msg);
+    return c;
+}
+
+static ct_camera front_cam(void)
+{
+    return cam_look_at(v3(0, 4, 14), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
+}
+
+Test(ctex_engine, hierarchy_groups_parts)
+{
+    tscene t;
+    build(&t);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, 0, &h, &err), 0, "%s", err.msg);
+    /* leaves = parts: floor, 3 x (box, plate), panel, behind */
+    cr_assert_eq(h.nleaves, 9);
+    uint32_t ntri = 0;
+    for (uint32_t l = 0; l < h.nleaves; l++) {
+        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
+        cr_assert_eq(n->end, h.leaf_node[l] + 1, "leaf has no children");
+        ntri += n->tri_end - n->tri_begin;
+        for (uint32_t i = n->tri_begin; i < n->tri_end; i++) cr_assert_eq(t.m.tri_node[h.tris[i]], h.leaf_part[l]);
+    }
+    cr_assert_eq(ntri, t.m.ntris);
+    /* the root has 5 children items (floor, g0..g2, panel, behind = 6): a BVH
+     * refines it into a binary tree; every inner node's ranges nest */
+    for (uint32_t i = 0; i < h.nnodes; i++) {
+        const ctex_hnode *n = &h.nodes[i];
+        if (n->parent >= 0) {
+            const ctex_hnode *p = &h.nodes[n->parent];
+            cr_assert(n->leaf_begin >= p->leaf_begin && n->leaf_end <= p->leaf_end);
+            cr_assert(i > (uint32_t)n->parent && n->end <= p->end);
+        }
+        int nch = 0;
+        for (uint32_t c = i + 1; c < n->end; c = h.nodes[c].end) nch++;
+        if (n->scene_node < 0) cr_assert_eq(nch, 2, "BVH nodes are binary");
+    }
+    /* flatness: floor, plates and panel are flat, boxes are not */
+    cr_assert(h.nodes[h.leaf_node[h.part_leaf[t.floor]]].flat);
+    cr_assert(h.nodes[h.leaf_node[h.part_leaf[t.plate[1]]]].flat);
+    cr_assert(h.nodes[h.leaf_node[h.part_leaf[t.panel]]].flat);
+    cr_assert(!h.nodes[h.leaf_node[h.part_leaf[t.box[0]]]].flat);
+    cr_assert_gt(h.nodes[h.leaf_node[h.part_leaf[t.panel]]].gloss, 0.5f);
+    cr_assert_eq(h.nodes[h.leaf_node[h.part_leaf[t.floor]]].gloss, 0.0f);
+    /* a group of a box and its plate is not flat (two normals, not coplanar) */
+    cr_assert(!h.nodes[0].flat);
+    ctex_hier_free(&h);
+    release(&t);
+}
+
+Test(ctex_engine, bvh_groups_by_material)
+{
+    /* Four coplanar tiles in a row with alternating materials A B A B: with a
+     * strong material weight the BVH pairs same-material tiles. */
+    ct_scene *s = scene_new("tiles");
+    scene_material a = scene_material_default("a"), b = scene_material_default("b");
+    a.diffuse = v3s(0.5f);
+    b.diffuse = v3s(0.2f);
+    b.glossy = SCENE_GLOSSY_PHONG; b.specular = v3s(0.5f); b.phong_exp = 50;
+    uint32_t ma = (uint32_t)scene_add_material(s, &a, &err), mb = (uint32_t)scene_add_material(s, &b, &err);
+    for (int i = 0; i < 4; i++) {
+        char name[8];
+        snprintf(name, sizeof name, "t%d", i);
+        float x = (float)i * 1.1f;
+        quad_part(s, name, i % 2 ? mb : ma, v3(x, 0, 0), v3(x, 0, 1), v3(x + 1, 0, 1), v3(x + 1, 0, 0));
+    }
+    cr_assert_eq(scene_finalize(s, &err), 0);
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 100.0f, 0, &h, &err), 0);
+    /* the root's two BVH children each hold one material */
+    int groups = 0;
+    for (uint32_t c = 1; c < h.nodes[0].end; c = h.nodes[c].end) {
+        cr_assert_neq(h.nodes[c].material, UINT32_MAX, "child %u mixes materials", c);
+        groups++;
+    }
+    cr_assert_eq(groups, 2);
+    ctex_hier_free(&h);
+    /* with no material weight, space wins: neighbours are paired */
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 0.0f, 0, &h, &err), 0);
+    for (uint32_t c = 1; c < h.nodes[0].end; c = h.nodes[c].end) cr_assert_eq(h.nodes[c].material, UINT32_MAX);
+    ctex_hier_free(&h);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+/* Number of active textures and whether every one sits on a leaf. */
+static uint32_t count_textures(ctex *c, int *all_leaves, uint32_t *parts_covered)
+{
+    ctex_stats st = ctex_get_stats(c);
+    *all_leaves = 1;
+    *parts_covered = 0;
+    for (uint32_t id = 0; id < 4096; id++) {
+        uint32_t hn;
+        if (ctex_texture_info(c, id, &hn, NULL, NULL, NULL, NULL, NULL) != 1) continue;
+        uint32_t np;
+        ctex_node_parts(c, hn, &np);
+        if (np != 1) *all_leaves = 0;
+        *parts_covered += np;
+    }
+    return st.textures;
+}
+
+Test(ctex_engine, eps_zero_gives_leaf_textures)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0, "%s", err.msg);
+    int leaves;
+    uint32_t covered;
+    uint32_t n = count_textures(c, &leaves, &covered);
+    cr_assert(leaves, "ε = 0: every texture on a single part");
+    cr_assert_eq(n, 8, "all parts but the one behind the camera: %u", n);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f)), -1, "frustum culling");
+    cr_assert_geq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), 0);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, eps_huge_gives_one_per_top_node)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 1e9f;
+    o.max_proj = 0.0f;
+    ctex *c = engine(&t, o);
+    /* from far away and above, nothing reaches the eye plane */
+    ct_camera cam = cam_look_at(v3(0, 60, 60), v3(0, 0, 0), v3(0, 1, 0), 60.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    int leaves;
+    uint32_t covered;
+    uint32_t n = count_textures(c, &leaves, &covered);
+    /* the top nodes are the root's two BVH children */
+    uint32_t top = 0;
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, 0, &h, &err), 0);
+    for (uint32_t ch = 1; ch < h.nodes[0].end; ch = h.nodes[ch].end) top++;
+    ctex_hier_free(&h);
+    cr_assert_eq(n, top, "%u textures, %u top nodes", n, top);
+    cr_assert_eq(covered, 9, "all parts are covered");
+    /* with a camera close to the objects the parallax test splits even
+     * ε = 1e9 nodes that reach the eye plane: every part still textured once */
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, default_eps_between)
+{
+    tscene t;
+    build(&t);
+    ctex *c = engine(&t, ctex_options_default());
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 128, 128, &err), 0);
+    int leaves;
+    uint32_t covered;
+    uint32_t n = count_textures(c, &leaves, &covered);
+    cr_assert_eq(covered, 8, "each visible part covered exactly once (%u)", covered);
+    cr_assert(n >= 1 && n <= 8);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, frustum_culling_looking_away)
+{
+    tscene t;
+    build(&t);
+    ctex *c = engine(&t, ctex_options_default());
+    ct_camera cam = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    cr_assert_geq(ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f)), 0, "the box in front now has a texture");
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.panel, UINT32_MAX, v3s(0.0f)), -1);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), -1);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, camera_local_maps_bounding_rect_to_unit_square)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    const int W = 96, H = 64;
+    cr_assert_eq(ctex_set_camera(c, &cam, W, H, &err), 0);
+    int32_t id = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f));
+    cr_assert_geq(id, 0);
+    ctex_proj_kind kind;
+    mat4 m;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, &m, NULL), 1);
+    cr_assert_eq(kind, CTEX_PROJ_CAMERA);
+    bounds3 b = t.s->nodes[t.box[1]].bounds;
+    float umin = INFINITY, umax = -INFINITY, vmin = INFINITY, vmax = -INFINITY;
+    for (int i = 0; i < 8; i++) {
+        vec3 p = b3_corner(b, i);
+        vec4 q = m4_point4(&m, p);
+        cr_assert_gt(q.w, 0.0f);
+        float u = q.x / q.w, v = q.y / q.w;
+        umin = fminf(umin, u); umax = fmaxf(umax, u); vmin = fminf(vmin, v); vmax = fmaxf(vmax, v);
+        /* the texture position is an affine map of the pixel position */
+        float px, py;
+        cr_assert(cam_project(&cam, W, H, p, &px, &py, NULL));
+        (void)px; (void)py;
+    }
+    cr_assert_float_eq(umin, 0.0f, 1e-4);
+    cr_assert_float_eq(umax, 1.0f, 1e-4);
+    cr_assert_float_eq(vmin, 0.0f, 1e-4);
+    cr_assert_float_eq(vmax, 1.0f, 1e-4);
+    /* v grows downwards like image rows: the top of the box has the smaller v */
+    vec4 top = m4_point4(&m, v3(0, 1, 0.5f)), bot = m4_point4(&m, v3(0, 0, 0.5f));
+    cr_assert_lt(top.y / top.w, bot.y / bot.w);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, object_local_projection_along_normal)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    int32_t id = ctex_owner(c, (uint32_t)t.plate[0], UINT32_MAX, v3s(0.0f));
+    ctex_proj_kind kind;
+    mat4 m;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, &m, NULL), 1);
+    cr_assert_eq(kind, CTEX_PROJ_OBJECT);
+    /* the plate's corners map onto the unit square's corners, w = 1, and a
+     * point moved along the normal keeps its texture position */
+    float umin = INFINITY, umax = -INFINITY;
+    for (uint32_t tt = t.s->nodes[t.plate[0]].tri_begin; tt < t.s->nodes[t.plate[0]].tri_end; tt++)
+        for (int k = 0; k < 3; k++) {
+            vec4 q = m4_point4(&m, t.s->pos[t.s->tris[3 * tt + k]]);
+            cr_assert_float_eq(q.w, 1.0f, 1e-6);
+            cr_assert(q.x > -1e-4f && q.x < 1.0001f && q.y > -1e-4f && q.y < 1.0001f);
+            umin = fminf(umin, q.x); umax = fmaxf(umax, q.x);
+        }
+    cr_assert_float_eq(umin, 0.0f, 1e-4);
+    cr_assert_float_eq(umax, 1.0f, 1e-4);
+    vec4 a = m4_point4(&m, v3(-4.2f, 1.01f, 0.1f)), b = m4_point4(&m, v3(-4.2f, 3.0f, 0.1f));
+    cr_assert_float_eq(a.x, b.x, 1e-5);
+    cr_assert_float_eq(a.y, b.y, 1e-5);
+    ctex_free(c);
+    release(&t);
+}
+
+static ct_sample mk_sample(uint32_t node, vec3 hit, vec3 hq, vec3 base)
+{
+    ct_sample s;
+    memset(&s, 0, sizeof s);
+    s.flags = CT_SAMPLE_HIT | CT_SAMPLE_HAS_BASE;
+    s.node = node;
+    s.hit = hit;
+    s.l_hq = hq;
+    s.l_base = base;
+    return s;
+}
+
+Test(ctex_engine, insert_reads_correction_and_error)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    ctex_insert_info info;
+    ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 2), v3(0.8f, 0.6f, 0.4f), v3(0.5f, 0.5f, 0.5f));
+    cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    cr_assert_float_eq(info.correction.x, 0.0f, 1e-7, "empty texture: no correction yet");
+    cr_assert_float_eq(info.error.x, 0.3f, 1e-6);
+    cr_assert_float_eq(info.error.z, -0.1f, 1e-6);
+    vec3 l = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(1, 0, 2));
+    cr_assert_float_eq(l.x, 0.3f, 1e-6, "the first sample floods its texture");
+    cr_assert_float_eq(l.z, -0.1f, 1e-6);
+    /* the same sample again: the error is now zero */
+    cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    cr_assert_float_eq(info.error.x, 0.0f, 1e-6);
+    /* a miss and a culled node are dropped */
+    s.flags = 0;
+    cr_assert_eq(ctex_insert(c, &s, &info), 0);
+    s = mk_sample((uint32_t)t.behind, v3(0, 1, 30), v3s(1), v3s(0));
+    cr_assert_eq(ctex_insert(c, &s, &info), 0);
+    cr_assert_eq(info.tex, -1);
+    s = mk_sample(9999, v3(0, 0, 0), v3s(1), v3s(0));
+    cr_assert_eq(ctex_insert(c, &s, &info), 0);
+    ctex_stats st = ctex_get_stats(c);
+    cr_assert_eq(st.inserted, 2);
+    cr_assert_eq(st.dropped, 3);
+    ctex_free(c);
+    release(&t);
+}
+
+/* Fills node's texture with samples on a grid over the plate/floor region. */
+static void fill_floor(ctex *c, uint32_t node, float val, float y)
+{
+    ctex_insert_info info;
+    for (int i = 0; i < 40; i++)
+        for (int j = 0; j < 40; j++) {
+            vec3 p = v3(-9.75f + 0.5f * (float)i, y, -9.75f + 0.5f * (float)j);
+            ct_sample s = mk_sample(node, p, v3s(val), v3s(0.0f));
+            ctex_insert(c, &s, &info);
+        }
+}
+
+Test(ctex_engine, diffuse_object_local_does_not_age)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
+    int32_t id = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
+    ct_sample sp = mk_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(c, &sp, &info), 1);
+    int32_t pid = info.tex;
+    float v0, pv0;
+    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v0);
+    ctex_texture_info(c, (uint32_t)pid, NULL, NULL, NULL, NULL, NULL, &pv0);
+    vec3 before = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(2, 0, 3));
+    /* move and turn the camera */
+    ct_camera cam2 = cam_look_at(v3(6, 5, 10), v3(-1, 0, 0), v3(0, 1, 0), 50.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam2, 64, 64, &err), 0);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), id, "the floor keeps its texture");
+    float v1, pv1;
+    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v1);
+    ctex_texture_info(c, (uint32_t)pid, NULL, NULL, NULL, NULL, NULL, &pv1);
+    cr_assert_eq(v1, v0, "a diffuse object-local texture never ages");
+    cr_assert_gt(pv1, pv0 + 1.0f, "a glossy one ages (%g -> %g)", (double)pv0, (double)pv1);
+    vec3 after = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(2, 0, 3));
+    cr_assert_eq(after.x, before.x, "and keeps its contents");
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, split_and_merge_resample_contents)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    ctex *c = engine(&t, o);
+    /* far away: the group g1 (box + plate) shares one texture */
+    ct_camera far = cam_look_at(v3(0, 30, 60), v3(0, 0.5f, 0), v3(0, 1, 0), 20.0f);
+    cr_assert_eq(ctex_set_camera(c, &far, 64, 64, &err), 0);
+    int32_t a = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), b = ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f));
+    cr_assert_geq(a, 0);
+    cr_assert_eq(a, b, "box and plate share a texture from far away");
+    ctex_insert_info info;
+    for (int i = 0; i < 200; i++) {
+        float x = -0.6f + 1.2f * (float)(i % 20) / 19.0f, z = -0.6f + 1.2f * (float)(i / 20) / 9.0f;
+        ct_sample s = mk_sample((uint32_t)t.plate[1], v3(x, 1.01f, z), v3s(0.75f), v3s(0.25f));
+        ctex_insert(c, &s, &info);
+    }
+    vec3 l0 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
+    cr_assert_float_eq(l0.x, 0.5f, 1e-5);
+    /* close up: the group splits; the plate's new texture is resampled */
+    ct_camera near = cam_look_at(v3(0, 2.2f, 2.2f), v3(0, 0.8f, 0), v3(0, 1, 0), 60.0f);
+    cr_assert_eq(ctex_set_camera(c, &near, 64, 64, &err), 0);
+    int32_t a2 = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), b2 = ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f));
+    cr_assert_geq(a2, 0);
+    cr_assert_geq(b2, 0);
+    cr_assert_neq(a2, b2, "split into box and plate");
+    vec3 l1 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
+    cr_assert_float_eq(l1.x, 0.5f, 1e-4, "split texture resampled from the old one (%g)", (double)l1.x);
+    /* back far away: merged again, still carrying the correction */
+    cr_assert_eq(ctex_set_camera(c, &far, 64, 64, &err), 0);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f)));
+    vec3 l2 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
+    cr_assert_float_eq(l2.x, 0.5f, 1e-3, "merged texture resampled (%g)", (double)l2.x);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, events_alloc_proj_patch_free)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    size_t n;
+    const ctex_event *ev = ctex_events(c, &n);
+    int alloc = 0, proj = 0;
+    for (size_t i = 0; i < n; i++) {
+        alloc += ev[i].kind == CTEX_EV_ALLOC;
+        proj += ev[i].kind == CTEX_EV_PROJ;
+        if (ev[i].kind == CTEX_EV_ALLOC) cr_assert(ev[i].w >= 4 && ev[i].h >= 4);
+    }
+    cr_assert_eq(alloc, 8);
+    cr_assert_eq(proj, 8);
+    ctex_events_clear(c);
+    ctex_flush_patches(c);   /* new textures are dirty as a whole */
+    ctex_events_clear(c);
+    ctex_insert_info info;
+    ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 2), v3s(1.0f), v3s(0.5f));
+    ctex_insert(c, &s, &info);
+    ctex_insert(c, &s, &info);
+    ctex_flush_patches(c);
+    ev = ctex_events(c, &n);
+    cr_assert_eq(n, 1);
+    cr_assert_eq(ev[0].kind, CTEX_EV_PATCH);
+    cr_assert_eq(ev[0].tex, (uint32_t)info.tex);
+    float buf[3 * 64 * 64];
+    cr_assert_eq(ctex_read_patch(c, ev[0].tex, ev[0].x, ev[0].y, ev[0].w, ev[0].h, buf, &err), 0);
+    cr_assert_float_eq(buf[0], 0.5f, 1e-6);
+    cr_assert_lt(ctex_read_patch(c, ev[0].tex, 0, 0, 9999, 1, buf, &err), 0);
+    ctex_events_clear(c);
+    /* looking away frees (parks) the floor's texture for the display */
+    ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
+    cr_assert_eq(ctex_set_camera(c, &away, 64, 64, &err), 0);
+    ev = ctex_events(c, &n);
+    int freed = 0;
+    for (size_t i = 0; i < n; i++) freed += ev[i].kind == CTEX_EV_FREE && ev[i].tex == (uint32_t)info.tex;
+    cr_assert_eq(freed, 1);
+    cr_assert_eq(ctex_get_stats(c).parked, 8, "parked %u", ctex_get_stats(c).parked);
+    /* coming back reuses the parked texture with its contents */
+    ctex_events_clear(c);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), info.tex);
+    cr_assert_float_eq(ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(1, 0, 2)).x, 0.5f, 1e-6);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, memory_cap_evicts_invisible_first)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    o.mem_mb = 0.05;   /* ~3,300 texels */
+    o.tex_init = 8;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 256, 256, &err), 0);
+    int32_t fl = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
+    ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
+    cr_assert_eq(ctex_set_camera(c, &away, 256, 256, &err), 0);
+    cr_assert_gt(ctex_get_stats(c).parked, 0);
+    /* the visible box grows by dense samples until the cap bites */
+    int32_t id = ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f));
+    cr_assert_geq(id, 0);
+    ctex_insert_info info;
+    for (int k = 0; k < 20000; k++) {
+        float x = -1.0f + 2.0f * (float)(k % 141) / 140.0f, y = 2.0f * (float)((k / 141) % 141) / 140.0f;
+        ct_sample s = mk_sample((uint32_t)t.behind, v3(x, y, 30), v3s((float)(k % 7)), v3s(0.0f));
+        ctex_insert(c, &s, &info);
+    }
+    ctex_stats st = ctex_get_stats(c);
+    cr_assert_leq(st.bytes, (size_t)(0.05 * 1048576.0), "bytes %zu over the cap", st.bytes);
+    cr_assert_gt(st.evictions, 0, "parked textures were evicted");
+    uint32_t hn;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, &hn, NULL, NULL, NULL, NULL, NULL), 1, "visible texture kept");
+    (void)fl;
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, compositor_adds_bilinear_correction)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 8, 8, &err), 0);
+    fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
+    ctex_hit hits[64];
+    for (int i = 0; i < 64; i++) {
+        hits[i].node = i % 2 ? UINT32_MAX : (uint32_t)t.floor;
+        hits[i].tri = UINT32_MAX;
+        hits[i].p = v3(0.1f * (float)i - 3.0f, 0.0f, 1.0f);
+        hits[i].l_base = v3s(0.1f);
+    }
+    /* (built by hand: the compositor only needs the pixel array) */
+    ct_image img = {8, 8, calloc(8 * 8 * 3, sizeof(float))};
+    cr_assert_eq(ctex_composite(c, hits, 8, 8, &img, &err), 0);
+    for (int i = 0; i < 64; i++) {
+        vec3 v = img_get(&img, i % 8, i / 8);
+        float expect = i % 2 ? 0.1f : 0.35f;
+        cr_assert_float_eq(v.x, expect, 1e-5, "pixel %d: %g", i, (double)v.x);
+    }
+    ct_image bad = {4, 4, calloc(4 * 4 * 3, sizeof(float))};
+    cr_assert_lt(ctex_composite(c, hits, 8, 8, &bad, &err), 0);
+    free(bad.px);
+    free(img.px);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, options_parse_and_reject)
+{
+    ctex_options o = ctex_options_default();
+    cr_assert_float_eq(o.eps, 0.3f, 1e-7);
+    cr_assert_eq(ctex_options_parse(&o, "--eps", "0.5", &err), 1);
+    cr_assert_float_eq(o.eps, 0.5f, 1e-7);
+    cr_assert_eq(ctex_options_parse(&o, "--tex-min", "8", &err), 1);
+    cr_assert_eq(o.tex_min, 8);
+    cr_assert_eq(ctex_options_parse(&o, "--width", "8", &err), 0);
+    cr_assert_lt(ctex_options_parse(&o, "--eps", "abc", &err), 0);
+    cr_assert_lt(ctex_options_parse(&o, "--tex-min", "2.5", &err), 0);
+    cr_assert_lt(ctex_options_parse(&o, "--flat-deg", "-1", &err), 0);
+    cr_assert_lt(ctex_options_parse(&o, "--eps", NULL, &err), 0);
+}
+
+Test(ctex_engine, bad_mesh_is_rejected)
+{
+    tscene t;
+    build(&t);
+    t.m.tri_node[0] = 12345;
+    ctex *c = NULL;
+    cr_assert_eq(ctex_new(&t.m, t.s->mats, t.s->nmats, NULL, &c, &err), CT_EPARSE);
+    cr_assert_null(c);
+    release(&t);
+}
+
+Test(ctex_engine, exported_node_table_for_the_display)
+{
+    tscene t;
+    build(&t);
+    ctex *c = engine(&t, ctex_options_default());
+    uint32_t n = ctex_get_stats(c).hier_nodes;
+    rmesh_node *nodes = calloc(n, sizeof *nodes);
+    ctex_export_nodes(c, nodes);
+    cr_assert_eq(nodes[0].parent, -1);
+    cr_assert_eq(nodes[0].node_end, n);
+    for (uint32_t i = 1; i < n; i++) {
+        cr_assert(nodes[i].parent >= 0 && (uint32_t)nodes[i].parent < i, "pre-order parent of %u", i);
+        cr_assert(nodes[i].node_end > i && nodes[i].node_end <= nodes[nodes[i].parent].node_end);
+    }
+    /* every part maps to a leaf whose exported name is the part's, and a
+     * node's subtree holds exactly the parts ctex_node_parts lists */
+    for (uint32_t p = 0; p < t.s->nnodes; p++) {
+        uint32_t h = ctex_hnode_of_part(c, p);
+        if (t.s->nodes[p].kind != SCENE_NODE_PART) {
+            cr_assert_eq(h, UINT32_MAX);
+            continue;
+        }
+        cr_assert_lt(h, n);
+        cr_assert_eq(nodes[h].node_end, h + 1, "leaf");
+        cr_assert_str_eq(nodes[h].name, t.s->nodes[p].name);
+    }
+    for (uint32_t h = 0; h < n; h++) {
+        uint32_t np;
+        const uint32_t *parts = ctex_node_parts(c, h, &np);
+        uint32_t inside = 0;
+        for (uint32_t p = 0; p < t.s->nnodes; p++) {
+            uint32_t l = ctex_hnode_of_part(c, p);
+            if (l != UINT32_MAX && l >= h && l < nodes[h].node_end) inside++;
+        }
+        cr_assert_eq(inside, np, "node %u", h);
+        for (uint32_t k = 0; k < np; k++) {
+            uint32_t l = ctex_hnode_of_part(c, parts[k]);
+            cr_assert(l >= h && l < nodes[h].node_end);
+        }
+    }
+    cr_assert_eq(ctex_hnode_of_part(c, 99999), UINT32_MAX);
+    free(nodes);
+    ctex_free(c);
+    release(&t);
+}
+
+/* One part: a floor of n x n quads and a back wall of n x n quads meeting
+ * at a corner (an L), one material. */
+static ct_scene *l_scene(int n)
+{
+    ct_scene *s = scene_new("L");
+    scene_material w = scene_material_default("w");
+    w.diffuse = v3s(0.5f);
+    scene_add_material(s, &w, &err);
+    cr_assert_geq(scene_begin_node(s, "L", SCENE_NODE_PART, 0, &err), 0);
+    for (int side = 0; side < 2; side++)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) {
+                float x0 = -5.0f + 10.0f * (float)i / (float)n, x1 = -5.0f + 10.0f * (float)(i + 1) / (float)n;
+                float a0 = 10.0f * (float)j / (float)n, a1 = 10.0f * (float)(j + 1) / (float)n;
+                vec3 p[4];
+                if (side == 0) { p[0] = v3(x0, 0, a0 - 10); p[1] = v3(x0, 0, a1 - 10); p[2] = v3(x1, 0, a1 - 10); p[3] = v3(x1, 0, a0 - 10); }
+                else { p[0] = v3(x0, a0, -10); p[1] = v3(x1, a0, -10); p[2] = v3(x1, a1, -10); p[3] = v3(x0, a1, -10); }
+                uint32_t idx[4];
+                vec3 nn = side == 0 ? v3(0, 1, 0) : v3(0, 0, 1);
+                for (int k = 0; k < 4; k++) idx[k] = (uint32_t)scene_add_vertex(s, p[k], nn, &err);
+                cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+            }
+    cr_assert_eq(scene_end_node(s, &err), 0);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    return s;
+}
+
+Test(ctex_engine, large_parts_split_into_flat_clusters)
+{
+    ct_scene *s = l_scene(32);   /* 2 x 2048 triangles */
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
+    cr_assert_eq(h.nleaves, 2, "4096 triangles: split by normal into floor and wall, flat halves stay whole");
+    uint32_t part = 1;
+    cr_assert_eq(h.part_leaf[part], -2);
+    for (uint32_t l = 0; l < h.nleaves; l++) {
+        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
+        cr_assert_eq(n->tri_end - n->tri_begin, 2048u);
+        cr_assert(n->flat, "cluster %u is flat (the normal split separated floor and wall)", l);
+        cr_assert_eq(h.leaf_part[l], part);
+        for (uint32_t i = n->tri_begin; i < n->tri_end; i++) cr_assert_eq(h.tri_leaf[h.tris[i]], l);
+    }
+    /* the part's node has both, the first split is by normal: each half flat */
+    const ctex_hnode *pn = &h.nodes[h.part_hnode[part]];
+    cr_assert(!pn->flat);
+    for (uint32_t c = h.part_hnode[part] + 1; c < pn->end; c = h.nodes[c].end) cr_assert(h.nodes[c].flat);
+    ctex_hier_free(&h);
+
+    /* through the engine: a sample goes into its triangle's cluster, the
+     * lookup without a triangle finds the same texture by position */
+    ctex_options o = ctex_options_default();
+    o.cluster_tris = 512;
+    o.eps = 0.0f;
+    ctex *c = NULL;
+    cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &o, &c, &err), 0);
+    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    cr_assert_eq(ctex_get_stats(c).textures, 2, "one texture per visible cluster (ε = 0)");
+    uint32_t tri = 100;   /* a floor triangle */
+    const uint32_t *v = m.tris + 3 * tri;
+    vec3 p = v3_scale(v3_add(m.pos[v[0]], v3_add(m.pos[v[1]], m.pos[v[2]])), 1.0f / 3.0f);
+    ct_sample smp;
+    memset(&smp, 0, sizeof smp);
+    smp.flags = CT_SAMPLE_HIT;
+    smp.node = part;
+    smp.tri = tri;
+    smp.hit = p;
+    smp.l_hq = v3s(1.0f);
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(c, &smp, &info), 1);
+    cr_assert_eq(info.tex, ctex_owner(c, part, tri, p));
+    cr_assert_eq(ctex_owner(c, part, UINT32_MAX, p), info.tex, "bounds fallback");
+    cr_assert_float_eq(ctex_lookup(c, part, tri, p).x, 1.0f, 1e-6);
+    uint32_t hl = ctex_hnode_of_tri(c, tri);
+    uint32_t hn;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)info.tex, &hn, NULL, NULL, NULL, NULL, NULL), 1);
+    cr_assert_eq(hn, hl);
+    rmesh_node *nodes = calloc(ctex_get_stats(c).hier_nodes, sizeof *nodes);
+    ctex_export_nodes(c, nodes);
+    cr_assert_str_eq(nodes[ctex_hnode_of_part(c, part)].name, "L");
+    cr_assert(strncmp(nodes[hl].name, "cluster:", 8) == 0, "%s", nodes[hl].name);
+    free(nodes);
+    ctex_free(c);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+/* Fills the box part's camera-local texture with samples whose value is
+ * their x coordinate, on the faces seen from the front. */
+static void fill_box(ctex *c, uint32_t node, float x0)
+{
+    ctex_insert_info info;
+    for (int i = 0; i <= 40; i++)
+        for (int j = 0; j <= 40; j++) {
+            vec3 p = v3(x0 - 0.5f + (float)i / 40.0f, (float)j / 40.0f, 0.5f);   /* front face z = 0.5 */
+            ct_sample s = mk_sample(node, p, v3s(p.x - x0 + 0.5f), v3s(0.0f));
+            ctex_insert(c, &s, &info);
+        }
+}
+
+Test(ctex_engine, camera_local_rotation_keeps_contents_and_does_not_age)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(&t, o);
+    ct_camera cam = cam_look_at(v3(0, 1.5f, 6), v3(0, 0.5f, 0), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 128, 128, &err), 0);
+    uint32_t box = (uint32_t)t.box[1];
+    int32_t id = ctex_owner(c, box, UINT32_MAX, v3(0, 0.5f, 0.5f));
+    ctex_proj_kind kind;
+    float v0;
+    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, NULL, &v0), 1);
+    cr_assert_eq(kind, CTEX_PROJ_CAMERA);
+    fill_box(c, box, 0.0f);
+    vec3 pts[3] = {v3(-0.3f, 0.5f, 0.5f), v3(0.0f, 0.2f, 0.5f), v3(0.3f, 0.8f, 0.5f)};
+    float before[3];
+    for (int k = 0; k < 3; k++) before[k] = ctex_lookup(c, box, UINT32_MAX, pts[k]).x;
+    /* turn the camera a little about its eye: the box moves on screen, the
+     * reprojected texture stays on it */
+    ct_camera turned = cam_look_at(cam.eye, v3(0.4f, 0.7f, 0), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &turned, 128, 128, &err), 0);
+    cr_assert_eq(ctex_owner(c, box, UINT32_MAX, pts[0]), id);
+    float v1;
+    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v1);
+    cr_assert_float_eq(v1, v0, 1e-6, "a rotation about the eye does not age (%g -> %g)", (double)v0, (double)v1);
+    for (int k = 0; k < 3; k++) {
+        float after = ctex_lookup(c, box, UINT32_MAX, pts[k]).x;
+        cr_assert_float_eq(after, before[k], 0.06, "point %d: %g -> %g", k, (double)before[k], (double)after);
+    }
+    /* a translation ages a camera-local texture (texture flow, §3.5) */
+    ct_camera moved = cam_look_at(v3(1.0f, 1.5f, 6), v3(0.4f, 0.7f, 0), v3(0, 1, 0), 40.0f);
+    cr_assert_eq(ctex_set_camera(c, &moved, 128, 128, &err), 0);
+    float v2;
+    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v2);
+    cr_assert_gt(v2, v1 + 0.01f, "moving the eye ages the camera-local texture (%g -> %g)", (double)v1, (double)v2);
+    ctex_free(c);
+    release(&t);
+}
+
+Test(ctex_engine, non_flat_large_parts_split_by_space)
+{
+    /* a corrugated sheet: strips tilted +-20 degrees, one part of 4096
+     * triangles; the normal split gives two sets of parallel, not coplanar
+     * strips, which split by space down to clusters of at most 512 */
+    ct_scene *s = scene_new("corrugated");
+    scene_material w = scene_material_default("w");
+    w.diffuse = v3s(0.5f);
+    scene_add_material(s, &w, &err);
+    cr_assert_geq(scene_begin_node(s, "sheet", SCENE_NODE_PART, 0, &err), 0);
+    const int nx = 64, nz = 32;
+    for (int i = 0; i < nx; i++)
+        for (int j = 0; j < nz; j++) {
+            float x0 = (float)i * 0.2f, x1 = x0 + 0.2f, z0 = (float)j * 0.2f, z1 = z0 + 0.2f;
+            float y0 = (i % 2) ? 0.0728f : 0.0f, y1 = (i % 2) ? 0.0f : 0.0728f;   /* tan(20°) * 0.2 */
+            vec3 p[4] = {v3(x0, y0, z0), v3(x0, y0, z1), v3(x1, y1, z1), v3(x1, y1, z0)};
+            uint32_t idx[4];
+            for (int k = 0; k < 4; k++) idx[k] = (uint32_t)scene_add_vertex(s, p[k], v3(0, 1, 0), &err);
+            cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+        }
+    cr_assert_eq(scene_end_node(s, &err), 0);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
+    cr_assert_geq(h.nleaves, 8u);
+    uint32_t total = 0;
+    for (uint32_t l = 0; l < h.nleaves; l++) {
+        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
+        cr_assert_leq(n->tri_end - n->tri_begin, 512u);
+        total += n->tri_end - n->tri_begin;
+        /* each cluster holds strips of one tilt only */
+        cr_assert_lt(n->spread_deg, 1.0f, "cluster %u mixes tilts (spread %g)", l, (double)n->spread_deg);
+    }
+    cr_assert_eq(total, 4096u);
+    ctex_hier_free(&h);
+    rmesh_free(&m);
+    scene_free(s);
+}

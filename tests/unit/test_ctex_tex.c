@@ -1,0 +1,256 @@
+/* Texel-level tests of the corrective textures (master/ctex_tex.h):
+ * the discrete Voronoi property of ring splatting (§3.4, Fig. 3), aging
+ * (§3.5) and resolution changes (§3.6). */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+
+#include "common/rng.h"
+#include "master/ctex_tex.h"
+
+static int cheb(int ax, int ay, int bx, int by)
+{
+    int dx = abs(ax - bx), dy = abs(ay - by);
+    return dx > dy ? dx : dy;
+}
+
+/* Splats n samples at distinct random texels (value = index) with blending
+ * off and checks that every texel holds its nearest sample in the
+ * Chebyshev metric, ties going to the earliest sample. */
+static void voronoi_case(int W, int H, int n, uint64_t seed)
+{
+    ctex_tex t = {0};
+    ct_error err;
+    cr_assert_eq(ctex_tex_init(&t, W, H, &err), 0);
+    int *sx = malloc((size_t)n * sizeof *sx), *sy = malloc((size_t)n * sizeof *sy);
+    uint8_t *used = calloc((size_t)W * (size_t)H, 1);
+    ct_rng r = rng_make(seed, 1, 2, 3);
+    for (int k = 0; k < n; k++) {
+        int x, y;
+        do {
+            x = (int)rng_below(&r, (uint32_t)W);
+            y = (int)rng_below(&r, (uint32_t)H);
+        } while (used[y * W + x]);
+        used[y * W + x] = 1;
+        sx[k] = x; sy[k] = y;
+        ctex_tex_splat(&t, x, y, v3((float)k, (float)-k, 0.5f), 0.0f, 0);
+    }
+    int ties = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            int best = -1, bd = 1 << 30, nbest = 0;
+            for (int k = 0; k < n; k++) {
+                int d = cheb(x, y, sx[k], sy[k]);
+                if (d < bd) { bd = d; best = k; nbest = 1; }
+                else if (d == bd) nbest++;
+            }
+            ties += nbest > 1;
+            const ctex_texel *p = &t.tx[y * W + x];
+            cr_assert_eq(p->r, (float)best, "texel (%d,%d) holds sample %g, nearest is %d (d=%d)", x, y,
+                         (double)p->r, best, bd);
+            cr_assert_eq(p->g, (float)-best);
+            cr_assert_eq(p->v, -(float)bd, "texel (%d,%d) validity %g, expected %d", x, y, (double)p->v, -bd);
+        }
+    cr_assert_gt(ties, 0, "the case should contain ties to exercise the tie rule");
+    free(sx); free(sy); free(used);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, voronoi_20_samples) { voronoi_case(64, 48, 20, 7); }
+Test(ctex_tex, voronoi_100_samples) { voronoi_case(64, 48, 100, 11); }
+Test(ctex_tex, voronoi_dense) { voronoi_case(33, 17, 300, 3); }
+
+Test(ctex_tex, splat_radius_and_dirty_rect)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 32, 32, NULL), 0);
+    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    int r = ctex_tex_splat(&t, 5, 5, v3(1, 1, 1), 0.0f, 0);
+    cr_assert_eq(r, 26, "first sample floods the texture: radius %d", r);
+    cr_assert_eq(t.dx0, 0); cr_assert_eq(t.dx1, 32); cr_assert_eq(t.dy0, 0); cr_assert_eq(t.dy1, 32);
+    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    /* a second sample 8 texels away: its radius is the farthest texel it
+     * takes over (strictly closer to it than to the first) */
+    r = ctex_tex_splat(&t, 13, 5, v3(2, 2, 2), 0.0f, 0);
+    int expect = 0;
+    for (int y = 0; y < 32; y++)
+        for (int x = 0; x < 32; x++)
+            if (cheb(x, y, 13, 5) < cheb(x, y, 5, 5) && cheb(x, y, 13, 5) > expect) expect = cheb(x, y, 13, 5);
+    cr_assert_eq(r, expect, "radius %d, expected %d", r, expect);
+    int e = r + 1;
+    cr_assert_eq(t.dx0, 13 - e < 0 ? 0 : 13 - e);
+    cr_assert_eq(t.dx1, 13 + e + 1 > 32 ? 32 : 13 + e + 1);
+    cr_assert_eq(t.dy1, 5 + e + 1 > 32 ? 32 : 5 + e + 1);
+    cr_assert_eq(t.tx[5 * 32 + 9].r, 1.0f, "equidistant texel stays with the older sample");
+    cr_assert_eq(t.tx[5 * 32 + 10].r, 2.0f);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, blending_is_between_neighbours)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 32, 8, NULL), 0);
+    ctex_tex_splat(&t, 4, 4, v3(0, 0, 0), 1.0f, 0);
+    ctex_tex_splat(&t, 12, 4, v3(1, 1, 1), 1.0f, 0);
+    /* the tie at x = 8 is blended half-half, interior texels are not */
+    cr_assert_float_eq(t.tx[4 * 32 + 8].r, 0.5f, 1e-6);
+    cr_assert_eq(t.tx[4 * 32 + 6].r, 0.0f);
+    cr_assert_eq(t.tx[4 * 32 + 10].r, 1.0f);
+    for (int i = 0; i < 32 * 8; i++) cr_assert(t.tx[i].r >= 0.0f && t.tx[i].r <= 1.0f);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, newer_sample_wins_after_aging)
+{
+    const int W = 48, H = 16;
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, W, H, NULL), 0);
+    ctex_tex_splat(&t, 10, 8, v3(1, 0, 0), 0.0f, 0);
+    ctex_tex_splat(&t, 40, 8, v3(3, 0, 0), 0.0f, 0);
+    const float age = 5.0f;
+    ctex_tex_age(&t, age);
+    cr_assert_eq(t.vmax, age);
+    ctex_tex_splat(&t, 25, 8, v3(2, 0, 0), 0.0f, 0);
+    int won = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            float old_v = -(float)(cheb(x, y, 10, 8) < cheb(x, y, 40, 8) ? cheb(x, y, 10, 8) : cheb(x, y, 40, 8));
+            float old_val = cheb(x, y, 10, 8) <= cheb(x, y, 40, 8) ? 1.0f : 3.0f;
+            float new_v = age - (float)cheb(x, y, 25, 8);
+            float expect = new_v > old_v ? 2.0f : old_val;
+            won += new_v > old_v;
+            cr_assert_eq(t.tx[y * W + x].r, expect, "texel (%d,%d)", x, y);
+        }
+    /* the aged sample conquers more than its distance-only share (texels
+     * strictly closer to it than to 10 or 40: |x-25| < 7.5) */
+    cr_assert_gt(won, 15 * H, "new sample owns %d texels", won);
+    ctex_tex_release(&t);
+}
+
+static void fill_random(ctex_tex *t, uint64_t seed)
+{
+    ct_rng r = rng_make(seed, 0, 0, 0);
+    for (int i = 0; i < t->w * t->h; i++) {
+        t->tx[i].r = rng_float(&r) * 2.0f - 1.0f;
+        t->tx[i].g = rng_float(&r);
+        t->tx[i].b = -rng_float(&r);
+        t->tx[i].v = -rng_float(&r) * 3.0f;
+    }
+}
+
+Test(ctex_tex, double_then_halve_keeps_mean)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 16, 12, NULL), 0);
+    fill_random(&t, 5);
+    vec3 m0 = ctex_tex_mean(&t, NULL);
+    cr_assert_eq(ctex_tex_resize(&t, 32, 24, NULL), 0);
+    vec3 m1 = ctex_tex_mean(&t, NULL);
+    cr_assert_eq(ctex_tex_resize(&t, 16, 12, NULL), 0);
+    vec3 m2 = ctex_tex_mean(&t, NULL);
+    cr_assert_float_eq(m1.x, m0.x, 1e-5);
+    cr_assert_float_eq(m1.y, m0.y, 1e-5);
+    cr_assert_float_eq(m2.x, m0.x, 1e-5);
+    cr_assert_float_eq(m2.y, m0.y, 1e-5);
+    cr_assert_float_eq(m2.z, m0.z, 1e-5);
+    /* halving an odd size keeps the mean too (area-weighted box) */
+    cr_assert_eq(ctex_tex_resize(&t, 7, 5, NULL), 0);
+    vec3 m3 = ctex_tex_mean(&t, NULL);
+    cr_assert_float_eq(m3.x, m0.x, 1e-4);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, halving_averages_boxes_and_rescales_validity)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 4, 2, NULL), 0);
+    float vals[8] = {1, 3, 5, 7, 2, 4, 6, 8};
+    for (int i = 0; i < 8; i++) { t.tx[i].r = vals[i]; t.tx[i].v = -4.0f; }
+    t.tx[2].v = -INFINITY;   /* an empty texel does not count */
+    cr_assert_eq(ctex_tex_resize(&t, 2, 1, NULL), 0);
+    cr_assert_float_eq(t.tx[0].r, 2.5f, 1e-6);
+    cr_assert_float_eq(t.tx[1].r, (7.0f + 6.0f + 8.0f) / 3.0f, 1e-6);
+    cr_assert_float_eq(t.tx[0].v, -2.0f, 1e-6, "distances halve with the texel size");
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, empty_texture_stays_empty_on_resize)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 8, 8, NULL), 0);
+    cr_assert_eq(ctex_tex_resize(&t, 16, 16, NULL), 0);
+    uint32_t nv;
+    ctex_tex_mean(&t, &nv);
+    cr_assert_eq(nv, 0);
+    cr_assert_eq(ctex_tex_resize(&t, 4, 4, NULL), 0);
+    ctex_tex_mean(&t, &nv);
+    cr_assert_eq(nv, 0);
+    ct_error err;
+    cr_assert_eq(ctex_tex_resize(&t, 0, 4, &err), CT_EINVAL);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, doubling_is_bilinear_at_new_centres)
+{
+    ctex_tex t = {0}, old = {0};
+    cr_assert_eq(ctex_tex_init(&t, 9, 6, NULL), 0);
+    cr_assert_eq(ctex_tex_init(&old, 9, 6, NULL), 0);
+    fill_random(&t, 9);
+    for (int i = 0; i < 9 * 6; i++) old.tx[i] = t.tx[i];
+    cr_assert_eq(ctex_tex_resize(&t, 18, 12, NULL), 0);
+    for (int j = 0; j < 12; j++)
+        for (int i = 0; i < 18; i++) {
+            vec3 e = ctex_tex_sample(&old, ((float)i + 0.5f) / 18.0f, ((float)j + 0.5f) / 12.0f);
+            const ctex_texel *p = &t.tx[j * 18 + i];
+            cr_assert_float_eq(p->r, e.x, 1e-5, "texel (%d,%d)", i, j);
+            cr_assert_float_eq(p->g, e.y, 1e-5);
+            cr_assert_float_eq(p->b, e.z, 1e-5);
+            /* validity: the covering old texel's, distances doubled */
+            cr_assert_float_eq(p->v, 2.0f * old.tx[(j / 2) * 9 + i / 2].v, 1e-5);
+        }
+    ctex_tex_release(&t);
+    ctex_tex_release(&old);
+}
+
+Test(ctex_tex, splat_max_bounds_the_radius)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 64, 64, NULL), 0);
+    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    int r = ctex_tex_splat(&t, 30, 20, v3(1, 1, 1), 1.0f, 5);
+    cr_assert_eq(r, 5);
+    for (int y = 0; y < 64; y++)
+        for (int x = 0; x < 64; x++) {
+            int inside = cheb(x, y, 30, 20) <= 5;
+            cr_assert_eq(t.tx[y * 64 + x].v == -INFINITY, !inside, "texel (%d,%d)", x, y);
+        }
+    cr_assert_eq(t.dx0, 25); cr_assert_eq(t.dx1, 36); cr_assert_eq(t.dy0, 15); cr_assert_eq(t.dy1, 26);
+    ctex_tex_release(&t);
+}
+
+Test(ctex_tex, doubling_one_axis_and_odd_halving)
+{
+    ctex_tex t = {0}, old = {0};
+    cr_assert_eq(ctex_tex_init(&t, 7, 5, NULL), 0);
+    cr_assert_eq(ctex_tex_init(&old, 7, 5, NULL), 0);
+    fill_random(&t, 13);
+    for (int i = 0; i < 7 * 5; i++) old.tx[i] = t.tx[i];
+    cr_assert_eq(ctex_tex_resize(&t, 14, 5, NULL), 0);
+    for (int j = 0; j < 5; j++)
+        for (int i = 0; i < 14; i++) {
+            vec3 e = ctex_tex_sample(&old, ((float)i + 0.5f) / 14.0f, ((float)j + 0.5f) / 5.0f);
+            cr_assert_float_eq(t.tx[j * 14 + i].r, e.x, 1e-5, "texel (%d,%d)", i, j);
+        }
+    /* halving 7x5 -> 4x3: 2x2 blocks, the last column and row one texel wide */
+    cr_assert_eq(ctex_tex_resize(&old, 4, 3, NULL), 0);
+    ctex_tex ref = {0};
+    cr_assert_eq(ctex_tex_init(&ref, 7, 5, NULL), 0);
+    fill_random(&ref, 13);
+    float e = (ref.tx[6].r + ref.tx[13].r) / 2.0f;   /* block (3, 0): column 6, rows 0-1 */
+    cr_assert_float_eq(old.tx[3].r, e, 1e-6);
+    float e2 = ref.tx[4 * 7 + 6].r;                  /* block (3, 2): texel (6, 4) alone */
+    cr_assert_float_eq(old.tx[2 * 4 + 3].r, e2, 1e-6);
+    ctex_tex_release(&t);
+    ctex_tex_release(&old);
+    ctex_tex_release(&ref);
+}

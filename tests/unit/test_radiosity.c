@@ -1,0 +1,434 @@
+/* Hierarchical radiosity: form factors against the analytic value, energy
+ * balance in a closed box, the conforming mesh (edges, T-vertices, values,
+ * node and material per triangle), determinism across thread counts, and
+ * the memory cap. */
+#include <criterion/criterion.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "common/rng.h"
+#include "tests/support/rad_fixtures.h"
+#include "tracer/radiosity.h"
+
+/* Two parallel unit squares at distance 1: F = 0.19982 (Howell's catalogue,
+ * configuration C-11). */
+#define FF_SQUARES 0.199825
+
+static rad_params test_params(void)
+{
+    rad_params p;
+    rad_params_default(&p);
+    p.threads = 2;
+    p.memory_cap_mb = 512;
+    return p;
+}
+
+Test(radiosity, point_polygon_hemisphere)
+{
+    /* A huge square just above the point covers almost the whole hemisphere. */
+    vec3 big[4] = {v3(-1e4f, -1e4f, 1), v3(-1e4f, 1e4f, 1), v3(1e4f, 1e4f, 1), v3(1e4f, -1e4f, 1)};
+    double f = rad_ff_point_polygon(v3(0, 0, 0), v3(0, 0, 1), big, 4);
+    cr_assert_float_eq(f, 1.0, 1e-3, "F to a covering plane = %f", f);
+    /* Seen from behind, nothing. */
+    vec3 rev[4] = {big[0], big[3], big[2], big[1]};
+    cr_assert_eq(rad_ff_point_polygon(v3(0, 0, 0), v3(0, 0, 1), rev, 4), 0.0);
+}
+
+Test(radiosity, form_factor_parallel_squares_analytic)
+{
+    vec3 a[4] = {v3(0, 0, 0), v3(1, 0, 0), v3(1, 1, 0), v3(0, 1, 0)};
+    vec3 b[4] = {v3(0, 0, 1), v3(0, 1, 1), v3(1, 1, 1), v3(1, 0, 1)};
+    double f = rad_ff_polygons(a, 4, b, 4, 40);
+    cr_assert(fabs(f - FF_SQUARES) < 0.002 * FF_SQUARES, "F = %f, analytic %f", f, FF_SQUARES);
+}
+
+Test(radiosity, form_factor_parallel_squares_solver)
+{
+    /* The whole solver: power absorbed by a black receiver over power
+     * emitted by the facing square is exactly F. */
+    ct_scene *s = rfx_parallel_squares(1.0f, 1.0f);
+    cr_assert_not_null(s);
+    rad_params p = test_params();
+    p.error = 1e-4;
+    p.min_area = 1e-4;
+    ct_radmesh m;
+    rad_stats st;
+    ct_error err;
+    int rc = rad_solve(s, &p, NULL, NULL, &m, &st, &err);
+    cr_assert_eq(rc, 0, "%s", err.msg);
+    double f = st.absorbed / st.emitted;
+    cr_log_info("solver F = %f (analytic %f), %llu leaves", f, FF_SQUARES, (unsigned long long)st.leaves);
+    cr_assert(fabs(f - FF_SQUARES) < 0.01 * FF_SQUARES, "solver F = %f, analytic %f", f, FF_SQUARES);
+    /* The receiver is black: its vertices carry no light; the emitter's
+     * carry exactly its emission. */
+    for (uint32_t v = 0; v < m.nverts; v++) {
+        if (m.pos[v].z > 0.5f) cr_assert_float_eq(m.rad[v].x, 1.0f, 1e-5f);
+        else cr_assert_float_eq(m.rad[v].x, 0.0f, 1e-7f);
+    }
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+Test(radiosity, energy_balance_closed_box)
+{
+    ct_scene *s = rfx_closed_box(3, 0.5f, 10.0f);
+    cr_assert_not_null(s);
+    rad_params p = test_params();
+    p.error = 1e-4;
+    p.tolerance = 1e-5;
+    ct_radmesh m;
+    rad_stats st;
+    ct_error err;
+    int rc = rad_solve(s, &p, NULL, NULL, &m, &st, &err);
+    cr_assert_eq(rc, 0, "%s", err.msg);
+    double rel = (st.absorbed - st.emitted) / st.emitted;
+    cr_log_info("box: emitted %f absorbed %f (%+.3f %%), %llu links, %u triangles, residual %.2e",
+                st.emitted, st.absorbed, 100.0 * rel, (unsigned long long)st.links, st.triangles, st.residual);
+    cr_assert(fabs(rel) < 0.01, "emitted %f, absorbed %f: off by %.2f %%", st.emitted, st.absorbed, 100 * rel);
+    cr_assert_lt(st.residual, 1e-5);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+/* Position key for edge checks: exact bits (the mesh welds exactly). */
+typedef struct pkey { float x, y, z; } pkey;
+
+static int cmp_edge(const void *a, const void *b)
+{
+    return memcmp(a, b, 2 * sizeof(pkey));
+}
+
+static int cmp_pkey(const void *a, const void *b)
+{
+    const pkey *p = a, *q = b;
+    if (p->x != q->x) return p->x < q->x ? -1 : 1;
+    if (p->y != q->y) return p->y < q->y ? -1 : 1;
+    if (p->z != q->z) return p->z < q->z ? -1 : 1;
+    return 0;
+}
+
+static pkey key_of(vec3 v)
+{
+    pkey k;
+    memset(&k, 0, sizeof k);
+    k.x = v.x + 0.0f;
+    k.y = v.y + 0.0f;
+    k.z = v.z + 0.0f;
+    return k;
+}
+
+/* Every undirected edge (by position) has at most two triangles, and no
+ * mesh vertex lies strictly inside any triangle edge. */
+static void check_conforming(const ct_radmesh *m)
+{
+    pkey (*edges)[2] = malloc((size_t)m->ntris * 3 * sizeof *edges);
+    cr_assert_not_null(edges);
+    for (uint32_t t = 0; t < m->ntris; t++)
+        for (int k = 0; k < 3; k++) {
+            pkey a = key_of(m->pos[m->tris[3 * t + k]]), b = key_of(m->pos[m->tris[3 * t + (k + 1) % 3]]);
+            if (cmp_pkey(&a, &b) > 0) { pkey x = a; a = b; b = x; }
+            cr_assert_neq(cmp_pkey(&a, &b), 0, "triangle %u has a zero-length edge", t);
+            edges[3 * t + k][0] = a;
+            edges[3 * t + k][1] = b;
+        }
+    size_t ne = (size_t)m->ntris * 3;
+    qsort(edges, ne, sizeof *edges, cmp_edge);
+    for (size_t i = 0; i < ne;) {
+        size_t j = i;
+        while (j < ne && cmp_edge(edges[i], edges[j]) == 0) j++;
+        cr_assert_leq(j - i, 2, "edge (%g %g %g)-(%g %g %g) has %zu triangles", edges[i][0].x, edges[i][0].y,
+                      edges[i][0].z, edges[i][1].x, edges[i][1].y, edges[i][1].z, j - i);
+        i = j;
+    }
+    /* T-vertices: vertices sorted by x; for each distinct edge test the
+     * vertices within its x range. */
+    pkey *vs = malloc((size_t)m->nverts * sizeof *vs);
+    cr_assert_not_null(vs);
+    for (uint32_t v = 0; v < m->nverts; v++) vs[v] = key_of(m->pos[v]);
+    qsort(vs, m->nverts, sizeof *vs, cmp_pkey);
+    size_t bad = 0;
+    for (size_t i = 0; i < ne; i++) {
+        if (i && cmp_edge(edges[i], edges[i - 1]) == 0) continue;
+        vec3 a = v3(edges[i][0].x, edges[i][0].y, edges[i][0].z);
+        vec3 b = v3(edges[i][1].x, edges[i][1].y, edges[i][1].z);
+        vec3 ab = v3_sub(b, a);
+        float l2 = v3_len2(ab);
+        /* Binary search the first vertex with x >= a.x (a.x <= b.x by sort). */
+        size_t lo = 0, hi = m->nverts;
+        while (lo < hi) {
+            size_t mid = (lo + hi) / 2;
+            if (vs[mid].x < a.x - 1e-6f) lo = mid + 1; else hi = mid;
+        }
+        for (size_t k = lo; k < m->nverts && vs[k].x <= b.x + 1e-6f; k++) {
+            vec3 p = v3(vs[k].x, vs[k].y, vs[k].z);
+            float t = v3_dot(v3_sub(p, a), ab) / l2;
+            if (t <= 1e-4f || t >= 1.0f - 1e-4f) continue;
+            vec3 q = v3_add(a, v3_scale(ab, t));
+            if (v3_len2(v3_sub(p, q)) < 1e-10f * l2) {
+                if (bad < 5)
+                    cr_log_info("T-vertex (%g %g %g) inside edge (%g %g %g)-(%g %g %g)", p.x, p.y, p.z, a.x, a.y,
+                                a.z, b.x, b.y, b.z);
+                bad++;
+            }
+        }
+    }
+    cr_assert_eq(bad, 0, "%zu vertices lie inside triangle edges (T-vertices)", bad);
+    free(vs);
+    free(edges);
+}
+
+Test(radiosity, mesh_is_conforming)
+{
+    ct_scene *s = rfx_room_with_block();
+    cr_assert_not_null(s);
+    rad_params p = test_params();
+    p.error = 1e-5;
+    p.min_area = 1e-5;
+    ct_radmesh m;
+    rad_stats st;
+    ct_error err;
+    int rc = rad_solve(s, &p, NULL, NULL, &m, &st, &err);
+    cr_assert_eq(rc, 0, "%s", err.msg);
+    cr_log_info("room: %u patches, %llu leaves, %u triangles, %u vertices, %llu links", st.patches,
+                (unsigned long long)st.leaves, st.triangles, st.vertices, (unsigned long long)st.links);
+    cr_assert_gt(st.leaves, (uint64_t)st.patches * 4, "the lamp should force refinement");
+    check_conforming(&m);
+    /* Node and material per triangle agree with the scene's parts. */
+    for (uint32_t t = 0; t < m.ntris; t++) {
+        uint32_t n = m.tri_node[t];
+        cr_assert_lt(n, s->nnodes);
+        cr_assert_eq(s->nodes[n].kind, SCENE_NODE_PART);
+        cr_assert_eq(m.tri_mat[t], s->nodes[n].material);
+    }
+    for (uint32_t v = 0; v < m.nverts; v++) {
+        cr_assert(v3_finite(m.rad[v]) && v3_finite(m.rad_direct[v]));
+        cr_assert(m.rad[v].x >= 0.0f && m.rad_direct[v].x >= 0.0f);
+        /* Total includes the direct part (interreflection only adds). */
+        cr_assert_geq(m.rad[v].x + 1e-5f, m.rad_direct[v].x);
+    }
+    /* The red wall bleeds: the floor near it is redder than the floor far away. */
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+Test(radiosity, values_kept_apart_across_creases_and_materials)
+{
+    ct_scene *s = rfx_closed_box(3, 0.5f, 10.0f);
+    rad_params p = test_params();
+    p.error = 1e-3;
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), 0, "%s", err.msg);
+    /* The box corner (0,0,0) belongs to floor, front and left: three
+     * vertices with three normals, never one averaged vertex. */
+    int found = 0;
+    for (uint32_t v = 0; v < m.nverts; v++)
+        if (m.pos[v].x == 0.0f && m.pos[v].y == 0.0f && m.pos[v].z == 0.0f) {
+            found++;
+            vec3 n = m.nrm[v];
+            cr_assert(fabsf(v3_maxc(v3(fabsf(n.x), fabsf(n.y), fabsf(n.z))) - 1.0f) < 1e-5f,
+                      "corner normal not axis aligned: %g %g %g", n.x, n.y, n.z);
+        }
+    cr_assert_eq(found, 3);
+    /* Lamp vertices carry the lamp's radiance exactly (not averaged with the ceiling). */
+    for (uint32_t t = 0; t < m.ntris; t++)
+        if (strcmp(s->nodes[m.tri_node[t]].name, "lamp") == 0)
+            for (int k = 0; k < 3; k++) cr_assert_float_eq(m.rad[m.tris[3 * t + k]].x, 10.0f, 1e-4f);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+static uint64_t mesh_digest(const ct_radmesh *m)
+{
+    uint64_t h = 0;
+    const float *f = (const float *)m->rad;
+    for (size_t i = 0; i < (size_t)m->nverts * 3; i++) {
+        uint32_t b;
+        memcpy(&b, &f[i], 4);
+        h = ct_hash64(h ^ b);
+    }
+    for (size_t i = 0; i < (size_t)m->ntris * 3; i++) h = ct_hash64(h ^ m->tris[i]);
+    return h;
+}
+
+Test(radiosity, same_result_for_any_thread_count)
+{
+    ct_scene *s = rfx_room_with_block();
+    rad_params p = test_params();
+    p.error = 3e-5;
+    ct_radmesh a, b;
+    ct_error err;
+    p.threads = 1;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &a, NULL, &err), 0, "%s", err.msg);
+    p.threads = 3;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &b, NULL, &err), 0, "%s", err.msg);
+    cr_assert_eq(a.ntris, b.ntris);
+    cr_assert_eq(mesh_digest(&a), mesh_digest(&b));
+    cr_assert_eq(a.scene_hash, b.scene_hash, "threads must not change the cache key");
+    rmesh_free(&a);
+    rmesh_free(&b);
+    scene_free(s);
+}
+
+Test(radiosity, memory_cap_fails_clearly)
+{
+    ct_scene *s = rfx_room_with_block();
+    rad_params p = test_params();
+    p.error = 1e-9;
+    p.min_area = 1e-9;
+    p.memory_cap_mb = 16;
+    ct_radmesh m;
+    ct_error err;
+    int rc = rad_solve(s, &p, NULL, NULL, &m, NULL, &err);
+    cr_assert_eq(rc, CT_ENOMEM);
+    cr_assert(strstr(err.msg, "memory cap") != NULL, "message: %s", err.msg);
+    cr_assert_eq(m.ntris, 0);
+    scene_free(s);
+}
+
+Test(radiosity, no_light_is_an_error)
+{
+    ct_scene *s = rfx_parallel_squares(1.0f, 0.0f);
+    rad_params p = test_params();
+    ct_radmesh m;
+    ct_error err;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), CT_EEMPTY);
+    cr_assert(strstr(err.msg, "emitting") != NULL, "message: %s", err.msg);
+    scene_free(s);
+}
+
+Test(radiosity, bad_parameters_are_rejected)
+{
+    rad_params p = test_params();
+    ct_error err;
+    p.error = 0.0;
+    cr_assert_eq(rad_params_check(&p, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "--error") != NULL);
+    p = test_params();
+    p.threads = 0;
+    cr_assert_eq(rad_params_check(&p, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "--threads") != NULL);
+}
+
+Test(radiosity, hash_follows_scene_and_parameters)
+{
+    ct_scene *s = rfx_closed_box(3, 0.5f, 10.0f);
+    ct_scene *t = rfx_closed_box(3, 0.6f, 10.0f);
+    rad_params p = test_params();
+    uint64_t h = rad_solution_hash(s, &p);
+    cr_assert_neq(h, rad_solution_hash(t, &p), "reflectance must change the hash");
+    rad_params q = p;
+    q.error *= 2;
+    cr_assert_neq(h, rad_solution_hash(s, &q));
+    q = p;
+    q.threads = 7;
+    q.memory_cap_mb = 99;
+    cr_assert_eq(h, rad_solution_hash(s, &q));
+    scene_free(s);
+    scene_free(t);
+}
+
+Test(radiosity, cache_is_used_when_fresh_and_recomputed_when_stale)
+{
+    ct_scene *s = rfx_closed_box(3, 0.5f, 10.0f);
+    rad_params p = test_params();
+    p.error = 1e-3;
+    char path[128];
+    snprintf(path, sizeof path, "/tmp/ct_rad_cache_%ld.ctmesh", (long)getpid());
+    unlink(path);
+    ct_radmesh a, b, c;
+    ct_error why, err;
+    int from_cache = -1;
+    cr_assert_eq(rad_cached_solve(s, &p, path, NULL, NULL, &a, NULL, &from_cache, &why, &err), 0, "%s", err.msg);
+    cr_assert_eq(from_cache, 0);
+    cr_assert(strstr(why.msg, "cannot open") != NULL, "why: %s", why.msg);
+    cr_assert_eq(rad_cached_solve(s, &p, path, NULL, NULL, &b, NULL, &from_cache, &why, &err), 0, "%s", err.msg);
+    cr_assert_eq(from_cache, 1, "the fresh cache was not used: %s", why.msg);
+    cr_assert_eq(a.ntris, b.ntris);
+    cr_assert_eq(mesh_digest(&a), mesh_digest(&b));
+    /* Other parameters: the cache is stale and the solution recomputed. */
+    p.error = 5e-4;
+    cr_assert_eq(rad_cached_solve(s, &p, path, NULL, NULL, &c, NULL, &from_cache, &why, &err), 0, "%s", err.msg);
+    cr_assert_eq(from_cache, 0);
+    cr_assert(strstr(why.msg, "stale") != NULL, "why: %s", why.msg);
+    cr_assert_gt(c.ntris, a.ntris);
+    rmesh_free(&a);
+    rmesh_free(&b);
+    rmesh_free(&c);
+    unlink(path);
+    scene_free(s);
+}
+
+Test(radiosity, direct_part_is_one_bounce_of_emitted_light)
+{
+    /* Receiver grey, emitter black: light reflected by the receiver only
+     * reaches the black emitter, so the receiver's total is its direct part.
+     * A grey emitter reflects some back: then the total exceeds the direct. */
+    for (int grey_emitter = 0; grey_emitter < 2; grey_emitter++) {
+        ct_scene *s = rfx_parallel_squares(1.0f, 1.0f);
+        s->mats[0].diffuse = v3s(0.5f);
+        if (grey_emitter) s->mats[1].diffuse = v3s(0.5f);
+        rad_params p = test_params();
+        p.error = 1e-3;
+        ct_radmesh m;
+        ct_error err;
+        cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), 0, "%s", err.msg);
+        double tot = 0, dir = 0;
+        for (uint32_t v = 0; v < m.nverts; v++)
+            if (m.pos[v].z < 0.5f) {
+                tot += m.rad[v].x;
+                dir += m.rad_direct[v].x;
+            }
+        cr_assert_gt(dir, 0.0);
+        if (grey_emitter) cr_assert_gt(tot, dir * 1.01, "total %f, direct %f", tot, dir);
+        else cr_assert_float_eq(tot, dir, 1e-6 * dir, "total %f, direct %f", tot, dir);
+        rmesh_free(&m);
+        scene_free(s);
+    }
+}
+
+Test(radiosity, max_triangles_bounds_the_mesh)
+{
+    ct_scene *s = rfx_room_with_block();
+    rad_params p = test_params();
+    p.error = 1e-7;
+    p.min_area = 1e-7;
+    p.max_triangles = 5000;
+    ct_radmesh m;
+    rad_stats st;
+    ct_error err;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, &st, &err), 0, "%s", err.msg);
+    cr_log_info("max-triangles 5000: %u triangles", m.ntris);
+    cr_assert_leq(m.ntris, 5000u, "%u triangles", m.ntris);
+    cr_assert_gt(m.ntris, 2500u, "%u triangles: the budget should be nearly used", m.ntris);
+    check_conforming(&m);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+Test(radiosity, cornell_scene_mesh_is_conforming)
+{
+    /* The real pipeline: the generated Cornell box (make scenes), imported
+     * by the loader, solved coarsely; its mesh must be conforming too. */
+    ct_scene *s;
+    ct_error err;
+    if (access("scenes/cornell/cornell.obj", R_OK) != 0)
+        cr_skip_test("scenes/cornell not generated (make scenes)");
+    cr_assert_eq(scene_load("scenes/cornell/cornell.json", &s, &err), 0, "%s", err.msg);
+    rad_params p = test_params();
+    p.error = 1e-4;
+    ct_radmesh m;
+    rad_stats st;
+    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, &st, &err), 0, "%s", err.msg);
+    cr_log_info("cornell: %u patches (%u input primitives), %u triangles", st.patches, s->nprims, m.ntris);
+    /* Quads were rebuilt: fewer patches than triangles. */
+    cr_assert_lt(st.patches, s->ntris);
+    cr_assert_geq(st.patches, s->nprims);
+    check_conforming(&m);
+    cr_assert_eq(m.nnodes, s->nnodes);
+    for (uint32_t n = 0; n < s->nnodes; n++) cr_assert_str_eq(m.nodes[n].name, s->nodes[n].name);
+    rmesh_free(&m);
+    scene_free(s);
+}

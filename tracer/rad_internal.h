@@ -1,0 +1,198 @@
+/* rad_internal.h: the radiosity solver's private state, shared by the rad_*.c
+ * files of tracer/ and by nothing else. Elements (patches and sub-patches)
+ * live in fixed-size chunks so their addresses stay valid while worker
+ * threads append children; links are flat (source, factor) pairs in one block
+ * per input patch, rebuilt by the thread that owns the patch in each pass. */
+#ifndef CT_RAD_INTERNAL_H
+#define CT_RAD_INTERNAL_H
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdint.h>
+
+#include "common/scene.h"
+#include "tracer/radiosity.h"
+
+#define RAD_NONE        UINT32_MAX
+#define RAD_CLUSTER_BIT 0x80000000u   /* a source reference naming a cluster */
+#define RAD_UNIFORM_BIT 0x40000000u   /* link flag: all its visibility rays agreed */
+#define RAD_ID_MASK     0x3FFFFFFFu
+#define RAD_CHUNK_SHIFT 14
+#define RAD_CHUNK       (1u << RAD_CHUNK_SHIFT)
+#define RAD_MAX_CHUNKS  (1u << 16)    /* 2^30 elements: ids fit RAD_ID_MASK */
+#define RAD_MAX_DEPTH   14            /* subdivision levels below an input patch */
+
+/* One link: the receiver gathers ff * B(src); ff is the form factor times
+ * the fraction of visibility rays that were not blocked. */
+typedef struct rad_link {
+    uint32_t src;
+    float ff;
+} rad_link;
+
+/* A patch or sub-patch: a triangle (nv = 3) or a quad (nv = 4) in world
+ * space, counter-clockwise around the patch normal. */
+typedef struct rad_elem {
+    vec3 p[4];
+    vec3 c;              /* centroid */
+    float area, radius;  /* radius: largest corner distance from c */
+    uint32_t patch;      /* input patch */
+    uint32_t child;      /* first of 4 children, RAD_NONE for a leaf; owner thread only */
+    uint32_t child_pub;  /* the same, as published between passes: what sources see */
+    uint32_t link_off, nlinks;  /* in the patch's link block */
+    uint64_t key;        /* stable id from the patch and the child path (seeds rays) */
+    vec3 Bd;             /* direct part: emission + one bounce of emitted light */
+    uint8_t nv, depth;
+} rad_elem;
+
+/* An input polygon: a scene triangle or a quad rebuilt from two triangles. */
+typedef struct rad_patch {
+    vec3 n;              /* unit normal of the front side */
+    vec3 rho;            /* diffuse reflectance */
+    vec3 E;              /* emitted radiosity: pi * L_e */
+    uint32_t node, mat;
+    uint32_t root;       /* root element */
+    rad_link *links;     /* this patch tree's links */
+    uint32_t nlinks;
+} rad_patch;
+
+/* A source cluster: a node of a binary BVH over input patches. A child is a
+ * cluster (RAD_CLUSTER_BIT | index) or, for a single patch, its root element. */
+typedef struct rad_cluster {
+    bounds3 b;
+    vec3 c;
+    float radius, area;
+    vec3 N;              /* area-weighted sum of its patches' normals */
+    uint32_t child[2];
+    uint32_t pbegin, pend;  /* range in rad_ctx.order */
+    int has_emitter;
+    vec3 B[2];           /* area-weighted radiosity of its patches */
+    vec3 E;              /* area-weighted emission */
+} rad_cluster;
+
+/* An input patch's corners and normal in one cache line, in cluster order:
+ * what cluster visibility rays sample. */
+typedef struct rad_sgeo {
+    vec3 p[4];
+    vec3 n;
+    uint32_t nv;
+} rad_sgeo;
+
+typedef struct rad_vis rad_vis;
+
+typedef struct rad_ctx {
+    const ct_scene *scene;
+    rad_params prm;
+    double eps;          /* absolute link error threshold (power) */
+    double min_area;     /* absolute */
+    double total_area, emitted;
+    float ray_eps;       /* offset of ray end points from surfaces */
+
+    uint32_t npatches;
+    rad_patch *patches;
+
+    uint32_t nclusters;
+    rad_cluster *clusters;
+    uint32_t *order;     /* patch ids in cluster order */
+    rad_sgeo *sgeo;      /* their geometry, same order */
+
+    rad_elem **chunks;
+    vec3 **bchunks[2];   /* radiosity per element, double-buffered by iteration
+                          * parity, apart from the elements so the gather's
+                          * random reads stay in cache */
+    uint32_t nelems;     /* allocated elements */
+    pthread_mutex_t alloc_lock;
+
+    int cur;             /* which B buffer holds the current solution */
+    int pass;
+
+    rad_vis *vis;
+
+    atomic_uint_fast64_t bytes;     /* tracked memory */
+    atomic_uint_fast64_t peak;
+    uint64_t cap_bytes;
+    atomic_int over_cap;
+    atomic_uint_fast64_t est_tris;  /* estimated output triangles */
+    atomic_uint_fast64_t rays;
+    atomic_uint_fast64_t refined;   /* links refined in this pass */
+    atomic_int failed;
+} rad_ctx;
+
+static inline rad_elem *rad_el(const rad_ctx *c, uint32_t i)
+{
+    return &c->chunks[i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
+}
+
+/* Radiosity of element i in buffer b (0 or 1). */
+static inline vec3 *rad_B(const rad_ctx *c, int b, uint32_t i)
+{
+    return &c->bchunks[b][i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
+}
+
+/* --- rad_patch.c ---------------------------------------------------------- */
+
+/* Builds input patches (quads rebuilt from triangle pairs), their root
+ * elements and the cluster BVH. */
+int rad_build_patches(rad_ctx *c, ct_error *err);
+
+/* Allocates n consecutive elements; returns the first or RAD_NONE (cap hit). */
+uint32_t rad_alloc_elems(rad_ctx *c, uint32_t n);
+
+/* Creates the 4 children of element e (owner thread); returns 0 or < 0. */
+int rad_subdivide(rad_ctx *c, uint32_t e);
+
+/* Adds (or subtracts, negative) tracked bytes; returns -1 when over the cap. */
+int rad_track(rad_ctx *c, int64_t delta);
+
+/* Frees patches, clusters and elements. */
+void rad_free_patches(rad_ctx *c);
+
+/* A point on element e at (u, v) in [0,1]^2 (quads: bilinear; triangles:
+ * folded square). */
+vec3 rad_elem_point(const rad_elem *e, float u, float v);
+
+/* --- rad_visibility.c ----------------------------------------------------- */
+
+/* An Embree scene of all scene triangles for occlusion queries. */
+int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err);
+
+/* Frees it (NULL is fine). */
+void rad_vis_free(rad_vis *v);
+
+/* 1 when the segment a -> b (excluding the last 1e-4 of it) is blocked. */
+int rad_vis_occluded(const rad_vis *v, vec3 a, vec3 b);
+
+/* Bytes Embree uses for the scene. */
+uint64_t rad_vis_bytes(const rad_vis *v);
+
+/* --- rad_link.c ----------------------------------------------------------- */
+
+/* Per-thread scratch of the refinement. */
+typedef struct rad_out_link {
+    uint32_t e;
+    rad_link l;
+} rad_out_link;
+
+typedef struct rad_tls {
+    rad_out_link *out;
+    size_t nout, capout;
+    uint32_t *elems;           /* the tree's elements, DFS order */
+    size_t nelems, capelems;
+    uint32_t *old;             /* old (off, n) per listed element */
+    size_t capold;
+    uint32_t *stack;
+    size_t capstack;
+} rad_tls;
+
+/* Refines the links of every element of patch p's tree (the current pass's
+ * B is the error oracle's estimate); the new links replace the old block. */
+int rad_refine_patch(rad_ctx *c, rad_tls *t, uint32_t p);
+
+/* Frees a thread's scratch. */
+void rad_tls_free(rad_tls *t);
+
+/* --- rad_mesh.c ----------------------------------------------------------- */
+
+/* Meshes the leaves into a conforming triangle mesh with per-vertex values. */
+int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err);
+
+#endif

@@ -1,0 +1,471 @@
+/* rad_solve.c: the hierarchical radiosity driver: refinement passes (links
+ * refined by the B*F*A oracle against the current solution), Jacobi
+ * gather/push-pull iterations until the residual is under the tolerance,
+ * worker threads over input patches, the memory cap, and the stats. */
+#include "tracer/rad_internal.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "common/log.h"
+#include "common/rng.h"
+#include "common/timer.h"
+
+/* Bump when a change alters solutions, so old caches become stale. */
+#define RAD_SOLVER_VERSION 1u
+
+void rad_params_default(rad_params *p)
+{
+    memset(p, 0, sizeof *p);
+    p->error = 1e-5;
+    p->min_area = 2e-7;
+    p->max_triangles = 2000000;
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    p->threads = n > 0 ? (int)(n < 64 ? n : 64) : 1;
+    p->memory_cap_mb = 4096;
+    p->vis_rays = 4;
+    p->shadow_rays = 16;
+    p->tolerance = 1e-3;
+    p->max_iterations = 100;
+    p->max_passes = 8;
+    p->crease_deg = 30.0;
+    p->seed = 1;
+}
+
+int rad_params_check(const rad_params *p, ct_error *err)
+{
+    if (!(p->error > 0.0 && p->error < 1.0))
+        return ct_fail(err, CT_EINVAL, "--error %g outside (0, 1)", p->error);
+    if (!(p->min_area > 0.0 && p->min_area < 1.0))
+        return ct_fail(err, CT_EINVAL, "--min-area %g outside (0, 1)", p->min_area);
+    if (p->max_triangles < 1) return ct_fail(err, CT_EINVAL, "--max-triangles must be at least 1");
+    if (p->threads < 1 || p->threads > 256)
+        return ct_fail(err, CT_EINVAL, "--threads %d outside [1, 256]", p->threads);
+    if (p->memory_cap_mb < 16) return ct_fail(err, CT_EINVAL, "--memory-cap %u MB is below 16", p->memory_cap_mb);
+    if (p->vis_rays < 1 || p->vis_rays > 1024)
+        return ct_fail(err, CT_EINVAL, "--vis-rays %d outside [1, 1024]", p->vis_rays);
+    if (p->shadow_rays < 1 || p->shadow_rays > 1024)
+        return ct_fail(err, CT_EINVAL, "--shadow-rays %d outside [1, 1024]", p->shadow_rays);
+    if (!(p->tolerance > 0.0 && p->tolerance < 1.0))
+        return ct_fail(err, CT_EINVAL, "--tolerance %g outside (0, 1)", p->tolerance);
+    if (p->max_iterations < 1) return ct_fail(err, CT_EINVAL, "--max-iterations must be at least 1");
+    if (p->max_passes < 1) return ct_fail(err, CT_EINVAL, "--max-passes must be at least 1");
+    if (!(p->crease_deg >= 0.0 && p->crease_deg <= 180.0))
+        return ct_fail(err, CT_EINVAL, "--crease-angle %g outside [0, 180]", p->crease_deg);
+    return CT_OK;
+}
+
+static uint64_t mix(uint64_t h, uint64_t v) { return ct_hash64(h ^ (v + 0x9e3779b97f4a7c15ULL + (h << 6))); }
+
+static uint64_t mix_f(uint64_t h, double d)
+{
+    uint64_t b;
+    memcpy(&b, &d, sizeof b);
+    return mix(h, b);
+}
+
+static uint64_t mix_bytes(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    uint64_t f = 1469598103934665603ULL;   /* FNV-1a, then mixed */
+    for (size_t i = 0; i < n; i++) f = (f ^ p[i]) * 1099511628211ULL;
+    return mix(h, f);
+}
+
+uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
+{
+    uint64_t h = mix(0x63746d657368ULL, RAD_SOLVER_VERSION);
+    if (s->source_hash) {
+        h = mix(h, s->source_hash);
+    } else {
+        /* A scene built in code: its geometry and materials are its content. */
+        h = mix_bytes(h, s->pos, (size_t)s->nverts * sizeof *s->pos);
+        h = mix_bytes(h, s->nrm, (size_t)s->nverts * sizeof *s->nrm);
+        h = mix_bytes(h, s->tris, (size_t)s->ntris * 3 * sizeof *s->tris);
+        h = mix_bytes(h, s->tri_mat, (size_t)s->ntris * sizeof *s->tri_mat);
+        h = mix_bytes(h, s->tri_node, (size_t)s->ntris * sizeof *s->tri_node);
+        h = mix_bytes(h, s->tri_prim, (size_t)s->ntris * sizeof *s->tri_prim);
+        for (uint32_t i = 0; i < s->nmats; i++) {
+            h = mix_bytes(h, &s->mats[i].diffuse, sizeof(vec3));
+            h = mix_bytes(h, &s->mats[i].emission, sizeof(vec3));
+        }
+        for (uint32_t i = 0; i < s->nnodes; i++) h = mix_bytes(h, s->nodes[i].name, strlen(s->nodes[i].name));
+    }
+    h = mix_f(h, p->error);
+    h = mix_f(h, p->min_area);
+    h = mix(h, p->max_triangles);
+    h = mix(h, (uint64_t)p->vis_rays);
+    h = mix(h, (uint64_t)p->shadow_rays);
+    h = mix_f(h, p->tolerance);
+    h = mix(h, (uint64_t)p->max_iterations);
+    h = mix(h, (uint64_t)p->max_passes);
+    h = mix_f(h, p->crease_deg);
+    h = mix(h, p->seed);
+    return h ? h : 1;
+}
+
+int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_path,
+                     rad_progress_fn progress, void *user, ct_radmesh *out, rad_stats *st,
+                     int *from_cache, ct_error *why, ct_error *err)
+{
+    ct_error load_err;
+    *from_cache = 0;
+    if (why) ct_error_clear(why);
+    uint64_t h = rad_solution_hash(s, p);
+    if (rmesh_load(cache_path, h, out, &load_err) == CT_OK) {
+        *from_cache = 1;
+        if (st) memset(st, 0, sizeof *st);
+        if (st) {
+            st->triangles = out->ntris;
+            st->vertices = out->nverts;
+        }
+        return CT_OK;
+    }
+    if (why) *why = load_err;
+    int rc = rad_solve(s, p, progress, user, out, st, err);
+    if (rc) return rc;
+    rc = rmesh_save(out, cache_path, err);
+    if (rc) rmesh_free(out);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Worker threads over input patches                                        */
+
+typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH } job_kind;
+
+typedef struct worker {
+    rad_ctx *c;
+    job_kind kind;
+    atomic_uint *next;
+    rad_tls tls;
+    double residual;
+    double max_reflected;   /* largest reflected radiosity (B - E) of a leaf */
+    double absorbed;
+    int final;
+    int rc;
+    rad_progress_fn progress;
+    void *user;
+    int id;
+} worker;
+
+/* Gather over e's links and push-pull below it; returns e's area-weighted
+ * radiosity for the next buffer. */
+static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_out)
+{
+    rad_ctx *c = w->c;
+    rad_elem *e = rad_el(c, ei);
+    const rad_patch *p = &c->patches[e->patch];
+    int cur = c->cur, nxt = 1 - cur;
+    vec3 H = v3s(0.0f), Hd = v3s(0.0f);
+    for (uint32_t i = 0; i < e->nlinks; i++) {
+        const rad_link *l = &p->links[e->link_off + i];
+        uint32_t src = l->src & ~RAD_UNIFORM_BIT;
+        vec3 B;
+        if (src & RAD_CLUSTER_BIT) {
+            const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
+            B = k->B[cur];
+            /* The direct part needs no iteration: only the final gather
+             * computes it (it reads the elements, which is slower). */
+            if (w->final) Hd = v3_madd(Hd, k->E, l->ff);
+        } else {
+            B = *rad_B(c, cur, src);
+            if (w->final) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
+        }
+        H = v3_madd(H, B, l->ff);
+    }
+    vec3 Ht = v3_add(Hdown, H), Hdt = v3_add(Hddown, Hd);
+    vec3 B, Bd;
+    if (e->child == RAD_NONE) {
+        B = v3_add(p->E, v3_mul(p->rho, Ht));
+        Bd = v3_add(p->E, v3_mul(p->rho, Hdt));
+        vec3 old = *rad_B(c, cur, ei);
+        double r = v3_maxc(v3(fabsf(B.x - old.x), fabsf(B.y - old.y), fabsf(B.z - old.z)));
+        if (r > w->residual) w->residual = r;
+        double refl = v3_maxc(v3_mul(p->rho, Ht));
+        if (refl > w->max_reflected) w->max_reflected = refl;
+        if (w->final)
+            w->absorbed += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho), Ht)) * e->area;
+    } else {
+        B = Bd = v3s(0.0f);
+        for (uint32_t i = 0; i < 4; i++) {
+            uint32_t ci = e->child + i;
+            vec3 cbd;
+            vec3 cb = push_pull(w, ci, Ht, Hdt, &cbd);
+            float a = rad_el(c, ci)->area;
+            B = v3_madd(B, cb, a);
+            Bd = v3_madd(Bd, cbd, a);
+        }
+        float inv = e->area > 0.0f ? 1.0f / e->area : 0.0f;
+        B = v3_scale(B, inv);
+        Bd = v3_scale(Bd, inv);
+    }
+    *rad_B(c, nxt, ei) = B;
+    e->Bd = Bd;
+    *Bd_out = Bd;
+    return B;
+}
+
+static void publish_tree(rad_ctx *c, uint32_t root)
+{
+    uint32_t stack[4 * RAD_MAX_DEPTH + 8];
+    int sp = 0;
+    stack[sp++] = root;
+    while (sp) {
+        rad_elem *e = rad_el(c, stack[--sp]);
+        e->child_pub = e->child;
+        if (e->child != RAD_NONE)
+            for (uint32_t i = 0; i < 4; i++) stack[sp++] = e->child + i;
+    }
+}
+
+static void *worker_main(void *arg)
+{
+    worker *w = arg;
+    rad_ctx *c = w->c;
+    const uint32_t batch = 16;
+    for (;;) {
+        uint32_t b = atomic_fetch_add(w->next, batch);
+        if (b >= c->npatches || atomic_load(&c->failed)) break;
+        uint32_t e = b + batch < c->npatches ? b + batch : c->npatches;
+        for (uint32_t p = b; p < e; p++) {
+            if (w->kind == JOB_REFINE) {
+                int rc = rad_refine_patch(c, &w->tls, p);
+                if (rc) {
+                    w->rc = rc;
+                    atomic_store(&c->failed, 1);
+                    break;
+                }
+            } else if (w->kind == JOB_GATHER) {
+                vec3 bd;
+                push_pull(w, c->patches[p].root, v3s(0.0f), v3s(0.0f), &bd);
+            } else {
+                publish_tree(c, c->patches[p].root);
+            }
+        }
+        if (w->id == 0 && w->progress && w->kind == JOB_REFINE) {
+            char msg[96];
+            snprintf(msg, sizeof msg, "pass %d: refining links (%u/%u patches)", c->pass + 1, e, c->npatches);
+            w->progress(w->user, (double)e / c->npatches, msg);
+        }
+    }
+    return NULL;
+}
+
+static int run_job(rad_ctx *c, worker *ws, int n, job_kind kind, int final)
+{
+    atomic_uint next = 0;
+    pthread_t th[256];
+    int started = 0;
+    for (int i = 0; i < n; i++) {
+        ws[i].kind = kind;
+        ws[i].next = &next;
+        ws[i].residual = 0.0;
+        ws[i].max_reflected = 0.0;
+        ws[i].absorbed = 0.0;
+        ws[i].final = final;
+        ws[i].rc = 0;
+    }
+    for (int i = 1; i < n; i++) {
+        if (pthread_create(&th[i], NULL, worker_main, &ws[i]) != 0) break;
+        started = i;
+    }
+    worker_main(&ws[0]);
+    for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
+    for (int i = 0; i < n; i++)
+        if (ws[i].rc) return ws[i].rc;
+    return atomic_load(&c->failed) ? CT_ENOMEM : 0;
+}
+
+/* Cluster radiosity for the next buffer: clusters are numbered in pre-order,
+ * so children come after parents and a reverse sweep sees them first. */
+static void update_clusters(rad_ctx *c)
+{
+    int nxt = 1 - c->cur;
+    for (uint32_t i = c->nclusters; i-- > 0;) {
+        rad_cluster *k = &c->clusters[i];
+        vec3 B = v3s(0.0f);
+        for (int j = 0; j < 2; j++) {
+            uint32_t ch = k->child[j];
+            if (ch & RAD_CLUSTER_BIT) {
+                const rad_cluster *q = &c->clusters[ch & RAD_ID_MASK];
+                B = v3_madd(B, q->B[nxt], q->area);
+            } else {
+                const rad_elem *e = rad_el(c, ch);
+                B = v3_madd(B, *rad_B(c, nxt, ch), e->area);
+            }
+        }
+        k->B[nxt] = k->area > 0.0f ? v3_scale(B, 1.0f / k->area) : v3s(0.0f);
+    }
+}
+
+static int cap_error(rad_ctx *c, ct_error *err)
+{
+    return ct_fail(err, CT_ENOMEM,
+                   "radiosity: memory cap of %u MB reached (%u elements); raise --memory-cap, "
+                   "--error or --min-area", c->prm.memory_cap_mb, c->nelems);
+}
+
+int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress, void *user,
+              ct_radmesh *out, rad_stats *st, ct_error *err)
+{
+    double t0 = ct_now();
+    memset(out, 0, sizeof *out);
+    rad_stats dummy;
+    if (!st) st = &dummy;
+    memset(st, 0, sizeof *st);
+    int rc = rad_params_check(prm, err);
+    if (rc) return rc;
+    if (s->ntris == 0) return ct_fail(err, CT_EEMPTY, "radiosity: scene '%s' has no triangles", s->name);
+
+    rad_ctx *c = calloc(1, sizeof *c);
+    if (!c) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory");
+    c->scene = s;
+    c->prm = *prm;
+    c->cap_bytes = (uint64_t)prm->memory_cap_mb << 20;
+    pthread_mutex_init(&c->alloc_lock, NULL);
+    worker *ws = calloc((size_t)prm->threads, sizeof *ws);
+    if (!ws) {
+        rc = ct_fail(err, CT_ENOMEM, "radiosity: out of memory");
+        goto done;
+    }
+    for (int i = 0; i < prm->threads; i++) {
+        ws[i].c = c;
+        ws[i].id = i;
+        ws[i].progress = progress;
+        ws[i].user = user;
+    }
+
+    rc = rad_build_patches(c, err);
+    if (rc) goto done;
+    if (c->emitted <= 0.0) {
+        rc = ct_fail(err, CT_EEMPTY, "radiosity: scene '%s' has no emitting surface", s->name);
+        goto done;
+    }
+    vec3 ext = b3_extent(s->bounds);
+    c->ray_eps = 2e-5f * v3_len(ext);
+    c->eps = prm->error * c->emitted;
+    c->min_area = prm->min_area * c->total_area;
+    if (progress) progress(user, 0.0, "building the visibility scene");
+    rc = rad_vis_new(s, prm->threads, &c->vis, err);
+    if (rc) goto done;
+    rad_track(c, (int64_t)rad_vis_bytes(c->vis));
+    if (atomic_load(&c->over_cap)) {
+        rc = cap_error(c, err);
+        goto done;
+    }
+    /* Clusters start from their patches' emission. */
+    c->cur = 1;
+    update_clusters(c);
+    c->cur = 0;
+
+    double residual = 1.0;
+    for (c->pass = 0; c->pass < prm->max_passes; c->pass++) {
+        atomic_store(&c->refined, 0);
+        double tp = ct_now();
+        rc = run_job(c, ws, prm->threads, JOB_REFINE, 0);
+        if (rc || atomic_load(&c->over_cap)) {
+            rc = rc == CT_ENOMEM || atomic_load(&c->over_cap) ? cap_error(c, err)
+                                                             : ct_fail(err, rc, "radiosity: refinement failed");
+            goto done;
+        }
+        run_job(c, ws, prm->threads, JOB_PUBLISH, 0);
+        st->passes = c->pass + 1;
+        uint64_t refined = atomic_load(&c->refined);
+        uint64_t nlinks = 0;
+        for (uint32_t i = 0; i < c->npatches; i++) nlinks += c->patches[i].nlinks;
+        /* Converged when (almost) no link changed: a pass that refines under
+         * 0.1 % of the links changes the solution by far less than the
+         * links' own error. */
+        int last = (c->pass > 0 && refined * 1000 <= nlinks) || c->pass + 1 == prm->max_passes;
+        /* Intermediate passes only need the oracle's B roughly right: a few
+         * iterations; the last pass converges to the tolerance. */
+        int max_it = last ? prm->max_iterations : (prm->max_iterations < 6 ? prm->max_iterations : 6);
+        double tol = last ? prm->tolerance : 10.0 * prm->tolerance;
+        for (int it = 0; it < max_it; it++) {
+            rc = run_job(c, ws, prm->threads, JOB_GATHER, 0);
+            if (rc) goto done;
+            update_clusters(c);
+            c->cur = 1 - c->cur;
+            st->iterations++;
+            residual = 0.0;
+            double scale = 0.0;
+            for (int i = 0; i < prm->threads; i++) {
+                residual = fmax(residual, ws[i].residual);
+                scale = fmax(scale, ws[i].max_reflected);
+            }
+            /* Relative to the brightest reflected light: emitters are orders
+             * of magnitude brighter and would hide a slow convergence. */
+            residual = scale > 0.0 ? residual / scale : 0.0;
+            if (progress) {
+                char msg[128];
+                snprintf(msg, sizeof msg, "pass %d: iteration %d, residual %.2e, %u elements",
+                         c->pass + 1, it + 1, residual, c->nelems);
+                progress(user, residual > 0.0 ? fmax(0.0, fmin(1.0, log(residual) / log(prm->tolerance))) : 1.0, msg);
+            }
+            ct_debug("radiosity", "pass %d iteration %d: residual %.3e (%.2f s into the pass)", c->pass + 1,
+                     it + 1, residual, ct_now() - tp);
+            if (residual < tol) break;
+        }
+        ct_debug("radiosity", "pass %d: %llu links refined, %u elements, %.2f s", c->pass + 1,
+                 (unsigned long long)refined, c->nelems, ct_now() - tp);
+        if (last) break;
+    }
+    /* One more gather at the converged values for the absorbed power. */
+    run_job(c, ws, prm->threads, JOB_GATHER, 1);
+    for (int i = 0; i < prm->threads; i++) st->absorbed += ws[i].absorbed;
+    c->cur = 1 - c->cur;
+
+    if (progress) progress(user, 1.0, "meshing");
+    double tm = ct_now();
+    rc = rad_mesh_build(c, out, err);
+    if (rc) goto done;
+    ct_debug("radiosity", "meshing: %u triangles, %u vertices, %.2f s", out->ntris, out->nverts, ct_now() - tm);
+    out->scene_hash = rad_solution_hash(s, prm);
+
+    st->patches = c->npatches;
+    st->clusters = c->nclusters;
+    uint64_t ncl = 0, nzero = 0;
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        st->links += c->patches[i].nlinks;
+        for (uint32_t k = 0; k < c->patches[i].nlinks; k++) {
+            ncl += (c->patches[i].links[k].src & RAD_CLUSTER_BIT) != 0;
+            nzero += c->patches[i].links[k].ff == 0.0f;
+        }
+    }
+    ct_debug("radiosity", "links: %llu from clusters, %llu of factor 0", (unsigned long long)ncl,
+             (unsigned long long)nzero);
+    st->elements = 0;
+    st->leaves = 0;
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        uint32_t stack[4 * RAD_MAX_DEPTH + 8];
+        int sp = 0;
+        stack[sp++] = c->patches[i].root;
+        while (sp) {
+            const rad_elem *e = rad_el(c, stack[--sp]);
+            st->elements++;
+            if (e->child == RAD_NONE) st->leaves++;
+            else for (uint32_t k = 0; k < 4; k++) stack[sp++] = e->child + k;
+        }
+    }
+    st->rays = atomic_load(&c->rays);
+    st->residual = residual;
+    st->triangles = out->ntris;
+    st->vertices = out->nverts;
+    st->emitted = c->emitted;
+    st->peak_bytes = atomic_load(&c->peak);
+    rc = CT_OK;
+done:
+    if (ws)
+        for (int i = 0; i < prm->threads; i++) rad_tls_free(&ws[i].tls);
+    free(ws);
+    rad_vis_free(c->vis);
+    rad_free_patches(c);
+    pthread_mutex_destroy(&c->alloc_lock);
+    free(c);
+    st->seconds = ct_now() - t0;
+    if (rc) rmesh_free(out);
+    return rc;
+}

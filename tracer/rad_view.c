@@ -1,0 +1,112 @@
+/* rad_view.c: renders a radiosity mesh as the display shows it (Gouraud
+ * interpolation of the per-vertex radiance at the primary hit, rmesh_eval),
+ * by ray casting with Embree: a preview image for users and the image the
+ * tests compare against a path-traced reference. */
+#include "tracer/radiosity.h"
+
+#include <embree3/rtcore.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/rng.h"
+
+typedef struct view_job {
+    RTCScene scn;
+    const ct_radmesh *m;
+    const ct_camera *cam;
+    ct_image *img;
+    int spp, which, nthreads, id;
+} view_job;
+
+static void *view_rows(void *arg)
+{
+    view_job *j = arg;
+    int W = j->img->width, H = j->img->height;
+    int m = 1;
+    while (m * m < j->spp) m++;
+    for (int y = j->id; y < H; y += j->nthreads) {
+        ct_rng g = rng_make(0x76696577u, (uint64_t)y, 0, 0);
+        for (int x = 0; x < W; x++) {
+            vec3 sum = v3s(0.0f);
+            for (int s = 0; s < j->spp; s++) {
+                float px = (float)x + (j->spp == 1 ? 0.5f : ((float)(s % m) + rng_float(&g)) / (float)m);
+                float py = (float)y + (j->spp == 1 ? 0.5f : ((float)((s / m) % m) + rng_float(&g)) / (float)m);
+                vec3 d = cam_ray_dir(j->cam, W, H, px, py);
+                struct RTCIntersectContext ctx;
+                rtcInitIntersectContext(&ctx);
+                struct RTCRayHit rh;
+                memset(&rh, 0, sizeof rh);
+                rh.ray.org_x = j->cam->eye.x;
+                rh.ray.org_y = j->cam->eye.y;
+                rh.ray.org_z = j->cam->eye.z;
+                rh.ray.dir_x = d.x;
+                rh.ray.dir_y = d.y;
+                rh.ray.dir_z = d.z;
+                rh.ray.tfar = INFINITY;
+                rh.ray.mask = 0xFFFFFFFFu;
+                rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+                rtcIntersect1(j->scn, &ctx, &rh);
+                if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+                vec3 v = j->which == 1 ? rmesh_eval_direct(j->m, rh.hit.primID, rh.hit.u, rh.hit.v)
+                                       : rmesh_eval(j->m, rh.hit.primID, rh.hit.u, rh.hit.v);
+                sum = v3_add(sum, v);
+            }
+            img_set(j->img, x, y, v3_scale(sum, 1.0f / (float)j->spp));
+        }
+    }
+    return NULL;
+}
+
+int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int direct, int threads,
+                    ct_image *img, ct_error *err)
+{
+    if (spp < 1 || threads < 1) return ct_fail(err, CT_EINVAL, "radiosity view: spp and threads must be >= 1");
+    if (m->ntris == 0) return ct_fail(err, CT_EEMPTY, "radiosity view: the mesh has no triangles");
+    RTCDevice dev = rtcNewDevice(NULL);
+    if (!dev) return ct_fail(err, CT_ESYS, "embree: cannot create a device (error %d)", (int)rtcGetDeviceError(NULL));
+    RTCScene scn = rtcNewScene(dev);
+    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m->nverts);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), m->ntris);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        rtcReleaseScene(scn);
+        rtcReleaseDevice(dev);
+        return ct_fail(err, CT_ENOMEM, "embree: out of memory for %u triangles", m->ntris);
+    }
+    for (uint32_t i = 0; i < m->nverts; i++) {
+        vb[3 * i] = m->pos[i].x;
+        vb[3 * i + 1] = m->pos[i].y;
+        vb[3 * i + 2] = m->pos[i].z;
+    }
+    memcpy(ib, m->tris, (size_t)m->ntris * 3 * sizeof(unsigned));
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scn, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scn);
+    int rc = CT_OK;
+    if (rtcGetDeviceError(dev) != RTC_ERROR_NONE) {
+        rc = ct_fail(err, CT_ESYS, "embree: building the view scene failed");
+    } else {
+        if (threads > 64) threads = 64;
+        view_job jobs[64];
+        pthread_t th[64];
+        int started = 0;
+        for (int i = 0; i < threads; i++) {
+            jobs[i] = (view_job){scn, m, cam, img, spp, direct, threads, i};
+        }
+        for (int i = 1; i < threads; i++) {
+            if (pthread_create(&th[i], NULL, view_rows, &jobs[i]) != 0) break;
+            started = i;
+        }
+        /* Rows of threads that did not start are rendered here. */
+        for (int i = started + 1; i < threads; i++) view_rows(&jobs[i]);
+        view_rows(&jobs[0]);
+        for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
+    }
+    rtcReleaseScene(scn);
+    rtcReleaseDevice(dev);
+    return rc;
+}
