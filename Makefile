@@ -87,7 +87,7 @@ TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(sort $(wildcard tests/support/*.c)
 
 ALL_LIBS := $(LIB_display) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
 
-.PHONY: all test test-asan unit-bins e2e check-deps bench demo install clean scenes fuzz setup
+.PHONY: all test test-asan unit-bins e2e check-deps bench demo install man clean scenes fuzz setup
 .DEFAULT_GOAL := all
 
 all: $(PROGS) scenes
@@ -177,10 +177,19 @@ demo: setup
 	@$(MAKE) --no-print-directory all
 	@scripts/demo
 
+# The programs, the walkthrough launcher (scripts/corrtex-walk) and its report
+# tool, a man page per program made from its --help, the scenes and the guides.
 install: all
-	install -d $(PREFIX)/bin $(PREFIX)/share/corrtex
-	install -m 0755 $(PROGS) $(PREFIX)/bin/
+	install -d $(PREFIX)/bin $(PREFIX)/share/corrtex $(PREFIX)/share/man/man1 $(PREFIX)/share/doc/corrtex
+	install -m 0755 $(PROGS) scripts/corrtex-walk $(PREFIX)/bin/
+	install -m 0755 scripts/walk-report $(PREFIX)/bin/corrtex-walk-report
+	@scripts/gen-man $(PREFIX)/share/man/man1 $(PROGS) scripts/corrtex-walk
 	cp -r scenes $(PREFIX)/share/corrtex/
+	install -m 0644 docs/*.md $(PREFIX)/share/doc/corrtex/
+
+# docs/man/*.1 from the programs' --help (scripts/gen-man).
+man: all
+	@scripts/gen-man docs/man $(PROGS) scripts/corrtex-walk
 
 clean:
 	rm -rf build bin

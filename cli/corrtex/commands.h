@@ -30,4 +30,11 @@ int cmd_compare(int argc, char **argv);
  * the master engine and the tracer in one process (docs/textures.md). */
 int cmd_converge(int argc, char **argv);
 
+/* corrtex naive SCENE --mesh M --path P -o DIR: radiosity alone and the naive
+ * point display, the walkthrough benchmark's baselines (cmd_naive.c). */
+int cmd_naive(int argc, char **argv);
+
+/* corrtex montage -o SHEET.png IMAGE... (cmd_montage.c). */
+int cmd_montage(int argc, char **argv);
+
 #endif

@@ -11,6 +11,8 @@ const cli_command cli_commands[] = {
     {"compare", "image error metrics of A.exr against reference B.exr", cmd_compare},
     {"reference", "render the high-quality reference image(s) (path, drt, reuse-diffuse)", cmd_reference},
     {"converge", "corrective textures converging for a still camera (master + tracer, one process)", cmd_converge},
+    {"naive", "walkthrough baselines: radiosity alone, naive point display of samples", cmd_naive},
+    {"montage", "contact sheet PNG of walkthrough frames (PNG or EXR)", cmd_montage},
     {NULL, NULL, NULL}
 };
 

@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# corrtex-walk end to end on cornell at 64x64: computes the radiosity cache,
+# starts the MPI job (1 master + 1 tracer) and a headless display over a UNIX
+# socket, walks 4 lockstep frames of the camera path against references, and
+# writes the report. Checks: exit 0, both programs started and ended, one
+# frames.csv row and one PNG/EXR per frame, the samples per frame, report.md
+# with its plots and contact sheet, and nothing left behind (processes,
+# socket file).
+set -u
+source "$(dirname "$0")/lib/walk-common.bash"
+trap 'rm -rf "$tmp"' EXIT
+need_programs
+scene="$root/scenes/cornell/cornell.json"
+[[ -f $scene ]] || { echo "error: $scene missing (make scenes)"; exit 1; }
+n=4; spf=200; w=64
+out="$tmp/walk"; sock="$tmp/walk.sock"
+
+# references for the error column (path tracing, 4 spp: the check is that
+# the column exists and is finite, not its value)
+cmd=("$bin/corrtex" reference "$scene" --path "$root/scenes/cornell/walk.path" --frames $n
+     --width $w --height $w --spp 4 --mode path --threads 2 --quiet -o "$tmp/ref")
+log_cmd "${cmd[@]}"; "${cmd[@]}" >/dev/null || { echo "FAIL: references"; exit 1; }
+
+cmd=("$walk" cornell --path walk --frames $n --samples-per-frame $spf --width $w --height $w --ranks 2
+     --listen "unix:$sock" --out "$out" --reference "$tmp/ref" --radiosity-cache "$tmp/cornell.ctmesh"
+     --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240)
+log_cmd "${cmd[@]}"
+(cd "$root" && env -u DISPLAY "${cmd[@]}") >"$tmp/walk.out" 2>&1; rc=$?
+sed 's/^/  /' "$tmp/walk.out"
+((rc == 0)) || fail "corrtex-walk exit status $rc"
+no_strays "after the walk"
+no_sockets "after the walk"
+[[ -f $tmp/cornell.ctmesh ]] || fail "no radiosity cache written"
+grep -q "radiosity: computing" "$tmp/walk.out" || fail "no line announcing the radiosity step"
+grep -q "progress radiosity" "$tmp/walk.out" || fail "no progress line of the radiosity solver"
+grep -q "MPI job: 2 ranks" "$tmp/walk.out" || fail "no line announcing the MPI job"
+grep -q "display: headless" "$tmp/walk.out" || fail "no line announcing the headless display"
+csv="$out/frames.csv"
+if [[ -f $csv ]]; then
+  rows=$(($(wc -l <"$csv") - 1))
+  ((rows == n)) || fail "frames.csv has $rows rows, want $n"
+  sc=$(head -n1 "$csv" | tr ',' '\n' | grep -n '^samples$' | cut -d: -f1)
+  rc_=$(head -n1 "$csv" | tr ',' '\n' | grep -n '^rmse$' | cut -d: -f1)
+  [[ -n $sc && -n $rc_ ]] || fail "frames.csv lacks the samples or rmse column: $(head -n1 "$csv")"
+  if [[ -n $sc ]]; then
+    bad=$(awk -F, -v c="$sc" -v k=$spf 'NR > 1 && $c != k' "$csv")
+    [[ -z $bad ]] || fail "frames with other than $spf samples (lockstep): $bad"
+  fi
+  if [[ -n $rc_ ]]; then
+    awk -F, -v c="$rc_" 'NR > 1 { printf "metric: frame %d rmse %s\n", NR - 2, $c }' "$csv"
+    awk -F, -v c="$rc_" 'NR > 1 && !($c + 0 >= 0 && $c + 0 < 100) { exit 1 }' "$csv" || fail "rmse not finite"
+  fi
+else
+  fail "no $csv"
+fi
+for ((k = 0; k < n; k++)); do
+  f=$(printf '%s/frame_%05d' "$out" $k)
+  [[ -s $f.png && -s $f.exr ]] || fail "missing $f.png or $f.exr"
+done
+for f in report.md run.env render.log display.log contact.png error.png; do
+  [[ -s $out/$f ]] || fail "missing $out/$f"
+done
+grep -q "report written to $out/report.md" "$tmp/walk.out" || fail "the report's place is not printed"
+if [[ -f $out/report.md ]]; then
+  for want in "## Settings" "## Results" "samples/s" "frames/s" "![error](error.png)" "contact.png" "mpirun -np 2"; do
+    grep -qF -- "$want" "$out/report.md" || fail "report.md lacks '$want'"
+  done
+fi
+((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
+echo "ok: walk of $n frames with report; nothing left behind"
