@@ -16,7 +16,11 @@ display_run display --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278
   --frames 1 --out "$tmp/out"
 ((DISPLAY_RC == 3)) || fail "display exit status $DISPLAY_RC, expected 3 (connection lost)"
 grep -q 'tracer rank 1 has not answered' "$tmp/display.log" || fail "the display does not name the silent rank"
-master_wait job 15 || fail "the job did not end within 15 s"
+# Detection (2 s) is checked above through the display's message; what follows
+# is mpirun tearing down a stopped process, which took up to ~17 s on a loaded
+# 2-core machine (SIGTERM cannot be delivered to a stopped process; mpirun
+# escalates). 30 s still catches a hang.
+master_wait job 30 || fail "the job did not end within 30 s"
 kill -CONT "$victim" 2>/dev/null
 secs=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
 echo "metric: job ended ${secs} s after the display asked for work (tracer timeout 2 s)"

@@ -32,8 +32,18 @@ wait "$DISPLAY_PID"; drc=$?
 master_log job | grep -v progress | tail -n 12
 sed 's/^/  display: /' "$tmp/display.log" | tail -n 5
 grep -q 'rank 1 .*exited on signal 9' "$tmp/job.log" || fail "mpirun did not name the dead rank"
-grep -q 'signal 15: shutting down' "$tmp/job.log" || fail "the master did not log its shutdown"
-grep -q 'MPI job is ending' "$tmp/display.log" || fail "the display did not show the master's message"
+# Race, documented in docs/distributed.md: mpirun sends SIGTERM to the master
+# and escalates to SIGKILL shortly after; when the master is inside an MPI
+# call at that moment it dies before it can tell the display. Then the display
+# still says clearly that the connection to the master was lost. Either way
+# the display's last error line names the master's address.
+if grep -q 'signal 15: shutting down' "$tmp/job.log"; then
+  grep -q 'MPI job is ending' "$tmp/display.log" || fail "the master shut down but the display did not show its message"
+else
+  echo "note: the master was killed by mpirun before it could warn the display"
+fi
+grep -q "error corrtex-display: connection to unix:$tmp/r.sock lost" "$tmp/display.log" ||
+  fail "the display did not report the lost connection to the master"
 ((drc == 3)) || fail "display exit status $drc, expected 3 (connection lost)"
 left=$(pgrep -f "$tmp/r.sock" | wc -l)
 ((left == 0)) || fail "$left processes of the job are left"
