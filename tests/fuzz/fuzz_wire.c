@@ -3,39 +3,6 @@
  * tests/support/proto_fixtures.c so test_fuzz_replay runs it on the seeds and
  * on tests/fuzz/corpus/wire/ without libFuzzer. With FUZZ_WRITE_SEEDS=DIR the
  * binary writes its seed inputs into DIR and exits. */
-#include <stdint.h>
-#include <stdio.h>
-#include <stdlib.h>
+#include "tests/fuzz/fuzz_proto_target.h"
 
-#include "tests/support/proto_fixtures.h"
-
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-int LLVMFuzzerInitialize(int *argc, char ***argv);
-
-static void write_seed(const uint8_t *data, size_t size, void *ctx)
-{
-    int *n = ctx;
-    char path[4096];
-    snprintf(path, sizeof path, "%s/seed-%03d", getenv("FUZZ_WRITE_SEEDS"), (*n)++);
-    FILE *f = fopen(path, "wb");
-    if (!f) return;
-    fwrite(data, 1, size, f);
-    fclose(f);
-}
-
-int LLVMFuzzerInitialize(int *argc, char ***argv)
-{
-    (void)argc;
-    (void)argv;
-    if (getenv("FUZZ_WRITE_SEEDS")) {
-        int n = 0;
-        fx_fuzz_seeds("wire", write_seed, &n);
-        exit(0);
-    }
-    return 0;
-}
-
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
-{
-    return fx_fuzz_wire(data, size);
-}
+FUZZ_PROTO_TARGET(wire)
