@@ -382,7 +382,9 @@ static int run(app *a, ct_error *err)
         a->stat_frames++;
         if (a->capture) {
             disp_counters c = disp_session_counters(a->session);
-            disp_frame_info fi = {k, ftime, cam, frame_ms, c.samples - prev.samples, c.texels - prev.texels,
+            /* Lockstep: the FRAME's own count (STATS arrive between frames). */
+            uint64_t fs = o->samples_per_frame > 0 ? c.frame_samples - prev.frame_samples : c.samples - prev.samples;
+            disp_frame_info fi = {k, ftime, cam, frame_ms, fs, c.texels - prev.texels,
                                   c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session))};
             prev = c;
             disp_compositor_read_linear(a->comp, rgb);

@@ -173,6 +173,7 @@ void disp_session_samples(disp_session *s, const float *xy, uint32_t n)
 void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, bool all_positive)
 {
     if (!s->samples_from_stats) s->cnt.samples += samples;
+    s->cnt.frame_samples += samples;
     s->all_positive = all_positive;
     s->cnt.frames++;
     s->cnt.last_frame = frame;

@@ -25,6 +25,8 @@
 /* Running totals since the session started. */
 typedef struct disp_counters {
     uint64_t samples;       /* samples the master inserted (from stats / positions) */
+    uint64_t frame_samples; /* sum of the FRAMEs' sample counts: exact per lockstep frame,
+                               where the periodic STATS total lags behind the frames */
     uint64_t texels;        /* texels received in patches */
     uint64_t patches;
     uint64_t bytes;         /* bytes received from the master */

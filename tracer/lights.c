@@ -1,67 +1,229 @@
 #include "tracer/lights.h"
 
+#include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/rng.h"
+
+/* Grid cells of the visibility estimate: about this many over the scene's
+ * bounding box, and at most LIGHT_GRID_FLOATS estimates in all (32 MB). */
+#define LIGHT_GRID_CELLS 32768
+#define LIGHT_GRID_FLOATS (8u << 20)
+/* The estimate's own seed: an importance function, independent of --seed. */
+#define LIGHT_VIS_SEED 0x6c696768745f7631ULL
+
+enum { CELL_EMPTY = 0, CELL_BUSY = 1, CELL_READY = 2 };
+
+typedef struct emitter {
+    vec3 c;            /* centre of the bounding box */
+    vec3 n;            /* common front normal when flat */
+    float r2;          /* squared bounding radius (> 0) */
+    float power;       /* sum of area * lum(L_e) */
+    bool flat;         /* all triangles in one plane, facing one way */
+    uint32_t first, count;   /* its lights: [first, first + count) */
+} emitter;
+
 struct light_set {
+    const emb_scene *emb;
     const emb_mesh *mesh;
-    uint32_t n;
-    uint32_t *tri;      /* emissive triangles */
-    vec3 *nrm;          /* their unit front normals */
-    vec3 *geo;          /* per light: vertex 0, edge 1 - 0, edge 2 - 0, L_e (no index lookups) */
-    float *cdf;         /* n + 1 entries, cdf[n] = 1 */
-    float *pdf_area;    /* per mesh triangle: selection probability / area */
+    uint32_t n;          /* emissive triangles, grouped by emitter */
+    uint32_t *tri;
+    vec3 *nrm;           /* their unit front normals */
+    vec3 *geo;           /* per light: vertex 0, edge 1 - 0, edge 2 - 0, L_e (no index lookups) */
+    float *cdf;          /* per light: cumulative power within its emitter, ends at 1 */
+    float *pdf_in;       /* per mesh triangle: lum(L_e) / power of its emitter */
+    uint32_t *tri_em;    /* per mesh triangle: its emitter (only read for lights) */
+    uint32_t ne;
+    emitter *em;
+    float *em_cdf;       /* ne + 1 entries: emitters by power */
+    /* The visibility grid (only with 2..LIGHT_SEL_MAX emitters). */
+    bool spatial;
+    vec3 lo;
+    float h;
+    uint32_t nx, ny, nz;
+    float *vis;                  /* ncells * ne */
+    atomic_uchar *state;         /* per cell: CELL_* */
 };
 
-int light_build(const emb_mesh *m, light_set **out, ct_error *err)
+static uint32_t emitter_of_cdf(const float *cdf, uint32_t n, float u)
+{
+    /* First index whose cdf[i + 1] > u. */
+    uint32_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        uint32_t mid = (lo + hi) / 2;
+        if (cdf[mid + 1] > u) hi = mid;
+        else lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Bounds, power and flatness of each emitter from its lights. */
+static void describe_emitters(light_set *l)
+{
+    const emb_mesh *m = l->mesh;
+    for (uint32_t e = 0; e < l->ne; e++) {
+        emitter *em = &l->em[e];
+        vec3 lo = v3s(INFINITY), hi = v3s(-INFINITY);
+        double power = 0.0;
+        for (uint32_t i = em->first; i < em->first + em->count; i++) {
+            const uint32_t *vi = m->tris + 3 * (size_t)l->tri[i];
+            for (int k = 0; k < 3; k++) {
+                lo = v3_min(lo, m->pos[vi[k]]);
+                hi = v3_max(hi, m->pos[vi[k]]);
+            }
+            power += (double)emb_tri_area(m, l->tri[i]) * v3_luminance(l->geo[4 * (size_t)i + 3]);
+        }
+        em->c = v3_scale(v3_add(lo, hi), 0.5f);
+        vec3 half = v3_scale(v3_sub(hi, lo), 0.5f);
+        em->r2 = fmaxf(v3_len2(half), 1e-12f);
+        em->power = (float)power;
+        /* Flat: every vertex within a hair of the first light's plane and
+         * every normal the same, so a point behind that plane gets nothing. */
+        em->n = l->nrm[em->first];
+        em->flat = true;
+        float tol = 1e-4f * sqrtf(em->r2);
+        for (uint32_t i = em->first; i < em->first + em->count && em->flat; i++) {
+            if (v3_dot(l->nrm[i], em->n) < 0.9999f) em->flat = false;
+            const uint32_t *vi = m->tris + 3 * (size_t)l->tri[i];
+            for (int k = 0; k < 3; k++)
+                if (fabsf(v3_dot(v3_sub(m->pos[vi[k]], em->c), em->n)) > tol) em->flat = false;
+        }
+    }
+}
+
+/* The cell grid over the mesh's bounding box. */
+static int build_grid(light_set *l)
+{
+    const emb_mesh *m = l->mesh;
+    vec3 lo = v3s(INFINITY), hi = v3s(-INFINITY);
+    for (uint32_t i = 0; i < m->nverts; i++) {
+        lo = v3_min(lo, m->pos[i]);
+        hi = v3_max(hi, m->pos[i]);
+    }
+    vec3 ext = v3_sub(hi, lo);
+    float big = fmaxf(ext.x, fmaxf(ext.y, ext.z));
+    if (!(big > 0.0f) || !isfinite(big)) return CT_OK;   /* no extent: no grid, pick by power */
+    uint32_t budget = LIGHT_GRID_FLOATS / l->ne;
+    if (budget > LIGHT_GRID_CELLS) budget = LIGHT_GRID_CELLS;
+    /* Cubic cells; flat axes get one cell. */
+    double vol = (double)fmaxf(ext.x, big * 1e-3f) * fmaxf(ext.y, big * 1e-3f) * fmaxf(ext.z, big * 1e-3f);
+    float h = (float)cbrt(vol / budget);
+    uint32_t n[3];
+    float e3[3] = {ext.x, ext.y, ext.z};
+    for (;;) {
+        uint64_t cells = 1;
+        for (int k = 0; k < 3; k++) {
+            double c = ceil(e3[k] / h);
+            n[k] = c < 1.0 ? 1u : c > 1024.0 ? 1024u : (uint32_t)c;
+            cells *= n[k];
+        }
+        if (cells <= budget) break;
+        h *= 1.1f;
+    }
+    l->lo = lo;
+    l->h = h;
+    l->nx = n[0], l->ny = n[1], l->nz = n[2];
+    size_t cells = (size_t)n[0] * n[1] * n[2];
+    l->vis = malloc(cells * l->ne * sizeof *l->vis);
+    l->state = calloc(cells, sizeof *l->state);
+    if (!l->vis || !l->state) return CT_ENOMEM;
+    for (size_t i = 0; i < cells; i++) atomic_init(&l->state[i], CELL_EMPTY);
+    l->spatial = true;
+    return CT_OK;
+}
+
+int light_build(const emb_scene *e, light_set **out, ct_error *err)
 {
     *out = NULL;
+    const emb_mesh *m = emb_get_mesh(e);
     light_set *l = calloc(1, sizeof *l);
     if (!l) return ct_fail(err, CT_ENOMEM, "out of memory");
+    l->emb = e;
     l->mesh = m;
-    l->pdf_area = calloc(m->ntris ? m->ntris : 1, sizeof *l->pdf_area);
-    if (!l->pdf_area) goto oom;
+    size_t nt = m->ntris ? m->ntris : 1;
+    l->pdf_in = calloc(nt, sizeof *l->pdf_in);
+    l->tri_em = calloc(nt, sizeof *l->tri_em);
+    uint32_t *node_em = malloc((m->nnodes ? m->nnodes : 1) * sizeof *node_em);
+    uint32_t *fill = NULL;
+    if (!l->pdf_in || !l->tri_em || !node_em) goto oom;
+    /* Emitters: the emissive triangles of one part node, numbered in order
+     * of first appearance (deterministic for a given mesh). */
+    for (uint32_t i = 0; i < m->nnodes; i++) node_em[i] = UINT32_MAX;
     for (uint32_t t = 0; t < m->ntris; t++) {
         vec3 le = m->mats[m->tri_mat[t]].emission;
-        if (v3_luminance(le) > 0.0f && emb_tri_area(m, t) > 0.0f) l->n++;
+        if (!(v3_luminance(le) > 0.0f && emb_tri_area(m, t) > 0.0f)) continue;
+        l->n++;
+        uint32_t node = m->tri_node[t];
+        if (node >= m->nnodes) continue;   /* emb_new validated the mesh; belt and braces */
+        if (node_em[node] == UINT32_MAX) node_em[node] = l->ne++;
+        l->tri_em[t] = node_em[node];
     }
-    l->tri = malloc((l->n ? l->n : 1) * sizeof *l->tri);
-    l->cdf = malloc(((size_t)l->n + 1) * sizeof *l->cdf);
-    l->nrm = malloc((l->n ? l->n : 1) * sizeof *l->nrm);
-    l->geo = malloc((l->n ? l->n : 1) * 4 * sizeof *l->geo);
-    if (!l->tri || !l->cdf || !l->nrm || !l->geo) goto oom;
-    /* Cumulative power in double: thousands of small radiosity triangles
+    size_t nl = l->n ? l->n : 1;
+    l->tri = malloc(nl * sizeof *l->tri);
+    l->cdf = malloc(nl * sizeof *l->cdf);
+    l->nrm = malloc(nl * sizeof *l->nrm);
+    l->geo = malloc(nl * 4 * sizeof *l->geo);
+    l->em = calloc(l->ne ? l->ne : 1, sizeof *l->em);
+    l->em_cdf = malloc(((size_t)l->ne + 1) * sizeof *l->em_cdf);
+    fill = calloc(l->ne ? l->ne : 1, sizeof *fill);
+    if (!l->tri || !l->cdf || !l->nrm || !l->geo || !l->em || !l->em_cdf || !fill) goto oom;
+    /* Lights grouped by emitter (a counting sort), mesh order within one. */
+    for (uint32_t t = 0; t < m->ntris; t++)
+        if (v3_luminance(m->mats[m->tri_mat[t]].emission) > 0.0f && emb_tri_area(m, t) > 0.0f &&
+            m->tri_node[t] < m->nnodes)
+            l->em[l->tri_em[t]].count++;
+    for (uint32_t k = 0, acc = 0; k < l->ne; k++) {
+        l->em[k].first = acc;
+        acc += l->em[k].count;
+    }
+    uint32_t placed = 0;
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        vec3 le = m->mats[m->tri_mat[t]].emission;
+        if (!(v3_luminance(le) > 0.0f && emb_tri_area(m, t) > 0.0f) || m->tri_node[t] >= m->nnodes) continue;
+        uint32_t k = l->tri_em[t];
+        uint32_t i = l->em[k].first + fill[k]++;
+        l->tri[i] = t;
+        l->nrm[i] = emb_tri_normal(m, t);
+        const uint32_t *vi = m->tris + 3 * (size_t)t;
+        l->geo[4 * (size_t)i] = m->pos[vi[0]];
+        l->geo[4 * (size_t)i + 1] = v3_sub(m->pos[vi[1]], m->pos[vi[0]]);
+        l->geo[4 * (size_t)i + 2] = v3_sub(m->pos[vi[2]], m->pos[vi[0]]);
+        l->geo[4 * (size_t)i + 3] = le;
+        placed++;
+    }
+    l->n = placed;
+    describe_emitters(l);
+    /* Cumulative sums in double: thousands of small radiosity triangles
      * would lose precision summed in float. */
     double total = 0.0;
-    uint32_t k = 0;
-    l->cdf[0] = 0.0f;
-    double *acc = malloc(((size_t)l->n + 1) * sizeof *acc);
-    if (!acc) goto oom;
-    acc[0] = 0.0;
-    for (uint32_t t = 0; t < m->ntris; t++) {
-        vec3 le = m->mats[m->tri_mat[t]].emission;
-        float a = emb_tri_area(m, t);
-        if (!(v3_luminance(le) > 0.0f && a > 0.0f)) continue;
-        l->tri[k] = t;
-        l->nrm[k] = emb_tri_normal(m, t);
-        const uint32_t *vi = m->tris + 3 * (size_t)t;
-        l->geo[4 * k] = m->pos[vi[0]];
-        l->geo[4 * k + 1] = v3_sub(m->pos[vi[1]], m->pos[vi[0]]);
-        l->geo[4 * k + 2] = v3_sub(m->pos[vi[2]], m->pos[vi[0]]);
-        l->geo[4 * k + 3] = le;
-        total += (double)a * v3_luminance(le);
-        acc[++k] = total;
+    for (uint32_t k = 0; k < l->ne; k++) total += l->em[k].power;
+    double acc_e = 0.0;
+    l->em_cdf[0] = 0.0f;
+    for (uint32_t k = 0; k < l->ne; k++) {
+        emitter *em = &l->em[k];
+        acc_e += em->power;
+        l->em_cdf[k + 1] = (float)(acc_e / total);
+        double acc = 0.0;
+        for (uint32_t i = em->first; i < em->first + em->count; i++) {
+            uint32_t t = l->tri[i];
+            float lum = v3_luminance(l->geo[4 * (size_t)i + 3]);
+            acc += (double)emb_tri_area(m, t) * lum;
+            l->cdf[i] = (float)(acc / em->power);
+            l->pdf_in[t] = (float)(lum / em->power);
+        }
+        l->cdf[em->first + em->count - 1] = 1.0f;
     }
-    for (uint32_t i = 0; i < l->n; i++) {
-        l->cdf[i + 1] = (float)(acc[i + 1] / total);
-        uint32_t t = l->tri[i];
-        l->pdf_area[t] = (float)(v3_luminance(m->mats[m->tri_mat[t]].emission) / total);
-    }
-    if (l->n) l->cdf[l->n] = 1.0f;
-    free(acc);
+    if (l->ne) l->em_cdf[l->ne] = 1.0f;
+    if (l->ne >= 2 && l->ne <= LIGHT_SEL_MAX && build_grid(l) != CT_OK) goto oom;
+    free(node_em);
+    free(fill);
     *out = l;
     return CT_OK;
 oom:
+    free(node_em);
+    free(fill);
     light_free(l);
     return ct_fail(err, CT_ENOMEM, "out of memory for the light list");
 }
@@ -73,35 +235,147 @@ void light_free(light_set *l)
     free(l->cdf);
     free(l->nrm);
     free(l->geo);
-    free(l->pdf_area);
+    free(l->pdf_in);
+    free(l->tri_em);
+    free(l->em);
+    free(l->em_cdf);
+    free(l->vis);
+    free(l->state);
     free(l);
 }
 
 uint32_t light_count(const light_set *l) { return l->n; }
 
-bool light_sample(const light_set *l, float u0, float u1, float u2, light_point *out)
+uint32_t light_emitters(const light_set *l) { return l->ne; }
+
+/* A point on emitter k's lights, picked by power, from three numbers. */
+static vec3 emitter_point(const light_set *l, uint32_t k, float u0, float u1, float u2)
 {
-    if (l->n == 0) return false;
-    /* First index whose cdf[i + 1] > u0. */
-    uint32_t lo = 0, hi = l->n - 1;
+    const emitter *em = &l->em[k];
+    /* Lights within an emitter by power (their cdf has no leading 0). */
+    uint32_t lo = em->first, hi = em->first + em->count - 1;
     while (lo < hi) {
         uint32_t mid = (lo + hi) / 2;
-        if (l->cdf[mid + 1] > u0) hi = mid;
+        if (l->cdf[mid] > u0) hi = mid;
         else lo = mid + 1;
     }
-    uint32_t t = l->tri[lo];
+    uint32_t i = lo;
+    float su = sqrtf(u1);
+    float b1 = 1.0f - su, b2 = u2 * su;
+    const vec3 *g = l->geo + 4 * (size_t)i;
+    return v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
+}
+
+/* Fraction of LIGHT_VIS_RAYS rays between random points of cell (ix, iy, iz)
+ * and of each emitter that nothing blocks. A pure function of the cell. */
+static void estimate_cell(const light_set *l, uint32_t cell, uint32_t ix, uint32_t iy, uint32_t iz, float *vis)
+{
+    vec3 base = v3_add(l->lo, v3((float)ix * l->h, (float)iy * l->h, (float)iz * l->h));
+    for (uint32_t k = 0; k < l->ne; k++) {
+        const emitter *em = &l->em[k];
+        ct_rng r = rng_make(LIGHT_VIS_SEED, cell, k, 0);
+        int open = 0;
+        for (int j = 0; j < LIGHT_VIS_RAYS; j++) {
+            vec3 p = v3_add(base, v3(rng_float(&r) * l->h, rng_float(&r) * l->h, rng_float(&r) * l->h));
+            float u0 = rng_float(&r), u1 = rng_float(&r), u2 = rng_float(&r);
+            vec3 q = emitter_point(l, k, u0, u1, u2);
+            if (em->flat && v3_dot(v3_sub(p, q), em->n) <= 0.0f) continue;   /* behind it */
+            vec3 d = v3_sub(q, p);
+            float dist = v3_len(d);
+            if (!(dist > 0.0f)) continue;
+            d = v3_scale(d, 1.0f / dist);
+            /* Stop short of the emitter so its own surface does not count. */
+            if (!emb_occluded(l->emb, p, d, 0.0f, dist * (1.0f - 1e-4f))) open++;
+        }
+        vis[k] = (float)open / (float)LIGHT_VIS_RAYS;
+    }
+}
+
+void light_select_power(light_sel *sel) { sel->n = 0; }
+
+void light_select(const light_set *l, vec3 x, light_sel *sel)
+{
+    if (!l->spatial) {
+        sel->n = 0;
+        return;
+    }
+    float f[3] = {(x.x - l->lo.x) / l->h, (x.y - l->lo.y) / l->h, (x.z - l->lo.z) / l->h};
+    uint32_t lim[3] = {l->nx, l->ny, l->nz}, idx[3];
+    for (int k = 0; k < 3; k++) {
+        float c = floorf(f[k]);
+        idx[k] = !(c >= 0.0f) ? 0u : c >= (float)lim[k] ? lim[k] - 1 : (uint32_t)c;
+    }
+    uint32_t cell = (idx[2] * l->ny + idx[1]) * l->nx + idx[0];
+    const float *vis = l->vis + (size_t)cell * l->ne;
+    float local[LIGHT_SEL_MAX];
+    if (atomic_load_explicit(&l->state[cell], memory_order_acquire) != CELL_READY) {
+        estimate_cell(l, cell, idx[0], idx[1], idx[2], local);
+        unsigned char expect = CELL_EMPTY;
+        if (atomic_compare_exchange_strong_explicit(&l->state[cell], &expect, CELL_BUSY, memory_order_acq_rel,
+                                                    memory_order_acquire)) {
+            memcpy(l->vis + (size_t)cell * l->ne, local, l->ne * sizeof *local);
+            atomic_store_explicit(&l->state[cell], CELL_READY, memory_order_release);
+        }
+        vis = local;
+    }
+    float acc = 0.0f;
+    sel->cdf[0] = 0.0f;
+    for (uint32_t k = 0; k < l->ne; k++) {
+        const emitter *em = &l->em[k];
+        vec3 d = v3_sub(x, em->c);
+        float d2 = v3_len2(d);
+        float w = em->power / fmaxf(d2, em->r2);
+        if (em->flat) {
+            float c = v3_dot(d, em->n);
+            w = c > 0.0f ? w * c / sqrtf(fmaxf(d2, em->r2)) : 0.0f;
+        }
+        w *= LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * vis[k];
+        acc += isfinite(w) ? w : 0.0f;
+        sel->cdf[k + 1] = acc;
+    }
+    sel->n = l->ne;
+    if (!(acc > 0.0f)) {
+        /* Behind every (flat) emitter: nothing can light x. */
+        for (uint32_t k = 0; k <= l->ne; k++) sel->cdf[k] = 0.0f;
+        return;
+    }
+    float inv = 1.0f / acc;
+    for (uint32_t k = 1; k < l->ne; k++) sel->cdf[k] *= inv;
+    sel->cdf[l->ne] = 1.0f;
+}
+
+bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, float u2, light_point *out)
+{
+    if (l->n == 0) return false;
+    const float *ec = sel->n ? sel->cdf : l->em_cdf;
+    if (!(ec[l->ne] > 0.0f)) return false;
+    uint32_t k = emitter_of_cdf(ec, l->ne, u0);
+    float lo = ec[k], span = ec[k + 1] - lo;
+    if (!(span > 0.0f)) return false;
+    /* Reuse u0 within the emitter: its position inside [lo, hi). */
+    float v = fminf(fmaxf((u0 - lo) / span, 0.0f), 0x1.fffffep-1f);
+    const emitter *em = &l->em[k];
+    uint32_t a = em->first, b = em->first + em->count - 1;
+    while (a < b) {
+        uint32_t mid = (a + b) / 2;
+        if (l->cdf[mid] > v) b = mid;
+        else a = mid + 1;
+    }
     float su = sqrtf(u1);
     float b1 = 1.0f - su, b2 = u2 * su;   /* uniform by area */
-    const vec3 *g = l->geo + 4 * (size_t)lo;
-    out->tri = t;
+    const vec3 *g = l->geo + 4 * (size_t)a;
+    out->tri = l->tri[a];
     out->p = v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
-    out->n = l->nrm[lo];
+    out->n = l->nrm[a];
     out->le = g[3];
-    out->pdf_area = l->pdf_area[t];
+    out->pdf_area = span * l->pdf_in[out->tri];
     return true;
 }
 
-float light_pdf_area(const light_set *l, uint32_t tri)
+float light_pdf_area(const light_set *l, const light_sel *sel, uint32_t tri)
 {
-    return tri < l->mesh->ntris ? l->pdf_area[tri] : 0.0f;
+    if (tri >= l->mesh->ntris || l->pdf_in[tri] <= 0.0f) return 0.0f;
+    const float *ec = sel->n ? sel->cdf : l->em_cdf;
+    uint32_t k = l->tri_em[tri];
+    return (ec[k + 1] - ec[k]) * l->pdf_in[tri];
 }

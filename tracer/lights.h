@@ -1,10 +1,23 @@
 /* lights.h: the area lights of a mesh (its emissive triangles) and how the
- * tracer samples them. Density: a triangle is picked with probability
- * proportional to its power (area * luminance of L_e), then a point uniformly
- * by area on it, so the area-measure pdf is constant over all emitting
- * surface, weighted by brightness: p_A = lum(L_e) / sum_k(area_k lum(L_e,k)).
- * The integrator converts it to solid angle (p_A d^2 / cos_light). Emitters
- * emit from their front side only (the triangle winding's normal). */
+ * tracer samples them.
+ *
+ * Lights are grouped into emitters (the emissive triangles of one mesh part:
+ * a ceiling panel, a bulb). A shading point x first picks an emitter with a
+ * probability proportional to its estimated contribution at x:
+ *   power * cos_light / max(d^2, r^2) * (beta + (1 - beta) * V),
+ * where cos_light and d are taken to the emitter's centre (zero behind a
+ * flat emitter, which emits from its front side only), r is its bounding
+ * radius and V the fraction of unblocked rays between x's grid cell and the
+ * emitter (a deterministic estimate made the first time a cell is used,
+ * beta = LIGHT_VIS_FLOOR keeps the density positive wherever light can
+ * arrive, so the estimator stays unbiased). Within the emitter a triangle is
+ * picked by power (area * luminance of L_e), then a point uniformly by area.
+ * So p_A(y | x) = P(emitter | x) * lum(L_e(y)) / power(emitter). Without a
+ * shading point (or with one emitter, or more than LIGHT_SEL_MAX) the
+ * emitter is picked by power alone, the classic density.
+ *
+ * This matters in scenes of many rooms: picking by power alone sends most
+ * shadow rays of a point in one office to the lights of the others. */
 #ifndef CT_TRACER_LIGHTS_H
 #define CT_TRACER_LIGHTS_H
 
@@ -15,6 +28,13 @@
 #include "common/vecmath.h"
 #include "tracer/embree_scene.h"
 
+/* Most emitters the spatial selection handles; scenes with more pick by power. */
+#define LIGHT_SEL_MAX 128
+/* beta: the visibility estimate's floor (see above). */
+#define LIGHT_VIS_FLOOR 0.05f
+/* Rays per (grid cell, emitter) of the visibility estimate. */
+#define LIGHT_VIS_RAYS 8
+
 typedef struct light_set light_set;
 
 /* A sampled point on an area light. */
@@ -22,12 +42,21 @@ typedef struct light_point {
     vec3 p;          /* the point */
     vec3 n;          /* front normal of its triangle */
     vec3 le;         /* emitted radiance L_e */
-    float pdf_area;  /* area-measure pdf of having picked p */
+    float pdf_area;  /* area-measure pdf of having picked p (for the selection used) */
     uint32_t tri;
 } light_point;
 
-/* Collects the emissive triangles of the mesh (zero lights is valid). */
-int light_build(const emb_mesh *m, light_set **out, ct_error *err);
+/* The emitter probabilities at one shading point, made once and used by all
+ * of its shadow rays and by the MIS weight of light found by its scattered
+ * rays. */
+typedef struct light_sel {
+    uint32_t n;                     /* emitters in cdf; 0 = pick by power */
+    float cdf[LIGHT_SEL_MAX + 1];
+} light_sel;
+
+/* Collects the emissive triangles of the scene's mesh (zero lights is
+ * valid). The set keeps e for its visibility estimates; e must outlive it. */
+int light_build(const emb_scene *e, light_set **out, ct_error *err);
 
 /* Releases the set (NULL is fine). */
 void light_free(light_set *l);
@@ -35,12 +64,23 @@ void light_free(light_set *l);
 /* Number of emissive triangles. */
 uint32_t light_count(const light_set *l);
 
-/* Picks a point on the lights from three uniform numbers; false when there
- * are no lights. */
-bool light_sample(const light_set *l, float u0, float u1, float u2, light_point *out);
+/* Number of emitters (emissive mesh parts). */
+uint32_t light_emitters(const light_set *l);
 
-/* Area-measure pdf of light_sample picking a point on triangle tri (0 for a
- * triangle that does not emit). */
-float light_pdf_area(const light_set *l, uint32_t tri);
+/* Fills sel with the emitter probabilities at x. Thread-safe: a cell's
+ * visibility estimate is a pure function of the cell, so threads that race
+ * to make it compute the same values. */
+void light_select(const light_set *l, vec3 x, light_sel *sel);
+
+/* sel for picking by power alone (no shading point). */
+void light_select_power(light_sel *sel);
+
+/* Picks a point on the lights from three uniform numbers; false when there
+ * are no lights (or none can light x). */
+bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, float u2, light_point *out);
+
+/* Area-measure pdf of light_sample picking a point on triangle tri under sel
+ * (0 for a triangle that does not emit). */
+float light_pdf_area(const light_set *l, const light_sel *sel, uint32_t tri);
 
 #endif

@@ -105,7 +105,7 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     emb_mesh mesh = rad ? emb_mesh_of_radmesh(rad, scene) : emb_mesh_of_scene(scene);
     int rc = emb_new(&mesh, o->device_config, &t->emb, err);
     if (rc) goto fail;
-    rc = light_build(emb_get_mesh(t->emb), &t->lights, err);
+    rc = light_build(t->emb, &t->lights, err);
     if (rc) goto fail;
     for (uint32_t i = 0; i < scene->nmats; i++)
         if (scene->mats[i].dielectric) t->has_dielectric = true;

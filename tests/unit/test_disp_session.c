@@ -39,6 +39,8 @@ Test(disp_session, sample_positions_of_the_last_frames)
     disp_session_frame_end(s, 9, 77, false);
     c = disp_session_counters(s);
     cr_expect_eq(c.samples, 5000u, "frames no longer add once stats arrive");
+    /* ...but the frames' own counts stay exact (lockstep frames.csv). */
+    cr_expect_eq(c.frame_samples, 13u + 77u);
     cr_expect_not(disp_session_all_positive(s), "the latest FRAME or STATS decides");
     disp_session_add_bytes(s, 12);
     cr_expect_eq(disp_session_counters(s).bytes, 12u);

@@ -116,7 +116,10 @@ static double ff_rect(double px, double pz, double x0, double x1, double z0, dou
            ff_corner(x0 - px, z0 - pz, c);
 }
 
-static void form_factor(trc_mode mode, bool with_rad)
+/* A floor under one light 1 x 0.6 at height 1 (x in [-0.5, 0.5]) or, with
+ * two_lights, also a second one 0.6 x 0.6 at height 1.5 over x in [1, 1.6]:
+ * two emitters, so the spatial light selection picks between them. */
+static void form_factor(trc_mode mode, bool with_rad, bool two_lights)
 {
     ct_error err;
     ct_scene *s = scene_new("plane");
@@ -126,6 +129,9 @@ static void form_factor(trc_mode mode, bool with_rad)
     /* Floor y = 0 facing up; light 1 x 0.6 at height 1 facing down. */
     cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
     cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    if (two_lights)
+        cr_assert(ts_quad(s, "light2", (uint32_t)lamp, v3(1.0f, 1.5f, -0.3f), v3(0.6f, 0, 0), v3(0, 0, 0.6f),
+                          &err) >= 0);
     CHECK(scene_finalize(s, &err));
     ct_radmesh rad;
     if (with_rad) CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
@@ -138,6 +144,7 @@ static void form_factor(trc_mode mode, bool with_rad)
         cr_assert(last.flags & CT_SAMPLE_HIT);
         cr_assert(fabsf(last.hit.y) < 1e-4f, "must hit the floor");
         double f = ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
+        if (two_lights) f += ff_rect(last.hit.x, last.hit.z, 1.0, 1.6, -0.3, 0.3, 1.5);
         /* L = rho / pi * E = rho / pi * (L_e pi F) = rho L_e F. */
         double want = 0.5 * 10.0 * f;
         cr_expect(fabs(l.x - want) < 0.02 * want + 1e-5, "%s: at (%g, %g) L = %g, analytic %g (F = %g)",
@@ -149,9 +156,13 @@ static void form_factor(trc_mode mode, bool with_rad)
     scene_free(s);
 }
 
-Test(tracer, plane_under_area_light_path) { form_factor(TRC_MODE_PATH, false); }
-Test(tracer, plane_under_area_light_drt) { form_factor(TRC_MODE_DRT, false); }
-Test(tracer, plane_under_area_light_drt_radmesh) { form_factor(TRC_MODE_DRT, true); }
+Test(tracer, plane_under_area_light_path) { form_factor(TRC_MODE_PATH, false, false); }
+Test(tracer, plane_under_area_light_drt) { form_factor(TRC_MODE_DRT, false, false); }
+Test(tracer, plane_under_area_light_drt_radmesh) { form_factor(TRC_MODE_DRT, true, false); }
+/* Two emitters: the spatial light selection (and, in path mode, its MIS
+ * weights for light found by scattered rays) must stay unbiased. */
+Test(tracer, plane_under_two_area_lights_path) { form_factor(TRC_MODE_PATH, false, true); }
+Test(tracer, plane_under_two_area_lights_drt) { form_factor(TRC_MODE_DRT, false, true); }
 
 /* --- glass slab ----------------------------------------------------------- */
 

@@ -1,0 +1,175 @@
+/* The tracer's light selection (tracer/lights.h): in two rooms separated by a
+ * wall, a point's shadow rays go to its own room's light; the pdf that
+ * light_pdf_area reports is the density light_sample draws from; nothing is
+ * picked behind a flat emitter; racing threads make the same estimates. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <pthread.h>
+#include <string.h>
+
+#include "tests/support/testscenes.h"
+#include "tracer/embree_scene.h"
+#include "tracer/lights.h"
+
+#define CHECK(x) do { int rc_ = (x); cr_assert_eq(rc_, 0, "%s: %s", #x, err.msg); } while (0)
+
+typedef struct two_rooms {
+    ct_scene *s;
+    emb_scene *emb;
+    light_set *l;
+    int light_a, light_b, lamp_b;   /* part nodes */
+} two_rooms;
+
+/* Room A is x in [0, 4], room B x in [4.1, 8.1] (a 0.1 wall between, closed
+ * boxes), 3 high, 4 deep; a ceiling light in each, facing down, and a small
+ * floor lamp (a closed box: not flat) in B. */
+static void two_rooms_make(two_rooms *r)
+{
+    ct_error err;
+    r->s = scene_new("two rooms");
+    int wall = ts_diffuse(r->s, "wall", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(r->s, "lamp", v3s(0.0f), v3s(10.0f), &err);
+    cr_assert(wall >= 0 && lamp >= 0);
+    cr_assert(ts_box(r->s, "room_a", (uint32_t)wall, v3(0, 0, 0), v3(4, 3, 4), true, &err) >= 0);
+    cr_assert(ts_box(r->s, "room_b", (uint32_t)wall, v3(4.1f, 0, 0), v3(8.1f, 3, 4), true, &err) >= 0);
+    /* Front side e1 x e2 = (1,0,0) x (0,0,1) = (0,-1,0): down. */
+    r->light_a = ts_quad(r->s, "light_a", (uint32_t)lamp, v3(1.5f, 2.99f, 1.5f), v3(1, 0, 0), v3(0, 0, 1), &err);
+    r->light_b = ts_quad(r->s, "light_b", (uint32_t)lamp, v3(5.6f, 2.99f, 1.5f), v3(1, 0, 0), v3(0, 0, 1), &err);
+    r->lamp_b = ts_box(r->s, "lamp_b", (uint32_t)lamp, v3(7.5f, 0.5f, 3.5f), v3(7.6f, 0.6f, 3.6f), false, &err);
+    cr_assert(r->light_a >= 0 && r->light_b >= 0 && r->lamp_b >= 0);
+    CHECK(scene_finalize(r->s, &err));
+    emb_mesh m = emb_mesh_of_scene(r->s);
+    CHECK(emb_new(&m, NULL, &r->emb, &err));
+    CHECK(light_build(r->emb, &r->l, &err));
+}
+
+static void two_rooms_free(two_rooms *r)
+{
+    light_free(r->l);
+    emb_free(r->emb);
+    scene_free(r->s);
+}
+
+/* Probability under sel that the picked point lies on part node. */
+static double p_node(const two_rooms *r, const light_sel *sel, int node)
+{
+    const emb_mesh *m = emb_get_mesh(r->emb);
+    double p = 0.0;
+    for (uint32_t t = 0; t < m->ntris; t++)
+        if (m->tri_node[t] == (uint32_t)node) p += (double)light_pdf_area(r->l, sel, t) * emb_tri_area(m, t);
+    return p;
+}
+
+Test(lights, own_room_light_gets_the_shadow_rays)
+{
+    two_rooms r;
+    two_rooms_make(&r);
+    cr_assert_eq(light_emitters(r.l), 3u);
+    light_sel sel;
+    light_select(r.l, v3(1.0f, 0.01f, 3.0f), &sel);   /* on room A's floor */
+    double pa = p_node(&r, &sel, r.light_a), pb = p_node(&r, &sel, r.light_b), pl = p_node(&r, &sel, r.lamp_b);
+    cr_expect(fabs(pa + pb + pl - 1.0) < 1e-4, "probabilities sum to %g", pa + pb + pl);
+    cr_expect(pa > 0.9, "room A's light gets %g of the shadow rays (B's light %g, B's lamp %g)", pa, pb, pl);
+    /* Blocked lights keep a positive density (unbiased). */
+    cr_expect(pb > 0.0 && pl > 0.0);
+    /* Picking by power alone would send most rays elsewhere: the test scene
+     * is one where the selection matters. */
+    light_sel pow;
+    light_select_power(&pow);
+    cr_expect(p_node(&r, &pow, r.light_a) < 0.6);
+    light_select(r.l, v3(7.0f, 0.01f, 1.0f), &sel);   /* room B's floor */
+    cr_expect(p_node(&r, &sel, r.light_a) < 0.1, "room A's light from room B: %g",
+              p_node(&r, &sel, r.light_a));
+    two_rooms_free(&r);
+}
+
+Test(lights, sampled_points_follow_the_reported_pdf)
+{
+    two_rooms r;
+    two_rooms_make(&r);
+    const emb_mesh *m = emb_get_mesh(r.emb);
+    vec3 xs[] = {v3(1.0f, 0.01f, 3.0f), v3(4.05f, 1.5f, 2.0f), v3(7.0f, 1.0f, 3.0f)};
+    for (size_t k = 0; k < sizeof xs / sizeof xs[0]; k++) {
+        light_sel sel;
+        light_select(r.l, xs[k], &sel);
+        enum { N = 200000 };
+        int hits[3] = {0, 0, 0};
+        for (int i = 0; i < N; i++) {
+            float u0 = ((float)i + 0.5f) / N, u1 = fmodf((float)i * 0.618034f, 1.0f),
+                  u2 = fmodf((float)i * 0.754878f, 1.0f);
+            light_point lp;
+            cr_assert(light_sample(r.l, &sel, u0, u1, u2, &lp));
+            cr_assert(fabsf(lp.pdf_area - light_pdf_area(r.l, &sel, lp.tri)) <= 1e-6f * lp.pdf_area);
+            uint32_t node = m->tri_node[lp.tri];
+            hits[node == (uint32_t)r.light_a ? 0 : node == (uint32_t)r.light_b ? 1 : 2]++;
+        }
+        int nodes[3] = {r.light_a, r.light_b, r.lamp_b};
+        for (int j = 0; j < 3; j++) {
+            double want = p_node(&r, &sel, nodes[j]), got = (double)hits[j] / N;
+            cr_expect(fabs(got - want) < 2e-3, "point %zu emitter %d: picked %g, pdf says %g", k, j, got, want);
+        }
+    }
+    two_rooms_free(&r);
+}
+
+Test(lights, nothing_is_picked_behind_flat_emitters)
+{
+    ct_error err;
+    ct_scene *s = scene_new("two panels");
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(5.0f), &err);
+    /* Two panels at y = 1 facing down; a point above both sees only backs. */
+    cr_assert(ts_quad(s, "p1", (uint32_t)lamp, v3(0, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err) >= 0);
+    cr_assert(ts_quad(s, "p2", (uint32_t)lamp, v3(2, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    emb_mesh m = emb_mesh_of_scene(s);
+    emb_scene *e;
+    light_set *l;
+    CHECK(emb_new(&m, NULL, &e, &err));
+    CHECK(light_build(e, &l, &err));
+    light_sel sel;
+    light_select(l, v3(1.5f, 1.5f, 0.5f), &sel);
+    light_point lp;
+    cr_expect(!light_sample(l, &sel, 0.5f, 0.5f, 0.5f, &lp));
+    for (uint32_t t = 0; t < emb_get_mesh(e)->ntris; t++) cr_expect_eq(light_pdf_area(l, &sel, t), 0.0f);
+    light_select(l, v3(1.5f, 0.0f, 0.5f), &sel);   /* below: both light it */
+    cr_expect(light_sample(l, &sel, 0.5f, 0.5f, 0.5f, &lp));
+    light_free(l);
+    emb_free(e);
+    scene_free(s);
+}
+
+typedef struct race {
+    const light_set *l;
+    vec3 x;
+    light_sel sel;
+} race;
+
+static void *race_select(void *arg)
+{
+    race *r = arg;
+    light_select(r->l, r->x, &r->sel);
+    return NULL;
+}
+
+Test(lights, racing_threads_make_the_same_estimate)
+{
+    two_rooms a, b;
+    two_rooms_make(&a);
+    two_rooms_make(&b);
+    vec3 x = v3(4.0f, 1.0f, 2.0f);   /* a cell on the wall between the rooms */
+    race rs[4];
+    pthread_t th[4];
+    for (int i = 0; i < 4; i++) {
+        rs[i] = (race){a.l, x, {0}};
+        cr_assert_eq(pthread_create(&th[i], NULL, race_select, &rs[i]), 0);
+    }
+    for (int i = 0; i < 4; i++) pthread_join(th[i], NULL);
+    light_sel once, again;
+    light_select(b.l, x, &once);    /* a fresh set: estimates the cell itself */
+    light_select(a.l, x, &again);   /* the published estimate */
+    for (int i = 0; i < 4; i++)
+        cr_expect(memcmp(rs[i].sel.cdf, once.cdf, sizeof once.cdf[0] * (once.n + 1)) == 0, "thread %d differs", i);
+    cr_expect(memcmp(again.cdf, once.cdf, sizeof once.cdf[0] * (once.n + 1)) == 0);
+    two_rooms_free(&a);
+    two_rooms_free(&b);
+}
