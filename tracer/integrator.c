@@ -24,7 +24,8 @@ typedef struct emis_w {
     emis_mode mode;
     float pdf;    /* solid-angle pdf of the direction (EMIS_MIS) */
     int n;        /* rays of that strategy (EMIS_MIS) */
-    vec3 from;    /* the shading point the ray left (EMIS_MIS: its light selection) */
+    vec3 from;    /* the shading point the ray left (EMIS_MIS: its light selection)... */
+    vec3 from_n;  /* ...and its geometric normal */
 } emis_w;
 
 typedef enum direct_mode {
@@ -38,7 +39,7 @@ typedef enum direct_mode {
  * already looked along, unless it started at the camera or a reflection. */
 static inline emis_w after_delta(emis_w in, bool transmit)
 {
-    emis_w out = {EMIS_FULL, 0.0f, 1, in.from};
+    emis_w out = {EMIS_FULL, 0.0f, 1, in.from, in.from_n};
     if (transmit && in.mode != EMIS_FULL) out.mode = EMIS_NONE;
     return out;
 }
@@ -176,7 +177,7 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
     if (mode == DIRECT_GLOSSY_ONLY ? b->p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
     vec3 origin = offset_ray(s->p, b->ng);
     light_sel sel;
-    light_select(c->lights, s->p, &sel);
+    light_select(c->lights, s->p, b->ng, &sel);
     for (int k = 0; k < k_rays; k++) {
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
         light_point lp;
@@ -223,7 +224,7 @@ static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
     if (ew.mode == EMIS_FULL) return s->m->emission;
     /* The density the shadow rays of the point the ray left had. */
     light_sel sel;
-    light_select(c->lights, ew.from, &sel);
+    light_select(c->lights, ew.from, ew.from_n, &sel);
     float pl = light_pdf_area(c->lights, &sel, s->h.tri) * s->h.t * s->h.t / cos_front;
     return v3_scale(s->m->emission,
                     power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
@@ -233,7 +234,7 @@ static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
 static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool count_first, int max_depth)
 {
     vec3 L = v3s(0.0f), beta = v3s(1.0f);
-    emis_w ew = {count_first ? EMIS_FULL : EMIS_NONE, 0.0f, 1, o};
+    emis_w ew = {count_first ? EMIS_FULL : EMIS_NONE, 0.0f, 1, o, d};
     integ_surf s;
     for (int depth = 0;; depth++) {
         if (depth == 0 && first) s = *first;
@@ -255,6 +256,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
             ew.pdf = bs.pdf;
             ew.n = 1;
             ew.from = s.p;
+            ew.from_n = b.ng;
         }
         if (depth >= RR_START) {
             float q = fminf(0.95f, v3_maxc(beta));
@@ -296,7 +298,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         bsdf_sample bs;
         float u1 = rnd(c), u2 = rnd(c);
         if (!bsdf_sample_glossy(b, wo, u1, u2, &bs)) continue;
-        emis_w mis = {EMIS_MIS, bs.pdf, nb, s->p};
+        emis_w mis = {EMIS_MIS, bs.pdf, nb, s->p, b->ng};
         vec3 l = li(c, up, bs.wi, depth + 1, mis);
         L = v3_add(L, v3_scale(v3_mul(bs.weight, l), 1.0f / (float)nb));
     }
@@ -374,7 +376,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     if (ew.mode != EMIS_FULL) {
         /* The radiosity includes the emitter's L_e; a glossy ray that found
          * it only carries its MIS share (light sampling has the rest). */
-        vec3 le = emitted(c, &s, d, (emis_w){EMIS_FULL, 0.0f, 1, o});
+        vec3 le = emitted(c, &s, d, (emis_w){EMIS_FULL, 0.0f, 1, o, d});
         vec3 keep = emitted(c, &s, d, ew);
         base = clamp0(v3_sub(base, v3_sub(le, keep)));
     }
@@ -400,7 +402,7 @@ static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew)
 
 vec3 integ_radiance(integ_ctx *c, vec3 o, vec3 d, const integ_surf *s, vec3 *base)
 {
-    emis_w full = {EMIS_FULL, 0.0f, 1, o};
+    emis_w full = {EMIS_FULL, 0.0f, 1, o, d};
     switch (c->opt->mode) {
     case TRC_MODE_PATH: return path_li(c, o, d, s, true, c->opt->depth);
     case TRC_MODE_DRT: return drt_li(c, o, d, s, 0, full);

@@ -8,11 +8,19 @@
 #include "common/rng.h"
 
 /* Grid cells of the visibility estimate: about this many over the scene's
- * bounding box, and at most LIGHT_GRID_FLOATS estimates in all (32 MB). */
+ * bounding box, and at most LIGHT_GRID_BYTES estimates in all (one byte per
+ * cell, side and emitter). */
 #define LIGHT_GRID_CELLS 32768
-#define LIGHT_GRID_FLOATS (8u << 20)
+#define LIGHT_GRID_BYTES (16u << 20)
+/* Sides of a cell: the six axis directions a surface's normal is closest to. */
+#define LIGHT_SIDES 6
 /* The estimate's own seed: an importance function, independent of --seed. */
 #define LIGHT_VIS_SEED 0x6c696768745f7631ULL
+
+/* Emitters weaker than this fraction of a cell's strongest get no test rays. */
+#define LIGHT_VIS_SKIP 0.01f
+/* Glass surfaces a test ray may cross (a stack of panes). */
+#define LIGHT_GLASS_CROSSINGS 8
 
 enum { CELL_EMPTY = 0, CELL_BUSY = 1, CELL_READY = 2 };
 
@@ -43,8 +51,8 @@ struct light_set {
     vec3 lo;
     float h;
     uint32_t nx, ny, nz;
-    float *vis;                  /* ncells * ne */
-    atomic_uchar *state;         /* per cell: CELL_* */
+    unsigned char *vis;          /* per key (cell * 6 + side) and emitter: unblocked test rays */
+    atomic_uchar *state;         /* per key: CELL_* */
 };
 
 static uint32_t emitter_of_cdf(const float *cdf, uint32_t n, float u)
@@ -105,7 +113,7 @@ static int build_grid(light_set *l)
     vec3 ext = v3_sub(hi, lo);
     float big = fmaxf(ext.x, fmaxf(ext.y, ext.z));
     if (!(big > 0.0f) || !isfinite(big)) return CT_OK;   /* no extent: no grid, pick by power */
-    uint32_t budget = LIGHT_GRID_FLOATS / l->ne;
+    uint32_t budget = LIGHT_GRID_BYTES / (LIGHT_SIDES * l->ne);
     if (budget > LIGHT_GRID_CELLS) budget = LIGHT_GRID_CELLS;
     /* Cubic cells; flat axes get one cell. */
     double vol = (double)fmaxf(ext.x, big * 1e-3f) * fmaxf(ext.y, big * 1e-3f) * fmaxf(ext.z, big * 1e-3f);
@@ -125,11 +133,11 @@ static int build_grid(light_set *l)
     l->lo = lo;
     l->h = h;
     l->nx = n[0], l->ny = n[1], l->nz = n[2];
-    size_t cells = (size_t)n[0] * n[1] * n[2];
-    l->vis = malloc(cells * l->ne * sizeof *l->vis);
-    l->state = calloc(cells, sizeof *l->state);
+    size_t keys = (size_t)n[0] * n[1] * n[2] * LIGHT_SIDES;
+    l->vis = malloc(keys * l->ne);
+    l->state = calloc(keys, sizeof *l->state);
     if (!l->vis || !l->state) return CT_ENOMEM;
-    for (size_t i = 0; i < cells; i++) atomic_init(&l->state[i], CELL_EMPTY);
+    for (size_t i = 0; i < keys; i++) atomic_init(&l->state[i], CELL_EMPTY);
     l->spatial = true;
     return CT_OK;
 }
@@ -266,18 +274,74 @@ static vec3 emitter_point(const light_set *l, uint32_t k, float u0, float u1, fl
     return v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
 }
 
-/* Fraction of LIGHT_VIS_RAYS rays between random points of cell (ix, iy, iz)
- * and of each emitter that nothing blocks. A pure function of the cell. */
-static void estimate_cell(const light_set *l, uint32_t cell, uint32_t ix, uint32_t iy, uint32_t iz, float *vis)
+/* Whether light passes from p along d for dist: nothing blocks it but
+ * dielectrics (shadow rays pass glass, attenuated; an estimate that counted
+ * glass as a wall would starve the lights seen through a glass partition). */
+static bool open_line(const light_set *l, vec3 p, vec3 d, float dist)
+{
+    if (!emb_occluded(l->emb, p, d, 0.0f, dist)) return true;
+    float t0 = 0.0f;
+    for (int k = 0; k < LIGHT_GLASS_CROSSINGS; k++) {
+        emb_hit h;
+        if (!emb_intersect(l->emb, p, d, t0, dist, &h)) return true;
+        if (!l->mesh->mats[h.mat].dielectric) return false;
+        /* Continue just past the glass surface (relative step: scale free). */
+        t0 = h.t + fmaxf(h.t, 1.0f) * 1e-5f;
+    }
+    return false;
+}
+
+/* A point of a surface in the cell whose normal is closest to side's axis,
+ * found by a ray from the cell's face on that side inwards (so a wall
+ * through the cell is seen from the side its surface faces), pushed off the
+ * surface; the cell volume's point p when no such surface is met. */
+static vec3 probe_point(const light_set *l, vec3 base, int side, ct_rng *r)
+{
+    int axis = side / 2;
+    float sign = side % 2 ? -1.0f : 1.0f;
+    float c[3] = {rng_float(r) * l->h, rng_float(r) * l->h, rng_float(r) * l->h};
+    vec3 vol = v3_add(base, v3(c[0], c[1], c[2]));
+    c[axis] = sign > 0.0f ? l->h : 0.0f;
+    vec3 o = v3_add(base, v3(c[0], c[1], c[2]));
+    float dd[3] = {0.0f, 0.0f, 0.0f};
+    dd[axis] = -sign;
+    vec3 d = v3(dd[0], dd[1], dd[2]);
+    emb_hit h;
+    if (!emb_intersect(l->emb, o, d, 0.0f, l->h, &h)) return vol;
+    vec3 ng = emb_tri_normal(l->mesh, h.tri);
+    if (-v3_dot(ng, d) <= 0.0f) return vol;   /* a back face: not this side's surface */
+    vec3 q = v3_add(o, v3_scale(d, h.t));
+    return v3_add(q, v3_scale(ng, 1e-4f * l->h));
+}
+
+/* Unblocked test rays (of LIGHT_VIS_RAYS) between points of surfaces facing
+ * `side` in cell (ix, iy, iz) and each emitter. A pure function of the key. */
+static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t iy, uint32_t iz, int side,
+                         unsigned char *vis)
 {
     vec3 base = v3_add(l->lo, v3((float)ix * l->h, (float)iy * l->h, (float)iz * l->h));
+    vec3 pts[LIGHT_VIS_RAYS];
+    ct_rng r = rng_make(LIGHT_VIS_SEED, key, 0, 0);
+    for (int j = 0; j < LIGHT_VIS_RAYS; j++) pts[j] = probe_point(l, base, side, &r);
+    /* Emitters that cannot matter here (unblocked, they would bring under
+     * LIGHT_VIS_SKIP of the strongest one) count as visible: no rays. */
+    vec3 mid = v3_add(base, v3s(0.5f * l->h));
+    float wmax = 0.0f, wk[LIGHT_SEL_MAX];
+    for (uint32_t k = 0; k < l->ne; k++) {
+        wk[k] = l->em[k].power / fmaxf(v3_len2(v3_sub(mid, l->em[k].c)), l->em[k].r2);
+        wmax = fmaxf(wmax, wk[k]);
+    }
     for (uint32_t k = 0; k < l->ne; k++) {
         const emitter *em = &l->em[k];
-        ct_rng r = rng_make(LIGHT_VIS_SEED, cell, k, 0);
+        if (wk[k] < LIGHT_VIS_SKIP * wmax) {
+            vis[k] = LIGHT_VIS_RAYS;
+            continue;
+        }
+        ct_rng rk = rng_make(LIGHT_VIS_SEED, key, k + 1, 0);
         int open = 0;
         for (int j = 0; j < LIGHT_VIS_RAYS; j++) {
-            vec3 p = v3_add(base, v3(rng_float(&r) * l->h, rng_float(&r) * l->h, rng_float(&r) * l->h));
-            float u0 = rng_float(&r), u1 = rng_float(&r), u2 = rng_float(&r);
+            vec3 p = pts[j];
+            float u0 = rng_float(&rk), u1 = rng_float(&rk), u2 = rng_float(&rk);
             vec3 q = emitter_point(l, k, u0, u1, u2);
             if (em->flat && v3_dot(v3_sub(p, q), em->n) <= 0.0f) continue;   /* behind it */
             vec3 d = v3_sub(q, p);
@@ -285,15 +349,15 @@ static void estimate_cell(const light_set *l, uint32_t cell, uint32_t ix, uint32
             if (!(dist > 0.0f)) continue;
             d = v3_scale(d, 1.0f / dist);
             /* Stop short of the emitter so its own surface does not count. */
-            if (!emb_occluded(l->emb, p, d, 0.0f, dist * (1.0f - 1e-4f))) open++;
+            if (open_line(l, p, d, dist * (1.0f - 1e-4f))) open++;
         }
-        vis[k] = (float)open / (float)LIGHT_VIS_RAYS;
+        vis[k] = (unsigned char)open;
     }
 }
 
 void light_select_power(light_sel *sel) { sel->n = 0; }
 
-void light_select(const light_set *l, vec3 x, light_sel *sel)
+void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
 {
     if (!l->spatial) {
         sel->n = 0;
@@ -305,16 +369,20 @@ void light_select(const light_set *l, vec3 x, light_sel *sel)
         float c = floorf(f[k]);
         idx[k] = !(c >= 0.0f) ? 0u : c >= (float)lim[k] ? lim[k] - 1 : (uint32_t)c;
     }
-    uint32_t cell = (idx[2] * l->ny + idx[1]) * l->nx + idx[0];
-    const float *vis = l->vis + (size_t)cell * l->ne;
-    float local[LIGHT_SEL_MAX];
-    if (atomic_load_explicit(&l->state[cell], memory_order_acquire) != CELL_READY) {
-        estimate_cell(l, cell, idx[0], idx[1], idx[2], local);
+    /* The side: the axis direction closest to the normal (+x, -x, +y, ...). */
+    float an[3] = {fabsf(n.x), fabsf(n.y), fabsf(n.z)}, nc[3] = {n.x, n.y, n.z};
+    int axis = an[0] >= an[1] && an[0] >= an[2] ? 0 : an[1] >= an[2] ? 1 : 2;
+    int side = 2 * axis + (nc[axis] < 0.0f);
+    uint32_t key = ((idx[2] * l->ny + idx[1]) * l->nx + idx[0]) * LIGHT_SIDES + (uint32_t)side;
+    const unsigned char *vis = l->vis + (size_t)key * l->ne;
+    unsigned char local[LIGHT_SEL_MAX];
+    if (atomic_load_explicit(&l->state[key], memory_order_acquire) != CELL_READY) {
+        estimate_key(l, key, idx[0], idx[1], idx[2], side, local);
         unsigned char expect = CELL_EMPTY;
-        if (atomic_compare_exchange_strong_explicit(&l->state[cell], &expect, CELL_BUSY, memory_order_acq_rel,
+        if (atomic_compare_exchange_strong_explicit(&l->state[key], &expect, CELL_BUSY, memory_order_acq_rel,
                                                     memory_order_acquire)) {
-            memcpy(l->vis + (size_t)cell * l->ne, local, l->ne * sizeof *local);
-            atomic_store_explicit(&l->state[cell], CELL_READY, memory_order_release);
+            memcpy(l->vis + (size_t)key * l->ne, local, l->ne);
+            atomic_store_explicit(&l->state[key], CELL_READY, memory_order_release);
         }
         vis = local;
     }
@@ -329,7 +397,7 @@ void light_select(const light_set *l, vec3 x, light_sel *sel)
             float c = v3_dot(d, em->n);
             w = c > 0.0f ? w * c / sqrtf(fmaxf(d2, em->r2)) : 0.0f;
         }
-        w *= LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * vis[k];
+        w *= LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((float)vis[k] / (float)LIGHT_VIS_RAYS);
         acc += isfinite(w) ? w : 0.0f;
         sel->cdf[k + 1] = acc;
     }

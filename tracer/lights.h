@@ -7,8 +7,9 @@
  *   power * cos_light / max(d^2, r^2) * (beta + (1 - beta) * V),
  * where cos_light and d are taken to the emitter's centre (zero behind a
  * flat emitter, which emits from its front side only), r is its bounding
- * radius and V the fraction of unblocked rays between x's grid cell and the
- * emitter (a deterministic estimate made the first time a cell is used,
+ * radius and V the fraction of unblocked rays between points of the surfaces
+ * in x's grid cell that face the way x's surface faces and the emitter (a
+ * deterministic estimate made the first time a cell and side is used,
  * beta = LIGHT_VIS_FLOOR keeps the density positive wherever light can
  * arrive, so the estimator stays unbiased). Within the emitter a triangle is
  * picked by power (area * luminance of L_e), then a point uniformly by area.
@@ -67,10 +68,11 @@ uint32_t light_count(const light_set *l);
 /* Number of emitters (emissive mesh parts). */
 uint32_t light_emitters(const light_set *l);
 
-/* Fills sel with the emitter probabilities at x. Thread-safe: a cell's
- * visibility estimate is a pure function of the cell, so threads that race
- * to make it compute the same values. */
-void light_select(const light_set *l, vec3 x, light_sel *sel);
+/* Fills sel with the emitter probabilities at x on a surface with normal n
+ * (the side of a wall matters). Thread-safe: a cell's visibility estimate is
+ * a pure function of the cell and side, so threads that race to make it
+ * compute the same values. */
+void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel);
 
 /* sel for picking by power alone (no shading point). */
 void light_select_power(light_sel *sel);

@@ -1,5 +1,6 @@
 /* The tracer's light selection (tracer/lights.h): in two rooms separated by a
- * wall, a point's shadow rays go to its own room's light; the pdf that
+ * wall, a point's shadow rays go to its own room's light, on either face of
+ * the wall; the pdf that
  * light_pdf_area reports is the density light_sample draws from; nothing is
  * picked behind a flat emitter; racing threads make the same estimates. */
 #include <criterion/criterion.h>
@@ -66,7 +67,7 @@ Test(lights, own_room_light_gets_the_shadow_rays)
     two_rooms_make(&r);
     cr_assert_eq(light_emitters(r.l), 3u);
     light_sel sel;
-    light_select(r.l, v3(1.0f, 0.01f, 3.0f), &sel);   /* on room A's floor */
+    light_select(r.l, v3(1.0f, 0.0f, 3.0f), v3(0, 1, 0), &sel);   /* on room A's floor */
     double pa = p_node(&r, &sel, r.light_a), pb = p_node(&r, &sel, r.light_b), pl = p_node(&r, &sel, r.lamp_b);
     cr_expect(fabs(pa + pb + pl - 1.0) < 1e-4, "probabilities sum to %g", pa + pb + pl);
     cr_expect(pa > 0.9, "room A's light gets %g of the shadow rays (B's light %g, B's lamp %g)", pa, pb, pl);
@@ -77,9 +78,23 @@ Test(lights, own_room_light_gets_the_shadow_rays)
     light_sel pow;
     light_select_power(&pow);
     cr_expect(p_node(&r, &pow, r.light_a) < 0.6);
-    light_select(r.l, v3(7.0f, 0.01f, 1.0f), &sel);   /* room B's floor */
+    light_select(r.l, v3(7.0f, 0.0f, 1.0f), v3(0, 1, 0), &sel);   /* room B's floor */
     cr_expect(p_node(&r, &sel, r.light_a) < 0.1, "room A's light from room B: %g",
               p_node(&r, &sel, r.light_a));
+    two_rooms_free(&r);
+}
+
+Test(lights, each_side_of_a_wall_gets_its_own_rooms_light)
+{
+    two_rooms r;
+    two_rooms_make(&r);
+    /* Both faces of the wall between the rooms (x = 4 faces room A, x = 4.1
+     * room B) may share grid cells: the side decides. */
+    light_sel sel;
+    light_select(r.l, v3(4.0f, 1.2f, 2.2f), v3(-1, 0, 0), &sel);
+    cr_expect(p_node(&r, &sel, r.light_a) > 0.9, "room A's face: A's light gets %g", p_node(&r, &sel, r.light_a));
+    light_select(r.l, v3(4.1f, 1.2f, 2.2f), v3(1, 0, 0), &sel);
+    cr_expect(p_node(&r, &sel, r.light_a) < 0.1, "room B's face: A's light gets %g", p_node(&r, &sel, r.light_a));
     two_rooms_free(&r);
 }
 
@@ -88,10 +103,11 @@ Test(lights, sampled_points_follow_the_reported_pdf)
     two_rooms r;
     two_rooms_make(&r);
     const emb_mesh *m = emb_get_mesh(r.emb);
-    vec3 xs[] = {v3(1.0f, 0.01f, 3.0f), v3(4.05f, 1.5f, 2.0f), v3(7.0f, 1.0f, 3.0f)};
+    vec3 xs[] = {v3(1.0f, 0.0f, 3.0f), v3(4.1f, 1.5f, 2.0f), v3(7.0f, 1.0f, 3.0f)};
+    vec3 ns[] = {v3(0, 1, 0), v3(1, 0, 0), v3(0, 0, 1)};
     for (size_t k = 0; k < sizeof xs / sizeof xs[0]; k++) {
         light_sel sel;
-        light_select(r.l, xs[k], &sel);
+        light_select(r.l, xs[k], ns[k], &sel);
         enum { N = 200000 };
         int hits[3] = {0, 0, 0};
         for (int i = 0; i < N; i++) {
@@ -127,11 +143,11 @@ Test(lights, nothing_is_picked_behind_flat_emitters)
     CHECK(emb_new(&m, NULL, &e, &err));
     CHECK(light_build(e, &l, &err));
     light_sel sel;
-    light_select(l, v3(1.5f, 1.5f, 0.5f), &sel);
+    light_select(l, v3(1.5f, 1.5f, 0.5f), v3(0, -1, 0), &sel);
     light_point lp;
     cr_expect(!light_sample(l, &sel, 0.5f, 0.5f, 0.5f, &lp));
     for (uint32_t t = 0; t < emb_get_mesh(e)->ntris; t++) cr_expect_eq(light_pdf_area(l, &sel, t), 0.0f);
-    light_select(l, v3(1.5f, 0.0f, 0.5f), &sel);   /* below: both light it */
+    light_select(l, v3(1.5f, 0.0f, 0.5f), v3(0, 1, 0), &sel);   /* below: both light it */
     cr_expect(light_sample(l, &sel, 0.5f, 0.5f, 0.5f, &lp));
     light_free(l);
     emb_free(e);
@@ -140,14 +156,14 @@ Test(lights, nothing_is_picked_behind_flat_emitters)
 
 typedef struct race {
     const light_set *l;
-    vec3 x;
+    vec3 x, n;
     light_sel sel;
 } race;
 
 static void *race_select(void *arg)
 {
     race *r = arg;
-    light_select(r->l, r->x, &r->sel);
+    light_select(r->l, r->x, r->n, &r->sel);
     return NULL;
 }
 
@@ -156,17 +172,17 @@ Test(lights, racing_threads_make_the_same_estimate)
     two_rooms a, b;
     two_rooms_make(&a);
     two_rooms_make(&b);
-    vec3 x = v3(4.0f, 1.0f, 2.0f);   /* a cell on the wall between the rooms */
+    vec3 x = v3(4.0f, 1.0f, 2.0f), n = v3(-1, 0, 0);   /* room A's side of the wall between the rooms */
     race rs[4];
     pthread_t th[4];
     for (int i = 0; i < 4; i++) {
-        rs[i] = (race){a.l, x, {0}};
+        rs[i] = (race){a.l, x, n, {0}};
         cr_assert_eq(pthread_create(&th[i], NULL, race_select, &rs[i]), 0);
     }
     for (int i = 0; i < 4; i++) pthread_join(th[i], NULL);
     light_sel once, again;
-    light_select(b.l, x, &once);    /* a fresh set: estimates the cell itself */
-    light_select(a.l, x, &again);   /* the published estimate */
+    light_select(b.l, x, n, &once);    /* a fresh set: estimates the cell itself */
+    light_select(a.l, x, n, &again);   /* the published estimate */
     for (int i = 0; i < 4; i++)
         cr_expect(memcmp(rs[i].sel.cdf, once.cdf, sizeof once.cdf[0] * (once.n + 1)) == 0, "thread %d differs", i);
     cr_expect(memcmp(again.cdf, once.cdf, sizeof once.cdf[0] * (once.n + 1)) == 0);
