@@ -232,8 +232,28 @@ static const char *const exr_names[3] = {"B", "G", "R"};
 static const int exr_comp[3] = {2, 1, 0};
 
 /* Encodes and writes every scanline chunk of img into part. */
+/* OpenEXRCore before 3.4.8 (Debian 12 has 3.1.5) keeps the zlib bytes of a
+ * ZIP chunk whose compressed size equals its packed size, but readers take a
+ * chunk of that size as stored raw (OpenEXR issue 2306): noisy float images
+ * came back with a block of 16 garbage rows. This wrapper stores such a chunk
+ * raw, as the fixed library does. */
+typedef struct zip_guard {
+    exr_result_t (*compress)(exr_encode_pipeline_t *enc);
+} zip_guard;
+
+static exr_result_t guarded_compress(exr_encode_pipeline_t *enc)
+{
+    const zip_guard *g = enc->encoding_user_data;
+    exr_result_t rv = g->compress(enc);
+    if (rv == EXR_ERR_SUCCESS && enc->compressed_buffer && enc->compressed_buffer != enc->packed_buffer &&
+        enc->compressed_bytes == enc->packed_bytes && enc->packed_bytes > 0)
+        memcpy(enc->compressed_buffer, enc->packed_buffer, enc->packed_bytes);
+    return rv;
+}
+
 static exr_result_t write_chunks(exr_context_t ctx, int part, const ct_image *img)
 {
+    zip_guard guard = {NULL};
     int32_t lines = 0;
     exr_result_t rv = exr_get_scanlines_per_chunk(ctx, part, &lines);
     if (rv != EXR_ERR_SUCCESS) return rv;
@@ -263,6 +283,11 @@ static exr_result_t write_chunks(exr_context_t ctx, int part, const ct_image *im
         if (rv != EXR_ERR_SUCCESS) break;
         if (!initialized) {
             if ((rv = exr_encoding_choose_default_routines(ctx, part, &enc)) != EXR_ERR_SUCCESS) break;
+            if (enc.compress_fn) {
+                guard.compress = enc.compress_fn;
+                enc.compress_fn = guarded_compress;
+                enc.encoding_user_data = &guard;
+            }
             initialized = 1;
         }
         rv = exr_encoding_run(ctx, part, &enc);
