@@ -156,9 +156,18 @@ void disp_compositor_depth_range(const disp_scene *s, const ct_camera *cam, floa
     }
     float diag = v3_len(b3_extent(b));
     *zfar = fmaxf(dmax * 1.01f + 1e-3f * diag, 1e-3f);
-    /* 24-bit depth keeps ~1e-4 relative resolution at this ratio. */
-    *znear = fmaxf(*zfar * 1e-4f, 1e-6f);
+    /* A 24-bit depth buffer resolves dz = z^2 / (znear 2^24) at distance z:
+     * with znear = zfar / 10^4 that was 1.5 mm at 8 m in the office, and a
+     * whiteboard 1 mm in front of its frame z-fought with it (the frame's
+     * corrections showed through in black and white). zfar / 10^3 resolves
+     * 0.15 mm there and clips only geometry nearer than a thousandth of the
+     * scene's depth (2.5 cm in the office, 1.7 mm in the Cornell box). */
+    *znear = fmaxf(*zfar * 1e-3f, 1e-6f);
 }
+
+/* "Nearer" and "as near" for the depth convention in use (gl_load.h). */
+static GLenum depth_less(void) { return gl.reversed_z ? GL_GREATER : GL_LESS; }
+static GLenum depth_lequal(void) { return gl.reversed_z ? GL_GEQUAL : GL_LEQUAL; }
 
 static void set_texproj(const mesh_prog *p, const disp_texture *const *tex, int n)
 {
@@ -197,7 +206,7 @@ static void correction_passes(disp_compositor *c, const disp_scene *s,
     gl.Enable(GL_BLEND);
     gl.BlendFunc(GL_ONE, GL_ONE);
     gl.DepthMask(GL_FALSE);
-    gl.DepthFunc(GL_LEQUAL);
+    gl.DepthFunc(depth_lequal());
     gl.BlendEquation(GL_FUNC_ADD);
     use_mesh(&c->mesh[GL_PASS_POS], mvp, 1.0f);
     for (uint32_t i = 0; i < n; i++) {
@@ -219,7 +228,7 @@ static void correction_passes(disp_compositor *c, const disp_scene *s,
     }
     gl.Disable(GL_BLEND);
     gl.DepthMask(GL_TRUE);
-    gl.DepthFunc(GL_LESS);
+    gl.DepthFunc(depth_less());
 }
 
 static int cmp_u32(const void *a, const void *b)
@@ -320,7 +329,13 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
         return ct_fail(err, CT_EINVAL, "passes must be 1 or 3, not %d", o->passes);
     float zn, zf;
     disp_compositor_depth_range(s, cam, &zn, &zf);
-    mat4 mvp = m4_mul(cam_proj(cam, c->width, c->height, zn, zf), cam_view(cam));
+    mat4 proj = cam_proj(cam, c->width, c->height, zn, zf);
+    if (gl.reversed_z) {
+        /* depth = zn / distance: 1 at the near plane, 0 at infinity. */
+        proj.m[2][0] = proj.m[2][1] = proj.m[2][2] = 0.0f;
+        proj.m[2][3] = zn;
+    }
+    mat4 mvp = m4_mul(proj, cam_view(cam));
     c->last_mvp = mvp;
 
     /* The drawable textures, in table order. */
@@ -336,9 +351,9 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
 
     gl_target_bind(&c->hdr, 0, 0);
     gl.ClearColor(0, 0, 0, 1);
-    gl.ClearDepth(1.0);
+    gl.ClearDepth(gl.reversed_z ? 0.0 : 1.0);
     gl.Enable(GL_DEPTH_TEST);
-    gl.DepthFunc(GL_LESS);
+    gl.DepthFunc(depth_less());
     gl.DepthMask(GL_TRUE);
     gl.Disable(GL_BLEND);
     gl.Disable(GL_CULL_FACE);
@@ -362,7 +377,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
         gl.BlendColor(0, 0, 0, 0.6f);
         gl.BlendFunc(GL_CONSTANT_ALPHA, GL_ONE_MINUS_CONSTANT_ALPHA);
         gl.DepthMask(GL_FALSE);
-        gl.DepthFunc(GL_LEQUAL);
+        gl.DepthFunc(depth_lequal());
         const mesh_prog *p = &c->mesh[GL_PASS_FLAT];
         use_mesh(p, &mvp.m[0][0], 1.0f);
         for (uint32_t i = 0; i < n; i++) {
@@ -373,7 +388,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
         }
         gl.Disable(GL_BLEND);
         gl.DepthMask(GL_TRUE);
-        gl.DepthFunc(GL_LESS);
+        gl.DepthFunc(depth_less());
     }
     st.textures_drawn = corrections ? n : 0;
     free(tex);

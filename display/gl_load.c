@@ -1,6 +1,7 @@
 #include "display/gl_load.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 gl_api gl;
@@ -25,6 +26,22 @@ int gl_load(gl_getproc_fn getproc, const char *backend, ct_error *err)
     if (!(mask & GL_CONTEXT_CORE_PROFILE_BIT))
         return ct_fail(err, CT_ESYS, "%s: GL %d.%d context is not a core profile", backend, major,
                        minor);
+    /* Backends hand out pointers for names a context does not support, so
+     * the version or the extension list decides, not the pointer. */
+    bool clip = major * 10 + minor >= 45;
+    GLint next = 0;
+    gl.GetIntegerv(GL_NUM_EXTENSIONS, &next);
+    for (GLint i = 0; i < next && !clip; i++) {
+        const char *e = (const char *)gl.GetStringi(GL_EXTENSIONS, (GLuint)i);
+        clip = e && strcmp(e, "GL_ARB_clip_control") == 0;
+    }
+    const char *want = getenv("CORRTEX_GL_REVERSED_Z");
+    if (clip && !(want && strcmp(want, "0") == 0)) gl.ClipControl = (PFNGLCLIPCONTROLPROC)getproc("glClipControl");
+    if (gl.ClipControl) {
+        gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+        gl.reversed_z = true;
+    }
+    while (gl.GetError() != GL_NO_ERROR) {}
     return CT_OK;
 }
 

@@ -11,12 +11,14 @@
 #define CT_GL_LOAD_H
 
 #include <GL/glcorearb.h>
+#include <stdbool.h>
 
 #include "common/error.h"
 
 #define GL_LOAD_FUNCS(X)                                                          \
     X(PFNGLGETERRORPROC, GetError)                                                \
     X(PFNGLGETSTRINGPROC, GetString)                                              \
+    X(PFNGLGETSTRINGIPROC, GetStringi)                                            \
     X(PFNGLGETINTEGERVPROC, GetIntegerv)                                          \
     X(PFNGLVIEWPORTPROC, Viewport)                                                \
     X(PFNGLCLEARPROC, Clear)                                                      \
@@ -91,6 +93,13 @@ typedef struct gl_api {
 #define GL_LOAD_MEMBER(type, name) type name;
     GL_LOAD_FUNCS(GL_LOAD_MEMBER)
 #undef GL_LOAD_MEMBER
+    /* Optional (GL 4.5 or ARB_clip_control), NULL when the context lacks it. */
+    PFNGLCLIPCONTROLPROC ClipControl;
+    /* Depth is "reversed": a [0, 1] clip range (glClipControl), a 32-bit
+     * float depth buffer, 1 at the near plane, 0 at infinity, so depth
+     * resolution is relative to the distance everywhere. Without clip
+     * control: the classic 24-bit depth, 0 near, 1 far. */
+    bool reversed_z;
 } gl_api;
 
 /* The entry points of the current context (one context per process). */
@@ -101,7 +110,8 @@ typedef void (*gl_proc)(void);
 typedef gl_proc (*gl_getproc_fn)(const char *name);
 
 /* Fills `gl` through getproc and checks the context is GL >= 3.3 core;
- * `backend` names the backend in error messages. */
+ * `backend` names the backend in error messages. Turns on reversed depth
+ * where the context has clip control, unless CORRTEX_GL_REVERSED_Z=0. */
 int gl_load(gl_getproc_fn getproc, const char *backend, ct_error *err);
 
 /* Fails with the pending GL error (if any) naming `what`; clears all errors. */

@@ -16,7 +16,8 @@ typedef struct gl_target {
 } gl_target;
 
 /* Creates a width x height target with the given colour format and an
- * optional 24-bit depth buffer; checks completeness. */
+ * optional depth buffer (32-bit float with reversed depth, else 24-bit);
+ * checks completeness. */
 int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err);
 
 /* Deletes the GL objects and zeroes t. */

@@ -1,11 +1,15 @@
 /* Golden images of the radiosity pass: the box mesh drawn by OSMesa and by
  * EGL agrees with a software Gouraud rasterisation at pixel centres, and the
- * two backends agree with each other. */
+ * two backends agree with each other; a surface 1 mm in front of another
+ * (a whiteboard on its frame) does not z-fight with it across a deep scene. */
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "tests/support/disp_fixture.h"
+#include "tests/support/testscenes.h"
+#include "display/gl_load.h"
 
 #define W 96
 #define H 72
@@ -106,3 +110,69 @@ Test(disp_golden, rejects_bad_mesh)
     gl_backend_close(b);
     rmesh_free(&m);
 }
+
+/* A 25 m deep scene (a floor strip sets the far plane), a black panel
+ * `dist` metres ahead and a white one 1 mm in front of it, added after it so
+ * that depth ties would go to the black one. */
+typedef struct layers {
+    float dist;
+    bool reversed;   /* the depth convention the child must be using */
+} layers;
+
+static int setup_layers(disp_session *s, void *ctx, ct_error *err)
+{
+    const layers *l = ctx;
+    if (gl.reversed_z != l->reversed)
+        return ct_fail(err, CT_ESYS, "%s", l->reversed ? "no clip control: no reversed depth" : "reversed depth is on");
+    ct_scene *sc = scene_new("layers");
+    int dark = ts_diffuse(sc, "frame", v3s(0.0f), v3s(0.0f), err);
+    int white = ts_diffuse(sc, "board", v3s(1.0f), v3s(0.0f), err);
+    int rc = dark < 0 || white < 0 ? CT_EINVAL : CT_OK;
+    float z = -l->dist;
+    if (!rc && ts_quad(sc, "floor", (uint32_t)dark, v3(-1, -5, 0), v3(0, 0, -25), v3(2, 0, 0), err) < 0) rc = CT_EINVAL;
+    if (!rc && ts_quad(sc, "frame", (uint32_t)dark, v3(-4, -4, z), v3(8, 0, 0), v3(0, 8, 0), err) < 0) rc = CT_EINVAL;
+    if (!rc && ts_quad(sc, "board", (uint32_t)white, v3(-4, -4, z + 0.001f), v3(8, 0, 0), v3(0, 8, 0), err) < 0)
+        rc = CT_EINVAL;
+    if (!rc) rc = scene_finalize(sc, err);
+    ct_radmesh m;
+    if (!rc) rc = rmesh_from_scene(sc, v3s(1.0f), &m, err);
+    scene_free(sc);
+    if (rc) return rc;
+    rc = disp_session_scene(s, &m, err);
+    rmesh_free(&m);
+    return rc;
+}
+
+/* Board pixels (of the middle 16 x 16) that show the frame behind. */
+static void layered(layers l)
+{
+    ct_camera cam = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 10.0f);
+    fx_frame f;
+    char msg[256];
+    if (!l.reversed) setenv("CORRTEX_GL_REVERSED_Z", "0", 1);
+    for (int passes = 1; passes <= 3; passes += 2) {
+        disp_render_opts o = {passes, passes == 1 ? DISP_VIEW_FULL : DISP_VIEW_RADIOSITY, 0.0f, false};
+        int rc = fx_render(GL_BACKEND_EGL, 32, 32, &cam, &o, setup_layers, &l, &f, msg, sizeof msg);
+        if (rc && strstr(msg, "no clip control")) {
+            unsetenv("CORRTEX_GL_REVERSED_Z");
+            cr_skip_test("the GL context has no clip control");
+        }
+        cr_assert_eq(rc, 0, "egl: %s", msg);
+        /* The 8 m wide panels fill the 10 degree view up to 45 m away. */
+        int dark = 0;
+        for (int y = 8; y < 24; y++)
+            for (int x = 8; x < 24; x++)
+                if (f.linear[3 * ((size_t)y * 32 + (size_t)x)] < 0.99f) dark++;
+        printf("metric: %s depth, %d-pass, panels at %g m: %d of 256 board pixels show the frame 1 mm behind\n",
+               l.reversed ? "reversed" : "classic", passes, (double)l.dist, dark);
+        cr_expect_eq(dark, 0, "%d-pass: %d board pixels z-fight with the frame behind", passes, dark);
+        fx_frame_free(&f);
+    }
+    unsetenv("CORRTEX_GL_REVERSED_Z");
+}
+
+/* Reversed float depth: 1 mm apart at 20 m of a 25 m deep scene. */
+Test(disp_golden, one_millimetre_apart_at_twenty_metres) { layered((layers){20.0f, true}); }
+
+/* The classic 24-bit fallback: 1 mm apart at 8 m (the office's whiteboard). */
+Test(disp_golden, one_millimetre_apart_at_eight_metres_classic_depth) { layered((layers){8.0f, false}); }
