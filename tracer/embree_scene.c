@@ -12,10 +12,11 @@ struct emb_scene {
     RTCScene scene;
     float *verts;         /* padded copy of the positions (Embree reads 16 bytes) */
     uint32_t *index;      /* triangles grouped by part node */
-    uint32_t *order;      /* grouped position -> mesh triangle */
+    uint32_t *order;      /* grouped position -> mesh triangle (build only) */
     uint32_t *geom_base;  /* geomID -> first grouped position */
     uint32_t ngeoms;
-    vec3 *face_n;         /* unit front normal per mesh triangle */
+    emb_tri *recs;        /* per grouped position: the triangle's shading record */
+    bool has_nrm;         /* the mesh has vertex normals */
     ct_error dev_err;     /* last device error (filled by the callback) */
     int dev_code;
 };
@@ -164,12 +165,32 @@ int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct
     }
     memset(e->verts + 3 * (size_t)mesh->nverts, 0, 4 * sizeof(float));
 
-    e->face_n = malloc((size_t)mesh->ntris * sizeof *e->face_n);
-    if (!e->face_n) {
+    /* Cache-line aligned, so a record spans exactly two lines. */
+    size_t rec_bytes = ((size_t)mesh->ntris * sizeof *e->recs + 63) / 64 * 64;
+    e->recs = aligned_alloc(64, rec_bytes);
+    if (!e->recs) {
         rc = ct_fail(err, CT_ENOMEM, "out of memory for %u triangles", mesh->ntris);
         goto fail;
     }
-    for (uint32_t t = 0; t < mesh->ntris; t++) e->face_n[t] = emb_tri_normal(mesh, t);
+    e->has_nrm = mesh->nrm != NULL;
+    for (uint32_t i = 0; i < mesh->ntris; i++) {
+        uint32_t t = e->order[i];
+        const uint32_t *vi = mesh->tris + 3 * (size_t)t;
+        emb_tri *r = &e->recs[i];
+        r->a = mesh->pos[vi[0]];
+        r->e1 = v3_sub(mesh->pos[vi[1]], r->a);
+        r->e2 = v3_sub(mesh->pos[vi[2]], r->a);
+        r->ng = emb_tri_normal(mesh, t);
+        vec3 zero = v3s(0.0f);
+        r->na = mesh->nrm ? mesh->nrm[vi[0]] : zero;
+        r->nb = mesh->nrm ? mesh->nrm[vi[1]] : zero;
+        r->nc = mesh->nrm ? mesh->nrm[vi[2]] : zero;
+        r->tri = t;
+        r->node = mesh->tri_node[t];
+        r->mat = mesh->tri_mat[t];
+    }
+    free(e->order);   /* the records carry the mesh triangle */
+    e->order = NULL;
 
     e->device = rtcNewDevice(device_config && *device_config ? device_config : NULL);
     if (!e->device) {
@@ -217,7 +238,7 @@ void emb_free(emb_scene *e)
     free(e->index);
     free(e->order);
     free(e->geom_base);
-    free(e->face_n);
+    free(e->recs);
     free(e);
 }
 
@@ -249,13 +270,14 @@ bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, 
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(e->scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    uint32_t tri = e->order[e->geom_base[rh.hit.geomID] + rh.hit.primID];
+    const emb_tri *r = &e->recs[e->geom_base[rh.hit.geomID] + rh.hit.primID];
     hit->t = rh.ray.tfar;
     hit->u = rh.hit.u;
     hit->v = rh.hit.v;
-    hit->tri = tri;
-    hit->node = e->mesh.tri_node[tri];
-    hit->mat = e->mesh.tri_mat[tri];
+    hit->tri = r->tri;
+    hit->node = r->node;
+    hit->mat = r->mat;
+    hit->rec = r;
     return true;
 }
 
@@ -288,14 +310,12 @@ bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfa
 
 void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
 {
-    const emb_mesh *m = &e->mesh;
-    const uint32_t *i = m->tris + 3 * (size_t)h->tri;
+    const emb_tri *r = h->rec;
     float u = h->u, v = h->v, w = 1.0f - u - v;
-    vec3 a = m->pos[i[0]], b = m->pos[i[1]], c = m->pos[i[2]];
-    *p = v3_add(a, v3_add(v3_scale(v3_sub(b, a), u), v3_scale(v3_sub(c, a), v)));
-    *ng = e->face_n[h->tri];
-    if (m->nrm) {
-        vec3 na = m->nrm[i[0]], nb = m->nrm[i[1]], nc = m->nrm[i[2]];
+    *p = emb_hit_point(h);
+    *ng = r->ng;
+    if (e->has_nrm) {
+        vec3 na = r->na, nb = r->nb, nc = r->nc;
         vec3 n = v3(w * na.x + u * nb.x + v * nc.x, w * na.y + u * nb.y + v * nc.y,
                     w * na.z + u * nb.z + v * nc.z);
         float l2 = v3_len2(n);

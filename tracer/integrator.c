@@ -147,14 +147,14 @@ static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
         const scene_material *m = &c->mesh->mats[h.mat];
         if (!m->dielectric) return v3s(0.0f);
         *crossed = true;
-        vec3 ng = emb_tri_normal(c->mesh, h.tri);
+        vec3 ng = h.rec->ng;
         float cosd = v3_dot(d, ng), ct;
         float ior = m->ior > 0.0f ? m->ior : 1.0f;
         /* Entering when the ray runs against the outside (front) normal. */
         float f = bsdf_fresnel(fabsf(cosd), cosd < 0.0f ? 1.0f / ior : ior, &ct);
         att = v3_scale(v3_mul(att, m->transmission), 1.0f - f);
         if (!(v3_maxc(att) > 0.0f)) return v3s(0.0f);
-        vec3 p = emb_tri_point(c->mesh, h.tri, h.u, h.v);
+        vec3 p = emb_hit_point(&h);
         o = offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
         d = v3_sub(target, o);
         dist = v3_len(d);
