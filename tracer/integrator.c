@@ -52,7 +52,11 @@ static inline float rnd(integ_ctx *c) { return rng_float(&c->rng); }
 
 static inline bool finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
-static inline vec3 clamp0(vec3 a) { return v3(fmaxf(a.x, 0.0f), fmaxf(a.y, 0.0f), fmaxf(a.z, 0.0f)); }
+static inline vec3 clamp0(vec3 a) { return v3(bsdf_maxf(a.x, 0.0f), bsdf_maxf(a.y, 0.0f), bsdf_maxf(a.z, 0.0f)); }
+
+/* v3_maxc and fminf, inlined with the same results (bsdf_maxf). */
+static inline float maxc(vec3 a) { return bsdf_maxf(a.x, bsdf_maxf(a.y, a.z)); }
+static inline float minf(float x, float y) { return x < y || y != y ? x : y; }
 
 /* Offsets a point along n past the float error of the intersection (Waechter
  * & Binder, Ray Tracing Gems ch. 6): integer ULP steps far from the origin,
@@ -101,6 +105,7 @@ static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
     s->h = *h;
     emb_surface(c->emb, h, &s->p, &s->ng, &s->ns);
     s->m = &c->mesh->mats[h->mat];
+    s->bm = &c->bmats[h->mat];
 }
 
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
@@ -153,7 +158,7 @@ static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
         /* Entering when the ray runs against the outside (front) normal. */
         float f = bsdf_fresnel(fabsf(cosd), cosd < 0.0f ? 1.0f / ior : ior, &ct);
         att = v3_scale(v3_mul(att, m->transmission), 1.0f - f);
-        if (!(v3_maxc(att) > 0.0f)) return v3s(0.0f);
+        if (!(maxc(att) > 0.0f)) return v3s(0.0f);
         vec3 p = emb_hit_point(&h);
         o = offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
         d = v3_sub(target, o);
@@ -172,7 +177,7 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
     int k_rays = c->opt->shadow_rays;
     vec3 sum = v3s(0.0f);
     if (light_count(c->lights) == 0) return sum;
-    if (mode == DIRECT_GLOSSY_ONLY ? b->p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
+    if (mode == DIRECT_GLOSSY_ONLY ? b->L.p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
     vec3 origin = offset_ray(s->p, b->ng);
     for (int k = 0; k < k_rays; k++) {
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
@@ -236,7 +241,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         L = v3_add(L, v3_mul(beta, emitted(c, &s, d, ew)));
         if (depth >= max_depth) break;
         bsdf b;
-        bsdf_init(&b, s.m, s.ns, s.ng, wo);
+        bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
         L = v3_add(L, v3_mul(beta, direct_light(c, &s, &b, wo, DIRECT_ALL, 1)));
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
         bsdf_sample bs;
@@ -250,11 +255,11 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
             ew.n = 1;
         }
         if (depth >= RR_START) {
-            float q = fminf(0.95f, v3_maxc(beta));
+            float q = minf(0.95f, maxc(beta));
             if (!(rnd(c) < q)) break;
             beta = v3_scale(beta, 1.0f / q);
         }
-        if (!(v3_maxc(beta) > 0.0f)) break;
+        if (!(maxc(beta) > 0.0f)) break;
         o = offset_ray(s.p, bs.transmit ? v3_neg(b.ng) : b.ng);
         d = bs.wi;
     }
@@ -271,7 +276,7 @@ static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
  * not as B^D), none at the last level or without a glossy lobe. */
 static int glossy_rays(const trc_options *opt, const bsdf *b, int depth)
 {
-    if (depth >= opt->depth || b->p_g <= 0.0f) return 0;
+    if (depth >= opt->depth || b->L.p_g <= 0.0f) return 0;
     return depth < opt->branch_depth ? opt->branch : 1;
 }
 
@@ -293,11 +298,11 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         vec3 l = li(c, up, bs.wi, depth + 1, mis);
         L = v3_add(L, v3_scale(v3_mul(bs.weight, l), 1.0f / (float)nb));
     }
-    if (v3_maxc(b->km) > 0.0f) {
+    if (maxc(b->L.km) > 0.0f) {
         vec3 wr = bsdf_reflect(wo, b->n);
-        if (bsdf_same_side(b, wr)) L = v3_add(L, v3_mul(b->km, li(c, up, wr, depth + 1, refl)));
+        if (bsdf_same_side(b, wr)) L = v3_add(L, v3_mul(b->L.km, li(c, up, wr, depth + 1, refl)));
     }
-    if (b->dielectric) {
+    if (b->L.dielectric) {
         vec3 wr, wt;
         bool ok;
         float f = bsdf_dielectric(b, wo, &wr, &wt, &ok);
@@ -310,7 +315,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         if (wrefl > 0.0f) L = v3_add(L, v3_scale(li(c, up, wr, depth + 1, refl), wrefl));
         if (ok && wrefr > 0.0f) {
             vec3 lt = li(c, offset_ray(s->p, v3_neg(b->ng)), wt, depth + 1, refr);
-            L = v3_add(L, v3_mul(lt, v3_scale(b->kt, wrefr * b->eta * b->eta)));
+            L = v3_add(L, v3_mul(lt, v3_scale(b->L.kt, wrefr * b->eta * b->eta)));
         }
     }
     return L;
@@ -326,11 +331,11 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     vec3 wo = v3_neg(d);
     vec3 L = emitted(c, &s, d, ew);
     bsdf b;
-    bsdf_init(&b, s.m, s.ns, s.ng, wo);
+    bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
-    if (b.p_d > 0.0f) {
+    if (b.L.p_d > 0.0f) {
         if (c->rad) {
             /* The radiosity solution's indirect part at this very point. */
             vec3 ind = v3_sub(rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v),
@@ -373,7 +378,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     }
     vec3 wo = v3_neg(d);
     bsdf b;
-    bsdf_init(&b, s.m, s.ns, s.ng, wo);
+    bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);

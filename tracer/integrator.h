@@ -11,6 +11,7 @@
 
 #include "common/radmesh.h"
 #include "common/rng.h"
+#include "tracer/bsdf.h"
 #include "tracer/embree_scene.h"
 #include "tracer/lights.h"
 #include "tracer/tracer.h"
@@ -20,6 +21,7 @@ typedef struct integ_ctx {
     const emb_scene *emb;
     const emb_mesh *mesh;
     const light_set *lights;
+    const bsdf_mat *bmats;     /* per material: its precomputed lobes */
     const ct_radmesh *rad;     /* NULL: no interactive solution */
     const trc_options *opt;
     bool has_dielectric;       /* shadow rays must look through glass */
@@ -34,6 +36,7 @@ typedef struct integ_surf {
     vec3 ng;           /* front (winding) normal, unit */
     vec3 ns;           /* shading normal, unit */
     const scene_material *m;
+    const bsdf_mat *bm;
 } integ_surf;
 
 /* Traces a primary ray (counted as primary); false on a miss. */

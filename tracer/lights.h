@@ -1,6 +1,7 @@
 /* lights.h: the area lights of a mesh (its emissive triangles) and how the
  * tracer samples them. Density: a triangle is picked with probability
- * proportional to its power (area * luminance of L_e), then a point uniformly
+ * proportional to its power (area * luminance of L_e; a CDF with a guide
+ * table), then a point uniformly
  * by area on it, so the area-measure pdf is constant over all emitting
  * surface, weighted by brightness: p_A = lum(L_e) / sum_k(area_k lum(L_e,k)).
  * The integrator converts it to solid angle (p_A d^2 / cos_light). Emitters
@@ -34,6 +35,13 @@ void light_free(light_set *l);
 
 /* Number of emissive triangles. */
 uint32_t light_count(const light_set *l);
+
+/* Index of the light triangle that u0 in [0, 1) picks (the first whose
+ * cumulative power exceeds u0; a guide table makes it O(1) on average). */
+uint32_t light_pick(const light_set *l, float u0);
+
+/* Mesh triangle of light index i (UINT32_MAX when out of range). */
+uint32_t light_pick_tri(const light_set *l, uint32_t i);
 
 /* Picks a point on the lights from three uniform numbers; false when there
  * are no lights. */

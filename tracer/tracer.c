@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tracer/bsdf.h"
 #include "tracer/embree_scene.h"
 #include "tracer/integrator.h"
 #include "tracer/lights.h"
@@ -31,6 +32,7 @@ struct trc_tracer {
     const ct_radmesh *rad;
     emb_scene *emb;
     light_set *lights;
+    bsdf_mat *bmats;     /* per scene material */
     bool has_dielectric;
 };
 
@@ -107,8 +109,15 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rc) goto fail;
     rc = light_build(emb_get_mesh(t->emb), &t->lights, err);
     if (rc) goto fail;
-    for (uint32_t i = 0; i < scene->nmats; i++)
+    t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);
+    if (!t->bmats) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u materials", scene->nmats);
+        goto fail;
+    }
+    for (uint32_t i = 0; i < scene->nmats; i++) {
+        bsdf_mat_init(&t->bmats[i], &scene->mats[i]);
         if (scene->mats[i].dielectric) t->has_dielectric = true;
+    }
     *out = t;
     return CT_OK;
 fail:
@@ -120,6 +129,7 @@ void trc_free(trc_tracer *t)
 {
     if (!t) return;
     light_free(t->lights);
+    free(t->bmats);
     emb_free(t->emb);
     free(t);
 }
@@ -131,6 +141,7 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->emb = t->emb;
     c->mesh = emb_get_mesh(t->emb);
     c->lights = t->lights;
+    c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;
     c->has_dielectric = t->has_dielectric;
