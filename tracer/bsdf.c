@@ -4,6 +4,9 @@
 #include <string.h>
 
 #define INV_PI (1.0f / CT_PI)
+/* Smallest (h.n)^2 the Ward lobe is evaluated at: (h.n)^4 stays a normal
+ * float (see ward_f). */
+#define WARD_MIN_HN2 1e-12f
 
 void bsdf_mat_init(bsdf_mat *bm, const scene_material *m)
 {
@@ -83,9 +86,14 @@ static float ward_f(const bsdf *b, vec3 wo, vec3 wi)
 {
     vec3 h = v3_add(wi, wo);
     float hn = v3_dot(h, b->n);
-    if (hn <= 0.0f) return 0.0f;
-    float ht = v3_dot(h, b->t) / b->L.ax, hb = v3_dot(h, b->b) / b->L.ay;
     float hn2 = hn * hn;
+    /* (h.n)^4 underflows to 0 for wi and wo both within ~1e-10 of the
+     * horizon (near the mirror direction there: inf, and inf * 0 = NaN
+     * further on). The factor (h.h)/(h.n)^4 does grow like 1/cos^2 at
+     * grazing angles, but a band of directions this thin carries no
+     * measurable energy: the lobe is cut off below WARD_MIN_HN2. */
+    if (hn <= 0.0f || hn2 < WARD_MIN_HN2) return 0.0f;
+    float ht = v3_dot(h, b->t) / b->L.ax, hb = v3_dot(h, b->b) / b->L.ay;
     return v3_len2(h) / (b->L.pi_axay * hn2 * hn2) * expf(-(ht * ht + hb * hb) / hn2);
 }
 
@@ -95,9 +103,11 @@ static float ward_f(const bsdf *b, vec3 wo, vec3 wi)
 static float ward_pdf_h(const bsdf *b, vec3 h)
 {
     float hn = v3_dot(h, b->n);
-    if (hn <= 0.0f) return 0.0f;
-    float ht = v3_dot(h, b->t) / b->L.ax, hb = v3_dot(h, b->b) / b->L.ay;
     float hn2 = hn * hn;
+    /* The same cut as ward_f (h is unit here: a half vector within 1e-6 of
+     * the surface plane, where exp() is 0 for any roughness <= 1 anyway). */
+    if (hn <= 0.0f || hn2 < WARD_MIN_HN2) return 0.0f;
+    float ht = v3_dot(h, b->t) / b->L.ax, hb = v3_dot(h, b->b) / b->L.ay;
     return expf(-(ht * ht + hb * hb) / hn2) / (b->L.pi_axay * hn2 * hn);
 }
 

@@ -20,6 +20,24 @@
  * zeros are ignored, and the tracer calls it on every hit. */
 static inline float bsdf_maxf(float x, float y) { return x > y || y != y ? x : y; }
 
+/* The power heuristic of MIS, a^2 / (a^2 + b^2) for a, b >= 0 (0 when both
+ * are 0 or one is NaN). When a square overflows (a light sample at a grazing
+ * angle has a huge solid-angle pdf) it takes the ratio form, since inf / inf
+ * would be NaN. */
+static inline float bsdf_power_heuristic(float a, float b)
+{
+    float a2 = a * a, b2 = b * b, s = a2 + b2;
+    if (s < INFINITY) return s > 0.0f ? a2 / s : 0.0f;
+    if (!(a == a) || !(b == b)) return 0.0f;
+    if (a == b) return 0.5f;
+    if (a > b) {
+        float r = b / a;
+        return 1.0f / (1.0f + r * r);
+    }
+    float r = a / b;
+    return r * r / (1.0f + r * r);
+}
+
 /* The view-independent part of a material's lobes, computed once per
  * material when the tracer is built (lobe selection probabilities, clamped
  * Ward roughness, Phong constants), not at every hit. */

@@ -42,11 +42,6 @@ static inline emis_w after_delta(emis_w in, bool transmit)
     return out;
 }
 
-static inline float power_heuristic(float a, float b)
-{
-    float a2 = a * a, b2 = b * b;
-    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
-}
 
 static inline float rnd(integ_ctx *c) { return rng_float(&c->rng); }
 
@@ -191,7 +186,9 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
         float cos_l = -v3_dot(wi, lp.n);
         if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
         float pl = lp.pdf_area * d2 / cos_l;
-        if (!(pl > 0.0f)) continue;
+        /* An infinite pdf (cos_l ~ 0) means a zero contribution, and would
+         * turn into 0 * inf = NaN below. */
+        if (!(pl > 0.0f && pl < INFINITY)) continue;
         float pb = 0.0f;
         vec3 f, fg = v3s(0.0f);
         if (mode == DIRECT_ALL) {
@@ -207,7 +204,7 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
         if (v3_is_zero(tr)) continue;
         /* MIS against the scattered rays, except through glass: scattered
          * rays do not count lights seen through it (after_delta). */
-        float w = crossed ? 1.0f : power_heuristic((float)k_rays * pl, (float)nb * pb);
+        float w = crossed ? 1.0f : bsdf_power_heuristic((float)k_rays * pl, (float)nb * pb);
         if (mode == DIRECT_ALL) f = v3_scale(f, w);
         else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(f, fg), v3_scale(fg, w));
         else f = v3_scale(fg, w);
@@ -225,7 +222,7 @@ static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
     if (ew.mode == EMIS_FULL) return s->m->emission;
     float pl = light_pdf_area(c->lights, s->h.tri) * s->h.t * s->h.t / cos_front;
     return v3_scale(s->m->emission,
-                    power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
+                    bsdf_power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
 }
 
 /* Unbiased path tracing from o along d; first (if given) is the first hit. */
