@@ -291,6 +291,48 @@ bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
     return r.tfar < 0.0f;
 }
 
+/* Fills lane i of an SoA ray packet (RTCRay4 and RTCRay8 share the layout). */
+#define PACKET_LANE(r, i, o, d, tf)                                                      \
+    do {                                                                                 \
+        (r).org_x[i] = (o).x, (r).org_y[i] = (o).y, (r).org_z[i] = (o).z;                \
+        (r).dir_x[i] = (d).x, (r).dir_y[i] = (d).y, (r).dir_z[i] = (d).z;                \
+        (r).tnear[i] = 0.0f, (r).tfar[i] = (tf), (r).time[i] = 0.0f;                     \
+        (r).mask[i] = 0xffffffffu, (r).id[i] = 0, (r).flags[i] = 0;                      \
+    } while (0)
+
+void emb_occluded_batch(const emb_scene *e, int n, const vec3 *o, const vec3 *d, const float *tfar,
+                        bool *blocked)
+{
+    if (n <= 0) return;
+    if (n == 1) {
+        blocked[0] = emb_occluded(e, o[0], d[0], 0.0f, tfar[0]);
+        return;
+    }
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    if (n <= 4) {
+        _Alignas(16) int valid[4];
+        _Alignas(16) struct RTCRay4 r;
+        for (int i = 0; i < 4; i++) {
+            valid[i] = i < n ? -1 : 0;
+            int k = i < n ? i : 0;
+            PACKET_LANE(r, i, o[k], d[k], tfar[k]);
+        }
+        rtcOccluded4(valid, e->scene, &ctx, &r);
+        for (int i = 0; i < n; i++) blocked[i] = r.tfar[i] < 0.0f;
+        return;
+    }
+    _Alignas(32) int valid[8];
+    _Alignas(32) struct RTCRay8 r;
+    for (int i = 0; i < 8; i++) {
+        valid[i] = i < n ? -1 : 0;
+        int k = i < n ? i : 0;
+        PACKET_LANE(r, i, o[k], d[k], tfar[k]);
+    }
+    rtcOccluded8(valid, e->scene, &ctx, &r);
+    for (int i = 0; i < n && i < 8; i++) blocked[i] = r.tfar[i] < 0.0f;
+}
+
 float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
 {
     struct RTCIntersectContext ctx;

@@ -77,6 +77,13 @@ bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, 
 /* True when anything blocks o + t d for t in (tnear, tfar). */
 bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
 
+/* Occlusion of n <= 8 rays o[i] + t d[i], t in (0, tfar[i]), into blocked[i]:
+ * one rtcOccluded4/8 packet query for n > 1 (rays that share an origin, as
+ * a shading point's shadow rays do, traverse the BVH together), the same
+ * answers as emb_occluded ray by ray. */
+void emb_occluded_batch(const emb_scene *e, int n, const vec3 *o, const vec3 *d, const float *tfar,
+                        bool *blocked);
+
 /* Raw rtcIntersect1 without mapping the hit back (benchmark baseline); returns
  * the hit distance or INFINITY. */
 float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);

@@ -123,20 +123,13 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
     return true;
 }
 
-/* Fraction of light reaching o from target along a straight line: 0 behind
- * an opaque surface; through dielectrics, their transmission colour times
- * (1 - Fresnel) per crossing (refraction of the shadow ray itself is
- * ignored, so glass casts a lighter, unfocused shadow as in the paper). */
-static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
+/* Fraction of light reaching o from target along the straight line o + t d,
+ * t in (0, dist), known to be blocked by something: 0 behind an opaque
+ * surface; through dielectrics, their transmission colour times (1 -
+ * Fresnel) per crossing (refraction of the shadow ray itself is ignored, so
+ * glass casts a lighter, unfocused shadow as in the paper). */
+static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target, bool *crossed)
 {
-    *crossed = false;
-    vec3 d = v3_sub(target, o);
-    float dist = v3_len(d);
-    if (!(dist > 0.0f)) return v3s(0.0f);
-    d = v3_scale(d, 1.0f / dist);
-    c->st->shadow++;
-    log_ray(c, o, d, dist, 1);
-    if (!emb_occluded(c->emb, o, d, 0.0f, dist)) return v3s(1.0f);
     if (!c->has_dielectric) return v3s(0.0f);
     vec3 att = v3s(1.0f);
     for (int k = 0; k < MAX_GLASS_CROSSINGS; k++) {
@@ -164,6 +157,16 @@ static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
     return v3s(0.0f);
 }
 
+/* Light samples of one shading point whose shadow rays are tested together. */
+#define SHADOW_BATCH 8
+
+/* A light sample waiting for its shadow ray. */
+typedef struct light_cand {
+    vec3 f, fg;       /* the bsdf terms (see direct_light) */
+    vec3 wi, le, target, d;
+    float pl, pb, dist;
+} light_cand;
+
 /* Direct light at s from K light samples (see direct_mode); nb and the
  * glossy/whole pdf give the competing strategy of the MIS weights. */
 static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode,
@@ -174,42 +177,75 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
     if (light_count(c->lights) == 0) return sum;
     if (mode == DIRECT_GLOSSY_ONLY ? b->L.p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
     vec3 origin = offset_ray(s->p, b->ng);
-    for (int k = 0; k < k_rays; k++) {
-        float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
-        light_point lp;
-        if (!light_sample(c->lights, u0, u1, u2, &lp)) break;
-        if (lp.tri == s->h.tri) continue;
-        vec3 wi = v3_sub(lp.p, s->p);
-        float d2 = v3_len2(wi);
-        if (!(d2 > 0.0f)) continue;
-        wi = v3_scale(wi, 1.0f / sqrtf(d2));
-        float cos_l = -v3_dot(wi, lp.n);
-        if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
-        float pl = lp.pdf_area * d2 / cos_l;
-        /* An infinite pdf (cos_l ~ 0) means a zero contribution, and would
-         * turn into 0 * inf = NaN below. */
-        if (!(pl > 0.0f && pl < INFINITY)) continue;
-        float pb = 0.0f;
-        vec3 f, fg = v3s(0.0f);
-        if (mode == DIRECT_ALL) {
-            f = bsdf_eval(b, wo, wi, &pb);
-        } else {
-            fg = bsdf_eval_glossy(b, wo, wi);
-            pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
-            f = mode == DIRECT_GLOSSY_MIS ? v3_add(fg, bsdf_eval_diffuse(b, wi)) : fg;
+    /* The K samples go in batches: sample and evaluate up to SHADOW_BATCH
+     * lights (drawing the random numbers in the same order as one at a
+     * time), test their shadow rays with one packet query (they leave one
+     * point towards the same lights: a coherent bundle), then add the
+     * contributions in sample order. */
+    light_cand cand[SHADOW_BATCH];
+    vec3 so[SHADOW_BATCH], sd[SHADOW_BATCH];
+    float sfar[SHADOW_BATCH];
+    bool blocked[SHADOW_BATCH];
+    for (int k0 = 0; k0 < k_rays; k0 += SHADOW_BATCH) {
+        int kn = k_rays - k0 < SHADOW_BATCH ? k_rays - k0 : SHADOW_BATCH, nq = 0;
+        for (int k = 0; k < kn; k++) {
+            float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
+            light_point lp;
+            if (!light_sample(c->lights, u0, u1, u2, &lp)) continue;
+            if (lp.tri == s->h.tri) continue;
+            vec3 wi = v3_sub(lp.p, s->p);
+            float d2 = v3_len2(wi);
+            if (!(d2 > 0.0f)) continue;
+            wi = v3_scale(wi, 1.0f / sqrtf(d2));
+            float cos_l = -v3_dot(wi, lp.n);
+            if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
+            float pl = lp.pdf_area * d2 / cos_l;
+            /* An infinite pdf (cos_l ~ 0) means a zero contribution, and
+             * would turn into 0 * inf = NaN below. */
+            if (!(pl > 0.0f && pl < INFINITY)) continue;
+            light_cand *q = &cand[nq];
+            q->pb = 0.0f;
+            q->fg = v3s(0.0f);
+            if (mode == DIRECT_ALL) {
+                q->f = bsdf_eval(b, wo, wi, &q->pb);
+            } else {
+                q->fg = bsdf_eval_glossy(b, wo, wi);
+                q->pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
+                q->f = mode == DIRECT_GLOSSY_MIS ? v3_add(q->fg, bsdf_eval_diffuse(b, wi)) : q->fg;
+            }
+            if (v3_is_zero(q->f)) continue;
+            q->target = offset_ray(lp.p, lp.n);
+            vec3 d = v3_sub(q->target, origin);
+            float dist = v3_len(d);
+            if (!(dist > 0.0f)) continue;
+            q->d = v3_scale(d, 1.0f / dist);
+            q->dist = dist;
+            q->wi = wi;
+            q->le = lp.le;
+            q->pl = pl;
+            so[nq] = origin;
+            sd[nq] = q->d;
+            sfar[nq] = dist;
+            c->st->shadow++;
+            log_ray(c, origin, q->d, dist, 1);
+            nq++;
         }
-        if (v3_is_zero(f)) continue;
-        bool crossed;
-        vec3 tr = transmittance(c, origin, offset_ray(lp.p, lp.n), &crossed);
-        if (v3_is_zero(tr)) continue;
-        /* MIS against the scattered rays, except through glass: scattered
-         * rays do not count lights seen through it (after_delta). */
-        float w = crossed ? 1.0f : bsdf_power_heuristic((float)k_rays * pl, (float)nb * pb);
-        if (mode == DIRECT_ALL) f = v3_scale(f, w);
-        else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(f, fg), v3_scale(fg, w));
-        else f = v3_scale(fg, w);
-        float g = v3_dot(wi, b->n) / (pl * (float)k_rays);
-        sum = v3_add(sum, v3_scale(v3_mul(v3_mul(f, lp.le), tr), g));
+        emb_occluded_batch(c->emb, nq, so, sd, sfar, blocked);
+        for (int i = 0; i < nq; i++) {
+            const light_cand *q = &cand[i];
+            bool crossed = false;
+            vec3 tr = blocked[i] ? through_glass(c, origin, q->d, q->dist, q->target, &crossed) : v3s(1.0f);
+            if (v3_is_zero(tr)) continue;
+            /* MIS against the scattered rays, except through glass: scattered
+             * rays do not count lights seen through it (after_delta). */
+            float w = crossed ? 1.0f : bsdf_power_heuristic((float)k_rays * q->pl, (float)nb * q->pb);
+            vec3 f;
+            if (mode == DIRECT_ALL) f = v3_scale(q->f, w);
+            else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(q->f, q->fg), v3_scale(q->fg, w));
+            else f = v3_scale(q->fg, w);
+            float g = v3_dot(q->wi, b->n) / (q->pl * (float)k_rays);
+            sum = v3_add(sum, v3_scale(v3_mul(v3_mul(f, q->le), tr), g));
+        }
     }
     return sum;
 }
