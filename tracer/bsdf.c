@@ -27,6 +27,7 @@ void bsdf_mat_init(bsdf_mat *bm, const scene_material *m)
     bm->dielectric = m->dielectric != 0;
     /* Outside is the front side (the winding's normal); ior 1 there. */
     bm->ior = m->ior > 0.0f ? m->ior : 1.0f;
+    bm->traced = bm->dielectric || bsdf_maxf(bm->km.x, bsdf_maxf(bm->km.y, bm->km.z)) > 0.0f;
     if (bm->dielectric) {
         /* A dielectric is a pure interface: other layers are ignored (as the
          * scene format documents for MTL's Kd of glass). */
@@ -41,6 +42,7 @@ void bsdf_mat_init(bsdf_mat *bm, const scene_material *m)
         bm->p_g = wg / sum;
         bm->p_m = wm / sum;
     }
+    bm->traced = bm->traced || bm->p_g > 0.0f;
 }
 
 void bsdf_setup(bsdf *b, const bsdf_mat *bm, vec3 ns, vec3 ng, vec3 wo)

@@ -56,6 +56,7 @@ typedef struct bsdf_mat {
     float ior;       /* inside (the back of the winding); 1 outside */
     bool dielectric;
     float p_d, p_g, p_m;  /* lobe selection probabilities (sum 1, or 0: black) */
+    bool traced;     /* a glossy, mirror or dielectric layer: more than diffuse */
 } bsdf_mat;
 
 /* Computes the constant part of material m. */

@@ -6,6 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+_Static_assert(sizeof(emb_tri) == 128, "emb_tri must fill two cache lines");
+
 struct emb_scene {
     emb_mesh mesh;
     RTCDevice device;
@@ -188,6 +190,8 @@ int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct
         r->tri = t;
         r->node = mesh->tri_node[t];
         r->mat = mesh->tri_mat[t];
+        memcpy(r->v, vi, sizeof r->v);
+        memset(r->pad, 0, sizeof r->pad);
     }
     free(e->order);   /* the records carry the mesh triangle */
     e->order = NULL;

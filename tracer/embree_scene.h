@@ -37,9 +37,9 @@ emb_mesh emb_mesh_of_scene(const ct_scene *s);
 emb_mesh emb_mesh_of_radmesh(const ct_radmesh *m, const ct_scene *s);
 
 /* What shading needs of one triangle, stored in Embree's (geomID, primID)
- * order at build: a hit reads this one record (96 bytes, two cache lines)
- * instead of the order, node, material, index, position and normal arrays
- * (up to ten scattered cache misses per hit on a large mesh). */
+ * order at build: a hit reads this one record (128 bytes, two aligned cache
+ * lines) instead of the order, node, material, index, position and normal
+ * arrays (up to ten scattered cache misses per hit on a large mesh). */
 typedef struct emb_tri {
     vec3 a, e1, e2;     /* vertex 0 and the edges to vertices 1 and 2 */
     vec3 ng;            /* unit front (winding) normal */
@@ -47,6 +47,8 @@ typedef struct emb_tri {
     uint32_t tri;       /* mesh triangle */
     uint32_t node;      /* its part node */
     uint32_t mat;       /* its material */
+    uint32_t v[3];      /* its vertex indices (per-vertex data: radiosity) */
+    uint32_t pad[5];    /* to 128 bytes */
 } emb_tri;
 
 /* A ray hit mapped back to the mesh. */

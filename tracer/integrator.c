@@ -321,6 +321,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
                              int nb, radiance_fn li)
 {
     vec3 L = v3s(0.0f);
+    if (nb <= 0 && !(maxc(b->L.km) > 0.0f) && !b->L.dielectric) return L;
     emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
     vec3 up = offset_ray(s->p, b->ng);
     for (int i = 0; i < nb; i++) {
@@ -371,8 +372,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     if (b.L.p_d > 0.0f) {
         if (c->rad) {
             /* The radiosity solution's indirect part at this very point. */
-            vec3 ind = v3_sub(rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v),
-                              rmesh_eval_direct(c->rad, s.h.tri, s.h.u, s.h.v));
+            vec3 ind = v3_sub(integ_vertex_lerp(c->rad->rad, &s.h), integ_vertex_lerp(c->rad->rad_direct, &s.h));
             L = v3_add(L, clamp0(ind));
         } else {
             bsdf_sample bs;
@@ -401,7 +401,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     if (first) s = *first;
     else if (!trace_secondary(c, o, d, &s)) return v3s(0.0f);
     const trc_options *opt = c->opt;
-    vec3 base = rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v);
+    vec3 base = integ_vertex_lerp(c->rad->rad, &s.h);
     if (ew.mode != EMIS_FULL) {
         /* The radiosity includes the emitter's L_e; a glossy ray that found
          * it only carries its MIS share (light sampling has the rest). */
@@ -409,6 +409,10 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
         vec3 keep = emitted(c, &s, d, ew);
         base = clamp0(v3_sub(base, v3_sub(le, keep)));
     }
+    if (base_out) *base_out = base;
+    /* A material with nothing but diffuse layers adds nothing here (most
+     * hits of a scene): no frame, no light samples, no rays. */
+    if (!s.bm->traced) return base;
     vec3 wo = v3_neg(d);
     bsdf b;
     bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
@@ -420,7 +424,6 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
      * break that guarantee, so it is dropped. */
     extra = clamp0(extra);
     if (!finite3(extra)) extra = v3s(0.0f);
-    if (base_out) *base_out = base;
     return v3_add(base, extra);
 }
 

@@ -39,6 +39,16 @@ typedef struct integ_surf {
     const bsdf_mat *bm;
 } integ_surf;
 
+/* Per-vertex values (radiosity) interpolated at a hit: rmesh_eval's
+ * arithmetic exactly, with the vertex indices from the hit's record. */
+static inline vec3 integ_vertex_lerp(const vec3 *val, const emb_hit *h)
+{
+    const uint32_t *i = h->rec->v;
+    float u = h->u, v = h->v, w = 1.0f - u - v;
+    vec3 a = val[i[0]], b = val[i[1]], c = val[i[2]];
+    return v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
+}
+
 /* Traces a primary ray (counted as primary); false on a miss. */
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s);
 

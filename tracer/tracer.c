@@ -192,7 +192,7 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
     out->v = s->h.v;
     out->hit = s->p;
     if (t->rad) {
-        out->l_base = rmesh_eval(t->rad, s->h.tri, s->h.u, s->h.v);
+        out->l_base = integ_vertex_lerp(t->rad->rad, &s->h);
         out->flags |= CT_SAMPLE_HAS_BASE;
     }
     return true;
