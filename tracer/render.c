@@ -45,6 +45,10 @@ typedef struct worker {
     uint64_t hits;        /* replay result, kept so the work is observable */
 } worker;
 
+/* Requests per trc_trace call: several pixels of a tile row when spp is
+ * small, so the tracer can trace their primary rays back to back. */
+#define CALL_REQUESTS 64
+
 static void render_tile(worker *w, int tile)
 {
     job *j = w->j;
@@ -52,33 +56,41 @@ static void render_tile(worker *w, int tile)
     int x0 = (tile % j->tiles_x) * o->tile, y0 = (tile / j->tiles_x) * o->tile;
     int x1 = x0 + o->tile < o->width ? x0 + o->tile : o->width;
     int y1 = y0 + o->tile < o->height ? y0 + o->tile : o->height;
+    int group = o->spp < CALL_REQUESTS ? CALL_REQUESTS / o->spp : 1;
     uint64_t seed = trc_get_options(j->t)->seed;
+    w->st.log = w->use_log && w->log.cap > 0 ? &w->log : NULL;
     for (int y = y0; y < y1; y++)
-        for (int x = x0; x < x1; x++) {
-            uint64_t pix = (uint64_t)y * (uint64_t)o->width + (uint64_t)x;
-            for (int s = 0; s < o->spp; s++) {
-                ct_request *r = &w->req[s];
-                r->id = pix * (uint64_t)o->spp + (uint64_t)s + 1;
-                r->parent = 0;
-                r->epoch = o->epoch;
-                ct_rng g = rng_make(seed, r->id, o->epoch, TRC_DIM_PIXEL);
-                r->px = (float)x + rng_float(&g);
-                r->py = (float)y + rng_float(&g);
-                r->radius = 0.5f;
-                r->priority = 0.0f;
+        for (int xs = x0; xs < x1; xs += group) {
+            int xe = xs + group < x1 ? xs + group : x1;
+            size_t n = 0;
+            for (int x = xs; x < xe; x++) {
+                uint64_t pix = (uint64_t)y * (uint64_t)o->width + (uint64_t)x;
+                for (int s = 0; s < o->spp; s++) {
+                    ct_request *r = &w->req[n++];
+                    r->id = pix * (uint64_t)o->spp + (uint64_t)s + 1;
+                    r->parent = 0;
+                    r->epoch = o->epoch;
+                    ct_rng g = rng_make(seed, r->id, o->epoch, TRC_DIM_PIXEL);
+                    r->px = (float)x + rng_float(&g);
+                    r->py = (float)y + rng_float(&g);
+                    r->radius = 0.5f;
+                    r->priority = 0.0f;
+                }
             }
-            w->st.log = w->use_log && w->log.cap > 0 ? &w->log : NULL;
-            trc_trace(j->t, &j->view, w->req, (size_t)o->spp, w->out, &w->st);
-            double sx = 0.0, sy = 0.0, sz = 0.0;
-            for (int s = 0; s < o->spp; s++) {
-                sx += w->out[s].l_hq.x;
-                sy += w->out[s].l_hq.y;
-                sz += w->out[s].l_hq.z;
+            trc_trace(j->t, &j->view, w->req, n, w->out, &w->st);
+            for (int x = xs; x < xe; x++) {
+                const ct_sample *out = w->out + (size_t)(x - xs) * (size_t)o->spp;
+                double sx = 0.0, sy = 0.0, sz = 0.0;
+                for (int s = 0; s < o->spp; s++) {
+                    sx += out[s].l_hq.x;
+                    sy += out[s].l_hq.y;
+                    sz += out[s].l_hq.z;
+                }
+                float *p = j->rgb + 3 * ((uint64_t)y * (uint64_t)o->width + (uint64_t)x);
+                p[0] = (float)(sx / o->spp);
+                p[1] = (float)(sy / o->spp);
+                p[2] = (float)(sz / o->spp);
             }
-            float *p = j->rgb + 3 * pix;
-            p[0] = (float)(sx / o->spp);
-            p[1] = (float)(sy / o->spp);
-            p[2] = (float)(sz / o->spp);
         }
     w->st.log = NULL;
 }
@@ -198,8 +210,9 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     if (!ws) return ct_fail(err, CT_ENOMEM, "out of memory");
     for (int i = 0; i < o->threads; i++) {
         ws[i].j = &j;
-        ws[i].req = malloc((size_t)o->spp * sizeof *ws[i].req);
-        ws[i].out = malloc((size_t)o->spp * sizeof *ws[i].out);
+        size_t per_call = o->spp < CALL_REQUESTS ? CALL_REQUESTS : (size_t)o->spp;
+        ws[i].req = malloc(per_call * sizeof *ws[i].req);
+        ws[i].out = malloc(per_call * sizeof *ws[i].out);
         if (o->raylog_cap) {
             ws[i].log.rays = malloc(o->raylog_cap * sizeof *ws[i].log.rays);
             ws[i].log.cap = ws[i].log.rays ? o->raylog_cap : 0;

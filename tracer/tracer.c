@@ -198,6 +198,9 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
     return true;
 }
 
+/* Requests whose primary rays are traced back to back before any is shaded. */
+#define PRIMARY_BATCH 16
+
 void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
                ct_sample *out, trc_stats *st)
 {
@@ -206,18 +209,32 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
     view_pre vp;
     view_prepare(v, &vp);
     unsigned fpu = fpu_enter();
-    for (size_t i = 0; i < n; i++) {
-        integ_surf s;
-        vec3 d;
-        c.rng = rng_make(t->opt.seed, req[i].id, req[i].epoch, TRC_DIM_TRACE);
-        st->samples++;
-        if (!primary(t, &c, v, &vp, &req[i], &out[i], &s, &d)) continue;
-        vec3 base = out[i].l_base;
-        vec3 l = integ_radiance(&c, v->cam.eye, d, &s, &base);
-        /* A NaN or infinity (a degenerate frame) would poison every average
-         * it enters; such a sample counts as black. */
-        if (!(isfinite(l.x) && isfinite(l.y) && isfinite(l.z))) l = v3s(0.0f);
-        out[i].l_hq = l;
+    /* First the primary rays of up to PRIMARY_BATCH requests, then their
+     * shading: independent Embree queries in a row overlap in the CPU (the
+     * next traversal starts while the last one's loads are in flight), and
+     * so do the first reads of the hit triangles' records. A sample's value
+     * does not depend on it: the primary hit is a function of the request
+     * alone and the shading draws its random numbers after it. */
+    integ_surf s[PRIMARY_BATCH];
+    vec3 d[PRIMARY_BATCH];
+    bool hit[PRIMARY_BATCH];
+    for (size_t i0 = 0; i0 < n; i0 += PRIMARY_BATCH) {
+        size_t m = n - i0 < PRIMARY_BATCH ? n - i0 : PRIMARY_BATCH;
+        for (size_t k = 0; k < m; k++) {
+            st->samples++;
+            hit[k] = primary(t, &c, v, &vp, &req[i0 + k], &out[i0 + k], &s[k], &d[k]);
+        }
+        for (size_t k = 0; k < m; k++) {
+            if (!hit[k]) continue;
+            const ct_request *r = &req[i0 + k];
+            c.rng = rng_make(t->opt.seed, r->id, r->epoch, TRC_DIM_TRACE);
+            vec3 base = out[i0 + k].l_base;
+            vec3 l = integ_radiance(&c, v->cam.eye, d[k], &s[k], &base);
+            /* A NaN or infinity (a degenerate frame) would poison every
+             * average it enters; such a sample counts as black. */
+            if (!(isfinite(l.x) && isfinite(l.y) && isfinite(l.z))) l = v3s(0.0f);
+            out[i0 + k].l_hq = l;
+        }
     }
     fpu_leave(fpu);
 }
