@@ -32,7 +32,8 @@ typedef struct render_options {
 void render_options_default(render_options *o, int width, int height);
 
 typedef struct render_result {
-    double seconds;        /* wall time of the render (without the ray-logging pass) */
+    double seconds;        /* wall time of the render (without the ray-logging pass;
+                              with a ray log, the faster of two renders) */
     trc_stats stats;       /* summed over threads (log unset) */
     uint64_t logged;       /* rays logged for the replay */
     double replay_isect_s; /* wall time replaying them all with rtcIntersect1 */
