@@ -167,85 +167,121 @@ typedef struct light_cand {
     float pl, pb, dist;
 } light_cand;
 
+/* Up to SHADOW_BATCH light samples of one shading point and their shadow
+ * rays (all leave origin), between dl_prepare and dl_finish. */
+typedef struct dl_batch {
+    light_cand cand[SHADOW_BATCH];
+    vec3 so[SHADOW_BATCH], sd[SHADOW_BATCH];
+    float sfar[SHADOW_BATCH];
+    bool blocked[SHADOW_BATCH];
+    vec3 origin;
+    int n;            /* shadow rays to test */
+} dl_batch;
+
+/* Draws kn light samples at s, evaluates the bsdf towards them and sets up
+ * the shadow rays of those that can contribute (see direct_light). */
+static void dl_prepare(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb,
+                       int kn, dl_batch *q)
+{
+    q->n = 0;
+    for (int k = 0; k < kn; k++) {
+        float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
+        light_point lp;
+        if (!light_sample(c->lights, u0, u1, u2, &lp)) continue;
+        if (lp.tri == s->h.tri) continue;
+        vec3 wi = v3_sub(lp.p, s->p);
+        float d2 = v3_len2(wi);
+        if (!(d2 > 0.0f)) continue;
+        wi = v3_scale(wi, 1.0f / sqrtf(d2));
+        float cos_l = -v3_dot(wi, lp.n);
+        if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
+        float pl = lp.pdf_area * d2 / cos_l;
+        /* An infinite pdf (cos_l ~ 0) means a zero contribution, and would
+         * turn into 0 * inf = NaN below. */
+        if (!(pl > 0.0f && pl < INFINITY)) continue;
+        light_cand *lc = &q->cand[q->n];
+        lc->pb = 0.0f;
+        lc->fg = v3s(0.0f);
+        if (mode == DIRECT_ALL) {
+            lc->f = bsdf_eval(b, wo, wi, &lc->pb);
+        } else {
+            lc->fg = bsdf_eval_glossy(b, wo, wi);
+            lc->pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
+            lc->f = mode == DIRECT_GLOSSY_MIS ? v3_add(lc->fg, bsdf_eval_diffuse(b, wi)) : lc->fg;
+        }
+        if (v3_is_zero(lc->f)) continue;
+        lc->target = offset_ray(lp.p, lp.n);
+        vec3 d = v3_sub(lc->target, q->origin);
+        float dist = v3_len(d);
+        if (!(dist > 0.0f)) continue;
+        lc->d = v3_scale(d, 1.0f / dist);
+        lc->dist = dist;
+        lc->wi = wi;
+        lc->le = lp.le;
+        lc->pl = pl;
+        q->so[q->n] = q->origin;
+        q->sd[q->n] = lc->d;
+        q->sfar[q->n] = dist;
+        c->st->shadow++;
+        log_ray(c, q->origin, lc->d, dist, 1);
+        q->n++;
+    }
+}
+
+/* Tests the batch's shadow rays (one packet query). */
+static void dl_test(integ_ctx *c, dl_batch *q)
+{
+    emb_occluded_batch(c->emb, q->n, q->so, q->sd, q->sfar, q->blocked);
+}
+
+/* Adds the batch's contributions, in sample order, to *sum. */
+static void dl_finish(integ_ctx *c, const bsdf *b, direct_mode mode, int nb, const dl_batch *q, vec3 *sum)
+{
+    int k_rays = c->opt->shadow_rays;
+    for (int i = 0; i < q->n; i++) {
+        const light_cand *lc = &q->cand[i];
+        bool crossed = false;
+        vec3 tr = q->blocked[i] ? through_glass(c, q->origin, lc->d, lc->dist, lc->target, &crossed) : v3s(1.0f);
+        if (v3_is_zero(tr)) continue;
+        /* MIS against the scattered rays, except through glass: scattered
+         * rays do not count lights seen through it (after_delta). */
+        float w = crossed ? 1.0f : bsdf_power_heuristic((float)k_rays * lc->pl, (float)nb * lc->pb);
+        vec3 f;
+        if (mode == DIRECT_ALL) f = v3_scale(lc->f, w);
+        else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(lc->f, lc->fg), v3_scale(lc->fg, w));
+        else f = v3_scale(lc->fg, w);
+        float g = v3_dot(lc->wi, b->n) / (lc->pl * (float)k_rays);
+        *sum = v3_add(*sum, v3_scale(v3_mul(v3_mul(f, lc->le), tr), g));
+    }
+}
+
+/* True when direct_light has anything to do at s. */
+static inline bool dl_active(const integ_ctx *c, const bsdf *b, direct_mode mode)
+{
+    if (light_count(c->lights) == 0) return false;
+    return mode == DIRECT_GLOSSY_ONLY ? b->L.p_g > 0.0f : bsdf_has_smooth(b);
+}
+
 /* Direct light at s from K light samples (see direct_mode); nb and the
- * glossy/whole pdf give the competing strategy of the MIS weights. */
+ * glossy/whole pdf give the competing strategy of the MIS weights. The K
+ * samples go in batches: sample and evaluate up to SHADOW_BATCH lights
+ * (drawing the random numbers in the same order as one at a time), test
+ * their shadow rays with one packet query (they leave one point towards the
+ * same lights: a coherent bundle), then add the contributions in sample
+ * order. */
 static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode,
                          int nb)
 {
     int k_rays = c->opt->shadow_rays;
     vec3 sum = v3s(0.0f);
-    if (light_count(c->lights) == 0) return sum;
-    if (mode == DIRECT_GLOSSY_ONLY ? b->L.p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
-    vec3 origin = offset_ray(s->p, b->ng);
-    /* The K samples go in batches: sample and evaluate up to SHADOW_BATCH
-     * lights (drawing the random numbers in the same order as one at a
-     * time), test their shadow rays with one packet query (they leave one
-     * point towards the same lights: a coherent bundle), then add the
-     * contributions in sample order. */
-    light_cand cand[SHADOW_BATCH];
-    vec3 so[SHADOW_BATCH], sd[SHADOW_BATCH];
-    float sfar[SHADOW_BATCH];
-    bool blocked[SHADOW_BATCH];
+    if (!dl_active(c, b, mode)) return sum;
+    dl_batch q;
+    q.origin = offset_ray(s->p, b->ng);
     for (int k0 = 0; k0 < k_rays; k0 += SHADOW_BATCH) {
-        int kn = k_rays - k0 < SHADOW_BATCH ? k_rays - k0 : SHADOW_BATCH, nq = 0;
-        for (int k = 0; k < kn; k++) {
-            float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
-            light_point lp;
-            if (!light_sample(c->lights, u0, u1, u2, &lp)) continue;
-            if (lp.tri == s->h.tri) continue;
-            vec3 wi = v3_sub(lp.p, s->p);
-            float d2 = v3_len2(wi);
-            if (!(d2 > 0.0f)) continue;
-            wi = v3_scale(wi, 1.0f / sqrtf(d2));
-            float cos_l = -v3_dot(wi, lp.n);
-            if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
-            float pl = lp.pdf_area * d2 / cos_l;
-            /* An infinite pdf (cos_l ~ 0) means a zero contribution, and
-             * would turn into 0 * inf = NaN below. */
-            if (!(pl > 0.0f && pl < INFINITY)) continue;
-            light_cand *q = &cand[nq];
-            q->pb = 0.0f;
-            q->fg = v3s(0.0f);
-            if (mode == DIRECT_ALL) {
-                q->f = bsdf_eval(b, wo, wi, &q->pb);
-            } else {
-                q->fg = bsdf_eval_glossy(b, wo, wi);
-                q->pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
-                q->f = mode == DIRECT_GLOSSY_MIS ? v3_add(q->fg, bsdf_eval_diffuse(b, wi)) : q->fg;
-            }
-            if (v3_is_zero(q->f)) continue;
-            q->target = offset_ray(lp.p, lp.n);
-            vec3 d = v3_sub(q->target, origin);
-            float dist = v3_len(d);
-            if (!(dist > 0.0f)) continue;
-            q->d = v3_scale(d, 1.0f / dist);
-            q->dist = dist;
-            q->wi = wi;
-            q->le = lp.le;
-            q->pl = pl;
-            so[nq] = origin;
-            sd[nq] = q->d;
-            sfar[nq] = dist;
-            c->st->shadow++;
-            log_ray(c, origin, q->d, dist, 1);
-            nq++;
-        }
-        emb_occluded_batch(c->emb, nq, so, sd, sfar, blocked);
-        for (int i = 0; i < nq; i++) {
-            const light_cand *q = &cand[i];
-            bool crossed = false;
-            vec3 tr = blocked[i] ? through_glass(c, origin, q->d, q->dist, q->target, &crossed) : v3s(1.0f);
-            if (v3_is_zero(tr)) continue;
-            /* MIS against the scattered rays, except through glass: scattered
-             * rays do not count lights seen through it (after_delta). */
-            float w = crossed ? 1.0f : bsdf_power_heuristic((float)k_rays * q->pl, (float)nb * q->pb);
-            vec3 f;
-            if (mode == DIRECT_ALL) f = v3_scale(q->f, w);
-            else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(q->f, q->fg), v3_scale(q->fg, w));
-            else f = v3_scale(q->fg, w);
-            float g = v3_dot(q->wi, b->n) / (q->pl * (float)k_rays);
-            sum = v3_add(sum, v3_scale(v3_mul(v3_mul(f, q->le), tr), g));
-        }
+        int kn = k_rays - k0 < SHADOW_BATCH ? k_rays - k0 : SHADOW_BATCH;
+        dl_prepare(c, s, b, wo, mode, nb, kn, &q);
+        dl_test(c, &q);
+        dl_finish(c, b, mode, nb, &q, &sum);
     }
     return sum;
 }
