@@ -354,23 +354,25 @@ bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfa
     return emb_occluded(e, o, d, tnear, tfar);
 }
 
-void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
+vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h)
 {
     const emb_tri *r = h->rec;
-    float u = h->u, v = h->v, w = 1.0f - u - v;
-    *p = emb_hit_point(h);
-    *ng = r->ng;
     if (e->has_nrm) {
+        float u = h->u, v = h->v, w = 1.0f - u - v;
         vec3 na = r->na, nb = r->nb, nc = r->nc;
         vec3 n = v3(w * na.x + u * nb.x + v * nc.x, w * na.y + u * nb.y + v * nc.y,
                     w * na.z + u * nb.z + v * nc.z);
         float l2 = v3_len2(n);
-        if (l2 > 1e-12f && isfinite(l2)) {
-            *ns = v3_scale(n, 1.0f / sqrtf(l2));
-            return;
-        }
+        if (l2 > 1e-12f && isfinite(l2)) return v3_scale(n, 1.0f / sqrtf(l2));
     }
-    *ns = *ng;
+    return r->ng;
+}
+
+void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
+{
+    *p = emb_hit_point(h);
+    *ng = h->rec->ng;
+    *ns = emb_shading_normal(e, h);
 }
 
 vec3 emb_tri_normal(const emb_mesh *m, uint32_t t)

@@ -98,6 +98,10 @@ bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfa
  * emb_tri_shading_normal, so the same values bit for bit). */
 void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns);
 
+/* The shading normal alone (as emb_surface's ns): shading asks for it only
+ * where a bsdf is set up. */
+vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h);
+
 /* Point of a hit at its barycentrics (as emb_surface's p). */
 static inline vec3 emb_hit_point(const emb_hit *h)
 {

@@ -98,9 +98,18 @@ static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t sh
 static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
 {
     s->h = *h;
-    emb_surface(c->emb, h, &s->p, &s->ng, &s->ns);
+    /* The shading normal waits for bsdf setup (surf_bsdf): reuse-diffuse
+     * needs none at most hits. */
+    s->p = emb_hit_point(h);
+    s->ng = h->rec->ng;
     s->m = &c->mesh->mats[h->mat];
     s->bm = &c->bmats[h->mat];
+}
+
+/* The bsdf at s seen from wo (with its shading normal). */
+static inline void surf_bsdf(const integ_ctx *c, const integ_surf *s, vec3 wo, bsdf *b)
+{
+    bsdf_setup(b, s->bm, emb_shading_normal(c->emb, &s->h), s->ng, wo);
 }
 
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
@@ -310,7 +319,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         L = v3_add(L, v3_mul(beta, emitted(c, &s, d, ew)));
         if (depth >= max_depth) break;
         bsdf b;
-        bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
+        surf_bsdf(c, &s, wo, &b);
         L = v3_add(L, v3_mul(beta, direct_light(c, &s, &b, wo, DIRECT_ALL, 1)));
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
         bsdf_sample bs;
@@ -401,7 +410,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     vec3 wo = v3_neg(d);
     vec3 L = emitted(c, &s, d, ew);
     bsdf b;
-    bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
+    surf_bsdf(c, &s, wo, &b);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
@@ -451,7 +460,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     if (!s.bm->traced) return base;
     vec3 wo = v3_neg(d);
     bsdf b;
-    bsdf_setup(&b, s.bm, s.ns, s.ng, wo);
+    surf_bsdf(c, &s, wo, &b);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);

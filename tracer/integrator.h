@@ -34,7 +34,6 @@ typedef struct integ_surf {
     emb_hit h;
     vec3 p;            /* point on the triangle at (u, v) */
     vec3 ng;           /* front (winding) normal, unit */
-    vec3 ns;           /* shading normal, unit */
     const scene_material *m;
     const bsdf_mat *bm;
 } integ_surf;
