@@ -33,8 +33,10 @@ typedef struct job {
     atomic_int done;
 } job;
 
+/* Cache-line aligned (and so padded): each thread bumps its own ray
+ * counters on every ray, which must not share a line with a neighbour's. */
 typedef struct worker {
-    job *j;
+    _Alignas(64) job *j;
     pthread_t th;
     trc_stats st;
     trc_raylog log;
@@ -206,8 +208,9 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     j.ntiles = j.tiles_x * ((o->height + o->tile - 1) / o->tile);
     atomic_init(&j.next, 0);
     atomic_init(&j.done, 0);
-    worker *ws = calloc((size_t)o->threads, sizeof *ws);
+    worker *ws = aligned_alloc(_Alignof(worker), (size_t)o->threads * sizeof *ws);
     if (!ws) return ct_fail(err, CT_ENOMEM, "out of memory");
+    memset(ws, 0, (size_t)o->threads * sizeof *ws);
     for (int i = 0; i < o->threads; i++) {
         ws[i].j = &j;
         size_t per_call = o->spp < CALL_REQUESTS ? CALL_REQUESTS : (size_t)o->spp;
