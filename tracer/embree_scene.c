@@ -6,16 +6,19 @@
 #include <stdlib.h>
 #include <string.h>
 
+_Static_assert(sizeof(emb_tri) == 128, "emb_tri must fill two cache lines");
+
 struct emb_scene {
     emb_mesh mesh;
     RTCDevice device;
     RTCScene scene;
     float *verts;         /* padded copy of the positions (Embree reads 16 bytes) */
     uint32_t *index;      /* triangles grouped by part node */
-    uint32_t *order;      /* grouped position -> mesh triangle */
+    uint32_t *order;      /* grouped position -> mesh triangle (build only) */
     uint32_t *geom_base;  /* geomID -> first grouped position */
     uint32_t ngeoms;
-    vec3 *face_n;         /* unit front normal per mesh triangle */
+    emb_tri *recs;        /* per grouped position: the triangle's shading record */
+    bool has_nrm;         /* the mesh has vertex normals */
     ct_error dev_err;     /* last device error (filled by the callback) */
     int dev_code;
 };
@@ -164,12 +167,34 @@ int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct
     }
     memset(e->verts + 3 * (size_t)mesh->nverts, 0, 4 * sizeof(float));
 
-    e->face_n = malloc((size_t)mesh->ntris * sizeof *e->face_n);
-    if (!e->face_n) {
+    /* Cache-line aligned, so a record spans exactly two lines. */
+    size_t rec_bytes = ((size_t)mesh->ntris * sizeof *e->recs + 63) / 64 * 64;
+    e->recs = aligned_alloc(64, rec_bytes);
+    if (!e->recs) {
         rc = ct_fail(err, CT_ENOMEM, "out of memory for %u triangles", mesh->ntris);
         goto fail;
     }
-    for (uint32_t t = 0; t < mesh->ntris; t++) e->face_n[t] = emb_tri_normal(mesh, t);
+    e->has_nrm = mesh->nrm != NULL;
+    for (uint32_t i = 0; i < mesh->ntris; i++) {
+        uint32_t t = e->order[i];
+        const uint32_t *vi = mesh->tris + 3 * (size_t)t;
+        emb_tri *r = &e->recs[i];
+        r->a = mesh->pos[vi[0]];
+        r->e1 = v3_sub(mesh->pos[vi[1]], r->a);
+        r->e2 = v3_sub(mesh->pos[vi[2]], r->a);
+        r->ng = emb_tri_normal(mesh, t);
+        vec3 zero = v3s(0.0f);
+        r->na = mesh->nrm ? mesh->nrm[vi[0]] : zero;
+        r->nb = mesh->nrm ? mesh->nrm[vi[1]] : zero;
+        r->nc = mesh->nrm ? mesh->nrm[vi[2]] : zero;
+        r->tri = t;
+        r->node = mesh->tri_node[t];
+        r->mat = mesh->tri_mat[t];
+        memcpy(r->v, vi, sizeof r->v);
+        memset(r->pad, 0, sizeof r->pad);
+    }
+    free(e->order);   /* the records carry the mesh triangle */
+    e->order = NULL;
 
     e->device = rtcNewDevice(device_config && *device_config ? device_config : NULL);
     if (!e->device) {
@@ -217,7 +242,7 @@ void emb_free(emb_scene *e)
     free(e->index);
     free(e->order);
     free(e->geom_base);
-    free(e->face_n);
+    free(e->recs);
     free(e);
 }
 
@@ -249,13 +274,14 @@ bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, 
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(e->scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    uint32_t tri = e->order[e->geom_base[rh.hit.geomID] + rh.hit.primID];
+    const emb_tri *r = &e->recs[e->geom_base[rh.hit.geomID] + rh.hit.primID];
     hit->t = rh.ray.tfar;
     hit->u = rh.hit.u;
     hit->v = rh.hit.v;
-    hit->tri = tri;
-    hit->node = e->mesh.tri_node[tri];
-    hit->mat = e->mesh.tri_mat[tri];
+    hit->tri = r->tri;
+    hit->node = r->node;
+    hit->mat = r->mat;
+    hit->rec = r;
     return true;
 }
 
@@ -267,6 +293,48 @@ bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
     make_ray(&r, o, d, tnear, tfar);
     rtcOccluded1(e->scene, &ctx, &r);
     return r.tfar < 0.0f;
+}
+
+/* Fills lane i of an SoA ray packet (RTCRay4 and RTCRay8 share the layout). */
+#define PACKET_LANE(r, i, o, d, tf)                                                      \
+    do {                                                                                 \
+        (r).org_x[i] = (o).x, (r).org_y[i] = (o).y, (r).org_z[i] = (o).z;                \
+        (r).dir_x[i] = (d).x, (r).dir_y[i] = (d).y, (r).dir_z[i] = (d).z;                \
+        (r).tnear[i] = 0.0f, (r).tfar[i] = (tf), (r).time[i] = 0.0f;                     \
+        (r).mask[i] = 0xffffffffu, (r).id[i] = 0, (r).flags[i] = 0;                      \
+    } while (0)
+
+void emb_occluded_batch(const emb_scene *e, int n, const vec3 *o, const vec3 *d, const float *tfar,
+                        bool *blocked)
+{
+    if (n <= 0) return;
+    if (n == 1) {
+        blocked[0] = emb_occluded(e, o[0], d[0], 0.0f, tfar[0]);
+        return;
+    }
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    if (n <= 4) {
+        _Alignas(16) int valid[4];
+        _Alignas(16) struct RTCRay4 r;
+        for (int i = 0; i < 4; i++) {
+            valid[i] = i < n ? -1 : 0;
+            int k = i < n ? i : 0;
+            PACKET_LANE(r, i, o[k], d[k], tfar[k]);
+        }
+        rtcOccluded4(valid, e->scene, &ctx, &r);
+        for (int i = 0; i < n; i++) blocked[i] = r.tfar[i] < 0.0f;
+        return;
+    }
+    _Alignas(32) int valid[8];
+    _Alignas(32) struct RTCRay8 r;
+    for (int i = 0; i < 8; i++) {
+        valid[i] = i < n ? -1 : 0;
+        int k = i < n ? i : 0;
+        PACKET_LANE(r, i, o[k], d[k], tfar[k]);
+    }
+    rtcOccluded8(valid, e->scene, &ctx, &r);
+    for (int i = 0; i < n && i < 8; i++) blocked[i] = r.tfar[i] < 0.0f;
 }
 
 float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar)
@@ -286,25 +354,25 @@ bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfa
     return emb_occluded(e, o, d, tnear, tfar);
 }
 
-void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
+vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h)
 {
-    const emb_mesh *m = &e->mesh;
-    const uint32_t *i = m->tris + 3 * (size_t)h->tri;
-    float u = h->u, v = h->v, w = 1.0f - u - v;
-    vec3 a = m->pos[i[0]], b = m->pos[i[1]], c = m->pos[i[2]];
-    *p = v3_add(a, v3_add(v3_scale(v3_sub(b, a), u), v3_scale(v3_sub(c, a), v)));
-    *ng = e->face_n[h->tri];
-    if (m->nrm) {
-        vec3 na = m->nrm[i[0]], nb = m->nrm[i[1]], nc = m->nrm[i[2]];
+    const emb_tri *r = h->rec;
+    if (e->has_nrm) {
+        float u = h->u, v = h->v, w = 1.0f - u - v;
+        vec3 na = r->na, nb = r->nb, nc = r->nc;
         vec3 n = v3(w * na.x + u * nb.x + v * nc.x, w * na.y + u * nb.y + v * nc.y,
                     w * na.z + u * nb.z + v * nc.z);
         float l2 = v3_len2(n);
-        if (l2 > 1e-12f && isfinite(l2)) {
-            *ns = v3_scale(n, 1.0f / sqrtf(l2));
-            return;
-        }
+        if (l2 > 1e-12f && isfinite(l2)) return v3_scale(n, 1.0f / sqrtf(l2));
     }
-    *ns = *ng;
+    return r->ng;
+}
+
+void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
+{
+    *p = emb_hit_point(h);
+    *ng = h->rec->ng;
+    *ns = emb_shading_normal(e, h);
 }
 
 vec3 emb_tri_normal(const emb_mesh *m, uint32_t t)

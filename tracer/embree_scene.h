@@ -36,12 +36,28 @@ emb_mesh emb_mesh_of_scene(const ct_scene *s);
 /* The view of a radiosity mesh's triangles with the scene's materials. */
 emb_mesh emb_mesh_of_radmesh(const ct_radmesh *m, const ct_scene *s);
 
+/* What shading needs of one triangle, stored in Embree's (geomID, primID)
+ * order at build: a hit reads this one record (128 bytes, two aligned cache
+ * lines) instead of the order, node, material, index, position and normal
+ * arrays (up to ten scattered cache misses per hit on a large mesh). */
+typedef struct emb_tri {
+    vec3 a, e1, e2;     /* vertex 0 and the edges to vertices 1 and 2 */
+    vec3 ng;            /* unit front (winding) normal */
+    vec3 na, nb, nc;    /* vertex normals (unused when the mesh has none) */
+    uint32_t tri;       /* mesh triangle */
+    uint32_t node;      /* its part node */
+    uint32_t mat;       /* its material */
+    uint32_t v[3];      /* its vertex indices (per-vertex data: radiosity) */
+    uint32_t pad[5];    /* to 128 bytes */
+} emb_tri;
+
 /* A ray hit mapped back to the mesh. */
 typedef struct emb_hit {
     float t, u, v;      /* distance, Embree barycentrics */
     uint32_t tri;       /* mesh triangle */
     uint32_t node;      /* its part node */
     uint32_t mat;       /* its material */
+    const emb_tri *rec; /* the triangle's record */
 } emb_hit;
 
 typedef struct emb_scene emb_scene;
@@ -63,6 +79,13 @@ bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, 
 /* True when anything blocks o + t d for t in (tnear, tfar). */
 bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
 
+/* Occlusion of n <= 8 rays o[i] + t d[i], t in (0, tfar[i]), into blocked[i]:
+ * one rtcOccluded4/8 packet query for n > 1 (rays that share an origin, as
+ * a shading point's shadow rays do, traverse the BVH together), the same
+ * answers as emb_occluded ray by ray. */
+void emb_occluded_batch(const emb_scene *e, int n, const vec3 *o, const vec3 *d, const float *tfar,
+                        bool *blocked);
+
 /* Raw rtcIntersect1 without mapping the hit back (benchmark baseline); returns
  * the hit distance or INFINITY. */
 float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
@@ -71,8 +94,20 @@ float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float t
 bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
 
 /* Point, unit front (winding) normal and unit shading normal of a hit, from
- * one read of the triangle (face normals are precomputed at build). */
+ * its triangle's record (the same arithmetic as emb_tri_point and
+ * emb_tri_shading_normal, so the same values bit for bit). */
 void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns);
+
+/* The shading normal alone (as emb_surface's ns): shading asks for it only
+ * where a bsdf is set up. */
+vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h);
+
+/* Point of a hit at its barycentrics (as emb_surface's p). */
+static inline vec3 emb_hit_point(const emb_hit *h)
+{
+    const emb_tri *r = h->rec;
+    return v3_add(r->a, v3_add(v3_scale(r->e1, h->u), v3_scale(r->e2, h->v)));
+}
 
 /* Geometric normal of mesh triangle t (unit; winding e1 x e2 = front side). */
 vec3 emb_tri_normal(const emb_mesh *m, uint32_t t);

@@ -44,17 +44,16 @@ static inline emis_w after_delta(emis_w in, bool transmit)
     return out;
 }
 
-static inline float power_heuristic(float a, float b)
-{
-    float a2 = a * a, b2 = b * b;
-    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
-}
 
 static inline float rnd(integ_ctx *c) { return rng_float(&c->rng); }
 
 static inline bool finite3(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
-static inline vec3 clamp0(vec3 a) { return v3(fmaxf(a.x, 0.0f), fmaxf(a.y, 0.0f), fmaxf(a.z, 0.0f)); }
+static inline vec3 clamp0(vec3 a) { return v3(bsdf_maxf(a.x, 0.0f), bsdf_maxf(a.y, 0.0f), bsdf_maxf(a.z, 0.0f)); }
+
+/* v3_maxc and fminf, inlined with the same results (bsdf_maxf). */
+static inline float maxc(vec3 a) { return bsdf_maxf(a.x, bsdf_maxf(a.y, a.z)); }
+static inline float minf(float x, float y) { return x < y || y != y ? x : y; }
 
 /* Offsets a point along n past the float error of the intersection (Waechter
  * & Binder, Ray Tracing Gems ch. 6): integer ULP steps far from the origin,
@@ -101,8 +100,18 @@ static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t sh
 static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
 {
     s->h = *h;
-    emb_surface(c->emb, h, &s->p, &s->ng, &s->ns);
+    /* The shading normal waits for bsdf setup (surf_bsdf): reuse-diffuse
+     * needs none at most hits. */
+    s->p = emb_hit_point(h);
+    s->ng = h->rec->ng;
     s->m = &c->mesh->mats[h->mat];
+    s->bm = &c->bmats[h->mat];
+}
+
+/* The bsdf at s seen from wo (with its shading normal). */
+static inline void surf_bsdf(const integ_ctx *c, const integ_surf *s, vec3 wo, bsdf *b)
+{
+    bsdf_setup(b, s->bm, emb_shading_normal(c->emb, &s->h), s->ng, wo);
 }
 
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
@@ -125,20 +134,13 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
     return true;
 }
 
-/* Fraction of light reaching o from target along a straight line: 0 behind
- * an opaque surface; through dielectrics, their transmission colour times
- * (1 - Fresnel) per crossing (refraction of the shadow ray itself is
- * ignored, so glass casts a lighter, unfocused shadow as in the paper). */
-static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
+/* Fraction of light reaching o from target along the straight line o + t d,
+ * t in (0, dist), known to be blocked by something: 0 behind an opaque
+ * surface; through dielectrics, their transmission colour times (1 -
+ * Fresnel) per crossing (refraction of the shadow ray itself is ignored, so
+ * glass casts a lighter, unfocused shadow as in the paper). */
+static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target, bool *crossed)
 {
-    *crossed = false;
-    vec3 d = v3_sub(target, o);
-    float dist = v3_len(d);
-    if (!(dist > 0.0f)) return v3s(0.0f);
-    d = v3_scale(d, 1.0f / dist);
-    c->st->shadow++;
-    log_ray(c, o, d, dist, 1);
-    if (!emb_occluded(c->emb, o, d, 0.0f, dist)) return v3s(1.0f);
     if (!c->has_dielectric) return v3s(0.0f);
     vec3 att = v3s(1.0f);
     for (int k = 0; k < MAX_GLASS_CROSSINGS; k++) {
@@ -149,14 +151,14 @@ static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
         const scene_material *m = &c->mesh->mats[h.mat];
         if (!m->dielectric) return v3s(0.0f);
         *crossed = true;
-        vec3 ng = emb_tri_normal(c->mesh, h.tri);
+        vec3 ng = h.rec->ng;
         float cosd = v3_dot(d, ng), ct;
         float ior = m->ior > 0.0f ? m->ior : 1.0f;
         /* Entering when the ray runs against the outside (front) normal. */
         float f = bsdf_fresnel(fabsf(cosd), cosd < 0.0f ? 1.0f / ior : ior, &ct);
         att = v3_scale(v3_mul(att, m->transmission), 1.0f - f);
-        if (!(v3_maxc(att) > 0.0f)) return v3s(0.0f);
-        vec3 p = emb_tri_point(c->mesh, h.tri, h.u, h.v);
+        if (!(maxc(att) > 0.0f)) return v3s(0.0f);
+        vec3 p = emb_hit_point(&h);
         o = offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
         d = v3_sub(target, o);
         dist = v3_len(d);
@@ -166,22 +168,37 @@ static vec3 transmittance(integ_ctx *c, vec3 o, vec3 target, bool *crossed)
     return v3s(0.0f);
 }
 
-/* Direct light at s from K light samples (see direct_mode); nb and the
- * glossy/whole pdf give the competing strategy of the MIS weights. */
-static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode,
-                         int nb)
+/* Light samples of one shading point whose shadow rays are tested together. */
+#define SHADOW_BATCH 8
+
+/* A light sample waiting for its shadow ray. */
+typedef struct light_cand {
+    vec3 f, fg;       /* the bsdf terms (see direct_light) */
+    vec3 wi, le, target, d;
+    float pl, pb, dist;
+} light_cand;
+
+/* Up to SHADOW_BATCH light samples of one shading point and their shadow
+ * rays (all leave origin), between dl_prepare and dl_finish. */
+typedef struct dl_batch {
+    light_cand cand[SHADOW_BATCH];
+    vec3 so[SHADOW_BATCH], sd[SHADOW_BATCH];
+    float sfar[SHADOW_BATCH];
+    bool blocked[SHADOW_BATCH];
+    vec3 origin;
+    int n;            /* shadow rays to test */
+} dl_batch;
+
+/* Draws kn light samples at s, evaluates the bsdf towards them and sets up
+ * the shadow rays of those that can contribute (see direct_light). */
+static void dl_prepare(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb,
+                       int kn, const light_sel *sel, dl_batch *q)
 {
-    int k_rays = c->opt->shadow_rays;
-    vec3 sum = v3s(0.0f);
-    if (light_count(c->lights) == 0) return sum;
-    if (mode == DIRECT_GLOSSY_ONLY ? b->p_g <= 0.0f : !bsdf_has_smooth(b)) return sum;
-    vec3 origin = offset_ray(s->p, b->ng);
-    light_sel sel;
-    light_select(c->lights, s->p, b->ng, &sel);
-    for (int k = 0; k < k_rays; k++) {
+    q->n = 0;
+    for (int k = 0; k < kn; k++) {
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
         light_point lp;
-        if (!light_sample(c->lights, &sel, u0, u1, u2, &lp)) break;
+        if (!light_sample(c->lights, sel, u0, u1, u2, &lp)) continue;
         if (lp.tri == s->h.tri) continue;
         vec3 wi = v3_sub(lp.p, s->p);
         float d2 = v3_len2(wi);
@@ -190,28 +207,95 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
         float cos_l = -v3_dot(wi, lp.n);
         if (cos_l <= 0.0f || !bsdf_same_side(b, wi)) continue;
         float pl = lp.pdf_area * d2 / cos_l;
-        if (!(pl > 0.0f)) continue;
-        float pb = 0.0f;
-        vec3 f, fg = v3s(0.0f);
+        /* An infinite pdf (cos_l ~ 0) means a zero contribution, and would
+         * turn into 0 * inf = NaN below. */
+        if (!(pl > 0.0f && pl < INFINITY)) continue;
+        light_cand *lc = &q->cand[q->n];
+        lc->pb = 0.0f;
+        lc->fg = v3s(0.0f);
         if (mode == DIRECT_ALL) {
-            f = bsdf_eval(b, wo, wi, &pb);
+            lc->f = bsdf_eval(b, wo, wi, &lc->pb);
         } else {
-            fg = bsdf_eval_glossy(b, wo, wi);
-            pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
-            f = mode == DIRECT_GLOSSY_MIS ? v3_add(fg, bsdf_eval_diffuse(b, wi)) : fg;
+            lc->fg = bsdf_eval_glossy(b, wo, wi);
+            lc->pb = nb > 0 ? bsdf_pdf_glossy(b, wo, wi) : 0.0f;
+            lc->f = mode == DIRECT_GLOSSY_MIS ? v3_add(lc->fg, bsdf_eval_diffuse(b, wi)) : lc->fg;
         }
-        if (v3_is_zero(f)) continue;
-        bool crossed;
-        vec3 tr = transmittance(c, origin, offset_ray(lp.p, lp.n), &crossed);
+        if (v3_is_zero(lc->f)) continue;
+        lc->target = offset_ray(lp.p, lp.n);
+        vec3 d = v3_sub(lc->target, q->origin);
+        float dist = v3_len(d);
+        if (!(dist > 0.0f)) continue;
+        lc->d = v3_scale(d, 1.0f / dist);
+        lc->dist = dist;
+        lc->wi = wi;
+        lc->le = lp.le;
+        lc->pl = pl;
+        q->so[q->n] = q->origin;
+        q->sd[q->n] = lc->d;
+        q->sfar[q->n] = dist;
+        c->st->shadow++;
+        log_ray(c, q->origin, lc->d, dist, 1);
+        q->n++;
+    }
+}
+
+/* Tests the batch's shadow rays (one packet query). */
+static void dl_test(integ_ctx *c, dl_batch *q)
+{
+    emb_occluded_batch(c->emb, q->n, q->so, q->sd, q->sfar, q->blocked);
+}
+
+/* Adds the batch's contributions, in sample order, to *sum. */
+static void dl_finish(integ_ctx *c, const bsdf *b, direct_mode mode, int nb, const dl_batch *q, vec3 *sum)
+{
+    int k_rays = c->opt->shadow_rays;
+    for (int i = 0; i < q->n; i++) {
+        const light_cand *lc = &q->cand[i];
+        bool crossed = false;
+        vec3 tr = q->blocked[i] ? through_glass(c, q->origin, lc->d, lc->dist, lc->target, &crossed) : v3s(1.0f);
         if (v3_is_zero(tr)) continue;
         /* MIS against the scattered rays, except through glass: scattered
          * rays do not count lights seen through it (after_delta). */
-        float w = crossed ? 1.0f : power_heuristic((float)k_rays * pl, (float)nb * pb);
-        if (mode == DIRECT_ALL) f = v3_scale(f, w);
-        else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(f, fg), v3_scale(fg, w));
-        else f = v3_scale(fg, w);
-        float g = v3_dot(wi, b->n) / (pl * (float)k_rays);
-        sum = v3_add(sum, v3_scale(v3_mul(v3_mul(f, lp.le), tr), g));
+        float w = crossed ? 1.0f : bsdf_power_heuristic((float)k_rays * lc->pl, (float)nb * lc->pb);
+        vec3 f;
+        if (mode == DIRECT_ALL) f = v3_scale(lc->f, w);
+        else if (mode == DIRECT_GLOSSY_MIS) f = v3_add(v3_sub(lc->f, lc->fg), v3_scale(lc->fg, w));
+        else f = v3_scale(lc->fg, w);
+        float g = v3_dot(lc->wi, b->n) / (lc->pl * (float)k_rays);
+        *sum = v3_add(*sum, v3_scale(v3_mul(v3_mul(f, lc->le), tr), g));
+    }
+}
+
+/* True when direct_light has anything to do at s. */
+static inline bool dl_active(const integ_ctx *c, const bsdf *b, direct_mode mode)
+{
+    if (light_count(c->lights) == 0) return false;
+    return mode == DIRECT_GLOSSY_ONLY ? b->L.p_g > 0.0f : bsdf_has_smooth(b);
+}
+
+/* Direct light at s from K light samples (see direct_mode); nb and the
+ * glossy/whole pdf give the competing strategy of the MIS weights. The K
+ * samples go in batches: sample and evaluate up to SHADOW_BATCH lights
+ * (drawing the random numbers in the same order as one at a time), test
+ * their shadow rays with one packet query (they leave one point towards the
+ * same lights: a coherent bundle), then add the contributions in sample
+ * order. */
+static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode,
+                         int nb)
+{
+    int k_rays = c->opt->shadow_rays;
+    vec3 sum = v3s(0.0f);
+    if (!dl_active(c, b, mode)) return sum;
+    dl_batch q;
+    q.origin = offset_ray(s->p, b->ng);
+    /* The emitter probabilities at s, for all its light samples (lights.h). */
+    light_sel sel;
+    light_select(c->lights, s->p, b->ng, &sel);
+    for (int k0 = 0; k0 < k_rays; k0 += SHADOW_BATCH) {
+        int kn = k_rays - k0 < SHADOW_BATCH ? k_rays - k0 : SHADOW_BATCH;
+        dl_prepare(c, s, b, wo, mode, nb, kn, &sel, &q);
+        dl_test(c, &q);
+        dl_finish(c, b, mode, nb, &q, &sum);
     }
     return sum;
 }
@@ -227,7 +311,7 @@ static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
     light_select(c->lights, ew.from, ew.from_n, &sel);
     float pl = light_pdf_area(c->lights, &sel, s->h.tri) * s->h.t * s->h.t / cos_front;
     return v3_scale(s->m->emission,
-                    power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
+                    bsdf_power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
 }
 
 /* Unbiased path tracing from o along d; first (if given) is the first hit. */
@@ -243,7 +327,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         L = v3_add(L, v3_mul(beta, emitted(c, &s, d, ew)));
         if (depth >= max_depth) break;
         bsdf b;
-        bsdf_init(&b, s.m, s.ns, s.ng, wo);
+        surf_bsdf(c, &s, wo, &b);
         L = v3_add(L, v3_mul(beta, direct_light(c, &s, &b, wo, DIRECT_ALL, 1)));
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
         bsdf_sample bs;
@@ -259,11 +343,11 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
             ew.from_n = b.ng;
         }
         if (depth >= RR_START) {
-            float q = fminf(0.95f, v3_maxc(beta));
+            float q = minf(0.95f, maxc(beta));
             if (!(rnd(c) < q)) break;
             beta = v3_scale(beta, 1.0f / q);
         }
-        if (!(v3_maxc(beta) > 0.0f)) break;
+        if (!(maxc(beta) > 0.0f)) break;
         o = offset_ray(s.p, bs.transmit ? v3_neg(b.ng) : b.ng);
         d = bs.wi;
     }
@@ -280,7 +364,7 @@ static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew);
  * not as B^D), none at the last level or without a glossy lobe. */
 static int glossy_rays(const trc_options *opt, const bsdf *b, int depth)
 {
-    if (depth >= opt->depth || b->p_g <= 0.0f) return 0;
+    if (depth >= opt->depth || b->L.p_g <= 0.0f) return 0;
     return depth < opt->branch_depth ? opt->branch : 1;
 }
 
@@ -292,6 +376,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
                              int nb, radiance_fn li)
 {
     vec3 L = v3s(0.0f);
+    if (nb <= 0 && !(maxc(b->L.km) > 0.0f) && !b->L.dielectric) return L;
     emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
     vec3 up = offset_ray(s->p, b->ng);
     for (int i = 0; i < nb; i++) {
@@ -302,11 +387,11 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         vec3 l = li(c, up, bs.wi, depth + 1, mis);
         L = v3_add(L, v3_scale(v3_mul(bs.weight, l), 1.0f / (float)nb));
     }
-    if (v3_maxc(b->km) > 0.0f) {
+    if (maxc(b->L.km) > 0.0f) {
         vec3 wr = bsdf_reflect(wo, b->n);
-        if (bsdf_same_side(b, wr)) L = v3_add(L, v3_mul(b->km, li(c, up, wr, depth + 1, refl)));
+        if (bsdf_same_side(b, wr)) L = v3_add(L, v3_mul(b->L.km, li(c, up, wr, depth + 1, refl)));
     }
-    if (b->dielectric) {
+    if (b->L.dielectric) {
         vec3 wr, wt;
         bool ok;
         float f = bsdf_dielectric(b, wo, &wr, &wt, &ok);
@@ -319,7 +404,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         if (wrefl > 0.0f) L = v3_add(L, v3_scale(li(c, up, wr, depth + 1, refl), wrefl));
         if (ok && wrefr > 0.0f) {
             vec3 lt = li(c, offset_ray(s->p, v3_neg(b->ng)), wt, depth + 1, refr);
-            L = v3_add(L, v3_mul(lt, v3_scale(b->kt, wrefr * b->eta * b->eta)));
+            L = v3_add(L, v3_mul(lt, v3_scale(b->L.kt, wrefr * b->eta * b->eta)));
         }
     }
     return L;
@@ -335,15 +420,14 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     vec3 wo = v3_neg(d);
     vec3 L = emitted(c, &s, d, ew);
     bsdf b;
-    bsdf_init(&b, s.m, s.ns, s.ng, wo);
+    surf_bsdf(c, &s, wo, &b);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
-    if (b.p_d > 0.0f) {
+    if (b.L.p_d > 0.0f) {
         if (c->rad) {
             /* The radiosity solution's indirect part at this very point. */
-            vec3 ind = v3_sub(rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v),
-                              rmesh_eval_direct(c->rad, s.h.tri, s.h.u, s.h.v));
+            vec3 ind = v3_sub(integ_vertex_lerp(c->rad->rad, &s.h), integ_vertex_lerp(c->rad->rad_direct, &s.h));
             L = v3_add(L, clamp0(ind));
         } else {
             bsdf_sample bs;
@@ -372,7 +456,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     if (first) s = *first;
     else if (!trace_secondary(c, o, d, &s)) return v3s(0.0f);
     const trc_options *opt = c->opt;
-    vec3 base = rmesh_eval(c->rad, s.h.tri, s.h.u, s.h.v);
+    vec3 base = integ_vertex_lerp(c->rad->rad, &s.h);
     if (ew.mode != EMIS_FULL) {
         /* The radiosity includes the emitter's L_e; a glossy ray that found
          * it only carries its MIS share (light sampling has the rest). */
@@ -380,9 +464,13 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
         vec3 keep = emitted(c, &s, d, ew);
         base = clamp0(v3_sub(base, v3_sub(le, keep)));
     }
+    if (base_out) *base_out = base;
+    /* A material with nothing but diffuse layers adds nothing here (most
+     * hits of a scene): no frame, no light samples, no rays. */
+    if (!s.bm->traced) return base;
     vec3 wo = v3_neg(d);
     bsdf b;
-    bsdf_init(&b, s.m, s.ns, s.ng, wo);
+    surf_bsdf(c, &s, wo, &b);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);
@@ -391,7 +479,6 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
      * break that guarantee, so it is dropped. */
     extra = clamp0(extra);
     if (!finite3(extra)) extra = v3s(0.0f);
-    if (base_out) *base_out = base;
     return v3_add(base, extra);
 }
 

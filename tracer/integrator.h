@@ -11,6 +11,7 @@
 
 #include "common/radmesh.h"
 #include "common/rng.h"
+#include "tracer/bsdf.h"
 #include "tracer/embree_scene.h"
 #include "tracer/lights.h"
 #include "tracer/tracer.h"
@@ -20,6 +21,7 @@ typedef struct integ_ctx {
     const emb_scene *emb;
     const emb_mesh *mesh;
     const light_set *lights;
+    const bsdf_mat *bmats;     /* per material: its precomputed lobes */
     const ct_radmesh *rad;     /* NULL: no interactive solution */
     const trc_options *opt;
     bool has_dielectric;       /* shadow rays must look through glass */
@@ -32,9 +34,19 @@ typedef struct integ_surf {
     emb_hit h;
     vec3 p;            /* point on the triangle at (u, v) */
     vec3 ng;           /* front (winding) normal, unit */
-    vec3 ns;           /* shading normal, unit */
     const scene_material *m;
+    const bsdf_mat *bm;
 } integ_surf;
+
+/* Per-vertex values (radiosity) interpolated at a hit: rmesh_eval's
+ * arithmetic exactly, with the vertex indices from the hit's record. */
+static inline vec3 integ_vertex_lerp(const vec3 *val, const emb_hit *h)
+{
+    const uint32_t *i = h->rec->v;
+    float u = h->u, v = h->v, w = 1.0f - u - v;
+    vec3 a = val[i[0]], b = val[i[1]], c = val[i[2]];
+    return v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
+}
 
 /* Traces a primary ray (counted as primary); false on a miss. */
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s);

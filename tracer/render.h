@@ -4,8 +4,9 @@
  * Request ids are ((y * W + x) * spp + s + 1), the jitter comes from
  * rng_make(seed, id, epoch, TRC_DIM_PIXEL), so an image is bit-identical
  * for any thread count. Optionally logs (a random subset of) the rays it
- * traced and replays them with raw Embree queries in the order they were
- * traced: the benchmark's physical limit for the same rays. */
+ * traced, in a second untimed pass, and replays them with raw Embree queries
+ * in the order they were traced: the benchmark's physical limit for the same
+ * rays. */
 #ifndef CT_TRACER_RENDER_H
 #define CT_TRACER_RENDER_H
 
@@ -31,7 +32,8 @@ typedef struct render_options {
 void render_options_default(render_options *o, int width, int height);
 
 typedef struct render_result {
-    double seconds;        /* wall time of the render */
+    double seconds;        /* wall time of the render (without the ray-logging pass;
+                              with a ray log, the faster of two renders) */
     trc_stats stats;       /* summed over threads (log unset) */
     uint64_t logged;       /* rays logged for the replay */
     double replay_isect_s; /* wall time replaying them all with rtcIntersect1 */

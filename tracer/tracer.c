@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tracer/bsdf.h"
 #include "tracer/embree_scene.h"
 #include "tracer/integrator.h"
 #include "tracer/lights.h"
@@ -31,6 +32,7 @@ struct trc_tracer {
     const ct_radmesh *rad;
     emb_scene *emb;
     light_set *lights;
+    bsdf_mat *bmats;     /* per scene material */
     bool has_dielectric;
 };
 
@@ -107,8 +109,15 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rc) goto fail;
     rc = light_build(t->emb, &t->lights, err);
     if (rc) goto fail;
-    for (uint32_t i = 0; i < scene->nmats; i++)
+    t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);
+    if (!t->bmats) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u materials", scene->nmats);
+        goto fail;
+    }
+    for (uint32_t i = 0; i < scene->nmats; i++) {
+        bsdf_mat_init(&t->bmats[i], &scene->mats[i]);
         if (scene->mats[i].dielectric) t->has_dielectric = true;
+    }
     *out = t;
     return CT_OK;
 fail:
@@ -120,6 +129,7 @@ void trc_free(trc_tracer *t)
 {
     if (!t) return;
     light_free(t->lights);
+    free(t->bmats);
     emb_free(t->emb);
     free(t);
 }
@@ -131,6 +141,7 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->emb = t->emb;
     c->mesh = emb_get_mesh(t->emb);
     c->lights = t->lights;
+    c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;
     c->has_dielectric = t->has_dielectric;
@@ -181,11 +192,14 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
     out->v = s->h.v;
     out->hit = s->p;
     if (t->rad) {
-        out->l_base = rmesh_eval(t->rad, s->h.tri, s->h.u, s->h.v);
+        out->l_base = integ_vertex_lerp(t->rad->rad, &s->h);
         out->flags |= CT_SAMPLE_HAS_BASE;
     }
     return true;
 }
+
+/* Requests whose primary rays are traced back to back before any is shaded. */
+#define PRIMARY_BATCH 16
 
 void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
                ct_sample *out, trc_stats *st)
@@ -195,18 +209,32 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
     view_pre vp;
     view_prepare(v, &vp);
     unsigned fpu = fpu_enter();
-    for (size_t i = 0; i < n; i++) {
-        integ_surf s;
-        vec3 d;
-        c.rng = rng_make(t->opt.seed, req[i].id, req[i].epoch, TRC_DIM_TRACE);
-        st->samples++;
-        if (!primary(t, &c, v, &vp, &req[i], &out[i], &s, &d)) continue;
-        vec3 base = out[i].l_base;
-        vec3 l = integ_radiance(&c, v->cam.eye, d, &s, &base);
-        /* A NaN or infinity (a degenerate frame) would poison every average
-         * it enters; such a sample counts as black. */
-        if (!(isfinite(l.x) && isfinite(l.y) && isfinite(l.z))) l = v3s(0.0f);
-        out[i].l_hq = l;
+    /* First the primary rays of up to PRIMARY_BATCH requests, then their
+     * shading: independent Embree queries in a row overlap in the CPU (the
+     * next traversal starts while the last one's loads are in flight), and
+     * so do the first reads of the hit triangles' records. A sample's value
+     * does not depend on it: the primary hit is a function of the request
+     * alone and the shading draws its random numbers after it. */
+    integ_surf s[PRIMARY_BATCH];
+    vec3 d[PRIMARY_BATCH];
+    bool hit[PRIMARY_BATCH];
+    for (size_t i0 = 0; i0 < n; i0 += PRIMARY_BATCH) {
+        size_t m = n - i0 < PRIMARY_BATCH ? n - i0 : PRIMARY_BATCH;
+        for (size_t k = 0; k < m; k++) {
+            st->samples++;
+            hit[k] = primary(t, &c, v, &vp, &req[i0 + k], &out[i0 + k], &s[k], &d[k]);
+        }
+        for (size_t k = 0; k < m; k++) {
+            if (!hit[k]) continue;
+            const ct_request *r = &req[i0 + k];
+            c.rng = rng_make(t->opt.seed, r->id, r->epoch, TRC_DIM_TRACE);
+            vec3 base = out[i0 + k].l_base;
+            vec3 l = integ_radiance(&c, v->cam.eye, d[k], &s[k], &base);
+            /* A NaN or infinity (a degenerate frame) would poison every
+             * average it enters; such a sample counts as black. */
+            if (!(isfinite(l.x) && isfinite(l.y) && isfinite(l.z))) l = v3s(0.0f);
+            out[i0 + k].l_hq = l;
+        }
     }
     fpu_leave(fpu);
 }

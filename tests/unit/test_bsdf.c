@@ -3,6 +3,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>
+#include <xmmintrin.h>
 
 #include "common/rng.h"
 #include "tracer/bsdf.h"
@@ -160,4 +161,88 @@ Test(bsdf, dielectric_refraction_obeys_snell)
     cr_expect(fabsf(sinf(th) - 1.5f * sin_t) < 1e-5f, "Snell violated");
     cr_expect(wt.z < 0.0f && wt.x < 0.0f, "refracted ray must continue through the surface");
     cr_expect(fabsf(wr.x + sinf(th)) < 1e-6f && fabsf(wr.z - cosf(th)) < 1e-6f);
+}
+
+/* Checks every value the lobes return at (wo, wi) is finite and >= 0. */
+static void expect_finite(const bsdf *b, vec3 wo, vec3 wi, const char *what, float co)
+{
+    vec3 f = bsdf_eval_glossy(b, wo, wi);
+    float p = bsdf_pdf_glossy(b, wo, wi), pa;
+    vec3 fa = bsdf_eval(b, wo, wi, &pa);
+    cr_assert(isfinite(f.x) && f.x >= 0.0f, "%s: f = %g at cos %g", what, (double)f.x, (double)co);
+    cr_assert(isfinite(p) && p >= 0.0f, "%s: pdf = %g at cos %g", what, (double)p, (double)co);
+    cr_assert(isfinite(fa.x) && isfinite(pa), "%s: eval %g pdf %g at cos %g", what, (double)fa.x, (double)pa,
+              (double)co);
+}
+
+/* Ward at grazing angles (the cause of a NaN once seen in a drt reference):
+ * with wi and wo within 1e-10 of the horizon near the mirror direction,
+ * (h.n)^4 underflows and f became inf (then inf * 0 = NaN in the
+ * estimators). Every value must stay finite, with and without the tracer's
+ * flush-to-zero mode. */
+Test(bsdf, ward_is_finite_at_grazing_angles)
+{
+    const float coss[] = {1e-3f, 1e-6f, 1e-8f, 1e-10f, 1e-12f, 1e-20f, 1e-30f, 1e-40f, 0.0f};
+    scene_material m = scene_material_default("brushed");
+    m.diffuse = v3s(0.04f);
+    m.glossy = SCENE_GLOSSY_WARD;
+    m.specular = v3(0.62f, 0.6f, 0.56f);
+    m.ward_tangent = v3(0.1f, 1.0f, 0.1f);
+    const float alphas[][2] = {{0.04f, 0.25f}, {1e-5f, 0.5f}, {0.3f, 0.3f}};
+    unsigned csr = _mm_getcsr();
+    for (int ftz = 0; ftz < 2; ftz++) {
+        _mm_setcsr(ftz ? csr | 0x8040u : csr & ~0x8040u);
+        for (int a = 0; a < 3; a++) {
+            m.ward_ax = alphas[a][0];
+            m.ward_ay = alphas[a][1];
+            for (size_t i = 0; i < sizeof coss / sizeof *coss; i++) {
+                float c = coss[i], s = sqrtf(1.0f - c * c);
+                for (int k = 0; k < 8; k++) {
+                    float ph = 2.0f * CT_PI * (float)k / 8.0f;
+                    vec3 wo = v3(s * cosf(ph), s * sinf(ph), c);
+                    vec3 mirror = v3(-wo.x, -wo.y, wo.z);
+                    vec3 side = v3(-s * sinf(ph), s * cosf(ph), c);
+                    bsdf b;
+                    bsdf_init(&b, &m, v3(0, 0, 1), v3(0, 0, 1), wo);
+                    expect_finite(&b, wo, mirror, "mirror direction", c);
+                    expect_finite(&b, wo, wo, "retro direction", c);
+                    expect_finite(&b, wo, side, "sideways", c);
+                    expect_finite(&b, wo, v3(0, 0, 1), "normal", c);
+                    ct_rng g = rng_make(11, (uint64_t)i, (uint64_t)k, (uint64_t)a);
+                    for (int n = 0; n < 200; n++) {
+                        bsdf_sample sm;
+                        float u0 = rng_float(&g), u1 = rng_float(&g), u2 = rng_float(&g);
+                        if (bsdf_sample_glossy(&b, wo, u1, u2, &sm))
+                            cr_assert(isfinite(sm.weight.x) && isfinite(sm.pdf) && sm.pdf > 0.0f,
+                                      "glossy sample weight %g pdf %g at cos %g", (double)sm.weight.x,
+                                      (double)sm.pdf, (double)c);
+                        if (bsdf_sample_all(&b, wo, u0, u1, u2, &sm))
+                            cr_assert(isfinite(sm.weight.x) && isfinite(sm.pdf),
+                                      "sample weight %g pdf %g at cos %g", (double)sm.weight.x, (double)sm.pdf,
+                                      (double)c);
+                    }
+                }
+            }
+        }
+    }
+    _mm_setcsr(csr);
+}
+
+/* The MIS power heuristic stays in [0, 1] when a squared pdf overflows (a
+ * light seen at a grazing angle): inf / inf would be NaN. */
+Test(bsdf, power_heuristic_survives_overflow)
+{
+    cr_expect_float_eq(bsdf_power_heuristic(1.0f, 1.0f), 0.5f, 1e-7f);
+    cr_expect_float_eq(bsdf_power_heuristic(3.0f, 4.0f), 9.0f / 25.0f, 1e-7f);
+    cr_expect_eq(bsdf_power_heuristic(0.0f, 0.0f), 0.0f);
+    cr_expect_eq(bsdf_power_heuristic(2.0f, 0.0f), 1.0f);
+    const float big[][2] = {{1e20f, 1.0f}, {1.0f, 1e20f}, {1e20f, 3e19f}, {3e19f, 1e20f}, {INFINITY, 1.0f},
+                            {1.0f, INFINITY}, {INFINITY, INFINITY}, {3e38f, 3e38f}};
+    for (size_t i = 0; i < sizeof big / sizeof *big; i++) {
+        float w = bsdf_power_heuristic(big[i][0], big[i][1]), v = bsdf_power_heuristic(big[i][1], big[i][0]);
+        cr_assert(w >= 0.0f && w <= 1.0f, "w(%g, %g) = %g", (double)big[i][0], (double)big[i][1], (double)w);
+        cr_expect(fabsf(w + v - 1.0f) < 1e-6f, "w(a,b) + w(b,a) = %g", (double)(w + v));
+    }
+    cr_expect_float_eq(bsdf_power_heuristic(1e20f, 3e19f), 1.0f / (1.0f + 0.09f), 1e-6f);
+    cr_expect_eq(bsdf_power_heuristic(NAN, 1.0f), 0.0f);
 }

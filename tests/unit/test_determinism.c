@@ -204,6 +204,16 @@ Test(determinism, raw_replay_counts_the_logged_rays, .init = setup, .fini = tear
     cr_expect(r.logged == trc_stats_rays(&r.stats), "logged %llu of %llu rays", (unsigned long long)r.logged,
               (unsigned long long)trc_stats_rays(&r.stats));
     cr_expect(r.replay_isect_s > 0.0 && r.replay_traced_s > 0.0);
+    /* The rays are logged in a second, untimed pass: the image and the ray
+     * counts are those of a render without the log. */
+    float *plain = calloc(32 * 24 * 3, sizeof(float));
+    render_result r0;
+    o.raylog_cap = 0;
+    cr_assert_eq(render_image(t, &room->cams[0].cam, &o, plain, &r0, &err), 0, "%s", err.msg);
+    cr_expect(memcmp(img, plain, 32 * 24 * 3 * sizeof(float)) == 0, "the logging pass changed the image");
+    cr_expect_eq(trc_stats_rays(&r0.stats), trc_stats_rays(&r.stats));
+    cr_expect_eq(r0.logged, 0);
+    free(plain);
     free(img);
     trc_free(t);
 }
