@@ -16,14 +16,15 @@ typedef int32_t v4i __attribute__((vector_size(16)));
  * so with 4 KiB pages nearly every splat misses the TLB as well as the
  * caches; arrays of 2 MiB and more are aligned to 2 MiB and advised as huge
  * pages (transparent huge pages in "madvise" mode), which removes most page
- * walks. Freed with free(). */
+ * walks. The size is not rounded up: the tail past the last whole 2 MiB stays
+ * in small pages, so the memory cap's 16 bytes a texel stay true. Freed with
+ * free(). */
 static ctex_texel *alloc_texels(size_t n)
 {
     enum { HUGE = 2u << 20 };
     size_t bytes = n * sizeof(ctex_texel);
     if (bytes < HUGE) return malloc(bytes);
     void *p = NULL;
-    bytes = (bytes + HUGE - 1) & ~(size_t)(HUGE - 1);
     if (posix_memalign(&p, HUGE, bytes)) return NULL;
 #ifdef MADV_HUGEPAGE
     (void)madvise(p, bytes, MADV_HUGEPAGE);   /* a hint: failure only costs speed */
