@@ -63,6 +63,8 @@ static void usage(FILE *f)
             "  --exposure E           PNG exposure (stops)               default: 0\n"
             "  --time-insert          replay all samples into a fresh engine and print the\n"
             "                         insertion rate (one thread, CPU time)  default: off\n"
+            "  --insert-runs N        replays for --time-insert; the median is reported\n"
+            "                                                            default: 1\n"
             "  --quiet, --verbose\n"
             "request queue options (docs/sampling.md):\n");
     rq_options_usage(f);
@@ -418,20 +420,17 @@ static int run_phase(phase_ctx *p, const long *ck, int nck, const char *phase, c
     return img_write_exr(path, &rs->hq, IMG_FLOAT, err);
 }
 
-/* Replays the recorded samples into a fresh engine on this thread and
- * reports insertions per CPU second (lookup, error, splat, resolution,
- * dirty rectangles). */
-static int time_insert(const ct_radmesh *mesh, const ct_scene *s, const ctex_options *co,
+/* One replay of the recorded samples into a fresh engine on this thread;
+ * *cpu is the thread's CPU time spent in the insertions and flushes. */
+static int replay_once(const ct_radmesh *mesh, const ct_scene *s, const ctex_options *co,
                        const recorder *rec, const ct_camera *cam, const ct_camera *cam2, int W, int H,
-                       int batch, ct_error *err)
+                       ctex_insert_info *info, int batch, double *cpu, ctex_stats *st, ct_error *err)
 {
     ctex *c = NULL;
     int rc = ctex_new(mesh, s->mats, s->nmats, co, &c, err);
     if (rc) return rc;
     rc = ctex_set_camera(c, cam, W, H, err);
-    ctex_insert_info *info = malloc((size_t)batch * sizeof *info);
-    if (!info) rc = ct_fail(err, CT_ENOMEM, "out of memory");
-    double cpu = 0.0;
+    *cpu = 0.0;
     struct timespec a, b;
     for (size_t i = 0; !rc && i < rec->n;) {
         if (cam2 && i == rec->phase_start) {
@@ -446,22 +445,50 @@ static int time_insert(const ct_radmesh *mesh, const ct_scene *s, const ctex_opt
         ctex_flush_patches(c);
         ctex_events_clear(c);
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
-        cpu += (double)(b.tv_sec - a.tv_sec) + 1e-9 * (double)(b.tv_nsec - a.tv_nsec);
+        *cpu += (double)(b.tv_sec - a.tv_sec) + 1e-9 * (double)(b.tv_nsec - a.tv_nsec);
         i = end;
     }
-    if (!rc) {
-        ctex_stats st = ctex_get_stats(c);
-        double rate = cpu > 0.0 ? (double)rec->n / cpu : 0.0;
-        ct_info(COMPONENT, "insertion: %zu samples in %.3f s CPU: %.3f M/s (%u textures, %llu texels, %llu resizes)",
-                rec->n, cpu, rate / 1e6, st.textures, (unsigned long long)st.texels,
-                (unsigned long long)st.resizes);
-        printf("metric: insert_samples=%zu\nmetric: insert_cpu_s=%.6f\nmetric: insert_rate=%.1f\n"
-               "metric: insert_textures=%u\nmetric: insert_texels=%llu\nmetric: insert_resizes=%llu\n",
-               rec->n, cpu, rate, st.textures, (unsigned long long)st.texels,
-               (unsigned long long)st.resizes);
-    }
-    free(info);
+    if (!rc) *st = ctex_get_stats(c);
     ctex_free(c);
+    return rc;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Replays the recorded samples `runs` times, each into a fresh engine on
+ * this thread, and reports insertions per CPU second of the median run
+ * (lookup, error, splat, resolution, dirty rectangles). */
+static int time_insert(const ct_radmesh *mesh, const ct_scene *s, const ctex_options *co,
+                       const recorder *rec, const ct_camera *cam, const ct_camera *cam2, int W, int H,
+                       int batch, int runs, ct_error *err)
+{
+    ctex_insert_info *info = malloc((size_t)batch * sizeof *info);
+    double *cpus = malloc((size_t)runs * sizeof *cpus);
+    int rc = info && cpus ? CT_OK : ct_fail(err, CT_ENOMEM, "out of memory");
+    ctex_stats st = {0};
+    for (int k = 0; !rc && k < runs; k++)
+        rc = replay_once(mesh, s, co, rec, cam, cam2, W, H, info, batch, &cpus[k], &st, err);
+    for (int k = 0; !rc && k < runs; k++)
+        ct_debug(COMPONENT, "insertion run %d: %.3f s CPU, %.3f M/s", k + 1, cpus[k], (double)rec->n / cpus[k] / 1e6);
+    if (!rc) {
+        qsort(cpus, (size_t)runs, sizeof *cpus, cmp_double);
+        double cpu = cpus[runs / 2];
+        double rate = cpu > 0.0 ? (double)rec->n / cpu : 0.0;
+        ct_info(COMPONENT, "insertion: %zu samples in %.3f s CPU (median of %d): %.3f M/s (%u textures, "
+                "%llu texels, %llu resizes)", rec->n, cpu, runs, rate / 1e6, st.textures,
+                (unsigned long long)st.texels, (unsigned long long)st.resizes);
+        printf("metric: insert_samples=%zu\nmetric: insert_cpu_s=%.6f\nmetric: insert_rate=%.1f\n"
+               "metric: insert_textures=%u\nmetric: insert_texels=%llu\nmetric: insert_resizes=%llu\n"
+               "metric: insert_runs=%d\n",
+               rec->n, cpu, rate, st.textures, (unsigned long long)st.texels,
+               (unsigned long long)st.resizes, runs);
+    }
+    free(cpus);
+    free(info);
     return rc;
 }
 
@@ -520,7 +547,7 @@ int cmd_converge(int argc, char **argv)
     ct_error err = {{0}};
     const char *scene_path = NULL, *cam_name = NULL, *move_name = NULL, *out = NULL, *mesh_path = NULL;
     const char *ref_path = NULL, *ref2_path = NULL, *samples_arg = NULL, *after_arg = NULL;
-    int W = 512, H = 512, batch = 256, threads = 2, time_ins = 0;
+    int W = 512, H = 512, batch = 256, threads = 2, time_ins = 0, ins_runs = 1;
     int shadow = -1, branch = -1, depth = -1;
     long seed = 1;
     float exposure = 0.0f, stand_in = -1.0f;
@@ -545,6 +572,7 @@ int cmd_converge(int argc, char **argv)
         else if (strcmp(a, "--mode") == 0) rc = v ? trc_mode_parse(v, &mode, &err) : ct_fail(&err, CT_EINVAL, "--mode needs a value");
         else if (strcmp(a, "--width") == 0) rc = parse_int(a, v, 1, 16384, &W, &err);
         else if (strcmp(a, "--height") == 0) rc = parse_int(a, v, 1, 16384, &H, &err);
+        else if (strcmp(a, "--insert-runs") == 0) rc = parse_int(a, v, 1, 1000, &ins_runs, &err);
         else if (strcmp(a, "--batch") == 0) rc = parse_int(a, v, 1, 1 << 20, &batch, &err);
         else if (strcmp(a, "--threads") == 0) rc = parse_int(a, v, 1, 64, &threads, &err);
         else if (strcmp(a, "--shadow-rays") == 0) rc = parse_int(a, v, 1, 1 << 16, &shadow, &err);
@@ -727,7 +755,7 @@ int cmd_converge(int argc, char **argv)
     rs.csv = NULL;
     ct_info(COMPONENT, "traced %llu samples (%llu rays) in %.1f s; wrote %s",
             (unsigned long long)pc.st.samples, (unsigned long long)trc_stats_rays(&pc.st), ct_now() - rs.t0, csv_path);
-    if (time_ins && (rc = time_insert(&mesh, scene, &co, &rec, &cam, ci2 >= 0 ? &cam2 : NULL, W, H, batch, &err)))
+    if (time_ins && (rc = time_insert(&mesh, scene, &co, &rec, &cam, ci2 >= 0 ? &cam2 : NULL, W, H, batch, ins_runs, &err)))
         goto fail;
     status = 0;
     goto done;

@@ -42,7 +42,7 @@ run 0 reference "$scene" --camera spheres --width 48 --height 48 --spp 32 --mode
 
 run 0 converge "$scene" --camera front --samples 100,800,all --width 48 --height 48 --stand-in 0.3 --mode path \
   --reference "$tmp/ref.exr" --move-to spheres --samples-after 600 --reference-after "$tmp/ref2.exr" \
-  --time-insert --out "$tmp/out1"
+  --time-insert --insert-runs 3 --out "$tmp/out1"
 for f in convergence.csv radiosity.exr radiosity.png assignment.png corrected_100.exr corrected_100.png \
          samples_100.png corrected_800.exr corrected_2304.exr samples_2304.png hq_samples.exr \
          moved.exr moved.png after_assignment.png after_corrected_600.exr after_samples_600.png \
@@ -70,6 +70,7 @@ awk -v a="$p0" -v b="$p1" -v c="$p2" -v d="$p3" 'BEGIN { exit !(a < b && b < c &
 awk -v m="$pm" -v a="$pa" 'BEGIN { exit !(a > m) }' || fail "PSNR after the move does not rise: $pm -> $pa"
 [[ $cov == 100 ]] || fail "coverage at 'all' is $cov, expected 100"
 grep -q '^metric: insert_rate=' "$tmp/out" || fail "--time-insert printed no insert_rate"
+grep -q '^metric: insert_runs=3$' "$tmp/out" || fail "--insert-runs 3 did not replay three times"
 
 # bad input: exit 2 and one error line naming the problem
 expect_error() {
@@ -86,6 +87,8 @@ run 2 converge "$scene" --samples 100,50 --out "$tmp/bad" --quiet
 expect_error "increase"
 run 2 converge "$scene" --samples 10 --out "$tmp/bad" --eps abc --quiet
 expect_error "--eps"
+run 2 converge "$scene" --samples 10 --out "$tmp/bad" --insert-runs 0 --quiet
+expect_error "--insert-runs"
 run 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
 run 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand-in 0.3 --quiet

@@ -254,3 +254,73 @@ Test(ctex_tex, doubling_one_axis_and_odd_halving)
     ctex_tex_release(&old);
     ctex_tex_release(&ref);
 }
+
+/* Doubling with empty texels scattered inside (the per-texel fallback next
+ * to the four-channel path): each new texel is the bilinear weight (3/4,
+ * 1/4 per axis, clamped) renormalized over the valid old texels, empty when
+ * none is valid; its validity is the covering old texel's (or v_max - 1 when
+ * that one is empty) with distances doubled. */
+Test(ctex_tex, doubling_with_empty_texels)
+{
+    const int W = 11, H = 7;
+    ctex_tex t = {0}, old = {0};
+    cr_assert_eq(ctex_tex_init(&t, W, H, NULL), 0);
+    cr_assert_eq(ctex_tex_init(&old, W, H, NULL), 0);
+    fill_random(&t, 21);
+    ct_rng r = rng_make(22, 0, 0, 0);
+    for (int i = 0; i < W * H; i++)
+        if (rng_float(&r) < 0.3f) { t.tx[i].r = t.tx[i].g = t.tx[i].b = 0.0f; t.tx[i].v = -INFINITY; }
+    t.vmax = 1.5f;
+    for (int i = 0; i < W * H; i++) old.tx[i] = t.tx[i];
+    cr_assert_eq(ctex_tex_resize(&t, 2 * W, 2 * H, NULL), 0);
+    int empty = 0, partial = 0;
+    for (int j = 0; j < 2 * H; j++)
+        for (int i = 0; i < 2 * W; i++) {
+            int ox = i / 2, oy = j / 2;
+            int nx = i % 2 ? (ox + 1 < W ? ox + 1 : ox) : (ox > 0 ? ox - 1 : 0);
+            int ny = j % 2 ? (oy + 1 < H ? oy + 1 : oy) : (oy > 0 ? oy - 1 : 0);
+            const ctex_texel *ps[4] = {&old.tx[oy * W + ox], &old.tx[oy * W + nx], &old.tx[ny * W + ox],
+                                       &old.tx[ny * W + nx]};
+            const float ws[4] = {0.5625f, 0.1875f, 0.1875f, 0.0625f};
+            float sw = 0.0f, cr = 0.0f;
+            int nvalid = 0;
+            for (int k = 0; k < 4; k++)
+                if (ps[k]->v != -INFINITY) { sw += ws[k]; cr += ws[k] * ps[k]->r; nvalid++; }
+            const ctex_texel *q = &t.tx[j * 2 * W + i];
+            if (nvalid == 0) {
+                cr_assert_eq(q->v, -INFINITY, "texel (%d,%d) should stay empty", i, j);
+                empty++;
+                continue;
+            }
+            partial += nvalid < 4;
+            cr_assert_float_eq(q->r, cr / sw, 1e-5, "texel (%d,%d): %g, expected %g", i, j, (double)q->r,
+                               (double)(cr / sw));
+            float v = ps[0]->v == -INFINITY ? t.vmax - 1.0f : ps[0]->v;
+            cr_assert_float_eq(q->v, t.vmax + (v - t.vmax) * 2.0f, 1e-5, "texel (%d,%d) validity", i, j);
+        }
+    cr_assert_gt(partial, 0, "the case should have texels next to empty ones");
+    cr_assert_gt(empty + partial, 0);
+    ctex_tex_release(&t);
+    ctex_tex_release(&old);
+}
+
+/* A texture large enough for the huge-page allocation (2 MiB and more)
+ * splats, doubles and halves like a small one. */
+Test(ctex_tex, large_texture_splats_and_resizes)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 600, 400, NULL), 0);   /* 3.7 MiB */
+    ctex_tex_splat(&t, 100, 100, v3(1, 0, 0), 0.0f, 0);
+    ctex_tex_splat(&t, 500, 300, v3(2, 0, 0), 0.0f, 0);
+    cr_assert_eq(t.tx[100 * 600 + 100].r, 1.0f);
+    cr_assert_eq(t.tx[399 * 600 + 599].r, 2.0f);
+    cr_assert_eq(t.tx[0].r, 1.0f);
+    cr_assert_eq(t.tx[0].v, -100.0f);
+    vec3 m0 = ctex_tex_mean(&t, NULL);
+    cr_assert_eq(ctex_tex_resize(&t, 1200, 800, NULL), 0);   /* 14.6 MiB */
+    cr_assert_eq(t.tx[0].v, -200.0f, "distances double");
+    cr_assert_eq(ctex_tex_resize(&t, 600, 400, NULL), 0);
+    vec3 m2 = ctex_tex_mean(&t, NULL);
+    cr_assert_float_eq(m2.x, m0.x, 1e-4);
+    ctex_tex_release(&t);
+}
