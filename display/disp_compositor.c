@@ -1,5 +1,6 @@
 #include "display/disp_compositor.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,13 +19,12 @@ struct disp_compositor {
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
     mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
     mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
-    GLuint tonemap, points, points_world;
-    GLint pw_mvp, pw_point, pw_color;
+    GLuint tonemap, points_world, flat_screen;
+    GLint pw_mvp, pw_eye, pw_pull, pw_point, pw_color, fs_color;
     GLuint pw_vao, pw_vbo;
-    mat4 last_mvp;       /* the camera of the last render (for world points) */
-    GLint tm_image, tm_exposure, tm_mode, tm_dim;
-    GLint pt_size, pt_point, pt_color;
-    GLuint empty_vao, pt_vao, pt_vbo;
+    uint32_t npoints;    /* sample points in pw_vbo */
+    GLint tm_image, tm_exposure, tm_mode;
+    GLuint empty_vao;
     /* one-pass segments, reused between frames */
     uint32_t *bounds;
     size_t bounds_cap;
@@ -79,9 +79,9 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX && !rc; k++)
         rc = build_mesh_prog(&c->one[k], GL_PASS_ONE, k + 1, err);
     if (!rc) rc = gl_program_build("tonemap", gl_src_screen_vs, gl_src_tonemap_fs, NULL, &c->tonemap, err);
-    if (!rc) rc = gl_program_build("points", gl_src_points_vs, gl_src_points_fs, NULL, &c->points, err);
     if (!rc)
         rc = gl_program_build("points-world", gl_src_points_world_vs, gl_src_points_fs, NULL, &c->points_world, err);
+    if (!rc) rc = gl_program_build("flat-screen", gl_src_screen_vs, gl_src_points_fs, NULL, &c->flat_screen, err);
     if (rc) {
         disp_compositor_free(c);
         return rc;
@@ -89,14 +89,12 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
     c->tm_image = gl.GetUniformLocation(c->tonemap, "u_image");
     c->tm_exposure = gl.GetUniformLocation(c->tonemap, "u_exposure");
     c->tm_mode = gl.GetUniformLocation(c->tonemap, "u_mode");
-    c->tm_dim = gl.GetUniformLocation(c->tonemap, "u_dim");
-    c->pt_size = gl.GetUniformLocation(c->points, "u_size");
-    c->pt_point = gl.GetUniformLocation(c->points, "u_point");
-    c->pt_color = gl.GetUniformLocation(c->points, "u_color");
     c->pw_mvp = gl.GetUniformLocation(c->points_world, "u_mvp");
+    c->pw_eye = gl.GetUniformLocation(c->points_world, "u_eye");
+    c->pw_pull = gl.GetUniformLocation(c->points_world, "u_pull");
     c->pw_point = gl.GetUniformLocation(c->points_world, "u_point");
     c->pw_color = gl.GetUniformLocation(c->points_world, "u_color");
-    c->last_mvp = m4_identity();
+    c->fs_color = gl.GetUniformLocation(c->flat_screen, "u_color");
     gl.GenVertexArrays(1, &c->pw_vao);
     gl.GenBuffers(1, &c->pw_vbo);
     gl.BindVertexArray(c->pw_vao);
@@ -105,13 +103,6 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
     gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), (const void *)0);
     gl.BindVertexArray(0);
     gl.GenVertexArrays(1, &c->empty_vao);
-    gl.GenVertexArrays(1, &c->pt_vao);
-    gl.GenBuffers(1, &c->pt_vbo);
-    gl.BindVertexArray(c->pt_vao);
-    gl.BindBuffer(GL_ARRAY_BUFFER, c->pt_vbo);
-    gl.EnableVertexAttribArray(0);
-    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), (const void *)0);
-    gl.BindVertexArray(0);
     rc = gl_check("compositor set-up", err);
     if (rc) {
         disp_compositor_free(c);
@@ -131,13 +122,11 @@ void disp_compositor_free(disp_compositor *c)
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++)
         if (c->one[k].id) gl.DeleteProgram(c->one[k].id);
     if (c->tonemap) gl.DeleteProgram(c->tonemap);
-    if (c->points) gl.DeleteProgram(c->points);
     if (c->points_world) gl.DeleteProgram(c->points_world);
+    if (c->flat_screen) gl.DeleteProgram(c->flat_screen);
     if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
     if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
-    if (c->pt_vao) gl.DeleteVertexArrays(1, &c->pt_vao);
-    if (c->pt_vbo) gl.DeleteBuffers(1, &c->pt_vbo);
     free(c->bounds);
     free(c->seg_tex);
     free(c);
@@ -311,6 +300,52 @@ static vec3 id_colour(uint32_t id)
               0.25f + 0.75f * (float)((h >> 16) & 255) / 255.0f);
 }
 
+int disp_compositor_set_points(disp_compositor *c, const float *a, uint32_t na, const float *b,
+                               uint32_t nb, ct_error *err)
+{
+    size_t n = (size_t)na + nb, bytes = 3 * sizeof(float);
+    gl.BindBuffer(GL_ARRAY_BUFFER, c->pw_vbo);
+    gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(n * bytes), NULL, GL_STREAM_DRAW);
+    if (na) gl.BufferSubData(GL_ARRAY_BUFFER, 0, (GLsizeiptr)(na * bytes), a);
+    if (nb) gl.BufferSubData(GL_ARRAY_BUFFER, (GLintptr)(na * bytes), (GLsizeiptr)(nb * bytes), b);
+    gl.BindBuffer(GL_ARRAY_BUFFER, 0);
+    c->npoints = (uint32_t)n;
+    return gl_check("sample point upload", err);
+}
+
+/* The samples view (Fig. 7): the image dimmed, then every sample point as a
+ * dot in DISP_SAMPLE_COLOR (scaled against the exposure, so it shows as
+ * that colour), hidden behind nearer geometry by the depth test. */
+static void draw_samples(disp_compositor *c, const ct_camera *cam, const mat4 *mvp, float exposure)
+{
+    gl.Disable(GL_DEPTH_TEST);
+    gl.Enable(GL_BLEND);
+    gl.BlendFunc(GL_ZERO, GL_CONSTANT_COLOR);
+    gl.BlendColor(DISP_SAMPLE_DIM, DISP_SAMPLE_DIM, DISP_SAMPLE_DIM, 1.0f);
+    gl.UseProgram(c->flat_screen);
+    gl.Uniform3f(c->fs_color, 0, 0, 0);
+    gl.BindVertexArray(c->empty_vao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+    gl.Disable(GL_BLEND);
+    gl.Enable(GL_DEPTH_TEST);
+    if (!c->npoints) return;
+    float k = exp2f(-exposure);
+    gl.DepthFunc(GL_LEQUAL);
+    gl.DepthMask(GL_FALSE);
+    gl.Enable(GL_PROGRAM_POINT_SIZE);
+    gl.UseProgram(c->points_world);
+    gl.UniformMatrix4fv(c->pw_mvp, 1, GL_TRUE, &mvp->m[0][0]);
+    gl.Uniform3f(c->pw_eye, cam->eye.x, cam->eye.y, cam->eye.z);
+    gl.Uniform1f(c->pw_pull, 0.998f);
+    gl.Uniform1f(c->pw_point, c->width >= 512 ? 3.0f : 1.0f);
+    gl.Uniform3f(c->pw_color, k * DISP_SAMPLE_COLOR_R, k * DISP_SAMPLE_COLOR_G, k * DISP_SAMPLE_COLOR_B);
+    gl.BindVertexArray(c->pw_vao);
+    gl.DrawArrays(GL_POINTS, 0, (GLsizei)c->npoints);
+    gl.Disable(GL_PROGRAM_POINT_SIZE);
+    gl.DepthMask(GL_TRUE);
+    gl.DepthFunc(GL_LESS);
+}
+
 int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_textures *t,
                            const ct_camera *cam, const disp_render_opts *o,
                            disp_render_stats *stats, ct_error *err)
@@ -321,7 +356,6 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     float zn, zf;
     disp_compositor_depth_range(s, cam, &zn, &zf);
     mat4 mvp = m4_mul(cam_proj(cam, c->width, c->height, zn, zf), cam_view(cam));
-    c->last_mvp = mvp;
 
     /* The drawable textures, in table order. */
     uint32_t ntex = t ? disp_textures_count(t) : 0, n = 0;
@@ -375,6 +409,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
         gl.DepthMask(GL_TRUE);
         gl.DepthFunc(GL_LESS);
     }
+    if (!rc && o->view == DISP_VIEW_SAMPLES) draw_samples(c, cam, &mvp, o->exposure);
     st.textures_drawn = corrections ? n : 0;
     free(tex);
     gl.BindVertexArray(0);
@@ -383,8 +418,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     return rc ? rc : gl_check("frame rendering", err);
 }
 
-int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const float *xy,
-                            uint32_t n, const float *world, uint32_t nworld, bool to_window, int win_w,
+int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, bool to_window, int win_w,
                             int win_h, ct_error *err)
 {
     gl_target_bind(to_window ? NULL : &c->ldr, win_w, win_h);
@@ -396,34 +430,8 @@ int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const
     gl.Uniform1i(c->tm_image, 0);
     gl.Uniform1f(c->tm_exposure, o->exposure);
     gl.Uniform1i(c->tm_mode, o->view == DISP_VIEW_CORRECTIONS ? 1 : 0);
-    gl.Uniform1f(c->tm_dim, o->view == DISP_VIEW_SAMPLES ? 0.35f : 1.0f);
     gl.BindVertexArray(c->empty_vao);
     gl.DrawArrays(GL_TRIANGLES, 0, 3);
-    if (o->view == DISP_VIEW_SAMPLES && n && xy) {
-        gl.BindVertexArray(c->pt_vao);
-        gl.BindBuffer(GL_ARRAY_BUFFER, c->pt_vbo);
-        gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)n * 2 * sizeof(float)), xy, GL_STREAM_DRAW);
-        gl.Enable(GL_PROGRAM_POINT_SIZE);
-        gl.UseProgram(c->points);
-        gl.Uniform2f(c->pt_size, (float)c->width, (float)c->height);
-        gl.Uniform1f(c->pt_point, c->width >= 512 ? 3.0f : 1.0f);
-        gl.Uniform3f(c->pt_color, 1.0f, 0.85f, 0.1f);
-        gl.DrawArrays(GL_POINTS, 0, (GLsizei)n);
-        gl.Disable(GL_PROGRAM_POINT_SIZE);
-    }
-    if (o->view == DISP_VIEW_SAMPLES && nworld && world) {
-        /* Patch centres, through the camera of the last render. */
-        gl.BindVertexArray(c->pw_vao);
-        gl.BindBuffer(GL_ARRAY_BUFFER, c->pw_vbo);
-        gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)nworld * 3 * sizeof(float)), world, GL_STREAM_DRAW);
-        gl.Enable(GL_PROGRAM_POINT_SIZE);
-        gl.UseProgram(c->points_world);
-        gl.UniformMatrix4fv(c->pw_mvp, 1, GL_TRUE, &c->last_mvp.m[0][0]);
-        gl.Uniform1f(c->pw_point, c->width >= 512 ? 3.0f : 1.0f);
-        gl.Uniform3f(c->pw_color, 0.2f, 0.9f, 1.0f);
-        gl.DrawArrays(GL_POINTS, 0, (GLsizei)nworld);
-        gl.Disable(GL_PROGRAM_POINT_SIZE);
-    }
     gl.BindVertexArray(0);
     gl.UseProgram(0);
     gl.Enable(GL_DEPTH_TEST);

@@ -1,4 +1,4 @@
-/* The display session's bookkeeping: sample positions of the last frames
+/* The display session's bookkeeping: sample points of the last frames
  * (Fig. 7 view), counters from frames and statistics, and the errors of
  * texture events that do not fit the state (unknown ids, rectangles outside
  * the texture, nodes outside the mesh, sizes out of range). */
@@ -7,28 +7,62 @@
 
 #include "tests/support/disp_fixture.h"
 
-Test(disp_session, sample_positions_of_the_last_frames)
+/* The points in order, through the two runs of the ring buffer. */
+static uint32_t points_in_order(const disp_session *s, float *out, uint32_t cap)
+{
+    const float *a, *b;
+    uint32_t na, nb;
+    disp_session_points(s, &a, &na, &b, &nb);
+    cr_assert_leq(na + nb, cap);
+    if (na) memcpy(out, a, 3 * sizeof *out * na);
+    if (nb) memcpy(out + 3 * na, b, 3 * sizeof *out * nb);
+    return na + nb;
+}
+
+Test(disp_session, sample_points_of_the_last_frames)
 {
     ct_error err;
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
-    float xy[2 * 10];
-    for (int i = 0; i < 20; i++) xy[i] = (float)i;
-    uint32_t n = 99;
-    disp_session_sample_xy(s, &n);
-    cr_expect_eq(n, 0u);
-    disp_session_samples(s, xy, 10);          /* frame 0 */
+    float xyz[3 * 10], got[3 * 10];
+    for (int i = 0; i < 30; i++) xyz[i] = (float)(i / 3);   /* point i = (i, i, i) */
+    cr_expect_eq(points_in_order(s, got, 10), 0u);
+    /* At most 5 points: the oldest are overwritten (the ring wraps). */
+    disp_session_set_sample_limits(s, 3, 5);
+    disp_session_sample_points(s, xyz, 3, 0);           /* points 0 1 2, drawn in frame 0 */
+    disp_session_frame_drawn(s);
+    disp_session_sample_points(s, xyz + 9, 4, 7);       /* points 3 4 5 6, frame 1 */
+    uint32_t n = points_in_order(s, got, 10);
+    cr_assert_eq(n, 5u);
+    for (uint32_t i = 0; i < n; i++) cr_expect_float_eq(got[3 * i], (float)(i + 2), 0, "point %u", i);
+    const float *a, *b;
+    uint32_t na, nb;
+    disp_session_points(s, &a, &na, &b, &nb);
+    cr_expect(na > 0 && nb > 0, "the ring wrapped: %u + %u", na, nb);
+    /* A batch larger than the bound keeps its newest points. */
+    disp_session_sample_points(s, xyz, 10, 7);
+    n = points_in_order(s, got, 10);
+    cr_assert_eq(n, 5u);
+    cr_expect_float_eq(got[0], 5.0f, 0);
+    cr_expect_float_eq(got[12], 9.0f, 0);
+    /* Frames: with 3 kept, frame 1's points go after 3 more frames drawn. */
+    disp_session_set_sample_limits(s, 3, 100);
+    disp_session_sample_points(s, xyz, 2, 7);           /* 2 more of frame 1: 7 in all */
+    disp_session_frame_drawn(s);                        /* frame 1 drawn */
+    disp_session_sample_points(s, xyz + 27, 1, 7);      /* point 9, frame 2 */
+    disp_session_frame_drawn(s);
+    cr_expect_eq(points_in_order(s, got, 10), 8u);
+    disp_session_frame_drawn(s);                        /* frame 3: frames 1 and earlier go */
+    n = points_in_order(s, got, 10);
+    cr_assert_eq(n, 1u);
+    cr_expect_float_eq(got[0], 9.0f, 0);
+    disp_session_frame_drawn(s);
+    cr_expect_eq(points_in_order(s, got, 10), 0u);
+    cr_expect_eq(disp_session_counters(s).sample_points, 20u);
+    cr_expect_eq(disp_session_counters(s).points_dropped, 7u);
+    /* FRAME events count frames and samples. */
     disp_session_frame_end(s, 0, 10, false);
-    disp_session_samples(s, xy, 3);           /* frame 1 */
-    disp_session_frame_end(s, 1, 3, false);
-    const float *p = disp_session_sample_xy(s, &n);
-    cr_expect_eq(n, 13u);
-    cr_expect_float_eq(p[0], 0.0f, 0);
-    for (uint32_t f = 2; f < DISP_SAMPLE_FRAMES + 1; f++) disp_session_frame_end(s, f, 0, false);
-    p = disp_session_sample_xy(s, &n);
-    /* After DISP_SAMPLE_FRAMES frame ends, frame 0's positions are gone. */
-    cr_expect_eq(n, 3u, "%u positions left", n);
-    cr_expect_float_eq(p[0], 0.0f, 0);
+    for (uint32_t f = 1; f < DISP_SAMPLE_FRAMES + 1; f++) disp_session_frame_end(s, f, f == 1 ? 3 : 0, false);
     disp_counters c = disp_session_counters(s);
     cr_expect_eq(c.samples, 13u);
     cr_expect_eq(c.frames, (uint32_t)DISP_SAMPLE_FRAMES + 1);
