@@ -25,12 +25,22 @@ struct disp_compositor {
     uint32_t npoints;    /* sample points in pw_vbo */
     GLint tm_image, tm_exposure, tm_mode;
     GLuint empty_vao;
-    /* one-pass segments, reused between frames */
+    /* draw segments, reused between frames */
     uint32_t *bounds;
     size_t bounds_cap;
-    const disp_texture **seg_tex;
+    const disp_texture **seg_tex;   /* the textures of every segment, one run each */
     size_t seg_tex_cap;
+    struct segment *segs;
+    size_t segs_cap;
 };
+
+/* A run of triangles [b, e) covered by the same textures seg_tex[first ..
+ * first + m); drawn untextured ones first, then textured ones nearest first. */
+typedef struct segment {
+    uint32_t b, e;
+    uint32_t first, m;
+    float key;   /* depth of the far end of the innermost texture's node */
+} segment;
 
 const char *disp_view_name(disp_view v)
 {
@@ -129,6 +139,7 @@ void disp_compositor_free(disp_compositor *c)
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
     free(c->bounds);
     free(c->seg_tex);
+    free(c->segs);
     free(c);
 }
 
@@ -228,17 +239,31 @@ static int grow(void **p, size_t *cap, size_t need, size_t elem, ct_error *err)
     return CT_OK;
 }
 
-/* One pass: the mesh is cut at every textured range's ends into segments;
- * each segment is drawn once with the radiosity plus the signed corrections
- * of the (up to 4) textures covering it. Any further textures on a segment
- * (rare: more than 4 textures stacked on one node) go through passes 2/3. */
-static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex,
-                    uint32_t n, const float *mvp, float rad_scale, bool all_positive,
-                    disp_render_stats *st, ct_error *err)
+static int by_draw_order(const void *pa, const void *pb)
+{
+    const segment *a = pa, *b = pb;
+    if ((a->m == 0) != (b->m == 0)) return a->m == 0 ? -1 : 1;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    return a->b < b->b ? -1 : a->b > b->b;
+}
+
+/* Cuts the mesh at every drawable texture's range ends into segments, each
+ * with the textures covering all of it (untextured neighbours merged), in
+ * drawing order: untextured segments first (cheap occluders), then textured
+ * ones by the far depth of their innermost texture's node, nearest first.
+ * llvmpipe (and any GPU) tests depth before shading, so a fragment a nearer
+ * surface already covers costs no texture lookups: drawn in mesh order, 32 %
+ * (cornell) to 47 % (table) of the textured fragments of the benchmark
+ * scenes were hidden ones, 14 % and 42 % in this order (the rest lie inside
+ * one part, e.g. its back faces). Every view and pass 1 of the three-pass
+ * mode draw the same order, so they resolve equal depths the same way.
+ * Returns the count in *nseg. */
+static int build_segments(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex,
+                          uint32_t n, const ct_camera *cam, size_t *nseg, ct_error *err)
 {
     uint32_t ntris = disp_scene_ntris(s);
     int rc = grow((void **)&c->bounds, &c->bounds_cap, 2 * (size_t)n + 2, sizeof *c->bounds, err);
-    if (!rc) rc = grow((void **)&c->seg_tex, &c->seg_tex_cap, (size_t)n + 1, sizeof *c->seg_tex, err);
+    if (!rc) rc = grow((void **)&c->segs, &c->segs_cap, 2 * (size_t)n + 1, sizeof *c->segs, err);
     if (rc) return rc;
     size_t nb = 0;
     c->bounds[nb++] = 0;
@@ -248,14 +273,25 @@ static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture 
         c->bounds[nb++] = tex[i]->tri_end;
     }
     qsort(c->bounds, nb, sizeof *c->bounds, cmp_u32);
+    vec3 fwd;
+    cam_axes(cam, NULL, NULL, &fwd);
+    size_t ns = 0, used = 0;
     for (size_t k = 0; k + 1 < nb; k++) {
         uint32_t b = c->bounds[k], e = c->bounds[k + 1];
         if (b == e) continue;
-        uint32_t m = 0;
+        if ((rc = grow((void **)&c->seg_tex, &c->seg_tex_cap, used + n + 1, sizeof *c->seg_tex, err))) return rc;
+        segment *g = &c->segs[ns++];
+        g->first = (uint32_t)used;
+        g->m = 0;
+        const disp_texture *inner = NULL;
         for (uint32_t i = 0; i < n; i++)
-            if (tex[i]->tri_begin <= b && e <= tex[i]->tri_end) c->seg_tex[m++] = tex[i];
+            if (tex[i]->tri_begin <= b && e <= tex[i]->tri_end) {
+                c->seg_tex[used + g->m++] = tex[i];
+                if (!inner || tex[i]->tri_end - tex[i]->tri_begin < inner->tri_end - inner->tri_begin) inner = tex[i];
+            }
+        used += g->m;
         /* Merge following untextured segments into this one when it has none. */
-        if (m == 0) {
+        if (g->m == 0) {
             while (k + 2 < nb) {
                 uint32_t b2 = c->bounds[k + 1], e2 = c->bounds[k + 2];
                 bool covered = false;
@@ -266,28 +302,49 @@ static int one_pass(disp_compositor *c, const disp_scene *s, const disp_texture 
                 k++;
             }
         }
-        uint32_t first = m < GL_ONE_PASS_MAX_TEX ? m : GL_ONE_PASS_MAX_TEX;
-        /* Untextured runs: the plain radiosity program (no fetches). */
-        const mesh_prog *p = first ? &c->one[first - 1] : &c->mesh[GL_PASS_RAD];
-        use_mesh(p, mvp, rad_scale);
-        if (first) set_texproj(p, c->seg_tex, (int)first);
-        disp_scene_draw(s, b, e);
-        st->draws++;
-        if (m > first) {
-            /* Extra textures stacked on this segment: additive passes, then
-             * back to the one-pass program. */
-            const disp_texture **rest = c->seg_tex + first;
-            uint32_t nrest = m - first;
-            for (uint32_t i = 0; i < nrest; i++) {
-                disp_texture tmp = *rest[i];
-                tmp.tri_begin = b;
-                tmp.tri_end = e;
-                const disp_texture *one = &tmp;
-                correction_passes(c, s, &one, 1, mvp, all_positive, st);
+        g->b = b;
+        g->e = e;
+        g->key = 0.0f;
+        if (inner) {
+            bounds3 nbx = disp_scene_node_bounds(s, inner->node);
+            g->key = INFINITY;
+            if (nbx.lo.x <= nbx.hi.x) {
+                g->key = -INFINITY;
+                for (int i = 0; i < 8; i++) g->key = fmaxf(g->key, v3_dot(v3_sub(b3_corner(nbx, i), cam->eye), fwd));
             }
         }
     }
+    qsort(c->segs, ns, sizeof *c->segs, by_draw_order);
+    *nseg = ns;
     return CT_OK;
+}
+
+/* One pass: each segment is drawn once with the radiosity plus the signed
+ * corrections of the (up to 4) textures covering it; untextured segments
+ * with the plain radiosity program (no lookups). Any further textures on a
+ * segment (rare: more than 4 textures stacked on one node) go through
+ * passes 2/3. */
+static void one_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp, float rad_scale,
+                     bool all_positive, disp_render_stats *st)
+{
+    for (size_t k = 0; k < nseg; k++) {
+        const segment *g = &c->segs[k];
+        const disp_texture **gt = c->seg_tex + g->first;
+        uint32_t first = g->m < GL_ONE_PASS_MAX_TEX ? g->m : GL_ONE_PASS_MAX_TEX;
+        const mesh_prog *p = first ? &c->one[first - 1] : &c->mesh[GL_PASS_RAD];
+        use_mesh(p, mvp, rad_scale);
+        if (first) set_texproj(p, gt, (int)first);
+        disp_scene_draw(s, g->b, g->e);
+        st->draws++;
+        /* Extra textures stacked on this segment: additive passes. */
+        for (uint32_t i = first; i < g->m; i++) {
+            disp_texture tmp = *gt[i];
+            tmp.tri_begin = g->b;
+            tmp.tri_end = g->e;
+            const disp_texture *one = &tmp;
+            correction_passes(c, s, &one, 1, mvp, all_positive, st);
+        }
+    }
 }
 
 static vec3 id_colour(uint32_t id)
@@ -357,15 +414,16 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     disp_compositor_depth_range(s, cam, &zn, &zf);
     mat4 mvp = m4_mul(cam_proj(cam, c->width, c->height, zn, zf), cam_view(cam));
 
-    /* The drawable textures, in table order. */
+    /* The drawable textures, in table order; for corrections only those that
+     * ever held a non-zero texel (an all-zero one changes no pixel, and on a
+     * CPU rasteriser every lookup costs). */
     uint32_t ntex = t ? disp_textures_count(t) : 0, n = 0;
-    int rc = grow((void **)&c->seg_tex, &c->seg_tex_cap, (size_t)ntex + 1, sizeof *c->seg_tex, err);
-    if (rc) return rc;
+    int rc = CT_OK;
     const disp_texture **tex = malloc(((size_t)ntex + 1) * sizeof *tex);
     if (!tex) return ct_fail(err, CT_ENOMEM, "out of memory listing %u textures", ntex);
     for (uint32_t i = 0; i < ntex; i++) {
         const disp_texture *x = disp_textures_at(t, i);
-        if (drawable(x, disp_scene_ntris(s))) tex[n++] = x;
+        if (drawable(x, disp_scene_ntris(s)) && (x->nonzero || o->view == DISP_VIEW_ASSIGNMENT)) tex[n++] = x;
     }
 
     gl_target_bind(&c->hdr, 0, 0);
@@ -382,12 +440,19 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     bool corrections = o->view == DISP_VIEW_FULL || o->view == DISP_VIEW_CORRECTIONS ||
                        o->view == DISP_VIEW_SAMPLES;
     float rad_scale = o->view == DISP_VIEW_CORRECTIONS ? 0.0f : 1.0f;
-    if (corrections && o->passes == 1) {
-        rc = one_pass(c, s, tex, n, &mvp.m[0][0], rad_scale, o->all_positive, &st, err);
-    } else {
+    /* Every view draws the mesh in the same segment order, so the views
+     * (and the two modes) differ only by what they add. */
+    size_t nseg = 0;
+    rc = build_segments(c, s, tex, n, cam, &nseg, err);
+    if (!rc && corrections && o->passes == 1) {
+        one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, o->all_positive, &st);
+    } else if (!rc) {
+        /* Pass 1, then (with corrections) passes 2 and 3. */
         use_mesh(&c->mesh[GL_PASS_RAD], &mvp.m[0][0], rad_scale);
-        disp_scene_draw(s, 0, disp_scene_ntris(s));
-        st.draws++;
+        for (size_t k = 0; k < nseg; k++) {
+            disp_scene_draw(s, c->segs[k].b, c->segs[k].e);
+            st.draws++;
+        }
         if (corrections) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
     }
     if (!rc && o->view == DISP_VIEW_ASSIGNMENT && n) {

@@ -521,9 +521,21 @@ Test(disp_corrections, fresh_and_resized_textures_are_zero)
      * values; re-allocated at 32x16 after holding values. */
     const int sizes[3][2] = {{64, 64}, {64, 64}, {32, 16}};
     for (int round = 0; round < 3; round++) {
+        /* Never patched with a non-zero value: not drawn at all. */
+        disp_render_stats st;
+        cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, &st, &err), 0);
+        cr_expect_eq(st.textures_drawn, 0u, "round %d: an all-zero texture was drawn", round);
+        disp_compositor_read_linear(c, full);
+        cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "round %d: pixels changed", round);
+        /* A texel of 1e-30 marks it non-zero (so it is drawn) but is 0 as a
+         * half float: every texel the GPU holds must still be zero. */
+        const float tiny[3] = {1e-30f, 1e-30f, 1e-30f};
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 1, 1, tiny, &err), 0, "%s", err.msg);
+        cr_assert(disp_textures_find(disp_session_textures(s), 1)->nonzero);
         for (int passes = 1; passes <= 3; passes += 2) {
             o.passes = passes;
-            cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+            cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, &st, &err), 0);
+            cr_expect_eq(st.textures_drawn, 1u);
             disp_compositor_read_linear(c, full);
             cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "round %d, %d-pass: a zero texture changed pixels", round, passes);
         }

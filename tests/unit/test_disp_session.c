@@ -113,9 +113,15 @@ Test(disp_session, texture_events_that_do_not_fit)
     cr_assert_not_null(t);
     cr_expect_not(t->has_proj, "a texture without a projection is not drawn");
     cr_expect_not(t->negative);
+    cr_expect_not(t->nonzero, "zero texels (and -0) leave a texture all zero");
+    half[7] = 0x8000;   /* -0 */
+    cr_expect_eq(disp_session_tex_patch(s, 3, 0, 0, 4, 4, half, &err), 0);
+    cr_expect_not(disp_textures_find(disp_session_textures(s), 3)->nonzero);
+    cr_expect_not(disp_textures_find(disp_session_textures(s), 3)->negative);
     half[5] = fx_half(-0.25f);
     cr_expect_eq(disp_session_tex_patch(s, 3, 0, 0, 4, 4, half, &err), 0);
     cr_expect(disp_textures_find(disp_session_textures(s), 3)->negative);
+    cr_expect(disp_textures_find(disp_session_textures(s), 3)->nonzero);
     /* The node's triangle range covers exactly the back wall's triangles. */
     uint32_t want = 0;
     for (uint32_t i = 0; i < m.ntris; i++) want += m.tri_node[i] == nd.back;
@@ -128,6 +134,7 @@ Test(disp_session, texture_events_that_do_not_fit)
     cr_expect(t->has_proj);
     cr_expect_eq(t->width, 8);
     cr_expect_not(t->negative, "a resized texture starts at zero");
+    cr_expect_not(t->nonzero, "a resized texture starts at zero");
     cr_expect_eq(disp_session_tex_free(s, 3, &err), 0);
     cr_expect_eq(disp_textures_count(disp_session_textures(s)), 0u);
     cr_assert_eq(disp_session_tex_alloc(s, 3, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
@@ -143,5 +150,44 @@ Test(disp_session, texture_events_that_do_not_fit)
     cr_expect_eq(disp_textures_count(disp_session_textures(s)), 0u);
     rmesh_free(&m);
     disp_session_free(s);
+    gl_backend_close(b);
+}
+
+/* Node bounds (the compositor orders textured draws by them): each node's
+ * box is exactly that of its subtree's triangles; a node without triangles
+ * has an empty box. */
+Test(disp_session, node_bounds_cover_the_subtree)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, 8, 8, NULL, false, &b, &err), 0, "%s", err.msg);
+    ct_radmesh m;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(2, &m, &nd, &err), 0);
+    disp_scene *sc = NULL;
+    cr_assert_eq(disp_scene_new(&m, &sc, &err), 0, "%s", err.msg);
+    uint32_t with_tris = 0;
+    for (uint32_t n = 0; n < m.nnodes; n++) {
+        bounds3 want = b3_empty();
+        for (uint32_t t = 0; t < m.ntris; t++)
+            if (m.tri_node[t] >= n && m.tri_node[t] < m.nodes[n].node_end)
+                for (int k = 0; k < 3; k++) want = b3_add(want, m.pos[m.tris[3 * t + (uint32_t)k]]);
+        bounds3 got = disp_scene_node_bounds(sc, n);
+        bool empty = want.lo.x > want.hi.x;
+        with_tris += !empty;
+        if (empty) {
+            cr_expect(got.lo.x > got.hi.x, "node %u has no triangles but a box", n);
+            continue;
+        }
+        cr_expect(memcmp(&got, &want, sizeof got) == 0, "node %u: box (%g %g %g)-(%g %g %g)", n, (double)got.lo.x,
+                  (double)got.lo.y, (double)got.lo.z, (double)got.hi.x, (double)got.hi.y, (double)got.hi.z);
+    }
+    cr_expect_gt(with_tris, 2u);
+    bounds3 all = disp_scene_bounds(sc), root = disp_scene_node_bounds(sc, 0);
+    cr_expect(memcmp(&all, &root, sizeof all) == 0, "the root covers the whole mesh");
+    bounds3 none = disp_scene_node_bounds(sc, m.nnodes);
+    cr_expect(none.lo.x > none.hi.x, "a node out of range has an empty box");
+    disp_scene_free(sc);
+    rmesh_free(&m);
     gl_backend_close(b);
 }
