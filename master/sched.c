@@ -527,6 +527,7 @@ static int same_view(const loop_state *s, const wire_camera *c)
 /* Applies a display camera: a new epoch when the view changed. */
 static int apply_camera(loop_state *s, const wire_camera *c, ct_error *err)
 {
+    flush_samples(s);   /* the points so far belong to the previous epoch */
     s->disp_epoch = c->epoch;
     if (same_view(s, c)) return 0;
     double t0 = ct_now();
@@ -896,11 +897,11 @@ static void stats(loop_state *s, double now)
      * waiting for the display); all zero when the master only idled. */
     double bt = tot > 1e-3 * dt ? ft / tot : 0, bs = tot > 1e-3 * dt ? fs / tot : 0,
            br = tot > 1e-3 * dt ? fr / tot : 0;
-    /* Idle intervals only at debug level: a waiting master would fill the log. */
     char dropped[64] = "";
     if (s->pts_dropped_total)
         snprintf(dropped, sizeof dropped, ", %llu sample points dropped",
                  (unsigned long long)s->pts_dropped_total);
+    /* Idle intervals only at debug level: a waiting master would fill the log. */
     ct_log(sum || bps > 0 ? CT_LOG_INFO : CT_LOG_DEBUG, COMPONENT,
             "stats: %.0f samples/s (%s), total %llu (%llu without texture, %llu stale), queue %llu, coverage "
             "%.1f%%, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy %.0f%%%s",
