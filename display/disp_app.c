@@ -34,6 +34,8 @@ void disp_app_defaults(disp_app_opts *o)
     o->float_format = GL_RGBA32F;
     o->ambient = 0.3f;
     o->reconnect = false;
+    o->sample_frames = DISP_SAMPLE_FRAMES;
+    o->sample_max = DISP_SAMPLE_MAX;
 }
 
 const char *disp_app_keys_help(void)
@@ -67,6 +69,8 @@ typedef struct app {
     uint32_t stat_frames;
     disp_counters stat_c0;
     char status[160];
+    uint64_t points_version;      /* of the sample points last uploaded */
+    bool points_uploaded;
 } app;
 
 static int load_solution(app *a, ct_error *err)
@@ -116,11 +120,18 @@ static void set_title(app *a, double now, bool force)
     double fps = dt > 0 ? (double)a->stat_frames / dt : 0;
     double sps = dt > 0 ? (double)(c.samples - a->stat_c0.samples) / dt : 0;
     double bps = dt > 0 ? (double)(c.bytes - a->stat_c0.bytes) / dt : 0;
-    char title[256];
+    char title[320], points[80] = "";
+    if (a->ropts.view == DISP_VIEW_SAMPLES) {
+        const float *pa, *pb;
+        uint32_t na, nb;
+        disp_session_points(a->session, &pa, &na, &pb, &nb);
+        snprintf(points, sizeof points, " | %u sample points (%llu dropped by the master)", na + nb,
+                 (unsigned long long)c.points_dropped);
+    }
     snprintf(title, sizeof title,
-             "corrtex | %.1f fps | %.0f samples/s | %u textures | %.1f kB/s | %s, %d-pass, exp %+.1f%s%s | H: help",
+             "corrtex | %.1f fps | %.0f samples/s | %u textures | %.1f kB/s | %s, %d-pass, exp %+.1f%s%s%s | H: help",
              fps, sps, disp_textures_count(disp_session_textures(a->session)), bps / 1024.0,
-             disp_view_name(a->ropts.view), a->ropts.passes, a->ropts.exposure,
+             disp_view_name(a->ropts.view), a->ropts.passes, a->ropts.exposure, points,
              a->status[0] ? " | " : "", a->status);
     gl_backend_set_title(a->backend, title);
     a->stat_t0 = now;
@@ -360,15 +371,22 @@ static int run(app *a, ct_error *err)
         double t0 = ct_now(), c0 = cpu_now();
         disp_render_stats rs;
         a->ropts.all_positive = disp_session_all_positive(a->session);
+        if (a->ropts.view == DISP_VIEW_SAMPLES) {
+            const float *pa, *pb;
+            uint32_t na, nb;
+            uint64_t v = disp_session_points(a->session, &pa, &na, &pb, &nb);
+            if (!a->points_uploaded || v != a->points_version) {
+                rc = disp_compositor_set_points(a->comp, pa, na, pb, nb, err);
+                if (rc) break;
+                a->points_version = v;
+                a->points_uploaded = true;
+            }
+        }
         rc = disp_compositor_render(a->comp, disp_session_scene_of(a->session),
                                     disp_session_textures(a->session), &cam, &a->ropts, &rs, err);
-        uint32_t nxy = 0, nwp = 0;
-        const float *xy = disp_session_sample_xy(a->session, &nxy);
-        const float *wp = disp_session_patch_points(a->session, &nwp);
-        if (!rc)
-            rc = disp_compositor_present(a->comp, &a->ropts, xy, nxy, wp, nwp, window, in.fb_width,
-                                         in.fb_height, err);
+        if (!rc) rc = disp_compositor_present(a->comp, &a->ropts, window, in.fb_width, in.fb_height, err);
         if (rc) break;
+        disp_session_frame_drawn(a->session);
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
         double frame_ms = 1000.0 * (ct_now() - t0);
@@ -440,6 +458,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         ct_info(COMP, "backend %s: %s, %s", gl_backend_name(o->backend), (const char *)gl.GetString(GL_RENDERER),
                 (const char *)gl.GetString(GL_VERSION));
         rc = disp_session_new(&a.session, err);
+        if (!rc) disp_session_set_sample_limits(a.session, o->sample_frames, o->sample_max);
     }
     if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);

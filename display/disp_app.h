@@ -49,6 +49,8 @@ typedef struct disp_app_opts {
     const char *cache_dir;        /* scene cache directory (NULL: memory only) */
     bool reconnect;
     double max_seconds;           /* stop after this long (0: no limit) */
+    uint32_t sample_frames;       /* the samples view shows the points of this many frames */
+    uint32_t sample_max;          /* and keeps at most this many points */
 } disp_app_opts;
 
 /* The defaults --help prints. */

@@ -284,6 +284,10 @@ static int apply(disp_client *c, disp_session *s, const wire_msg *m, ct_error *e
             c->frame_last = m->u.frame.frame;
         }
         return CT_OK;
+    case WIRE_SAMPLES:
+        /* Points of an older camera still land on surfaces: keep them all. */
+        disp_session_sample_points(s, m->u.samples.xyz, m->u.samples.count, m->u.samples.dropped);
+        return CT_OK;
     case WIRE_STATS:
         disp_session_stats(s, m->u.stats.samples_total, (m->u.stats.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
         return CT_OK;

@@ -1,8 +1,8 @@
 /* disp_client.h: the display's side of the socket protocol
  * (docs/protocol.md): connects to the master (handshake, token), sends
  * SETTINGS and CAMERA, and turns every received message into disp_session
- * events (scene, texture allocation / projection / patch / free, frame ends,
- * statistics). Keeps the last scene's payload so a reconnect can announce it
+ * events (scene, texture allocation / projection / patch / free, sample
+ * points, frame ends, statistics). Keeps the last scene's payload so a reconnect can announce it
  * as cached. Lost connections and ERROR / BYE from the master come back as
  * errors whose message says what happened. */
 #ifndef CT_DISP_CLIENT_H

@@ -29,6 +29,13 @@ typedef enum disp_view {
 /* Name of a view ("full", "radiosity", ...). */
 const char *disp_view_name(disp_view v);
 
+/* The samples view: the image is scaled by this (linear), and sample points
+ * are drawn in this colour as displayed (linear RGB, before exposure). */
+#define DISP_SAMPLE_DIM 0.12f
+#define DISP_SAMPLE_COLOR_R 1.0f
+#define DISP_SAMPLE_COLOR_G 0.7f
+#define DISP_SAMPLE_COLOR_B 0.0f
+
 typedef struct disp_render_opts {
     int passes;           /* 1 or 3 */
     disp_view view;
@@ -53,18 +60,21 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
 /* Deletes programs and targets. NULL is fine. */
 void disp_compositor_free(disp_compositor *c);
 
+/* Uploads the sample hit points the samples view draws (world positions, 3
+ * floats each, in two runs a[3 * na] and b[3 * nb]; either may be empty). */
+int disp_compositor_set_points(disp_compositor *c, const float *a, uint32_t na, const float *b,
+                               uint32_t nb, ct_error *err);
+
 /* Renders the linear image of scene s with textures t (may be NULL) seen by
- * cam into the float target. */
+ * cam into the float target (in the samples view: dimmed, with the uploaded
+ * sample points drawn over it). */
 int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_textures *t,
                            const ct_camera *cam, const disp_render_opts *o,
                            disp_render_stats *stats, ct_error *err);
 
 /* Tone-maps the float target into the window's default framebuffer of size
- * win_w x win_h (to_window) or into the 8-bit target. In the samples view
- * it also draws the n image positions xy[2n] (pixels, y down; yellow) and
- * the nworld world points world[3n] seen by the last render's camera (cyan). */
-int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, const float *xy,
-                            uint32_t n, const float *world, uint32_t nworld, bool to_window, int win_w,
+ * win_w x win_h (to_window) or into the 8-bit target. */
+int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, bool to_window, int win_w,
                             int win_h, ct_error *err);
 
 /* The float image as linear RGB, row 0 at the top (3 * width * height floats). */

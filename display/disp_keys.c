@@ -31,7 +31,7 @@ const char *disp_keys_help(void)
            "  2  radiosity only\n"
            "  3  corrections only (grey = 0, brighter = positive, darker = negative)\n"
            "  4  texture assignment colours (paper Fig. 5)\n"
-           "  5  where samples landed in the last frames (paper Fig. 7)\n"
+           "  5  the master's sample points of the last frames as dots (paper Fig. 7)\n"
            "  P  toggle 1-pass / 3-pass compositing\n"
            "  + / -  exposure up / down half a stop;  0  exposure 0\n"
            "  C  print the camera as a path keyframe line\n"

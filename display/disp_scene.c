@@ -10,6 +10,7 @@ struct disp_scene {
     uint32_t nverts, ntris, nnodes;
     uint32_t *node_first;   /* nnodes + 1: first sorted triangle of each node id */
     uint32_t *node_end;     /* subtree end node of each node */
+    bounds3 *node_bounds;   /* world bounds of each node's subtree triangles */
     bounds3 bounds;
 };
 
@@ -47,8 +48,9 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err)
     if (s) {
         s->node_first = calloc((size_t)m->nnodes + 1, sizeof *s->node_first);
         s->node_end = malloc((size_t)m->nnodes * sizeof *s->node_end);
+        s->node_bounds = malloc((size_t)m->nnodes * sizeof *s->node_bounds);
     }
-    if (!s || !verts || !idx || !s->node_first || !s->node_end) {
+    if (!s || !verts || !idx || !s->node_first || !s->node_end || !s->node_bounds) {
         free(verts);
         free(idx);
         disp_scene_free(s);
@@ -82,6 +84,19 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err)
     }
     free(fill);
     for (uint32_t n = 0; n < m->nnodes; n++) s->node_end[n] = m->nodes[n].node_end;
+    /* Subtree bounds from the triangles themselves: a node's own triangles,
+     * then each node's into its parent (pre-order: children after parents). */
+    for (uint32_t n = 0; n < m->nnodes; n++) s->node_bounds[n] = b3_empty();
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        bounds3 *b = &s->node_bounds[m->tri_node[t]];
+        for (int k = 0; k < 3; k++) *b = b3_add(*b, m->pos[m->tris[3 * (size_t)t + (size_t)k]]);
+    }
+    for (uint32_t n = m->nnodes; n-- > 0;) {
+        int32_t p = m->nodes[n].parent;
+        if (p >= 0 && (uint32_t)p < n) {
+            s->node_bounds[p] = b3_union(s->node_bounds[p], s->node_bounds[n]);
+        }
+    }
 
     gl.GenVertexArrays(1, &s->vao);
     gl.BindVertexArray(s->vao);
@@ -118,6 +133,7 @@ void disp_scene_free(disp_scene *s)
     if (s->ibo) gl.DeleteBuffers(1, &s->ibo);
     free(s->node_first);
     free(s->node_end);
+    free(s->node_bounds);
     free(s);
 }
 
@@ -137,6 +153,11 @@ int disp_scene_set_radiance(disp_scene *s, const vec3 *rad, uint32_t nverts, ct_
 uint32_t disp_scene_ntris(const disp_scene *s) { return s->ntris; }
 uint32_t disp_scene_nnodes(const disp_scene *s) { return s->nnodes; }
 bounds3 disp_scene_bounds(const disp_scene *s) { return s->bounds; }
+
+bounds3 disp_scene_node_bounds(const disp_scene *s, uint32_t n)
+{
+    return n < s->nnodes ? s->node_bounds[n] : b3_empty();
+}
 
 int disp_scene_node_range(const disp_scene *s, uint32_t n, uint32_t *begin, uint32_t *end,
                           ct_error *err)

@@ -29,6 +29,10 @@ uint32_t disp_scene_nnodes(const disp_scene *s);
 /* World bounds of all vertices. */
 bounds3 disp_scene_bounds(const disp_scene *s);
 
+/* World bounds of the triangles of node n's subtree (empty for a node
+ * without triangles or out of range). */
+bounds3 disp_scene_node_bounds(const disp_scene *s, uint32_t n);
+
 /* Triangle range [*begin, *end) of node n's subtree in drawing order;
  * CT_ERANGE when n is not a node. */
 int disp_scene_node_range(const disp_scene *s, uint32_t n, uint32_t *begin, uint32_t *end,

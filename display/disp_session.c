@@ -1,71 +1,97 @@
 #include "display/disp_session.h"
 
-#include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
-/* Points of the last frames, oldest first, each tagged with the number of
- * frame ends before it arrived. */
-typedef struct pts {
+/* Sample points of the last frames: a ring buffer of world points (3 floats)
+ * in arrival order, each tagged with the number of frames drawn before it
+ * arrived. It grows on demand up to `max` points; beyond that the oldest
+ * are overwritten. */
+typedef struct ring {
     float *v;
     uint32_t *tag;
-    uint32_t n, cap;
-    int dim;
-} pts;
+    uint32_t cap, head, n;
+} ring;
 
-static void pts_free(pts *p)
+static void ring_free(ring *r)
 {
-    free(p->v);
-    free(p->tag);
-    p->v = NULL;
-    p->tag = NULL;
-    p->n = p->cap = 0;
+    free(r->v);
+    free(r->tag);
+    memset(r, 0, sizeof *r);
 }
 
-static void pts_drop(pts *p, uint32_t k)
+static void ring_drop(ring *r, uint32_t k)
 {
-    size_t d = (size_t)p->dim;
-    memmove(p->v, p->v + d * k, d * (size_t)(p->n - k) * sizeof *p->v);
-    memmove(p->tag, p->tag + k, (size_t)(p->n - k) * sizeof *p->tag);
-    p->n -= k;
+    if (k > r->n) k = r->n;
+    r->head = r->cap ? (r->head + k) % r->cap : 0;
+    r->n -= k;
+    if (!r->n) r->head = 0;
 }
 
-/* Appends n points (dim floats each) tagged `tag`, keeping at most
- * DISP_SAMPLE_MAX (the oldest go first). Out of memory: keeps what it has
- * (the views that show them are debugging aids). */
-static void pts_push(pts *p, const float *v, uint32_t n, uint32_t tag)
+/* Makes room for want (<= max) points in order (unwrapping the ring),
+ * doubling up to max; false without memory. */
+static bool ring_reserve(ring *r, uint32_t want, uint32_t max)
 {
-    size_t d = (size_t)p->dim;
-    if (n > DISP_SAMPLE_MAX) {
-        v += d * (size_t)(n - DISP_SAMPLE_MAX);
-        n = DISP_SAMPLE_MAX;
+    if (want <= r->cap) return true;
+    uint32_t cap = r->cap ? r->cap : 4096;
+    while (cap < want) cap = cap > UINT32_MAX / 2 ? want : 2 * cap;
+    if (cap > max) cap = max > want ? max : want;
+    float *v = malloc((size_t)cap * 3 * sizeof *v);
+    uint32_t *t = malloc((size_t)cap * sizeof *t);
+    if (!v || !t) {
+        free(v);
+        free(t);
+        return false;
     }
-    if (p->n + n > DISP_SAMPLE_MAX) pts_drop(p, p->n + n - DISP_SAMPLE_MAX);
-    if (p->n + n > p->cap) {
-        uint32_t cap = p->cap ? p->cap : 4096;
-        while (cap < p->n + n) cap *= 2;
-        float *a = realloc(p->v, d * (size_t)cap * sizeof *a);
-        if (a) p->v = a;
-        uint32_t *t = realloc(p->tag, (size_t)cap * sizeof *t);
-        if (t) p->tag = t;
-        if (!a || !t) return;
-        p->cap = cap;
+    for (uint32_t i = 0; i < r->n; i++) {
+        uint32_t k = (r->head + i) % r->cap;
+        memcpy(v + 3 * (size_t)i, r->v + 3 * (size_t)k, 3 * sizeof *v);
+        t[i] = r->tag[k];
     }
-    memcpy(p->v + d * (size_t)p->n, v, d * (size_t)n * sizeof *v);
-    for (uint32_t i = 0; i < n; i++) p->tag[p->n + i] = tag;
-    p->n += n;
+    free(r->v);
+    free(r->tag);
+    r->v = v;
+    r->tag = t;
+    r->cap = cap;
+    r->head = 0;
+    return true;
 }
 
-/* Drops the points tagged before keep_from. */
-static void pts_trim(pts *p, uint32_t keep_from)
+/* Appends n points tagged `tag`, keeping at most max (the oldest go first).
+ * Out of memory: keeps what fits (the view that shows them is a debugging
+ * aid). */
+static void ring_push(ring *r, const float *v, uint32_t n, uint32_t tag, uint32_t max)
+{
+    if (n > max) {
+        v += 3 * (size_t)(n - max);
+        n = max;
+    }
+    if (!n) return;
+    ring_reserve(r, r->n + n < max ? r->n + n : max, max);
+    uint32_t limit = r->cap < max ? r->cap : max;
+    if (n > limit) {
+        v += 3 * (size_t)(n - limit);
+        n = limit;
+    }
+    if (!n) return;
+    if (r->n + n > limit) ring_drop(r, r->n + n - limit);
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t k = (r->head + r->n + i) % r->cap;
+        memcpy(r->v + 3 * (size_t)k, v + 3 * (size_t)i, 3 * sizeof *v);
+        r->tag[k] = tag;
+    }
+    r->n += n;
+}
+
+/* Drops the points tagged before keep_from; the number dropped. */
+static uint32_t ring_trim(ring *r, uint32_t keep_from)
 {
     uint32_t k = 0;
-    while (k < p->n && p->tag[k] < keep_from) k++;
-    if (k) pts_drop(p, k);
+    while (k < r->n && r->tag[(r->head + k) % r->cap] < keep_from) k++;
+    ring_drop(r, k);
+    return k;
 }
-
-struct disp_session;
-static void patch_point(struct disp_session *s, uint32_t id, int x, int y, int w, int h);
 
 struct disp_session {
     disp_scene *scene;
@@ -73,16 +99,18 @@ struct disp_session {
     bool all_positive;
     bool samples_from_stats;   /* stats carry the sample total: do not count positions */
     disp_counters cnt;
-    pts xy;                    /* sample image positions (2 floats) */
-    pts wp;                    /* patch centres in world space (3 floats) */
+    ring pts;                  /* sample hit points of the last frames */
+    uint32_t drawn;            /* frames drawn (tags of the points) */
+    uint32_t keep_frames, max_points;
+    uint64_t version;          /* changes whenever pts changes */
 };
 
 int disp_session_new(disp_session **out, ct_error *err)
 {
     disp_session *s = calloc(1, sizeof *s);
     if (!s) return ct_fail(err, CT_ENOMEM, "out of memory for a display session");
-    s->xy.dim = 2;
-    s->wp.dim = 3;
+    s->keep_frames = DISP_SAMPLE_FRAMES;
+    s->max_points = DISP_SAMPLE_MAX;
     int rc = disp_textures_new(&s->tex, err);
     if (rc) {
         free(s);
@@ -97,8 +125,7 @@ void disp_session_free(disp_session *s)
     if (!s) return;
     disp_textures_free(s->tex);
     disp_scene_free(s->scene);
-    pts_free(&s->xy);
-    pts_free(&s->wp);
+    ring_free(&s->pts);
     free(s);
 }
 
@@ -110,8 +137,8 @@ int disp_session_scene(disp_session *s, const ct_radmesh *m, ct_error *err)
     disp_textures_clear(s->tex);
     disp_scene_free(s->scene);
     s->scene = n;
-    s->xy.n = 0;
-    s->wp.n = 0;
+    ring_drop(&s->pts, s->pts.n);
+    s->version++;
     return CT_OK;
 }
 
@@ -143,7 +170,6 @@ int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, in
     if (!rc) {
         s->cnt.texels += (uint64_t)w * (uint64_t)h;
         s->cnt.patches++;
-        patch_point(s, id, x, y, w, h);
     }
     return rc;
 }
@@ -155,7 +181,6 @@ int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int
     if (!rc) {
         s->cnt.texels += (uint64_t)w * (uint64_t)h;
         s->cnt.patches++;
-        patch_point(s, id, x, y, w, h);
     }
     return rc;
 }
@@ -165,9 +190,41 @@ int disp_session_tex_free(disp_session *s, uint32_t id, ct_error *err)
     return disp_textures_release(s->tex, id, err);
 }
 
-void disp_session_samples(disp_session *s, const float *xy, uint32_t n)
+void disp_session_set_sample_limits(disp_session *s, uint32_t frames, uint32_t max_points)
 {
-    pts_push(&s->xy, xy, n, s->cnt.frames);
+    s->keep_frames = frames ? frames : 1;
+    s->max_points = max_points;
+    if (s->pts.n > max_points) ring_drop(&s->pts, s->pts.n - max_points);
+    s->version++;
+}
+
+void disp_session_sample_points(disp_session *s, const float *xyz, uint32_t n, uint64_t dropped)
+{
+    s->cnt.sample_points += n;
+    s->cnt.points_dropped = dropped;
+    if (!n) return;
+    ring_push(&s->pts, xyz, n, s->drawn, s->max_points);
+    s->version++;
+}
+
+void disp_session_frame_drawn(disp_session *s)
+{
+    s->drawn++;
+    /* The next frame shows the points of the frames drawn last and its own. */
+    uint32_t keep_from = s->drawn + 1 > s->keep_frames ? s->drawn + 1 - s->keep_frames : 0;
+    if (ring_trim(&s->pts, keep_from)) s->version++;
+}
+
+uint64_t disp_session_points(const disp_session *s, const float **a, uint32_t *na, const float **b,
+                             uint32_t *nb)
+{
+    const ring *r = &s->pts;
+    uint32_t first = r->cap - r->head < r->n ? r->cap - r->head : r->n;
+    *a = r->n ? r->v + 3 * (size_t)r->head : NULL;
+    *na = first;
+    *b = r->n > first ? r->v : NULL;
+    *nb = r->n - first;
+    return s->version;
 }
 
 void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, bool all_positive)
@@ -177,12 +234,6 @@ void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, b
     s->all_positive = all_positive;
     s->cnt.frames++;
     s->cnt.last_frame = frame;
-    /* Points carry the number of frame ends before them: frame f's are
-     * tagged f. Keep frames cnt.frames - DISP_SAMPLE_FRAMES .. and the one
-     * in progress. */
-    uint32_t keep_from = s->cnt.frames > DISP_SAMPLE_FRAMES ? s->cnt.frames - DISP_SAMPLE_FRAMES : 0;
-    pts_trim(&s->xy, keep_from);
-    pts_trim(&s->wp, keep_from);
 }
 
 void disp_session_stats(disp_session *s, uint64_t samples_total, bool all_positive)
@@ -197,49 +248,5 @@ void disp_session_add_bytes(disp_session *s, uint64_t n) { s->cnt.bytes += n; }
 const disp_scene *disp_session_scene_of(const disp_session *s) { return s->scene; }
 const disp_textures *disp_session_textures(const disp_session *s) { return s->tex; }
 bool disp_session_all_positive(const disp_session *s) { return s->all_positive; }
-
-const float *disp_session_sample_xy(const disp_session *s, uint32_t *n)
-{
-    *n = s->xy.n;
-    return s->xy.v;
-}
-
-const float *disp_session_patch_points(const disp_session *s, uint32_t *n)
-{
-    *n = s->wp.n;
-    return s->wp.v;
-}
-
-/* The world point whose texture position is (u, v): M^-1 (u, v, 0, 1). For
- * an object-local projection the third row is the distance from the node's
- * plane, so this is the point on the plane; for a camera-local one it is a
- * point on the ray through (u, v), which the same camera sees at the same
- * pixel. False when M is singular. */
-static bool unproject(const mat4 *m, float u, float v, vec3 *out)
-{
-    mat4 inv;
-    if (!m4_invert(*m, &inv)) return false;
-    float x = inv.m[0][0] * u + inv.m[0][1] * v + inv.m[0][3];
-    float y = inv.m[1][0] * u + inv.m[1][1] * v + inv.m[1][3];
-    float z = inv.m[2][0] * u + inv.m[2][1] * v + inv.m[2][3];
-    float w = inv.m[3][0] * u + inv.m[3][1] * v + inv.m[3][3];
-    if (!(fabsf(w) > 1e-12f)) return false;
-    *out = v3(x / w, y / w, z / w);
-    return v3_finite(*out);
-}
-
-/* Records the centre of a patch as a world point (the samples view shows
- * where corrections changed when no sample positions are known). */
-static void patch_point(disp_session *s, uint32_t id, int x, int y, int w, int h)
-{
-    const disp_texture *t = disp_textures_find(s->tex, id);
-    vec3 p;
-    if (!t || !t->has_proj) return;
-    if (!unproject(&t->proj, ((float)x + 0.5f * (float)w) / (float)t->width,
-                   ((float)y + 0.5f * (float)h) / (float)t->height, &p))
-        return;
-    float f[3] = {p.x, p.y, p.z};
-    pts_push(&s->wp, f, 1, s->cnt.frames);
-}
 
 disp_counters disp_session_counters(const disp_session *s) { return s->cnt; }

@@ -1,6 +1,7 @@
 /* disp_session.h: the display's state as the master describes it, changed
  * only through events: a scene (the radiosity mesh), texture allocation,
- * projection, patch and free, sample positions, frame ends and statistics.
+ * projection, patch and free, sample points (kept in a bounded ring buffer
+ * for the last frames), frame ends and statistics.
  * The socket client decodes protocol messages into these calls; the
  * standalone viewer (--mesh) and the tests call them directly. Keeps the
  * counters the window title and frames.csv report. Needs a current GL
@@ -16,10 +17,10 @@
 #include "display/disp_scene.h"
 #include "display/disp_textures.h"
 
-/* Frames of sample positions (and patch centres) kept for the samples view
- * (Fig. 7). */
-#define DISP_SAMPLE_FRAMES 4
-/* At most this many sample positions are kept. */
+/* Frames whose sample points the samples view (Fig. 7) shows, by default
+ * (--sample-frames). */
+#define DISP_SAMPLE_FRAMES 8
+/* At most this many sample points are kept, by default (--sample-max). */
 #define DISP_SAMPLE_MAX 1000000u
 
 /* Running totals since the session started. */
@@ -32,6 +33,8 @@ typedef struct disp_counters {
     uint64_t bytes;         /* bytes received from the master */
     uint32_t frames;        /* frame-end events */
     uint32_t last_frame;    /* number of the last frame-end event */
+    uint64_t sample_points; /* sample hit points received (SAMPLES) */
+    uint64_t points_dropped; /* points the master could not send (its latest count) */
 } disp_counters;
 
 typedef struct disp_session disp_session;
@@ -65,9 +68,23 @@ int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int
 /* TEX_FREE. */
 int disp_session_tex_free(disp_session *s, uint32_t id, ct_error *err);
 
-/* Image positions (pixels, y down; 2 floats each) of n samples of the
- * current frame, for the samples view (they do not change the counters). */
-void disp_session_samples(disp_session *s, const float *xy, uint32_t n);
+/* Keeps the sample points of the last `frames` drawn frames (at least 1),
+ * at most max_points of them (the oldest go first). */
+void disp_session_set_sample_limits(disp_session *s, uint32_t frames, uint32_t max_points);
+
+/* SAMPLES: n world hit points (3 floats each) of samples the master
+ * inserted; dropped is the master's count of points it did not send. */
+void disp_session_sample_points(disp_session *s, const float *xyz, uint32_t n, uint64_t dropped);
+
+/* The display drew a frame: points that arrived before the last `frames`
+ * frames are forgotten. */
+void disp_session_frame_drawn(disp_session *s);
+
+/* The kept points, oldest first, in at most two runs of a ring buffer:
+ * a[3 * na] then b[3 * nb]. Returns a version that changes whenever they do
+ * (so a caller uploads them only then). */
+uint64_t disp_session_points(const disp_session *s, const float **a, uint32_t *na, const float **b,
+                             uint32_t *nb);
 
 /* FRAME: the master finished frame `frame` (all its patches were sent),
  * with `samples` samples in it; all_positive: no correction is negative
@@ -87,15 +104,6 @@ const disp_textures *disp_session_textures(const disp_session *s);
 
 /* Whether the master declared all corrections positive. */
 bool disp_session_all_positive(const disp_session *s);
-
-/* Sample positions of the last DISP_SAMPLE_FRAMES frames (2 floats each). */
-const float *disp_session_sample_xy(const disp_session *s, uint32_t *n);
-
-/* World points (3 floats each) at the centres of the texel patches of the
- * last DISP_SAMPLE_FRAMES frames: where corrections changed. The samples
- * view shows them when no sample positions arrive (protocol version 1
- * carries none). */
-const float *disp_session_patch_points(const disp_session *s, uint32_t *n);
 
 /* Running totals. */
 disp_counters disp_session_counters(const disp_session *s);

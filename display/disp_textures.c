@@ -75,6 +75,7 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     /* A re-allocation of a live id (the master resized it) keeps its
      * projection until a new one arrives; a new id waits for one. */
     x->negative = false;
+    x->nonzero = false;
     /* Stored as RGBA16F: llvmpipe samples it faster than RGB16F, GPUs pad
      * RGB16F to four channels anyway, and it is colour-renderable, so the
      * zeroing below needs no CPU buffer of the texture's size. */
@@ -118,7 +119,7 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
 }
 
 static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, const void *rgb,
-                 GLenum type, bool negative, ct_error *err)
+                 GLenum type, bool negative, bool nonzero, ct_error *err)
 {
     disp_texture *d = find(t, id);
     if (!d) return ct_fail(err, CT_EPROTO, "patch for unknown texture %u", id);
@@ -129,26 +130,33 @@ static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, cons
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
     gl.TexSubImage2D(GL_TEXTURE_2D, 0, x, y, w, h, GL_RGB, type, rgb);
     d->negative = d->negative || negative;
+    d->nonzero = d->nonzero || nonzero;
     return gl_check("texture patch", err);
 }
 
 int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w, int h,
                              const uint16_t *rgb, ct_error *err)
 {
-    bool neg = false;
+    bool neg = false, nz = false;
     size_t n = (w > 0 && h > 0) ? (size_t)w * (size_t)h * 3 : 0;
-    /* Negative: sign bit set and not -0. */
-    for (size_t i = 0; i < n && !neg; i++) neg = (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
-    return patch(t, id, x, y, w, h, rgb, GL_HALF_FLOAT, neg, err);
+    /* Non-zero: any bit but the sign; negative: sign bit set and not -0. */
+    for (size_t i = 0; i < n && !neg; i++) {
+        nz = nz || (rgb[i] & 0x7fffu);
+        neg = (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
+    }
+    return patch(t, id, x, y, w, h, rgb, GL_HALF_FLOAT, neg, nz, err);
 }
 
 int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w, int h,
                               const float *rgb, ct_error *err)
 {
-    bool neg = false;
+    bool neg = false, nz = false;
     size_t n = (w > 0 && h > 0) ? (size_t)w * (size_t)h * 3 : 0;
-    for (size_t i = 0; i < n && !neg; i++) neg = rgb[i] < 0.0f;
-    return patch(t, id, x, y, w, h, rgb, GL_FLOAT, neg, err);
+    for (size_t i = 0; i < n && !neg; i++) {
+        nz = nz || rgb[i] != 0.0f;   /* NaN counts as non-zero */
+        neg = rgb[i] < 0.0f;
+    }
+    return patch(t, id, x, y, w, h, rgb, GL_FLOAT, neg, nz, err);
 }
 
 int disp_textures_release(disp_textures *t, uint32_t id, ct_error *err)

@@ -2,7 +2,8 @@
  * one GL texture (RGBA16F, filled from RGB halves; bilinear, clamped) per texture id, with the node
  * whose triangles it covers, its world -> texture projection (§3.2) and
  * whether any texel was ever negative (pass 3 is skipped for textures that
- * never held a negative correction). Texel (x, y) is GL row y, column x; its
+ * never held a negative correction) or non-zero (textures that never held a
+ * correction are not drawn at all). Texel (x, y) is GL row y, column x; its
  * centre is at texture coordinates ((x + 0.5) / w, (y + 0.5) / h). */
 #ifndef CT_DISP_TEXTURES_H
 #define CT_DISP_TEXTURES_H
@@ -32,6 +33,8 @@ typedef struct disp_texture {
     disp_proj_kind kind;
     bool has_proj;                 /* drawn only once a projection arrived */
     bool negative;                 /* some texel was negative since allocation */
+    bool nonzero;                  /* some texel was non-zero since allocation (else
+                                    * the texture corrects nothing and is not drawn) */
 } disp_texture;
 
 typedef struct disp_textures disp_textures;

@@ -94,7 +94,6 @@ const char *const gl_src_tonemap_fs =
     "uniform sampler2D u_image;\n"
     "uniform float u_exposure;\n"
     "uniform int u_mode;\n"
-    "uniform float u_dim;\n"
     "out vec4 o_color;\n"
     "float srgb(float x) {\n"
     "    x = clamp(x, 0.0, 1.0);\n"
@@ -105,24 +104,21 @@ const char *const gl_src_tonemap_fs =
     "    vec3 c;\n"
     "    if (u_mode == 1) c = 0.5 + 0.5 * clamp(v, -1.0, 1.0);\n"
     "    else c = vec3(srgb(v.r), srgb(v.g), srgb(v.b));\n"
-    "    o_color = vec4(u_dim * c, 1.0);\n"
+    "    o_color = vec4(c, 1.0);\n"
     "}\n";
 
-const char *const gl_src_points_vs =
-    "layout(location = 0) in vec2 a_px;\n"
-    "uniform vec2 u_size;\n"
-    "uniform float u_point;\n"
-    "void main() {\n"
-    "    gl_Position = vec4(2.0 * a_px.x / u_size.x - 1.0, 1.0 - 2.0 * a_px.y / u_size.y, 0.0, 1.0);\n"
-    "    gl_PointSize = u_point;\n"
-    "}\n";
-
+/* A sample's hit point lies on a surface the mesh passes drew: it is moved
+ * a fraction (1 - u_pull) of its distance towards the eye, along its own
+ * viewing ray (same pixel), so the depth test keeps it in front of its
+ * surface but hides it behind nearer geometry. */
 const char *const gl_src_points_world_vs =
     "layout(location = 0) in vec3 a_pos;\n"
     "uniform mat4 u_mvp;\n"
+    "uniform vec3 u_eye;\n"
+    "uniform float u_pull;\n"
     "uniform float u_point;\n"
     "void main() {\n"
-    "    gl_Position = u_mvp * vec4(a_pos, 1.0);\n"
+    "    gl_Position = u_mvp * vec4(mix(u_eye, a_pos, u_pull), 1.0);\n"
     "    gl_PointSize = u_point;\n"
     "}\n";
 

@@ -29,13 +29,12 @@ extern const char *const gl_src_mesh_fs;
 /* A full-screen triangle (no attributes) with v_uv in [0,1]^2. */
 extern const char *const gl_src_screen_vs;
 /* Exposure and sRGB encoding of the float image (u_mode 0), or the signed
- * view 0.5 + 0.5 * clamp(v * 2^exposure) for corrections (u_mode 1);
- * u_dim scales the result (sample-position view). */
+ * view 0.5 + 0.5 * clamp(v * 2^exposure) for corrections (u_mode 1). */
 extern const char *const gl_src_tonemap_fs;
-/* Points at image positions in pixels (y down), for the samples view. */
-extern const char *const gl_src_points_vs;
-/* Points at world positions through u_mvp (patch centres in the samples view). */
+/* Points at world positions through u_mvp, pulled towards u_eye by the
+ * factor u_pull (sample hit points in the samples view). */
 extern const char *const gl_src_points_world_vs;
+/* A flat colour u_color (points, and the dimming of the samples view). */
 extern const char *const gl_src_points_fs;
 
 /* Compiles vs and fs (each prefixed with "#version 330 core" and `defines`,

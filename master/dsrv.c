@@ -361,6 +361,20 @@ int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err)
     (void)err;
 }
 
+int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued)
+{
+    if (!s->disp) return 0;
+    if (chan_queue_stats(s->disp).bytes > max_queued) return DSRV_DROPPED;
+    ct_error e;
+    int rc = chan_send(s->disp, m, &e);
+    if (rc == XPORT_QUEUE_FULL) return DSRV_DROPPED;
+    if (rc < 0) {
+        ct_info(COMPONENT, "display %s lost: %s", s->disp_peer, e.msg);
+        close_display(s, e.msg);
+    }
+    return 0;
+}
+
 void dsrv_drop(dsrv *s, uint32_t code, const char *text)
 {
     if (!s->disp) return;

@@ -71,6 +71,15 @@ const char *dsrv_peer(const dsrv *s);
  * room; a display that does not read for that long is dropped. */
 int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err);
 
+/* dsrv_try_send: the message was not queued. */
+#define DSRV_DROPPED 1
+
+/* Queues a droppable message (SAMPLES) without ever blocking: only when the
+ * display's send queue holds at most max_queued bytes and has room, so it
+ * never delays texture updates. 0 when queued (or no display is
+ * connected), DSRV_DROPPED when not. */
+int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued);
+
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);
 

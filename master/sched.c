@@ -196,6 +196,11 @@ typedef struct loop_state {
     uint32_t *parts;            /* display_targets' scratch */
     uint32_t parts_cap;
     uint64_t total_samples;
+    /* SAMPLES: hit points inserted since the last send (droppable) */
+    float *pts;                 /* 3 * WIRE_SAMPLES_MAX_POINTS floats once a display is there */
+    uint32_t npts;
+    uint64_t pts_dropped;       /* points not sent to the current display (back-pressure) */
+    uint64_t pts_dropped_total; /* the same since the start (stats line) */
 } loop_state;
 
 static int grow(void **p, uint32_t *cap, uint32_t need, size_t elem, ct_error *err)
@@ -387,9 +392,47 @@ static int send_proj(loop_state *s, uint32_t tex, const mat4 *mat, ct_error *err
     return rc;
 }
 
-/* Turns dirty rectangles into events and sends every pending event. */
+/* Sends the hit points collected since the last call as one SAMPLES
+ * message. They are only a debugging view (Fig. 7): when the display's send
+ * queue already holds a quarter of its bound they are dropped and counted,
+ * so they never block the loop or take room that texture updates need. */
+static void flush_samples(loop_state *s)
+{
+    if (!s->npts || !dsrv_has_display(s->ds)) {
+        s->npts = 0;
+        return;
+    }
+    wire_msg m;
+    memset(&m, 0, sizeof m);
+    m.type = WIRE_SAMPLES;
+    m.u.samples = (wire_samples){.epoch = s->disp_epoch, .count = s->npts, .dropped = s->pts_dropped, .xyz = s->pts};
+    if (dsrv_try_send(s->ds, &m, (s->c->opt.queue_mb << 20) / 4) == DSRV_DROPPED) {
+        s->pts_dropped += s->npts;
+        s->pts_dropped_total += s->npts;
+    }
+    s->npts = 0;
+}
+
+/* Remembers the hit point of an inserted sample for the next SAMPLES. */
+static void collect_point(loop_state *s, const ct_sample *x)
+{
+    if (!(x->flags & CT_SAMPLE_HIT) || !dsrv_has_display(s->ds)) return;
+    if (!s->pts) {
+        s->pts = malloc(3 * sizeof *s->pts * WIRE_SAMPLES_MAX_POINTS);
+        if (!s->pts) return;   /* without memory the debugging view just shows nothing */
+    }
+    if (s->npts == WIRE_SAMPLES_MAX_POINTS) flush_samples(s);
+    float *p = s->pts + 3 * (size_t)s->npts++;
+    p[0] = x->hit.x;
+    p[1] = x->hit.y;
+    p[2] = x->hit.z;
+}
+
+/* Turns dirty rectangles into events and sends every pending event (after
+ * the sample points collected since the last time). */
 static int flush_events(loop_state *s, ct_error *err)
 {
+    flush_samples(s);
     double t0 = ct_now();
     ctex_flush_patches(s->tex);
     size_t n = 0;
@@ -484,6 +527,7 @@ static int same_view(const loop_state *s, const wire_camera *c)
 /* Applies a display camera: a new epoch when the view changed. */
 static int apply_camera(loop_state *s, const wire_camera *c, ct_error *err)
 {
+    flush_samples(s);   /* the points so far belong to the previous epoch */
     s->disp_epoch = c->epoch;
     if (same_view(s, c)) return 0;
     double t0 = ct_now();
@@ -590,6 +634,7 @@ static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *e
         if (info.correction.x < 0 || info.correction.y < 0 || info.correction.z < 0) s->all_positive = 0;
         vec3 d = v3_sub(x->l_hq, x->l_base);
         if (d.x < 0 || d.y < 0 || d.z < 0) s->all_positive = 0;
+        collect_point(s, x);
         x->epoch = s->rq_epoch;
         int rc = rq_report(s->rq, x, E, RQ_NODE_UNKNOWN, err);
         if (rc < 0) {
@@ -789,6 +834,8 @@ static int handle_display(loop_state *s, int *leave, ct_error *err)
             s->K = ev.msg.u.settings.samples_per_frame;
             s->frame_no = 0;
             s->fr_n = 0;
+            s->npts = 0;          /* points of an earlier display */
+            s->pts_dropped = 0;
             if ((rc = send_state(s, &ev.msg.u.settings, err))) return rc;
             break;
         case DSRV_EV_MESSAGE:
@@ -850,14 +897,18 @@ static void stats(loop_state *s, double now)
      * waiting for the display); all zero when the master only idled. */
     double bt = tot > 1e-3 * dt ? ft / tot : 0, bs = tot > 1e-3 * dt ? fs / tot : 0,
            br = tot > 1e-3 * dt ? fr / tot : 0;
+    char dropped[64] = "";
+    if (s->pts_dropped_total)
+        snprintf(dropped, sizeof dropped, ", %llu sample points dropped",
+                 (unsigned long long)s->pts_dropped_total);
     /* Idle intervals only at debug level: a waiting master would fill the log. */
     ct_log(sum || bps > 0 ? CT_LOG_INFO : CT_LOG_DEBUG, COMPONENT,
             "stats: %.0f samples/s (%s), total %llu (%llu without texture, %llu stale), queue %llu, coverage "
-            "%.1f%%, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy %.0f%%",
+            "%.1f%%, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy %.0f%%%s",
             sum / dt, per_rank, (unsigned long long)s->total_samples, (unsigned long long)s->dropped_tex,
             (unsigned long long)s->stale, (unsigned long long)rs.queued,
             100.0 * rs.coverage, ts.textures, ts.bytes / 1048576.0, bps / 1000.0, 100 * br, 100 * bs, 100 * bt,
-            100 * (tot > 1 ? 1 : tot));
+            100 * (tot > 1 ? 1 : tot), dropped);
     if (dsrv_has_display(s->ds)) {
         wire_msg m = {.type = WIRE_STATS};
         m.u.stats = (wire_stats){.epoch = s->disp_epoch,
@@ -1000,6 +1051,7 @@ out:
     free(s.round_buf);
     free(s.patch_f);
     free(s.patch_h);
+    free(s.pts);
     for (uint32_t t = 0; t < s.ncp; t++) free(s.cp[t].ids);
     free(s.cp);
     free(s.parts);

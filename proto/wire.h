@@ -18,7 +18,7 @@
 #include "common/radmesh.h"
 #include "common/vecmath.h"
 
-#define WIRE_VERSION        1u
+#define WIRE_VERSION        2u          /* 2: SAMPLES added */
 #define WIRE_HEADER_SIZE    8u          /* u16 type, u16 flags (0), u32 body length */
 #define WIRE_HASH_SIZE      32u         /* BLAKE2b-256 content hash of a SCENE payload */
 #define WIRE_MAC_SIZE       32u         /* HMAC-SHA256 */
@@ -34,6 +34,7 @@
 #define WIRE_SCENE_MAX_TRIS     (1u << 25)
 #define WIRE_SCENE_MAX_NODES    (1u << 20)
 #define WIRE_SCENE_MAX_CHUNKS   1024u           /* = MAX_RAW / CHUNK_RAW */
+#define WIRE_SAMPLES_MAX_POINTS 65536u          /* world points in one SAMPLES */
 
 /* Message types (u16 on the wire; explicit values, never reuse one). */
 typedef enum wire_type {
@@ -53,7 +54,8 @@ typedef enum wire_type {
     WIRE_PING           = 14,  /* either direction */
     WIRE_PONG           = 15,  /* answer to PING */
     WIRE_BYE            = 16,  /* either direction: orderly close */
-    WIRE_TYPE_COUNT     = 17
+    WIRE_SAMPLES        = 17,  /* master -> display: hit points of inserted samples (droppable) */
+    WIRE_TYPE_COUNT     = 18
 } wire_type;
 
 /* Texture projection kinds (§3.2), u32 on the wire. */
@@ -181,6 +183,13 @@ typedef struct wire_bye {
     uint32_t reason;  /* wire_bye_reason */
 } wire_bye;
 
+typedef struct wire_samples {
+    uint32_t epoch;      /* the display's camera epoch the samples were traced for */
+    uint32_t count;      /* points, <= WIRE_SAMPLES_MAX_POINTS */
+    uint64_t dropped;    /* points the master dropped on this connection so far (back-pressure) */
+    const float *xyz;    /* 3 * count floats: world hit points */
+} wire_samples;
+
 /* One decoded (or to-be-encoded) message. Pointers in a decoded message
  * point into the decoder's scratch memory and stay valid until its next call. */
 typedef struct wire_msg {
@@ -201,6 +210,7 @@ typedef struct wire_msg {
         wire_error_msg error;
         wire_ping ping;   /* PING and PONG */
         wire_bye bye;
+        wire_samples samples;
     } u;
 } wire_msg;
 

@@ -27,6 +27,8 @@
 #define SZ_CHUNK_HDR   8u
 #define SZ_PATCH_HDR   20u
 #define SZ_ERROR_HDR   6u
+#define SZ_SAMPLES_HDR 16u
+#define SZ_POINT       12u
 
 /* --- buffers ---------------------------------------------------------------- */
 
@@ -99,7 +101,7 @@ const char *wire_type_name(unsigned type)
         [WIRE_TEX_ALLOC] = "TEX_ALLOC", [WIRE_TEX_PROJECTION] = "TEX_PROJECTION",
         [WIRE_TEX_FREE] = "TEX_FREE", [WIRE_TEX_PATCH] = "TEX_PATCH", [WIRE_FRAME] = "FRAME",
         [WIRE_STATS] = "STATS", [WIRE_ERROR] = "ERROR", [WIRE_PING] = "PING", [WIRE_PONG] = "PONG",
-        [WIRE_BYE] = "BYE",
+        [WIRE_BYE] = "BYE", [WIRE_SAMPLES] = "SAMPLES",
     };
     if (type >= WIRE_TYPE_COUNT || !names[type]) return "?";
     return names[type];
@@ -132,6 +134,7 @@ size_t wire_max_body(unsigned type)
     case WIRE_SCENE_CHUNK: return SZ_CHUNK_HDR + LZ4_COMPRESSBOUND(WIRE_SCENE_CHUNK_RAW);
     case WIRE_TEX_PATCH: return SZ_PATCH_HDR + LZ4_COMPRESSBOUND(WIRE_PATCH_MAX_TEXELS * 6u);
     case WIRE_ERROR: return SZ_ERROR_HDR + WIRE_ERROR_TEXT_MAX;
+    case WIRE_SAMPLES: return SZ_SAMPLES_HDR + (size_t)SZ_POINT * WIRE_SAMPLES_MAX_POINTS;
     default: return fixed_size(type);
     }
 }
@@ -268,6 +271,16 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
         if (m->u.bye.reason > WIRE_BYE_DONE)
             return ct_fail(err, CT_EPROTO, "%s: BYE reason %u unknown", who, m->u.bye.reason);
         return 0;
+    case WIRE_SAMPLES: {
+        const wire_samples *p = &m->u.samples;
+        if (p->count > WIRE_SAMPLES_MAX_POINTS)
+            return ct_fail(err, CT_EPROTO, "%s: SAMPLES count %u over the limit %u", who, p->count,
+                           WIRE_SAMPLES_MAX_POINTS);
+        for (size_t i = 0; i < 3 * (size_t)p->count; i++)
+            if (!isfinite(p->xyz[i]))
+                return ct_fail(err, CT_EPROTO, "%s: SAMPLES point %zu has a non-finite coordinate", who, i / 3);
+        return 0;
+    }
     default:
         return ct_fail(err, CT_EPROTO, "%s: message type %u unknown", who, m->type);
     }
@@ -329,6 +342,7 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
 
     size_t body = fixed_size(m->type);
     if (m->type == WIRE_ERROR) body = SZ_ERROR_HDR + strlen(m->u.error.text);
+    if (m->type == WIRE_SAMPLES) body = SZ_SAMPLES_HDR + (size_t)SZ_POINT * m->u.samples.count;
     rc = wire_buf_reserve(out, WIRE_HEADER_SIZE + body, err);
     if (rc) return rc;
     wio_w w = {out->data + out->len};
@@ -407,6 +421,12 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
     case WIRE_PING:
     case WIRE_PONG: ww_u64(&w, m->u.ping.token); break;
     case WIRE_BYE: ww_u32(&w, m->u.bye.reason); break;
+    case WIRE_SAMPLES:
+        ww_u32(&w, m->u.samples.epoch);
+        ww_u32(&w, m->u.samples.count);
+        ww_u64(&w, m->u.samples.dropped);
+        for (size_t i = 0; i < 3 * (size_t)m->u.samples.count; i++) ww_f32(&w, m->u.samples.xyz[i]);
+        break;
     default: break; /* validate() rejected unknown types */
     }
     out->len += WIRE_HEADER_SIZE + body;
@@ -573,6 +593,23 @@ int wire_decode_body(unsigned type, const uint8_t *body, size_t len, const char 
     case WIRE_PING:
     case WIRE_PONG: out->u.ping.token = wr_u64(&r); break;
     case WIRE_BYE: out->u.bye.reason = wr_u32(&r); break;
+    case WIRE_SAMPLES: {
+        wire_samples *p = &out->u.samples;
+        p->epoch = wr_u32(&r);
+        p->count = wr_u32(&r);
+        p->dropped = wr_u64(&r);
+        if (r.bad) return ct_fail(err, CT_EPROTO, "%s: SAMPLES body of %zu bytes is truncated", peer, len);
+        /* The count is checked against the body before anything is read or allocated. */
+        if ((uint64_t)p->count * SZ_POINT != r.left)
+            return ct_fail(err, CT_EPROTO, "%s: SAMPLES count %u does not match the body (%zu bytes of points)",
+                           peer, p->count, r.left);
+        size_t n = 3 * (size_t)p->count;
+        if ((rc = scratch_get(scratch, n * sizeof(float) + 1, err))) return rc;
+        float *f = (float *)(void *)scratch->data;
+        for (size_t i = 0; i < n; i++) f[i] = wr_f32(&r);
+        p->xyz = f;
+        break;
+    }
     default: return ct_fail(err, CT_EPROTO, "%s: message type %u unknown", peer, type);
     }
     if (r.bad) return ct_fail(err, CT_EPROTO, "%s: %s body of %zu bytes is truncated", peer, wire_type_name(type), len);

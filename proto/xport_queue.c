@@ -3,7 +3,7 @@
  * reaches the head so that newer patches of the same texture area can be
  * merged into it (newest wins) instead of piling up when the peer falls
  * behind. Merging never crosses a barrier: any message other than TEX_PATCH,
- * STATS, PING and PONG (a TEX_ALLOC/FREE/PROJECTION changes what texels mean,
+ * STATS, SAMPLES, PING and PONG (a TEX_ALLOC/FREE/PROJECTION changes what texels mean,
  * a FRAME closes a lockstep frame). Policy: docs/protocol.md, "Send queue". */
 #include "proto/xport.h"
 
@@ -79,7 +79,8 @@ void xport_queue_free(xport_queue *q)
 
 static bool is_barrier(unsigned type)
 {
-    return type != WIRE_TEX_PATCH && type != WIRE_STATS && type != WIRE_PING && type != WIRE_PONG;
+    return type != WIRE_TEX_PATCH && type != WIRE_STATS && type != WIRE_PING && type != WIRE_PONG &&
+           type != WIRE_SAMPLES;
 }
 
 static size_t patch_cost(uint32_t w, uint32_t h)

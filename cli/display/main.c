@@ -36,6 +36,8 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --exposure STOPS      displayed = linear * 2^STOPS (default %.1f)\n"
             "  --passes 1|3          corrections in one shader pass or three passes (default %d)\n"
             "  --view V              full, radiosity, corrections, assignment, samples (default %s)\n"
+            "  --sample-frames N     samples view: show the sample points of the last N frames (default %u)\n"
+            "  --sample-max N        samples view: keep at most N points (default %u)\n"
             "  --fbo 32f|16f         float framebuffer format (default 32f)\n"
             "  --no-vsync            window: do not wait for vertical sync\n"
             "  --camera EX,EY,EZ,TX,TY,TZ[,FOV]   start camera (eye, target, vertical fov degrees, default 50)\n"
@@ -49,7 +51,7 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --reference DIR       add RMSE/PSNR against DIR/frame_NNNNN.exr to frames.csv\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
-            disp_view_name(d->view), disp_app_keys_help());
+            disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
 }
 
 static int parse_int(const char *opt, const char *s, int lo, int hi, int *out)
@@ -157,6 +159,16 @@ int main(int argc, char **argv)
                 bad = 1;
             }
             o.view = (disp_view)k;
+        } else if (!strcmp(a, "--sample-frames")) {
+            NEED();
+            int n;
+            bad = parse_int(a, v, 1, 100000, &n);
+            o.sample_frames = (uint32_t)n;
+        } else if (!strcmp(a, "--sample-max")) {
+            NEED();
+            int n;
+            bad = parse_int(a, v, 1, 100000000, &n);
+            o.sample_max = (uint32_t)n;
         } else if (!strcmp(a, "--fbo")) {
             NEED();
             if (!strcmp(v, "32f")) o.float_format = GL_RGBA32F;

@@ -266,7 +266,7 @@ static void child(int fd, gl_backend_kind kind, int width, int height, const ct_
     if (!rc) rc = disp_compositor_new(width, height, 0, &c, &err);
     if (!rc) rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), cam, o, NULL, &err);
     bool win = b && gl_backend_is_window(b);
-    if (!rc) rc = disp_compositor_present(c, o, NULL, 0, NULL, 0, win, width, height, &err);
+    if (!rc) rc = disp_compositor_present(c, o, win, width, height, &err);
     if (!rc) {
         disp_compositor_read_linear(c, lin);
         if (win) disp_compositor_read_window(width, height, disp);

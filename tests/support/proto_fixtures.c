@@ -11,6 +11,7 @@
 
 static uint16_t fx_texels[3 * 37 * 11];
 static uint8_t fx_chunk[5000];
+static float fx_points[3 * 5];
 
 size_t fx_messages(wire_msg *out)
 {
@@ -121,6 +122,16 @@ size_t fx_messages(wire_msg *out)
     m = &out[n++];
     m->type = WIRE_BYE;
     m->u.bye.reason = WIRE_BYE_QUIT;
+
+    for (size_t i = 0; i < sizeof fx_points / sizeof fx_points[0]; i++)
+        fx_points[i] = (float)((int)i - 7) * 13.375f + (i % 3 == 2 ? -1e-3f : 0.0f);
+    m = &out[n++];
+    m->type = WIRE_SAMPLES;
+    m->u.samples = (wire_samples){.epoch = 17, .count = 5, .dropped = 0x100000001ull, .xyz = fx_points};
+
+    m = &out[n++];
+    m->type = WIRE_SAMPLES;   /* no points: only the drop count */
+    m->u.samples = (wire_samples){.epoch = 18, .count = 0, .dropped = 3, .xyz = fx_points};
     return n;
 }
 

@@ -11,7 +11,7 @@
 #include "common/radmesh.h"
 #include "proto/wire.h"
 
-#define FX_NMSG 20
+#define FX_NMSG 22
 
 /* Fills out[] with FX_NMSG valid messages covering every type (patches and
  * chunks point to static storage); returns the count. */

@@ -30,7 +30,7 @@ static void render(disp_session *s, uint8_t *out)
     ct_camera cam = fx_box_camera();
     disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
     disp_compositor_read_display(c, out);
     disp_compositor_free(c);
 }

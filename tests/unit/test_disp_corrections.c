@@ -226,12 +226,12 @@ static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, 
     ct_camera cam = fx_box_camera();
     disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive};
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, st1, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
     disp_compositor_read_display(c, one);
     disp_compositor_read_linear(c, lin1);
     o.passes = 3;
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, st3, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
     disp_compositor_read_display(c, three);
     disp_compositor_read_linear(c, lin3);
     disp_compositor_free(c);
@@ -325,21 +325,16 @@ Test(disp_corrections, debug_views)
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
     cr_assert_eq(setup(s, &f, &err), 0, "%s", err.msg);
-    float pts[4] = {10.5f, 20.5f, 40.5f, 7.5f};
-    disp_session_samples(s, pts, 2);
     disp_compositor *c = NULL;
     cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
     size_t n = (size_t)W * H;
     float *lin = malloc(n * 3 * sizeof *lin);
     uint8_t *disp = malloc(n * 3);
     disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false};
-    uint32_t npts = 0;
-    const float *xy = disp_session_sample_xy(s, &npts);
-    cr_expect_eq(npts, 2u);
 
     /* Corrections only: 0.5 + 0.5 * value, no sRGB; grey where none. */
     cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, NULL, 0, false, W, H, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
     disp_compositor_read_display(c, disp);
     size_t on_wall = 0, bad = 0;
     for (size_t p = 0; p < n; p++) {
@@ -390,28 +385,6 @@ Test(disp_corrections, debug_views)
     cr_expect_leq(other, 2e-3);
     cr_expect(col[0] >= 0.25f && col[1] >= 0.25f && col[2] >= 0.25f);
 
-    /* Samples: dots at the sample positions over the image dimmed to 35 %. */
-    o.view = DISP_VIEW_SAMPLES;
-    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, xy, npts, NULL, 0, false, W, H, &err), 0);
-    disp_compositor_read_display(c, disp);
-    for (int i = 0; i < 2; i++) {
-        size_t p = (size_t)pts[2 * i + 1] * W + (size_t)pts[2 * i];
-        cr_expect(disp[3 * p] == 255 && disp[3 * p + 1] >= 200 && disp[3 * p + 2] <= 40,
-                  "sample %d pixel (%u %u %u)", i, disp[3 * p], disp[3 * p + 1], disp[3 * p + 2]);
-    }
-    size_t p0 = (size_t)30 * W + 30;
-    uint8_t full[3];
-    o.view = DISP_VIEW_FULL;
-    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, NULL, 0, false, W, H, &err), 0);
-    uint8_t *d2 = malloc(n * 3);
-    disp_compositor_read_display(c, d2);
-    memcpy(full, d2 + 3 * p0, 3);
-    for (int k = 0; k < 3; k++)
-        cr_expect_leq(abs((int)disp[3 * p0 + (size_t)k] - (int)lroundf(0.35f * (float)full[k])), 1,
-                      "dimmed value %u vs full %u", disp[3 * p0 + (size_t)k], full[k]);
-    free(d2);
     free(lin);
     free(disp);
     disp_compositor_free(c);
@@ -421,10 +394,15 @@ Test(disp_corrections, debug_views)
     rmesh_free(&m);
 }
 
-/* Patch centres: with an invertible object-local projection (third row =
- * distance from the wall's plane), a patch's centre becomes a world point on
- * the wall, which the samples view draws at its pixel. */
-Test(disp_corrections, patch_centres_in_the_samples_view)
+static bool sample_coloured(const uint8_t *px)
+{
+    return px[0] >= 250 && px[1] >= 190 && px[1] <= 235 && px[2] <= 40;
+}
+
+/* Sample points (SAMPLES): world points drawn as dots in the sample colour
+ * over the image dimmed to DISP_SAMPLE_DIM, hidden behind nearer geometry,
+ * at any exposure; a ring buffer keeps the points of the last frames only. */
+Test(disp_corrections, sample_points_in_the_samples_view)
 {
     fx_box_nodes nd;
     ct_radmesh m;
@@ -435,38 +413,79 @@ Test(disp_corrections, patch_centres_in_the_samples_view)
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
     cr_assert_eq(disp_session_scene(s, &m, &err), 0);
-    mat4 p = wall_proj(-1, -1, 2, 2);
-    p.m[2][2] = 1.0f;   /* z + 1: distance from the back wall z = -1 */
-    p.m[2][3] = 1.0f;
-    cr_assert_eq(disp_session_tex_alloc(s, 4, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
-    cr_assert_eq(disp_session_tex_projection(s, 4, &p, &err), 0);
-    float one[3] = {0.1f, 0.1f, 0.1f};
-    cr_assert_eq(disp_session_tex_patch_float(s, 4, 1, 2, 1, 1, one, &err), 0);
-    uint32_t n = 0;
-    const float *wp = disp_session_patch_points(s, &n);
-    cr_assert_eq(n, 1u);
-    printf("patch centre at (%g %g %g)\n", wp[0], wp[1], wp[2]);
-    cr_expect_float_eq(wp[0], -0.25f, 1e-5f);
-    cr_expect_float_eq(wp[1], 0.25f, 1e-5f);
-    cr_expect_float_eq(wp[2], -1.0f, 1e-5f);
+    disp_session_set_sample_limits(s, 2, 100);
+    ct_camera cam = fx_box_camera();
+    /* Two points on the back wall (z = -1), one behind it (hidden). */
+    const float pts[9] = {-0.25f, 0.25f, -1.0f, 0.3f, -0.2f, -1.0f, 0.0f, 0.0f, -3.0f};
+    disp_session_sample_points(s, pts, 3, 5);
+    const float *pa, *pb;
+    uint32_t na, nb;
+    uint64_t v0 = disp_session_points(s, &pa, &na, &pb, &nb);
+    cr_assert_eq(na + nb, 3u);
+    cr_expect_eq(disp_session_counters(s).points_dropped, 5u);
     disp_compositor *c = NULL;
     cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0);
-    ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_SAMPLES, 0.0f, false};
-    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
-    cr_assert_eq(disp_compositor_present(c, &o, NULL, 0, wp, n, false, W, H, &err), 0);
-    uint8_t *disp = malloc((size_t)W * H * 3);
+    cr_assert_eq(disp_compositor_set_points(c, pa, na, pb, nb, &err), 0, "%s", err.msg);
+    size_t n = (size_t)W * H;
+    uint8_t *disp = malloc(n * 3);
+    float *lin = malloc(n * 3 * sizeof *lin), *full = malloc(n * 3 * sizeof *full);
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), NULL, &cam, &o, NULL, &err), 0);
+    disp_compositor_read_linear(c, full);
+    size_t at[3];
+    for (int i = 0; i < 3; i++) {
+        float px, py;
+        cr_assert(cam_project(&cam, W, H, v3(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]), &px, &py, NULL));
+        at[i] = (size_t)py * W + (size_t)px;
+    }
+    for (int e = 0; e < 2; e++) {
+        o.view = DISP_VIEW_SAMPLES;
+        o.exposure = e ? 2.0f : 0.0f;
+        cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), NULL, &cam, &o, NULL, &err), 0);
+        cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
+        disp_compositor_read_display(c, disp);
+        disp_compositor_read_linear(c, lin);
+        size_t dots = 0;
+        for (size_t p = 0; p < n; p++) dots += sample_coloured(disp + 3 * p);
+        for (int i = 0; i < 2; i++)
+            cr_expect(sample_coloured(disp + 3 * at[i]), "exposure %g: point %d pixel (%u %u %u)", (double)o.exposure,
+                      i, disp[3 * at[i]], disp[3 * at[i] + 1], disp[3 * at[i] + 2]);
+        cr_expect_not(sample_coloured(disp + 3 * at[2]), "the point behind the wall shows");
+        cr_expect_eq(dots, 2u, "exposure %g: %zu sample-coloured pixels, want 2", (double)o.exposure, dots);
+        /* Elsewhere the linear image is the full one dimmed. */
+        double worst = 0;
+        for (size_t p = 0; p < n; p++) {
+            if (p == at[0] || p == at[1]) continue;
+            for (int k = 0; k < 3; k++)
+                worst = fmax(worst, fabs(lin[3 * p + (size_t)k] - DISP_SAMPLE_DIM * full[3 * p + (size_t)k]));
+        }
+        cr_expect_leq(worst, 1e-5, "dimmed image off by %g", worst);
+    }
+    /* Frames: kept for 2 drawn frames, newer points after older ones. */
+    disp_session_frame_drawn(s);
+    const float one[3] = {0.1f, 0.1f, -1.0f};
+    disp_session_sample_points(s, one, 1, 5);
+    uint64_t v1 = disp_session_points(s, &pa, &na, &pb, &nb);
+    cr_expect_neq(v1, v0);
+    cr_expect_eq(na + nb, 4u);
+    disp_session_frame_drawn(s);
+    disp_session_points(s, &pa, &na, &pb, &nb);
+    cr_assert_eq(na + nb, 1u, "after 2 frames only the newer point is left");
+    cr_expect_float_eq((na ? pa : pb)[0], 0.1f, 0);
+    disp_session_frame_drawn(s);
+    disp_session_points(s, &pa, &na, &pb, &nb);
+    cr_expect_eq(na + nb, 0u);
+    cr_assert_eq(disp_compositor_set_points(c, pa, na, pb, nb, &err), 0);
+    o.exposure = 0;
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), NULL, &cam, &o, NULL, &err), 0);
+    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
     disp_compositor_read_display(c, disp);
-    float px, py;
-    cr_assert(cam_project(&cam, W, H, v3(wp[0], wp[1], wp[2]), &px, &py, NULL));
-    size_t q = (size_t)py * W + (size_t)px;
-    cr_expect(disp[3 * q] <= 70 && disp[3 * q + 1] >= 200 && disp[3 * q + 2] == 255,
-              "pixel (%g, %g) is (%u %u %u), want the cyan dot", px, py, disp[3 * q], disp[3 * q + 1], disp[3 * q + 2]);
-    /* Frames later the point is gone. */
-    for (uint32_t f = 0; f <= DISP_SAMPLE_FRAMES; f++) disp_session_frame_end(s, f, 0, false);
-    disp_session_patch_points(s, &n);
-    cr_expect_eq(n, 0u);
+    size_t dots = 0;
+    for (size_t p = 0; p < n; p++) dots += sample_coloured(disp + 3 * p);
+    cr_expect_eq(dots, 0u);
     free(disp);
+    free(lin);
+    free(full);
     disp_compositor_free(c);
     disp_session_free(s);
     gl_backend_close(b);
@@ -502,9 +521,21 @@ Test(disp_corrections, fresh_and_resized_textures_are_zero)
      * values; re-allocated at 32x16 after holding values. */
     const int sizes[3][2] = {{64, 64}, {64, 64}, {32, 16}};
     for (int round = 0; round < 3; round++) {
+        /* Never patched with a non-zero value: not drawn at all. */
+        disp_render_stats st;
+        cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, &st, &err), 0);
+        cr_expect_eq(st.textures_drawn, 0u, "round %d: an all-zero texture was drawn", round);
+        disp_compositor_read_linear(c, full);
+        cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "round %d: pixels changed", round);
+        /* A texel of 1e-30 marks it non-zero (so it is drawn) but is 0 as a
+         * half float: every texel the GPU holds must still be zero. */
+        const float tiny[3] = {1e-30f, 1e-30f, 1e-30f};
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 1, 1, tiny, &err), 0, "%s", err.msg);
+        cr_assert(disp_textures_find(disp_session_textures(s), 1)->nonzero);
         for (int passes = 1; passes <= 3; passes += 2) {
             o.passes = passes;
-            cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0);
+            cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, &st, &err), 0);
+            cr_expect_eq(st.textures_drawn, 1u);
             disp_compositor_read_linear(c, full);
             cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "round %d, %d-pass: a zero texture changed pixels", round, passes);
         }

@@ -293,3 +293,61 @@ Test(dsrv, oversized_frame_from_an_authenticated_display)
     chan_free(d);
     stop(&sv);
 }
+
+/* SAMPLES are droppable: dsrv_try_send queues them only while the display's
+ * send queue holds at most the given bytes, never blocks, and the messages it
+ * did queue arrive intact, in order with the others. */
+Test(dsrv, droppable_samples_under_back_pressure)
+{
+    char spec[128];
+    sock_spec(spec, sizeof spec, "drop");
+    server sv;
+    start(&sv, spec, NULL, 2000);
+    chan *d = display(spec, NULL, 0);
+    dsrv_event e;
+    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    /* From here on one thread drives both sides. */
+    sv.stop = 1;
+    pthread_join(sv.th, NULL);
+    static float pts[3 * WIRE_SAMPLES_MAX_POINTS];
+    for (size_t i = 0; i < sizeof pts / sizeof pts[0]; i++) pts[i] = (float)i;
+    wire_msg m = {.type = WIRE_SAMPLES};
+    m.u.samples = (wire_samples){.epoch = 3, .count = WIRE_SAMPLES_MAX_POINTS, .xyz = pts};
+    size_t limit = 1u << 20;   /* one message of 786 KB fits under it, two do not */
+    double t0 = ct_now();
+    cr_expect_eq(dsrv_try_send(sv.s, &m, limit), 0);
+    m.u.samples.dropped = 1;
+    cr_expect_eq(dsrv_try_send(sv.s, &m, limit), 0);
+    cr_expect_eq(dsrv_try_send(sv.s, &m, limit), DSRV_DROPPED, "a third SAMPLES was queued");
+    cr_expect_lt(ct_now() - t0, 0.5, "dsrv_try_send blocked");
+    wire_msg f = {.type = WIRE_TEX_FREE};
+    f.u.tex_free.tex = 9;
+    ct_error err = {{0}};
+    cr_assert_eq(dsrv_send(sv.s, &f, 2000, &err), 0);
+    cr_assert(dsrv_has_display(sv.s));
+    /* Both queued SAMPLES and the TEX_FREE arrive, in order. */
+    int got = 0;
+    double end = ct_now() + 5.0;
+    while (got < 3 && ct_now() < end) {
+        dsrv_step(sv.s, 1, &err);
+        cr_assert_eq(chan_pump(d, &err), 0, "%s", err.msg);
+        wire_msg r;
+        int rc;
+        while ((rc = chan_recv(d, &r, &err)) == WIRE_OK) {
+            if (got < 2) {
+                cr_assert_eq(r.type, WIRE_SAMPLES, "message %d is %s", got, wire_type_name(r.type));
+                cr_expect_eq(r.u.samples.count, WIRE_SAMPLES_MAX_POINTS);
+                cr_expect_eq(r.u.samples.dropped, (uint64_t)got);
+                cr_expect(memcmp(r.u.samples.xyz, pts, sizeof pts) == 0, "points differ");
+            } else {
+                cr_assert_eq(r.type, WIRE_TEX_FREE);
+            }
+            got++;
+        }
+        cr_assert_eq(rc, WIRE_NEED_MORE, "%s", err.msg);
+    }
+    cr_expect_eq(got, 3, "%d messages arrived", got);
+    chan_free(d);
+    dsrv_free(sv.s);
+    pthread_mutex_destroy(&sv.mu);
+}

@@ -92,6 +92,13 @@ Test(wire, decoded_fields_match)
             break;
         case WIRE_ERROR: cr_assert_str_eq(d.u.error.text, m->u.error.text); break;
         case WIRE_FRAME: cr_assert_eq(d.u.frame.frame, 123456789012ull); break;
+        case WIRE_SAMPLES:
+            cr_assert_eq(d.u.samples.epoch, m->u.samples.epoch);
+            cr_assert_eq(d.u.samples.count, m->u.samples.count);
+            cr_assert_eq(d.u.samples.dropped, m->u.samples.dropped);
+            cr_assert(memcmp(d.u.samples.xyz, m->u.samples.xyz, 12 * (size_t)m->u.samples.count) == 0,
+                      "sample points differ");
+            break;
         default: break;
         }
         wire_buf_free(&a);
@@ -125,6 +132,29 @@ Test(wire, explicit_little_endian_layout)
     wire_buf_free(&b);
 }
 
+Test(wire, samples_layout)
+{
+    /* A SAMPLES body with two points, byte by byte as docs/protocol.md says. */
+    const float pts[6] = {1.0f, -2.0f, 0.5f, 0.0f, 1.0f, 2.0f};
+    wire_msg m;
+    memset(&m, 0, sizeof m);
+    m.type = WIRE_SAMPLES;
+    m.u.samples = (wire_samples){.epoch = 0x01020304, .count = 2, .dropped = 0x0000000500000007ull, .xyz = pts};
+    wire_buf b = {0};
+    encode_ok(&m, &b);
+    static const uint8_t want[] = {
+        17, 0, 0, 0, 40, 0, 0, 0,                        /* header: SAMPLES, flags 0, 16 + 2 * 12 bytes */
+        4, 3, 2, 1, 2, 0, 0, 0,                          /* epoch, count */
+        7, 0, 0, 0, 5, 0, 0, 0,                          /* dropped (u64) */
+        0, 0, 0x80, 0x3f, 0, 0, 0, 0xc0, 0, 0, 0, 0x3f,  /* point 0: 1, -2, 0.5 */
+        0, 0, 0, 0, 0, 0, 0x80, 0x3f, 0, 0, 0, 0x40,     /* point 1: 0, 1, 2 */
+    };
+    cr_assert_eq(b.len, sizeof want);
+    cr_assert(memcmp(b.data, want, sizeof want) == 0, "SAMPLES bytes differ from the specification");
+    cr_assert_eq(wire_max_body(WIRE_SAMPLES), 16 + 12 * (size_t)WIRE_SAMPLES_MAX_POINTS);
+    wire_buf_free(&b);
+}
+
 Test(wire, invalid_messages_do_not_encode)
 {
     wire_msg m;
@@ -144,6 +174,16 @@ Test(wire, invalid_messages_do_not_encode)
     m.u.tex_patch = (wire_tex_patch){.tex = 1, .x = 0, .y = 0, .w = 2048, .h = 1024, .texels = t};
     cr_assert_eq(wire_encode(&m, &b, &err), CT_EPROTO);
     cr_assert_str_eq(err.msg, "encode: TEX_PATCH size 2048x1024 out of range");
+    static float pts[3 * 4];
+    memset(&m, 0, sizeof m);
+    m.type = WIRE_SAMPLES;
+    m.u.samples = (wire_samples){.count = WIRE_SAMPLES_MAX_POINTS + 1, .xyz = pts};
+    cr_assert_eq(wire_encode(&m, &b, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "encode: SAMPLES count 65537 over the limit 65536");
+    pts[7] = INFINITY;
+    m.u.samples.count = 4;
+    cr_assert_eq(wire_encode(&m, &b, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "encode: SAMPLES point 2 has a non-finite coordinate");
     cr_assert_eq(b.len, 0, "a failed encode appended bytes");
     wire_buf_free(&b);
 }
@@ -320,6 +360,16 @@ static const broken broken_frames[] = {
      CT_EPROTO, "peer: SCENE_BEGIN announces 5 chunks, expected 1"},
     {"SCENE_BEGIN size not matching counts", {H(WIRE_SCENE_BEGIN, 0, 68), [8 + 40] = 73, [8 + 48] = 1, [8 + 60] = 1},
      76, CT_EPROTO, "peer: SCENE_BEGIN payload size 73 does not match its counts"},
+    {"SAMPLES header truncated", {H(WIRE_SAMPLES, 0, 10), 1, 0, 0, 0, 2, 0, 0, 0, 0, 0}, 18, CT_EPROTO,
+     "peer: SAMPLES body of 10 bytes is truncated"},
+    {"SAMPLES count not matching the body", {H(WIRE_SAMPLES, 0, 28), 1, 0, 0, 0, 2, 0, 0, 0, [8 + 16] = 0}, 36,
+     CT_EPROTO, "peer: SAMPLES count 2 does not match the body (12 bytes of points)"},
+    {"SAMPLES count over the limit", {H(WIRE_SAMPLES, 0, 16), 0, 0, 0, 0, 1, 0, 1, 0, [8 + 15] = 0}, 24, CT_EPROTO,
+     "peer: SAMPLES count 65537 does not match the body (0 bytes of points)"},
+    {"SAMPLES point NaN", {H(WIRE_SAMPLES, 0, 40), 1, 0, 0, 0, 2, 0, 0, 0, [8 + 16] = ONE, ONE, ONE, ONE, NAN32, ONE},
+     48, CT_EPROTO, "peer: SAMPLES point 1 has a non-finite coordinate"},
+    {"oversized SAMPLES", {H(WIRE_SAMPLES, 0, 786449)}, 8, CT_EPROTO,
+     "peer: SAMPLES body length 786449 over the limit 786448"},
     {"TEX_PROJECTION infinity", {H(WIRE_TEX_PROJECTION, 0, 72), [8 + 8] = 0, [8 + 10] = 0x80, [8 + 11] = 0x7f}, 80,
      CT_EPROTO, "peer: TEX_PROJECTION has a non-finite value"},
 };
@@ -684,26 +734,26 @@ static const broken_hs broken_handshakes[] = {
      "peer: bad magic byte 0x47 at offset 0 (not a corrtex peer?)"},
     {"magic without \\x1a", AUTH_ROLE_MASTER, false, {0x89, 'C', 'T', 'X', '\r', '\n', '\n'}, 7, CT_EPROTO,
      "peer: bad magic byte 0x0a at offset 6 (not a corrtex peer?)"},
-    {"wrong version", AUTH_ROLE_MASTER, false, {MAGIC, 2, 0, 2, 0, BID}, 64, CT_EPROTO, "peer: protocol version 2, expected 1"},
-    {"wrong role", AUTH_ROLE_MASTER, false, {MAGIC, 1, 0, 1, 0, BID}, 64, CT_EPROTO,
+    {"wrong version (an older peer)", AUTH_ROLE_MASTER, false, {MAGIC, 1, 0, 2, 0, BID}, 64, CT_EPROTO, "peer: protocol version 1, expected 2"},
+    {"wrong role", AUTH_ROLE_MASTER, false, {MAGIC, WIRE_VERSION, 0, 1, 0, BID}, 64, CT_EPROTO,
      "peer: peer has role master (1), expected display"},
-    {"unknown role", AUTH_ROLE_DISPLAY, false, {MAGIC, 1, 0, 9, 0, BID}, 64, CT_EPROTO,
+    {"unknown role", AUTH_ROLE_DISPLAY, false, {MAGIC, WIRE_VERSION, 0, 9, 0, BID}, 64, CT_EPROTO,
      "peer: peer has role unknown (9), expected master"},
-    {"unknown flags", AUTH_ROLE_DISPLAY, false, {MAGIC, 1, 0, 1, 0x80, BID}, 64, CT_EPROTO,
+    {"unknown flags", AUTH_ROLE_DISPLAY, false, {MAGIC, WIRE_VERSION, 0, 1, 0x80, BID}, 64, CT_EPROTO,
      "peer: HELLO flags 0x80 unknown"},
-    {"display sets a flag", AUTH_ROLE_MASTER, false, {MAGIC, 1, 0, 2, 1, BID}, 64, CT_EPROTO,
+    {"display sets a flag", AUTH_ROLE_MASTER, false, {MAGIC, WIRE_VERSION, 0, 2, 1, BID}, 64, CT_EPROTO,
      "peer: HELLO flags 0x01 unknown"},
-    {"other build", AUTH_ROLE_MASTER, false, {MAGIC, 1, 0, 2, 0, 'c', 'o', 'r', 'r', 't', 'e', 'x', '-', '0'}, 64,
+    {"other build", AUTH_ROLE_MASTER, false, {MAGIC, WIRE_VERSION, 0, 2, 0, 'c', 'o', 'r', 'r', 't', 'e', 'x', '-', '0'}, 64,
      CT_EPROTO, "peer: build id 'corrtex-0' differs from ours 'corrtex-proto-1'"},
-    {"build id garbage", AUTH_ROLE_MASTER, false, {MAGIC, 1, 0, 2, 0, 'a', 0, 'b'}, 64, CT_EPROTO,
+    {"build id garbage", AUTH_ROLE_MASTER, false, {MAGIC, WIRE_VERSION, 0, 2, 0, 'a', 0, 'b'}, 64, CT_EPROTO,
      "peer: build id is not NUL-padded printable ASCII"},
-    {"bad HMAC", AUTH_ROLE_MASTER, true, {MAGIC, 1, 0, 2, 0, BID, [64] = H(WIRE_AUTH, 0, 32)}, 104, CT_EAUTH,
+    {"bad HMAC", AUTH_ROLE_MASTER, true, {MAGIC, WIRE_VERSION, 0, 2, 0, BID, [64] = H(WIRE_AUTH, 0, 32)}, 104, CT_EAUTH,
      "peer: authentication failed: the peer's proof does not match our token"},
-    {"PING instead of AUTH", AUTH_ROLE_MASTER, true, {MAGIC, 1, 0, 2, 0, BID, [64] = H(WIRE_PING, 0, 8)}, 72,
+    {"PING instead of AUTH", AUTH_ROLE_MASTER, true, {MAGIC, WIRE_VERSION, 0, 2, 0, BID, [64] = H(WIRE_PING, 0, 8)}, 72,
      CT_EPROTO, "peer: expected AUTH during the handshake, got PING"},
-    {"short AUTH", AUTH_ROLE_MASTER, true, {MAGIC, 1, 0, 2, 0, BID, [64] = H(WIRE_AUTH, 0, 31)}, 72, CT_EPROTO,
+    {"short AUTH", AUTH_ROLE_MASTER, true, {MAGIC, WIRE_VERSION, 0, 2, 0, BID, [64] = H(WIRE_AUTH, 0, 31)}, 72, CT_EPROTO,
      "peer: AUTH body length 31, expected 32"},
-    {"garbage frame", AUTH_ROLE_MASTER, true, {MAGIC, 1, 0, 2, 0, BID, [64] = H(500, 0, 0)}, 72, CT_EPROTO,
+    {"garbage frame", AUTH_ROLE_MASTER, true, {MAGIC, WIRE_VERSION, 0, 2, 0, BID, [64] = H(500, 0, 0)}, 72, CT_EPROTO,
      "peer: message type 500 unknown"},
 };
 
