@@ -4,11 +4,13 @@
 #include "proto/mpi_link.h"
 
 #include <limits.h>
+#include <signal.h>
 #include <mpi.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "common/timer.h"
 
@@ -94,7 +96,16 @@ int mpil_finalize(ct_error *err)
 
 void mpil_abort(int code)
 {
-    if (L.active) MPI_Abort(MPI_COMM_WORLD, code);
+    if (!L.active) return;
+    /* MPI_Abort reports to mpirun through the local daemon. Once, on a
+     * loaded machine, that report arrived garbled ("Data unpack would read
+     * past end of buffer" in show_help) and the job stayed up 30 s with a
+     * stopped tracer. If MPI_Abort has not ended this process after 3 s, the
+     * default SIGALRM action does; mpirun then ends the job for a rank that
+     * died by a signal (SIGTERM, then SIGKILL, to the others). */
+    signal(SIGALRM, SIG_DFL);
+    alarm(3);
+    MPI_Abort(MPI_COMM_WORLD, code);
 }
 
 static int check_len(size_t len, ct_error *err)
