@@ -8,8 +8,7 @@
 #include "common/rng.h"
 
 /* Grid cells of the visibility estimate: about this many over the scene's
- * bounding box, and at most LIGHT_GRID_BYTES estimates in all (one byte per
- * cell, side and emitter). */
+ * bounding box, and at most LIGHT_GRID_BYTES of candidate lists in all. */
 #define LIGHT_GRID_CELLS 32768
 #define LIGHT_GRID_BYTES (16u << 20)
 /* Sides of a cell: the six axis directions a surface's normal is closest to. */
@@ -23,6 +22,16 @@
 #define LIGHT_GLASS_CROSSINGS 8
 
 enum { CELL_EMPTY = 0, CELL_BUSY = 1, CELL_READY = 2 };
+
+/* The emitters a (cell, side) weighs at each of its shading points: the
+ * LIGHT_CANDS strongest by estimated contribution, with their test results. */
+typedef struct key_cands {
+    uint8_t n;
+    uint8_t idx[LIGHT_CANDS];
+    uint8_t vis[LIGHT_CANDS];   /* unblocked test rays of LIGHT_VIS_RAYS */
+} key_cands;
+
+static inline float maxf(float a, float b) { return a > b ? a : b; }
 
 typedef struct emitter {
     vec3 c;            /* centre of the bounding box */
@@ -51,7 +60,7 @@ struct light_set {
     vec3 lo;
     float h;
     uint32_t nx, ny, nz;
-    unsigned char *vis;          /* per key (cell * 6 + side) and emitter: unblocked test rays */
+    key_cands *cands;            /* per key (cell * 6 + side) */
     atomic_uchar *state;         /* per key: CELL_* */
 };
 
@@ -85,7 +94,7 @@ static void describe_emitters(light_set *l)
         }
         em->c = v3_scale(v3_add(lo, hi), 0.5f);
         vec3 half = v3_scale(v3_sub(hi, lo), 0.5f);
-        em->r2 = fmaxf(v3_len2(half), 1e-12f);
+        em->r2 = maxf(v3_len2(half), 1e-12f);
         em->power = (float)power;
         /* Flat: every vertex within a hair of the first light's plane and
          * every normal the same, so a point behind that plane gets nothing. */
@@ -113,7 +122,7 @@ static int build_grid(light_set *l)
     vec3 ext = v3_sub(hi, lo);
     float big = fmaxf(ext.x, fmaxf(ext.y, ext.z));
     if (!(big > 0.0f) || !isfinite(big)) return CT_OK;   /* no extent: no grid, pick by power */
-    uint32_t budget = LIGHT_GRID_BYTES / (LIGHT_SIDES * l->ne);
+    uint32_t budget = LIGHT_GRID_BYTES / (LIGHT_SIDES * (uint32_t)sizeof(key_cands));
     if (budget > LIGHT_GRID_CELLS) budget = LIGHT_GRID_CELLS;
     /* Cubic cells; flat axes get one cell. */
     double vol = (double)fmaxf(ext.x, big * 1e-3f) * fmaxf(ext.y, big * 1e-3f) * fmaxf(ext.z, big * 1e-3f);
@@ -134,9 +143,9 @@ static int build_grid(light_set *l)
     l->h = h;
     l->nx = n[0], l->ny = n[1], l->nz = n[2];
     size_t keys = (size_t)n[0] * n[1] * n[2] * LIGHT_SIDES;
-    l->vis = malloc(keys * l->ne);
+    l->cands = malloc(keys * sizeof *l->cands);
     l->state = calloc(keys, sizeof *l->state);
-    if (!l->vis || !l->state) return CT_ENOMEM;
+    if (!l->cands || !l->state) return CT_ENOMEM;
     for (size_t i = 0; i < keys; i++) atomic_init(&l->state[i], CELL_EMPTY);
     l->spatial = true;
     return CT_OK;
@@ -247,7 +256,7 @@ void light_free(light_set *l)
     free(l->tri_em);
     free(l->em);
     free(l->em_cdf);
-    free(l->vis);
+    free(l->cands);
     free(l->state);
     free(l);
 }
@@ -314,29 +323,31 @@ static vec3 probe_point(const light_set *l, vec3 base, int side, ct_rng *r)
     return v3_add(q, v3_scale(ng, 1e-4f * l->h));
 }
 
-/* Unblocked test rays (of LIGHT_VIS_RAYS) between points of surfaces facing
- * `side` in cell (ix, iy, iz) and each emitter. A pure function of the key. */
+/* The candidates of (cell, side) (ix, iy, iz, side): emitters scored by
+ * their unblocked contribution at the cell centre times the visibility
+ * factor of LIGHT_VIS_RAYS test rays between points of surfaces facing
+ * `side` in the cell and the emitter; the best LIGHT_CANDS. Emitters under
+ * LIGHT_VIS_SKIP of the strongest are left to the defensive picks (no rays).
+ * A pure function of the key. */
 static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t iy, uint32_t iz, int side,
-                         unsigned char *vis)
+                         key_cands *out)
 {
     vec3 base = v3_add(l->lo, v3((float)ix * l->h, (float)iy * l->h, (float)iz * l->h));
     vec3 pts[LIGHT_VIS_RAYS];
     ct_rng r = rng_make(LIGHT_VIS_SEED, key, 0, 0);
     for (int j = 0; j < LIGHT_VIS_RAYS; j++) pts[j] = probe_point(l, base, side, &r);
-    /* Emitters that cannot matter here (unblocked, they would bring under
-     * LIGHT_VIS_SKIP of the strongest one) count as visible: no rays. */
     vec3 mid = v3_add(base, v3s(0.5f * l->h));
-    float wmax = 0.0f, wk[LIGHT_SEL_MAX];
+    float wmax = 0.0f, wk[LIGHT_SEL_MAX], score[LIGHT_SEL_MAX];
+    uint8_t vis[LIGHT_SEL_MAX];
     for (uint32_t k = 0; k < l->ne; k++) {
-        wk[k] = l->em[k].power / fmaxf(v3_len2(v3_sub(mid, l->em[k].c)), l->em[k].r2);
-        wmax = fmaxf(wmax, wk[k]);
+        wk[k] = l->em[k].power / maxf(v3_len2(v3_sub(mid, l->em[k].c)), l->em[k].r2);
+        wmax = maxf(wmax, wk[k]);
     }
     for (uint32_t k = 0; k < l->ne; k++) {
         const emitter *em = &l->em[k];
-        if (wk[k] < LIGHT_VIS_SKIP * wmax) {
-            vis[k] = LIGHT_VIS_RAYS;
-            continue;
-        }
+        score[k] = 0.0f;
+        vis[k] = 0;
+        if (!(wk[k] >= LIGHT_VIS_SKIP * wmax)) continue;
         ct_rng rk = rng_make(LIGHT_VIS_SEED, key, k + 1, 0);
         int open = 0;
         for (int j = 0; j < LIGHT_VIS_RAYS; j++) {
@@ -351,7 +362,21 @@ static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t
             /* Stop short of the emitter so its own surface does not count. */
             if (open_line(l, p, d, dist * (1.0f - 1e-4f))) open++;
         }
-        vis[k] = (unsigned char)open;
+        vis[k] = (uint8_t)open;
+        score[k] = wk[k] * (LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * (float)open / (float)LIGHT_VIS_RAYS);
+    }
+    /* The best LIGHT_CANDS by score (ties: lower index), in that order. */
+    out->n = 0;
+    bool taken[LIGHT_SEL_MAX] = {false};
+    while (out->n < LIGHT_CANDS) {
+        int best = -1;
+        for (uint32_t k = 0; k < l->ne; k++)
+            if (!taken[k] && score[k] > 0.0f && (best < 0 || score[k] > score[best])) best = (int)k;
+        if (best < 0) break;
+        taken[best] = true;
+        out->idx[out->n] = (uint8_t)best;
+        out->vis[out->n] = vis[best];
+        out->n++;
     }
 }
 
@@ -359,10 +384,8 @@ void light_select_power(light_sel *sel) { sel->n = 0; }
 
 void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
 {
-    if (!l->spatial) {
-        sel->n = 0;
-        return;
-    }
+    sel->n = 0;
+    if (!l->spatial) return;
     float f[3] = {(x.x - l->lo.x) / l->h, (x.y - l->lo.y) / l->h, (x.z - l->lo.z) / l->h};
     uint32_t lim[3] = {l->nx, l->ny, l->nz}, idx[3];
     for (int k = 0; k < 3; k++) {
@@ -374,53 +397,77 @@ void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
     int axis = an[0] >= an[1] && an[0] >= an[2] ? 0 : an[1] >= an[2] ? 1 : 2;
     int side = 2 * axis + (nc[axis] < 0.0f);
     uint32_t key = ((idx[2] * l->ny + idx[1]) * l->nx + idx[0]) * LIGHT_SIDES + (uint32_t)side;
-    const unsigned char *vis = l->vis + (size_t)key * l->ne;
-    unsigned char local[LIGHT_SEL_MAX];
+    const key_cands *kc = &l->cands[key];
+    key_cands local;
     if (atomic_load_explicit(&l->state[key], memory_order_acquire) != CELL_READY) {
-        estimate_key(l, key, idx[0], idx[1], idx[2], side, local);
+        estimate_key(l, key, idx[0], idx[1], idx[2], side, &local);
         unsigned char expect = CELL_EMPTY;
         if (atomic_compare_exchange_strong_explicit(&l->state[key], &expect, CELL_BUSY, memory_order_acq_rel,
                                                     memory_order_acquire)) {
-            memcpy(l->vis + (size_t)key * l->ne, local, l->ne);
+            l->cands[key] = local;
             atomic_store_explicit(&l->state[key], CELL_READY, memory_order_release);
         }
-        vis = local;
+        kc = &local;
     }
     float acc = 0.0f;
     sel->cdf[0] = 0.0f;
-    for (uint32_t k = 0; k < l->ne; k++) {
-        const emitter *em = &l->em[k];
+    for (uint32_t j = 0; j < kc->n; j++) {
+        const emitter *em = &l->em[kc->idx[j]];
         vec3 d = v3_sub(x, em->c);
-        float d2 = v3_len2(d);
-        float w = em->power / fmaxf(d2, em->r2);
+        float m = maxf(v3_len2(d), em->r2);
+        float w = em->power / m;
         if (em->flat) {
             float c = v3_dot(d, em->n);
-            w = c > 0.0f ? w * c / sqrtf(fmaxf(d2, em->r2)) : 0.0f;
+            w = c > 0.0f ? w * c / sqrtf(m) : 0.0f;
         }
-        w *= LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((float)vis[k] / (float)LIGHT_VIS_RAYS);
+        w *= LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((float)kc->vis[j] / (float)LIGHT_VIS_RAYS);
         acc += isfinite(w) ? w : 0.0f;
-        sel->cdf[k + 1] = acc;
+        sel->idx[j] = kc->idx[j];
+        sel->cdf[j + 1] = acc;
     }
-    sel->n = l->ne;
-    if (!(acc > 0.0f)) {
-        /* Behind every (flat) emitter: nothing can light x. */
-        for (uint32_t k = 0; k <= l->ne; k++) sel->cdf[k] = 0.0f;
-        return;
-    }
-    float inv = 1.0f / acc;
-    for (uint32_t k = 1; k < l->ne; k++) sel->cdf[k] *= inv;
-    sel->cdf[l->ne] = 1.0f;
+    sel->n = kc->n;
+    /* No candidate can light x (or there are none): every pick by power. */
+    sel->defensive = acc > 0.0f ? LIGHT_DEFENSIVE : 1.0f;
+    float inv = acc > 0.0f ? 1.0f / acc : 0.0f;
+    for (uint32_t j = 1; j <= sel->n; j++) sel->cdf[j] *= inv;
+    if (sel->n && acc > 0.0f) sel->cdf[sel->n] = 1.0f;
+}
+
+/* Probability that sel picks emitter k. */
+static float emitter_prob(const light_set *l, const light_sel *sel, uint32_t k)
+{
+    float pw = l->em_cdf[k + 1] - l->em_cdf[k];
+    if (!sel->n) return pw;
+    float p = sel->defensive * pw;
+    for (uint32_t j = 0; j < sel->n; j++)
+        if (sel->idx[j] == k) {
+            p += (1.0f - sel->defensive) * (sel->cdf[j + 1] - sel->cdf[j]);
+            break;
+        }
+    return p;
 }
 
 bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, float u2, light_point *out)
 {
     if (l->n == 0) return false;
-    const float *ec = sel->n ? sel->cdf : l->em_cdf;
-    if (!(ec[l->ne] > 0.0f)) return false;
-    uint32_t k = emitter_of_cdf(ec, l->ne, u0);
-    float lo = ec[k], span = ec[k + 1] - lo;
+    /* u0 picks the strategy, then (rescaled) the emitter, then (rescaled
+     * again) its triangle. */
+    const float *ec = l->em_cdf;
+    uint32_t nc = l->ne;
+    const uint8_t *map = NULL;
+    if (sel->n && u0 >= sel->defensive) {
+        u0 = (u0 - sel->defensive) / (1.0f - sel->defensive);
+        ec = sel->cdf;
+        nc = sel->n;
+        map = sel->idx;
+    } else if (sel->n) {
+        u0 = u0 / sel->defensive;
+    }
+    u0 = fminf(fmaxf(u0, 0.0f), 0x1.fffffep-1f);
+    uint32_t j = emitter_of_cdf(ec, nc, u0);
+    float lo = ec[j], span = ec[j + 1] - lo;
     if (!(span > 0.0f)) return false;
-    /* Reuse u0 within the emitter: its position inside [lo, hi). */
+    uint32_t k = map ? map[j] : j;
     float v = fminf(fmaxf((u0 - lo) / span, 0.0f), 0x1.fffffep-1f);
     const emitter *em = &l->em[k];
     uint32_t a = em->first, b = em->first + em->count - 1;
@@ -436,14 +483,12 @@ bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, 
     out->p = v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
     out->n = l->nrm[a];
     out->le = g[3];
-    out->pdf_area = span * l->pdf_in[out->tri];
+    out->pdf_area = emitter_prob(l, sel, k) * l->pdf_in[out->tri];
     return true;
 }
 
 float light_pdf_area(const light_set *l, const light_sel *sel, uint32_t tri)
 {
     if (tri >= l->mesh->ntris || l->pdf_in[tri] <= 0.0f) return 0.0f;
-    const float *ec = sel->n ? sel->cdf : l->em_cdf;
-    uint32_t k = l->tri_em[tri];
-    return (ec[k + 1] - ec[k]) * l->pdf_in[tri];
+    return emitter_prob(l, sel, l->tri_em[tri]) * l->pdf_in[tri];
 }

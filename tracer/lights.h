@@ -2,20 +2,24 @@
  * tracer samples them.
  *
  * Lights are grouped into emitters (the emissive triangles of one mesh part:
- * a ceiling panel, a bulb). A shading point x first picks an emitter with a
- * probability proportional to its estimated contribution at x:
- *   power * cos_light / max(d^2, r^2) * (beta + (1 - beta) * V),
- * where cos_light and d are taken to the emitter's centre (zero behind a
- * flat emitter, which emits from its front side only), r is its bounding
- * radius and V the fraction of unblocked rays between points of the surfaces
- * in x's grid cell that face the way x's surface faces and the emitter (a
- * deterministic estimate made the first time a cell and side is used,
- * beta = LIGHT_VIS_FLOOR keeps the density positive wherever light can
- * arrive, so the estimator stays unbiased). Within the emitter a triangle is
- * picked by power (area * luminance of L_e), then a point uniformly by area.
- * So p_A(y | x) = P(emitter | x) * lum(L_e(y)) / power(emitter). Without a
- * shading point (or with one emitter, or more than LIGHT_SEL_MAX) the
- * emitter is picked by power alone, the classic density.
+ * a ceiling panel, a bulb). A shading point x first picks an emitter, then
+ * one of its triangles by power (area * luminance of L_e), then a point
+ * uniformly by area on it. The emitter is picked from a mixture:
+ *   - with probability 1 - LIGHT_DEFENSIVE among x's candidates, in
+ *     proportion to their estimated contribution at x,
+ *       power * cos_light / max(d^2, r^2) * (beta + (1 - beta) * V),
+ *     cos_light and d taken to the emitter's centre (zero behind a flat
+ *     emitter, which emits from its front side only), r its bounding radius,
+ *     V the fraction of test rays that nothing but glass blocks between the
+ *     emitter and points of the surfaces in x's grid cell that face the way
+ *     x's surface faces, beta = LIGHT_VIS_FLOOR;
+ *   - with probability LIGHT_DEFENSIVE among all emitters by power (every
+ *     emitter keeps a positive density: the estimator stays unbiased).
+ * The candidates of a (cell, side) are its LIGHT_CANDS strongest emitters by
+ * that estimate at the cell centre, made the first time the cell and side is
+ * used (deterministically). So p_A(y | x) = P(emitter | x) * lum(L_e(y)) /
+ * power(emitter). Without a shading point (or with one emitter, or more than
+ * LIGHT_SEL_MAX) the emitter is picked by power alone.
  *
  * This matters in scenes of many rooms: picking by power alone sends most
  * shadow rays of a point in one office to the lights of the others. */
@@ -30,7 +34,11 @@
 #include "tracer/embree_scene.h"
 
 /* Most emitters the spatial selection handles; scenes with more pick by power. */
-#define LIGHT_SEL_MAX 128
+#define LIGHT_SEL_MAX 255
+/* Emitters weighed at each shading point (a cell's strongest). */
+#define LIGHT_CANDS 16
+/* Share of emitter picks by power among all emitters (the defensive part). */
+#define LIGHT_DEFENSIVE 0.02f
 /* beta: the visibility estimate's floor (see above). */
 #define LIGHT_VIS_FLOOR 0.05f
 /* Rays per (grid cell, emitter) of the visibility estimate. */
@@ -51,8 +59,10 @@ typedef struct light_point {
  * of its shadow rays and by the MIS weight of light found by its scattered
  * rays. */
 typedef struct light_sel {
-    uint32_t n;                     /* emitters in cdf; 0 = pick by power */
-    float cdf[LIGHT_SEL_MAX + 1];
+    uint32_t n;                     /* candidates; 0 = pick by power alone */
+    float defensive;                /* share picked by power (1 when no candidate can light x) */
+    uint8_t idx[LIGHT_CANDS];       /* the candidates' emitters */
+    float cdf[LIGHT_CANDS + 1];     /* among the candidates, normalised */
 } light_sel;
 
 /* Collects the emissive triangles of the scene's mesh (zero lights is

@@ -1,8 +1,8 @@
 /* The tracer's light selection (tracer/lights.h): in two rooms separated by a
  * wall, a point's shadow rays go to its own room's light, on either face of
- * the wall; the pdf that
- * light_pdf_area reports is the density light_sample draws from; nothing is
- * picked behind a flat emitter; racing threads make the same estimates. */
+ * the wall; the pdf that light_pdf_area reports is the density light_sample
+ * draws from; emitters behind a point get only the defensive share; racing
+ * threads make the same estimates. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <pthread.h>
@@ -128,27 +128,34 @@ Test(lights, sampled_points_follow_the_reported_pdf)
     two_rooms_free(&r);
 }
 
-Test(lights, nothing_is_picked_behind_flat_emitters)
+Test(lights, emitters_behind_get_only_the_defensive_share)
 {
     ct_error err;
-    ct_scene *s = scene_new("two panels");
+    ct_scene *s = scene_new("three panels");
     int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(5.0f), &err);
-    /* Two panels at y = 1 facing down; a point above both sees only backs. */
-    cr_assert(ts_quad(s, "p1", (uint32_t)lamp, v3(0, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err) >= 0);
-    cr_assert(ts_quad(s, "p2", (uint32_t)lamp, v3(2, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err) >= 0);
+    /* Two panels at y = 1 facing down, a point above them (behind both) and
+     * a third panel at y = 3 facing down onto it. */
+    int p1 = ts_quad(s, "p1", (uint32_t)lamp, v3(0, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err);
+    int p2 = ts_quad(s, "p2", (uint32_t)lamp, v3(2, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err);
+    int p3 = ts_quad(s, "p3", (uint32_t)lamp, v3(1, 3, 0), v3(1, 0, 0), v3(0, 0, 1), &err);
+    cr_assert(p1 >= 0 && p2 >= 0 && p3 >= 0);
     CHECK(scene_finalize(s, &err));
     emb_mesh m = emb_mesh_of_scene(s);
     emb_scene *e;
     light_set *l;
     CHECK(emb_new(&m, NULL, &e, &err));
     CHECK(light_build(e, &l, &err));
+    const emb_mesh *em = emb_get_mesh(e);
     light_sel sel;
-    light_select(l, v3(1.5f, 1.5f, 0.5f), v3(0, -1, 0), &sel);
-    light_point lp;
-    cr_expect(!light_sample(l, &sel, 0.5f, 0.5f, 0.5f, &lp));
-    for (uint32_t t = 0; t < emb_get_mesh(e)->ntris; t++) cr_expect_eq(light_pdf_area(l, &sel, t), 0.0f);
-    light_select(l, v3(1.5f, 0.0f, 0.5f), v3(0, 1, 0), &sel);   /* below: both light it */
-    cr_expect(light_sample(l, &sel, 0.5f, 0.5f, 0.5f, &lp));
+    light_select(l, v3(1.5f, 1.5f, 0.5f), v3(0, 1, 0), &sel);
+    double p[3] = {0, 0, 0};
+    for (uint32_t t = 0; t < em->ntris; t++) {
+        double q = (double)light_pdf_area(l, &sel, t) * emb_tri_area(em, t);
+        p[em->tri_node[t] == (uint32_t)p1 ? 0 : em->tri_node[t] == (uint32_t)p2 ? 1 : 2] += q;
+    }
+    cr_expect(fabs(p[0] + p[1] + p[2] - 1.0) < 1e-4);
+    cr_expect(p[0] + p[1] <= LIGHT_DEFENSIVE + 1e-6, "panels behind the point get %g", p[0] + p[1]);
+    cr_expect(p[0] > 0.0 && p[1] > 0.0, "but keep a positive density");
     light_free(l);
     emb_free(e);
     scene_free(s);
