@@ -265,22 +265,32 @@ uint32_t light_count(const light_set *l) { return l->n; }
 
 uint32_t light_emitters(const light_set *l) { return l->ne; }
 
-/* A point on emitter k's lights, picked by power, from three numbers. */
-static vec3 emitter_point(const light_set *l, uint32_t k, float u0, float u1, float u2)
+/* The light of emitter em that v in [0, 1) picks by power (the emitter's
+ * cdf has no leading 0). */
+static uint32_t light_of_emitter(const light_set *l, const emitter *em, float v)
 {
-    const emitter *em = &l->em[k];
-    /* Lights within an emitter by power (their cdf has no leading 0). */
     uint32_t lo = em->first, hi = em->first + em->count - 1;
     while (lo < hi) {
         uint32_t mid = (lo + hi) / 2;
-        if (l->cdf[mid] > u0) hi = mid;
+        if (l->cdf[mid] > v) hi = mid;
         else lo = mid + 1;
     }
-    uint32_t i = lo;
+    return lo;
+}
+
+/* The point of light i at two uniform numbers, uniform by area. */
+static vec3 light_point_at(const light_set *l, uint32_t i, float u1, float u2)
+{
     float su = sqrtf(u1);
     float b1 = 1.0f - su, b2 = u2 * su;
     const vec3 *g = l->geo + 4 * (size_t)i;
     return v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
+}
+
+/* A point on emitter k's lights, picked by power, from three numbers. */
+static vec3 emitter_point(const light_set *l, uint32_t k, float u0, float u1, float u2)
+{
+    return light_point_at(l, light_of_emitter(l, &l->em[k], u0), u1, u2);
 }
 
 /* Whether light passes from p along d for dist: nothing blocks it but
@@ -469,20 +479,11 @@ bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, 
     if (!(span > 0.0f)) return false;
     uint32_t k = map ? map[j] : j;
     float v = fminf(fmaxf((u0 - lo) / span, 0.0f), 0x1.fffffep-1f);
-    const emitter *em = &l->em[k];
-    uint32_t a = em->first, b = em->first + em->count - 1;
-    while (a < b) {
-        uint32_t mid = (a + b) / 2;
-        if (l->cdf[mid] > v) b = mid;
-        else a = mid + 1;
-    }
-    float su = sqrtf(u1);
-    float b1 = 1.0f - su, b2 = u2 * su;   /* uniform by area */
-    const vec3 *g = l->geo + 4 * (size_t)a;
-    out->tri = l->tri[a];
-    out->p = v3_add(g[0], v3_add(v3_scale(g[1], b1), v3_scale(g[2], b2)));
-    out->n = l->nrm[a];
-    out->le = g[3];
+    uint32_t i = light_of_emitter(l, &l->em[k], v);
+    out->tri = l->tri[i];
+    out->p = light_point_at(l, i, u1, u2);
+    out->n = l->nrm[i];
+    out->le = l->geo[4 * (size_t)i + 3];
     out->pdf_area = emitter_prob(l, sel, k) * l->pdf_in[out->tri];
     return true;
 }
