@@ -168,6 +168,25 @@ static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target,
     return v3s(0.0f);
 }
 
+/* x - floor(x) for x in [0, 2), kept below 1 (float rounding). */
+static inline float frac1(float x)
+{
+    float f = x >= 1.0f ? x - 1.0f : x;
+    return f < 0x1.fffffep-1f ? f : 0x1.fffffep-1f;
+}
+
+/* The radical inverse of i in base b (2 or 3): the i-th Halton coordinate. */
+static inline float radical_inverse(uint32_t i, uint32_t base)
+{
+    float inv = 1.0f / (float)base, f = inv, r = 0.0f;
+    while (i) {
+        r += f * (float)(i % base);
+        i /= base;
+        f *= inv;
+    }
+    return r;
+}
+
 /* Light samples of one shading point whose shadow rays are tested together. */
 #define SHADOW_BATCH 8
 
@@ -192,11 +211,18 @@ typedef struct dl_batch {
 /* Draws kn light samples at s, evaluates the bsdf towards them and sets up
  * the shadow rays of those that can contribute (see direct_light). */
 static void dl_prepare(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb,
-                       int kn, const light_sel *sel, dl_batch *q)
+                       int k0, int kn, const light_sel *sel, const float shift[3], dl_batch *q)
 {
     q->n = 0;
+    int k_rays = c->opt->shadow_rays;
     for (int k = 0; k < kn; k++) {
-        float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
+        /* The K light samples of a point are a randomly shifted Halton-like
+         * set (k / K, radical inverses in bases 2 and 3): stratified over the
+         * emitter choice and the light's area, each sample still uniform. */
+        uint32_t i = (uint32_t)(k0 + k);
+        float u0 = frac1((float)i / (float)k_rays + shift[0]);
+        float u1 = frac1(radical_inverse(i, 2) + shift[1]);
+        float u2 = frac1(radical_inverse(i, 3) + shift[2]);
         light_point lp;
         if (!light_sample(c->lights, sel, u0, u1, u2, &lp)) continue;
         if (lp.tri == s->h.tri) continue;
@@ -291,9 +317,10 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
     /* The emitter probabilities at s, for all its light samples (lights.h). */
     light_sel sel;
     light_select(c->lights, s->p, b->ng, &sel);
+    float shift[3] = {rnd(c), rnd(c), rnd(c)};
     for (int k0 = 0; k0 < k_rays; k0 += SHADOW_BATCH) {
         int kn = k_rays - k0 < SHADOW_BATCH ? k_rays - k0 : SHADOW_BATCH;
-        dl_prepare(c, s, b, wo, mode, nb, kn, &sel, &q);
+        dl_prepare(c, s, b, wo, mode, nb, k0, kn, &sel, shift, &q);
         dl_test(c, &q);
         dl_finish(c, b, mode, nb, &q, &sum);
     }

@@ -5,6 +5,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -30,9 +31,10 @@ static trc_tracer *make_tracer(const ct_scene *s, const ct_radmesh *rad, trc_mod
     return t;
 }
 
-/* Mean L_hq of n samples at image position (px, py) (request ids id0..). */
-static vec3 mean_at(const trc_tracer *t, const trc_view *v, float px, float py, int n, uint64_t id0,
-                    ct_sample *last)
+/* Mean L_hq of n samples at image position (px, py) (request ids id0..) and,
+ * if var is given, the variance of their red channel. */
+static vec3 moments_at(const trc_tracer *t, const trc_view *v, float px, float py, int n, uint64_t id0,
+                       ct_sample *last, double *var)
 {
     ct_request *req = calloc((size_t)n, sizeof *req);
     ct_sample *out = calloc((size_t)n, sizeof *out);
@@ -44,16 +46,25 @@ static vec3 mean_at(const trc_tracer *t, const trc_view *v, float px, float py, 
     }
     trc_stats st = {0};
     trc_trace(t, v, req, (size_t)n, out, &st);
-    double sx = 0, sy = 0, sz = 0;
+    double sx = 0, sy = 0, sz = 0, sxx = 0;
     for (int i = 0; i < n; i++) {
         sx += out[i].l_hq.x;
         sy += out[i].l_hq.y;
         sz += out[i].l_hq.z;
+        sxx += (double)out[i].l_hq.x * out[i].l_hq.x;
     }
     if (last) *last = out[n - 1];
+    if (var) *var = sxx / n - (sx / n) * (sx / n);
     free(req);
     free(out);
     return v3((float)(sx / n), (float)(sy / n), (float)(sz / n));
+}
+
+/* Mean L_hq of n samples at image position (px, py) (request ids id0..). */
+static vec3 mean_at(const trc_tracer *t, const trc_view *v, float px, float py, int n, uint64_t id0,
+                    ct_sample *last)
+{
+    return moments_at(t, v, px, py, n, id0, last, NULL);
 }
 
 static trc_view view_of(vec3 eye, vec3 target, float fov, int w, int h)
@@ -159,6 +170,37 @@ static void form_factor(trc_mode mode, bool with_rad, bool two_lights)
 Test(tracer, plane_under_area_light_path) { form_factor(TRC_MODE_PATH, false, false); }
 Test(tracer, plane_under_area_light_drt) { form_factor(TRC_MODE_DRT, false, false); }
 Test(tracer, plane_under_area_light_drt_radmesh) { form_factor(TRC_MODE_DRT, true, false); }
+/* The K light samples of a point are stratified (a shifted Halton-like
+ * set): with K = 4 the variance of direct light under two area lights is
+ * under 0.22 of the one-sample variance (0.18 measured; independent samples
+ * give a quarter: 0.24 measured with the same seeds). */
+Test(tracer, light_samples_of_a_point_are_stratified)
+{
+    ct_error err;
+    ct_scene *s = scene_new("plane");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(10, 5, 2), &err);
+    cr_assert(floor_m >= 0 && lamp >= 0);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    cr_assert(ts_quad(s, "light2", (uint32_t)lamp, v3(1.0f, 1.5f, -0.3f), v3(0.6f, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
+    double var[2];
+    vec3 mean[2];
+    for (int i = 0; i < 2; i++) {
+        trc_tracer *t = make_tracer(s, NULL, TRC_MODE_DRT, i ? 4 : 1, 0, 1);
+        mean[i] = moments_at(t, &v, 8, 8, 4000, 777000u, NULL, &var[i]);
+        trc_free(t);
+    }
+    printf("metric: direct light at one point, variance K=1 %.4g, K=4 %.4g (ratio %.3f; independent: 0.25)\n",
+           var[0], var[1], var[1] / var[0]);
+    cr_expect(fabsf(mean[0].x - mean[1].x) < 0.03f * mean[1].x, "means %g and %g", (double)mean[0].x,
+              (double)mean[1].x);
+    cr_expect(var[1] < 0.22 * var[0], "K=4 variance %g is not under 0.22 x the K=1 variance %g", var[1], var[0]);
+    scene_free(s);
+}
+
 /* Two emitters: the spatial light selection (and, in path mode, its MIS
  * weights for light found by scattered rays) must stay unbiased. */
 Test(tracer, plane_under_two_area_lights_path) { form_factor(TRC_MODE_PATH, false, true); }
