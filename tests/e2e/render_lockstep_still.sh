@@ -3,10 +3,12 @@
 # so the display re-sends its unchanged camera after each drawn frame. With
 # K samples a frame, 4 frames of a still camera must all arrive (no wait for a
 # camera change), and the error against a high-quality reference of that view
-# must not grow as the corrections accumulate (frame 3 within 0.1 dB of frame
-# 0 or better: at 64x64 the corrected image soon sits at the noise of single
-# drt samples, so PSNR rises only by 0.05-0.1 dB here, and the small radiosity
-# mesh this test solves is not bit-identical from run to run).
+# must not grow as the corrections accumulate. The job and the reference run
+# in the reuse-diffuse mode (§4.1: the diffuse part from the radiosity, only
+# specular and glossy transport traced): single drt samples carry Monte Carlo
+# penumbra noise that, on the Cornell box's accurate radiosity, can make more
+# corrections measure worse at 64x64; reuse-diffuse corrections (the mirror,
+# the glass) converge to the reference, so frame 3 must beat frame 0.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs "$corrtex"
 cornell_args
@@ -14,15 +16,17 @@ sock="$tmp/still.sock"
 K=800
 cam=278,273,-800,278,273,0,39.3
 
-ref=("$corrtex" reference "${CORNELL[0]}" --camera front --width 64 --height 64 --spp 16 --mode drt
-  --threads 2 -o "$tmp/ref/frame_00000.exr")
+master_start master 2 "${CORNELL[@]}" --listen "unix:$sock" --exit-when-display-leaves --mode reuse-diffuse
+master_wait_listen master || finish
+
+# The reference on the job's own radiosity mesh (written before it listens).
+ref=("$corrtex" reference "${CORNELL[0]}" --camera front --width 64 --height 64 --spp 16 --mode reuse-diffuse
+  --radmesh "$tmp/cornell.ctmesh" --threads 2 -o "$tmp/ref/frame_00000.exr")
 mkdir -p "$tmp/ref"
 log_cmd "${ref[@]}"
 "${ref[@]}" >"$tmp/ref.log" 2>&1 || { fail "corrtex reference failed"; cat "$tmp/ref.log"; finish; }
 for k in 1 2 3; do cp "$tmp/ref/frame_00000.exr" "$tmp/ref/frame_0000$k.exr"; done
 
-master_start master 2 "${CORNELL[@]}" --listen "unix:$sock" --exit-when-display-leaves
-master_wait_listen master || finish
 display_run display --connect "$ADDR" "${HEADLESS[@]}" --samples-per-frame $K --camera "$cam" --frames 4 \
   --seconds 60 --out "$tmp/out" --reference "$tmp/ref"
 ((DISPLAY_RC == 0)) || fail "display exit status $DISPLAY_RC"
@@ -34,5 +38,5 @@ col() { head -n 1 "$1" | tr ',' '\n' | grep -n -x "$2" | cut -d: -f1; }
 val() { awk -F, -v c="$(col "$1" "$3")" -v r=$(($2 + 2)) 'NR == r { print $c }' "$1"; }
 p0=$(val "$tmp/out/frames.csv" 0 psnr_db); p3=$(val "$tmp/out/frames.csv" 3 psnr_db)
 echo "metric: still camera, lockstep K=$K: PSNR frame 0 $p0 dB, frame 3 $p3 dB"
-awk -v a="$p0" -v b="$p3" 'BEGIN { exit !(b > a - 0.1) }' || fail "PSNR fell from frame 0 to frame 3 by more than 0.1 dB"
+awk -v a="$p0" -v b="$p3" 'BEGIN { exit !(b > a) }' || fail "PSNR did not rise from frame 0 to frame 3"
 finish
