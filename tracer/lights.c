@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "common/rng.h"
+#include "tracer/bsdf.h"
 
 /* Grid cells of the visibility estimate: about this many over the scene's
  * bounding box, and at most LIGHT_GRID_BYTES of candidate lists in all. */
@@ -31,8 +32,6 @@ typedef struct key_cands {
     uint8_t vis[LIGHT_CANDS];   /* unblocked test rays of LIGHT_VIS_RAYS */
 } key_cands;
 
-static inline float maxf(float a, float b) { return a > b ? a : b; }
-
 typedef struct emitter {
     vec3 c;            /* centre of the bounding box */
     vec3 n;            /* common front normal when flat */
@@ -51,7 +50,7 @@ struct light_set {
     vec3 *geo;           /* per light: vertex 0, edge 1 - 0, edge 2 - 0, L_e (no index lookups) */
     float *cdf;          /* per light: cumulative power within its emitter, ends at 1 */
     float *pdf_in;       /* per mesh triangle: lum(L_e) / power of its emitter */
-    uint32_t *tri_em;    /* per mesh triangle: its emitter (only read for lights) */
+    uint32_t *tri_em;    /* per mesh triangle: its emitter, UINT32_MAX if not a light */
     uint32_t ne;
     emitter *em;
     float *em_cdf;       /* ne + 1 entries: emitters by power */
@@ -94,7 +93,7 @@ static void describe_emitters(light_set *l)
         }
         em->c = v3_scale(v3_add(lo, hi), 0.5f);
         vec3 half = v3_scale(v3_sub(hi, lo), 0.5f);
-        em->r2 = maxf(v3_len2(half), 1e-12f);
+        em->r2 = bsdf_maxf(v3_len2(half), 1e-12f);
         em->power = (float)power;
         /* Flat: every vertex within a hair of the first light's plane and
          * every normal the same, so a point behind that plane gets nothing. */
@@ -166,14 +165,17 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
     uint32_t *fill = NULL;
     if (!l->pdf_in || !l->tri_em || !node_em) goto oom;
     /* Emitters: the emissive triangles of one part node, numbered in order
-     * of first appearance (deterministic for a given mesh). */
+     * of first appearance (deterministic for a given mesh). tri_em is
+     * UINT32_MAX for every triangle that is not a light. */
     for (uint32_t i = 0; i < m->nnodes; i++) node_em[i] = UINT32_MAX;
     for (uint32_t t = 0; t < m->ntris; t++) {
-        vec3 le = m->mats[m->tri_mat[t]].emission;
-        if (!(v3_luminance(le) > 0.0f && emb_tri_area(m, t) > 0.0f)) continue;
-        l->n++;
+        l->tri_em[t] = UINT32_MAX;
         uint32_t node = m->tri_node[t];
-        if (node >= m->nnodes) continue;   /* emb_new validated the mesh; belt and braces */
+        /* (node < nnodes: emb_new validated the mesh; belt and braces) */
+        if (!(v3_luminance(m->mats[m->tri_mat[t]].emission) > 0.0f && emb_tri_area(m, t) > 0.0f) ||
+            node >= m->nnodes)
+            continue;
+        l->n++;
         if (node_em[node] == UINT32_MAX) node_em[node] = l->ne++;
         l->tri_em[t] = node_em[node];
     }
@@ -188,18 +190,14 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
     if (!l->tri || !l->cdf || !l->nrm || !l->geo || !l->em || !l->em_cdf || !fill) goto oom;
     /* Lights grouped by emitter (a counting sort), mesh order within one. */
     for (uint32_t t = 0; t < m->ntris; t++)
-        if (v3_luminance(m->mats[m->tri_mat[t]].emission) > 0.0f && emb_tri_area(m, t) > 0.0f &&
-            m->tri_node[t] < m->nnodes)
-            l->em[l->tri_em[t]].count++;
+        if (l->tri_em[t] != UINT32_MAX) l->em[l->tri_em[t]].count++;
     for (uint32_t k = 0, acc = 0; k < l->ne; k++) {
         l->em[k].first = acc;
         acc += l->em[k].count;
     }
-    uint32_t placed = 0;
     for (uint32_t t = 0; t < m->ntris; t++) {
-        vec3 le = m->mats[m->tri_mat[t]].emission;
-        if (!(v3_luminance(le) > 0.0f && emb_tri_area(m, t) > 0.0f) || m->tri_node[t] >= m->nnodes) continue;
         uint32_t k = l->tri_em[t];
+        if (k == UINT32_MAX) continue;
         uint32_t i = l->em[k].first + fill[k]++;
         l->tri[i] = t;
         l->nrm[i] = emb_tri_normal(m, t);
@@ -207,10 +205,8 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
         l->geo[4 * (size_t)i] = m->pos[vi[0]];
         l->geo[4 * (size_t)i + 1] = v3_sub(m->pos[vi[1]], m->pos[vi[0]]);
         l->geo[4 * (size_t)i + 2] = v3_sub(m->pos[vi[2]], m->pos[vi[0]]);
-        l->geo[4 * (size_t)i + 3] = le;
-        placed++;
+        l->geo[4 * (size_t)i + 3] = m->mats[m->tri_mat[t]].emission;
     }
-    l->n = placed;
     describe_emitters(l);
     /* Cumulative sums in double: thousands of small radiosity triangles
      * would lose precision summed in float. */
@@ -350,8 +346,8 @@ static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t
     float wmax = 0.0f, wk[LIGHT_SEL_MAX], score[LIGHT_SEL_MAX];
     uint8_t vis[LIGHT_SEL_MAX];
     for (uint32_t k = 0; k < l->ne; k++) {
-        wk[k] = l->em[k].power / maxf(v3_len2(v3_sub(mid, l->em[k].c)), l->em[k].r2);
-        wmax = maxf(wmax, wk[k]);
+        wk[k] = l->em[k].power / bsdf_maxf(v3_len2(v3_sub(mid, l->em[k].c)), l->em[k].r2);
+        wmax = bsdf_maxf(wmax, wk[k]);
     }
     for (uint32_t k = 0; k < l->ne; k++) {
         const emitter *em = &l->em[k];
@@ -424,7 +420,7 @@ void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
     for (uint32_t j = 0; j < kc->n; j++) {
         const emitter *em = &l->em[kc->idx[j]];
         vec3 d = v3_sub(x, em->c);
-        float m = maxf(v3_len2(d), em->r2);
+        float m = bsdf_maxf(v3_len2(d), em->r2);
         float w = em->power / m;
         if (em->flat) {
             float c = v3_dot(d, em->n);
@@ -442,6 +438,9 @@ void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
     for (uint32_t j = 1; j <= sel->n; j++) sel->cdf[j] *= inv;
     if (sel->n && acc > 0.0f) sel->cdf[sel->n] = 1.0f;
 }
+
+/* x clamped to [0, 1) (rescaled uniform numbers may round past the ends). */
+static inline float unit(float x) { return x > 0.0f ? (x < 0x1.fffffep-1f ? x : 0x1.fffffep-1f) : 0.0f; }
 
 /* Probability that sel picks emitter k. */
 static float emitter_prob(const light_set *l, const light_sel *sel, uint32_t k)
@@ -473,12 +472,12 @@ bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, 
     } else if (sel->n) {
         u0 = u0 / sel->defensive;
     }
-    u0 = fminf(fmaxf(u0, 0.0f), 0x1.fffffep-1f);
+    u0 = unit(u0);
     uint32_t j = emitter_of_cdf(ec, nc, u0);
     float lo = ec[j], span = ec[j + 1] - lo;
     if (!(span > 0.0f)) return false;
     uint32_t k = map ? map[j] : j;
-    float v = fminf(fmaxf((u0 - lo) / span, 0.0f), 0x1.fffffep-1f);
+    float v = unit((u0 - lo) / span);
     uint32_t i = light_of_emitter(l, &l->em[k], v);
     out->tri = l->tri[i];
     out->p = light_point_at(l, i, u1, u2);
