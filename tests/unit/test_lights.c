@@ -52,14 +52,16 @@ static void two_rooms_free(two_rooms *r)
 }
 
 /* Probability under sel that the picked point lies on part node. */
-static double p_node(const two_rooms *r, const light_sel *sel, int node)
+static double p_on(const light_set *l, const emb_scene *e, const light_sel *sel, int node)
 {
-    const emb_mesh *m = emb_get_mesh(r->emb);
+    const emb_mesh *m = emb_get_mesh(e);
     double p = 0.0;
     for (uint32_t t = 0; t < m->ntris; t++)
-        if (m->tri_node[t] == (uint32_t)node) p += (double)light_pdf_area(r->l, sel, t) * emb_tri_area(m, t);
+        if (m->tri_node[t] == (uint32_t)node) p += (double)light_pdf_area(l, sel, t) * emb_tri_area(m, t);
     return p;
 }
+
+static double p_node(const two_rooms *r, const light_sel *sel, int node) { return p_on(r->l, r->emb, sel, node); }
 
 Test(lights, own_room_light_gets_the_shadow_rays)
 {
@@ -145,14 +147,9 @@ Test(lights, emitters_behind_get_only_the_defensive_share)
     light_set *l;
     CHECK(emb_new(&m, NULL, &e, &err));
     CHECK(light_build(e, &l, &err));
-    const emb_mesh *em = emb_get_mesh(e);
     light_sel sel;
     light_select(l, v3(1.5f, 1.5f, 0.5f), v3(0, 1, 0), &sel);
-    double p[3] = {0, 0, 0};
-    for (uint32_t t = 0; t < em->ntris; t++) {
-        double q = (double)light_pdf_area(l, &sel, t) * emb_tri_area(em, t);
-        p[em->tri_node[t] == (uint32_t)p1 ? 0 : em->tri_node[t] == (uint32_t)p2 ? 1 : 2] += q;
-    }
+    double p[3] = {p_on(l, e, &sel, p1), p_on(l, e, &sel, p2), p_on(l, e, &sel, p3)};
     cr_expect(fabs(p[0] + p[1] + p[2] - 1.0) < 1e-4);
     cr_expect(p[0] + p[1] <= LIGHT_DEFENSIVE + 1e-6, "panels behind the point get %g", p[0] + p[1]);
     cr_expect(p[0] > 0.0 && p[1] > 0.0, "but keep a positive density");

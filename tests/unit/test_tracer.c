@@ -130,7 +130,7 @@ static double ff_rect(double px, double pz, double x0, double x1, double z0, dou
 /* A floor under one light 1 x 0.6 at height 1 (x in [-0.5, 0.5]) or, with
  * two_lights, also a second one 0.6 x 0.6 at height 1.5 over x in [1, 1.6]:
  * two emitters, so the spatial light selection picks between them. */
-static void form_factor(trc_mode mode, bool with_rad, bool two_lights)
+static ct_scene *plane_scene(bool two_lights)
 {
     ct_error err;
     ct_scene *s = scene_new("plane");
@@ -144,6 +144,13 @@ static void form_factor(trc_mode mode, bool with_rad, bool two_lights)
         cr_assert(ts_quad(s, "light2", (uint32_t)lamp, v3(1.0f, 1.5f, -0.3f), v3(0.6f, 0, 0), v3(0, 0, 0.6f),
                           &err) >= 0);
     CHECK(scene_finalize(s, &err));
+    return s;
+}
+
+static void form_factor(trc_mode mode, bool with_rad, bool two_lights)
+{
+    ct_error err;
+    ct_scene *s = plane_scene(two_lights);
     ct_radmesh rad;
     if (with_rad) CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
     trc_tracer *t = make_tracer(s, with_rad ? &rad : NULL, mode, 4, 0, 0);
@@ -176,15 +183,7 @@ Test(tracer, plane_under_area_light_drt_radmesh) { form_factor(TRC_MODE_DRT, tru
  * give a quarter: 0.24 measured with the same seeds). */
 Test(tracer, light_samples_of_a_point_are_stratified)
 {
-    ct_error err;
-    ct_scene *s = scene_new("plane");
-    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
-    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(10, 5, 2), &err);
-    cr_assert(floor_m >= 0 && lamp >= 0);
-    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
-    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
-    cr_assert(ts_quad(s, "light2", (uint32_t)lamp, v3(1.0f, 1.5f, -0.3f), v3(0.6f, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
-    CHECK(scene_finalize(s, &err));
+    ct_scene *s = plane_scene(true);
     trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
     double var[2];
     vec3 mean[2];
