@@ -24,8 +24,8 @@ typedef struct emis_w {
     emis_mode mode;
     float pdf;    /* solid-angle pdf of the direction (EMIS_MIS) */
     int n;        /* rays of that strategy (EMIS_MIS) */
-    vec3 from;    /* the shading point the ray left (EMIS_MIS: its light selection)... */
-    vec3 from_n;  /* ...and its geometric normal */
+    vec3 from;        /* the shading point the ray left (EMIS_MIS: its light selection)... */
+    uint32_t from_key;  /* ...and its light_key */
 } emis_w;
 
 typedef enum direct_mode {
@@ -39,7 +39,7 @@ typedef enum direct_mode {
  * already looked along, unless it started at the camera or a reflection. */
 static inline emis_w after_delta(emis_w in, bool transmit)
 {
-    emis_w out = {EMIS_FULL, 0.0f, 1, in.from, in.from_n};
+    emis_w out = {EMIS_FULL, 0.0f, 1, in.from, in.from_key};
     if (transmit && in.mode != EMIS_FULL) out.mode = EMIS_NONE;
     return out;
 }
@@ -97,7 +97,7 @@ static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t sh
     r->shadow = shadow;
 }
 
-static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
+static void make_surf(const integ_ctx *c, const emb_hit *h, vec3 d, integ_surf *s)
 {
     s->h = *h;
     /* The shading normal waits for bsdf setup (surf_bsdf): reuse-diffuse
@@ -106,6 +106,9 @@ static void make_surf(const integ_ctx *c, const emb_hit *h, integ_surf *s)
     s->ng = h->rec->ng;
     s->m = &c->mesh->mats[h->mat];
     s->bm = &c->bmats[h->mat];
+    /* Most hits select lights after their bsdf setup: start the load now
+     * (with the normal facing the ray: the bsdf's b.ng). */
+    s->lkey = light_key(c->lights, s->p, v3_dot(d, s->ng) <= 0.0f ? s->ng : v3_neg(s->ng));
 }
 
 /* The bsdf at s seen from wo (with its shading normal). */
@@ -120,7 +123,7 @@ bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
     c->st->primary++;
     log_ray(c, o, d, INFINITY, 0);
     if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return false;
-    make_surf(c, &h, s);
+    make_surf(c, &h, d, s);
     return true;
 }
 
@@ -130,7 +133,7 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
     c->st->secondary++;
     log_ray(c, o, d, INFINITY, 0);
     if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return false;
-    make_surf(c, &h, s);
+    make_surf(c, &h, d, s);
     return true;
 }
 
@@ -316,8 +319,9 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
     q.origin = offset_ray(s->p, b->ng);
     /* The emitter probabilities at s, for all its light samples (lights.h). */
     light_sel sel;
-    light_select(c->lights, s->p, b->ng, &sel);
-    float shift[3] = {rnd(c), rnd(c), rnd(c)};
+    light_select_key(c->lights, s->lkey, s->p, &sel);
+    float shift[3];
+    for (int k = 0; k < 3; k++) shift[k] = rnd(c);   /* (an initializer list's order is unspecified) */
     for (int k0 = 0; k0 < k_rays; k0 += SHADOW_BATCH) {
         int kn = k_rays - k0 < SHADOW_BATCH ? k_rays - k0 : SHADOW_BATCH;
         dl_prepare(c, s, b, wo, mode, nb, k0, kn, &sel, shift, &q);
@@ -335,7 +339,7 @@ static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
     if (ew.mode == EMIS_FULL) return s->m->emission;
     /* The density the shadow rays of the point the ray left had. */
     light_sel sel;
-    light_select(c->lights, ew.from, ew.from_n, &sel);
+    light_select_key(c->lights, ew.from_key, ew.from, &sel);
     float pl = light_pdf_area(c->lights, &sel, s->h.tri) * s->h.t * s->h.t / cos_front;
     return v3_scale(s->m->emission,
                     bsdf_power_heuristic((float)ew.n * ew.pdf, (float)c->opt->shadow_rays * pl));
@@ -345,7 +349,7 @@ static vec3 emitted(const integ_ctx *c, const integ_surf *s, vec3 d, emis_w ew)
 static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool count_first, int max_depth)
 {
     vec3 L = v3s(0.0f), beta = v3s(1.0f);
-    emis_w ew = {count_first ? EMIS_FULL : EMIS_NONE, 0.0f, 1, o, d};
+    emis_w ew = {count_first ? EMIS_FULL : EMIS_NONE, 0.0f, 1, o, LIGHT_NO_KEY};
     integ_surf s;
     for (int depth = 0;; depth++) {
         if (depth == 0 && first) s = *first;
@@ -367,7 +371,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
             ew.pdf = bs.pdf;
             ew.n = 1;
             ew.from = s.p;
-            ew.from_n = b.ng;
+            ew.from_key = s.lkey;
         }
         if (depth >= RR_START) {
             float q = minf(0.95f, maxc(beta));
@@ -410,7 +414,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         bsdf_sample bs;
         float u1 = rnd(c), u2 = rnd(c);
         if (!bsdf_sample_glossy(b, wo, u1, u2, &bs)) continue;
-        emis_w mis = {EMIS_MIS, bs.pdf, nb, s->p, b->ng};
+        emis_w mis = {EMIS_MIS, bs.pdf, nb, s->p, s->lkey};
         vec3 l = li(c, up, bs.wi, depth + 1, mis);
         L = v3_add(L, v3_scale(v3_mul(bs.weight, l), 1.0f / (float)nb));
     }
@@ -487,7 +491,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     if (ew.mode != EMIS_FULL) {
         /* The radiosity includes the emitter's L_e; a glossy ray that found
          * it only carries its MIS share (light sampling has the rest). */
-        vec3 le = emitted(c, &s, d, (emis_w){EMIS_FULL, 0.0f, 1, o, d});
+        vec3 le = emitted(c, &s, d, (emis_w){EMIS_FULL, 0.0f, 1, o, LIGHT_NO_KEY});
         vec3 keep = emitted(c, &s, d, ew);
         base = clamp0(v3_sub(base, v3_sub(le, keep)));
     }
@@ -516,7 +520,7 @@ static vec3 reuse_next(integ_ctx *c, vec3 o, vec3 d, int depth, emis_w ew)
 
 vec3 integ_radiance(integ_ctx *c, vec3 o, vec3 d, const integ_surf *s, vec3 *base)
 {
-    emis_w full = {EMIS_FULL, 0.0f, 1, o, d};
+    emis_w full = {EMIS_FULL, 0.0f, 1, o, LIGHT_NO_KEY};
     switch (c->opt->mode) {
     case TRC_MODE_PATH: return path_li(c, o, d, s, true, c->opt->depth);
     case TRC_MODE_DRT: return drt_li(c, o, d, s, 0, full);

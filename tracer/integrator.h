@@ -36,6 +36,7 @@ typedef struct integ_surf {
     vec3 ng;           /* front (winding) normal, unit */
     const scene_material *m;
     const bsdf_mat *bm;
+    uint32_t lkey;     /* light_key at p, normal ng facing the ray */
 } integ_surf;
 
 /* Per-vertex values (radiosity) interpolated at a hit: rmesh_eval's

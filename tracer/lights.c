@@ -32,6 +32,18 @@ typedef struct key_cands {
     uint8_t vis[LIGHT_CANDS];   /* unblocked test rays of LIGHT_VIS_RAYS */
 } key_cands;
 
+/* One (cell, side) in the grid: its state and candidates in 32 bytes on one
+ * cache line (each shading point reads a key at random: one miss, not two).
+ * The visibility counts (0..LIGHT_VIS_RAYS) are packed two per byte. */
+typedef struct grid_key {
+    atomic_uchar state;         /* CELL_*: the rest is valid once READY */
+    uint8_t n;
+    uint8_t idx[LIGHT_CANDS];
+    uint8_t vis2[LIGHT_CANDS / 2];
+} __attribute__((aligned(32))) grid_key;
+_Static_assert(sizeof(grid_key) == 32, "a grid key fills half a cache line");
+_Static_assert(LIGHT_VIS_RAYS < 16, "visibility counts are packed in 4 bits");
+
 typedef struct emitter {
     vec3 c;            /* centre of the bounding box */
     vec3 n;            /* common front normal when flat */
@@ -40,6 +52,14 @@ typedef struct emitter {
     bool flat;         /* all triangles in one plane, facing one way */
     uint32_t first, count;   /* its lights: [first, first + count) */
 } emitter;
+
+/* The emitters' data light_select weighs, as arrays (structure of arrays):
+ * gathered per candidate into a short vector the compiler can compute four
+ * or eight at a time. Non-flat emitters have ny = 0 and flat = 0. */
+typedef struct emitter_soa {
+    float *cx, *cy, *cz, *nx, *ny, *nz, *r2, *power;
+    uint8_t *flat;
+} emitter_soa;
 
 struct light_set {
     const emb_scene *emb;
@@ -53,14 +73,14 @@ struct light_set {
     uint32_t *tri_em;    /* per mesh triangle: its emitter, UINT32_MAX if not a light */
     uint32_t ne;
     emitter *em;
+    emitter_soa es;
     float *em_cdf;       /* ne + 1 entries: emitters by power */
     /* The visibility grid (only with 2..LIGHT_SEL_MAX emitters). */
     bool spatial;
     vec3 lo;
     float h;
     uint32_t nx, ny, nz;
-    key_cands *cands;            /* per key (cell * 6 + side) */
-    atomic_uchar *state;         /* per key: CELL_* */
+    grid_key *keys;              /* per key (cell * 6 + side) */
 };
 
 static uint32_t emitter_of_cdf(const float *cdf, uint32_t n, float u)
@@ -109,6 +129,36 @@ static void describe_emitters(light_set *l)
     }
 }
 
+/* Four floats or ints in one register (GCC and Clang vector extensions). */
+typedef float v4f __attribute__((vector_size(16)));
+typedef int32_t v4i __attribute__((vector_size(16)));
+
+/* mask ? a : b per lane (mask lanes all ones or zero, as comparisons give). */
+static inline v4f select4(v4i mask, v4f a, v4f b) { return (v4f)(((v4i)a & mask) | ((v4i)b & ~mask)); }
+
+/* The emitters' weighing data as arrays (light_select). */
+static int build_soa(light_set *l)
+{
+    size_t n = l->ne ? l->ne : 1;
+    float *f = calloc(8 * n, sizeof *f);
+    l->es.flat = calloc(n, 1);
+    if (!f || !l->es.flat) {
+        free(f);
+        return CT_ENOMEM;
+    }
+    float **col[8] = {&l->es.cx, &l->es.cy, &l->es.cz, &l->es.nx, &l->es.ny, &l->es.nz, &l->es.r2, &l->es.power};
+    for (int k = 0; k < 8; k++) *col[k] = f + (size_t)k * n;
+    for (uint32_t k = 0; k < l->ne; k++) {
+        const emitter *em = &l->em[k];
+        l->es.cx[k] = em->c.x, l->es.cy[k] = em->c.y, l->es.cz[k] = em->c.z;
+        if (em->flat) l->es.nx[k] = em->n.x, l->es.ny[k] = em->n.y, l->es.nz[k] = em->n.z;
+        l->es.r2[k] = em->r2;
+        l->es.power[k] = em->power;
+        l->es.flat[k] = em->flat;
+    }
+    return CT_OK;
+}
+
 /* The cell grid over the mesh's bounding box. */
 static int build_grid(light_set *l)
 {
@@ -121,7 +171,7 @@ static int build_grid(light_set *l)
     vec3 ext = v3_sub(hi, lo);
     float big = fmaxf(ext.x, fmaxf(ext.y, ext.z));
     if (!(big > 0.0f) || !isfinite(big)) return CT_OK;   /* no extent: no grid, pick by power */
-    uint32_t budget = LIGHT_GRID_BYTES / (LIGHT_SIDES * (uint32_t)sizeof(key_cands));
+    uint32_t budget = LIGHT_GRID_BYTES / (LIGHT_SIDES * (uint32_t)sizeof(grid_key));
     if (budget > LIGHT_GRID_CELLS) budget = LIGHT_GRID_CELLS;
     /* Cubic cells; flat axes get one cell. */
     double vol = (double)fmaxf(ext.x, big * 1e-3f) * fmaxf(ext.y, big * 1e-3f) * fmaxf(ext.z, big * 1e-3f);
@@ -142,10 +192,10 @@ static int build_grid(light_set *l)
     l->h = h;
     l->nx = n[0], l->ny = n[1], l->nz = n[2];
     size_t keys = (size_t)n[0] * n[1] * n[2] * LIGHT_SIDES;
-    l->cands = malloc(keys * sizeof *l->cands);
-    l->state = calloc(keys, sizeof *l->state);
-    if (!l->cands || !l->state) return CT_ENOMEM;
-    for (size_t i = 0; i < keys; i++) atomic_init(&l->state[i], CELL_EMPTY);
+    l->keys = aligned_alloc(sizeof(grid_key), keys * sizeof *l->keys);
+    if (!l->keys) return CT_ENOMEM;
+    memset(l->keys, 0, keys * sizeof *l->keys);
+    for (size_t i = 0; i < keys; i++) atomic_init(&l->keys[i].state, CELL_EMPTY);
     l->spatial = true;
     return CT_OK;
 }
@@ -229,7 +279,7 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
         l->cdf[em->first + em->count - 1] = 1.0f;
     }
     if (l->ne) l->em_cdf[l->ne] = 1.0f;
-    if (l->ne >= 2 && l->ne <= LIGHT_SEL_MAX && build_grid(l) != CT_OK) goto oom;
+    if (l->ne >= 2 && l->ne <= LIGHT_SEL_MAX && (build_soa(l) != CT_OK || build_grid(l) != CT_OK)) goto oom;
     free(node_em);
     free(fill);
     *out = l;
@@ -252,8 +302,9 @@ void light_free(light_set *l)
     free(l->tri_em);
     free(l->em);
     free(l->em_cdf);
-    free(l->cands);
-    free(l->state);
+    free(l->es.cx);   /* the block of all eight columns */
+    free(l->es.flat);
+    free(l->keys);
     free(l);
 }
 
@@ -314,7 +365,8 @@ static vec3 probe_point(const light_set *l, vec3 base, int side, ct_rng *r)
 {
     int axis = side / 2;
     float sign = side % 2 ? -1.0f : 1.0f;
-    float c[3] = {rng_float(r) * l->h, rng_float(r) * l->h, rng_float(r) * l->h};
+    float c[3];
+    for (int k = 0; k < 3; k++) c[k] = rng_float(r) * l->h;   /* (an initializer list's order is unspecified) */
     vec3 vol = v3_add(base, v3(c[0], c[1], c[2]));
     c[axis] = sign > 0.0f ? l->h : 0.0f;
     vec3 o = v3_add(base, v3(c[0], c[1], c[2]));
@@ -338,6 +390,7 @@ static vec3 probe_point(const light_set *l, vec3 base, int side, ct_rng *r)
 static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t iy, uint32_t iz, int side,
                          key_cands *out)
 {
+    memset(out, 0, sizeof *out);   /* light_select reads all LIGHT_CANDS slots */
     vec3 base = v3_add(l->lo, v3((float)ix * l->h, (float)iy * l->h, (float)iz * l->h));
     vec3 pts[LIGHT_VIS_RAYS];
     ct_rng r = rng_make(LIGHT_VIS_SEED, key, 0, 0);
@@ -388,10 +441,9 @@ static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t
 
 void light_select_power(light_sel *sel) { sel->n = 0; }
 
-void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
+/* The grid key (cell * 6 + side) of x on a surface with normal n. */
+static uint32_t key_of(const light_set *l, vec3 x, vec3 n)
 {
-    sel->n = 0;
-    if (!l->spatial) return;
     float f[3] = {(x.x - l->lo.x) / l->h, (x.y - l->lo.y) / l->h, (x.z - l->lo.z) / l->h};
     uint32_t lim[3] = {l->nx, l->ny, l->nz}, idx[3];
     for (int k = 0; k < 3; k++) {
@@ -402,36 +454,89 @@ void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
     float an[3] = {fabsf(n.x), fabsf(n.y), fabsf(n.z)}, nc[3] = {n.x, n.y, n.z};
     int axis = an[0] >= an[1] && an[0] >= an[2] ? 0 : an[1] >= an[2] ? 1 : 2;
     int side = 2 * axis + (nc[axis] < 0.0f);
-    uint32_t key = ((idx[2] * l->ny + idx[1]) * l->nx + idx[0]) * LIGHT_SIDES + (uint32_t)side;
-    const key_cands *kc = &l->cands[key];
-    key_cands local;
-    if (atomic_load_explicit(&l->state[key], memory_order_acquire) != CELL_READY) {
-        estimate_key(l, key, idx[0], idx[1], idx[2], side, &local);
+    return ((idx[2] * l->ny + idx[1]) * l->nx + idx[0]) * LIGHT_SIDES + (uint32_t)side;
+}
+
+uint32_t light_key(const light_set *l, vec3 x, vec3 n)
+{
+    if (!l->spatial) return LIGHT_NO_KEY;
+    uint32_t key = key_of(l, x, n);
+    __builtin_prefetch(&l->keys[key]);
+    return key;
+}
+
+void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel)
+{
+    light_select_key(l, light_key(l, x, n), x, sel);
+}
+
+void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
+{
+    sel->n = 0;
+    if (!l->spatial || key == LIGHT_NO_KEY) return;
+    uint32_t ix = key / LIGHT_SIDES % l->nx, iy = key / LIGHT_SIDES / l->nx % l->ny;
+    uint32_t iz = key / LIGHT_SIDES / l->nx / l->ny;
+    int side = (int)(key % LIGHT_SIDES);
+    grid_key *gk = &l->keys[key];
+    key_cands kc;
+    if (atomic_load_explicit(&gk->state, memory_order_acquire) == CELL_READY) {
+        kc.n = gk->n;
+        memcpy(kc.idx, gk->idx, sizeof kc.idx);
+        for (uint32_t j = 0; j < kc.n; j++) kc.vis[j] = (uint8_t)(gk->vis2[j / 2] >> (4 * (j % 2)) & 15u);
+    } else {
+        estimate_key(l, key, ix, iy, iz, side, &kc);
         unsigned char expect = CELL_EMPTY;
-        if (atomic_compare_exchange_strong_explicit(&l->state[key], &expect, CELL_BUSY, memory_order_acq_rel,
+        if (atomic_compare_exchange_strong_explicit(&gk->state, &expect, CELL_BUSY, memory_order_acq_rel,
                                                     memory_order_acquire)) {
-            l->cands[key] = local;
-            atomic_store_explicit(&l->state[key], CELL_READY, memory_order_release);
+            gk->n = kc.n;
+            memcpy(gk->idx, kc.idx, sizeof kc.idx);
+            for (int j = 0; j < LIGHT_CANDS; j += 2) gk->vis2[j / 2] = (uint8_t)(kc.vis[j] | kc.vis[j + 1] << 4);
+            atomic_store_explicit(&gk->state, CELL_READY, memory_order_release);
         }
-        kc = &local;
+    }
+    /* Every candidate's weight (see lights.h), four at a time: gathered
+     * straight into vector registers (GCC/Clang vector extensions; gathering
+     * through an array would stall every vector load on the scalar stores
+     * before it). The same operations in the same order as one candidate at
+     * a time; unused lanes have zero power and are ignored. */
+    float w[LIGHT_CANDS];
+    const emitter_soa *es = &l->es;
+    const v4f zero = {0.0f, 0.0f, 0.0f, 0.0f};
+    for (uint32_t j0 = 0; j0 < kc.n; j0 += 4) {
+        uint32_t k[4];
+        float live[4], vis[4];
+        for (uint32_t i = 0; i < 4; i++) {
+            bool on = j0 + i < kc.n;
+            k[i] = on ? kc.idx[j0 + i] : 0;
+            live[i] = on ? 1.0f : 0.0f;
+            vis[i] = on ? (float)kc.vis[j0 + i] : 0.0f;
+        }
+#define GATHER(col) ((v4f){es->col[k[0]], es->col[k[1]], es->col[k[2]], es->col[k[3]]})
+        v4f dx = x.x - GATHER(cx), dy = x.y - GATHER(cy), dz = x.z - GATHER(cz);
+        v4f r2 = GATHER(r2);
+        v4f pw = GATHER(power) * (v4f){live[0], live[1], live[2], live[3]};
+        v4f c = dx * GATHER(nx) + dy * GATHER(ny) + dz * GATHER(nz);
+#undef GATHER
+        v4i flat = {es->flat[k[0]] ? -1 : 0, es->flat[k[1]] ? -1 : 0, es->flat[k[2]] ? -1 : 0,
+                    es->flat[k[3]] ? -1 : 0};
+        v4f gv = LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((v4f){vis[0], vis[1], vis[2], vis[3]} /
+                                                               (float)LIGHT_VIS_RAYS);
+        v4f d2 = dx * dx + dy * dy + dz * dz;
+        v4f m = select4(d2 > r2, d2, r2);
+        v4f wj = pw / m;
+        v4f sq = {sqrtf(m[0]), sqrtf(m[1]), sqrtf(m[2]), sqrtf(m[3])};
+        v4f wf = select4(c > zero, wj * c / sq, zero);
+        v4f wv = select4(flat, wf, wj) * gv;
+        memcpy(w + j0, &wv, sizeof wv);
     }
     float acc = 0.0f;
     sel->cdf[0] = 0.0f;
-    for (uint32_t j = 0; j < kc->n; j++) {
-        const emitter *em = &l->em[kc->idx[j]];
-        vec3 d = v3_sub(x, em->c);
-        float m = bsdf_maxf(v3_len2(d), em->r2);
-        float w = em->power / m;
-        if (em->flat) {
-            float c = v3_dot(d, em->n);
-            w = c > 0.0f ? w * c / sqrtf(m) : 0.0f;
-        }
-        w *= LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((float)kc->vis[j] / (float)LIGHT_VIS_RAYS);
-        acc += isfinite(w) ? w : 0.0f;
-        sel->idx[j] = kc->idx[j];
+    for (uint32_t j = 0; j < kc.n; j++) {
+        acc += isfinite(w[j]) ? w[j] : 0.0f;
+        sel->idx[j] = kc.idx[j];
         sel->cdf[j + 1] = acc;
     }
-    sel->n = kc->n;
+    sel->n = kc.n;
     /* No candidate can light x (or there are none): every pick by power. */
     sel->defensive = acc > 0.0f ? LIGHT_DEFENSIVE : 1.0f;
     float inv = acc > 0.0f ? 1.0f / acc : 0.0f;

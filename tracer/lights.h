@@ -84,6 +84,15 @@ uint32_t light_emitters(const light_set *l);
  * compute the same values. */
 void light_select(const light_set *l, vec3 x, vec3 n, light_sel *sel);
 
+/* The visibility-grid key of x on a surface with normal n (LIGHT_NO_KEY
+ * without a grid); starts loading the key's data, far away in memory for a
+ * random point: call it as soon as a hit is known, select later. */
+#define LIGHT_NO_KEY UINT32_MAX
+uint32_t light_key(const light_set *l, vec3 x, vec3 n);
+
+/* light_select with x's key from light_key (same n). */
+void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel);
+
 /* sel for picking by power alone (no shading point). */
 void light_select_power(light_sel *sel);
 

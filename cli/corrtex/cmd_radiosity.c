@@ -96,7 +96,7 @@ int cmd_radiosity(int argc, char **argv)
     int reuse = 0, width = 512, height = 512, spp = 4, img_direct = 0;
     const char *image = NULL, *camera = NULL;
     int c;
-    double v;
+    double v = 0.0;
     optind = 1;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "o:h", opts, NULL)) != -1) {
