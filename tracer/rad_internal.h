@@ -53,6 +53,7 @@ typedef struct rad_patch {
     uint32_t root;       /* root element */
     rad_link *links;     /* this patch tree's links */
     uint32_t nlinks;
+    uint64_t want;       /* triangles its last refinement wanted beyond its quota */
 } rad_patch;
 
 /* A source cluster: a node of a binary BVH over input patches. A child is a
@@ -112,6 +113,8 @@ typedef struct rad_ctx {
     uint64_t cap_bytes;
     atomic_int over_cap;
     atomic_uint_fast64_t est_tris;  /* estimated output triangles */
+    uint64_t pass_budget;           /* --max-triangles minus est_tris at the pass start */
+    uint64_t want_total;            /* sum of the patches' want at the pass start (0: share by area) */
     atomic_uint_fast64_t rays;
     atomic_uint_fast64_t refined;   /* links refined in this pass */
     atomic_int failed;
@@ -181,7 +184,13 @@ typedef struct rad_tls {
     size_t capold;
     uint32_t *stack;
     size_t capstack;
+    int64_t quota;             /* triangles the patch being refined may still add */
+    uint64_t want;             /* ...and those its quota refused */
 } rad_tls;
+
+/* Estimated output triangles that splitting e adds (its 4 children replace
+ * it; T-vertices of the neighbours included). */
+static inline unsigned rad_split_tris(const rad_elem *e) { return e->nv == 4 ? 10u : 6u; }
 
 /* Refines the links of every element of patch p's tree (the current pass's
  * B is the error oracle's estimate); the new links replace the old block. */

@@ -4,6 +4,7 @@
  * Embree rays, and the per-patch link refinement. */
 #include "tracer/rad_internal.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -298,10 +299,17 @@ static int push_link(rad_tls *t, uint32_t e, uint32_t src, float ff)
     return 0;
 }
 
-static int can_split_receiver(const rad_ctx *c, const rad_elem *r)
+/* Whether r may be subdivided: depth, minimum area and the patch's share of
+ * --max-triangles for this pass (rad_refine_patch). A per-patch quota, not
+ * the shared running count: with the shared count, which patches got the
+ * last of the budget depended on thread timing. A split the quota refuses
+ * is counted as the patch's want, its claim on the next pass's budget. */
+static int can_split_receiver(const rad_ctx *c, rad_tls *t, const rad_elem *r)
 {
-    return r->depth < RAD_MAX_DEPTH && r->area * 0.25 >= c->min_area &&
-           atomic_load(&c->est_tris) < c->prm.max_triangles;
+    if (!(r->depth < RAD_MAX_DEPTH && r->area * 0.25 >= c->min_area)) return 0;
+    if (t->quota >= (int64_t)rad_split_tris(r)) return 1;
+    t->want += rad_split_tris(r);
+    return 0;
 }
 
 /* Unoccluded factor times visibility of a link; -1 when the link carries
@@ -360,7 +368,7 @@ static int refine(rad_ctx *c, rad_tls *t, uint32_t ri, uint32_t src_flags, float
         }
         const rad_elem *s = rad_el(c, src);
         int s_can = s->child_pub != RAD_NONE;
-        int r_can = can_split_receiver(c, r);
+        int r_can = can_split_receiver(c, t, r);
         int split_src = s_can && (s->area > r->area || !r_can);
         if (split_src) {
             atomic_fetch_add(&c->refined, 1);
@@ -371,6 +379,7 @@ static int refine(rad_ctx *c, rad_tls *t, uint32_t ri, uint32_t src_flags, float
             return 0;
         }
         if (r_can) {
+            t->quota -= rad_split_tris(r);
             if (rad_subdivide(c, ri) != 0) {
                 atomic_store(&c->failed, 1);
                 return CT_ENOMEM;
@@ -437,6 +446,15 @@ int rad_refine_patch(rad_ctx *c, rad_tls *t, uint32_t pi)
         t->old[2 * i + 1] = e->nlinks;
     }
     t->nout = 0;
+    /* The patch's share of the pass's triangle budget: by what it wanted
+     * and was refused in the last pass, or by area when no patch was refused
+     * (the first pass). A pure function of the state at the pass start, so
+     * the mesh is the same for any thread count and timing; what a patch
+     * leaves unused returns to the next pass's budget. */
+    double share = c->want_total ? (double)p->want / (double)c->want_total
+                   : c->total_area > 0.0 ? rad_el(c, p->root)->area / c->total_area : 0.0;
+    t->quota = (int64_t)floor((double)c->pass_budget * share);
+    t->want = 0;
     if (c->pass == 0) {
         /* The first pass starts every patch with one link from the whole scene. */
         uint32_t top = c->nclusters ? RAD_CLUSTER_BIT : RAD_NONE;
@@ -484,6 +502,7 @@ int rad_refine_patch(rad_ctx *c, rad_tls *t, uint32_t pi)
     free(p->links);
     p->links = blk;
     p->nlinks = (uint32_t)t->nout;
+    p->want = t->want;
     return 0;
 }
 

@@ -130,7 +130,7 @@ int rad_subdivide(rad_ctx *c, uint32_t ei)
     }
     /* Publish the children only after they are complete. */
     e->child = first;
-    atomic_fetch_add(&c->est_tris, e->nv == 4 ? 10u : 6u);
+    atomic_fetch_add(&c->est_tris, rad_split_tris(e));
     return 0;
 }
 

@@ -365,6 +365,10 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     for (c->pass = 0; c->pass < prm->max_passes; c->pass++) {
         atomic_store(&c->refined, 0);
         double tp = ct_now();
+        uint64_t est = atomic_load(&c->est_tris);
+        c->pass_budget = prm->max_triangles > est ? prm->max_triangles - est : 0;
+        c->want_total = 0;
+        for (uint32_t p = 0; p < c->npatches; p++) c->want_total += c->patches[p].want;
         rc = run_job(c, ws, prm->threads, JOB_REFINE, 0);
         if (rc || atomic_load(&c->over_cap)) {
             rc = rc == CT_ENOMEM || atomic_load(&c->over_cap) ? cap_error(c, err)
