@@ -58,7 +58,7 @@ typedef struct emitter {
  * or eight at a time. Non-flat emitters have ny = 0 and flat = 0. */
 typedef struct emitter_soa {
     float *cx, *cy, *cz, *nx, *ny, *nz, *r2, *power;
-    uint8_t *flat;
+    int32_t *flat;   /* -1 (all bits set: a lane mask) when flat, else 0 */
 } emitter_soa;
 
 struct light_set {
@@ -141,7 +141,7 @@ static int build_soa(light_set *l)
 {
     size_t n = l->ne ? l->ne : 1;
     float *f = calloc(8 * n, sizeof *f);
-    l->es.flat = calloc(n, 1);
+    l->es.flat = calloc(n, sizeof *l->es.flat);
     if (!f || !l->es.flat) {
         free(f);
         return CT_ENOMEM;
@@ -154,7 +154,7 @@ static int build_soa(light_set *l)
         if (em->flat) l->es.nx[k] = em->n.x, l->es.ny[k] = em->n.y, l->es.nz[k] = em->n.z;
         l->es.r2[k] = em->r2;
         l->es.power[k] = em->power;
-        l->es.flat[k] = em->flat;
+        l->es.flat[k] = em->flat ? -1 : 0;
     }
     return CT_OK;
 }
@@ -517,8 +517,7 @@ void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
         v4f pw = GATHER(power) * (v4f){live[0], live[1], live[2], live[3]};
         v4f c = dx * GATHER(nx) + dy * GATHER(ny) + dz * GATHER(nz);
 #undef GATHER
-        v4i flat = {es->flat[k[0]] ? -1 : 0, es->flat[k[1]] ? -1 : 0, es->flat[k[2]] ? -1 : 0,
-                    es->flat[k[3]] ? -1 : 0};
+        v4i flat = {es->flat[k[0]], es->flat[k[1]], es->flat[k[2]], es->flat[k[3]]};
         v4f gv = LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((v4f){vis[0], vis[1], vis[2], vis[3]} /
                                                                (float)LIGHT_VIS_RAYS);
         v4f d2 = dx * dx + dy * dy + dz * dz;
