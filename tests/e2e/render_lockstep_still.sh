@@ -13,7 +13,7 @@ source "$(dirname "$0")/lib/mpi.sh"
 need_programs "$corrtex"
 cornell_args
 sock="$tmp/still.sock"
-K=800
+K=400
 cam=278,273,-800,278,273,0,39.3
 
 master_start master 2 "${CORNELL[@]}" --listen "unix:$sock" --exit-when-display-leaves --mode reuse-diffuse
