@@ -546,17 +546,16 @@ void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
 /* x clamped to [0, 1) (rescaled uniform numbers may round past the ends). */
 static inline float unit(float x) { return x > 0.0f ? (x < 0x1.fffffep-1f ? x : 0x1.fffffep-1f) : 0.0f; }
 
-/* Probability that sel picks emitter k. */
-static float emitter_prob(const light_set *l, const light_sel *sel, uint32_t k)
+/* Probability that sel picks emitter k; j is k's place among the
+ * candidates when known, else LIGHT_CANDS (searched). */
+static float emitter_prob(const light_set *l, const light_sel *sel, uint32_t k, uint32_t j)
 {
     float pw = l->em_cdf[k + 1] - l->em_cdf[k];
     if (!sel->n) return pw;
     float p = sel->defensive * pw;
-    for (uint32_t j = 0; j < sel->n; j++)
-        if (sel->idx[j] == k) {
-            p += (1.0f - sel->defensive) * (sel->cdf[j + 1] - sel->cdf[j]);
-            break;
-        }
+    if (j >= LIGHT_CANDS)
+        for (j = 0; j < sel->n && sel->idx[j] != k; j++) continue;
+    if (j < sel->n) p += (1.0f - sel->defensive) * (sel->cdf[j + 1] - sel->cdf[j]);
     return p;
 }
 
@@ -587,12 +586,12 @@ bool light_sample(const light_set *l, const light_sel *sel, float u0, float u1, 
     out->p = light_point_at(l, i, u1, u2);
     out->n = l->nrm[i];
     out->le = l->geo[4 * (size_t)i + 3];
-    out->pdf_area = emitter_prob(l, sel, k) * l->pdf_in[out->tri];
+    out->pdf_area = emitter_prob(l, sel, k, map ? j : LIGHT_CANDS) * l->pdf_in[out->tri];
     return true;
 }
 
 float light_pdf_area(const light_set *l, const light_sel *sel, uint32_t tri)
 {
     if (tri >= l->mesh->ntris || l->pdf_in[tri] <= 0.0f) return 0.0f;
-    return emitter_prob(l, sel, l->tri_em[tri]) * l->pdf_in[tri];
+    return emitter_prob(l, sel, l->tri_em[tri], LIGHT_CANDS) * l->pdf_in[tri];
 }
