@@ -110,6 +110,18 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
     if (cj > kmax) kmax = cj;
     if (H - 1 - cj > kmax) kmax = H - 1 - cj;
     if (max_r > 0 && max_r < kmax) kmax = max_r;
+    if (kmax >= 1 && ci >= 1 && cj >= 1 && ci < W - 1 && cj < H - 1) {
+        /* Ring 1 inside the texture (most samples stop after it): its eight
+         * texels in the ring loop's order, without the clipping. */
+        const float vn = vmax - 1.0f;
+        ctex_texel *a = c - P, *b = c + P;
+        int changed = put(a - 1, vn, val, blend) | put(a, vn, val, blend) | put(a + 1, vn, val, blend);
+        changed |= put(b - 1, vn, val, blend) | put(b, vn, val, blend) | put(b + 1, vn, val, blend);
+        changed |= put(c - 1, vn, val, blend) | put(c + 1, vn, val, blend);
+        if (!changed) goto dirty;
+        r = 1;
+        k = 2;
+    }
     for (; k <= kmax; k++) {
         const float vn = vmax - (float)k;   /* §3.4: validity v_max - d */
         int changed = 0;
@@ -132,6 +144,7 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
         if (!changed) break;
         r = k;
     }
+dirty:;
     /* Dirty: everything up to the ring that stopped the splat (it may have
      * been blended). */
     int e = k > kmax ? kmax : k;
