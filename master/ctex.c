@@ -900,8 +900,11 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     return 1;
 }
 
-/* Prefetches the texel rows a sample will read and splat first. */
-static inline void prefetch_sample(const ctex *c, const ct_sample *s)
+/* Prefetches the texel rows a sample will read and splat first. Always
+ * inlined: a separate function whose only effect is __builtin_prefetch
+ * counts as pure for GCC, which then drops the calls (their result is
+ * unused) and with them the prefetches. */
+static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c, const ct_sample *s)
 {
     int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node, s->tri, s->hit) : -1;
     float u, v;
@@ -918,7 +921,7 @@ static inline void prefetch_sample(const ctex *c, const ct_sample *s)
 
 /* First prefetch stage: the triangle's leaf entry, which the texel address
  * depends on. */
-static inline void prefetch_leaf(const ctex *c, const ct_sample *s)
+static inline __attribute__((always_inline)) void prefetch_leaf(const ctex *c, const ct_sample *s)
 {
     if (s->tri < c->h.ntris) __builtin_prefetch(&c->h.tri_leaf[s->tri], 0, 1);
 }
