@@ -17,8 +17,8 @@ typedef int32_t v4i __attribute__((vector_size(16)));
  * caches; arrays of 2 MiB and more are aligned to 2 MiB and advised as huge
  * pages (transparent huge pages in "madvise" mode), which removes most page
  * walks. The size is not rounded up: the tail past the last whole 2 MiB stays
- * in small pages, so the memory cap's 16 bytes a texel stay true. Freed with
- * free(). */
+ * in small pages, so the memory cap's count (ctex_tex_bytes: 16 bytes a
+ * texel of the padded rows) stays true. Freed with free(). */
 static ctex_texel *alloc_texels(size_t n)
 {
     enum { HUGE = 2u << 20 };
