@@ -214,7 +214,7 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
                        tex, t->w, t->h);
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
-            const ctex_texel *p = t->tx + (size_t)(y + j) * (size_t)t->w + (size_t)(x + i);
+            const ctex_texel *p = ctex_tex_at(t, x + i, y + j);
             float *o = out + 3 * ((size_t)j * (size_t)w + (size_t)i);
             o[0] = p->r; o[1] = p->g; o[2] = p->b;
         }
@@ -483,7 +483,7 @@ static void aspect_size(const ctex *c, float pxw, float pxh, float longer, int m
     *h = ih;
 }
 
-static size_t tex_bytes(int w, int h) { return (size_t)w * (size_t)h * sizeof(ctex_texel); }
+static size_t tex_bytes(int w, int h) { return ctex_tex_bytes(w, h); }
 static size_t mem_cap(const ctex *c) { return (size_t)(c->o.mem_mb * 1048576.0); }
 
 static void destroy_slot(ctex *c, uint32_t id)
@@ -624,7 +624,7 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
     t->tx = NULL;
     int rc = ctex_tex_init(t, w, h, err);
     if (rc) {
-        t->tx = old.tx; t->w = old.w; t->h = old.h;
+        t->tx = old.tx; t->w = old.w; t->h = old.h; t->pitch = old.pitch;
         c->bytes += ob;
         return rc;
     }
@@ -900,8 +900,11 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     return 1;
 }
 
-/* Prefetches the texel rows a sample will read and splat first. */
-static inline void prefetch_sample(const ctex *c, const ct_sample *s)
+/* Prefetches the texel rows a sample will read and splat first. Always
+ * inlined: a separate function whose only effect is __builtin_prefetch
+ * counts as pure for GCC, which then drops the calls (their result is
+ * unused) and with them the prefetches. */
+static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c, const ct_sample *s)
 {
     int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node, s->tri, s->hit) : -1;
     float u, v;
@@ -910,7 +913,7 @@ static inline void prefetch_sample(const ctex *c, const ct_sample *s)
     int ci = (int)(u * (float)t->w), cj = (int)(v * (float)t->h);
     if (ci < 1 || cj < 1 || ci >= t->w - 1 || cj >= t->h - 1) return;
     for (int j = cj - 1; j <= cj + 1; j++) {
-        const ctex_texel *row = t->tx + (size_t)j * (size_t)t->w + (size_t)ci;
+        const ctex_texel *row = ctex_tex_at(t, ci, j);
         __builtin_prefetch(row - 1, 1, 1);
         __builtin_prefetch(row + 1, 1, 1);
     }
@@ -918,7 +921,7 @@ static inline void prefetch_sample(const ctex *c, const ct_sample *s)
 
 /* First prefetch stage: the triangle's leaf entry, which the texel address
  * depends on. */
-static inline void prefetch_leaf(const ctex *c, const ct_sample *s)
+static inline __attribute__((always_inline)) void prefetch_leaf(const ctex *c, const ct_sample *s)
 {
     if (s->tri < c->h.ntris) __builtin_prefetch(&c->h.tri_leaf[s->tri], 0, 1);
 }

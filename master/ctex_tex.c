@@ -17,8 +17,8 @@ typedef int32_t v4i __attribute__((vector_size(16)));
  * caches; arrays of 2 MiB and more are aligned to 2 MiB and advised as huge
  * pages (transparent huge pages in "madvise" mode), which removes most page
  * walks. The size is not rounded up: the tail past the last whole 2 MiB stays
- * in small pages, so the memory cap's 16 bytes a texel stay true. Freed with
- * free(). */
+ * in small pages, so the memory cap's count (ctex_tex_bytes: 16 bytes a
+ * texel of the padded rows) stays true. Freed with free(). */
 static ctex_texel *alloc_texels(size_t n)
 {
     enum { HUGE = 2u << 20 };
@@ -44,13 +44,15 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
 {
     if (w < 1 || h < 1 || w > 65536 || h > 65536)
         return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", w, h);
-    ctex_texel *tx = alloc_texels((size_t)w * (size_t)h);
+    const int pitch = ctex_tex_pitch(w);
+    ctex_texel *tx = alloc_texels((size_t)pitch * (size_t)h);
     if (!tx) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
-    clear_texels(tx, (size_t)w * (size_t)h);
+    clear_texels(tx, (size_t)pitch * (size_t)h);
     free(t->tx);
     t->tx = tx;
     t->w = w;
     t->h = h;
+    t->pitch = pitch;
     t->vmax = 0.0f;   /* §3.4: the first samples start at validity 0 */
     t->mean_r = 0.0f;
     t->since_resize = 0;
@@ -63,7 +65,7 @@ void ctex_tex_release(ctex_tex *t)
 {
     free(t->tx);
     t->tx = NULL;
-    t->w = t->h = 0;
+    t->w = t->h = t->pitch = 0;
 }
 
 /* Writes value into texel x with margin m = v_new - v_old; blend: band. */
@@ -93,11 +95,12 @@ static inline int put(ctex_texel *x, float vn, vec3 val, float blend)
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
 {
     const int W = t->w, H = t->h;
+    const size_t P = (size_t)t->pitch;
     ctex_texel *T = t->tx;
     const float vmax = t->vmax;
     if (blend < 0.0f) blend = 0.0f;
     /* The centre texel always takes the newest sample. */
-    ctex_texel *c = T + (size_t)cj * (size_t)W + (size_t)ci;
+    ctex_texel *c = T + (size_t)cj * P + (size_t)ci;
     c->r = val.x; c->g = val.y; c->b = val.z;
     c->v = vmax > c->v ? vmax : c->v;
     int r = 0, k = 1;
@@ -107,28 +110,41 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
     if (cj > kmax) kmax = cj;
     if (H - 1 - cj > kmax) kmax = H - 1 - cj;
     if (max_r > 0 && max_r < kmax) kmax = max_r;
+    if (kmax >= 1 && ci >= 1 && cj >= 1 && ci < W - 1 && cj < H - 1) {
+        /* Ring 1 inside the texture (most samples stop after it): its eight
+         * texels in the ring loop's order, without the clipping. */
+        const float vn = vmax - 1.0f;
+        ctex_texel *a = c - P, *b = c + P;
+        int changed = put(a - 1, vn, val, blend) | put(a, vn, val, blend) | put(a + 1, vn, val, blend);
+        changed |= put(b - 1, vn, val, blend) | put(b, vn, val, blend) | put(b + 1, vn, val, blend);
+        changed |= put(c - 1, vn, val, blend) | put(c + 1, vn, val, blend);
+        if (!changed) goto dirty;
+        r = 1;
+        k = 2;
+    }
     for (; k <= kmax; k++) {
         const float vn = vmax - (float)k;   /* §3.4: validity v_max - d */
         int changed = 0;
         int xa = ci - k < 0 ? 0 : ci - k, xb = ci + k > W - 1 ? W - 1 : ci + k;
         /* top and bottom rows of the ring */
         if (cj - k >= 0) {
-            ctex_texel *row = T + (size_t)(cj - k) * (size_t)W;
+            ctex_texel *row = T + (size_t)(cj - k) * P;
             for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, val, blend);
         }
         if (cj + k <= H - 1) {
-            ctex_texel *row = T + (size_t)(cj + k) * (size_t)W;
+            ctex_texel *row = T + (size_t)(cj + k) * P;
             for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, val, blend);
         }
         /* left and right columns without the corners */
         int ya = cj - k + 1 < 0 ? 0 : cj - k + 1, yb = cj + k - 1 > H - 1 ? H - 1 : cj + k - 1;
         if (ci - k >= 0)
-            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * (size_t)W + (size_t)(ci - k), vn, val, blend);
+            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * P + (size_t)(ci - k), vn, val, blend);
         if (ci + k <= W - 1)
-            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * (size_t)W + (size_t)(ci + k), vn, val, blend);
+            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * P + (size_t)(ci + k), vn, val, blend);
         if (!changed) break;
         r = k;
     }
+dirty:;
     /* Dirty: everything up to the ring that stopped the splat (it may have
      * been blended). */
     int e = k > kmax ? kmax : k;
@@ -164,7 +180,7 @@ static inline const ctex_texel *nearest(const ctex_tex *t, float u, float v)
     int i = (int)floorf(u * (float)t->w), j = (int)floorf(v * (float)t->h);
     i = i < 0 ? 0 : (i >= t->w ? t->w - 1 : i);
     j = j < 0 ? 0 : (j >= t->h ? t->h - 1 : j);
-    return t->tx + (size_t)j * (size_t)t->w + (size_t)i;
+    return ctex_tex_at(t, i, j);
 }
 
 /* Bilinear over valid texels only (weights renormalized); false if none. */
@@ -180,7 +196,7 @@ static bool sample_valid(const ctex_tex *t, float x, float y, vec3 *out)
         int yy = ys[b] < 0 ? 0 : (ys[b] >= t->h ? t->h - 1 : ys[b]);
         for (int a = 0; a < 2; a++) {
             int xx = xs[a] < 0 ? 0 : (xs[a] >= t->w ? t->w - 1 : xs[a]);
-            const ctex_texel *p = t->tx + (size_t)yy * (size_t)t->w + (size_t)xx;
+            const ctex_texel *p = ctex_tex_at(t, xx, yy);
             float w = wx[a] * wy[b];
             if (p->v == -INFINITY || w <= 0.0f) continue;
             acc = v3_add(acc, v3(p->r * w, p->g * w, p->b * w));
@@ -246,9 +262,9 @@ static inline void dbl_texel(const dbl_ctx *d, const ctex_texel *const ps[4], ct
     q->v = d->vmax + (v - d->vmax) * d->vs;
 }
 
-static void double_exact(const ctex_tex *t, ctex_texel *nt, int fx, int fy)
+static void double_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int fx, int fy)
 {
-    const int w = t->w, h = t->h, nw = fx * w;
+    const int w = t->w, h = t->h;
     dbl_ctx d;
     d.vmax = t->vmax;
     d.vs = (float)(fx > fy ? fx : fy);
@@ -261,8 +277,8 @@ static void double_exact(const ctex_tex *t, ctex_texel *nt, int fx, int fy)
     for (int j = 0; j < h; j++) {
         for (int b = 0; b < fy; b++) {
             int jn = fy == 1 ? j : (b ? (j + 1 < h ? j + 1 : j) : (j > 0 ? j - 1 : 0));
-            const ctex_texel *r0 = t->tx + (size_t)j * (size_t)w, *r1 = t->tx + (size_t)jn * (size_t)w;
-            ctex_texel *o = nt + (size_t)(fy * j + b) * (size_t)nw;
+            const ctex_texel *r0 = ctex_tex_at(t, 0, j), *r1 = ctex_tex_at(t, 0, jn);
+            ctex_texel *o = nt + (size_t)(fy * j + b) * (size_t)npitch;
             int i = 0;
             if (fx == 2 && w >= 3) {
                 /* first column clamped, then the interior two new texels
@@ -301,20 +317,20 @@ static void double_exact(const ctex_tex *t, ctex_texel *nt, int fx, int fy)
 /* Exact halving with block sizes bx, by in {1, 2} (odd sizes: the last block
  * is one texel wide): the mean of each block's valid texels, the best
  * validity, distances scaled down. */
-static void halve_exact(const ctex_tex *t, ctex_texel *nt, int nw, int nh, int bx, int by)
+static void halve_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int nw, int nh, int bx, int by)
 {
     const int w = t->w, h = t->h;
     const float vmax = t->vmax, vs = 1.0f / (float)(bx > by ? bx : by);
     for (int j = 0; j < nh; j++) {
         int y0 = by * j, y1 = y0 + by > h ? h : y0 + by;
-        ctex_texel *o = nt + (size_t)j * (size_t)nw;
+        ctex_texel *o = nt + (size_t)j * (size_t)npitch;
         for (int i = 0; i < nw; i++) {
             int x0 = bx * i, x1 = x0 + bx > w ? w : x0 + bx;
             float cr = 0.0f, cg = 0.0f, cb = 0.0f, best = -INFINITY;
             int n = 0;
             for (int y = y0; y < y1; y++)
                 for (int x = x0; x < x1; x++) {
-                    const ctex_texel *p = t->tx + (size_t)y * (size_t)w + (size_t)x;
+                    const ctex_texel *p = ctex_tex_at(t, x, y);
                     if (p->v == -INFINITY) continue;
                     cr += p->r; cg += p->g; cb += p->b;
                     if (p->v > best) best = p->v;
@@ -338,17 +354,18 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
     if (nw < 1 || nh < 1 || nw > 65536 || nh > 65536)
         return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", nw, nh);
     if (nw == t->w && nh == t->h) return CT_OK;
-    ctex_texel *nt = alloc_texels((size_t)nw * (size_t)nh);
+    const int npitch = ctex_tex_pitch(nw);
+    ctex_texel *nt = alloc_texels((size_t)npitch * (size_t)nh);
     if (!nt) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", nw, nh);
     {
         int fx = nw == 2 * t->w ? 2 : (nw == t->w ? 1 : 0), fy = nh == 2 * t->h ? 2 : (nh == t->h ? 1 : 0);
         if (fx && fy) {
-            double_exact(t, nt, fx, fy);
+            double_exact(t, nt, npitch, fx, fy);
             goto done;
         }
         int bx = nw == (t->w + 1) / 2 ? 2 : (nw == t->w ? 1 : 0), by = nh == (t->h + 1) / 2 ? 2 : (nh == t->h ? 1 : 0);
         if (bx && by) {
-            halve_exact(t, nt, nw, nh, bx, by);
+            halve_exact(t, nt, npitch, nw, nh, bx, by);
             goto done;
         }
     }
@@ -358,7 +375,7 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
     const bool shrink = nw <= t->w && nh <= t->h;
     for (int j = 0; j < nh; j++) {
         for (int i = 0; i < nw; i++) {
-            ctex_texel *o = nt + (size_t)j * (size_t)nw + (size_t)i;
+            ctex_texel *o = nt + (size_t)j * (size_t)npitch + (size_t)i;
             o->r = o->g = o->b = 0.0f;
             o->v = -INFINITY;
             if (shrink) {
@@ -377,7 +394,7 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
                     for (int x = ix0; x < ix1; x++) {
                         float wx = fminf(bx, (float)(x + 1)) - fmaxf(ax, (float)x);
                         if (wx <= 0.0f) continue;
-                        const ctex_texel *p = t->tx + (size_t)y * (size_t)t->w + (size_t)x;
+                        const ctex_texel *p = ctex_tex_at(t, x, y);
                         if (p->v == -INFINITY) continue;
                         double w = (double)wx * (double)wy;
                         acc[0] += w * p->r; acc[1] += w * p->g; acc[2] += w * p->b;
@@ -411,6 +428,7 @@ done:
     t->tx = nt;
     t->w = nw;
     t->h = nh;
+    t->pitch = npitch;
     t->dx0 = 0; t->dy0 = 0; t->dx1 = nw; t->dy1 = nh;
     return CT_OK;
 }
@@ -427,7 +445,7 @@ void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, floa
     for (int j = 0; j < dst->h; j++) {
         vec3 row = v3_madd(x0, xv, ((float)j + 0.5f) * ih);
         for (int i = 0; i < dst->w; i++) {
-            ctex_texel *o = dst->tx + (size_t)j * (size_t)dst->w + (size_t)i;
+            ctex_texel *o = ctex_tex_at(dst, i, j);
             o->r = o->g = o->b = 0.0f;
             o->v = -INFINITY;
             vec3 p = v3_madd(row, xu, ((float)i + 0.5f) * iw);
@@ -458,11 +476,13 @@ vec3 ctex_tex_mean(const ctex_tex *t, uint32_t *nvalid)
 {
     double acc[3] = {0, 0, 0};
     uint32_t n = 0;
-    for (size_t i = 0; i < (size_t)t->w * (size_t)t->h; i++) {
-        if (t->tx[i].v == -INFINITY) continue;
-        acc[0] += t->tx[i].r; acc[1] += t->tx[i].g; acc[2] += t->tx[i].b;
-        n++;
-    }
+    for (int y = 0; y < t->h; y++)
+        for (int x = 0; x < t->w; x++) {
+            const ctex_texel *p = ctex_tex_at(t, x, y);
+            if (p->v == -INFINITY) continue;
+            acc[0] += p->r; acc[1] += p->g; acc[2] += p->b;
+            n++;
+        }
     if (nvalid) *nvalid = n;
     if (!n) return v3s(0.0f);
     return v3((float)(acc[0] / n), (float)(acc[1] / n), (float)(acc[2] / n));

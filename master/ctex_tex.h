@@ -22,7 +22,8 @@ typedef struct ctex_texel {
 /* A texture with its projection. */
 typedef struct ctex_tex {
     int w, h;
-    ctex_texel *tx;        /* w * h, row 0 first */
+    int pitch;             /* texels from one row to the next (ctex_tex_pitch(w)) */
+    ctex_texel *tx;        /* h rows of `pitch` texels, the first w of each used; row 0 first */
     float vmax;            /* §3.5: validity of a new sample's centre texel */
     ctex_proj_kind kind;
     mat4 m;                /* world -> texture */
@@ -39,6 +40,34 @@ typedef struct ctex_tex {
     /* dirty rectangle [dx0, dx1) x [dy0, dy1), empty when dx0 >= dx1 */
     int dx0, dy0, dx1, dy1;
 } ctex_tex;
+
+/* Row pitch of a texture w texels wide: w rounded up to whole 64-byte cache
+ * lines (4 texels), plus one line when that is an even number of lines.
+ * Texture widths are powers of two times the initial size, so rows of w
+ * texels would lie a multiple of 4 KiB apart (32 KiB at w = 2048) and the
+ * texels of a ring's column would all fall into the same few cache sets
+ * (L1 and L2 index by the low address bits): a column of a large splat then
+ * evicts itself before the next ring reuses its lines. An odd number of
+ * lines per row spreads consecutive rows over all sets. */
+static inline int ctex_tex_pitch(int w)
+{
+    int p = (w + 3) & ~3;
+    if (!((p >> 2) & 1)) p += 4;
+    return p;
+}
+
+/* Bytes of texel storage of a w x h texture (what the memory cap counts:
+ * 16 bytes a texel, plus the row padding). */
+static inline size_t ctex_tex_bytes(int w, int h)
+{
+    return (size_t)ctex_tex_pitch(w) * (size_t)h * sizeof(ctex_texel);
+}
+
+/* Texel (x, y). */
+static inline ctex_texel *ctex_tex_at(const ctex_tex *t, int x, int y)
+{
+    return t->tx + (size_t)y * (size_t)t->pitch + (size_t)x;
+}
 
 /* Allocates w x h empty texels (validity -inf, correction 0), vmax = 0. */
 int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err);
@@ -66,10 +95,8 @@ static inline vec3 ctex_tex_sample(const ctex_tex *t, float u, float v)
     x1 = x1 < 0 ? 0 : (x1 > wm ? wm : x1);
     y0 = y0 < 0 ? 0 : (y0 > hm ? hm : y0);
     y1 = y1 < 0 ? 0 : (y1 > hm ? hm : y1);
-    const ctex_texel *a = t->tx + (size_t)y0 * (size_t)t->w + (size_t)x0;
-    const ctex_texel *b = t->tx + (size_t)y0 * (size_t)t->w + (size_t)x1;
-    const ctex_texel *c = t->tx + (size_t)y1 * (size_t)t->w + (size_t)x0;
-    const ctex_texel *d = t->tx + (size_t)y1 * (size_t)t->w + (size_t)x1;
+    const ctex_texel *a = ctex_tex_at(t, x0, y0), *b = ctex_tex_at(t, x1, y0);
+    const ctex_texel *c = ctex_tex_at(t, x0, y1), *d = ctex_tex_at(t, x1, y1);
     float wa = (1.0f - fx) * (1.0f - fy), wb = fx * (1.0f - fy), wc = (1.0f - fx) * fy, wd = fx * fy;
     return v3(wa * a->r + wb * b->r + wc * c->r + wd * d->r,
               wa * a->g + wb * b->g + wc * c->g + wd * d->g,

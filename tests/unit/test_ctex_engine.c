@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "common/radmesh.h"
+#include "common/rng.h"
 #include "common/scene.h"
 #include "master/ctex.h"
 #include "master/ctex_hier.h"
@@ -860,4 +861,57 @@ Test(ctex_engine, non_flat_large_parts_split_by_space)
     ctex_hier_free(&h);
     rmesh_free(&m);
     scene_free(s);
+}
+
+/* ctex_insert_batch (with its prefetching) inserts exactly like ctex_insert
+ * one sample at a time: the same infos and the same texels, through enough
+ * samples to make textures grow. */
+Test(ctex_engine, batch_insert_equals_single_inserts)
+{
+    tscene t;
+    build(&t);
+    ctex_options o = ctex_options_default();
+    o.splat_window = 16;
+    ctex *a = engine(&t, o), *b = engine(&t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(a, &cam, 96, 96, &err), 0);
+    cr_assert_eq(ctex_set_camera(b, &cam, 96, 96, &err), 0);
+    enum { N = 4096, B = 64 };
+    ct_sample *s = malloc(N * sizeof *s);
+    ctex_insert_info *ia = malloc(N * sizeof *ia), *ib = malloc(N * sizeof *ib);
+    ct_rng r = rng_make(77, 0, 0, 0);
+    for (int i = 0; i < N; i++) {
+        vec3 p = v3(-8.0f + 16.0f * rng_float(&r), 0.0f, -8.0f + 16.0f * rng_float(&r));
+        uint32_t node = (uint32_t)t.floor;
+        if (i % 5 == 0) {   /* some on the plates */
+            int g = (int)rng_below(&r, 3);
+            p = v3(-4.0f + 4.0f * (float)g - 0.5f + rng_float(&r), 1.01f, -0.5f + rng_float(&r));
+            node = (uint32_t)t.plate[g];
+        }
+        s[i] = mk_sample(node, p, v3(rng_float(&r), rng_float(&r), rng_float(&r)), v3s(0.3f));
+    }
+    for (int i = 0; i < N; i += B) ctex_insert_batch(a, s + i, B, ia + i);
+    for (int i = 0; i < N; i++) ctex_insert(b, &s[i], &ib[i]);
+    for (int i = 0; i < N; i++)
+        cr_assert_eq(memcmp(&ia[i], &ib[i], sizeof ia[i]), 0, "sample %d: infos differ", i);
+    ctex_stats sa = ctex_get_stats(a), sb = ctex_get_stats(b);
+    cr_assert_eq(sa.texels, sb.texels);
+    cr_assert_gt(sa.resizes, 0, "the textures should have grown");
+    for (uint32_t tex = 0; tex < 64; tex++) {
+        int wa, ha, wb, hb;
+        int live = ctex_texture_info(a, tex, NULL, &wa, &ha, NULL, NULL, NULL);
+        cr_assert_eq(ctex_texture_info(b, tex, NULL, &wb, &hb, NULL, NULL, NULL), live);
+        if (live < 0) continue;
+        cr_assert(wa == wb && ha == hb);
+        float *pa = malloc((size_t)wa * (size_t)ha * 3 * sizeof *pa), *pb = malloc((size_t)wa * (size_t)ha * 3 * sizeof *pb);
+        cr_assert_eq(ctex_read_patch(a, tex, 0, 0, wa, ha, pa, &err), 0);
+        cr_assert_eq(ctex_read_patch(b, tex, 0, 0, wb, hb, pb, &err), 0);
+        cr_assert_eq(memcmp(pa, pb, (size_t)wa * (size_t)ha * 3 * sizeof *pa), 0, "texture %u differs", tex);
+        free(pa);
+        free(pb);
+    }
+    free(s); free(ia); free(ib);
+    ctex_free(a);
+    ctex_free(b);
+    release(&t);
 }

@@ -4,9 +4,22 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "common/rng.h"
 #include "master/ctex_tex.h"
+
+/* Texel (x, y) of t (rows are ctex_tex_pitch(w) texels apart). */
+static ctex_texel *at(const ctex_tex *t, int x, int y)
+{
+    return ctex_tex_at(t, x, y);
+}
+
+/* Copies src's texels into dst (same size). */
+static void copy_texels(ctex_tex *dst, const ctex_tex *src)
+{
+    memcpy(dst->tx, src->tx, (size_t)src->pitch * (size_t)src->h * sizeof *src->tx);
+}
 
 static int cheb(int ax, int ay, int bx, int by)
 {
@@ -45,7 +58,7 @@ static void voronoi_case(int W, int H, int n, uint64_t seed)
                 else if (d == bd) nbest++;
             }
             ties += nbest > 1;
-            const ctex_texel *p = &t.tx[y * W + x];
+            const ctex_texel *p = at(&t, x, y);
             cr_assert_eq(p->r, (float)best, "texel (%d,%d) holds sample %g, nearest is %d (d=%d)", x, y,
                          (double)p->r, best, bd);
             cr_assert_eq(p->g, (float)-best);
@@ -81,8 +94,8 @@ Test(ctex_tex, splat_radius_and_dirty_rect)
     cr_assert_eq(t.dx0, 13 - e < 0 ? 0 : 13 - e);
     cr_assert_eq(t.dx1, 13 + e + 1 > 32 ? 32 : 13 + e + 1);
     cr_assert_eq(t.dy1, 5 + e + 1 > 32 ? 32 : 5 + e + 1);
-    cr_assert_eq(t.tx[5 * 32 + 9].r, 1.0f, "equidistant texel stays with the older sample");
-    cr_assert_eq(t.tx[5 * 32 + 10].r, 2.0f);
+    cr_assert_eq(at(&t, 9, 5)->r, 1.0f, "equidistant texel stays with the older sample");
+    cr_assert_eq(at(&t, 10, 5)->r, 2.0f);
     ctex_tex_release(&t);
 }
 
@@ -93,10 +106,10 @@ Test(ctex_tex, blending_is_between_neighbours)
     ctex_tex_splat(&t, 4, 4, v3(0, 0, 0), 1.0f, 0);
     ctex_tex_splat(&t, 12, 4, v3(1, 1, 1), 1.0f, 0);
     /* the tie at x = 8 is blended half-half, interior texels are not */
-    cr_assert_float_eq(t.tx[4 * 32 + 8].r, 0.5f, 1e-6);
-    cr_assert_eq(t.tx[4 * 32 + 6].r, 0.0f);
-    cr_assert_eq(t.tx[4 * 32 + 10].r, 1.0f);
-    for (int i = 0; i < 32 * 8; i++) cr_assert(t.tx[i].r >= 0.0f && t.tx[i].r <= 1.0f);
+    cr_assert_float_eq(at(&t, 8, 4)->r, 0.5f, 1e-6);
+    cr_assert_eq(at(&t, 6, 4)->r, 0.0f);
+    cr_assert_eq(at(&t, 10, 4)->r, 1.0f);
+    for (int i = 0; i < 32 * 8; i++) cr_assert(at(&t, i % 32, i / 32)->r >= 0.0f && at(&t, i % 32, i / 32)->r <= 1.0f);
     ctex_tex_release(&t);
 }
 
@@ -119,7 +132,7 @@ Test(ctex_tex, newer_sample_wins_after_aging)
             float new_v = age - (float)cheb(x, y, 25, 8);
             float expect = new_v > old_v ? 2.0f : old_val;
             won += new_v > old_v;
-            cr_assert_eq(t.tx[y * W + x].r, expect, "texel (%d,%d)", x, y);
+            cr_assert_eq(at(&t, x, y)->r, expect, "texel (%d,%d)", x, y);
         }
     /* the aged sample conquers more than its distance-only share (texels
      * strictly closer to it than to 10 or 40: |x-25| < 7.5) */
@@ -131,10 +144,11 @@ static void fill_random(ctex_tex *t, uint64_t seed)
 {
     ct_rng r = rng_make(seed, 0, 0, 0);
     for (int i = 0; i < t->w * t->h; i++) {
-        t->tx[i].r = rng_float(&r) * 2.0f - 1.0f;
-        t->tx[i].g = rng_float(&r);
-        t->tx[i].b = -rng_float(&r);
-        t->tx[i].v = -rng_float(&r) * 3.0f;
+        ctex_texel *p = at(t, i % t->w, i / t->w);
+        p->r = rng_float(&r) * 2.0f - 1.0f;
+        p->g = rng_float(&r);
+        p->b = -rng_float(&r);
+        p->v = -rng_float(&r) * 3.0f;
     }
 }
 
@@ -165,12 +179,12 @@ Test(ctex_tex, halving_averages_boxes_and_rescales_validity)
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, 4, 2, NULL), 0);
     float vals[8] = {1, 3, 5, 7, 2, 4, 6, 8};
-    for (int i = 0; i < 8; i++) { t.tx[i].r = vals[i]; t.tx[i].v = -4.0f; }
-    t.tx[2].v = -INFINITY;   /* an empty texel does not count */
+    for (int i = 0; i < 8; i++) { at(&t, i % 4, i / 4)->r = vals[i]; at(&t, i % 4, i / 4)->v = -4.0f; }
+    at(&t, 2, 0)->v = -INFINITY;   /* an empty texel does not count */
     cr_assert_eq(ctex_tex_resize(&t, 2, 1, NULL), 0);
-    cr_assert_float_eq(t.tx[0].r, 2.5f, 1e-6);
-    cr_assert_float_eq(t.tx[1].r, (7.0f + 6.0f + 8.0f) / 3.0f, 1e-6);
-    cr_assert_float_eq(t.tx[0].v, -2.0f, 1e-6, "distances halve with the texel size");
+    cr_assert_float_eq(at(&t, 0, 0)->r, 2.5f, 1e-6);
+    cr_assert_float_eq(at(&t, 1, 0)->r, (7.0f + 6.0f + 8.0f) / 3.0f, 1e-6);
+    cr_assert_float_eq(at(&t, 0, 0)->v, -2.0f, 1e-6, "distances halve with the texel size");
     ctex_tex_release(&t);
 }
 
@@ -196,17 +210,17 @@ Test(ctex_tex, doubling_is_bilinear_at_new_centres)
     cr_assert_eq(ctex_tex_init(&t, 9, 6, NULL), 0);
     cr_assert_eq(ctex_tex_init(&old, 9, 6, NULL), 0);
     fill_random(&t, 9);
-    for (int i = 0; i < 9 * 6; i++) old.tx[i] = t.tx[i];
+    copy_texels(&old, &t);
     cr_assert_eq(ctex_tex_resize(&t, 18, 12, NULL), 0);
     for (int j = 0; j < 12; j++)
         for (int i = 0; i < 18; i++) {
             vec3 e = ctex_tex_sample(&old, ((float)i + 0.5f) / 18.0f, ((float)j + 0.5f) / 12.0f);
-            const ctex_texel *p = &t.tx[j * 18 + i];
+            const ctex_texel *p = at(&t, i, j);
             cr_assert_float_eq(p->r, e.x, 1e-5, "texel (%d,%d)", i, j);
             cr_assert_float_eq(p->g, e.y, 1e-5);
             cr_assert_float_eq(p->b, e.z, 1e-5);
             /* validity: the covering old texel's, distances doubled */
-            cr_assert_float_eq(p->v, 2.0f * old.tx[(j / 2) * 9 + i / 2].v, 1e-5);
+            cr_assert_float_eq(p->v, 2.0f * at(&old, i / 2, j / 2)->v, 1e-5);
         }
     ctex_tex_release(&t);
     ctex_tex_release(&old);
@@ -222,7 +236,7 @@ Test(ctex_tex, splat_max_bounds_the_radius)
     for (int y = 0; y < 64; y++)
         for (int x = 0; x < 64; x++) {
             int inside = cheb(x, y, 30, 20) <= 5;
-            cr_assert_eq(t.tx[y * 64 + x].v == -INFINITY, !inside, "texel (%d,%d)", x, y);
+            cr_assert_eq(at(&t, x, y)->v == -INFINITY, !inside, "texel (%d,%d)", x, y);
         }
     cr_assert_eq(t.dx0, 25); cr_assert_eq(t.dx1, 36); cr_assert_eq(t.dy0, 15); cr_assert_eq(t.dy1, 26);
     ctex_tex_release(&t);
@@ -234,22 +248,22 @@ Test(ctex_tex, doubling_one_axis_and_odd_halving)
     cr_assert_eq(ctex_tex_init(&t, 7, 5, NULL), 0);
     cr_assert_eq(ctex_tex_init(&old, 7, 5, NULL), 0);
     fill_random(&t, 13);
-    for (int i = 0; i < 7 * 5; i++) old.tx[i] = t.tx[i];
+    copy_texels(&old, &t);
     cr_assert_eq(ctex_tex_resize(&t, 14, 5, NULL), 0);
     for (int j = 0; j < 5; j++)
         for (int i = 0; i < 14; i++) {
             vec3 e = ctex_tex_sample(&old, ((float)i + 0.5f) / 14.0f, ((float)j + 0.5f) / 5.0f);
-            cr_assert_float_eq(t.tx[j * 14 + i].r, e.x, 1e-5, "texel (%d,%d)", i, j);
+            cr_assert_float_eq(at(&t, i, j)->r, e.x, 1e-5, "texel (%d,%d)", i, j);
         }
     /* halving 7x5 -> 4x3: 2x2 blocks, the last column and row one texel wide */
     cr_assert_eq(ctex_tex_resize(&old, 4, 3, NULL), 0);
     ctex_tex ref = {0};
     cr_assert_eq(ctex_tex_init(&ref, 7, 5, NULL), 0);
     fill_random(&ref, 13);
-    float e = (ref.tx[6].r + ref.tx[13].r) / 2.0f;   /* block (3, 0): column 6, rows 0-1 */
-    cr_assert_float_eq(old.tx[3].r, e, 1e-6);
-    float e2 = ref.tx[4 * 7 + 6].r;                  /* block (3, 2): texel (6, 4) alone */
-    cr_assert_float_eq(old.tx[2 * 4 + 3].r, e2, 1e-6);
+    float e = (at(&ref, 6, 0)->r + at(&ref, 6, 1)->r) / 2.0f;   /* block (3, 0): column 6, rows 0-1 */
+    cr_assert_float_eq(at(&old, 3, 0)->r, e, 1e-6);
+    float e2 = at(&ref, 6, 4)->r;                              /* block (3, 2): texel (6, 4) alone */
+    cr_assert_float_eq(at(&old, 3, 2)->r, e2, 1e-6);
     ctex_tex_release(&t);
     ctex_tex_release(&old);
     ctex_tex_release(&ref);
@@ -269,9 +283,13 @@ Test(ctex_tex, doubling_with_empty_texels)
     fill_random(&t, 21);
     ct_rng r = rng_make(22, 0, 0, 0);
     for (int i = 0; i < W * H; i++)
-        if (rng_float(&r) < 0.3f) { t.tx[i].r = t.tx[i].g = t.tx[i].b = 0.0f; t.tx[i].v = -INFINITY; }
+        if (rng_float(&r) < 0.3f) {
+            ctex_texel *p = at(&t, i % W, i / W);
+            p->r = p->g = p->b = 0.0f;
+            p->v = -INFINITY;
+        }
     t.vmax = 1.5f;
-    for (int i = 0; i < W * H; i++) old.tx[i] = t.tx[i];
+    copy_texels(&old, &t);
     cr_assert_eq(ctex_tex_resize(&t, 2 * W, 2 * H, NULL), 0);
     int empty = 0, partial = 0;
     for (int j = 0; j < 2 * H; j++)
@@ -279,14 +297,13 @@ Test(ctex_tex, doubling_with_empty_texels)
             int ox = i / 2, oy = j / 2;
             int nx = i % 2 ? (ox + 1 < W ? ox + 1 : ox) : (ox > 0 ? ox - 1 : 0);
             int ny = j % 2 ? (oy + 1 < H ? oy + 1 : oy) : (oy > 0 ? oy - 1 : 0);
-            const ctex_texel *ps[4] = {&old.tx[oy * W + ox], &old.tx[oy * W + nx], &old.tx[ny * W + ox],
-                                       &old.tx[ny * W + nx]};
+            const ctex_texel *ps[4] = {at(&old, ox, oy), at(&old, nx, oy), at(&old, ox, ny), at(&old, nx, ny)};
             const float ws[4] = {0.5625f, 0.1875f, 0.1875f, 0.0625f};
             float sw = 0.0f, cr = 0.0f;
             int nvalid = 0;
             for (int k = 0; k < 4; k++)
                 if (ps[k]->v != -INFINITY) { sw += ws[k]; cr += ws[k] * ps[k]->r; nvalid++; }
-            const ctex_texel *q = &t.tx[j * 2 * W + i];
+            const ctex_texel *q = at(&t, i, j);
             if (nvalid == 0) {
                 cr_assert_eq(q->v, -INFINITY, "texel (%d,%d) should stay empty", i, j);
                 empty++;
@@ -312,15 +329,107 @@ Test(ctex_tex, large_texture_splats_and_resizes)
     cr_assert_eq(ctex_tex_init(&t, 600, 400, NULL), 0);   /* 3.7 MiB */
     ctex_tex_splat(&t, 100, 100, v3(1, 0, 0), 0.0f, 0);
     ctex_tex_splat(&t, 500, 300, v3(2, 0, 0), 0.0f, 0);
-    cr_assert_eq(t.tx[100 * 600 + 100].r, 1.0f);
-    cr_assert_eq(t.tx[399 * 600 + 599].r, 2.0f);
-    cr_assert_eq(t.tx[0].r, 1.0f);
-    cr_assert_eq(t.tx[0].v, -100.0f);
+    cr_assert_eq(at(&t, 100, 100)->r, 1.0f);
+    cr_assert_eq(at(&t, 599, 399)->r, 2.0f);
+    cr_assert_eq(at(&t, 0, 0)->r, 1.0f);
+    cr_assert_eq(at(&t, 0, 0)->v, -100.0f);
     vec3 m0 = ctex_tex_mean(&t, NULL);
     cr_assert_eq(ctex_tex_resize(&t, 1200, 800, NULL), 0);   /* 14.6 MiB */
-    cr_assert_eq(t.tx[0].v, -200.0f, "distances double");
+    cr_assert_eq(at(&t, 0, 0)->v, -200.0f, "distances double");
     cr_assert_eq(ctex_tex_resize(&t, 600, 400, NULL), 0);
     vec3 m2 = ctex_tex_mean(&t, NULL);
     cr_assert_float_eq(m2.x, m0.x, 1e-4);
     ctex_tex_release(&t);
+}
+
+/* Row pitch: whole 64-byte lines, an odd number of them, never less than w. */
+Test(ctex_tex, row_pitch_is_an_odd_number_of_cache_lines)
+{
+    const int ws[] = {1, 3, 4, 5, 8, 16, 17, 100, 256, 1024, 2048, 4096};
+    for (size_t i = 0; i < sizeof ws / sizeof ws[0]; i++) {
+        int p = ctex_tex_pitch(ws[i]);
+        cr_assert_geq(p, ws[i]);
+        cr_assert_lt(p, ws[i] + 8, "w %d: pitch %d", ws[i], p);
+        cr_assert_eq(p % 4, 0, "w %d: pitch %d is not whole lines", ws[i], p);
+        cr_assert_eq((p / 4) % 2, 1, "w %d: pitch %d is an even number of lines", ws[i], p);
+    }
+    cr_assert_eq(ctex_tex_pitch(2048), 2052);
+    cr_assert_eq(ctex_tex_bytes(2048, 10), (size_t)2052 * 10 * 16);
+}
+
+/* §3.4 written as plainly as possible, as the reference for the engine's
+ * splat (ring 1 unclipped inside the texture, the rest ring by ring): the
+ * centre takes the value; ring k = 1, 2, ... (clipped, up to max_r) updates
+ * each texel by its margin m = (v_max - k) - v: overwritten when m > 0
+ * (blended when m < blend), blended when -blend < m <= 0; the splat stops
+ * after the first ring without an overwritten texel. */
+static int ref_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
+{
+    ctex_texel *c = at(t, ci, cj);
+    c->r = val.x; c->g = val.y; c->b = val.z;
+    c->v = t->vmax > c->v ? t->vmax : c->v;
+    int r = 0;
+    for (int k = 1; max_r <= 0 || k <= max_r; k++) {
+        int inside = 0, changed = 0;
+        const float vn = t->vmax - (float)k;
+        for (int y = cj - k; y <= cj + k; y++)
+            for (int x = ci - k; x <= ci + k; x++) {
+                if (cheb(x, y, ci, cj) != k || x < 0 || y < 0 || x >= t->w || y >= t->h) continue;
+                inside = 1;
+                ctex_texel *p = at(t, x, y);
+                float m = vn - p->v;
+                if (m > 0.0f && m >= blend) {
+                    p->r = val.x; p->g = val.y; p->b = val.z;
+                } else if (m > -blend) {
+                    float w = 0.5f + 0.5f * m / blend;
+                    p->r += w * (val.x - p->r); p->g += w * (val.y - p->g); p->b += w * (val.z - p->b);
+                }
+                if (m > 0.0f) {
+                    p->v = vn;
+                    changed = 1;
+                }
+            }
+        if (!inside || !changed) break;
+        r = k;
+    }
+    return r;
+}
+
+/* Random textures (random values, validities and empty texels, an aged
+ * v_max so margins are fractional), random splats anywhere (borders and
+ * corners included), blending on and off, with and without --splat-max:
+ * the engine's splat and the reference give the same radius and the same
+ * bits in every texel. */
+Test(ctex_tex, splat_equals_plain_ring_reference)
+{
+    const int sizes[][2] = {{1, 1}, {2, 3}, {5, 4}, {33, 17}, {64, 48}};
+    ct_rng r = rng_make(31, 0, 0, 0);
+    for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+        const int W = sizes[s][0], H = sizes[s][1];
+        ctex_tex a = {0}, b = {0};
+        cr_assert_eq(ctex_tex_init(&a, W, H, NULL), 0);
+        cr_assert_eq(ctex_tex_init(&b, W, H, NULL), 0);
+        fill_random(&a, 40 + s);
+        for (int i = 0; i < W * H; i++)
+            if (rng_float(&r) < 0.2f) at(&a, i % W, i / W)->v = -INFINITY;
+        a.vmax = 0.75f;
+        copy_texels(&b, &a);
+        b.vmax = a.vmax;
+        for (int n = 0; n < 300; n++) {
+            int x = (int)rng_below(&r, (uint32_t)W), y = (int)rng_below(&r, (uint32_t)H);
+            vec3 val = v3(rng_float(&r), -rng_float(&r), 2.0f * rng_float(&r));
+            float blend = n % 3 == 0 ? 0.0f : (n % 3 == 1 ? 1.0f : 2.5f);
+            int max_r = n % 4 == 0 ? 3 : 0;
+            int ra = ctex_tex_splat(&a, x, y, val, blend, max_r);
+            int rb = ref_splat(&b, x, y, val, blend, max_r);
+            cr_assert_eq(ra, rb, "%dx%d splat %d at (%d,%d): radius %d, reference %d", W, H, n, x, y, ra, rb);
+            if (n % 50 == 49) ctex_tex_age(&a, 0.4f), ctex_tex_age(&b, 0.4f);
+        }
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++)
+                cr_assert_eq(memcmp(at(&a, x, y), at(&b, x, y), sizeof(ctex_texel)), 0, "%dx%d: texel (%d,%d) differs",
+                             W, H, x, y);
+        ctex_tex_release(&a);
+        ctex_tex_release(&b);
+    }
 }
