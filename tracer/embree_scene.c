@@ -264,7 +264,7 @@ static inline void make_ray(struct RTCRay *r, vec3 o, vec3 d, float tnear, float
     r->flags = 0;
 }
 
-bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit)
+bool emb_intersect_start(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit)
 {
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
@@ -273,15 +273,22 @@ bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, 
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(e->scene, &ctx, &rh);
+    hit->rec = NULL;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     const emb_tri *r = &e->recs[e->geom_base[rh.hit.geomID] + rh.hit.primID];
+    __builtin_prefetch(r);
+    __builtin_prefetch((const char *)r + 64);
     hit->t = rh.ray.tfar;
     hit->u = rh.hit.u;
     hit->v = rh.hit.v;
-    hit->tri = r->tri;
-    hit->node = r->node;
-    hit->mat = r->mat;
     hit->rec = r;
+    return true;
+}
+
+bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit)
+{
+    if (!emb_intersect_start(e, o, d, tnear, tfar, hit)) return false;
+    emb_hit_finish(hit);
     return true;
 }
 

@@ -76,6 +76,18 @@ const emb_mesh *emb_get_mesh(const emb_scene *e);
 /* Closest hit of the ray o + t d, t in (tnear, tfar); false on a miss. */
 bool emb_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit);
 
+/* emb_intersect in two halves: _start finds the closest hit, sets t, u, v
+ * and rec and starts loading the record (a cache miss on a large mesh);
+ * emb_hit_finish reads tri, node and mat from it. Starting several rays
+ * before finishing any overlaps their misses (the tracer's primary rays). */
+bool emb_intersect_start(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar, emb_hit *hit);
+static inline void emb_hit_finish(emb_hit *hit)
+{
+    hit->tri = hit->rec->tri;
+    hit->node = hit->rec->node;
+    hit->mat = hit->rec->mat;
+}
+
 /* True when anything blocks o + t d for t in (tnear, tfar). */
 bool emb_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
 

@@ -117,13 +117,24 @@ static inline void surf_bsdf(const integ_ctx *c, const integ_surf *s, vec3 wo, b
     bsdf_setup(b, s->bm, emb_shading_normal(c->emb, &s->h), s->ng, wo);
 }
 
+bool integ_primary_start(integ_ctx *c, vec3 o, vec3 d, emb_hit *h)
+{
+    c->st->primary++;
+    log_ray(c, o, d, INFINITY, 0);
+    return emb_intersect_start(c->emb, o, d, 0.0f, INFINITY, h);
+}
+
+void integ_primary_finish(const integ_ctx *c, emb_hit *h, vec3 d, integ_surf *s)
+{
+    emb_hit_finish(h);
+    make_surf(c, h, d, s);
+}
+
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
 {
     emb_hit h;
-    c->st->primary++;
-    log_ray(c, o, d, INFINITY, 0);
-    if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return false;
-    make_surf(c, &h, d, s);
+    if (!integ_primary_start(c, o, d, &h)) return false;
+    integ_primary_finish(c, &h, d, s);
     return true;
 }
 

@@ -52,6 +52,11 @@ static inline vec3 integ_vertex_lerp(const vec3 *val, const emb_hit *h)
 /* Traces a primary ray (counted as primary); false on a miss. */
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s);
 
+/* integ_primary in two halves (see emb_intersect_start): several primary
+ * rays can be started before the first is finished. */
+bool integ_primary_start(integ_ctx *c, vec3 o, vec3 d, emb_hit *h);
+void integ_primary_finish(const integ_ctx *c, emb_hit *h, vec3 d, integ_surf *s);
+
 /* Radiance along the primary ray o + t d whose first hit is s (the mode in
  * c->opt). In reuse-diffuse mode *base receives the radiosity part (the
  * result is *base + a non-negative remainder); otherwise it is untouched. */

@@ -169,9 +169,10 @@ static vec3 cam_dir(const view_pre *p, const trc_view *v, float px, float py)
     return v3_norm(v3_add(p->f, v3_add(v3_scale(p->r, sx), v3_scale(p->u, sy))));
 }
 
-/* The primary part of a record: request fields, hit, L_base. */
-static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const view_pre *vp,
-                    const ct_request *r, ct_sample *out, integ_surf *s, vec3 *d)
+/* The primary part of a record, first half: request fields and the primary
+ * ray (its hit record's load started). */
+static bool primary_start(integ_ctx *c, const trc_view *v, const view_pre *vp, const ct_request *r,
+                          ct_sample *out, emb_hit *h, vec3 *d)
 {
     memset(out, 0, sizeof *out);
     out->request_id = r->id;
@@ -183,7 +184,14 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
     /* A position that is not a number has no ray: a miss, not an Embree query. */
     if (!isfinite(r->px) || !isfinite(r->py)) return false;
     *d = cam_dir(vp, v, r->px, r->py);
-    if (!integ_primary(c, v->cam.eye, *d, s)) return false;
+    return integ_primary_start(c, v->cam.eye, *d, h);
+}
+
+/* Second half, for a hit: the surface, the hit fields and L_base. */
+static void primary_finish(const trc_tracer *t, const integ_ctx *c, emb_hit *h, vec3 d, ct_sample *out,
+                           integ_surf *s)
+{
+    integ_primary_finish(c, h, d, s);
     out->flags |= CT_SAMPLE_HIT;
     if (!v3_is_zero(s->m->emission)) out->flags |= CT_SAMPLE_EMISSIVE;
     out->node = s->h.node;
@@ -195,6 +203,15 @@ static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const 
         out->l_base = integ_vertex_lerp(t->rad->rad, &s->h);
         out->flags |= CT_SAMPLE_HAS_BASE;
     }
+}
+
+/* Both halves: the primary part of a record: request fields, hit, L_base. */
+static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const view_pre *vp,
+                    const ct_request *r, ct_sample *out, integ_surf *s, vec3 *d)
+{
+    emb_hit h;
+    if (!primary_start(c, v, vp, r, out, &h, d)) return false;
+    primary_finish(t, c, &h, *d, out, s);
     return true;
 }
 
@@ -210,20 +227,24 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
     view_prepare(v, &vp);
     unsigned fpu = fpu_enter();
     /* First the primary rays of up to PRIMARY_BATCH requests, then their
-     * shading: independent Embree queries in a row overlap in the CPU (the
-     * next traversal starts while the last one's loads are in flight), and
-     * so do the first reads of the hit triangles' records. A sample's value
-     * does not depend on it: the primary hit is a function of the request
-     * alone and the shading draws its random numbers after it. */
+     * hit records (whose loads the first loop started), then their shading:
+     * independent Embree queries in a row overlap in the CPU (the next
+     * traversal starts while the last one's loads are in flight), and so do
+     * the cache misses on the hit triangles' records. A sample's value does
+     * not depend on it: the primary hit is a function of the request alone
+     * and the shading draws its random numbers after it. */
     integ_surf s[PRIMARY_BATCH];
+    emb_hit h[PRIMARY_BATCH];
     vec3 d[PRIMARY_BATCH];
     bool hit[PRIMARY_BATCH];
     for (size_t i0 = 0; i0 < n; i0 += PRIMARY_BATCH) {
         size_t m = n - i0 < PRIMARY_BATCH ? n - i0 : PRIMARY_BATCH;
         for (size_t k = 0; k < m; k++) {
             st->samples++;
-            hit[k] = primary(t, &c, v, &vp, &req[i0 + k], &out[i0 + k], &s[k], &d[k]);
+            hit[k] = primary_start(&c, v, &vp, &req[i0 + k], &out[i0 + k], &h[k], &d[k]);
         }
+        for (size_t k = 0; k < m; k++)
+            if (hit[k]) primary_finish(t, &c, &h[k], d[k], &out[i0 + k], &s[k]);
         for (size_t k = 0; k < m; k++) {
             if (!hit[k]) continue;
             const ct_request *r = &req[i0 + k];
