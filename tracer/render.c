@@ -21,6 +21,7 @@ void render_options_default(render_options *o, int width, int height)
     o->spp = 1;
     o->threads = 1;
     o->tile = 16;
+    o->bench_runs = 2;
 }
 
 typedef struct job {
@@ -140,11 +141,11 @@ static int start_all(worker *ws, int n, void *(*fn)(void *), ct_error *err)
 }
 
 /* Wall time of replaying every worker's log on its own thread; the best of
- * two runs, so a burst of load from other processes counts less. */
-static double replay(worker *ws, int n, int as_traced, ct_error *err, int *rc)
+ * `runs`, so a burst of load from other processes counts less. */
+static double replay(worker *ws, int n, int as_traced, int runs, ct_error *err, int *rc)
 {
     double best = 0.0;
-    for (int run = 0; run < 2; run++) {
+    for (int run = 0; run < runs; run++) {
         for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
         double t0 = ct_now();
         *rc = start_all(ws, n, run_replay, err);
@@ -234,10 +235,12 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
      * the tracer some 15 % and is no part of its work. The log, when asked
      * for, comes from a later, untimed pass over the same requests, which
      * traces the very same rays (a sample is a pure function of its
-     * request). With the log (a benchmark) the timed pass runs twice and
-     * the faster counts, as for the raw replays it is compared with. */
+     * request). With the log (a benchmark) the timed pass runs bench_runs
+     * times and the fastest counts, as for the raw replays it is compared
+     * with. */
     int rc = CT_OK;
-    for (int run = 0; run < (o->raylog_cap ? 2 : 1); run++) {
+    int runs = o->bench_runs > 1 ? o->bench_runs : 1;
+    for (int run = 0; run < (o->raylog_cap ? runs : 1); run++) {
         double t0 = ct_now();
         rc = run_pass(&j, ws, o->threads, false, run == 0 ? o->progress : NULL, err);
         if (rc) {
@@ -264,8 +267,8 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     }
     if (res->logged) {
         for (int i = 0; i < o->threads; i++) trc_raylog_sort(&ws[i].log);
-        res->replay_isect_s = replay(ws, o->threads, 0, err, &rc);
-        if (!rc) res->replay_traced_s = replay(ws, o->threads, 1, err, &rc);
+        res->replay_isect_s = replay(ws, o->threads, 0, runs, err, &rc);
+        if (!rc) res->replay_traced_s = replay(ws, o->threads, 1, runs, err, &rc);
     }
     free_workers(ws, o->threads);
     return rc;

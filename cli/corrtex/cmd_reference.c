@@ -32,7 +32,7 @@ typedef struct ref_args {
     int branch_depth;                 /* -1: the mode's default */
     uint64_t seed;
     float exposure;
-    int png, half, raw_embree;
+    int png, half, raw_embree, bench_runs;
     float stand_in;         /* < 0: no stand-in radiosity */
     long raw_cap;
 } ref_args;
@@ -84,11 +84,12 @@ static void help(FILE *f)
         "  --half            write half-float EXR (default: 32-bit float)\n"
         "  --png             also write a PNG preview beside each EXR\n"
         "  --exposure E      PNG preview exposure in stops (default 0)\n"
-        "  --raw-embree      benchmark: render twice (the faster counts), log the rays in\n"
-        "                    a third, untimed render and replay them with raw Embree\n"
-        "                    queries (best of two replays)\n"
+        "  --raw-embree      benchmark: render R times (the fastest counts), log the rays\n"
+        "                    in one more, untimed render and replay them with raw Embree\n"
+        "                    queries (the fastest of R replays)\n"
         "  --raw-cap N       rays logged per thread, a uniform random subset of all\n"
         "                    traced rays (default 2000000)\n"
+        "  --bench-runs R    renders and replays of --raw-embree (default 2)\n"
         "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
         "  --quiet, --verbose\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
@@ -129,6 +130,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
     a->branch_depth = -1;
     a->seed = 1;
     a->raw_cap = 2000000;
+    a->bench_runs = 2;
     a->stand_in = -1.0f;
     long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
     a->threads = ncpu > 0 ? (int)(ncpu < 256 ? ncpu : 256) : 1;
@@ -177,13 +179,15 @@ static int parse_args(int argc, char **argv, ref_args *a)
                 {"--width", 1, 65536}, {"--height", 1, 65536}, {"--spp", 1, 1 << 20},
                 {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
                 {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
-                {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024}};
+                {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024},
+                {"--bench-runs", 1, 20}};
             size_t k = 0;
             while (k < sizeof ints / sizeof ints[0] && strcmp(o, ints[k].name)) k++;
             if (k == sizeof ints / sizeof ints[0]) return bad("unknown option '%s' (try --help)%s", o, ""), -1;
             if (parse_int(o, v, ints[k].lo, ints[k].hi, &n)) return -1;
             int *dst[] = {&a->width, &a->height, &a->spp, &a->threads, &a->frame, &a->frames,
-                          &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth};
+                          &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth,
+                          &a->bench_runs};
             if (k == 10) a->raw_cap = n;
             else *dst[k] = (int)n;
         }
@@ -358,6 +362,7 @@ int cmd_reference(int argc, char **argv)
     ro.tile = a.tile;
     ro.progress = ct_log_get_level() >= CT_LOG_INFO ? "reference" : NULL;
     if (a.raw_embree) ro.raylog_cap = (size_t)a.raw_cap;
+    ro.bench_runs = a.bench_runs;
     render_result total;
     memset(&total, 0, sizeof total);
     int first = path ? (a.frame >= 0 ? a.frame : 0) : 0;
