@@ -48,6 +48,17 @@ run "$BIN/corrtex" reference "$SCENE" --path walk --frame 1 --frames 3 --width 1
     --mode path --quiet -o "$tmp/f1.exr" >/dev/null || die "--frame failed"
 cmp -s "$tmp/f1.exr" "$tmp/frames/frame_00001.exr" || die "--frame 1 differs from frame_00001.exr"
 
+# The benchmark mode: R timed renders and replays, a ray log capped per
+# thread (reservoir), raw Embree figures in the stats line.
+run "$BIN/corrtex" reference "$SCENE" --width 16 --height 16 --spp 2 --mode path --threads 2 --raw-embree \
+    --raw-cap 300 --bench-runs 3 -o "$tmp/raw.exr" >"$tmp/raw.log" 2>&1 || die "--raw-embree failed"
+stats=$(grep '^stats:' "$tmp/raw.log")
+logged=$(sed -nE 's/.* logged=([0-9]+).*/\1/p' <<<"$stats")
+raw=$(sed -nE 's/.* raw_isect_rays_per_s=([0-9.]+).*/\1/p' <<<"$stats")
+echo "metric: --raw-embree: $logged rays logged (cap 2 x 300), raw rtcIntersect1 $raw rays/s"
+[[ $logged -gt 0 && $logged -le 600 ]] || die "logged $logged rays, want 1..600"
+awk -v r="$raw" 'BEGIN { exit !(r > 0) }' || die "no raw Embree rate"
+
 check() { # expected-substring, then the arguments after "reference"
   local want=$1; shift
   "$BIN/corrtex" reference "$@" >"$tmp/o" 2>"$tmp/e"; local rc=$?
@@ -70,5 +81,6 @@ check "--frame 3 is not below --frames 3" "$SCENE" "${common[@]}" --mode path --
 check "needs a radiosity mesh" "$SCENE" "${common[@]}" --mode reuse-diffuse
 check "--stand-in-radiosity: '-1'" "$SCENE" "${common[@]}" --mode drt --stand-in-radiosity -1
 check "path 'nowhere'" "$SCENE" "${common[@]}" --mode path --path nowhere --frames 2
+check "--bench-runs: '0'" "$SCENE" "${common[@]}" --mode path --raw-embree --bench-runs 0
 [[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"
 exit $fail
