@@ -112,8 +112,17 @@ const char *__lsan_default_suppressions(void)
 /* GLVND unloads the vendor libraries and the driver at exit, before
  * LeakSanitizer looks, so their allocations show up from "<unknown module>"
  * and cannot be suppressed by name; marking the loaded GL libraries
- * RTLD_NODELETE keeps their names. Only sanitizer builds do this. */
+ * RTLD_NODELETE keeps their names. Only sanitizer builds do this (GCC
+ * defines __SANITIZE_ADDRESS__, Clang 14 only answers __has_feature). */
 #if defined(__SANITIZE_ADDRESS__)
+#define CT_ASAN_BUILD 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define CT_ASAN_BUILD 1
+#endif
+#endif
+
+#if defined(CT_ASAN_BUILD)
 static int pin_one(struct dl_phdr_info *info, size_t size, void *data)
 {
     (void)size;
@@ -128,7 +137,7 @@ static int pin_one(struct dl_phdr_info *info, size_t size, void *data)
 
 static void pin_driver_libraries(void)
 {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(CT_ASAN_BUILD)
     dl_iterate_phdr(pin_one, NULL);
 #endif
 }
