@@ -405,13 +405,20 @@ Test(radiosity, direct_part_is_one_bounce_of_emitted_light)
     }
 }
 
-Test(radiosity, max_triangles_bounds_the_mesh)
+/* Parameters under which the room wants far more than 5,000 triangles. */
+static rad_params budget_params(void)
 {
-    ct_scene *s = rfx_room_with_block();
     rad_params p = test_params();
     p.error = 1e-7;
     p.min_area = 1e-7;
     p.max_triangles = 5000;
+    return p;
+}
+
+Test(radiosity, max_triangles_bounds_the_mesh)
+{
+    ct_scene *s = rfx_room_with_block();
+    rad_params p = budget_params();
     ct_radmesh m;
     rad_stats st;
     ct_error err;
@@ -430,10 +437,7 @@ Test(radiosity, max_triangles_bounds_the_mesh)
 Test(radiosity, max_triangles_mesh_is_the_same_for_any_thread_count)
 {
     ct_scene *s = rfx_room_with_block();
-    rad_params p = test_params();
-    p.error = 1e-7;
-    p.min_area = 1e-7;
-    p.max_triangles = 5000;
+    rad_params p = budget_params();
     uint64_t first = 0;
     uint32_t ntris = 0;
     for (int run = 0; run < 6; run++) {
