@@ -14,7 +14,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 1u
+#define RAD_SOLVER_VERSION 2u   /* 2: --max-triangles shared out per patch and pass */
 
 void rad_params_default(rad_params *p)
 {
