@@ -53,9 +53,9 @@ typedef struct emitter {
     uint32_t first, count;   /* its lights: [first, first + count) */
 } emitter;
 
-/* The emitters' data light_select weighs, as arrays (structure of arrays):
- * gathered per candidate into a short vector the compiler can compute four
- * or eight at a time. Non-flat emitters have ny = 0 and flat = 0. */
+/* The emitters' data light_select weighs, as arrays (structure of arrays),
+ * gathered four candidates at a time into vector registers. Non-flat
+ * emitters have a zero normal and flat = 0. */
 typedef struct emitter_soa {
     float *cx, *cy, *cz, *nx, *ny, *nz, *r2, *power;
     int32_t *flat;   /* -1 (all bits set: a lane mask) when flat, else 0 */
@@ -390,7 +390,7 @@ static vec3 probe_point(const light_set *l, vec3 base, int side, ct_rng *r)
 static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t iy, uint32_t iz, int side,
                          key_cands *out)
 {
-    memset(out, 0, sizeof *out);   /* light_select reads all LIGHT_CANDS slots */
+    memset(out, 0, sizeof *out);   /* the grid key stores all LIGHT_CANDS slots */
     vec3 base = v3_add(l->lo, v3((float)ix * l->h, (float)iy * l->h, (float)iz * l->h));
     vec3 pts[LIGHT_VIS_RAYS];
     ct_rng r = rng_make(LIGHT_VIS_SEED, key, 0, 0);
@@ -474,9 +474,6 @@ void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
 {
     sel->n = 0;
     if (!l->spatial || key == LIGHT_NO_KEY) return;
-    uint32_t ix = key / LIGHT_SIDES % l->nx, iy = key / LIGHT_SIDES / l->nx % l->ny;
-    uint32_t iz = key / LIGHT_SIDES / l->nx / l->ny;
-    int side = (int)(key % LIGHT_SIDES);
     grid_key *gk = &l->keys[key];
     key_cands kc;
     if (atomic_load_explicit(&gk->state, memory_order_acquire) == CELL_READY) {
@@ -484,7 +481,8 @@ void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
         memcpy(kc.idx, gk->idx, sizeof kc.idx);
         for (uint32_t j = 0; j < kc.n; j++) kc.vis[j] = (uint8_t)(gk->vis2[j / 2] >> (4 * (j % 2)) & 15u);
     } else {
-        estimate_key(l, key, ix, iy, iz, side, &kc);
+        uint32_t cell = key / LIGHT_SIDES;
+        estimate_key(l, key, cell % l->nx, cell / l->nx % l->ny, cell / l->nx / l->ny, (int)(key % LIGHT_SIDES), &kc);
         unsigned char expect = CELL_EMPTY;
         if (atomic_compare_exchange_strong_explicit(&gk->state, &expect, CELL_BUSY, memory_order_acq_rel,
                                                     memory_order_acquire)) {

@@ -368,8 +368,12 @@ static int refine(rad_ctx *c, rad_tls *t, uint32_t ri, uint32_t src_flags, float
         }
         const rad_elem *s = rad_el(c, src);
         int s_can = s->child_pub != RAD_NONE;
-        int r_can = can_split_receiver(c, t, r);
-        int split_src = s_can && (s->area > r->area || !r_can);
+        /* The larger side splits; the receiver's split is asked for (and,
+         * when its quota refuses, counted as wanted) only when it is the
+         * one that should split. */
+        int prefer_src = s_can && s->area > r->area;
+        int r_can = !prefer_src && can_split_receiver(c, t, r);
+        int split_src = s_can && (prefer_src || !r_can);
         if (split_src) {
             atomic_fetch_add(&c->refined, 1);
             for (uint32_t i = 0; i < 4; i++) {
