@@ -10,7 +10,7 @@
 # corrections measure worse at 64x64; reuse-diffuse corrections (the mirror,
 # the glass) converge to the reference, so frame 3 must beat frame 0. K = 400
 # at 64x64: with 800 a frame the specular pixels were all covered by frame 0
-# already (frame 3 within 0.001 dB of it); 400 -> 1,600 samples gains 0.11 dB
+# already (frame 3 within 0.001 dB of it); 400 -> 1,600 samples gains about 0.1 dB
 # (the run is deterministic: the same figures every time).
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs "$corrtex"
