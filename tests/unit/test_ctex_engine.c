@@ -187,6 +187,19 @@ Test(ctex_engine, bvh_groups_by_material)
     scene_free(s);
 }
 
+/* The test scene with leaf textures (eps = 0) under the front camera at
+ * w x h pixels. */
+static ctex *leaf_engine(tscene *t, int w, int h)
+{
+    build(t);
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    ctex *c = engine(t, o);
+    ct_camera cam = front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, w, h, &err), 0, "%s", err.msg);
+    return c;
+}
+
 /* Number of active textures and whether every one sits on a leaf. */
 static uint32_t count_textures(ctex *c, int *all_leaves, uint32_t *parts_covered)
 {
@@ -207,12 +220,7 @@ static uint32_t count_textures(ctex *c, int *all_leaves, uint32_t *parts_covered
 Test(ctex_engine, eps_zero_gives_leaf_textures)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0, "%s", err.msg);
+    ctex *c = leaf_engine(&t, 64, 64);
     int leaves;
     uint32_t covered;
     uint32_t n = count_textures(c, &leaves, &covered);
@@ -325,12 +333,7 @@ Test(ctex_engine, camera_local_maps_bounding_rect_to_unit_square)
 Test(ctex_engine, object_local_projection_along_normal)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    ctex *c = leaf_engine(&t, 64, 64);
     int32_t id = ctex_owner(c, (uint32_t)t.plate[0], UINT32_MAX, v3s(0.0f));
     ctex_proj_kind kind;
     mat4 m;
@@ -370,12 +373,7 @@ static ct_sample mk_sample(uint32_t node, vec3 hit, vec3 hq, vec3 base)
 Test(ctex_engine, insert_reads_correction_and_error)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    ctex *c = leaf_engine(&t, 64, 64);
     ctex_insert_info info;
     ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 2), v3(0.8f, 0.6f, 0.4f), v3(0.5f, 0.5f, 0.5f));
     cr_assert_eq(ctex_insert(c, &s, &info), 1);
@@ -418,12 +416,7 @@ static void fill_floor(ctex *c, uint32_t node, float val, float y)
 Test(ctex_engine, diffuse_object_local_does_not_age)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    ctex *c = leaf_engine(&t, 64, 64);
     fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
     int32_t id = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
     ct_sample sp = mk_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
@@ -577,12 +570,7 @@ Test(ctex_engine, memory_cap_evicts_invisible_first)
 Test(ctex_engine, compositor_adds_bilinear_correction)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 8, 8, &err), 0);
+    ctex *c = leaf_engine(&t, 8, 8);
     fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
     ctex_hit hits[64];
     for (int i = 0; i < 64; i++) {
