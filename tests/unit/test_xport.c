@@ -314,22 +314,33 @@ Test(xport, tcp_wrong_token)
     xport_listener_close(l);
 }
 
+/* A master channel on spec whose peer is a raw display connection (*cli)
+ * that has sent a valid HELLO (nonce starting with nonce0): the tests then
+ * write broken frames by hand. */
+static chan *master_with_raw_display(const char *spec, xport_listener **l, xport_conn **cli, uint8_t nonce0)
+{
+    xport_conn *srv;
+    connect_pair(spec, l, &srv, cli);
+    chan_config mc = {.role = AUTH_ROLE_MASTER};
+    chan *m;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {nonce0};
+    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    cr_assert_eq(xport_write_all(*cli, hello, sizeof hello, 1000, &err), 0, "%s", err.msg);
+    return m;
+}
+
 Test(xport, peer_disconnects_mid_message)
 {
     char spec[128];
     unix_spec(spec, sizeof spec);
     xport_listener *l;
-    xport_conn *srv, *cli;
-    connect_pair(spec, &l, &srv, &cli);
-    chan_config mc = {.role = AUTH_ROLE_MASTER};
-    chan *m;
+    xport_conn *cli;
     ct_error err = {{0}};
-    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
     /* A raw display: a valid HELLO, then 10 bytes of a 16-byte PING frame, then gone. */
-    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {7};
-    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    chan *m = master_with_raw_display(spec, &l, &cli, 7);
     uint8_t part[10] = {WIRE_PING, 0, 0, 0, 8, 0, 0, 0, 1, 2};
-    cr_assert_eq(xport_write_all(cli, hello, sizeof hello, 1000, &err), 0);
     cr_assert_eq(xport_write_all(cli, part, sizeof part, 1000, &err), 0);
     xport_close(cli);
     wire_msg msg;
@@ -850,16 +861,10 @@ Test(xport, oversized_frame_after_handshake)
     char spec[128];
     unix_spec(spec, sizeof spec);
     xport_listener *l;
-    xport_conn *srv, *cli;
-    connect_pair(spec, &l, &srv, &cli);
-    chan_config mc = {.role = AUTH_ROLE_MASTER};
-    chan *m;
+    xport_conn *cli;
     ct_error err = {{0}};
-    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
-    uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {9};
-    auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
+    chan *m = master_with_raw_display(spec, &l, &cli, 9);
     uint8_t huge[8] = {WIRE_SCENE_CHUNK, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
-    cr_assert_eq(xport_write_all(cli, hello, sizeof hello, 1000, &err), 0);
     cr_assert_eq(xport_write_all(cli, huge, sizeof huge, 1000, &err), 0);
     wire_msg msg;
     int rc = chan_recv_wait(m, &msg, 2000, &err);
