@@ -483,7 +483,6 @@ static void aspect_size(const ctex *c, float pxw, float pxh, float longer, int m
     *h = ih;
 }
 
-static size_t tex_bytes(int w, int h) { return ctex_tex_bytes(w, h); }
 static size_t mem_cap(const ctex *c) { return (size_t)(c->o.mem_mb * 1048576.0); }
 
 static void destroy_slot(ctex *c, uint32_t id)
@@ -491,7 +490,7 @@ static void destroy_slot(ctex *c, uint32_t id)
     slot *s = &c->slots[id];
     if (!s->live) return;
     if (s->active) push_event(c, CTEX_EV_FREE, id);
-    c->bytes -= tex_bytes(s->t.w, s->t.h);
+    c->bytes -= ctex_tex_bytes(s->t.w, s->t.h);
     ctex_tex_release(&s->t);
     if (c->node_tex[s->hnode] == (int32_t)id) c->node_tex[s->hnode] = -1;
     s->live = 0;
@@ -604,10 +603,10 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
         /* glued to the object: nothing moves; only the bounds may shrink it */
         if (t->w > s->max_w || t->h > s->max_h) {
             int nw = t->w > s->max_w ? s->max_w : t->w, nh = t->h > s->max_h ? s->max_h : t->h;
-            size_t ob = tex_bytes(t->w, t->h);
+            size_t ob = ctex_tex_bytes(t->w, t->h);
             int rc = ctex_tex_resize(t, nw, nh, err);
             if (rc) return rc;
-            c->bytes = c->bytes - ob + tex_bytes(nw, nh);
+            c->bytes = c->bytes - ob + ctex_tex_bytes(nw, nh);
             c->st.resizes++;
             if (s->active) ev_alloc(c, id);
         }
@@ -618,9 +617,9 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
     if (old.kind == CTEX_PROJ_OBJECT) rate = (float)old.w / fmaxf(pxw, 1.0f);
     int w, h;
     aspect_size(c, pxw, pxh, fmaxf(pxw, pxh) * rate, s->max_w, s->max_h, &w, &h);
-    size_t ob = tex_bytes(old.w, old.h);
+    size_t ob = ctex_tex_bytes(old.w, old.h);
     c->bytes -= ob;
-    if (!make_room(c, tex_bytes(w, h))) aspect_size(c, pxw, pxh, (float)c->o.tex_min, s->max_w, s->max_h, &w, &h);
+    if (!make_room(c, ctex_tex_bytes(w, h))) aspect_size(c, pxw, pxh, (float)c->o.tex_min, s->max_w, s->max_h, &w, &h);
     t->tx = NULL;
     int rc = ctex_tex_init(t, w, h, err);
     if (rc) {
@@ -634,7 +633,7 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
     const ctex_tex *src[1] = {&old};
     ctex_tex_resample(t, src, 1, 0.0f);
     free(old.tx);
-    c->bytes += tex_bytes(w, h);
+    c->bytes += ctex_tex_bytes(w, h);
     if (s->active && (w != old.w || h != old.h)) ev_alloc(c, id);
     return CT_OK;
 }
@@ -664,10 +663,10 @@ static int create_texture(ctex *c, uint32_t n, ct_error *err)
     for (int i = 0; i < ns; i++) c->retire[c->srcs[i]] = 1;
     int w, h;
     aspect_size(c, pxw, pxh, longer, s->max_w, s->max_h, &w, &h);
-    if (!make_room(c, tex_bytes(w, h))) aspect_size(c, pxw, pxh, (float)c->o.tex_min, s->max_w, s->max_h, &w, &h);
+    if (!make_room(c, ctex_tex_bytes(w, h))) aspect_size(c, pxw, pxh, (float)c->o.tex_min, s->max_w, s->max_h, &w, &h);
     int rc = ctex_tex_init(&s->t, w, h, err);
     if (rc) return rc;
-    c->bytes += tex_bytes(w, h);
+    c->bytes += ctex_tex_bytes(w, h);
     s->live = 1;
     s->active = 1;
     s->last_epoch = c->epoch;
@@ -844,18 +843,18 @@ static void adapt_resolution(ctex *c, uint32_t id, int r)
         /* exact doublings only: an axis that would pass its bound stays */
         nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;
         nh = 2 * t->h <= s->max_h ? 2 * t->h : t->h;
-        size_t grow = tex_bytes(nw, nh) - tex_bytes(t->w, t->h);
+        size_t grow = ctex_tex_bytes(nw, nh) - ctex_tex_bytes(t->w, t->h);
         if (!make_room(c, grow)) return;   /* the memory cap denies growth */
     } else {
         return;
     }
     if (nw == t->w && nh == t->h) return;
-    size_t ob = tex_bytes(t->w, t->h);
+    size_t ob = ctex_tex_bytes(t->w, t->h);
     int dir = nw > t->w || nh > t->h ? 1 : -1;
     ct_debug("ctex", "texture %u: %dx%d -> %dx%d (mean splat radius %.2f over %u samples)", id, t->w, t->h, nw, nh,
              (double)t->mean_r, t->since_resize);
     if (ctex_tex_resize(t, nw, nh, NULL)) return;   /* out of memory: keep the old size */
-    c->bytes = c->bytes - ob + tex_bytes(nw, nh);
+    c->bytes = c->bytes - ob + ctex_tex_bytes(nw, nh);
     t->last_resize = dir;
     t->mean_r = 0.0f;
     t->since_resize = 0;

@@ -142,6 +142,18 @@ static void token(auth_token *t, char fill)
     t->len = 32;
 }
 
+/* A server on a fresh socket (tag names it, spec receives it) and one
+ * display asking for k samples per frame, after the server has reported the
+ * connection (*e). */
+static chan *connected_display(server *sv, char *spec, size_t cap, const char *tag, uint32_t k, dsrv_event *e)
+{
+    sock_spec(spec, cap, tag);
+    start(sv, spec, NULL, 2000);
+    chan *d = display(spec, NULL, k);
+    cr_assert_eq(wait_event(sv, 0, e), DSRV_EV_CONNECTED);
+    return d;
+}
+
 Test(dsrv, unix_socket_mode_and_default_address)
 {
     char spec[128];
@@ -170,12 +182,9 @@ Test(dsrv, tcp_needs_a_token)
 Test(dsrv, display_events_ping_and_busy)
 {
     char spec[128];
-    sock_spec(spec, sizeof spec, "busy");
     server sv;
-    start(&sv, spec, NULL, 2000);
-    chan *d = display(spec, NULL, 7);
     dsrv_event e;
-    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    chan *d = connected_display(&sv, spec, sizeof spec, "busy", 7, &e);
     cr_assert_eq(e.msg.u.settings.samples_per_frame, 7u);
     send_camera(d, 1);
     cr_assert_eq(wait_event(&sv, 1, &e), DSRV_EV_MESSAGE);
@@ -279,12 +288,9 @@ Test(dsrv, hostile_peers_next_to_a_display)
 Test(dsrv, oversized_frame_from_an_authenticated_display)
 {
     char spec[128];
-    sock_spec(spec, sizeof spec, "oversize");
     server sv;
-    start(&sv, spec, NULL, 2000);
-    chan *d = display(spec, NULL, 0);
     dsrv_event e;
-    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    chan *d = connected_display(&sv, spec, sizeof spec, "oversize", 0, &e);
     uint8_t huge[8] = {WIRE_CAMERA, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
     ct_error err = {{0}};
     cr_assert_eq(xport_write_all(chan_conn(d), huge, sizeof huge, 1000, &err), 0);
@@ -300,12 +306,9 @@ Test(dsrv, oversized_frame_from_an_authenticated_display)
 Test(dsrv, droppable_samples_under_back_pressure)
 {
     char spec[128];
-    sock_spec(spec, sizeof spec, "drop");
     server sv;
-    start(&sv, spec, NULL, 2000);
-    chan *d = display(spec, NULL, 0);
     dsrv_event e;
-    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    chan *d = connected_display(&sv, spec, sizeof spec, "drop", 0, &e);
     /* From here on one thread drives both sides. */
     sv.stop = 1;
     pthread_join(sv.th, NULL);
