@@ -214,10 +214,27 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
                        tex, t->w, t->h);
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
-            const ctex_texel *p = ctex_tex_at(t, x + i, y + j);
+            vec3 v = ctex_texel_rgb(ctex_tex_at(t, x + i, y + j));
             float *o = out + 3 * ((size_t)j * (size_t)w + (size_t)i);
-            o[0] = p->r; o[1] = p->g; o[2] = p->b;
+            o[0] = v.x; o[1] = v.y; o[2] = v.z;
         }
+    return CT_OK;
+}
+
+int ctex_read_patch_half(const ctex *c, uint32_t tex, int x, int y, int w, int h, uint16_t *out,
+                         ct_error *err)
+{
+    if (tex >= c->nslots || !c->slots[tex].live)
+        return ct_fail(err, CT_ERANGE, "texture %u is not live", tex);
+    const ctex_tex *t = &c->slots[tex].t;
+    if (x < 0 || y < 0 || w < 0 || h < 0 || x + w > t->w || y + h > t->h)
+        return ct_fail(err, CT_ERANGE, "patch %dx%d+%d+%d outside texture %u of %dx%d", w, h, x, y,
+                       tex, t->w, t->h);
+    for (int j = 0; j < h; j++) {
+        const ctex_texel *p = ctex_tex_at(t, x, y + j);
+        uint16_t *o = out + 3 * (size_t)j * (size_t)w;
+        for (int i = 0; i < w; i++) memcpy(o + 3 * i, p[i].c, sizeof p[i].c);
+    }
     return CT_OK;
 }
 

@@ -172,6 +172,11 @@ void ctex_events_clear(ctex *c);
 int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, float *out,
                     ct_error *err);
 
+/* The same as the IEEE half floats the texels hold (w*h*3, what TEX_PATCH
+ * carries): a copy, no conversion. */
+int ctex_read_patch_half(const ctex *c, uint32_t tex, int x, int y, int w, int h, uint16_t *out,
+                         ct_error *err);
+
 /* The scene part nodes a hierarchy node covers (what the display draws with
  * its texture). */
 const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n);

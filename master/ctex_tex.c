@@ -6,18 +6,26 @@
 #include <string.h>
 #include <sys/mman.h>
 
-/* Four floats: a texel (r, g, b, v) in one SSE register (GCC/Clang vector
- * extensions, portable C): the same IEEE single-precision operations as
- * scalar code, so the results are bit-identical. */
+/* Four floats: a texel's correction (r, g, b, junk) in one SSE register
+ * (GCC/Clang vector extensions, portable C): the same IEEE single-precision
+ * operations as scalar code, so the results are bit-identical. */
 typedef float v4f __attribute__((vector_size(16)));
-typedef int32_t v4i __attribute__((vector_size(16)));
+
+static inline v4f texel4(const ctex_texel *p)
+{
+    v4f f;
+    float a[4];
+    ctex_texel_rgbx(p, a);
+    memcpy(&f, a, sizeof f);
+    return f;
+}
 
 /* Texel storage. Samples land anywhere in 5-15 million texels (tens of MiB),
  * so with 4 KiB pages nearly every splat misses the TLB as well as the
  * caches; arrays of 2 MiB and more are aligned to 2 MiB and advised as huge
  * pages (transparent huge pages in "madvise" mode), which removes most page
  * walks. The size is not rounded up: the tail past the last whole 2 MiB stays
- * in small pages, so the memory cap's count (ctex_tex_bytes: 16 bytes a
+ * in small pages, so the memory cap's count (ctex_tex_bytes: 8 bytes a
  * texel of the padded rows) stays true. Freed with free(). */
 static ctex_texel *alloc_texels(size_t n)
 {
@@ -34,10 +42,7 @@ static ctex_texel *alloc_texels(size_t n)
 
 static void clear_texels(ctex_texel *tx, size_t n)
 {
-    for (size_t i = 0; i < n; i++) {
-        tx[i].r = tx[i].g = tx[i].b = 0.0f;
-        tx[i].v = -INFINITY;
-    }
+    for (size_t i = 0; i < n; i++) ctex_texel_clear(&tx[i]);
 }
 
 int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
@@ -54,6 +59,7 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     t->h = h;
     t->pitch = pitch;
     t->vmax = 0.0f;   /* §3.4: the first samples start at validity 0 */
+    t->vbase = 0.0f;
     t->mean_r = 0.0f;
     t->since_resize = 0;
     t->last_resize = 0;
@@ -68,27 +74,82 @@ void ctex_tex_release(ctex_tex *t)
     t->w = t->h = t->pitch = 0;
 }
 
-/* Writes value into texel x with margin m = v_new - v_old; blend: band. */
-static inline int put(ctex_texel *x, float vn, vec3 val, float blend)
+void ctex_tex_rebase(ctex_tex *t)
 {
-    float m = vn - x->v;
-    if (m > 0.0f) {
-        if (m >= blend) {
-            /* one 16-byte store */
-            *x = (ctex_texel){val.x, val.y, val.z, vn};
-            return 1;
-        } else {
-            /* §3.4: blend new and old by their validities at splat borders */
-            float w = 0.5f + 0.5f * m / blend;
-            x->r += w * (val.x - x->r); x->g += w * (val.y - x->g); x->b += w * (val.z - x->b);
+    /* whole steps only, so every validity keeps its exact value or clamps */
+    float sh = rintf((t->vmax - t->vbase) * (float)CTEX_VQ);
+    if (sh == 0.0f || !isfinite(sh)) return;
+    t->vbase += sh / (float)CTEX_VQ;
+    /* a shift past the whole range clamps every validity alike */
+    int32_t d = (int32_t)fmaxf(fminf(sh, 131072.0f), -131072.0f);
+    for (int y = 0; y < t->h; y++) {
+        ctex_texel *row = ctex_tex_at(t, 0, y);
+        for (int x = 0; x < t->w; x++) {
+            if (row[x].q == CTEX_Q_EMPTY) continue;
+            int32_t q = (int32_t)row[x].q - d;
+            row[x].q = (int16_t)(q < CTEX_Q_OLDEST ? CTEX_Q_OLDEST : (q > INT16_MAX ? INT16_MAX : q));
         }
-        x->v = vn;
+    }
+}
+
+/* A splat's value: as halves (one 8-byte store a texel) and as the floats
+ * those halves hold (blending). */
+typedef struct splat_val {
+    uint64_t rgb;     /* the texel's bytes with q = 0 */
+    vec3 f;
+    float blend;      /* band (texels) */
+} splat_val;
+
+/* Texel x := the bytes rgb with validity step q, as one 8-byte store. */
+static inline void store(ctex_texel *x, uint64_t rgb, int32_t q)
+{
+    uint64_t w = rgb | (uint64_t)(uint16_t)(int16_t)q << 48;
+    memcpy(x, &w, sizeof w);
+}
+
+/* Prefetches the top and bottom rows of ring k (for writing): each row
+ * of a ring is a new row of the texture, a cache miss the hardware
+ * prefetchers cannot foresee; issued a ring ahead, the misses of a large
+ * splat overlap. Always inlined (see prefetch_sample in ctex.c). */
+static inline __attribute__((always_inline)) void prefetch_ring(const ctex_tex *t, int ci, int cj, int k)
+{
+    int xa = ci - k < 0 ? 0 : ci - k, xb = ci + k > t->w - 1 ? t->w - 1 : ci + k;
+    for (int y = cj - k; y <= cj + k; y += 2 * k) {
+        if (y < 0 || y >= t->h) continue;
+        const ctex_texel *row = ctex_tex_at(t, 0, y);
+        for (int x = xa; x < xb; x += 8) __builtin_prefetch(row + x, 1, 1);
+        __builtin_prefetch(row + xb, 1, 1);
+    }
+}
+
+/* §3.4: blends value into texel x by margin m (texels) in (-blend, blend). */
+static void blend_into(ctex_texel *x, float m, const splat_val *sv)
+{
+    float w = 0.5f + 0.5f * m / sv->blend;
+    vec3 o = ctex_texel_rgb(x);
+    x->c[0] = half_from_float(o.x + w * (sv->f.x - o.x));
+    x->c[1] = half_from_float(o.y + w * (sv->f.y - o.y));
+    x->c[2] = half_from_float(o.z + w * (sv->f.z - o.z));
+}
+
+/* Writes the value into texel x at validity step vn: replaced when vn is
+ * more valid by the blend band or more (or x is empty), blended within the
+ * band (validity max(old, new)). Returns whether x's validity rose. */
+static inline int put(ctex_texel *x, int32_t vn, const splat_val *sv)
+{
+    int32_t m = vn - (int32_t)x->q;
+    if (m > 0) {
+        float mf = (float)m * (1.0f / (float)CTEX_VQ);
+        if (mf >= sv->blend || x->q == CTEX_Q_EMPTY) {
+            store(x, sv->rgb, vn);
+            return 1;
+        }
+        blend_into(x, mf, sv);
+        x->q = (int16_t)vn;
         return 1;
     }
-    if (m > -blend) {
-        float w = 0.5f + 0.5f * m / blend;
-        x->r += w * (val.x - x->r); x->g += w * (val.y - x->g); x->b += w * (val.z - x->b);
-    }
+    float mf = (float)m * (1.0f / (float)CTEX_VQ);
+    if (mf > -sv->blend) blend_into(x, mf, sv);
     return 0;
 }
 
@@ -97,12 +158,19 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
     const int W = t->w, H = t->h;
     const size_t P = (size_t)t->pitch;
     ctex_texel *T = t->tx;
-    const float vmax = t->vmax;
-    if (blend < 0.0f) blend = 0.0f;
+    if (t->vmax - t->vbase > (float)(CTEX_Q_REBASE / CTEX_VQ) || t->vmax < t->vbase) ctex_tex_rebase(t);
+    splat_val sv;
+    ctex_texel h;
+    ctex_texel_set(t, &h, val, 0.0f);
+    h.q = 0;
+    memcpy(&sv.rgb, &h, sizeof sv.rgb);
+    sv.f = ctex_texel_rgb(&h);
+    sv.blend = blend < 0.0f ? 0.0f : blend;
+    /* validity steps: v_max's, and ring k's v_max - k (§3.4) */
+    const int32_t qmax = ctex_tex_q(t, t->vmax);
     /* The centre texel always takes the newest sample. */
     ctex_texel *c = T + (size_t)cj * P + (size_t)ci;
-    c->r = val.x; c->g = val.y; c->b = val.z;
-    c->v = vmax > c->v ? vmax : c->v;
+    store(c, sv.rgb, c->q > qmax ? c->q : qmax);
     int r = 0, k = 1;
     /* The largest ring that still has a texel inside the texture. */
     int kmax = ci;
@@ -113,34 +181,38 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
     if (kmax >= 1 && ci >= 1 && cj >= 1 && ci < W - 1 && cj < H - 1) {
         /* Ring 1 inside the texture (most samples stop after it): its eight
          * texels in the ring loop's order, without the clipping. */
-        const float vn = vmax - 1.0f;
+        const int32_t vn = qmax - CTEX_VQ < CTEX_Q_OLDEST ? CTEX_Q_OLDEST : qmax - CTEX_VQ;
         ctex_texel *a = c - P, *b = c + P;
-        int changed = put(a - 1, vn, val, blend) | put(a, vn, val, blend) | put(a + 1, vn, val, blend);
-        changed |= put(b - 1, vn, val, blend) | put(b, vn, val, blend) | put(b + 1, vn, val, blend);
-        changed |= put(c - 1, vn, val, blend) | put(c + 1, vn, val, blend);
+        int changed = put(a - 1, vn, &sv) | put(a, vn, &sv) | put(a + 1, vn, &sv);
+        changed |= put(b - 1, vn, &sv) | put(b, vn, &sv) | put(b + 1, vn, &sv);
+        changed |= put(c - 1, vn, &sv) | put(c + 1, vn, &sv);
         if (!changed) goto dirty;
         r = 1;
         k = 2;
     }
+    if (k <= kmax) prefetch_ring(t, ci, cj, k);
     for (; k <= kmax; k++) {
-        const float vn = vmax - (float)k;   /* §3.4: validity v_max - d */
+        if (k < kmax) prefetch_ring(t, ci, cj, k + 1);
+        /* §3.4: validity v_max - d (older ones clamp to the oldest step) */
+        const int32_t vq = qmax - CTEX_VQ * k;
+        const int32_t vn = vq < CTEX_Q_OLDEST ? CTEX_Q_OLDEST : vq;
         int changed = 0;
         int xa = ci - k < 0 ? 0 : ci - k, xb = ci + k > W - 1 ? W - 1 : ci + k;
         /* top and bottom rows of the ring */
         if (cj - k >= 0) {
             ctex_texel *row = T + (size_t)(cj - k) * P;
-            for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, val, blend);
+            for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, &sv);
         }
         if (cj + k <= H - 1) {
             ctex_texel *row = T + (size_t)(cj + k) * P;
-            for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, val, blend);
+            for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, &sv);
         }
         /* left and right columns without the corners */
         int ya = cj - k + 1 < 0 ? 0 : cj - k + 1, yb = cj + k - 1 > H - 1 ? H - 1 : cj + k - 1;
         if (ci - k >= 0)
-            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * P + (size_t)(ci - k), vn, val, blend);
+            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * P + (size_t)(ci - k), vn, &sv);
         if (ci + k <= W - 1)
-            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * P + (size_t)(ci + k), vn, val, blend);
+            for (int y = ya; y <= yb; y++) changed |= put(T + (size_t)y * P + (size_t)(ci + k), vn, &sv);
         if (!changed) break;
         r = k;
     }
@@ -198,8 +270,8 @@ static bool sample_valid(const ctex_tex *t, float x, float y, vec3 *out)
             int xx = xs[a] < 0 ? 0 : (xs[a] >= t->w ? t->w - 1 : xs[a]);
             const ctex_texel *p = ctex_tex_at(t, xx, yy);
             float w = wx[a] * wy[b];
-            if (p->v == -INFINITY || w <= 0.0f) continue;
-            acc = v3_add(acc, v3(p->r * w, p->g * w, p->b * w));
+            if (!ctex_texel_valid(p) || w <= 0.0f) continue;
+            acc = v3_add(acc, v3_scale(ctex_texel_rgb(p), w));
             sw += w;
         }
     }
@@ -215,65 +287,70 @@ static bool sample_valid(const ctex_tex *t, float x, float y, vec3 *out)
  * texels; the validity is texel i's with distances scaled by the factor.
  * The same values as the generic path, without its per-texel searches. */
 typedef struct dbl_ctx {
-    float vmax, vs;
+    float qm, vs;                 /* v_max in validity steps above vbase; the distance scale */
     float ws[4];                  /* weights of texel i, its x neighbour, its y neighbour, the diagonal */
-    v4f w0, w1, w2, w3, vm, vsv;  /* the same, four lanes each */
+    v4f w0, w1, w2, w3;           /* the same, four lanes each */
 } dbl_ctx;
+
+/* Validity step q with its distance to v_max scaled (clamped like ctex_tex_q). */
+static inline int16_t dbl_q(const dbl_ctx *d, float q)
+{
+    float n = rintf(d->qm + (q - d->qm) * d->vs);
+    if (!(n > (float)CTEX_Q_OLDEST)) return CTEX_Q_OLDEST;
+    return n > (float)INT16_MAX ? INT16_MAX : (int16_t)n;
+}
 
 /* All four covering texels valid (the common case): the weights sum to 1.
  * Four channels at a time, the same products and sums in the same order as
- * the scalar code (so the same bits); the validity lane is texel i's,
- * rescaled. */
-static inline void dbl_valid(const dbl_ctx *d, v4f p0, v4f p1, v4f p2, v4f p3, ctex_texel *q)
+ * the scalar code (so the same bits); the validity is texel i's, rescaled. */
+static inline void dbl_valid(const dbl_ctx *d, v4f p0, v4f p1, v4f p2, v4f p3, float q0, ctex_texel *q)
 {
-    const v4i rgb = {-1, -1, -1, 0};
     v4f c = d->w0 * p0 + d->w1 * p1 + d->w2 * p2 + d->w3 * p3;
-    v4f v = d->vm + (p0 - d->vm) * d->vsv;
-    v4i out = ((v4i)c & rgb) | ((v4i)v & ~rgb);
-    memcpy(q, &out, sizeof out);
+    float f[4];
+    memcpy(f, &c, sizeof f);
+    uint16_t h[4];
+    float4_to_half(f, h);
+    q->c[0] = h[0]; q->c[1] = h[1]; q->c[2] = h[2];
+    q->q = dbl_q(d, q0);
 }
 
 /* One new texel from old texel p0, its x neighbour p1, y neighbour p2 and
  * diagonal p3 (the same texel where an axis is kept or clamped). */
 static inline void dbl_texel(const dbl_ctx *d, const ctex_texel *const ps[4], ctex_texel *q)
 {
-    if (ps[0]->v != -INFINITY && ps[1]->v != -INFINITY && ps[2]->v != -INFINITY && ps[3]->v != -INFINITY) {
-        v4f p0, p1, p2, p3;
-        memcpy(&p0, ps[0], sizeof p0); memcpy(&p1, ps[1], sizeof p1);
-        memcpy(&p2, ps[2], sizeof p2); memcpy(&p3, ps[3], sizeof p3);
-        dbl_valid(d, p0, p1, p2, p3, q);
+    if (ctex_texel_valid(ps[0]) && ctex_texel_valid(ps[1]) && ctex_texel_valid(ps[2]) &&
+        ctex_texel_valid(ps[3])) {
+        dbl_valid(d, texel4(ps[0]), texel4(ps[1]), texel4(ps[2]), texel4(ps[3]), ps[0]->q, q);
         return;
     }
     const float *ws = d->ws;
     float sw = 0.0f, cr = 0.0f, cg = 0.0f, cb = 0.0f;
     for (int k = 0; k < 4; k++)
-        if (ps[k]->v != -INFINITY && ws[k] > 0.0f) {
-            sw += ws[k]; cr += ws[k] * ps[k]->r; cg += ws[k] * ps[k]->g; cb += ws[k] * ps[k]->b;
+        if (ctex_texel_valid(ps[k]) && ws[k] > 0.0f) {
+            vec3 v = ctex_texel_rgb(ps[k]);
+            sw += ws[k]; cr += ws[k] * v.x; cg += ws[k] * v.y; cb += ws[k] * v.z;
         }
     if (!(sw > 0.0f)) {
-        q->r = q->g = q->b = 0.0f;
-        q->v = -INFINITY;
+        ctex_texel_clear(q);
         return;
     }
     float inv = 1.0f / sw;
-    q->r = cr * inv; q->g = cg * inv; q->b = cb * inv;
+    q->c[0] = half_from_float(cr * inv); q->c[1] = half_from_float(cg * inv); q->c[2] = half_from_float(cb * inv);
     /* an empty covering texel next to valid ones: one texel off */
-    float v = ps[0]->v == -INFINITY ? d->vmax - 1.0f : ps[0]->v;
-    q->v = d->vmax + (v - d->vmax) * d->vs;
+    q->q = dbl_q(d, ctex_texel_valid(ps[0]) ? (float)ps[0]->q : d->qm - (float)CTEX_VQ);
 }
 
 static void double_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int fx, int fy)
 {
     const int w = t->w, h = t->h;
     dbl_ctx d;
-    d.vmax = t->vmax;
+    d.qm = (t->vmax - t->vbase) * (float)CTEX_VQ;
     d.vs = (float)(fx > fy ? fx : fy);
     const float wx1 = fx == 2 ? 0.25f : 0.0f, wy1 = fy == 2 ? 0.25f : 0.0f;
     d.ws[0] = (1.0f - wx1) * (1.0f - wy1); d.ws[1] = wx1 * (1.0f - wy1);
     d.ws[2] = (1.0f - wx1) * wy1; d.ws[3] = wx1 * wy1;
     d.w0 = (v4f){d.ws[0], d.ws[0], d.ws[0], d.ws[0]}; d.w1 = (v4f){d.ws[1], d.ws[1], d.ws[1], d.ws[1]};
     d.w2 = (v4f){d.ws[2], d.ws[2], d.ws[2], d.ws[2]}; d.w3 = (v4f){d.ws[3], d.ws[3], d.ws[3], d.ws[3]};
-    d.vm = (v4f){d.vmax, d.vmax, d.vmax, d.vmax}; d.vsv = (v4f){d.vs, d.vs, d.vs, d.vs};
     for (int j = 0; j < h; j++) {
         for (int b = 0; b < fy; b++) {
             int jn = fy == 1 ? j : (b ? (j + 1 < h ? j + 1 : j) : (j > 0 ? j - 1 : 0));
@@ -289,13 +366,12 @@ static void double_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int fx, 
                 }
                 for (i = 1; i < w - 1; i++) {
                     const ctex_texel *A = r0 + i - 1, *B = r1 + i - 1;
-                    if (A[0].v != -INFINITY && A[1].v != -INFINITY && A[2].v != -INFINITY &&
-                        B[0].v != -INFINITY && B[1].v != -INFINITY && B[2].v != -INFINITY) {
-                        v4f a0, a1, a2, b0, b1, b2;
-                        memcpy(&a0, A, sizeof a0); memcpy(&a1, A + 1, sizeof a1); memcpy(&a2, A + 2, sizeof a2);
-                        memcpy(&b0, B, sizeof b0); memcpy(&b1, B + 1, sizeof b1); memcpy(&b2, B + 2, sizeof b2);
-                        dbl_valid(&d, a1, a0, b1, b0, o + 2 * i);
-                        dbl_valid(&d, a1, a2, b1, b2, o + 2 * i + 1);
+                    if (ctex_texel_valid(A) && ctex_texel_valid(A + 1) && ctex_texel_valid(A + 2) &&
+                        ctex_texel_valid(B) && ctex_texel_valid(B + 1) && ctex_texel_valid(B + 2)) {
+                        v4f a0 = texel4(A), a1 = texel4(A + 1), a2 = texel4(A + 2);
+                        v4f b0 = texel4(B), b1 = texel4(B + 1), b2 = texel4(B + 2);
+                        dbl_valid(&d, a1, a0, b1, b0, A[1].q, o + 2 * i);
+                        dbl_valid(&d, a1, a2, b1, b2, A[1].q, o + 2 * i + 1);
                         continue;
                     }
                     const ctex_texel *p0[4] = {A + 1, A, B + 1, B}, *p1[4] = {A + 1, A + 2, B + 1, B + 2};
@@ -321,6 +397,7 @@ static void halve_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int nw, i
 {
     const int w = t->w, h = t->h;
     const float vmax = t->vmax, vs = 1.0f / (float)(bx > by ? bx : by);
+    /* (nt shares t's vbase: ctex_tex_resize) */
     for (int j = 0; j < nh; j++) {
         int y0 = by * j, y1 = y0 + by > h ? h : y0 + by;
         ctex_texel *o = nt + (size_t)j * (size_t)npitch;
@@ -331,20 +408,20 @@ static void halve_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int nw, i
             for (int y = y0; y < y1; y++)
                 for (int x = x0; x < x1; x++) {
                     const ctex_texel *p = ctex_tex_at(t, x, y);
-                    if (p->v == -INFINITY) continue;
-                    cr += p->r; cg += p->g; cb += p->b;
-                    if (p->v > best) best = p->v;
+                    if (!ctex_texel_valid(p)) continue;
+                    vec3 v = ctex_texel_rgb(p);
+                    cr += v.x; cg += v.y; cb += v.z;
+                    float pv = ctex_tex_v(t, p);
+                    if (pv > best) best = pv;
                     n++;
                 }
             ctex_texel *q = o + i;
             if (!n) {
-                q->r = q->g = q->b = 0.0f;
-                q->v = -INFINITY;
+                ctex_texel_clear(q);
                 continue;
             }
             float inv = 1.0f / (float)n;
-            q->r = cr * inv; q->g = cg * inv; q->b = cb * inv;
-            q->v = vmax + (best - vmax) * vs;
+            ctex_texel_set(t, q, v3(cr * inv, cg * inv, cb * inv), vmax + (best - vmax) * vs);
         }
     }
 }
@@ -376,8 +453,7 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
     for (int j = 0; j < nh; j++) {
         for (int i = 0; i < nw; i++) {
             ctex_texel *o = nt + (size_t)j * (size_t)npitch + (size_t)i;
-            o->r = o->g = o->b = 0.0f;
-            o->v = -INFINITY;
+            ctex_texel_clear(o);
             if (shrink) {
                 /* §3.6: box filter, area-weighted over the old texels the new
                  * one covers; empty texels do not count. */
@@ -395,30 +471,30 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
                         float wx = fminf(bx, (float)(x + 1)) - fmaxf(ax, (float)x);
                         if (wx <= 0.0f) continue;
                         const ctex_texel *p = ctex_tex_at(t, x, y);
-                        if (p->v == -INFINITY) continue;
+                        if (!ctex_texel_valid(p)) continue;
                         double w = (double)wx * (double)wy;
-                        acc[0] += w * p->r; acc[1] += w * p->g; acc[2] += w * p->b;
+                        vec3 v = ctex_texel_rgb(p);
+                        acc[0] += w * v.x; acc[1] += w * v.y; acc[2] += w * v.z;
                         sw += w;
-                        if (p->v > best) best = p->v;
+                        float pv = ctex_tex_v(t, p);
+                        if (pv > best) best = pv;
                     }
                 }
-                if (sw > 0.0) {
-                    o->r = (float)(acc[0] / sw); o->g = (float)(acc[1] / sw); o->b = (float)(acc[2] / sw);
-                    o->v = t->vmax + (best - t->vmax) * vs;
-                }
+                if (sw > 0.0)
+                    ctex_texel_set(t, o, v3((float)(acc[0] / sw), (float)(acc[1] / sw), (float)(acc[2] / sw)),
+                                   t->vmax + (best - t->vmax) * vs);
             } else {
                 /* §3.6: bilinear refinement (texel centres, clamp to edge). */
                 float x = ((float)i + 0.5f) * sx - 0.5f, y = ((float)j + 0.5f) * sy - 0.5f;
                 vec3 val;
                 if (sample_valid(t, x, y, &val)) {
                     const ctex_texel *p = nearest(t, ((float)i + 0.5f) / (float)nw, ((float)j + 0.5f) / (float)nh);
-                    float best = p->v;
+                    float best = ctex_tex_v(t, p);
                     if (best == -INFINITY) {
                         /* next to the valid region: take the neighbours' best */
                         best = t->vmax - 1.0f;
                     }
-                    o->r = val.x; o->g = val.y; o->b = val.z;
-                    o->v = t->vmax + (best - t->vmax) * vs;
+                    ctex_texel_set(t, o, val, t->vmax + (best - t->vmax) * vs);
                 }
             }
         }
@@ -442,12 +518,12 @@ void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, floa
     vec3 xu = v3_sub(ctex_tex_unproject(dst, 1.0f, 0.0f), x0);
     vec3 xv = v3_sub(ctex_tex_unproject(dst, 0.0f, 1.0f), x0);
     const float iw = 1.0f / (float)dst->w, ih = 1.0f / (float)dst->h;
+    dst->vbase = dst->vmax;   /* every texel is written below */
     for (int j = 0; j < dst->h; j++) {
         vec3 row = v3_madd(x0, xv, ((float)j + 0.5f) * ih);
         for (int i = 0; i < dst->w; i++) {
             ctex_texel *o = ctex_tex_at(dst, i, j);
-            o->r = o->g = o->b = 0.0f;
-            o->v = -INFINITY;
+            vec3 out = v3s(0.0f);
             vec3 p = v3_madd(row, xu, ((float)i + 0.5f) * iw);
             float best = -INFINITY;
             for (int s = 0; s < nsrc; s++) {
@@ -458,15 +534,18 @@ void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, floa
                 float mu = 0.5f / (float)st->w, mv = 0.5f / (float)st->h;
                 if (u < -mu || u > 1.0f + mu || v < -mv || v > 1.0f + mv) continue;
                 const ctex_texel *n = nearest(st, u, v);
-                if (n->v == -INFINITY) continue;
-                float rel = n->v - st->vmax;
+                if (!ctex_texel_valid(n)) continue;
+                float rel = ctex_tex_v(st, n) - st->vmax;
                 if (rel <= best) continue;
                 vec3 val;
                 if (!sample_valid(st, u * (float)st->w - 0.5f, v * (float)st->h - 0.5f, &val)) continue;
                 best = rel;
-                o->r = val.x; o->g = val.y; o->b = val.z;
+                out = val;
             }
-            if (best > -INFINITY) o->v = dst->vmax + best - penalty;
+            if (best > -INFINITY)
+                ctex_texel_set(dst, o, out, dst->vmax + best - penalty);
+            else
+                ctex_texel_clear(o);
         }
     }
     dst->dx0 = 0; dst->dy0 = 0; dst->dx1 = dst->w; dst->dy1 = dst->h;
@@ -479,8 +558,9 @@ vec3 ctex_tex_mean(const ctex_tex *t, uint32_t *nvalid)
     for (int y = 0; y < t->h; y++)
         for (int x = 0; x < t->w; x++) {
             const ctex_texel *p = ctex_tex_at(t, x, y);
-            if (p->v == -INFINITY) continue;
-            acc[0] += p->r; acc[1] += p->g; acc[2] += p->b;
+            if (!ctex_texel_valid(p)) continue;
+            vec3 v = ctex_texel_rgb(p);
+            acc[0] += v.x; acc[1] += v.y; acc[2] += v.z;
             n++;
         }
     if (nvalid) *nvalid = n;

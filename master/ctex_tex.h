@@ -7,17 +7,33 @@
 #define CT_MASTER_CTEX_TEX_H
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "common/camera.h"
 #include "common/error.h"
+#include "common/half.h"
 #include "common/vecmath.h"
 #include "master/ctex.h"
 
-/* One texel: signed RGB correction and validity (-INFINITY when empty). */
+/* One texel, 8 bytes: the signed RGB correction as IEEE half floats (the
+ * values the display receives and draws, so the ΔL the master reads back is
+ * the displayed one) and the validity in fixed point, q steps of
+ * 1/CTEX_VQ texel above the texture's vbase (ctex_tex_v). Half the 16 bytes
+ * of a float texel: splats are bound by memory traffic (docs/textures.md,
+ * "Texel format"). */
 typedef struct ctex_texel {
-    float r, g, b, v;
+    uint16_t c[3];   /* correction R, G, B (binary16) */
+    int16_t q;       /* validity: vbase + q / CTEX_VQ texels; CTEX_Q_EMPTY when empty */
 } ctex_texel;
+
+enum {
+    CTEX_VQ = 8,                      /* validity steps per texel */
+    CTEX_Q_EMPTY = INT16_MIN,         /* no correction: older than everything */
+    CTEX_Q_OLDEST = INT16_MIN + 1,    /* older validities clamp to this one */
+    CTEX_Q_REBASE = 4096              /* vmax more than 512 texels above vbase: rebase */
+};
 
 /* A texture with its projection. */
 typedef struct ctex_tex {
@@ -25,6 +41,7 @@ typedef struct ctex_tex {
     int pitch;             /* texels from one row to the next (ctex_tex_pitch(w)) */
     ctex_texel *tx;        /* h rows of `pitch` texels, the first w of each used; row 0 first */
     float vmax;            /* §3.5: validity of a new sample's centre texel */
+    float vbase;           /* validity of q = 0; follows vmax (ctex_tex_rebase) */
     ctex_proj_kind kind;
     mat4 m;                /* world -> texture */
     /* Unprojection of a texel centre to a world point (resampling): */
@@ -42,22 +59,22 @@ typedef struct ctex_tex {
 } ctex_tex;
 
 /* Row pitch of a texture w texels wide: w rounded up to whole 64-byte cache
- * lines (4 texels), plus one line when that is an even number of lines.
+ * lines (8 texels), plus one line when that is an even number of lines.
  * Texture widths are powers of two times the initial size, so rows of w
- * texels would lie a multiple of 4 KiB apart (32 KiB at w = 2048) and the
+ * texels would lie a multiple of 4 KiB apart (16 KiB at w = 2048) and the
  * texels of a ring's column would all fall into the same few cache sets
  * (L1 and L2 index by the low address bits): a column of a large splat then
  * evicts itself before the next ring reuses its lines. An odd number of
  * lines per row spreads consecutive rows over all sets. */
 static inline int ctex_tex_pitch(int w)
 {
-    int p = (w + 3) & ~3;
-    if (!((p >> 2) & 1)) p += 4;
+    int p = (w + 7) & ~7;
+    if (!((p >> 3) & 1)) p += 8;
     return p;
 }
 
 /* Bytes of texel storage of a w x h texture (what the memory cap counts:
- * 16 bytes a texel, plus the row padding). */
+ * 8 bytes a texel, plus the row padding). */
 static inline size_t ctex_tex_bytes(int w, int h)
 {
     return (size_t)ctex_tex_pitch(w) * (size_t)h * sizeof(ctex_texel);
@@ -68,6 +85,64 @@ static inline ctex_texel *ctex_tex_at(const ctex_tex *t, int x, int y)
 {
     return t->tx + (size_t)y * (size_t)t->pitch + (size_t)x;
 }
+
+/* Whether a texel holds a correction. */
+static inline bool ctex_texel_valid(const ctex_texel *p)
+{
+    return p->q != CTEX_Q_EMPTY;
+}
+
+/* A texel's validity in texels (-INFINITY when empty). */
+static inline float ctex_tex_v(const ctex_tex *t, const ctex_texel *p)
+{
+    return p->q == CTEX_Q_EMPTY ? -INFINITY : t->vbase + (float)p->q * (1.0f / (float)CTEX_VQ);
+}
+
+/* The fixed-point step of validity v (rounded; clamped to the oldest valid
+ * step and the largest; -INFINITY gives CTEX_Q_EMPTY). */
+static inline int16_t ctex_tex_q(const ctex_tex *t, float v)
+{
+    if (v == -INFINITY) return CTEX_Q_EMPTY;
+    float q = rintf((v - t->vbase) * (float)CTEX_VQ);
+    if (!(q > (float)CTEX_Q_OLDEST)) return CTEX_Q_OLDEST;   /* NaN too */
+    if (q > (float)INT16_MAX) return INT16_MAX;
+    return (int16_t)q;
+}
+
+/* A texel's correction. */
+static inline vec3 ctex_texel_rgb(const ctex_texel *p)
+{
+    return v3(half_to_float(p->c[0]), half_to_float(p->c[1]), half_to_float(p->c[2]));
+}
+
+/* A texel's correction in f[0..2] (f[3]: junk), all four lanes converted
+ * at once. */
+static inline void ctex_texel_rgbx(const ctex_texel *p, float f[4])
+{
+    uint16_t h[4];
+    memcpy(h, p, sizeof h);
+    half4_to_float(h, f);
+}
+
+/* Sets a texel: correction c (each channel clamped to the half range), validity v. */
+static inline void ctex_texel_set(const ctex_tex *t, ctex_texel *p, vec3 c, float v)
+{
+    p->c[0] = half_from_float(fminf(fmaxf(c.x, -HALF_MAX), HALF_MAX));
+    p->c[1] = half_from_float(fminf(fmaxf(c.y, -HALF_MAX), HALF_MAX));
+    p->c[2] = half_from_float(fminf(fmaxf(c.z, -HALF_MAX), HALF_MAX));
+    p->q = ctex_tex_q(t, v);
+}
+
+/* Empties a texel. */
+static inline void ctex_texel_clear(ctex_texel *p)
+{
+    *p = (ctex_texel){{0, 0, 0}, CTEX_Q_EMPTY};
+}
+
+/* Moves vbase to vmax, shifting every validity step (older ones clamp to
+ * CTEX_Q_OLDEST); a no-op when vbase is vmax. Called where vmax rises past
+ * the fixed-point window. */
+void ctex_tex_rebase(ctex_tex *t);
 
 /* Allocates w x h empty texels (validity -inf, correction 0), vmax = 0. */
 int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err);
@@ -95,12 +170,15 @@ static inline vec3 ctex_tex_sample(const ctex_tex *t, float u, float v)
     x1 = x1 < 0 ? 0 : (x1 > wm ? wm : x1);
     y0 = y0 < 0 ? 0 : (y0 > hm ? hm : y0);
     y1 = y1 < 0 ? 0 : (y1 > hm ? hm : y1);
-    const ctex_texel *a = ctex_tex_at(t, x0, y0), *b = ctex_tex_at(t, x1, y0);
-    const ctex_texel *c = ctex_tex_at(t, x0, y1), *d = ctex_tex_at(t, x1, y1);
+    float a[4], b[4], c[4], d[4];
+    ctex_texel_rgbx(ctex_tex_at(t, x0, y0), a);
+    ctex_texel_rgbx(ctex_tex_at(t, x1, y0), b);
+    ctex_texel_rgbx(ctex_tex_at(t, x0, y1), c);
+    ctex_texel_rgbx(ctex_tex_at(t, x1, y1), d);
     float wa = (1.0f - fx) * (1.0f - fy), wb = fx * (1.0f - fy), wc = (1.0f - fx) * fy, wd = fx * fy;
-    return v3(wa * a->r + wb * b->r + wc * c->r + wd * d->r,
-              wa * a->g + wb * b->g + wc * c->g + wd * d->g,
-              wa * a->b + wb * b->b + wc * c->b + wd * d->b);
+    return v3(wa * a[0] + wb * b[0] + wc * c[0] + wd * d[0],
+              wa * a[1] + wb * b[1] + wc * c[1] + wd * d[1],
+              wa * a[2] + wb * b[2] + wc * c[2] + wd * d[2]);
 }
 
 /* Texture position of world point p through the projection; false when p is
@@ -123,6 +201,7 @@ vec3 ctex_tex_unproject(const ctex_tex *t, float u, float v);
 static inline void ctex_tex_age(ctex_tex *t, float offset)
 {
     if (offset > 0.0f) t->vmax += offset;
+    if (t->vmax - t->vbase > (float)(CTEX_Q_REBASE / CTEX_VQ)) ctex_tex_rebase(t);
 }
 
 /* §3.6: changes the resolution to nw x nh: box filter (area average of valid

@@ -178,7 +178,6 @@ typedef struct loop_state {
     ct_sample *samples;
     uint32_t samples_cap;
     wire_buf mbuf, obuf;
-    float *patch_f;
     uint16_t *patch_h;
     size_t patch_cap;
     uint32_t *has_tris;         /* mesh node -> 1 when it owns triangles */
@@ -332,18 +331,17 @@ static int send_patch(loop_state *s, uint32_t tex, int x, int y, int w, int h, c
         int hh = y + h - y0 < rows ? y + h - y0 : rows;
         size_t n = (size_t)w * (size_t)hh * 3;
         if (n > s->patch_cap) {
-            float *f = realloc(s->patch_f, n * sizeof *f);
-            if (f) s->patch_f = f;
-            uint16_t *hb = f ? realloc(s->patch_h, n * sizeof *hb) : NULL;
-            if (hb) s->patch_h = hb;
-            if (!f || !hb) return ct_fail(err, CT_ENOMEM, "master: out of memory for a %dx%d patch", w, hh);
+            uint16_t *hb = realloc(s->patch_h, n * sizeof *hb);
+            if (!hb) return ct_fail(err, CT_ENOMEM, "master: out of memory for a %dx%d patch", w, hh);
+            s->patch_h = hb;
             s->patch_cap = n;
         }
-        int rc = ctex_read_patch(s->tex, tex, x, y0, w, hh, s->patch_f, err);
+        int rc = ctex_read_patch_half(s->tex, tex, x, y0, w, hh, s->patch_h, err);
         if (rc) return rc;
-        for (size_t i = 0; i < n; i++) {
-            if (s->patch_f[i] < 0.0f) s->all_positive = 0;
-            s->patch_h[i] = wire_half_from_float(s->patch_f[i]);
+        for (size_t i = 0; i < n && s->all_positive; i++) {
+            /* below zero: the sign bit on a non-zero, non-NaN half */
+            uint16_t a = s->patch_h[i] & 0x7fffu;
+            if ((s->patch_h[i] & 0x8000u) && a && a <= 0x7c00u) s->all_positive = 0;
         }
         wire_msg m = {.type = WIRE_TEX_PATCH};
         m.u.tex_patch = (wire_tex_patch){tex, (uint32_t)x, (uint32_t)y0, (uint32_t)w, (uint32_t)hh, s->patch_h};
@@ -1049,7 +1047,6 @@ out:
     free(s.reqs);
     free(s.samples);
     free(s.round_buf);
-    free(s.patch_f);
     free(s.patch_h);
     free(s.pts);
     for (uint32_t t = 0; t < s.ncp; t++) free(s.cp[t].ids);

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/half.h"
 #include "common/radmesh.h"
 #include "common/rng.h"
 #include "common/scene.h"
@@ -380,12 +381,15 @@ Test(ctex_engine, insert_reads_correction_and_error)
     cr_assert_float_eq(info.correction.x, 0.0f, 1e-7, "empty texture: no correction yet");
     cr_assert_float_eq(info.error.x, 0.3f, 1e-6);
     cr_assert_float_eq(info.error.z, -0.1f, 1e-6);
+    /* texels hold halves, as the display does */
+    const float h3 = half_to_float(half_from_float(0.8f - 0.5f)), h1 = half_to_float(half_from_float(0.4f - 0.5f));
     vec3 l = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(1, 0, 2));
-    cr_assert_float_eq(l.x, 0.3f, 1e-6, "the first sample floods its texture");
-    cr_assert_float_eq(l.z, -0.1f, 1e-6);
-    /* the same sample again: the error is now zero */
+    cr_assert_float_eq(l.x, h3, 1e-6, "the first sample floods its texture");
+    cr_assert_float_eq(l.z, h1, 1e-6);
+    /* the same sample again: the error is now only the half rounding */
     cr_assert_eq(ctex_insert(c, &s, &info), 1);
-    cr_assert_float_eq(info.error.x, 0.0f, 1e-6);
+    cr_assert_float_eq(info.error.x, 0.8f - (0.5f + h3), 1e-6);
+    cr_assert_lt(fabsf(info.error.x), 0.3f * 0x1p-11f);
     /* a miss and a culled node are dropped */
     s.flags = 0;
     cr_assert_eq(ctex_insert(c, &s, &info), 0);
@@ -515,6 +519,13 @@ Test(ctex_engine, events_alloc_proj_patch_free)
     cr_assert_eq(ctex_read_patch(c, ev[0].tex, ev[0].x, ev[0].y, ev[0].w, ev[0].h, buf, &err), 0);
     cr_assert_float_eq(buf[0], 0.5f, 1e-6);
     cr_assert_lt(ctex_read_patch(c, ev[0].tex, 0, 0, 9999, 1, buf, &err), 0);
+    /* the halves TEX_PATCH carries: the same values, no conversion */
+    static uint16_t hbuf[3 * 64 * 64];
+    cr_assert_eq(ctex_read_patch_half(c, ev[0].tex, ev[0].x, ev[0].y, ev[0].w, ev[0].h, hbuf, &err), 0);
+    for (int i = 0; i < 3 * ev[0].w * ev[0].h; i++)
+        cr_assert_eq(hbuf[i], half_from_float(buf[i]), "channel %d", i);
+    cr_assert_lt(ctex_read_patch_half(c, ev[0].tex, 0, 0, 9999, 1, hbuf, &err), 0);
+    cr_assert_lt(ctex_read_patch_half(c, 999, 0, 0, 1, 1, hbuf, &err), 0);
     ctex_events_clear(c);
     /* looking away frees (parks) the floor's texture for the display */
     ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
