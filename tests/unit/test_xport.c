@@ -146,15 +146,6 @@ static void make_chans(const char *spec, const auth_token *mt, const auth_token 
     cr_assert_eq(chan_new(cli, &dc, &p->d, &err), 0, "%s", err.msg);
 }
 
-static auth_token token_of(const char *s)
-{
-    auth_token t;
-    memset(&t, 0, sizeof t);
-    t.len = strlen(s);
-    memcpy(t.bytes, s, t.len);
-    return t;
-}
-
 /* Receives n messages on `to` (pumping both) and checks each re-encodes to
  * the bytes of the matching sent message. */
 static void expect_messages(pair *p, chan *to, const wire_msg *sent, size_t n)
@@ -243,13 +234,13 @@ Test(xport, unix_with_token)
 {
     char spec[128];
     unix_spec(spec, sizeof spec);
-    auth_token t = token_of("a unix socket token");
+    auth_token t = fx_token("a unix socket token");
     exchange_everything(spec, &t, &t, 0);
 }
 
 Test(xport, tcp4_one_byte_io_authenticated)
 {
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     exchange_everything("tcp:127.0.0.1:0", &t, &t, 1);
 }
 
@@ -263,7 +254,7 @@ Test(xport, tcp6_authenticated)
     }
     cr_assert(strncmp(xport_listener_addr(l), "tcp:[::1]:", 10) == 0, "%s", xport_listener_addr(l));
     xport_listener_close(l);
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     exchange_everything("tcp:[::1]:0", &t, &t, 1);
 }
 
@@ -282,7 +273,7 @@ Test(xport, tcp_requires_a_token)
     xport_conn *srv2, *cli2;
     xport_listener *l2;
     connect_pair("tcp:127.0.0.1:0", &l2, &srv2, &cli2);
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     pair p;
     chan_config mc2 = {.role = AUTH_ROLE_MASTER, .token = &t};
     chan_config dc2 = {.role = AUTH_ROLE_DISPLAY};
@@ -301,7 +292,7 @@ Test(xport, tcp_requires_a_token)
 
 Test(xport, tcp_wrong_token)
 {
-    auth_token a = token_of("the tcp shared token"), b = token_of("not the shared token");
+    auth_token a = fx_token("the tcp shared token"), b = fx_token("not the shared token");
     pair p;
     xport_listener *l;
     make_chans("tcp:127.0.0.1:0", &a, &b, &p, &l);
@@ -456,7 +447,7 @@ Test(xport, not_a_corrtex_peer)
 {
     xport_listener *l;
     xport_conn *cli;
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     chan_config mc = {.role = AUTH_ROLE_MASTER, .token = &t};
     chan *m = master_with_raw_peer("tcp:127.0.0.1:0", &mc, &l, &cli);
     ct_error err = {{0}};
@@ -805,7 +796,7 @@ done:
 
 Test(xport, chan_connect_and_accept_tcp)
 {
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     master_ctx mc = {.token = &t};
     ct_error err = {{0}};
     cr_assert_eq(xport_listen("tcp:127.0.0.1:0", &mc.l, &err), 0, "%s", err.msg);
