@@ -16,8 +16,11 @@
 #define W 64
 #define H 48
 
-static void opts(disp_app_opts *o, const fxm_peer *p)
+/* Starts the scripted master (ending as `end`, lockstep spf) and fills o
+ * to connect to it; with out (64 bytes) also a fresh output folder there. */
+static void start(fxm_peer *p, fxm_end end, uint32_t spf, disp_app_opts *o, char *out)
 {
+    cr_assert_eq(fxm_start(p, end, spf, W, H), 0, "%s", p->msg);
     disp_app_defaults(o);
     o->backend = GL_BACKEND_OSMESA;
     o->width = W;
@@ -25,6 +28,18 @@ static void opts(disp_app_opts *o, const fxm_peer *p)
     o->connect = p->addr;
     o->has_camera = true;
     o->camera = fx_box_camera();
+    if (out) {
+        snprintf(out, 64, "/tmp/ctdisp-out-XXXXXX");
+        cr_assert(mkdtemp(out));
+        o->out_dir = out;
+    }
+}
+
+/* Runs the display; returns its exit status (err says why). */
+static int run(const disp_app_opts *o, ct_error *err)
+{
+    ct_error_clear(err);
+    return disp_app_run(o, err);
 }
 
 static int count_lines(const char *path)
@@ -47,12 +62,10 @@ static void rm_out(const char *dir)
 Test(disp_app, lost_connection_exits_3)
 {
     fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
     disp_app_opts o;
-    opts(&o, &p);
+    start(&p, FXM_END_CLOSE, 0, &o, NULL);
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&o, &err);
     printf("exit %d: %s\n", st, err.msg);
     cr_expect_eq(st, DISP_EXIT_LOST);
     cr_expect(strstr(err.msg, "lost") && strstr(err.msg, p.addr), "message: %s", err.msg);
@@ -62,16 +75,11 @@ Test(disp_app, lost_connection_exits_3)
 Test(disp_app, bye_draws_the_last_state_and_exits_0)
 {
     fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_BYE, 0, W, H), 0, "%s", p.msg);
     char out[64];
-    snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
-    cr_assert(mkdtemp(out));
     disp_app_opts o;
-    opts(&o, &p);
-    o.out_dir = out;
+    start(&p, FXM_END_BYE, 0, &o, out);
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&o, &err);
     cr_expect_eq(st, DISP_EXIT_OK, "exit %d: %s", st, err.msg);
     char path[200];
     snprintf(path, sizeof path, "%s/frames.csv", out);
@@ -87,18 +95,13 @@ Test(disp_app, bye_draws_the_last_state_and_exits_0)
 Test(disp_app, lockstep_frame_then_bye_from_display)
 {
     fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_STAY, 250, W, H), 0, "%s", p.msg);
     char out[64];
-    snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
-    cr_assert(mkdtemp(out));
     disp_app_opts o;
-    opts(&o, &p);
+    start(&p, FXM_END_STAY, 250, &o, out);
     o.samples_per_frame = 250;
     o.frames = 1;
-    o.out_dir = out;
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&o, &err);
     cr_expect_eq(st, DISP_EXIT_OK, "exit %d: %s", st, err.msg);
     char path[200];
     snprintf(path, sizeof path, "%s/frames.csv", out);
@@ -125,18 +128,13 @@ Test(disp_app, lockstep_frame_then_bye_from_display)
 Test(disp_app, reconnect_keeps_drawing_the_last_image)
 {
     fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
     char out[64];
-    snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
-    cr_assert(mkdtemp(out));
     disp_app_opts o;
-    opts(&o, &p);
+    start(&p, FXM_END_CLOSE, 0, &o, out);
     o.reconnect = true;
     o.max_seconds = 1.5;
-    o.out_dir = out;
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&o, &err);
     cr_expect_eq(st, DISP_EXIT_OK, "exit %d: %s", st, err.msg);
     char path[200];
     snprintf(path, sizeof path, "%s/frames.csv", out);
