@@ -62,6 +62,15 @@ static rq_engine *make(int w, int h, const rq_options *o, uint64_t seed)
     return e;
 }
 
+/* The default options with the initial grid spaced `spacing` pixels. */
+static rq_options spaced(float spacing)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = spacing;
+    return o;
+}
+
 static int batch(rq_engine *e, ct_request *out, int n)
 {
     ct_error err;
@@ -106,9 +115,7 @@ Test(sampler, error_norms)
 
 Test(sampler, initial_grid_is_uniform_high_priority_and_spread)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 16;
+    rq_options o = spaced(16);
     rq_engine *e = make(128, 64, &o, 1);
     ct_request r[64];
     int k = batch(e, r, 32);
@@ -137,10 +144,8 @@ Test(sampler, children_radius_priority_and_domain)
 {
     const int ns[] = {4, 9, 2};
     for (int t = 0; t < 3; t++) {
-        rq_options o;
-        rq_options_default(&o);
+        rq_options o = spaced(64);
         o.children = ns[t];
-        o.seed_spacing = 64;
         rq_engine *e = make(128, 128, &o, 5);
         ct_camera c = cam_a();
         ct_request r[16];
@@ -185,9 +190,7 @@ Test(sampler, children_radius_priority_and_domain)
 
 Test(sampler, children_cover_distinct_subcells)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 64;
+    rq_options o = spaced(64);
     rq_engine *e = make(256, 256, &o, 2);
     ct_camera c = cam_a();
     ct_request r[32];
@@ -214,9 +217,7 @@ Test(sampler, children_cover_distinct_subcells)
 
 Test(sampler, children_under_threshold_are_discarded)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 64;
+    rq_options o = spaced(64);
     o.min_priority = 0.01f;
     rq_engine *e = make(128, 128, &o, 3);
     ct_camera c = cam_a();
@@ -237,9 +238,7 @@ Test(sampler, children_under_threshold_are_discarded)
 
 Test(sampler, no_children_below_min_radius)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 2;   /* children radius 1: made; their children 0.5: not */
+    rq_options o = spaced(2);   /* children radius 1: made; their children 0.5: not */
     rq_engine *e = make(8, 8, &o, 4);
     ct_camera c = cam_a();
     ct_request r[64];
@@ -263,9 +262,7 @@ Test(sampler, no_children_below_min_radius)
 
 Test(sampler, mask_discards_children_on_sampled_pixels)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 1;
+    rq_options o = spaced(1);
     o.min_radius = 0.25f;
     rq_engine *e = make(2, 2, &o, 6);
     ct_camera c = cam_a();
@@ -285,9 +282,7 @@ Test(sampler, mask_discards_children_on_sampled_pixels)
 
 Test(sampler, mismatch_is_counted_and_refined_at_high_priority)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 64;
+    rq_options o = spaced(64);
     rq_engine *e = make(128, 128, &o, 7);
     ct_camera c = cam_a();
     ct_request r[16];
@@ -400,9 +395,7 @@ static vec3 zero_error(float px, float py)
 Test(sampler, zero_error_is_covered_by_global_requests_and_the_list)
 {
     enum { W = 32, H = 32 };
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 16;
+    rq_options o = spaced(16);
     rq_engine *e = make(W, H, &o, 8);
     ct_camera c = cam_a();
     ct_request r[8];
@@ -494,9 +487,7 @@ Test(sampler, significant_samples_reproject_to_their_world_points)
 Test(sampler, epochs_drop_old_requests_and_samples)
 {
     enum { W = 32, H = 32 };
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 8;
+    rq_options o = spaced(8);
     o.n_sig = 0;
     rq_engine *e = make(W, H, &o, 10);
     ct_camera a = cam_a();
@@ -551,9 +542,7 @@ Test(sampler, epochs_drop_old_requests_and_samples)
 
 Test(sampler, reseed_option_queues_a_new_grid)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 16;
+    rq_options o = spaced(16);
     o.n_sig = 0;
     o.reseed = 1;
     rq_engine *e = make(64, 64, &o, 12);
@@ -678,9 +667,7 @@ Test(sampler, options_parse_check_and_usage)
 
 Test(sampler, queue_cap_drops_and_counts)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 4;
+    rq_options o = spaced(4);
     o.max_queue = 20;
     rq_engine *e = make(32, 32, &o, 13);
     rq_stats st;
@@ -693,10 +680,8 @@ Test(sampler, queue_cap_drops_and_counts)
 Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
 {
     enum { W = 32, H = 32 };
-    rq_options o;
-    rq_options_default(&o);
+    rq_options o = spaced(8);
     o.n_sig = 50;
-    o.seed_spacing = 8;
     rq_engine *e = make(W, H, &o, 14);
     ct_camera a = cam_a();
     ct_request r[16];
