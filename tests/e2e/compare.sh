@@ -3,17 +3,8 @@
 # 0 (ok), 1 (--max-rmse exceeded) and 2 (bad input or usage), on the tiny
 # EXR files in tests/data/ (written and checked by tests/unit/test_image.c:
 # compare-test.exr is compare-ref.exr with +-0.05 on every value).
-set -u
-root=$(cd "$(dirname "$0")/../.." && pwd)
-bin=${CORRTEX_BIN:-bin}
-[[ $bin == /* ]] || bin="$root/$bin"
-corrtex="$bin/corrtex"
+source "$(dirname "$0")/lib/common.sh"
 data="$root/tests/data"
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-compare-XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
-
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 
 # run EXPECTED_RC ARGS...: runs corrtex with ARGS, logs the command, keeps
 # stdout in $out and stderr in $err, and checks the exit status.

@@ -6,17 +6,8 @@
 # output files, convergence.csv rows, PSNR against a path-traced reference
 # rising with the samples, the --move-to phase (Fig. 7), the insertion timer,
 # and exit status 2 with one error line on bad input.
-set -u
-root=$(cd "$(dirname "$0")/../.." && pwd)
-bin=${CORRTEX_BIN:-bin}
-[[ $bin == /* ]] || bin="$root/$bin"
-corrtex="$bin/corrtex"
+source "$(dirname "$0")/lib/common.sh"
 scene="$root/scenes/cornell/cornell.json"
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-converge-XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
-
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 
 # run EXPECTED_RC ARGS...: runs corrtex, logs the command, checks the status.
 run() {
