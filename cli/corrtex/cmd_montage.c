@@ -125,17 +125,10 @@ static void place(ct_image *sheet, const ct_image *src, int x0, int y0, int tw, 
     }
 }
 
-/* Parses an int option within [lo, hi]; logs and returns -1 when bad. */
-static int int_opt(const char *name, const char *s, int lo, int hi, int *out)
+/* An int option within [lo, hi]; logs and returns -1 when bad. */
+static int int_opt(const char *name, const char *s, long lo, long hi, int *out)
 {
-    char *end = NULL;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end || v < lo || v > hi) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "%s: '%s' is not an integer in %d..%d", name, s, lo, hi);
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
+    return cli_int_opt(COMPONENT, name, s, lo, hi, out);
 }
 
 static int build(const montage_opts *o, char **files, int nfiles, ct_error *err)

@@ -400,17 +400,10 @@ static int run(const naive_opts *o, ct_error *err)
     return rc;
 }
 
-/* Parses an int option within [lo, hi]; logs and returns -1 when bad. */
+/* An int option within [lo, hi]; logs and returns -1 when bad. */
 static int int_opt(const char *name, const char *s, long lo, long hi, int *out)
 {
-    char *end = NULL;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end || v < lo || v > hi) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "%s: '%s' is not an integer in %ld..%ld", name, s, lo, hi);
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
+    return cli_int_opt(COMPONENT, name, s, lo, hi, out);
 }
 
 int cmd_naive(int argc, char **argv)
