@@ -576,6 +576,16 @@ static inline int gen_write_counts(const char *dir, const char *name, const gcou
     "newmtl mirror\nKd 0 0 0\nKs 0.95 0.95 0.95\nillum 3\n\n" \
     "newmtl glass\nKd 0 0 0\nKs 1 1 1\nNi 1.5\nd 0\nTf 1 1 1\nillum 7\n"
 
+/* The six book cover colours the bookshelves of table and office share
+ * (book_red, book_blue, book_green, book_cream, book_brown, book_black). */
+#define GEN_MTL_BOOKS \
+    "newmtl book_red\nKd 0.5 0.08 0.07\n\n" \
+    "newmtl book_blue\nKd 0.08 0.14 0.4\n\n" \
+    "newmtl book_green\nKd 0.1 0.3 0.12\n\n" \
+    "newmtl book_cream\nKd 0.75 0.7 0.55\n\n" \
+    "newmtl book_brown\nKd 0.35 0.2 0.1\n\n" \
+    "newmtl book_black\nKd 0.06 0.06 0.06\n\n"
+
 /* Writes dir/GENERATOR.mtl atomically: a header line naming the generator,
  * then body (the newmtl entries). */
 static inline int gen_write_mtl(const char *dir, const char *generator, const char *body)

@@ -622,12 +622,7 @@ static int write_mtl(const char *dir)
             "newmtl mug_white\nKd 0.8 0.8 0.78\nKs 0.25 0.25 0.25\nNs 200\nillum 2\n\n"
             "newmtl mug_blue\nKd 0.1 0.2 0.5\nKs 0.25 0.25 0.25\nNs 200\nillum 2\n\n"
             "newmtl paper\nKd 0.85 0.85 0.82\n\n"
-            "newmtl book_red\nKd 0.5 0.08 0.07\n\n"
-            "newmtl book_blue\nKd 0.08 0.14 0.4\n\n"
-            "newmtl book_green\nKd 0.1 0.3 0.12\n\n"
-            "newmtl book_cream\nKd 0.75 0.7 0.55\n\n"
-            "newmtl book_brown\nKd 0.35 0.2 0.1\n\n"
-            "newmtl book_black\nKd 0.06 0.06 0.06\n\n"
+            GEN_MTL_BOOKS
             "newmtl book_orange\nKd 0.7 0.35 0.06\n\n"
             "newmtl book_grey\nKd 0.4 0.4 0.42\n\n"
             "newmtl terracotta\nKd 0.55 0.27 0.15\n\n"

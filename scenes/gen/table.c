@@ -342,12 +342,7 @@ static int write_mtl(const char *dir)
             "newmtl orange_peel\nKd 0.8 0.35 0.05\n\n"
             "newmtl vase_blue\nKd 0.05 0.12 0.35\nKs 0.35 0.35 0.35\nNs 150\nillum 2\n\n"
             "newmtl vase_red\nKd 0.4 0.06 0.04\nKs 0.3 0.3 0.3\nNs 60\nillum 2\n\n"
-            "newmtl book_red\nKd 0.5 0.08 0.07\n\n"
-            "newmtl book_blue\nKd 0.08 0.14 0.4\n\n"
-            "newmtl book_green\nKd 0.1 0.3 0.12\n\n"
-            "newmtl book_cream\nKd 0.75 0.7 0.55\n\n"
-            "newmtl book_brown\nKd 0.35 0.2 0.1\n\n"
-            "newmtl book_black\nKd 0.06 0.06 0.06\n\n"
+            GEN_MTL_BOOKS
             "newmtl brushed_steel\nKd 0.03 0.03 0.03\nKs 0.7 0.7 0.7\nNs 300\nillum 2\n\n"
             GEN_MTL_MIRROR_GLASS);
 }
