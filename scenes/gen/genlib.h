@@ -515,6 +515,16 @@ static inline long gen_prof(gobj *o, const gprof *p, int segs, double crease_deg
     return gen_lathe(o, p->n, p->r, p->y, segs, crease_deg);
 }
 
+/* Sweeps the profile through the points (r, y) * scale, i < n (see
+ * prof_add and gen_lathe). */
+static inline long gen_prof_points(gobj *o, const double (*pts)[2], int n, double scale, int segs,
+                                   double crease_deg)
+{
+    gprof p = {{0}, {0}, 0};
+    for (int i = 0; i < n; i++) prof_add(&p, pts[i][0] * scale, pts[i][1] * scale);
+    return gen_prof(o, &p, segs, crease_deg);
+}
+
 /* --- counts manifest ------------------------------------------------------- */
 
 /* What a generator wrote, summed over its files: the tests compare the

@@ -159,14 +159,9 @@ static void desk_lamp(gobj *o, const char *shade)
     /* shade: a closed conical shell around its axis, open side down */
     gen_push(o, gxf_axis(gadd(j2, g3(0, -0.07, 0.03)), g3(0, 1, -0.35)));
     gen_material(o, shade);
-    gprof p = {{0}, {0}, 0};
-    prof_add(&p, 0, 0.105);
-    prof_add(&p, 0.03, 0.103);
-    prof_add(&p, 0.085, 0.0);
-    prof_add(&p, 0.09, 0.0);
-    prof_add(&p, 0.035, 0.11);
-    prof_add(&p, 0, 0.115);
-    gen_prof(o, &p, 24, 30);
+    static const double shade_prof[][2] = {
+        {0, 0.105}, {0.03, 0.103}, {0.085, 0.0}, {0.09, 0.0}, {0.035, 0.11}, {0, 0.115}};
+    gen_prof_points(o, shade_prof, 6, 1.0, 24, 30);
     gen_material(o, "lamp_bulb");
     gen_quad(o, g3(-0.03, 0.06, -0.03), g3(0.06, 0, 0), g3(0, 0, 0.06), g3(0, -1, 0));
     gen_pop(o);
@@ -175,14 +170,8 @@ static void desk_lamp(gobj *o, const char *shade)
 static void mug(gobj *o, const char *mat)
 {
     gen_material(o, mat);
-    gprof p = {{0}, {0}, 0};
-    prof_add(&p, 0, 0);
-    prof_add(&p, 0.04, 0);
-    prof_add(&p, 0.04, 0.1);
-    prof_add(&p, 0.036, 0.1);
-    prof_add(&p, 0.036, 0.008);
-    prof_add(&p, 0, 0.008);
-    gen_prof(o, &p, 20, 30);
+    static const double mug_prof[][2] = {{0, 0}, {0.04, 0}, {0.04, 0.1}, {0.036, 0.1}, {0.036, 0.008}, {0, 0.008}};
+    gen_prof_points(o, mug_prof, 6, 1.0, 20, 30);
     gen_box(o, g3(0.04, 0.025, -0.006), g3(0.07, 0.035, 0.006), GEN_ALL & ~GEN_XN);
     gen_box(o, g3(0.06, 0.035, -0.006), g3(0.07, 0.075, 0.006), GEN_XP | GEN_ZN | GEN_ZP);
     gen_box(o, g3(0.04, 0.075, -0.006), g3(0.07, 0.085, 0.006), GEN_ALL & ~GEN_XN);
@@ -256,16 +245,9 @@ static void plant(gobj *o, grng *rng, const char *name, double scale)
 {
     gen_object(o, "%s", name);
     gen_material(o, "terracotta");
-    gprof p = {{0}, {0}, 0};
-    prof_add(&p, 0, 0);
-    prof_add(&p, 0.11 * scale, 0);
-    prof_add(&p, 0.15 * scale, 0.3 * scale);
-    prof_add(&p, 0.16 * scale, 0.3 * scale);
-    prof_add(&p, 0.16 * scale, 0.34 * scale);
-    prof_add(&p, 0.14 * scale, 0.34 * scale);
-    prof_add(&p, 0.137 * scale, 0.3 * scale);
-    prof_add(&p, 0, 0.3 * scale);
-    gen_prof(o, &p, 28, 30);
+    static const double pot_prof[][2] = {{0, 0}, {0.11, 0}, {0.15, 0.3}, {0.16, 0.3}, {0.16, 0.34},
+                                         {0.14, 0.34}, {0.137, 0.3}, {0, 0.3}};
+    gen_prof_points(o, pot_prof, 8, scale, 28, 30);
     gen_material(o, "soil");
     double rs[2] = {0.135 * scale, 0}, ys[2] = {0.302 * scale, 0.302 * scale};
     gen_lathe(o, 2, rs, ys, 28, 30);   /* walked inwards: a disc facing up */

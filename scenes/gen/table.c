@@ -199,16 +199,10 @@ static void plate(gobj *o, gv3 at)
     gen_push(o, gxf_at(at, 0));
     gen_object(o, "metal_plate");
     gen_material(o, "brushed_steel");
-    gprof p = {{0}, {0}, 0};
-    prof_add(&p, 0, 0);
-    prof_add(&p, 0.10, 0);
-    prof_add(&p, 0.14, 0.014);
-    prof_add(&p, 0.147, 0.018);
-    prof_add(&p, 0.143, 0.0195);
-    prof_add(&p, 0.135, 0.016);
-    prof_add(&p, 0.10, 0.004);
-    prof_add(&p, 0, 0.004);
-    gen_prof(o, &p, 48, 30);
+    static const double plate_prof[][2] = {{0, 0},         {0.10, 0},       {0.14, 0.014},
+                                           {0.147, 0.018}, {0.143, 0.0195}, {0.135, 0.016},
+                                           {0.10, 0.004},  {0, 0.004}};
+    gen_prof_points(o, plate_prof, 8, 1.0, 48, 30);
     gen_pop(o);
 }
 
