@@ -122,16 +122,16 @@ typedef struct rig {
     disp_compositor *c;
 } rig;
 
-/* Opens a rig whose session setup() fills from f, or, without f, that
- * holds mesh m only. */
-static void rig_open(rig *r, fx_setup *f, const ct_radmesh *m)
+/* Opens a rig whose session setup() fills with the box and f's textures
+ * (the box alone without f). */
+static void rig_open(rig *r, fx_setup *f)
 {
     ct_error err;
+    fx_setup none = {.ntex = 0};
     memset(r, 0, sizeof *r);
     cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &r->b, &err), 0, "%s", err.msg);
     cr_assert_eq(disp_session_new(&r->s, &err), 0);
-    if (f) cr_assert_eq(setup(r->s, f, &err), 0, "%s", err.msg);
-    else cr_assert_eq(disp_session_scene(r->s, m, &err), 0, "%s", err.msg);
+    cr_assert_eq(setup(r->s, f ? f : &none, &err), 0, "%s", err.msg);
     cr_assert_eq(disp_compositor_new(W, H, 0, &r->c, &err), 0, "%s", err.msg);
 }
 
@@ -263,7 +263,7 @@ static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, 
                         disp_render_stats *st1, disp_render_stats *st3, bool all_positive)
 {
     rig rg;
-    rig_open(&rg, f, NULL);
+    rig_open(&rg, f);
     ct_camera cam = fx_box_camera();
     disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive};
     rig_render(&rg, &cam, &o, st1, one, lin1);
@@ -346,7 +346,7 @@ Test(disp_corrections, debug_views)
     f.tex[0] = (fx_tex){9, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, wall_proj(-1, -1, 2, 2), rgb, false};
 
     rig rg;
-    rig_open(&rg, &f, NULL);
+    rig_open(&rg, &f);
     size_t n = (size_t)W * H;
     float *lin = malloc(n * 3 * sizeof *lin);
     uint8_t *disp = malloc(n * 3);
@@ -418,12 +418,9 @@ static bool sample_coloured(const uint8_t *px)
  * at any exposure; a ring buffer keeps the points of the last frames only. */
 Test(disp_corrections, sample_points_in_the_samples_view)
 {
-    fx_box_nodes nd;
-    ct_radmesh m;
     ct_error err;
-    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
     rig rg;
-    rig_open(&rg, NULL, &m);
+    rig_open(&rg, NULL);
     disp_session *s = rg.s;
     disp_compositor *c = rg.c;
     disp_session_set_sample_limits(s, 2, 100);
@@ -492,19 +489,16 @@ Test(disp_corrections, sample_points_in_the_samples_view)
     free(lin);
     free(full);
     rig_close(&rg);
-    rmesh_free(&m);
 }
 
 /* A texture that got no patch corrects nothing (allocation zeroes it on the
  * GPU), also after a resize of a texture that held values. */
 Test(disp_corrections, fresh_and_resized_textures_are_zero)
 {
-    fx_box_nodes nd;
-    ct_radmesh m;
+    fx_box_nodes nd = box_nodes();
     ct_error err;
-    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
     rig rg;
-    rig_open(&rg, NULL, &m);
+    rig_open(&rg, NULL);
     disp_session *s = rg.s;
     mat4 p = wall_proj(-1, -1, 2, 2);
     cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 64, 64, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
@@ -549,5 +543,4 @@ Test(disp_corrections, fresh_and_resized_textures_are_zero)
     free(full);
     free(rad);
     rig_close(&rg);
-    rmesh_free(&m);
 }
