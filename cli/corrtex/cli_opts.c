@@ -1,4 +1,5 @@
 /* cli_opts.c: option-value parsing shared by the corrtex subcommands. */
+#include <math.h>
 #include <stdlib.h>
 
 #include "cli/corrtex/commands.h"
@@ -13,5 +14,17 @@ int cli_int_opt(const char *component, const char *name, const char *s, long lo,
         return -1;
     }
     *out = (int)v;
+    return 0;
+}
+
+int cli_float_opt(const char *component, const char *name, const char *s, double lo, double hi, float *out)
+{
+    char *end = NULL;
+    double v = strtod(s, &end);
+    if (end == s || *end || !isfinite(v) || v < lo || v > hi) {
+        ct_log(CT_LOG_ERROR, component, "%s: '%s' is not a number in %g..%g", name, s, lo, hi);
+        return -1;
+    }
+    *out = (float)v;
     return 0;
 }

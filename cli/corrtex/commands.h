@@ -42,4 +42,7 @@ int cmd_montage(int argc, char **argv);
  * (cli_opts.c). */
 int cli_int_opt(const char *component, const char *name, const char *s, long lo, long hi, int *out);
 
+/* The same for a finite number in [lo, hi] (cli_opts.c). */
+int cli_float_opt(const char *component, const char *name, const char *s, double lo, double hi, float *out);
+
 #endif
