@@ -473,6 +473,21 @@ static inline void gen_sphere(gobj *o, gv3 c, double rad, int stacks, int slices
     gen_pop(o);
 }
 
+/* An object `name`: a ceiling light of w x d centred at (x, z): a housing
+ * box of material `housing`, 3 cm wider on each side, from y0 up to the
+ * ceiling at y1 (no top face), and an emissive quad of material `panel` at
+ * height y facing down. */
+static inline void gen_ceiling_light(gobj *o, const char *name, const char *housing, const char *panel, double x,
+                                     double z, double w, double d, double y0, double y1, double y)
+{
+    gen_object(o, "%s", name);
+    gen_material(o, housing);
+    gen_box(o, g3(x - w / 2 - 0.03, y0, z - d / 2 - 0.03), g3(x + w / 2 + 0.03, y1, z + d / 2 + 0.03),
+            GEN_ALL & ~GEN_YP);
+    gen_material(o, panel);
+    gen_quad(o, g3(x - w / 2, y, z - d / 2), g3(w, 0, 0), g3(0, 0, d), g3(0, -1, 0));
+}
+
 /* --- lathe profiles -------------------------------------------------------- */
 
 #define GEN_PROF_MAX 1024

@@ -117,12 +117,7 @@ static void reveals(gobj *o, gv3 c, gv3 u, gv3 n, double t, opening h)
 /* A ceiling light panel: housing and an emissive quad 1 mm below it. */
 static void ceiling_light(gobj *o, const char *name, double x, double z, double w, double d)
 {
-    gen_object(o, "%s", name);
-    gen_material(o, "light_housing");
-    gen_box(o, g3(x - w / 2 - 0.03, HEIGHT - 0.05, z - d / 2 - 0.03),
-            g3(x + w / 2 + 0.03, HEIGHT, z + d / 2 + 0.03), GEN_ALL & ~GEN_YP);
-    gen_material(o, "light_panel");
-    gen_quad(o, g3(x - w / 2, HEIGHT - 0.051, z - d / 2), g3(w, 0, 0), g3(0, 0, d), g3(0, -1, 0));
+    gen_ceiling_light(o, name, "light_housing", "light_panel", x, z, w, d, HEIGHT - 0.05, HEIGHT, HEIGHT - 0.051);
 }
 
 /* An office chair at the origin facing +z (the backrest at -z). */

@@ -54,12 +54,7 @@ static void room(gobj *o)
 /* A ceiling light: a white housing with an emissive panel 1 mm below it. */
 static void ceiling_light(gobj *o, const char *name, double x, double z, double w, double d)
 {
-    gen_object(o, "%s", name);
-    gen_material(o, "fixture");
-    gen_box(o, g3(x - w / 2 - 0.03, ROOM_Y - 0.06, z - d / 2 - 0.03),
-            g3(x + w / 2 + 0.03, ROOM_Y, z + d / 2 + 0.03), GEN_ALL & ~GEN_YP);
-    gen_material(o, "light");
-    gen_quad(o, g3(x - w / 2, ROOM_Y - 0.061, z - d / 2), g3(w, 0, 0), g3(0, 0, d), g3(0, -1, 0));
+    gen_ceiling_light(o, name, "fixture", "light", x, z, w, d, ROOM_Y - 0.06, ROOM_Y, ROOM_Y - 0.061);
 }
 
 static void table(gobj *o)
