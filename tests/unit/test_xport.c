@@ -331,6 +331,15 @@ static chan *master_with_raw_peer(const char *spec, const chan_config *mc, xport
     return m;
 }
 
+/* Frees a raw-peer master channel, its raw peer (unless NULL, closed
+ * already) and the listener. */
+static void close_raw(chan *m, xport_conn *cli, xport_listener *l)
+{
+    chan_free(m);
+    if (cli) xport_close(cli);
+    xport_listener_close(l);
+}
+
 /* Pumps c until it fails (1 ms apart, at most max_ms times); returns the
  * error code, 0 when it never failed. */
 static int pump_until_error(chan *c, int max_ms, ct_error *err)
@@ -359,11 +368,12 @@ static size_t read_hello_and_frame(xport_conn *cli, uint8_t *buf, size_t cap)
     return got;
 }
 
-/* A master channel on spec whose peer is a raw display connection (*cli)
- * that has sent a valid HELLO (nonce starting with nonce0): the tests then
- * write broken frames by hand. */
-static chan *master_with_raw_display(const char *spec, xport_listener **l, xport_conn **cli, uint8_t nonce0)
+/* A master channel on a fresh UNIX socket (its address in spec) whose peer
+ * is a raw display connection (*cli) that has sent a valid HELLO (nonce
+ * starting with nonce0): the tests then write broken frames by hand. */
+static chan *master_with_raw_display(char *spec, size_t cap, xport_listener **l, xport_conn **cli, uint8_t nonce0)
 {
+    unix_spec(spec, cap);
     chan_config mc = {.role = AUTH_ROLE_MASTER};
     chan *m = master_with_raw_peer(spec, &mc, l, cli);
     ct_error err = {{0}};
@@ -376,12 +386,11 @@ static chan *master_with_raw_display(const char *spec, xport_listener **l, xport
 Test(xport, peer_disconnects_mid_message)
 {
     char spec[128];
-    unix_spec(spec, sizeof spec);
     xport_listener *l;
     xport_conn *cli;
     ct_error err = {{0}};
     /* A raw display: a valid HELLO, then 10 bytes of a 16-byte PING frame, then gone. */
-    chan *m = master_with_raw_display(spec, &l, &cli, 7);
+    chan *m = master_with_raw_display(spec, sizeof spec, &l, &cli, 7);
     uint8_t part[10] = {WIRE_PING, 0, 0, 0, 8, 0, 0, 0, 1, 2};
     cr_assert_eq(xport_write_all(cli, part, sizeof part, 1000, &err), 0);
     xport_close(cli);
@@ -395,8 +404,7 @@ Test(xport, peer_disconnects_mid_message)
     /* Sticky. */
     cr_assert_eq(chan_recv(m, &msg, &err), CT_EIO);
     cr_assert_str_eq(err.msg, want);
-    chan_free(m);
-    xport_listener_close(l);
+    close_raw(m, NULL, l);
 }
 
 Test(xport, peer_closes_between_messages_after_bye)
@@ -461,9 +469,7 @@ Test(xport, not_a_corrtex_peer)
     cr_assert_geq(got, AUTH_HELLO_SIZE + WIRE_HEADER_SIZE);
     cr_assert(memcmp(buf, AUTH_MAGIC, AUTH_MAGIC_SIZE) == 0);
     cr_assert_eq(wio_get_u16(buf + AUTH_HELLO_SIZE), WIRE_ERROR);
-    chan_free(m);
-    xport_close(cli);
-    xport_listener_close(l);
+    close_raw(m, cli, l);
 }
 
 Test(xport, listen_errors)
@@ -858,19 +864,16 @@ Test(xport, handshake_deadline)
     char want[300];
     snprintf(want, sizeof want, "%s (pid %d): handshake not completed within 100 ms", spec, (int)getpid());
     cr_assert_str_eq(err.msg, want);
-    chan_free(m);
-    xport_close(cli);
-    xport_listener_close(l);
+    close_raw(m, cli, l);
 }
 
 Test(xport, oversized_frame_after_handshake)
 {
     char spec[128];
-    unix_spec(spec, sizeof spec);
     xport_listener *l;
     xport_conn *cli;
     ct_error err = {{0}};
-    chan *m = master_with_raw_display(spec, &l, &cli, 9);
+    chan *m = master_with_raw_display(spec, sizeof spec, &l, &cli, 9);
     uint8_t huge[8] = {WIRE_SCENE_CHUNK, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
     cr_assert_eq(xport_write_all(cli, huge, sizeof huge, 1000, &err), 0);
     wire_msg msg;
@@ -890,9 +893,7 @@ Test(xport, oversized_frame_after_handshake)
     cr_assert_eq(e.type, WIRE_ERROR);
     cr_assert(strstr(e.u.error.text, "SCENE_CHUNK body length 2147483647 over the limit"), "%s", e.u.error.text);
     wire_scratch_free(&s);
-    chan_free(m);
-    xport_close(cli);
-    xport_listener_close(l);
+    close_raw(m, cli, l);
 }
 
 /* Connects to host_prefix + port (a "tcp:HOST:" text) and checks that l
