@@ -194,11 +194,10 @@ static void expected(const fx_ref *ref, const ct_radmesh *m, const fx_setup *f, 
 static void check_expected(fx_setup *f, int passes, const char *what)
 {
     ct_radmesh m;
-    ct_error err;
-    cr_assert_eq(fx_box_mesh(4, &m, NULL, &err), 0, "%s", err.msg);
-    ct_camera cam = fx_box_camera();
+    ct_camera cam;
     fx_ref ref;
-    cr_assert_eq(fx_rasterise(&m, &cam, W, H, &ref), 0);
+    ct_error err;
+    cr_assert_eq(fx_box_reference(W, H, &m, NULL, &cam, &ref, &err), 0, "%s", err.msg);
     float *exp = malloc((size_t)W * H * 3 * sizeof *exp);
     bool *use = malloc((size_t)W * H * sizeof *use);
     expected(&ref, &m, f, exp, use);
@@ -334,11 +333,10 @@ Test(disp_corrections, debug_views)
 {
     fx_box_nodes nd;
     ct_radmesh m;
-    ct_error err;
-    cr_assert_eq(fx_box_mesh(4, &m, &nd, &err), 0);
-    ct_camera cam = fx_box_camera();
+    ct_camera cam;
     fx_ref ref;
-    cr_assert_eq(fx_rasterise(&m, &cam, W, H, &ref), 0);
+    ct_error err;
+    cr_assert_eq(fx_box_reference(W, H, &m, &nd, &cam, &ref, &err), 0, "%s", err.msg);
     const float cval[3] = {0.25f, -0.125f, 0.5f};
     float rgb[4 * 4 * 3];
     for (int i = 0; i < 48; i++) rgb[i] = cval[i % 3];
