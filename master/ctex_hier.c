@@ -417,6 +417,30 @@ static int emit_items(builder *B, item *it, uint32_t k, int32_t parent, int dept
 }
 
 
+/* Stores what leaf and inner nodes sum alike: bounds, area, material,
+ * glossiness and the normal of the normal sum ns. Returns false (spread
+ * 180 degrees) when that normal is undefined, true when the caller must
+ * compute the spread. */
+static bool store_sums(ctex_hnode *n, bounds3 b, vec3 ns, double area, uint32_t mat, float gloss)
+{
+    n->bounds = b;
+    n->area = (float)area;
+    n->material = mat == NOMAT ? MIXED : mat;
+    n->gloss = gloss;
+    n->normal = v3_len2(ns) > 0.0f ? v3_norm(ns) : v3s(0.0f);
+    if (v3_is_zero(n->normal) || area <= 0.0) {
+        n->spread_deg = 180.0f;
+        return false;
+    }
+    return true;
+}
+
+/* The angle in degrees whose cosine is c (clamped to [-1, 1]). */
+static float angle_deg(float c)
+{
+    return acosf(MAXF(-1.0f, MINF(1.0f, c))) * 180.0f / CT_PI;
+}
+
 /* Leaf geometry from its triangles: bounds, area, normal (and nsum, the
  * area-weighted normal sum), exact normal spread, material, glossiness. */
 static void leaf_geometry(const ct_radmesh *m, const scene_material *mats, uint32_t nmats,
@@ -443,15 +467,7 @@ static void leaf_geometry(const ct_radmesh *m, const scene_material *mats, uint3
         }
     }
     *nsum = ns;
-    n->bounds = b;
-    n->area = (float)area;
-    n->material = mat == NOMAT ? MIXED : mat;
-    n->gloss = gloss;
-    n->normal = v3_len2(ns) > 0.0f ? v3_norm(ns) : v3s(0.0f);
-    if (v3_is_zero(n->normal) || area <= 0.0) {
-        n->spread_deg = 180.0f;
-        return;
-    }
+    if (!store_sums(n, b, ns, area, mat, gloss)) return;
     float mincos = 1.0f;
     for (uint32_t i = n->tri_begin; i < n->tri_end; i++) {
         const uint32_t *v = m->tris + 3 * (size_t)h->tris[i];
@@ -462,7 +478,7 @@ static void leaf_geometry(const ct_radmesh *m, const scene_material *mats, uint3
         float c = v3_dot(cr, n->normal) / sqrtf(l2);
         if (c < mincos) mincos = c;
     }
-    n->spread_deg = acosf(MAXF(-1.0f, MINF(1.0f, mincos))) * 180.0f / CT_PI;
+    n->spread_deg = angle_deg(mincos);
 }
 
 /* Inner node from its children: bounds, area, normal, material and
@@ -486,22 +502,12 @@ static void inner_geometry(ctex_hier *h, uint32_t id, vec3 *nsum)
         gloss = MAXF(gloss, k->gloss);
     }
     nsum[id] = ns;
-    n->bounds = b;
-    n->area = (float)area;
-    n->material = mat == NOMAT ? MIXED : mat;
-    n->gloss = gloss;
-    n->normal = v3_len2(ns) > 0.0f ? v3_norm(ns) : v3s(0.0f);
-    if (v3_is_zero(n->normal) || area <= 0.0) {
-        n->spread_deg = 180.0f;
-        return;
-    }
+    if (!store_sums(n, b, ns, area, mat, gloss)) return;
     float spread = 0.0f;
     for (uint32_t c = id + 1; c < n->end; c = h->nodes[c].end) {
         const ctex_hnode *k = &h->nodes[c];
         if (k->area <= 0.0f) continue;
-        float cosang = v3_dot(k->normal, n->normal);
-        float ang = acosf(MAXF(-1.0f, MINF(1.0f, cosang))) * 180.0f / CT_PI;
-        spread = MAXF(spread, ang + k->spread_deg);
+        spread = MAXF(spread, angle_deg(v3_dot(k->normal, n->normal)) + k->spread_deg);
     }
     n->spread_deg = MINF(spread, 180.0f);
 }

@@ -185,6 +185,17 @@ void mpil_cancel_pending(void)
     L.n = 0;
 }
 
+/* Fills info from the status of a probed message; returns 1 (a message). */
+static int info_of(const MPI_Status *st, mpil_info *info, ct_error *err)
+{
+    int count = 0;
+    MPI_CHECK(MPI_Get_count(st, MPI_BYTE, &count), err);
+    info->source = st->MPI_SOURCE;
+    info->tag = st->MPI_TAG;
+    info->size = count < 0 ? 0 : (size_t)count;
+    return 1;
+}
+
 int mpil_probe(int source, int tag, mpil_info *info, ct_error *err)
 {
     int flag = 0;
@@ -193,12 +204,7 @@ int mpil_probe(int source, int tag, mpil_info *info, ct_error *err)
                          MPI_COMM_WORLD, &flag, &st),
               err);
     if (!flag) return 0;
-    int count = 0;
-    MPI_CHECK(MPI_Get_count(&st, MPI_BYTE, &count), err);
-    info->source = st.MPI_SOURCE;
-    info->tag = st.MPI_TAG;
-    info->size = count < 0 ? 0 : (size_t)count;
-    return 1;
+    return info_of(&st, info, err);
 }
 
 int mpil_wait(int source, int tag, unsigned sleep_time_us, double timeout_s, mpil_info *info, ct_error *err)
@@ -208,12 +214,7 @@ int mpil_wait(int source, int tag, unsigned sleep_time_us, double timeout_s, mpi
         MPI_CHECK(MPI_Probe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
                             MPI_COMM_WORLD, &st),
                   err);
-        int count = 0;
-        MPI_CHECK(MPI_Get_count(&st, MPI_BYTE, &count), err);
-        info->source = st.MPI_SOURCE;
-        info->tag = st.MPI_TAG;
-        info->size = count < 0 ? 0 : (size_t)count;
-        return 1;
+        return info_of(&st, info, err);
     }
     double end = timeout_s < 0 ? 0 : ct_now() + timeout_s;
     unsigned nap = sleep_time_us < 20 ? sleep_time_us : 20;

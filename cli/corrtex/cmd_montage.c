@@ -125,17 +125,10 @@ static void place(ct_image *sheet, const ct_image *src, int x0, int y0, int tw, 
     }
 }
 
-/* Parses an int option within [lo, hi]; logs and returns -1 when bad. */
-static int int_opt(const char *name, const char *s, int lo, int hi, int *out)
+/* An int option within [lo, hi]; logs and returns -1 when bad. */
+static int int_opt(const char *name, const char *s, long lo, long hi, int *out)
 {
-    char *end = NULL;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end || v < lo || v > hi) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "%s: '%s' is not an integer in %d..%d", name, s, lo, hi);
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
+    return cli_int_opt(COMPONENT, name, s, lo, hi, out);
 }
 
 static int build(const montage_opts *o, char **files, int nfiles, ct_error *err)
@@ -218,16 +211,7 @@ int cmd_montage(int argc, char **argv)
         case 't': if (int_opt("--tile", optarg, 16, 4096, &o.tile)) return 2; break;
         case 'g': if (int_opt("--gap", optarg, 0, 64, &o.gap)) return 2; break;
         case 'm': if (int_opt("--max-tiles", optarg, 0, 100000, &o.max_tiles)) return 2; break;
-        case 'e': {
-            char *end = NULL;
-            double e = strtod(optarg, &end);
-            if (end == optarg || *end || !isfinite(e) || fabs(e) > 30) {
-                ct_log(CT_LOG_ERROR, COMPONENT, "--exposure: '%s' is not a number in -30..30", optarg);
-                return 2;
-            }
-            o.exposure = (float)e;
-            break;
-        }
+        case 'e': if (cli_float_opt(COMPONENT, "--exposure", optarg, -30, 30, &o.exposure)) return 2; break;
         case 'n': o.labels = 0; break;
         case 'q': ct_log_set_level(CT_LOG_ERROR); break;
         case 'h': usage(stdout); return 0;

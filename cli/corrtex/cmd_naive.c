@@ -400,17 +400,10 @@ static int run(const naive_opts *o, ct_error *err)
     return rc;
 }
 
-/* Parses an int option within [lo, hi]; logs and returns -1 when bad. */
+/* An int option within [lo, hi]; logs and returns -1 when bad. */
 static int int_opt(const char *name, const char *s, long lo, long hi, int *out)
 {
-    char *end = NULL;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end || v < lo || v > hi) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "%s: '%s' is not an integer in %ld..%ld", name, s, lo, hi);
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
+    return cli_int_opt(COMPONENT, name, s, lo, hi, out);
 }
 
 int cmd_naive(int argc, char **argv)
@@ -474,16 +467,7 @@ int cmd_naive(int argc, char **argv)
         }
         case O_THREADS: if (int_opt("--threads", optarg, 1, MAX_THREADS, &o.threads)) return 2; break;
         case O_REF: o.ref = optarg; break;
-        case O_EXP: {
-            char *end = NULL;
-            double e = strtod(optarg, &end);
-            if (end == optarg || *end || !isfinite(e) || fabs(e) > 30) {
-                ct_log(CT_LOG_ERROR, COMPONENT, "--exposure: '%s' is not a number in -30..30", optarg);
-                return 2;
-            }
-            o.exposure = (float)e;
-            break;
-        }
+        case O_EXP: if (cli_float_opt(COMPONENT, "--exposure", optarg, -30, 30, &o.exposure)) return 2; break;
         case O_NOPNG: o.png = 0; break;
         case 'o': o.out = optarg; break;
         case 'q': ct_log_set_level(CT_LOG_ERROR); break;

@@ -228,18 +228,26 @@ static inline void gen_pop(gobj *o)
     o->xf = o->stack[--o->depth];
 }
 
+/* Stores w as element n of the growing array *arr (capacity *cap); 0, or -1
+ * (and o->failed set) when out of memory. */
+static inline int gen_keep(gobj *o, gv3 **arr, long *cap, long n, gv3 w)
+{
+    if (n >= *cap) {
+        long c = *cap ? *cap * 2 : 4096;
+        gv3 *q = realloc(*arr, (size_t)c * sizeof *q);
+        if (!q) { o->failed = 1; return -1; }
+        *arr = q;
+        *cap = c;
+    }
+    (*arr)[n] = w;
+    return 0;
+}
+
 /* A vertex at local position p; returns its 1-based OBJ index. */
 static inline long gen_v(gobj *o, gv3 p)
 {
     gv3 w = gxf_point(&o->xf, p);
-    if (o->nv >= o->cap_pos) {
-        long n = o->cap_pos ? o->cap_pos * 2 : 4096;
-        gv3 *q = realloc(o->pos, (size_t)n * sizeof *q);
-        if (!q) { o->failed = 1; return 1; }
-        o->pos = q;
-        o->cap_pos = n;
-    }
-    o->pos[o->nv] = w;
+    if (gen_keep(o, &o->pos, &o->cap_pos, o->nv, w)) return 1;
     gen_printf(o, "v %.5f %.5f %.5f\n", w.x, w.y, w.z);
     return ++o->nv;
 }
@@ -248,14 +256,7 @@ static inline long gen_v(gobj *o, gv3 p)
 static inline long gen_vn(gobj *o, gv3 n)
 {
     gv3 w = gnorm(gxf_dir(&o->xf, n));
-    if (o->nvn >= o->cap_nrm) {
-        long c = o->cap_nrm ? o->cap_nrm * 2 : 4096;
-        gv3 *q = realloc(o->nrm, (size_t)c * sizeof *q);
-        if (!q) { o->failed = 1; return 1; }
-        o->nrm = q;
-        o->cap_nrm = c;
-    }
-    o->nrm[o->nvn] = w;
+    if (gen_keep(o, &o->nrm, &o->cap_nrm, o->nvn, w)) return 1;
     gen_printf(o, "vn %.5f %.5f %.5f\n", w.x, w.y, w.z);
     return ++o->nvn;
 }
@@ -472,6 +473,21 @@ static inline void gen_sphere(gobj *o, gv3 c, double rad, int stacks, int slices
     gen_pop(o);
 }
 
+/* An object `name`: a ceiling light of w x d centred at (x, z): a housing
+ * box of material `housing`, 3 cm wider on each side, from y0 up to the
+ * ceiling at y1 (no top face), and an emissive quad of material `panel` at
+ * height y facing down. */
+static inline void gen_ceiling_light(gobj *o, const char *name, const char *housing, const char *panel, double x,
+                                     double z, double w, double d, double y0, double y1, double y)
+{
+    gen_object(o, "%s", name);
+    gen_material(o, housing);
+    gen_box(o, g3(x - w / 2 - 0.03, y0, z - d / 2 - 0.03), g3(x + w / 2 + 0.03, y1, z + d / 2 + 0.03),
+            GEN_ALL & ~GEN_YP);
+    gen_material(o, panel);
+    gen_quad(o, g3(x - w / 2, y, z - d / 2), g3(w, 0, 0), g3(0, 0, d), g3(0, -1, 0));
+}
+
 /* --- lathe profiles -------------------------------------------------------- */
 
 #define GEN_PROF_MAX 1024
@@ -514,6 +530,16 @@ static inline long gen_prof(gobj *o, const gprof *p, int segs, double crease_deg
     return gen_lathe(o, p->n, p->r, p->y, segs, crease_deg);
 }
 
+/* Sweeps the profile through the points (r, y) * scale, i < n (see
+ * prof_add and gen_lathe). */
+static inline long gen_prof_points(gobj *o, const double (*pts)[2], int n, double scale, int segs,
+                                   double crease_deg)
+{
+    gprof p = {{0}, {0}, 0};
+    for (int i = 0; i < n; i++) prof_add(&p, pts[i][0] * scale, pts[i][1] * scale);
+    return gen_prof(o, &p, segs, crease_deg);
+}
+
 /* --- counts manifest ------------------------------------------------------- */
 
 /* What a generator wrote, summed over its files: the tests compare the
@@ -531,7 +557,6 @@ static inline void gen_count(gcounts *c, const gobj *o)
     c->ngons += o->ngons;
 }
 
-/* Writes dir/name.counts atomically: one "key value" line per count. */
 /* Writes text to dir/file atomically (temporary + rename); one error line
  * naming the file on failure. */
 static inline int gen_write_file(const char *dir, const char *file, const char *generator,
@@ -556,6 +581,7 @@ static inline int gen_write_file(const char *dir, const char *file, const char *
     return 0;
 }
 
+/* Writes dir/name.counts atomically: one "key value" line per count. */
 static inline int gen_write_counts(const char *dir, const char *name, const gcounts *c)
 {
     char file[256], text[1024];
@@ -565,6 +591,65 @@ static inline int gen_write_counts(const char *dir, const char *name, const gcou
              "files %ld\nobjects %ld\nprimitives %ld\nquads %ld\ntriangles %ld\nngons %ld\n",
              name, name, c->files, c->objects, c->prims, c->quads, c->tris, c->ngons);
     return gen_write_file(dir, file, name, text);
+}
+
+/* --- materials and the generator's frame ----------------------------------- */
+
+/* The mirror and glass every scene defines alike (the scene's JSON may
+ * refine them by name): the last entries of an MTL body. */
+#define GEN_MTL_MIRROR_GLASS \
+    "newmtl mirror\nKd 0 0 0\nKs 0.95 0.95 0.95\nillum 3\n\n" \
+    "newmtl glass\nKd 0 0 0\nKs 1 1 1\nNi 1.5\nd 0\nTf 1 1 1\nillum 7\n"
+
+/* The six book cover colours the bookshelves of table and office share
+ * (book_red, book_blue, book_green, book_cream, book_brown, book_black). */
+#define GEN_MTL_BOOKS \
+    "newmtl book_red\nKd 0.5 0.08 0.07\n\n" \
+    "newmtl book_blue\nKd 0.08 0.14 0.4\n\n" \
+    "newmtl book_green\nKd 0.1 0.3 0.12\n\n" \
+    "newmtl book_cream\nKd 0.75 0.7 0.55\n\n" \
+    "newmtl book_brown\nKd 0.35 0.2 0.1\n\n" \
+    "newmtl book_black\nKd 0.06 0.06 0.06\n\n"
+
+/* Writes dir/GENERATOR.mtl atomically: a header line naming the generator,
+ * then body (the newmtl entries). */
+static inline int gen_write_mtl(const char *dir, const char *generator, const char *body)
+{
+    char file[256];
+    snprintf(file, sizeof file, "%s.mtl", generator);
+    const char *fmt = "# %s: generated by scenes/gen/%s.c (do not edit; run make scenes)\n%s";
+    size_t n = strlen(fmt) + strlen(file) + strlen(generator) + strlen(body) + 1;
+    char *text = malloc(n);
+    if (!text) {
+        fprintf(stderr, "error %s: out of memory writing %s\n", generator, file);
+        return -1;
+    }
+    snprintf(text, n, fmt, file, generator, body);
+    int rc = gen_write_file(dir, file, generator, text);
+    free(text);
+    return rc;
+}
+
+/* The output folder from the command line (GENERATOR OUTDIR), or NULL after
+ * printing the usage line. */
+static inline const char *gen_outdir(int argc, char **argv, const char *generator)
+{
+    if (argc != 2) {
+        fprintf(stderr, "usage: %s OUTDIR\n", generator);
+        return NULL;
+    }
+    return argv[1];
+}
+
+/* Ends a generator that writes one OBJ file: closes it, then writes the
+ * material library (write_mtl) and GENERATOR.counts. 0 or -1. */
+static inline int gen_finish(gobj *o, const char *dir, const char *generator,
+                             int (*write_mtl)(const char *dir))
+{
+    gcounts c = {0, 0, 0, 0, 0, 0};
+    gen_count(&c, o);
+    if (gen_close(o, generator) || write_mtl(dir) || gen_write_counts(dir, generator, &c)) return -1;
+    return 0;
 }
 
 #endif

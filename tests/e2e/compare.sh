@@ -3,30 +3,8 @@
 # 0 (ok), 1 (--max-rmse exceeded) and 2 (bad input or usage), on the tiny
 # EXR files in tests/data/ (written and checked by tests/unit/test_image.c:
 # compare-test.exr is compare-ref.exr with +-0.05 on every value).
-set -u
-root=$(cd "$(dirname "$0")/../.." && pwd)
-bin=${CORRTEX_BIN:-bin}
-[[ $bin == /* ]] || bin="$root/$bin"
-corrtex="$bin/corrtex"
+source "$(dirname "$0")/lib/common.sh"
 data="$root/tests/data"
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-compare-XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
-
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-
-# run EXPECTED_RC ARGS...: runs corrtex with ARGS, logs the command, keeps
-# stdout in $out and stderr in $err, and checks the exit status.
-run() {
-  local want=$1; shift
-  echo "+ $corrtex $*"
-  "$corrtex" "$@" >"$tmp/out" 2>"$tmp/err"
-  rc=$?
-  out=$(cat "$tmp/out"); err=$(cat "$tmp/err")
-  [[ -n $out ]] && sed 's/^/  stdout: /' "$tmp/out"
-  [[ -n $err ]] && sed 's/^/  stderr: /' "$tmp/err"
-  if ((rc != want)); then fail "exit status $rc, expected $want: corrtex $*"; fi
-}
 
 # expect_error FILE_OR_TEXT: stderr is exactly one line
 # "error corrtex compare: <text>..."
@@ -50,13 +28,13 @@ for f in "$ref" "$test" "$data/compare-small.exr" "$data/compare-luminance.exr";
 done
 
 echo "== identical images"
-run 0 compare "$ref" "$ref"
+run_corrtex 0 compare "$ref" "$ref"
 grep -qx 'rmse 0' <<<"$out" || fail "rmse of identical images is not 0"
 grep -qx 'psnr inf dB' <<<"$out" || fail "psnr of identical images is not inf"
 grep -qx 'ssim 1.000000' <<<"$out" || fail "ssim of identical images is not 1"
 
 echo "== --json"
-run 0 compare "$test" "$ref" --json
+run_corrtex 0 compare "$test" "$ref" --json
 for k in rmse rel_mse psnr ssim width height; do
   grep -q "\"$k\":" <<<"$out" || fail "JSON lacks key $k"
 done
@@ -70,42 +48,42 @@ near "$rmse" 0.05 1e-6 || fail "rmse $rmse, expected 0.05"
 [[ $(json_get width) == 16 && $(json_get height) == 16 ]] || fail "size is not 16x16"
 awk -v s="$ssim" 'BEGIN { exit !(s > 0 && s < 1) }' || fail "ssim $ssim not in (0, 1)"
 awk -v p="$psnr" 'BEGIN { exit !(p > 10 && p < 60) }' || fail "psnr $psnr implausible"
-run 0 compare --json "$ref" "$ref"
+run_corrtex 0 compare --json "$ref" "$ref"
 [[ $(json_get psnr) == null ]] || fail "psnr of identical images should be null in JSON"
 
 echo "== --max-rmse"
-run 0 compare "$test" "$ref" --max-rmse 0.06
-run 1 compare "$test" "$ref" --max-rmse 0.04
+run_corrtex 0 compare "$test" "$ref" --max-rmse 0.06
+run_corrtex 1 compare "$test" "$ref" --max-rmse 0.04
 grep -q "exceeds --max-rmse 0.04" <<<"$err" || fail "exit 1 without the limit in the message"
 grep -q "rmse 0.05" <<<"$err" || fail "exit 1 without the rmse in the message"
-run 0 compare "$ref" "$ref" --max-rmse 0
+run_corrtex 0 compare "$ref" "$ref" --max-rmse 0
 
 echo "== bad input"
 head -c 300 "$test" >"$tmp/truncated.exr"
-run 2 compare "$tmp/truncated.exr" "$ref"
+run_corrtex 2 compare "$tmp/truncated.exr" "$ref"
 expect_error "$tmp/truncated.exr: "
 head -c 600 "$test" >"$tmp/cut.exr"
-run 2 compare "$ref" "$tmp/cut.exr"
+run_corrtex 2 compare "$ref" "$tmp/cut.exr"
 expect_error "$tmp/cut.exr: "
-run 2 compare "$tmp/missing.exr" "$ref"
+run_corrtex 2 compare "$tmp/missing.exr" "$ref"
 expect_error "$tmp/missing.exr: cannot open"
-run 2 compare "$data/compare-luminance.exr" "$ref"
+run_corrtex 2 compare "$data/compare-luminance.exr" "$ref"
 expect_error "$data/compare-luminance.exr: EXR has no channel R, G, B"
-run 2 compare "$data/compare-small.exr" "$ref"
+run_corrtex 2 compare "$data/compare-small.exr" "$ref"
 expect_error "$data/compare-small.exr: image sizes differ"
 echo "not an image" >"$tmp/text.exr"
-run 2 compare "$tmp/text.exr" "$ref"
+run_corrtex 2 compare "$tmp/text.exr" "$ref"
 expect_error "$tmp/text.exr: "
 
 echo "== usage"
-run 2 compare "$ref"
+run_corrtex 2 compare "$ref"
 expect_error "expected two images"
-run 2 compare "$ref" "$ref" "$ref"
-run 2 compare "$ref" "$ref" --max-rmse abc
+run_corrtex 2 compare "$ref" "$ref" "$ref"
+run_corrtex 2 compare "$ref" "$ref" --max-rmse abc
 expect_error "--max-rmse"
-run 2 compare "$ref" "$ref" --max-rmse -1
-run 2 compare "$ref" "$ref" --frobnicate
-run 0 compare --help
+run_corrtex 2 compare "$ref" "$ref" --max-rmse -1
+run_corrtex 2 compare "$ref" "$ref" --frobnicate
+run_corrtex 0 compare --help
 grep -q "default" <<<"$out" || fail "--help prints no defaults"
 
 if ((fails)); then echo "compare.sh: $fails check(s) failed"; exit 1; fi

@@ -6,28 +6,10 @@
 # output files, convergence.csv rows, PSNR against a path-traced reference
 # rising with the samples, the --move-to phase (Fig. 7), the insertion timer,
 # and exit status 2 with one error line on bad input.
-set -u
-root=$(cd "$(dirname "$0")/../.." && pwd)
-bin=${CORRTEX_BIN:-bin}
-[[ $bin == /* ]] || bin="$root/$bin"
-corrtex="$bin/corrtex"
+source "$(dirname "$0")/lib/common.sh"
 scene="$root/scenes/cornell/cornell.json"
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-converge-XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
 
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
-
-# run EXPECTED_RC ARGS...: runs corrtex, logs the command, checks the status.
-run() {
-  local want=$1; shift
-  echo "+ $corrtex $*"
-  "$corrtex" "$@" >"$tmp/out" 2>"$tmp/err"
-  rc=$?
-  sed 's/^/  stdout: /' "$tmp/out" | tail -n 20
-  sed 's/^/  stderr: /' "$tmp/err" | tail -n 20
-  if ((rc != want)); then fail "exit status $rc, expected $want: corrtex $*"; fi
-}
+run_tail=20   # run_corrtex prints the last 20 lines of each output
 
 # csv_col ROW_PREFIX COLUMN_NAME: the value of a column in the first row
 # whose "phase,samples" starts with ROW_PREFIX.
@@ -37,10 +19,10 @@ csv_col() {
     index($1 "," $2, pre) == 1 { print $c; exit }' "$tmp/out1/convergence.csv"
 }
 
-run 0 reference "$scene" --camera front --width 48 --height 48 --spp 32 --mode path --seed 7 -o "$tmp/ref.exr"
-run 0 reference "$scene" --camera spheres --width 48 --height 48 --spp 32 --mode path --seed 7 -o "$tmp/ref2.exr"
+run_corrtex 0 reference "$scene" --camera front --width 48 --height 48 --spp 32 --mode path --seed 7 -o "$tmp/ref.exr"
+run_corrtex 0 reference "$scene" --camera spheres --width 48 --height 48 --spp 32 --mode path --seed 7 -o "$tmp/ref2.exr"
 
-run 0 converge "$scene" --camera front --samples 100,800,all --width 48 --height 48 --stand-in 0.3 --mode path \
+run_corrtex 0 converge "$scene" --camera front --samples 100,800,all --width 48 --height 48 --stand-in 0.3 --mode path \
   --reference "$tmp/ref.exr" --move-to spheres --samples-after 600 --reference-after "$tmp/ref2.exr" \
   --time-insert --insert-runs 3 --out "$tmp/out1"
 for f in convergence.csv radiosity.exr radiosity.png assignment.png corrected_100.exr corrected_100.png \
@@ -79,32 +61,32 @@ expect_error() {
   ((lines == 1)) || fail "expected one error line, got $lines"
   grep -q "^error corrtex converge: .*$1" "$tmp/err" || fail "error line does not mention '$1'"
 }
-run 2 converge "$scene" --out "$tmp/bad" --quiet
+run_corrtex 2 converge "$scene" --out "$tmp/bad" --quiet
 expect_error "--samples"
-run 2 converge "$scene" --samples 10 --out "$tmp/bad" --camera nope --stand-in 0.3 --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --camera nope --stand-in 0.3 --quiet
 expect_error "nope"
-run 2 converge "$scene" --samples 100,50 --out "$tmp/bad" --quiet
+run_corrtex 2 converge "$scene" --samples 100,50 --out "$tmp/bad" --quiet
 expect_error "increase"
-run 2 converge "$scene" --samples 10 --out "$tmp/bad" --eps abc --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --eps abc --quiet
 expect_error "--eps"
-run 2 converge "$scene" --samples 10 --out "$tmp/bad" --insert-runs 0 --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --insert-runs 0 --quiet
 expect_error "--insert-runs"
-run 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
-run 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand-in 0.3 --quiet
+run_corrtex 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand-in 0.3 --quiet
 expect_error "missing.json"
-run 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet
 expect_error "48x48"
 
-run 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --mesh "$tmp/m.ctmesh" --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --mesh "$tmp/m.ctmesh" --quiet
 expect_error "not both"
 
 # The real interactive solution: radiosity solved once into the cache, then
 # loaded from it (the log says which).
-run 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/m.ctmesh" --out "$tmp/rad1"
+run_corrtex 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/m.ctmesh" --out "$tmp/rad1"
 grep -q "written to" "$tmp/err" || fail "first --mesh run did not solve and write the cache"
 [[ -s $tmp/m.ctmesh ]] || fail "no cache file written"
-run 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/m.ctmesh" --out "$tmp/rad2"
+run_corrtex 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/m.ctmesh" --out "$tmp/rad2"
 grep -q "cached" "$tmp/err" || fail "second --mesh run did not use the cache"
 cmp -s "$tmp/rad1/corrected_200.exr" "$tmp/rad2/corrected_200.exr" || fail "cached and solved runs differ"
 

@@ -3,16 +3,9 @@
 # a tile is the area average of its image (a flat image stays flat, labels
 # off); --max-tiles picks evenly spaced inputs; bad input gives one error
 # line and exit 2 and writes nothing.
-set -u
-root=$(cd "$(dirname "$0")/../.." && pwd)
-bin=${CORRTEX_BIN:-bin}
-[[ $bin == /* ]] || bin="$root/$bin"
-c="$bin/corrtex"
+source "$(dirname "$0")/lib/common.sh"
+c=$corrtex
 data="$root/tests/data"
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-montage-XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 run() { echo "+ $*"; "$@"; }
 [[ -x $c ]] || { echo "error: $c not built"; exit 1; }
 

@@ -5,15 +5,8 @@
 # thread count; K samples do change the radiosity image; the error columns
 # against references exist; --hold keeps old samples (its frames differ from
 # fresh ones); bad input gives one error line and exit 2.
-set -u
-root=$(cd "$(dirname "$0")/../.." && pwd)
-bin=${CORRTEX_BIN:-bin}
-[[ $bin == /* ]] || bin="$root/$bin"
-c="$bin/corrtex"
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-naive-XXXXXX")
-trap 'rm -rf "$tmp"' EXIT
-fails=0
-fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+source "$(dirname "$0")/lib/common.sh"
+c=$corrtex
 run() { echo "+ $*"; "$@"; }
 [[ -x $c ]] || { echo "error: $c not built"; exit 1; }
 scene="$root/scenes/cornell/cornell.json"; pathf="$root/scenes/cornell/walk.path"

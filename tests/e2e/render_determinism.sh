@@ -20,11 +20,7 @@ for np in 2 3; do
   master_wait "job$np" 20 || fail "job np $np did not end"
   ((MASTER_RC == 0)) || { fail "job np $np exit status $MASTER_RC"; master_log "job$np" | tail -n 20; }
 done
-same=0
-for k in 0 1 2 3 4; do
-  f=$(printf 'frame_%05d.exr' $k)
-  if cmp -s "$tmp/out2/$f" "$tmp/out3/$f"; then same=$((same + 1)); else fail "$f differs between 1 and 2 tracers"; fi
-done
+same_frames out2 out3 "between 1 and 2 tracers"
 # Not a trivially equal pair: the frames change along the path.
 cmp -s "$tmp/out2/frame_00000.exr" "$tmp/out2/frame_00004.exr" && fail "frames 0 and 4 are identical"
 echo "metric: $same of 5 lockstep frames bit-identical with 1 tracer (2 threads) and 2 tracers (1 thread)"

@@ -64,10 +64,6 @@ grep -q 'dropped a peer: .*2147483647' "$tmp/job.log" || fail "oversized peer no
 grep -q 'dropped a peer: .*authentication failed' "$tmp/job.log" || fail "wrong token not logged"
 n=$(grep -c 'handshake not completed' "$tmp/job.log")
 ((n >= 2)) || fail "$n handshake timeouts logged, expected the slow and the silent peer"
-same=0
-for k in 0 1 2 3 4; do
-  f=$(printf 'frame_%05d.exr' $k)
-  if cmp -s "$tmp/clean/$f" "$tmp/out/$f"; then same=$((same + 1)); else fail "$f differs from the clean run"; fi
-done
+same_frames clean out "from the clean run"
 echo "metric: $same of 5 frames identical to the clean run with 5 hostile peers connected"
 finish

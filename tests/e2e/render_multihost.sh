@@ -90,10 +90,6 @@ master_log job | grep -v -e progress -e 'debug ctex' -e 'debug master: camera' |
 grep -q 'tracer rank 1 on h2 ready' "$tmp/job.log" && grep -q 'tracer rank 2 on h2 ready' "$tmp/job.log" ||
   fail "the tracers did not run on host h2"
 grep -q 'display tcp:10.77.0.3:[0-9]* connected' "$tmp/job.log" || fail "the display did not connect from 10.77.0.3"
-same=0
-for k in 0 1 2 3 4; do
-  f=$(printf 'frame_%05d.exr' $k)
-  if cmp -s "$tmp/local/$f" "$tmp/out/$f"; then same=$((same + 1)); else fail "$f differs between one and two hosts"; fi
-done
+same_frames local out "between one and two hosts"
 echo "metric: $same of 5 frames bit-identical on one host and on two (namespaces, TCP)"
 finish

@@ -4,7 +4,6 @@
 # problem, exit status 2, and start nothing (no process, no socket file).
 set -u
 source "$(dirname "$0")/lib/walk-common.bash"
-trap 'rm -rf "$tmp"' EXIT
 [[ -x $bin/corrtex ]] || { echo "error: $bin/corrtex not built"; exit 1; }
 printf '{"meshes":[{"file":"ok.obj"}],\n "oops" }\n' >"$tmp/syntax.json"
 printf '{"meshes":[{"file":"absent.obj"}]}\n' >"$tmp/nomesh.json"

@@ -8,10 +8,8 @@
 # socket file).
 set -u
 source "$(dirname "$0")/lib/walk-common.bash"
-trap 'rm -rf "$tmp"' EXIT
 need_programs
-scene="$root/scenes/cornell/cornell.json"
-[[ -f $scene ]] || { echo "error: $scene missing (make scenes)"; exit 1; }
+need_scene cornell
 n=4; spf=200; w=64
 out="$tmp/walk"; sock="$tmp/walk.sock"
 

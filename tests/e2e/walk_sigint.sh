@@ -5,10 +5,8 @@
 # no process and no socket file behind. The same for SIGTERM.
 set -u
 source "$(dirname "$0")/lib/walk-common.bash"
-trap 'rm -rf "$tmp"' EXIT
 need_programs
-scene="$root/scenes/cornell/cornell.json"
-[[ -f $scene ]] || { echo "error: $scene missing (make scenes)"; exit 1; }
+need_scene cornell
 
 # Job control: without it bash starts background commands with SIGINT
 # ignored, and a shell cannot trap a signal ignored on entry; a launcher

@@ -213,6 +213,19 @@ void fx_ref_free(fx_ref *r)
     memset(r, 0, sizeof *r);
 }
 
+int fx_box_reference(int width, int height, ct_radmesh *m, fx_box_nodes *nodes, ct_camera *cam, fx_ref *ref,
+                     ct_error *err)
+{
+    int rc = fx_box_mesh(4, m, nodes, err);
+    if (rc) return rc;
+    *cam = fx_box_camera();
+    if (fx_rasterise(m, cam, width, height, ref) != 0) {
+        rmesh_free(m);
+        return ct_fail(err, CT_ENOMEM, "out of memory rasterising the box at %dx%d", width, height);
+    }
+    return CT_OK;
+}
+
 /* --- rendering in a child ------------------------------------------------- */
 
 typedef struct child_head {

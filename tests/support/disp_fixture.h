@@ -46,6 +46,12 @@ typedef struct fx_ref {
 int fx_rasterise(const ct_radmesh *m, const ct_camera *cam, int width, int height, fx_ref *out);
 void fx_ref_free(fx_ref *r);
 
+/* The box of grid 4 (its nodes in *nodes unless NULL) under fx_box_camera
+ * (*cam), rasterised at width x height into *ref; 0, or an error (err says
+ * which) with nothing to free. */
+int fx_box_reference(int width, int height, ct_radmesh *m, fx_box_nodes *nodes, ct_camera *cam, fx_ref *ref,
+                     ct_error *err);
+
 /* Called in the child after the backend is open: fills the session. */
 typedef int (*fx_setup_fn)(disp_session *s, void *ctx, ct_error *err);
 

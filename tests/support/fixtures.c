@@ -68,3 +68,15 @@ const char *fx_write(const char *dir, const char *name, const char *text)
     fclose(f);
     return p;
 }
+
+vec3 fx_rand_unit(ct_rng *r)
+{
+    for (;;) {
+        /* One draw per statement: the order of a call's arguments is
+         * unspecified (GCC and Clang differ), the test data must not be. */
+        float x = 2 * rng_float(r) - 1, y = 2 * rng_float(r) - 1, z = 2 * rng_float(r) - 1;
+        vec3 v = v3(x, y, z);
+        float l = v3_len(v);
+        if (l > 0.1f && l <= 1.0f) return v3_scale(v, 1.0f / l);
+    }
+}

@@ -135,6 +135,15 @@ size_t fx_messages(wire_msg *out)
     return n;
 }
 
+auth_token fx_token(const char *s)
+{
+    auth_token t;
+    memset(&t, 0, sizeof t);
+    t.len = strlen(s);
+    memcpy(t.bytes, s, t.len);
+    return t;
+}
+
 int fx_mesh(ct_radmesh *m, uint32_t nquads)
 {
     int rc = rmesh_alloc(m, 2 * (nquads + 1), 2 * nquads, 3, NULL);

@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include "common/radmesh.h"
+#include "proto/auth.h"
 #include "proto/wire.h"
 
 #define FX_NMSG 22
@@ -16,6 +17,9 @@
 /* Fills out[] with FX_NMSG valid messages covering every type (patches and
  * chunks point to static storage); returns the count. */
 size_t fx_messages(wire_msg *out);
+
+/* A token holding the bytes of s (shorter than AUTH_TOKEN_MAX). */
+auth_token fx_token(const char *s);
 
 /* A valid mesh: a strip of nquads quads (2 triangles each) in 3 nodes. */
 int fx_mesh(ct_radmesh *m, uint32_t nquads);

@@ -6,23 +6,12 @@
 
 #include "common/camera.h"
 #include "common/rng.h"
+#include "tests/support/fixtures.h"
 
 typedef struct cam_case {
     ct_camera cam;
     int w, h;
 } cam_case;
-
-static vec3 rand_unit(ct_rng *r)
-{
-    for (;;) {
-        /* One draw per statement: the order of a call's arguments is
-         * unspecified (GCC and Clang differ), the test data must not be. */
-        float x = 2 * rng_float(r) - 1, y = 2 * rng_float(r) - 1, z = 2 * rng_float(r) - 1;
-        vec3 v = v3(x, y, z);
-        float l = v3_len(v);
-        if (l > 0.1f && l <= 1.0f) return v3_scale(v, 1.0f / l);
-    }
-}
 
 /* Random cameras: positions, directions, fields of view 20..110 degrees,
  * square, wide and tall images. */
@@ -30,8 +19,8 @@ static cam_case rand_case(ct_rng *r, int k)
 {
     static const int sizes[][2] = {{64, 64}, {128, 72}, {33, 97}, {1024, 768}};
     cam_case c;
-    vec3 eye = v3_scale(rand_unit(r), 20.0f * rng_float(r));
-    vec3 dir = rand_unit(r);
+    vec3 eye = v3_scale(fx_rand_unit(r), 20.0f * rng_float(r));
+    vec3 dir = fx_rand_unit(r);
     vec3 up = fabsf(dir.y) > 0.95f ? v3(1, 0, 0) : v3(0, 1, 0);
     c.cam = cam_look_at(eye, v3_add(eye, v3_scale(dir, 3.0f)), up, 20.0f + 90.0f * rng_float(r));
     c.w = sizes[k % 4][0];

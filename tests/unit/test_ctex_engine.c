@@ -16,15 +16,39 @@
 
 static ct_error err;
 
+/* Adds the quad p[0..3] with normal n to the open part. */
+static void add_quad(ct_scene *s, const vec3 p[4], vec3 n)
+{
+    uint32_t idx[4];
+    for (int i = 0; i < 4; i++) idx[i] = (uint32_t)scene_add_vertex(s, p[i], n, &err);
+    cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0, "%s", err.msg);
+}
+
 static void quad_part(ct_scene *s, const char *name, uint32_t mat, vec3 a, vec3 b, vec3 c, vec3 d)
 {
     cr_assert_geq(scene_begin_node(s, name, SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
-    vec3 n = v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a)));
-    uint32_t idx[4];
     vec3 p[4] = {a, b, c, d};
-    for (int i = 0; i < 4; i++) idx[i] = (uint32_t)scene_add_vertex(s, p[i], n, &err);
-    cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0, "%s", err.msg);
+    add_quad(s, p, v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a))));
     cr_assert_eq(scene_end_node(s, &err), 0);
+}
+
+/* A scene with one grey material whose one part `part` is left open for
+ * add_quad; one_part_end closes and finalizes it. */
+static ct_scene *one_part_begin(const char *name, const char *part)
+{
+    ct_scene *s = scene_new(name);
+    cr_assert_not_null(s);
+    scene_material w = scene_material_default("w");
+    w.diffuse = v3s(0.5f);
+    scene_add_material(s, &w, &err);
+    cr_assert_geq(scene_begin_node(s, part, SCENE_NODE_PART, 0, &err), 0);
+    return s;
+}
+
+static void one_part_end(ct_scene *s)
+{
+    cr_assert_eq(scene_end_node(s, &err), 0);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
 }
 
 /* A closed box as one part (not flat). */
@@ -188,17 +212,23 @@ Test(ctex_engine, bvh_groups_by_material)
     scene_free(s);
 }
 
-/* The test scene with leaf textures (eps = 0) under the front camera at
+/* The test scene with an engine of options o under the front camera at
  * w x h pixels. */
-static ctex *leaf_engine(tscene *t, int w, int h)
+static ctex *front_engine(tscene *t, ctex_options o, int w, int h)
 {
     build(t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
     ctex *c = engine(t, o);
     ct_camera cam = front_cam();
     cr_assert_eq(ctex_set_camera(c, &cam, w, h, &err), 0, "%s", err.msg);
     return c;
+}
+
+/* front_engine with leaf textures (eps = 0). */
+static ctex *leaf_engine(tscene *t, int w, int h)
+{
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    return front_engine(t, o, w, h);
 }
 
 /* Number of active textures and whether every one sits on a leaf. */
@@ -264,10 +294,7 @@ Test(ctex_engine, eps_huge_gives_one_per_top_node)
 Test(ctex_engine, default_eps_between)
 {
     tscene t;
-    build(&t);
-    ctex *c = engine(&t, ctex_options_default());
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 128, 128, &err), 0);
+    ctex *c = front_engine(&t, ctex_options_default(), 128, 128);
     int leaves;
     uint32_t covered;
     uint32_t n = count_textures(c, &leaves, &covered);
@@ -294,13 +321,9 @@ Test(ctex_engine, frustum_culling_looking_away)
 Test(ctex_engine, camera_local_maps_bounding_rect_to_unit_square)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
     const int W = 96, H = 64;
-    cr_assert_eq(ctex_set_camera(c, &cam, W, H, &err), 0);
+    ctex *c = leaf_engine(&t, W, H);
+    ct_camera cam = front_cam();
     int32_t id = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f));
     cr_assert_geq(id, 0);
     ctex_proj_kind kind;
@@ -487,12 +510,8 @@ Test(ctex_engine, split_and_merge_resample_contents)
 Test(ctex_engine, events_alloc_proj_patch_free)
 {
     tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
+    ctex *c = leaf_engine(&t, 64, 64);
     ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
     size_t n;
     const ctex_event *ev = ctex_events(c, &n);
     int alloc = 0, proj = 0;
@@ -547,14 +566,11 @@ Test(ctex_engine, events_alloc_proj_patch_free)
 Test(ctex_engine, memory_cap_evicts_invisible_first)
 {
     tscene t;
-    build(&t);
     ctex_options o = ctex_options_default();
     o.eps = 0.0f;
     o.mem_mb = 0.05;   /* ~3,300 texels */
     o.tex_init = 8;
-    ctex *c = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 256, 256, &err), 0);
+    ctex *c = front_engine(&t, o, 256, 256);
     int32_t fl = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
     ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
     cr_assert_eq(ctex_set_camera(c, &away, 256, 256, &err), 0);
@@ -682,11 +698,7 @@ Test(ctex_engine, exported_node_table_for_the_display)
  * at a corner (an L), one material. */
 static ct_scene *l_scene(int n)
 {
-    ct_scene *s = scene_new("L");
-    scene_material w = scene_material_default("w");
-    w.diffuse = v3s(0.5f);
-    scene_add_material(s, &w, &err);
-    cr_assert_geq(scene_begin_node(s, "L", SCENE_NODE_PART, 0, &err), 0);
+    ct_scene *s = one_part_begin("L", "L");
     for (int side = 0; side < 2; side++)
         for (int j = 0; j < n; j++)
             for (int i = 0; i < n; i++) {
@@ -695,13 +707,9 @@ static ct_scene *l_scene(int n)
                 vec3 p[4];
                 if (side == 0) { p[0] = v3(x0, 0, a0 - 10); p[1] = v3(x0, 0, a1 - 10); p[2] = v3(x1, 0, a1 - 10); p[3] = v3(x1, 0, a0 - 10); }
                 else { p[0] = v3(x0, a0, -10); p[1] = v3(x1, a0, -10); p[2] = v3(x1, a1, -10); p[3] = v3(x0, a1, -10); }
-                uint32_t idx[4];
-                vec3 nn = side == 0 ? v3(0, 1, 0) : v3(0, 0, 1);
-                for (int k = 0; k < 4; k++) idx[k] = (uint32_t)scene_add_vertex(s, p[k], nn, &err);
-                cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+                add_quad(s, p, side == 0 ? v3(0, 1, 0) : v3(0, 0, 1));
             }
-    cr_assert_eq(scene_end_node(s, &err), 0);
-    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    one_part_end(s);
     return s;
 }
 
@@ -826,23 +834,16 @@ Test(ctex_engine, non_flat_large_parts_split_by_space)
     /* a corrugated sheet: strips tilted +-20 degrees, one part of 4096
      * triangles; the normal split gives two sets of parallel, not coplanar
      * strips, which split by space down to clusters of at most 512 */
-    ct_scene *s = scene_new("corrugated");
-    scene_material w = scene_material_default("w");
-    w.diffuse = v3s(0.5f);
-    scene_add_material(s, &w, &err);
-    cr_assert_geq(scene_begin_node(s, "sheet", SCENE_NODE_PART, 0, &err), 0);
+    ct_scene *s = one_part_begin("corrugated", "sheet");
     const int nx = 64, nz = 32;
     for (int i = 0; i < nx; i++)
         for (int j = 0; j < nz; j++) {
             float x0 = (float)i * 0.2f, x1 = x0 + 0.2f, z0 = (float)j * 0.2f, z1 = z0 + 0.2f;
             float y0 = (i % 2) ? 0.0728f : 0.0f, y1 = (i % 2) ? 0.0f : 0.0728f;   /* tan(20°) * 0.2 */
             vec3 p[4] = {v3(x0, y0, z0), v3(x0, y0, z1), v3(x1, y1, z1), v3(x1, y1, z0)};
-            uint32_t idx[4];
-            for (int k = 0; k < 4; k++) idx[k] = (uint32_t)scene_add_vertex(s, p[k], v3(0, 1, 0), &err);
-            cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
+            add_quad(s, p, v3(0, 1, 0));
         }
-    cr_assert_eq(scene_end_node(s, &err), 0);
-    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    one_part_end(s);
     ct_radmesh m;
     cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
     ctex_hier h;

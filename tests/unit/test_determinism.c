@@ -56,6 +56,14 @@ static trc_view room_view(void)
     return v;
 }
 
+/* Renders the room's first camera under o into img (results in *r), which
+ * must succeed. */
+static void render_ok(const trc_tracer *t, const render_options *o, float *img, render_result *r)
+{
+    ct_error err;
+    cr_assert_eq(render_image(t, &room->cams[0].cam, o, img, r, &err), 0, "%s", err.msg);
+}
+
 static void make_requests(ct_request *req, int n)
 {
     ct_rng g = rng_make(3, 0, 0, 0);
@@ -173,11 +181,10 @@ Test(determinism, reference_image_independent_of_threads, .init = setup, .fini =
     float *img1 = calloc(40 * 30 * 3, sizeof(float)), *img2 = calloc(40 * 30 * 3, sizeof(float));
     cr_assert(img1 && img2);
     render_result r1, r2;
-    ct_error err;
-    cr_assert_eq(render_image(t, &room->cams[0].cam, &o, img1, &r1, &err), 0, "%s", err.msg);
+    render_ok(t, &o, img1, &r1);
     o.threads = 3;
     o.tile = 16;
-    cr_assert_eq(render_image(t, &room->cams[0].cam, &o, img2, &r2, &err), 0, "%s", err.msg);
+    render_ok(t, &o, img2, &r2);
     cr_expect(memcmp(img1, img2, 40 * 30 * 3 * sizeof(float)) == 0, "image differs with 3 threads");
     cr_expect(r1.stats.samples == 40 * 30 * 2 && r2.stats.samples == r1.stats.samples);
     cr_expect(trc_stats_rays(&r1.stats) == trc_stats_rays(&r2.stats), "ray counts differ");
@@ -198,8 +205,7 @@ Test(determinism, raw_replay_counts_the_logged_rays, .init = setup, .fini = tear
     o.raylog_cap = 100000;
     float *img = calloc(32 * 24 * 3, sizeof(float));
     render_result r;
-    ct_error err;
-    cr_assert_eq(render_image(t, &room->cams[0].cam, &o, img, &r, &err), 0, "%s", err.msg);
+    render_ok(t, &o, img, &r);
     /* Every ray fits in the log: the replay covers all of them. */
     cr_expect(r.logged == trc_stats_rays(&r.stats), "logged %llu of %llu rays", (unsigned long long)r.logged,
               (unsigned long long)trc_stats_rays(&r.stats));
@@ -209,7 +215,7 @@ Test(determinism, raw_replay_counts_the_logged_rays, .init = setup, .fini = tear
     float *plain = calloc(32 * 24 * 3, sizeof(float));
     render_result r0;
     o.raylog_cap = 0;
-    cr_assert_eq(render_image(t, &room->cams[0].cam, &o, plain, &r0, &err), 0, "%s", err.msg);
+    render_ok(t, &o, plain, &r0);
     cr_expect(memcmp(img, plain, 32 * 24 * 3 * sizeof(float)) == 0, "the logging pass changed the image");
     cr_expect_eq(trc_stats_rays(&r0.stats), trc_stats_rays(&r.stats));
     cr_expect_eq(r0.logged, 0);
@@ -286,8 +292,7 @@ Test(determinism, capped_ray_log_is_a_spread_subset_in_traced_order, .init = set
     o.raylog_cap = 500;
     float *img = calloc(32 * 24 * 3, sizeof(float));
     render_result r;
-    ct_error err;
-    cr_assert_eq(render_image(t, &room->cams[0].cam, &o, img, &r, &err), 0, "%s", err.msg);
+    render_ok(t, &o, img, &r);
     uint64_t rays = trc_stats_rays(&r.stats);
     cr_assert(rays > 10 * 500, "too few rays (%llu) for the test", (unsigned long long)rays);
     cr_expect_eq(r.logged, 500);

@@ -16,15 +16,59 @@
 #define W 64
 #define H 48
 
-static void opts(disp_app_opts *o, const fxm_peer *p)
+/* One display run against the scripted master: the master, the display's
+ * options and its output folder (empty when it writes none). */
+typedef struct app {
+    fxm_peer p;
+    disp_app_opts o;
+    char out[64];
+} app;
+
+/* Starts the scripted master (ending as `end`, lockstep spf) and fills a->o
+ * to connect to it; with with_out also a fresh output folder a->out. */
+static void start(app *a, fxm_end end, uint32_t spf, bool with_out)
 {
+    memset(a, 0, sizeof *a);
+    cr_assert_eq(fxm_start(&a->p, end, spf, W, H), 0, "%s", a->p.msg);
+    disp_app_opts *o = &a->o;
     disp_app_defaults(o);
     o->backend = GL_BACKEND_OSMESA;
     o->width = W;
     o->height = H;
-    o->connect = p->addr;
+    o->connect = a->p.addr;
     o->has_camera = true;
     o->camera = fx_box_camera();
+    if (with_out) {
+        snprintf(a->out, sizeof a->out, "/tmp/ctdisp-out-XXXXXX");
+        cr_assert(mkdtemp(a->out));
+        o->out_dir = a->out;
+    }
+}
+
+/* Runs the display; returns its exit status (err says why). */
+static int run(const app *a, ct_error *err)
+{
+    ct_error_clear(err);
+    return disp_app_run(&a->o, err);
+}
+
+/* The path of file `name` in the run's output folder. */
+static const char *out_file(const app *a, const char *name, char *path, size_t cap)
+{
+    snprintf(path, cap, "%s/%s", a->out, name);
+    return path;
+}
+
+/* Expects the master to have exited 0 (everything it checked went as
+ * planned) and removes the output folder. */
+static void finish(app *a)
+{
+    cr_expect_eq(fxm_stop(&a->p), 0);
+    if (a->out[0]) {
+        char cmd[400];
+        snprintf(cmd, sizeof cmd, "rm -rf '%s'", a->out);
+        cr_expect_eq(system(cmd), 0);
+    }
 }
 
 static int count_lines(const char *path)
@@ -37,72 +81,44 @@ static int count_lines(const char *path)
     return n;
 }
 
-static void rm_out(const char *dir)
-{
-    char cmd[400];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    cr_expect_eq(system(cmd), 0);
-}
-
 Test(disp_app, lost_connection_exits_3)
 {
-    fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
-    disp_app_opts o;
-    opts(&o, &p);
+    app a;
+    start(&a, FXM_END_CLOSE, 0, false);
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&a, &err);
     printf("exit %d: %s\n", st, err.msg);
     cr_expect_eq(st, DISP_EXIT_LOST);
-    cr_expect(strstr(err.msg, "lost") && strstr(err.msg, p.addr), "message: %s", err.msg);
-    cr_expect_eq(fxm_stop(&p), 0);
+    cr_expect(strstr(err.msg, "lost") && strstr(err.msg, a.p.addr), "message: %s", err.msg);
+    finish(&a);
 }
 
 Test(disp_app, bye_draws_the_last_state_and_exits_0)
 {
-    fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_BYE, 0, W, H), 0, "%s", p.msg);
-    char out[64];
-    snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
-    cr_assert(mkdtemp(out));
-    disp_app_opts o;
-    opts(&o, &p);
-    o.out_dir = out;
+    app a;
+    start(&a, FXM_END_BYE, 0, true);
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&a, &err);
     cr_expect_eq(st, DISP_EXIT_OK, "exit %d: %s", st, err.msg);
     char path[200];
-    snprintf(path, sizeof path, "%s/frames.csv", out);
-    int lines = count_lines(path);
+    int lines = count_lines(out_file(&a, "frames.csv", path, sizeof path));
     cr_expect_geq(lines, 2, "frames.csv has %d lines", lines);
-    snprintf(path, sizeof path, "%s/frame_00000.png", out);
     struct stat sb;
-    cr_expect_eq(stat(path, &sb), 0, "no %s", path);
-    cr_expect_eq(fxm_stop(&p), 0);
-    rm_out(out);
+    cr_expect_eq(stat(out_file(&a, "frame_00000.png", path, sizeof path), &sb), 0, "no %s", path);
+    finish(&a);
 }
 
 Test(disp_app, lockstep_frame_then_bye_from_display)
 {
-    fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_STAY, 250, W, H), 0, "%s", p.msg);
-    char out[64];
-    snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
-    cr_assert(mkdtemp(out));
-    disp_app_opts o;
-    opts(&o, &p);
-    o.samples_per_frame = 250;
-    o.frames = 1;
-    o.out_dir = out;
+    app a;
+    start(&a, FXM_END_STAY, 250, true);
+    a.o.samples_per_frame = 250;
+    a.o.frames = 1;
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&a, &err);
     cr_expect_eq(st, DISP_EXIT_OK, "exit %d: %s", st, err.msg);
     char path[200];
-    snprintf(path, sizeof path, "%s/frames.csv", out);
-    FILE *f = fopen(path, "r");
+    FILE *f = fopen(out_file(&a, "frames.csv", path, sizeof path), "r");
     cr_assert(f);
     char line[512] = "", row[512] = "";
     cr_assert(fgets(line, sizeof line, f));
@@ -118,29 +134,20 @@ Test(disp_app, lockstep_frame_then_bye_from_display)
     cr_expect_str_eq(fields[12], "48");
     cr_expect_str_eq(fields[14], "1");
     /* The master exits 0 only when the display said BYE. */
-    cr_expect_eq(fxm_stop(&p), 0);
-    rm_out(out);
+    finish(&a);
 }
 
 Test(disp_app, reconnect_keeps_drawing_the_last_image)
 {
-    fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_CLOSE, 0, W, H), 0, "%s", p.msg);
-    char out[64];
-    snprintf(out, sizeof out, "/tmp/ctdisp-out-XXXXXX");
-    cr_assert(mkdtemp(out));
-    disp_app_opts o;
-    opts(&o, &p);
-    o.reconnect = true;
-    o.max_seconds = 1.5;
-    o.out_dir = out;
+    app a;
+    start(&a, FXM_END_CLOSE, 0, true);
+    a.o.reconnect = true;
+    a.o.max_seconds = 1.5;
     ct_error err;
-    ct_error_clear(&err);
-    int st = disp_app_run(&o, &err);
+    int st = run(&a, &err);
     cr_expect_eq(st, DISP_EXIT_OK, "exit %d: %s", st, err.msg);
     char path[200];
-    snprintf(path, sizeof path, "%s/frames.csv", out);
-    int lines = count_lines(path);
+    int lines = count_lines(out_file(&a, "frames.csv", path, sizeof path));
     printf("frames drawn while reconnecting: %d\n", lines - 1);
     cr_expect_gt(lines, 3, "only %d frames drawn", lines - 1);
     /* The last frame still shows the corrected image: its texture count is 1. */
@@ -152,6 +159,5 @@ Test(disp_app, reconnect_keeps_drawing_the_last_image)
     const char *comma = strrchr(last, ',');
     cr_assert(comma);
     cr_expect_eq(atoi(comma + 1), 1, "last row: %s", last);
-    cr_expect_eq(fxm_stop(&p), 0);
-    rm_out(out);
+    finish(&a);
 }

@@ -58,11 +58,10 @@ static void compare_ref(const fx_frame *f, const fx_ref *ref, const char *name)
 Test(disp_golden, backends_match_software_gouraud)
 {
     ct_radmesh m;
-    ct_error err;
-    cr_assert_eq(fx_box_mesh(4, &m, NULL, &err), 0, "%s", err.msg);
-    ct_camera cam = fx_box_camera();
+    ct_camera cam;
     fx_ref ref;
-    cr_assert_eq(fx_rasterise(&m, &cam, W, H, &ref), 0);
+    ct_error err;
+    cr_assert_eq(fx_box_reference(W, H, &m, NULL, &cam, &ref, &err), 0, "%s", err.msg);
     disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false};
     fx_frame osm, egl;
     char msg[256];

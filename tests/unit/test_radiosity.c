@@ -25,6 +25,13 @@ static rad_params test_params(void)
     return p;
 }
 
+/* Solves s under p into *m (and *st when not NULL), which must succeed. */
+static void solve_ok(const ct_scene *s, const rad_params *p, ct_radmesh *m, rad_stats *st)
+{
+    ct_error err;
+    cr_assert_eq(rad_solve(s, p, NULL, NULL, m, st, &err), 0, "%s", err.msg);
+}
+
 Test(radiosity, point_polygon_hemisphere)
 {
     /* A huge square just above the point covers almost the whole hemisphere. */
@@ -55,9 +62,7 @@ Test(radiosity, form_factor_parallel_squares_solver)
     p.min_area = 1e-4;
     ct_radmesh m;
     rad_stats st;
-    ct_error err;
-    int rc = rad_solve(s, &p, NULL, NULL, &m, &st, &err);
-    cr_assert_eq(rc, 0, "%s", err.msg);
+    solve_ok(s, &p, &m, &st);
     double f = st.absorbed / st.emitted;
     cr_log_info("solver F = %f (analytic %f), %llu leaves", f, FF_SQUARES, (unsigned long long)st.leaves);
     cr_assert(fabs(f - FF_SQUARES) < 0.01 * FF_SQUARES, "solver F = %f, analytic %f", f, FF_SQUARES);
@@ -80,9 +85,7 @@ Test(radiosity, energy_balance_closed_box)
     p.tolerance = 1e-5;
     ct_radmesh m;
     rad_stats st;
-    ct_error err;
-    int rc = rad_solve(s, &p, NULL, NULL, &m, &st, &err);
-    cr_assert_eq(rc, 0, "%s", err.msg);
+    solve_ok(s, &p, &m, &st);
     double rel = (st.absorbed - st.emitted) / st.emitted;
     cr_log_info("box: emitted %f absorbed %f (%+.3f %%), %llu links, %u triangles, residual %.2e",
                 st.emitted, st.absorbed, 100.0 * rel, (unsigned long long)st.links, st.triangles, st.residual);
@@ -204,9 +207,7 @@ Test(radiosity, mesh_is_conforming)
     p.min_area = 1e-5;
     ct_radmesh m;
     rad_stats st;
-    ct_error err;
-    int rc = rad_solve(s, &p, NULL, NULL, &m, &st, &err);
-    cr_assert_eq(rc, 0, "%s", err.msg);
+    solve_ok(s, &p, &m, &st);
     cr_log_info("room: %u patches, %llu leaves, %u triangles, %u vertices, %llu links", st.patches,
                 (unsigned long long)st.leaves, st.triangles, st.vertices, (unsigned long long)st.links);
     cr_assert_gt(st.leaves, (uint64_t)st.patches * 4, "the lamp should force refinement");
@@ -235,8 +236,7 @@ Test(radiosity, values_kept_apart_across_creases_and_materials)
     rad_params p = test_params();
     p.error = 1e-3;
     ct_radmesh m;
-    ct_error err;
-    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), 0, "%s", err.msg);
+    solve_ok(s, &p, &m, NULL);
     /* The box corner (0,0,0) belongs to floor, front and left: three
      * vertices with three normals, never one averaged vertex. */
     int found = 0;
@@ -275,11 +275,10 @@ Test(radiosity, same_result_for_any_thread_count)
     rad_params p = test_params();
     p.error = 3e-5;
     ct_radmesh a, b;
-    ct_error err;
     p.threads = 1;
-    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &a, NULL, &err), 0, "%s", err.msg);
+    solve_ok(s, &p, &a, NULL);
     p.threads = 3;
-    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &b, NULL, &err), 0, "%s", err.msg);
+    solve_ok(s, &p, &b, NULL);
     cr_assert_eq(a.ntris, b.ntris);
     cr_assert_eq(mesh_digest(&a), mesh_digest(&b));
     cr_assert_eq(a.scene_hash, b.scene_hash, "threads must not change the cache key");
@@ -389,8 +388,7 @@ Test(radiosity, direct_part_is_one_bounce_of_emitted_light)
         rad_params p = test_params();
         p.error = 1e-3;
         ct_radmesh m;
-        ct_error err;
-        cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), 0, "%s", err.msg);
+        solve_ok(s, &p, &m, NULL);
         double tot = 0, dir = 0;
         for (uint32_t v = 0; v < m.nverts; v++)
             if (m.pos[v].z < 0.5f) {
@@ -421,8 +419,7 @@ Test(radiosity, max_triangles_bounds_the_mesh)
     rad_params p = budget_params();
     ct_radmesh m;
     rad_stats st;
-    ct_error err;
-    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, &st, &err), 0, "%s", err.msg);
+    solve_ok(s, &p, &m, &st);
     cr_log_info("max-triangles 5000: %u triangles", m.ntris);
     cr_assert_leq(m.ntris, 5000u, "%u triangles", m.ntris);
     cr_assert_gt(m.ntris, 2500u, "%u triangles: the budget should be nearly used", m.ntris);
@@ -443,8 +440,7 @@ Test(radiosity, max_triangles_mesh_is_the_same_for_any_thread_count)
     for (int run = 0; run < 6; run++) {
         p.threads = 1 + run % 3;
         ct_radmesh m;
-        ct_error err;
-        cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, NULL, &err), 0, "%s", err.msg);
+        solve_ok(s, &p, &m, NULL);
         uint64_t d = mesh_digest(&m);
         if (run == 0) {
             first = d;
@@ -471,7 +467,7 @@ Test(radiosity, cornell_scene_mesh_is_conforming)
     p.error = 1e-4;
     ct_radmesh m;
     rad_stats st;
-    cr_assert_eq(rad_solve(s, &p, NULL, NULL, &m, &st, &err), 0, "%s", err.msg);
+    solve_ok(s, &p, &m, &st);
     cr_log_info("cornell: %u patches (%u input primitives), %u triangles", st.patches, s->nprims, m.ntris);
     /* Quads were rebuilt: fewer patches than triangles. */
     cr_assert_lt(st.patches, s->ntris);

@@ -62,6 +62,15 @@ static rq_engine *make(int w, int h, const rq_options *o, uint64_t seed)
     return e;
 }
 
+/* The default options with the initial grid spaced `spacing` pixels. */
+static rq_options spaced(float spacing)
+{
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = spacing;
+    return o;
+}
+
 static int batch(rq_engine *e, ct_request *out, int n)
 {
     ct_error err;
@@ -78,6 +87,21 @@ static int report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown)
     return rc;
 }
 
+/* Traces request r under camera c (image w x h) and reports its sample with
+ * error E, the interactive image showing node `shown`; returns what
+ * rq_report returned. */
+static int answer(rq_engine *e, const ct_camera *c, int w, int h, const ct_request *r, vec3 E, uint32_t shown)
+{
+    ct_sample s = trace(c, w, h, r);
+    return report(e, &s, E, shown);
+}
+
+/* answer() for each of r[0..n), all with error E on node 1. */
+static void answer_all(rq_engine *e, const ct_camera *c, int w, int h, const ct_request *r, int n, vec3 E)
+{
+    for (int i = 0; i < n; i++) answer(e, c, w, h, &r[i], E, 1);
+}
+
 Test(sampler, error_norms)
 {
     vec3 E = v3(0.1f, -0.5f, 0.2f);
@@ -91,9 +115,7 @@ Test(sampler, error_norms)
 
 Test(sampler, initial_grid_is_uniform_high_priority_and_spread)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 16;
+    rq_options o = spaced(16);
     rq_engine *e = make(128, 64, &o, 1);
     ct_request r[64];
     int k = batch(e, r, 32);
@@ -122,19 +144,16 @@ Test(sampler, children_radius_priority_and_domain)
 {
     const int ns[] = {4, 9, 2};
     for (int t = 0; t < 3; t++) {
-        rq_options o;
-        rq_options_default(&o);
+        rq_options o = spaced(64);
         o.children = ns[t];
-        o.seed_spacing = 64;
         rq_engine *e = make(128, 128, &o, 5);
         ct_camera c = cam_a();
         ct_request r[16];
         cr_assert_eq(batch(e, r, 1), 1);
         ct_request p = r[0];
         cr_assert_eq(p.radius, 64.0f);
-        ct_sample s = trace(&c, 128, 128, &p);
         vec3 E = v3(0.1f, -0.5f, 0.2f);   /* |E| = 0.5 under the max norm */
-        cr_assert_eq(report(e, &s, E, 1), 0);
+        cr_assert_eq(answer(e, &c, 128, 128, &p, E, 1), 0);
         int k = batch(e, r, 16);
         float sc = 64.0f / sqrtf((float)ns[t]);
         int nchild = 0;
@@ -171,9 +190,7 @@ Test(sampler, children_radius_priority_and_domain)
 
 Test(sampler, children_cover_distinct_subcells)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 64;
+    rq_options o = spaced(64);
     rq_engine *e = make(256, 256, &o, 2);
     ct_camera c = cam_a();
     ct_request r[32];
@@ -185,8 +202,7 @@ Test(sampler, children_cover_distinct_subcells)
         if (r[i].px > 64 && r[i].px < 192 && r[i].py > 64 && r[i].py < 192) pick = i;
     cr_assert_geq(pick, 0);
     ct_request p = r[pick];
-    ct_sample s = trace(&c, 256, 256, &p);
-    report(e, &s, v3s(1.0f), 1);
+    answer(e, &c, 256, 256, &p, v3s(1.0f), 1);
     k = batch(e, r, 32);
     cr_assert_eq(k, 32);
     int quad[4] = {0};
@@ -201,23 +217,19 @@ Test(sampler, children_cover_distinct_subcells)
 
 Test(sampler, children_under_threshold_are_discarded)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 64;
+    rq_options o = spaced(64);
     o.min_priority = 0.01f;
     rq_engine *e = make(128, 128, &o, 3);
     ct_camera c = cam_a();
     ct_request r[8];
     cr_assert_eq(batch(e, r, 2), 2);
     /* s_c = 32: |E| * 32 = 0.0096 < 0.01 is discarded; 0.0128 is kept. */
-    ct_sample s0 = trace(&c, 128, 128, &r[0]);
-    report(e, &s0, v3(0.0003f, 0, 0), 1);
+    answer(e, &c, 128, 128, &r[0], v3(0.0003f, 0, 0), 1);
     rq_stats st;
     rq_stats_get(e, &st);
     cr_assert_eq(st.discarded_threshold, 4u);
     cr_assert_eq(st.children, 0u);
-    ct_sample s1 = trace(&c, 128, 128, &r[1]);
-    report(e, &s1, v3(0, 0, -0.0004f), 1);
+    answer(e, &c, 128, 128, &r[1], v3(0, 0, -0.0004f), 1);
     rq_stats_get(e, &st);
     cr_assert_eq(st.discarded_threshold, 4u);
     cr_assert_eq(st.children + st.discarded_outside, 4u);
@@ -226,16 +238,13 @@ Test(sampler, children_under_threshold_are_discarded)
 
 Test(sampler, no_children_below_min_radius)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 2;   /* children radius 1: made; their children 0.5: not */
+    rq_options o = spaced(2);   /* children radius 1: made; their children 0.5: not */
     rq_engine *e = make(8, 8, &o, 4);
     ct_camera c = cam_a();
     ct_request r[64];
     int k = batch(e, r, 16);
     cr_assert_eq(k, 16);
-    ct_sample s = trace(&c, 8, 8, &r[0]);
-    report(e, &s, v3s(1), 1);
+    answer(e, &c, 8, 8, &r[0], v3s(1), 1);
     rq_stats st;
     rq_stats_get(e, &st);
     cr_assert_eq(st.children + st.discarded_mask + st.discarded_outside, 4u);
@@ -243,8 +252,7 @@ Test(sampler, no_children_below_min_radius)
     k = batch(e, r, 64);
     for (int i = 0; i < k; i++) {
         if (r[i].radius != 1.0f) continue;
-        ct_sample cs = trace(&c, 8, 8, &r[i]);
-        report(e, &cs, v3s(1), 1);
+        answer(e, &c, 8, 8, &r[i], v3s(1), 1);
         rq_stats_get(e, &st);
         cr_assert_geq(st.leaves, 1u);
         break;
@@ -254,18 +262,13 @@ Test(sampler, no_children_below_min_radius)
 
 Test(sampler, mask_discards_children_on_sampled_pixels)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 1;
+    rq_options o = spaced(1);
     o.min_radius = 0.25f;
     rq_engine *e = make(2, 2, &o, 6);
     ct_camera c = cam_a();
     ct_request r[8];
     cr_assert_eq(batch(e, r, 8), 4, "one request per pixel, then nothing");
-    for (int i = 0; i < 4; i++) {
-        ct_sample s = trace(&c, 2, 2, &r[i]);
-        report(e, &s, v3s(1), 1);
-    }
+    answer_all(e, &c, 2, 2, r, 4, v3s(1));
     rq_stats st;
     rq_stats_get(e, &st);
     cr_assert_eq(st.children, 0u);
@@ -279,18 +282,14 @@ Test(sampler, mask_discards_children_on_sampled_pixels)
 
 Test(sampler, mismatch_is_counted_and_refined_at_high_priority)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 64;
+    rq_options o = spaced(64);
     rq_engine *e = make(128, 128, &o, 7);
     ct_camera c = cam_a();
     ct_request r[16];
     cr_assert_eq(batch(e, r, 4), 4);
-    ct_sample s = trace(&c, 128, 128, &r[0]);
     /* Zero error would be discarded, but the interactive image shows node 7. */
-    cr_assert_eq(report(e, &s, v3s(0), 7), RQ_REPORT_MISMATCH);
-    ct_sample s1 = trace(&c, 128, 128, &r[1]);
-    cr_assert_eq(report(e, &s1, v3s(0), RQ_NODE_UNKNOWN), 0, "unknown: no check");
+    cr_assert_eq(answer(e, &c, 128, 128, &r[0], v3s(0), 7), RQ_REPORT_MISMATCH);
+    cr_assert_eq(answer(e, &c, 128, 128, &r[1], v3s(0), RQ_NODE_UNKNOWN), 0, "unknown: no check");
     ct_sample s2 = trace(&c, 128, 128, &r[2]);
     s2.flags = 0;   /* missed everything, and the interactive image shows background */
     cr_assert_eq(report(e, &s2, v3s(0), RQ_NODE_NONE), 0);
@@ -333,8 +332,7 @@ static int *converge(rq_engine *e, int w, int h, vec3 (*field)(float, float), in
             int p = (int)r[i].py * w + (int)r[i].px;
             cr_assert_lt(n, w * h * 2);
             order[n++] = p;
-            ct_sample s = trace(&c, w, h, &r[i]);
-            report(e, &s, field(r[i].px, r[i].py), 1);
+            answer(e, &c, w, h, &r[i], field(r[i].px, r[i].py), 1);
         }
     }
     *count = n;
@@ -397,17 +395,12 @@ static vec3 zero_error(float px, float py)
 Test(sampler, zero_error_is_covered_by_global_requests_and_the_list)
 {
     enum { W = 32, H = 32 };
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 16;
+    rq_options o = spaced(16);
     rq_engine *e = make(W, H, &o, 8);
     ct_camera c = cam_a();
     ct_request r[8];
     cr_assert_eq(batch(e, r, 4), 4);
-    for (int i = 0; i < 4; i++) {
-        ct_sample s = trace(&c, W, H, &r[i]);
-        report(e, &s, v3s(0), 1);
-    }
+    answer_all(e, &c, W, H, r, 4, v3s(0));
     /* The queue is dry: the next requests are global ones. */
     cr_assert_eq(batch(e, r, 8), 8);
     for (int i = 0; i < 8; i++) {
@@ -418,10 +411,7 @@ Test(sampler, zero_error_is_covered_by_global_requests_and_the_list)
     rq_stats_get(e, &st);
     cr_assert_eq(st.global, (uint64_t)o.global_batch);
     cr_assert_float_eq(r[0].radius, sqrtf((float)(W * H - 4) / (float)o.global_batch), 1e-5f);
-    for (int i = 0; i < 8; i++) {
-        ct_sample s = trace(&c, W, H, &r[i]);
-        report(e, &s, v3s(0), 1);
-    }
+    answer_all(e, &c, W, H, r, 8, v3s(0));
     int n;
     int *order = converge(e, W, H, zero_error, 8, &n);
     cr_assert_eq(n + 12, W * H);
@@ -497,16 +487,13 @@ Test(sampler, significant_samples_reproject_to_their_world_points)
 Test(sampler, epochs_drop_old_requests_and_samples)
 {
     enum { W = 32, H = 32 };
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 8;
+    rq_options o = spaced(8);
     o.n_sig = 0;
     rq_engine *e = make(W, H, &o, 10);
     ct_camera a = cam_a();
     ct_request r[16];
     cr_assert_eq(batch(e, r, 8), 8);
-    ct_sample s0 = trace(&a, W, H, &r[0]);
-    report(e, &s0, v3s(1), 1);
+    answer(e, &a, W, H, &r[0], v3s(1), 1);
     rq_stats st;
     rq_stats_get(e, &st);
     cr_assert_gt(st.queued, 8u);
@@ -555,9 +542,7 @@ Test(sampler, epochs_drop_old_requests_and_samples)
 
 Test(sampler, reseed_option_queues_a_new_grid)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 16;
+    rq_options o = spaced(16);
     o.n_sig = 0;
     o.reseed = 1;
     rq_engine *e = make(64, 64, &o, 12);
@@ -605,8 +590,7 @@ static int scenario(uint64_t seed, ct_request *out, int cap)
             int t = tord[ti];
             for (int i = 0; i < k[t]; i++) {
                 int ii = t == 1 ? k[t] - 1 - i : i;
-                ct_sample s = trace(c, W, H, &r[t][ii]);
-                report(e, &s, disc_error(r[t][ii].px, r[t][ii].py), 1);
+                answer(e, c, W, H, &r[t][ii], disc_error(r[t][ii].px, r[t][ii].py), 1);
             }
         }
     }
@@ -683,9 +667,7 @@ Test(sampler, options_parse_check_and_usage)
 
 Test(sampler, queue_cap_drops_and_counts)
 {
-    rq_options o;
-    rq_options_default(&o);
-    o.seed_spacing = 4;
+    rq_options o = spaced(4);
     o.max_queue = 20;
     rq_engine *e = make(32, 32, &o, 13);
     rq_stats st;
@@ -698,10 +680,8 @@ Test(sampler, queue_cap_drops_and_counts)
 Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
 {
     enum { W = 32, H = 32 };
-    rq_options o;
-    rq_options_default(&o);
+    rq_options o = spaced(8);
     o.n_sig = 50;
-    o.seed_spacing = 8;
     rq_engine *e = make(W, H, &o, 14);
     ct_camera a = cam_a();
     ct_request r[16];
@@ -719,10 +699,7 @@ Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
     cr_assert_eq(st.reprojected, (uint64_t)(k - 2));
     cr_assert_eq(st.reproject_dropped, 1u);
     k = batch(e, r, 16);
-    for (int i = 0; i < k; i++) {
-        ct_sample s = trace(&a, W, H, &r[i]);
-        report(e, &s, v3s(1.0f), 1);
-    }
+    answer_all(e, &a, W, H, r, k, v3s(1.0f));
     /* Turn around: every significant point is behind the eye. */
     ct_camera back = cam_look_at(v3(0, 0, 0), v3(0, 0, 1), v3(0, 1, 0), 60.0f);
     cr_assert_eq(rq_set_camera(e, &back, 2, NULL), 0);

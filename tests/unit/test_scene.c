@@ -25,6 +25,22 @@ static const scene_material *mat(const ct_scene *s, const char *name)
     return &s->mats[i];
 }
 
+/* A scene file s.json with the given text in a fresh temporary folder, next
+ * to mesh_file holding mesh_text (none when mesh_file is NULL); returns the
+ * scene file's path. */
+static const char *write_scene(const char *mesh_file, const char *mesh_text, const char *json)
+{
+    const char *d = fx_tmpdir();
+    if (mesh_file) fx_write(d, mesh_file, mesh_text);
+    return fx_write(d, "s.json", json);
+}
+
+/* A scene whose only mesh is a.obj with the given OBJ text. */
+static const char *one_mesh_scene(const char *obj)
+{
+    return write_scene("a.obj", obj, "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+}
+
 static void quiet(void) { ct_log_set_level(CT_LOG_ERROR); }
 
 TestSuite(scene, .init = quiet);
@@ -196,48 +212,37 @@ Test(scene_bad, missing_file)
 
 Test(scene_bad, json_syntax_error_line_col)
 {
-    const char *d = fx_tmpdir();
-    const char *p = fx_write(d, "s.json", "{\n  \"meshes\": [\n    { \"file\": \"a.obj\" ,, }\n  ]\n}\n");
+    const char *p = write_scene(NULL, NULL, "{\n  \"meshes\": [\n    { \"file\": \"a.obj\" ,, }\n  ]\n}\n");
     expect_fail(p, CT_EPARSE, "s.json:3:", "JSON syntax error");
 }
 
 Test(scene_bad, obj_index_out_of_range)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    const char *p = one_mesh_scene("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
     expect_fail(p, CT_EPARSE, "a.obj", "out of range");
 }
 
 Test(scene_bad, nan_coordinate)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n");
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    const char *p = one_mesh_scene("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n");
     expect_fail(p, CT_EPARSE, "a.obj", "non-finite");
 }
 
 Test(scene_bad, infinite_coordinate)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n");
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    const char *p = one_mesh_scene("v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n");
     expect_fail(p, CT_EPARSE, "a.obj", "non-finite");
 }
 
 Test(scene_bad, degenerate_only_is_empty)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    const char *p = one_mesh_scene("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
     expect_fail(p, CT_EEMPTY, "s.json", "no triangles");
 }
 
 Test(scene_bad, degenerate_dropped_and_counted)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 3 3 3\n");
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}");
+    const char *p = one_mesh_scene("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 3 3 3\n");
     ct_scene *s = load_ok(p);
     cr_expect_eq(s->ntris, 1);
     cr_expect_eq(s->dropped_degenerate, 2);
@@ -246,39 +251,33 @@ Test(scene_bad, degenerate_dropped_and_counted)
 
 Test(scene_bad, unknown_material_key)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    const char *p = fx_write(d, "s.json",
-                             "{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"difuse\":[1,1,1]}}}");
+    const char *p = write_scene("a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+                                "{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"difuse\":[1,1,1]}}}");
     expect_fail(p, CT_EPARSE, "material 'm'", "unknown key 'difuse'");
 }
 
 Test(scene_bad, unknown_top_level_key)
 {
-    const char *d = fx_tmpdir();
-    const char *p = fx_write(d, "s.json", "{\"mesh\":[]}");
+    const char *p = write_scene(NULL, NULL, "{\"mesh\":[]}");
     expect_fail(p, CT_EPARSE, "s.json", "unknown key 'mesh'");
 }
 
 Test(scene_bad, empty_scene)
 {
-    const char *d = fx_tmpdir();
-    const char *p = fx_write(d, "s.json", "{\"name\":\"empty\"}");
+    const char *p = write_scene(NULL, NULL, "{\"name\":\"empty\"}");
     expect_fail(p, CT_EEMPTY, "s.json", "no triangles");
 }
 
 Test(scene_bad, missing_mesh_file)
 {
-    const char *d = fx_tmpdir();
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"gone.obj\"}]}");
+    const char *p = write_scene(NULL, NULL, "{\"meshes\":[{\"file\":\"gone.obj\"}]}");
     expect_fail(p, CT_EIO, "gone.obj", "cannot open");
 }
 
 Test(scene_bad, garbage_mesh_file)
 {
-    const char *d = fx_tmpdir();
-    fx_write(d, "a.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n");
-    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.ply\"}]}");
+    const char *p = write_scene("a.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n",
+                                "{\"meshes\":[{\"file\":\"a.ply\"}]}");
     ct_error err;
     ct_scene *s = NULL;
     cr_expect_neq(scene_load(p, &s, &err), CT_OK);

@@ -335,6 +335,23 @@ static void check_cameras_and_paths(const ct_scene *s, const view_rules *r, int 
     }
 }
 
+/* The scene at path: a well-formed hierarchy and consistent normals. */
+static void check_structure(const char *path)
+{
+    ct_scene *s = load_ok(path);
+    check_hierarchy(s);
+    check_normals(s);
+    scene_free(s);
+}
+
+/* The scene at path: its cameras and paths (frames samples each) obey r. */
+static void check_views(const char *path, const view_rules *r, int frames)
+{
+    ct_scene *s = load_ok(path);
+    check_cameras_and_paths(s, r, frames);
+    scene_free(s);
+}
+
 /* --- Cornell box ------------------------------------------------------------ */
 
 /* scenes/gen/cornell.c's design: 12 wall quads (floor, back, left, right
@@ -415,19 +432,14 @@ Test(scenes, cornell_materials)
 
 Test(scenes, cornell_structure)
 {
-    ct_scene *s = load_ok(CORNELL);
-    check_hierarchy(s);
-    check_normals(s);
-    scene_free(s);
+    check_structure(CORNELL);
 }
 
 Test(scenes, cornell_views)
 {
-    ct_scene *s = load_ok(CORNELL);
     /* inside the box or in front of its open side */
     view_rules r = {{{1.0f, 1.0f, -2000.0f}, {555.0f, 547.8f, 558.0f}}, false, 40.0f};
-    check_cameras_and_paths(s, &r, 61);
-    scene_free(s);
+    check_views(CORNELL, &r, 61);
 }
 
 /* --- table ------------------------------------------------------------------ */
@@ -486,18 +498,13 @@ Test(scenes, table_objects)
 
 Test(scenes, table_structure)
 {
-    ct_scene *s = load_ok(TABLE);
-    check_hierarchy(s);
-    check_normals(s);
-    scene_free(s);
+    check_structure(TABLE);
 }
 
 Test(scenes, table_views)
 {
-    ct_scene *s = load_ok(TABLE);
     view_rules r = {{{0.05f, 0.05f, 0.05f}, {4.95f, 2.75f, 4.45f}}, true, 0.15f};
-    check_cameras_and_paths(s, &r, 41);
-    scene_free(s);
+    check_views(TABLE, &r, 41);
 }
 
 /* --- office ------------------------------------------------------------------ */
@@ -565,16 +572,11 @@ Test(scenes, office_rooms)
 
 Test(scenes, office_structure)
 {
-    ct_scene *s = load_ok(OFFICE);
-    check_hierarchy(s);
-    check_normals(s);
-    scene_free(s);
+    check_structure(OFFICE);
 }
 
 Test(scenes, office_views, .timeout = 120)
 {
-    ct_scene *s = load_ok(OFFICE);
     view_rules r = {{{0.05f, 0.05f, -6.15f}, {23.95f, 2.95f, 6.15f}}, true, 0.25f};
-    check_cameras_and_paths(s, &r, 31);
-    scene_free(s);
+    check_views(OFFICE, &r, 31);
 }

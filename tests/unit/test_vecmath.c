@@ -8,6 +8,7 @@
 #include "common/camera.h"
 #include "common/rng.h"
 #include "common/vecmath.h"
+#include "tests/support/fixtures.h"
 
 static void assert_v3_near(vec3 a, vec3 b, float tol, const char *what)
 {
@@ -47,21 +48,9 @@ static void assert_same_rotation(quat a, quat b, float tol, const char *what)
     cr_assert(d >= 1.0f - tol, "%s: |dot| = %.9g", what, (double)d);
 }
 
-static vec3 rand_unit(ct_rng *r)
-{
-    for (;;) {
-        /* One draw per statement: the order of a call's arguments is
-         * unspecified (GCC and Clang differ), the test data must not be. */
-        float x = 2 * rng_float(r) - 1, y = 2 * rng_float(r) - 1, z = 2 * rng_float(r) - 1;
-        vec3 v = v3(x, y, z);
-        float l = v3_len(v);
-        if (l > 0.1f && l <= 1.0f) return v3_scale(v, 1.0f / l);
-    }
-}
-
 static quat rand_quat(ct_rng *r)
 {
-    vec3 axis = rand_unit(r);
+    vec3 axis = fx_rand_unit(r);
     return q_axis_angle(axis, (2.0f * rng_float(r) - 1.0f) * CT_PI);
 }
 
@@ -110,7 +99,7 @@ Test(vecmath, m4_invert_random_and_singular)
     for (int k = 0; k < 200; k++) {
         float t[3], s[3];
         for (int i = 0; i < 3; i++) t[i] = rng_float(&r);
-        vec3 axis = rand_unit(&r);
+        vec3 axis = fx_rand_unit(&r);
         float angle = 6.0f * rng_float(&r);
         for (int i = 0; i < 3; i++) s[i] = rng_float(&r);
         mat4 m = m4_mul(m4_translate(v3(10 * t[0] - 5, 3 * t[1], -7 * t[2])),
@@ -150,9 +139,9 @@ Test(vecmath, look_at_and_cam_view)
     cr_assert_float_eq(m4_dir(&v, up).x, 0.0f, 1e-6);
     ct_rng r = rng_make(3, 0, 0, 0);
     for (int k = 0; k < 100; k++) {
-        vec3 e = v3_scale(rand_unit(&r), 10 * rng_float(&r));
-        vec3 t = v3_add(e, v3_scale(rand_unit(&r), 0.5f + 5 * rng_float(&r)));
-        vec3 u = rand_unit(&r);
+        vec3 e = v3_scale(fx_rand_unit(&r), 10 * rng_float(&r));
+        vec3 t = v3_add(e, v3_scale(fx_rand_unit(&r), 0.5f + 5 * rng_float(&r)));
+        vec3 u = fx_rand_unit(&r);
         if (fabsf(v3_dot(u, v3_norm(v3_sub(t, e)))) > 0.99f) continue;
         ct_camera c = cam_look_at(e, t, u, 50.0f);
         assert_m4_near(cam_view(&c), m4_look_at(e, t, u), 2e-5f * (1 + v3_len(e)), "cam_view == look_at");
@@ -207,12 +196,12 @@ Test(vecmath, quat_mul_and_rotate)
     ct_rng r = rng_make(6, 0, 0, 0);
     for (int k = 0; k < 100; k++) {
         quat a = rand_quat(&r), b = rand_quat(&r);
-        vec3 v = v3_scale(rand_unit(&r), 3.0f);
+        vec3 v = v3_scale(fx_rand_unit(&r), 3.0f);
         assert_v3_near(q_rotate(q_mul(a, b), v), q_rotate(a, q_rotate(b, v)), 1e-5f, "composition");
         assert_v3_near(q_rotate(q_conj(a), q_rotate(a, v)), v, 1e-5f, "conjugate undoes");
         cr_assert_float_eq(v3_len(q_rotate(a, v)), 3.0f, 1e-5, "length preserved");
         /* Agrees with the matrix rotation. */
-        vec3 axis = rand_unit(&r);
+        vec3 axis = fx_rand_unit(&r);
         float ang = 3.0f * rng_float(&r);
         mat4 m = m4_rotate(axis, ang);
         assert_v3_near(q_rotate(q_axis_angle(axis, ang), v), m4_point(&m, v), 1e-5f, "quat vs matrix");
@@ -248,7 +237,7 @@ Test(vecmath, basis_is_orthonormal)
 {
     ct_rng r = rng_make(9, 0, 0, 0);
     vec3 ns[104] = {v3(0, 0, 1), v3(0, 0, -1), v3(1, 0, 0), v3(0, -1, 0)};
-    for (int k = 4; k < 104; k++) ns[k] = rand_unit(&r);
+    for (int k = 4; k < 104; k++) ns[k] = fx_rand_unit(&r);
     for (int k = 0; k < 104; k++) {
         vec3 t, b, nn = ns[k];
         v3_basis(nn, &t, &b);

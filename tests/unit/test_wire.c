@@ -621,15 +621,6 @@ Test(scene, broken_sequences)
 
 /* --- handshake ----------------------------------------------------------------- */
 
-static auth_token token_of(const char *s)
-{
-    auth_token t;
-    memset(&t, 0, sizeof t);
-    t.len = strlen(s);
-    memcpy(t.bytes, s, t.len);
-    return t;
-}
-
 /* Moves one side's output into the other's input; returns the input status. */
 static int shuttle(auth_hs *from, auth_hs *to, ct_error *err)
 {
@@ -657,7 +648,7 @@ static void run_pair(const auth_config *mc, const auth_config *dc, int *mrc, int
 
 Test(handshake, mutual_hmac_and_plain)
 {
-    auth_token t = token_of("correct horse battery staple");
+    auth_token t = fx_token("correct horse battery staple");
     auth_config mc = {.role = AUTH_ROLE_MASTER, .token = &t, .require_auth = true, .peer = "display"};
     auth_config dc = {.role = AUTH_ROLE_DISPLAY, .token = &t, .require_auth = true, .peer = "master"};
     int mrc, drc;
@@ -676,7 +667,7 @@ Test(handshake, mutual_hmac_and_plain)
 
 Test(handshake, wrong_token_fails_on_both_sides)
 {
-    auth_token a = token_of("correct horse battery staple"), b = token_of("incorrect horse battery staple");
+    auth_token a = fx_token("correct horse battery staple"), b = fx_token("incorrect horse battery staple");
     auth_config mc = {.role = AUTH_ROLE_MASTER, .token = &a, .require_auth = true, .peer = "display"};
     auth_config dc = {.role = AUTH_ROLE_DISPLAY, .token = &b, .require_auth = true, .peer = "master"};
     int mrc, drc;
@@ -690,7 +681,7 @@ Test(handshake, wrong_token_fails_on_both_sides)
 
 Test(handshake, policy_errors)
 {
-    auth_token t = token_of("correct horse battery staple");
+    auth_token t = fx_token("correct horse battery staple");
     int mrc, drc;
     ct_error me = {{0}}, de = {{0}};
     /* The display insists (TCP) but the master does not authenticate. */
@@ -759,7 +750,7 @@ static const broken_hs broken_handshakes[] = {
 
 Test(broken, handshakes_give_their_exact_error)
 {
-    auth_token t = token_of("correct horse battery staple");
+    auth_token t = fx_token("correct horse battery staple");
     for (size_t i = 0; i < sizeof broken_handshakes / sizeof broken_handshakes[0]; i++) {
         const broken_hs *b = &broken_handshakes[i];
         auth_config cfg = {.role = b->role, .token = b->token ? &t : NULL, .require_auth = b->token, .peer = "peer"};

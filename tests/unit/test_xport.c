@@ -146,15 +146,6 @@ static void make_chans(const char *spec, const auth_token *mt, const auth_token 
     cr_assert_eq(chan_new(cli, &dc, &p->d, &err), 0, "%s", err.msg);
 }
 
-static auth_token token_of(const char *s)
-{
-    auth_token t;
-    memset(&t, 0, sizeof t);
-    t.len = strlen(s);
-    memcpy(t.bytes, s, t.len);
-    return t;
-}
-
 /* Receives n messages on `to` (pumping both) and checks each re-encodes to
  * the bytes of the matching sent message. */
 static void expect_messages(pair *p, chan *to, const wire_msg *sent, size_t n)
@@ -185,6 +176,24 @@ static void expect_messages(pair *p, chan *to, const wire_msg *sent, size_t n)
     cr_assert_eq(got, n, "received %zu of %zu messages", got, n);
 }
 
+/* make_chans on a fresh UNIX socket (its address in spec), pumped until both
+ * sides have completed the handshake. */
+static void ready_unix_chans(char *spec, size_t cap, pair *p, xport_listener **l)
+{
+    unix_spec(spec, cap);
+    make_chans(spec, NULL, NULL, p, l);
+    ct_error err = {{0}};
+    cr_assert_eq(pump_both(p->m, p->d, both_ready, p, 3000, &err), 0, "%s", err.msg);
+}
+
+/* Frees both channels of a pair and the listener they came from. */
+static void free_chans(pair *p, xport_listener *l)
+{
+    chan_free(p->m);
+    chan_free(p->d);
+    xport_listener_close(l);
+}
+
 static void exchange_everything(const char *spec, const auth_token *mt, const auth_token *dt, size_t io_limit)
 {
     pair p;
@@ -208,9 +217,7 @@ static void exchange_everything(const char *spec, const auth_token *mt, const au
     chan_byte_counts(p.m, &rx, &tx);
     cr_assert_gt(rx, 1000);
     cr_assert_gt(tx, 1000);
-    chan_free(p.m);
-    chan_free(p.d);
-    xport_listener_close(l);
+    free_chans(&p, l);
 }
 
 /* --- transports ---------------------------------------------------------------- */
@@ -227,13 +234,13 @@ Test(xport, unix_with_token)
 {
     char spec[128];
     unix_spec(spec, sizeof spec);
-    auth_token t = token_of("a unix socket token");
+    auth_token t = fx_token("a unix socket token");
     exchange_everything(spec, &t, &t, 0);
 }
 
 Test(xport, tcp4_one_byte_io_authenticated)
 {
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     exchange_everything("tcp:127.0.0.1:0", &t, &t, 1);
 }
 
@@ -247,7 +254,7 @@ Test(xport, tcp6_authenticated)
     }
     cr_assert(strncmp(xport_listener_addr(l), "tcp:[::1]:", 10) == 0, "%s", xport_listener_addr(l));
     xport_listener_close(l);
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     exchange_everything("tcp:[::1]:0", &t, &t, 1);
 }
 
@@ -266,7 +273,7 @@ Test(xport, tcp_requires_a_token)
     xport_conn *srv2, *cli2;
     xport_listener *l2;
     connect_pair("tcp:127.0.0.1:0", &l2, &srv2, &cli2);
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     pair p;
     chan_config mc2 = {.role = AUTH_ROLE_MASTER, .token = &t};
     chan_config dc2 = {.role = AUTH_ROLE_DISPLAY};
@@ -285,7 +292,7 @@ Test(xport, tcp_requires_a_token)
 
 Test(xport, tcp_wrong_token)
 {
-    auth_token a = token_of("the tcp shared token"), b = token_of("not the shared token");
+    auth_token a = fx_token("the tcp shared token"), b = fx_token("not the shared token");
     pair p;
     xport_listener *l;
     make_chans("tcp:127.0.0.1:0", &a, &b, &p, &l);
@@ -309,22 +316,67 @@ Test(xport, tcp_wrong_token)
     cr_assert_eq(drc, CT_EAUTH);
     cr_assert_eq(mrc, CT_EAUTH, "%s", err.msg);
     cr_assert(!chan_ready(p.m) && !chan_ready(p.d));
-    chan_free(p.m);
-    chan_free(p.d);
-    xport_listener_close(l);
+    free_chans(&p, l);
 }
 
-/* A master channel on spec whose peer is a raw display connection (*cli)
- * that has sent a valid HELLO (nonce starting with nonce0): the tests then
- * write broken frames by hand. */
-static chan *master_with_raw_display(const char *spec, xport_listener **l, xport_conn **cli, uint8_t nonce0)
+/* A master channel (configuration mc) on spec whose peer is the raw
+ * connection *cli: the tests then play a hostile display by hand. */
+static chan *master_with_raw_peer(const char *spec, const chan_config *mc, xport_listener **l, xport_conn **cli)
 {
     xport_conn *srv;
     connect_pair(spec, l, &srv, cli);
-    chan_config mc = {.role = AUTH_ROLE_MASTER};
     chan *m;
     ct_error err = {{0}};
-    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
+    cr_assert_eq(chan_new(srv, mc, &m, &err), 0, "%s", err.msg);
+    return m;
+}
+
+/* Frees a raw-peer master channel, its raw peer (unless NULL, closed
+ * already) and the listener. */
+static void close_raw(chan *m, xport_conn *cli, xport_listener *l)
+{
+    chan_free(m);
+    if (cli) xport_close(cli);
+    xport_listener_close(l);
+}
+
+/* Pumps c until it fails (1 ms apart, at most max_ms times); returns the
+ * error code, 0 when it never failed. */
+static int pump_until_error(chan *c, int max_ms, ct_error *err)
+{
+    int rc = 0;
+    for (int i = 0; i < max_ms && rc == 0; i++) {
+        rc = chan_pump(c, err);
+        usleep(1000);
+    }
+    return rc;
+}
+
+/* Reads from a raw client what the master sent it: its HELLO, then one whole
+ * frame (up to cap bytes, for at most about 500 ms); returns the bytes read. */
+static size_t read_hello_and_frame(xport_conn *cli, uint8_t *buf, size_t cap)
+{
+    const size_t head = AUTH_HELLO_SIZE + WIRE_HEADER_SIZE;
+    ct_error err = {{0}};
+    size_t got = 0, n;
+    for (int i = 0; i < 500 && got < cap; i++) {
+        if (xport_read(cli, buf + got, cap - got, &n, &err) != 0) break;
+        got += n;
+        if (got >= head && got >= head + wio_get_u32(buf + AUTH_HELLO_SIZE + 4)) break;
+        usleep(1000);
+    }
+    return got;
+}
+
+/* A master channel on a fresh UNIX socket (its address in spec) whose peer
+ * is a raw display connection (*cli) that has sent a valid HELLO (nonce
+ * starting with nonce0): the tests then write broken frames by hand. */
+static chan *master_with_raw_display(char *spec, size_t cap, xport_listener **l, xport_conn **cli, uint8_t nonce0)
+{
+    unix_spec(spec, cap);
+    chan_config mc = {.role = AUTH_ROLE_MASTER};
+    chan *m = master_with_raw_peer(spec, &mc, l, cli);
+    ct_error err = {{0}};
     uint8_t hello[AUTH_HELLO_SIZE], nonce[AUTH_NONCE_SIZE] = {nonce0};
     auth_hello_encode(hello, AUTH_ROLE_DISPLAY, 0, CT_BUILD_ID, nonce);
     cr_assert_eq(xport_write_all(*cli, hello, sizeof hello, 1000, &err), 0, "%s", err.msg);
@@ -334,12 +386,11 @@ static chan *master_with_raw_display(const char *spec, xport_listener **l, xport
 Test(xport, peer_disconnects_mid_message)
 {
     char spec[128];
-    unix_spec(spec, sizeof spec);
     xport_listener *l;
     xport_conn *cli;
     ct_error err = {{0}};
     /* A raw display: a valid HELLO, then 10 bytes of a 16-byte PING frame, then gone. */
-    chan *m = master_with_raw_display(spec, &l, &cli, 7);
+    chan *m = master_with_raw_display(spec, sizeof spec, &l, &cli, 7);
     uint8_t part[10] = {WIRE_PING, 0, 0, 0, 8, 0, 0, 0, 1, 2};
     cr_assert_eq(xport_write_all(cli, part, sizeof part, 1000, &err), 0);
     xport_close(cli);
@@ -353,19 +404,16 @@ Test(xport, peer_disconnects_mid_message)
     /* Sticky. */
     cr_assert_eq(chan_recv(m, &msg, &err), CT_EIO);
     cr_assert_str_eq(err.msg, want);
-    chan_free(m);
-    xport_listener_close(l);
+    close_raw(m, NULL, l);
 }
 
 Test(xport, peer_closes_between_messages_after_bye)
 {
     char spec[128];
-    unix_spec(spec, sizeof spec);
     pair p;
     xport_listener *l;
-    make_chans(spec, NULL, NULL, &p, &l);
+    ready_unix_chans(spec, sizeof spec, &p, &l);
     ct_error err = {{0}};
-    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 3000, &err), 0, "%s", err.msg);
     wire_msg bye = {.type = WIRE_BYE, .u.bye.reason = WIRE_BYE_QUIT};
     cr_assert_eq(chan_send(p.d, &bye, &err), 0);
     cr_assert_eq(chan_flush(p.d, 1000, &err), 0, "%s", err.msg);
@@ -406,36 +454,22 @@ Test(xport, raw_write_to_vanished_peer_is_an_error_not_sigpipe)
 Test(xport, not_a_corrtex_peer)
 {
     xport_listener *l;
-    xport_conn *srv, *cli;
-    connect_pair("tcp:127.0.0.1:0", &l, &srv, &cli);
-    auth_token t = token_of("the tcp shared token");
+    xport_conn *cli;
+    auth_token t = fx_token("the tcp shared token");
     chan_config mc = {.role = AUTH_ROLE_MASTER, .token = &t};
-    chan *m;
+    chan *m = master_with_raw_peer("tcp:127.0.0.1:0", &mc, &l, &cli);
     ct_error err = {{0}};
-    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
     const char *http = "GET / HTTP/1.1\r\nHost: x\r\n\r\n";
     cr_assert_eq(xport_write_all(cli, http, strlen(http), 1000, &err), 0);
-    int rc = 0;
-    for (int i = 0; i < 2000 && rc == 0; i++) {
-        rc = chan_pump(m, &err);
-        usleep(500);
-    }
-    cr_assert_eq(rc, CT_EPROTO);
+    cr_assert_eq(pump_until_error(m, 1000, &err), CT_EPROTO);
     cr_assert(strstr(err.msg, ": bad magic byte 0x47 at offset 0 (not a corrtex peer?)"), "%s", err.msg);
     /* The stray client got our HELLO and an ERROR frame explaining it. */
-    uint8_t buf[512];
-    size_t got = 0, n;
-    for (int i = 0; i < 200 && got < AUTH_HELLO_SIZE + WIRE_HEADER_SIZE; i++) {
-        if (xport_read(cli, buf + got, sizeof buf - got, &n, &err) != 0) break;
-        got += n;
-        usleep(1000);
-    }
+    uint8_t buf[1024];
+    size_t got = read_hello_and_frame(cli, buf, sizeof buf);
     cr_assert_geq(got, AUTH_HELLO_SIZE + WIRE_HEADER_SIZE);
     cr_assert(memcmp(buf, AUTH_MAGIC, AUTH_MAGIC_SIZE) == 0);
     cr_assert_eq(wio_get_u16(buf + AUTH_HELLO_SIZE), WIRE_ERROR);
-    chan_free(m);
-    xport_close(cli);
-    xport_listener_close(l);
+    close_raw(m, cli, l);
 }
 
 Test(xport, listen_errors)
@@ -462,12 +496,10 @@ Test(xport, listen_errors)
 Test(xport, scene_over_a_socket)
 {
     char spec[128];
-    unix_spec(spec, sizeof spec);
     pair p;
     xport_listener *l;
-    make_chans(spec, NULL, NULL, &p, &l);
+    ready_unix_chans(spec, sizeof spec, &p, &l);
     ct_error err = {{0}};
-    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 3000, &err), 0, "%s", err.msg);
     ct_radmesh mesh, got;
     fx_mesh(&mesh, 30000);
     wire_scene_tx tx;
@@ -506,9 +538,7 @@ Test(xport, scene_over_a_socket)
     rmesh_free(&mesh);
     wire_scene_tx_free(&tx);
     wire_scene_rx_free(rx);
-    chan_free(p.m);
-    chan_free(p.d);
-    xport_listener_close(l);
+    free_chans(&p, l);
 }
 
 /* --- the merging send queue ---------------------------------------------------------- */
@@ -522,6 +552,23 @@ static wire_msg patch(uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t
     m.type = WIRE_TEX_PATCH;
     m.u.tex_patch = (wire_tex_patch){.tex = tex, .x = x, .y = y, .w = w, .h = h, .texels = store};
     return m;
+}
+
+/* A new merging queue of max_bytes. */
+static xport_queue *new_queue(size_t max_bytes)
+{
+    xport_queue *q;
+    ct_error err = {{0}};
+    cr_assert_eq(xport_queue_new(max_bytes, &q, &err), 0, "%s", err.msg);
+    return q;
+}
+
+/* Queues patch(tex, x, y, w, h, v), which must go in. */
+static void push_patch(xport_queue *q, uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t h, float v)
+{
+    static uint16_t store[64 * 64 * 3];
+    wire_msg m = patch(tex, x, y, w, h, v, store);
+    cr_assert_eq(xport_queue_push(q, &m, NULL), 0, "patch %u at %u,%u %ux%u not queued", tex, x, y, w, h);
 }
 
 /* Drains the queue, applying patches to a 64x64 RGB image per texture id
@@ -561,13 +608,9 @@ static void drain(xport_queue *q, drained *out)
 
 Test(queue, newer_patch_covering_older_replaces_it)
 {
-    xport_queue *q;
-    xport_queue_new(1 << 20, &q, NULL);
-    static uint16_t s[64 * 64 * 3];
-    wire_msg m = patch(1, 8, 8, 4, 4, 1.0f, s);
-    cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
-    m = patch(1, 0, 0, 16, 16, 2.0f, s);
-    cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+    xport_queue *q = new_queue(1 << 20);
+    push_patch(q, 1, 8, 8, 4, 4, 1.0f);
+    push_patch(q, 1, 0, 0, 16, 16, 2.0f);
     xport_queue_stats st = xport_queue_get_stats(q);
     cr_assert_eq(st.entries, 1);
     cr_assert_eq(st.merged, 1);
@@ -580,13 +623,9 @@ Test(queue, newer_patch_covering_older_replaces_it)
 
 Test(queue, newer_patch_inside_older_is_written_into_it)
 {
-    xport_queue *q;
-    xport_queue_new(1 << 20, &q, NULL);
-    static uint16_t s[64 * 64 * 3];
-    wire_msg m = patch(1, 0, 0, 16, 16, 1.0f, s);
-    xport_queue_push(q, &m, NULL);
-    m = patch(1, 4, 4, 2, 2, 3.0f, s);
-    xport_queue_push(q, &m, NULL);
+    xport_queue *q = new_queue(1 << 20);
+    push_patch(q, 1, 0, 0, 16, 16, 1.0f);
+    push_patch(q, 1, 4, 4, 2, 2, 3.0f);
     cr_assert_eq(xport_queue_get_stats(q).entries, 1);
     drained d;
     drain(q, &d);
@@ -599,13 +638,8 @@ Test(queue, newer_patch_inside_older_is_written_into_it)
 
 Test(queue, adjacent_rows_merge_into_one_rectangle)
 {
-    xport_queue *q;
-    xport_queue_new(1 << 20, &q, NULL);
-    static uint16_t s[64 * 64 * 3];
-    for (uint32_t y = 0; y < 8; y++) {
-        wire_msg m = patch(2, 3, y, 10, 1, (float)y, s);
-        cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
-    }
+    xport_queue *q = new_queue(1 << 20);
+    for (uint32_t y = 0; y < 8; y++) push_patch(q, 2, 3, y, 10, 1, (float)y);
     cr_assert_eq(xport_queue_get_stats(q).entries, 1);
     drained d;
     drain(q, &d);
@@ -616,21 +650,15 @@ Test(queue, adjacent_rows_merge_into_one_rectangle)
 
 Test(queue, different_textures_and_barriers_do_not_merge)
 {
-    xport_queue *q;
-    xport_queue_new(1 << 20, &q, NULL);
-    static uint16_t s[64 * 64 * 3];
-    wire_msg m = patch(1, 0, 0, 8, 8, 1.0f, s);
-    xport_queue_push(q, &m, NULL);
-    m = patch(2, 0, 0, 8, 8, 2.0f, s);
-    xport_queue_push(q, &m, NULL);
+    xport_queue *q = new_queue(1 << 20);
+    push_patch(q, 1, 0, 0, 8, 8, 1.0f);
+    push_patch(q, 2, 0, 0, 8, 8, 2.0f);
     wire_msg frame = {.type = WIRE_FRAME, .u.frame = {.frame = 1}};
     xport_queue_push(q, &frame, NULL);
-    m = patch(1, 0, 0, 8, 8, 5.0f, s); /* after FRAME 1: must not replace frame 1's patch */
-    xport_queue_push(q, &m, NULL);
+    push_patch(q, 1, 0, 0, 8, 8, 5.0f); /* after FRAME 1: must not replace frame 1's patch */
     wire_msg stats = {.type = WIRE_STATS};
     xport_queue_push(q, &stats, NULL); /* not a barrier */
-    m = patch(1, 0, 0, 8, 8, 6.0f, s);
-    xport_queue_push(q, &m, NULL);
+    push_patch(q, 1, 0, 0, 8, 8, 6.0f);
     drained d;
     drain(q, &d);
     unsigned want[] = {WIRE_TEX_PATCH, WIRE_TEX_PATCH, WIRE_FRAME, WIRE_TEX_PATCH, WIRE_STATS};
@@ -645,9 +673,7 @@ Test(queue, newest_wins_with_partial_overlaps)
 {
     /* A random sequence of patches on one texture; after merging, the image
      * the display builds must equal applying every patch in order. */
-    xport_queue *q;
-    xport_queue_new(64u << 20, &q, NULL);
-    static uint16_t s[64 * 64 * 3];
+    xport_queue *q = new_queue(64u << 20);
     static float want[64][64];
     memset(want, 0, sizeof want);
     uint32_t seed = 12345;
@@ -655,8 +681,7 @@ Test(queue, newest_wins_with_partial_overlaps)
         seed = seed * 1664525u + 1013904223u;
         uint32_t x = (seed >> 8) % 48, y = (seed >> 16) % 48, w = 1 + (seed >> 4) % 16, h = 1 + (seed >> 24) % 16;
         float v = (float)(i + 1);
-        wire_msg m = patch(3, x, y, w, h, v, s);
-        cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+        push_patch(q, 3, x, y, w, h, v);
         for (uint32_t yy = y; yy < y + h; yy++)
             for (uint32_t xx = x; xx < x + w; xx++) want[yy][xx] = wire_half_to_float(wire_half_from_float(v));
     }
@@ -672,8 +697,7 @@ Test(queue, newest_wins_with_partial_overlaps)
 
 Test(queue, bounded)
 {
-    xport_queue *q;
-    xport_queue_new(10000, &q, NULL);
+    xport_queue *q = new_queue(10000);
     static uint16_t s[64 * 64 * 3];
     /* Distinct areas of distinct textures cannot merge: the queue fills. */
     int full = 0;
@@ -702,12 +726,10 @@ Test(queue, slow_display_over_a_socket)
      * that does not read; the queue stays bounded by merging, and once the
      * display reads, it ends with the newest texels. */
     char spec[128];
-    unix_spec(spec, sizeof spec);
     pair p;
     xport_listener *l;
-    make_chans(spec, NULL, NULL, &p, &l);
+    ready_unix_chans(spec, sizeof spec, &p, &l);
     ct_error err = {{0}};
-    cr_assert_eq(pump_both(p.m, p.d, both_ready, &p, 3000, &err), 0, "%s", err.msg);
     static uint16_t s[64 * 64 * 3];
     for (int i = 1; i <= 3000; i++) {
         wire_msg m = patch(1, 0, (uint32_t)(i % 4) * 16, 64, 16, (float)i, s);
@@ -738,9 +760,7 @@ Test(queue, slow_display_over_a_socket)
     cr_assert_eq(img[20][5], wire_half_to_float(wire_half_from_float(2997.0f)));
     cr_assert_eq(img[40][60], wire_half_to_float(wire_half_from_float(2998.0f)));
     cr_assert_eq(img[63][63], h2999);
-    chan_free(p.m);
-    chan_free(p.d);
-    xport_listener_close(l);
+    free_chans(&p, l);
 }
 
 /* --- blocking helpers: a master thread and a display using chan_connect ------------- */
@@ -782,7 +802,7 @@ done:
 
 Test(xport, chan_connect_and_accept_tcp)
 {
-    auth_token t = token_of("the tcp shared token");
+    auth_token t = fx_token("the tcp shared token");
     master_ctx mc = {.token = &t};
     ct_error err = {{0}};
     cr_assert_eq(xport_listen("tcp:127.0.0.1:0", &mc.l, &err), 0, "%s", err.msg);
@@ -836,34 +856,24 @@ Test(xport, handshake_deadline)
     char spec[128];
     unix_spec(spec, sizeof spec);
     xport_listener *l;
-    xport_conn *srv, *cli;
-    connect_pair(spec, &l, &srv, &cli);
+    xport_conn *cli;
     chan_config mc = {.role = AUTH_ROLE_MASTER, .handshake_ms = 100};
-    chan *m;
+    chan *m = master_with_raw_peer(spec, &mc, &l, &cli);
     ct_error err = {{0}};
-    cr_assert_eq(chan_new(srv, &mc, &m, &err), 0);
-    int rc = 0;
-    for (int i = 0; i < 400 && rc == 0; i++) {
-        rc = chan_pump(m, &err);
-        usleep(1000);
-    }
-    cr_assert_eq(rc, CT_EPROTO);
+    cr_assert_eq(pump_until_error(m, 400, &err), CT_EPROTO);
     char want[300];
     snprintf(want, sizeof want, "%s (pid %d): handshake not completed within 100 ms", spec, (int)getpid());
     cr_assert_str_eq(err.msg, want);
-    chan_free(m);
-    xport_close(cli);
-    xport_listener_close(l);
+    close_raw(m, cli, l);
 }
 
 Test(xport, oversized_frame_after_handshake)
 {
     char spec[128];
-    unix_spec(spec, sizeof spec);
     xport_listener *l;
     xport_conn *cli;
     ct_error err = {{0}};
-    chan *m = master_with_raw_display(spec, &l, &cli, 9);
+    chan *m = master_with_raw_display(spec, sizeof spec, &l, &cli, 9);
     uint8_t huge[8] = {WIRE_SCENE_CHUNK, 0, 0, 0, 0xff, 0xff, 0xff, 0x7f};
     cr_assert_eq(xport_write_all(cli, huge, sizeof huge, 1000, &err), 0);
     wire_msg msg;
@@ -876,24 +886,33 @@ Test(xport, oversized_frame_after_handshake)
     chan_send_error(m, WIRE_ERR_PROTOCOL, err.msg, 500);
     /* The raw client reads our HELLO, then the ERROR with the reason. */
     uint8_t buf[1024];
-    size_t got = 0, n;
-    for (int i = 0; i < 500; i++) {
-        if (xport_read(cli, buf + got, sizeof buf - got, &n, &err) != 0) break;
-        got += n;
-        if (got >= AUTH_HELLO_SIZE + WIRE_HEADER_SIZE &&
-            got >= AUTH_HELLO_SIZE + WIRE_HEADER_SIZE + wio_get_u32(buf + AUTH_HELLO_SIZE + 4))
-            break;
-        usleep(1000);
-    }
+    size_t got = read_hello_and_frame(cli, buf, sizeof buf);
     wire_msg e;
     wire_scratch s = {0};
     cr_assert_eq(wire_decode(buf + AUTH_HELLO_SIZE, got - AUTH_HELLO_SIZE, "master", &e, &s, &err), 0, "%s", err.msg);
     cr_assert_eq(e.type, WIRE_ERROR);
     cr_assert(strstr(e.u.error.text, "SCENE_CHUNK body length 2147483647 over the limit"), "%s", e.u.error.text);
     wire_scratch_free(&s);
-    chan_free(m);
-    xport_close(cli);
-    xport_listener_close(l);
+    close_raw(m, cli, l);
+}
+
+/* Connects to host_prefix + port (a "tcp:HOST:" text) and checks that l
+ * accepts the client and names it by the same host. */
+static void expect_accepted(xport_listener *l, const char *host_prefix, const char *port)
+{
+    char spec[64];
+    snprintf(spec, sizeof spec, "%s%s", host_prefix, port);
+    ct_error err = {{0}};
+    xport_conn *c, *s = NULL;
+    cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
+    for (int i = 0; i < 200 && !s; i++) {
+        usleep(1000);
+        xport_accept(l, &s, &err);
+    }
+    cr_assert(s, "client %s not accepted on %s", spec, xport_listener_addr(l));
+    cr_assert(strncmp(xport_peer(s), host_prefix, strlen(host_prefix)) == 0, "%s", xport_peer(s));
+    xport_close(c);
+    xport_close(s);
 }
 
 Test(xport, listen_on_any_address)
@@ -903,31 +922,9 @@ Test(xport, listen_on_any_address)
     cr_assert_eq(xport_listen("tcp:*:0", &l, &err), 0, "%s", err.msg);
     const char *bound = xport_listener_addr(l);
     const char *port = strrchr(bound, ':') + 1;
-    char spec[64];
-    snprintf(spec, sizeof spec, "tcp:127.0.0.1:%s", port);
-    xport_conn *c, *s;
-    cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
-    s = NULL;
-    for (int i = 0; i < 200 && !s; i++) {
-        usleep(1000);
-        xport_accept(l, &s, &err);
-    }
-    cr_assert(s, "IPv4 client not accepted on %s", bound);
-    cr_assert(strncmp(xport_peer(s), "tcp:127.0.0.1:", 14) == 0, "%s", xport_peer(s));
-    xport_close(c);
-    xport_close(s);
+    expect_accepted(l, "tcp:127.0.0.1:", port);
     if (strncmp(bound, "tcp:[", 5) == 0) { /* dual-stack IPv6 socket: IPv6 clients too */
-        snprintf(spec, sizeof spec, "tcp:[::1]:%s", port);
-        cr_assert_eq(xport_connect(spec, 1000, &c, &err), 0, "%s", err.msg);
-        s = NULL;
-        for (int i = 0; i < 200 && !s; i++) {
-            usleep(1000);
-            xport_accept(l, &s, &err);
-        }
-        cr_assert(s, "IPv6 client not accepted on %s", bound);
-        cr_assert(strncmp(xport_peer(s), "tcp:[::1]:", 10) == 0, "%s", xport_peer(s));
-        xport_close(c);
-        xport_close(s);
+        expect_accepted(l, "tcp:[::1]:", port);
     } else {
         cr_log_warn("skip: IPv6 part, listening on %s", bound);
     }

@@ -9,6 +9,7 @@
 #   master_wait NAME SECONDS                 waits for the job to end; sets MASTER_RC
 #   display_run NAME ARGS...                 corrtex-display ARGS (foreground, logged)
 #   cornell_args                             scene + a small radiosity mesh in $tmp
+#   same_frames A B WHAT                     counts identical frames 0..4 of $tmp/A and $tmp/B into same
 set -u
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)
 bin=${CORRTEX_BIN:-bin}
@@ -160,6 +161,18 @@ need_programs() {
     [[ -x $p ]] || { fail "missing program $p (run make)"; exit 1; }
   done
   command -v mpirun >/dev/null || skip "mpirun not found (install openmpi-bin)"
+}
+
+# same_frames A B WHAT: compares frame_00000.exr .. frame_00004.exr of the
+# folders $tmp/A and $tmp/B; fails naming each frame that differs ("FRAME
+# differs WHAT"); sets same to the number of identical frames.
+same_frames() {
+  local k f
+  same=0
+  for k in 0 1 2 3 4; do
+    f=$(printf 'frame_%05d.exr' $k)
+    if cmp -s "$tmp/$1/$f" "$tmp/$2/$f"; then same=$((same + 1)); else fail "$f differs $3"; fi
+  done
 }
 
 finish() {

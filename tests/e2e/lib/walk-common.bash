@@ -1,5 +1,6 @@
-# Shared by tests/e2e/walk_*.sh (sourced, not a test itself): paths, a
-# command logger, and the checks for stray processes and socket files.
+# Shared by tests/e2e/walk_*.sh (sourced, not a test itself): paths, the
+# temporary folder (removed at exit), a command logger, the checks for stray
+# processes and socket files, and the scene and program checks.
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)
 bin=${CORRTEX_BIN:-bin}
 [[ $bin == /* ]] || bin="$root/$bin"
@@ -8,6 +9,7 @@ export CORRTEX_BIN="$bin"
 # Every file and process of a test carries this folder's name, so strays are
 # found by it (and only the test's own are considered).
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/ct-e2e-walk-XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
 fails=0
 fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 
@@ -41,6 +43,13 @@ need_programs() {
     if [[ ! -x $bin/$p ]]; then echo "skip: $bin/$p is not built"; rm -rf "$tmp"; exit 0; fi
   done
   command -v mpirun >/dev/null || { echo "skip: mpirun not installed"; rm -rf "$tmp"; exit 0; }
+}
+
+# need_scene NAME: sets scene to scenes/NAME/NAME.json; exits 1 when its
+# meshes have not been generated.
+need_scene() {
+  scene="$root/scenes/$1/$1.json"
+  [[ -f $scene ]] || { echo "error: $scene missing (make scenes)"; exit 1; }
 }
 
 # The radiosity options that keep cornell's cache small for tests.
