@@ -310,8 +310,8 @@ static inline void dbl_valid(const dbl_ctx *d, v4f p0, v4f p1, v4f p2, v4f p3, f
     memcpy(f, &c, sizeof f);
     uint16_t h[4];
     float4_to_half(f, h);
-    q->c[0] = h[0]; q->c[1] = h[1]; q->c[2] = h[2];
-    q->q = dbl_q(d, q0);
+    h[3] = (uint16_t)dbl_q(d, q0);
+    memcpy(q, h, sizeof h);   /* one 8-byte store into the fresh array */
 }
 
 /* One new texel from old texel p0, its x neighbour p1, y neighbour p2 and
