@@ -203,15 +203,27 @@ void ctex_events_clear(ctex *c)
     c->nev = 0;
 }
 
+/* The live texture tex when the patch rectangle lies inside it, else NULL
+ * (err says why). */
+static const ctex_tex *patch_texture(const ctex *c, uint32_t tex, int x, int y, int w, int h, ct_error *err)
+{
+    if (tex >= c->nslots || !c->slots[tex].live) {
+        ct_fail(err, CT_ERANGE, "texture %u is not live", tex);
+        return NULL;
+    }
+    const ctex_tex *t = &c->slots[tex].t;
+    if (x < 0 || y < 0 || w < 0 || h < 0 || x + w > t->w || y + h > t->h) {
+        ct_fail(err, CT_ERANGE, "patch %dx%d+%d+%d outside texture %u of %dx%d", w, h, x, y, tex, t->w, t->h);
+        return NULL;
+    }
+    return t;
+}
+
 int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, float *out,
                     ct_error *err)
 {
-    if (tex >= c->nslots || !c->slots[tex].live)
-        return ct_fail(err, CT_ERANGE, "texture %u is not live", tex);
-    const ctex_tex *t = &c->slots[tex].t;
-    if (x < 0 || y < 0 || w < 0 || h < 0 || x + w > t->w || y + h > t->h)
-        return ct_fail(err, CT_ERANGE, "patch %dx%d+%d+%d outside texture %u of %dx%d", w, h, x, y,
-                       tex, t->w, t->h);
+    const ctex_tex *t = patch_texture(c, tex, x, y, w, h, err);
+    if (!t) return CT_ERANGE;
     for (int j = 0; j < h; j++)
         for (int i = 0; i < w; i++) {
             vec3 v = ctex_texel_rgb(ctex_tex_at(t, x + i, y + j));
@@ -224,12 +236,8 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
 int ctex_read_patch_half(const ctex *c, uint32_t tex, int x, int y, int w, int h, uint16_t *out,
                          ct_error *err)
 {
-    if (tex >= c->nslots || !c->slots[tex].live)
-        return ct_fail(err, CT_ERANGE, "texture %u is not live", tex);
-    const ctex_tex *t = &c->slots[tex].t;
-    if (x < 0 || y < 0 || w < 0 || h < 0 || x + w > t->w || y + h > t->h)
-        return ct_fail(err, CT_ERANGE, "patch %dx%d+%d+%d outside texture %u of %dx%d", w, h, x, y,
-                       tex, t->w, t->h);
+    const ctex_tex *t = patch_texture(c, tex, x, y, w, h, err);
+    if (!t) return CT_ERANGE;
     for (int j = 0; j < h; j++) {
         const ctex_texel *p = ctex_tex_at(t, x, y + j);
         uint16_t *o = out + 3 * (size_t)j * (size_t)w;
