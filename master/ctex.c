@@ -760,14 +760,8 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
             /* culled: park it, invisible to the display, evictable */
             push_event(c, CTEX_EV_FREE, i);
             s->active = 0;
-            continue;
         }
-        /* A source of the split/merge below, retired afterwards: its
-         * contents are as outdated by this camera change as a kept
-         * texture's (§3.5), and the new texture inherits their validities
-         * relative to v_max. Unaged, a glossy or camera-local node's stale
-         * corrections would come back as fresh as the new samples. */
-        ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));
+        /* else a source of the split/merge below, retired afterwards */
     }
 
     /* 3. new assignments: reuse a parked texture or create a resampled one */

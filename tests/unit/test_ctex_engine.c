@@ -507,54 +507,6 @@ Test(ctex_engine, split_and_merge_resample_contents)
     release(&t);
 }
 
-/* §3.5 across a split: the group's texture is aged like a kept one before
- * the new textures are resampled from it. From far away the group (box and
- * plate) has one camera-local texture; moving close splits it, and the
- * camera's motion (texture flow) outdates the old corrections, so one new
- * sample takes over the plate's resampled texels far beyond its own texel.
- * With aging off the resampled texels hold against it. */
-static void split_then_one_sample(ctex_options o, float *far_value, int *radius)
-{
-    tscene t;
-    build(&t);
-    ctex *c = engine(&t, o);
-    ct_camera far = cam_look_at(v3(0, 30, 60), v3(0, 0.5f, 0), v3(0, 1, 0), 20.0f);
-    cr_assert_eq(ctex_set_camera(c, &far, 64, 64, &err), 0);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)),
-                 ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f)), "one texture for the group");
-    ctex_insert_info info;
-    for (int i = 0; i < 200; i++) {
-        float x = -0.6f + 1.2f * (float)(i % 20) / 19.0f, z = -0.6f + 1.2f * (float)(i / 20) / 9.0f;
-        ct_sample s = mk_sample((uint32_t)t.plate[1], v3(x, 1.01f, z), v3s(0.75f), v3s(0.25f));
-        ctex_insert(c, &s, &info);
-    }
-    ct_camera near = cam_look_at(v3(0, 2.2f, 2.2f), v3(0, 0.8f, 0), v3(0, 1, 0), 60.0f);
-    cr_assert_eq(ctex_set_camera(c, &near, 64, 64, &err), 0);
-    cr_assert_neq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)),
-                  ctex_owner(c, (uint32_t)t.plate[1], UINT32_MAX, v3s(0.0f)), "split into box and plate");
-    ct_sample s = mk_sample((uint32_t)t.plate[1], v3(-0.4f, 1.01f, -0.4f), v3s(1.25f), v3s(0.25f));
-    cr_assert_eq(ctex_insert(c, &s, &info), 1);
-    *radius = info.radius;
-    *far_value = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.4f, 1.01f, 0.4f)).x;
-    ctex_free(c);
-    release(&t);
-}
-
-Test(ctex_engine, split_sources_age_before_resampling)
-{
-    float va, vn;
-    int ra, rn;
-    split_then_one_sample(ctex_options_default(), &va, &ra);
-    ctex_options o = ctex_options_default();
-    o.age_flow = 0.0f;
-    o.age_brdf = 0.0f;
-    split_then_one_sample(o, &vn, &rn);
-    cr_assert_float_eq(vn, 0.5f, 1e-3, "no aging: the resampled correction stays (%g, radius %d)", (double)vn, rn);
-    cr_assert_float_eq(va, 1.0f, 1e-3, "aged: the new sample replaces the outdated one (%g, radius %d)", (double)va,
-                       ra);
-    cr_assert_gt(ra, rn + 4, "splat radius %d aged, %d not", ra, rn);
-}
-
 Test(ctex_engine, events_alloc_proj_patch_free)
 {
     tscene t;
