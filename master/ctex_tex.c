@@ -100,6 +100,10 @@ typedef struct splat_val {
     float blend;      /* band (texels) */
 } splat_val;
 
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "store() builds a texel as a little-endian 64-bit word (q in the top 16 bits)"
+#endif
+
 /* Texel x := the bytes rgb with validity step q, as one 8-byte store. */
 static inline void store(ctex_texel *x, uint64_t rgb, int32_t q)
 {
