@@ -95,6 +95,13 @@ static inline float half_to_float(uint16_t h)
 #endif
 }
 
+/* Whether half h is below zero (as half_to_float(h) < 0: -0 and NaNs are not). */
+static inline int half_is_negative(uint16_t h)
+{
+    uint16_t a = h & 0x7fffu;
+    return (h & 0x8000u) && a && a <= 0x7c00u;
+}
+
 /* Four halves at h[0..3] to four floats at f[0..3]. */
 static inline void half4_to_float(const uint16_t *h, float *f)
 {

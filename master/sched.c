@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/half.h"
 #include "common/log.h"
 #include "common/timer.h"
 #include "master/dsrv.h"
@@ -338,11 +339,8 @@ static int send_patch(loop_state *s, uint32_t tex, int x, int y, int w, int h, c
         }
         int rc = ctex_read_patch_half(s->tex, tex, x, y0, w, hh, s->patch_h, err);
         if (rc) return rc;
-        for (size_t i = 0; i < n && s->all_positive; i++) {
-            /* below zero: the sign bit on a non-zero, non-NaN half */
-            uint16_t a = s->patch_h[i] & 0x7fffu;
-            if ((s->patch_h[i] & 0x8000u) && a && a <= 0x7c00u) s->all_positive = 0;
-        }
+        for (size_t i = 0; i < n && s->all_positive; i++)
+            if (half_is_negative(s->patch_h[i])) s->all_positive = 0;
         wire_msg m = {.type = WIRE_TEX_PATCH};
         m.u.tex_patch = (wire_tex_patch){tex, (uint32_t)x, (uint32_t)y0, (uint32_t)w, (uint32_t)hh, s->patch_h};
         if ((rc = send_msg(s, &m, err))) return rc;

@@ -68,3 +68,11 @@ Test(half, four_at_a_time_equals_one_at_a_time)
         cr_assert_eq(back[i], half_to_float(h[i]));
     }
 }
+
+Test(half, negative_means_below_zero)
+{
+    for (uint32_t h = 0; h < 65536; h++) {
+        float f = half_to_float_soft((uint16_t)h);
+        cr_assert_eq(half_is_negative((uint16_t)h), f < 0.0f, "half 0x%04x (%g)", h, (double)f);
+    }
+}
