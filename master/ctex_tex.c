@@ -162,7 +162,7 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
     const int W = t->w, H = t->h;
     const size_t P = (size_t)t->pitch;
     ctex_texel *T = t->tx;
-    if (t->vmax - t->vbase > (float)(CTEX_Q_REBASE / CTEX_VQ) || t->vmax < t->vbase) ctex_tex_rebase(t);
+    ctex_tex_keep_base(t);
     splat_val sv;
     ctex_texel h;
     ctex_texel_set(t, &h, val, 0.0f);

@@ -144,6 +144,13 @@ static inline void ctex_texel_clear(ctex_texel *p)
  * the fixed-point window. */
 void ctex_tex_rebase(ctex_tex *t);
 
+/* Rebases when v_max has left the window [vbase, vbase + 512 texels] (aging
+ * raised it, or a caller set it directly). */
+static inline void ctex_tex_keep_base(ctex_tex *t)
+{
+    if (t->vmax - t->vbase > (float)(CTEX_Q_REBASE / CTEX_VQ) || t->vmax < t->vbase) ctex_tex_rebase(t);
+}
+
 /* Allocates w x h empty texels (validity -inf, correction 0), vmax = 0. */
 int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err);
 
@@ -201,7 +208,7 @@ vec3 ctex_tex_unproject(const ctex_tex *t, float u, float v);
 static inline void ctex_tex_age(ctex_tex *t, float offset)
 {
     if (offset > 0.0f) t->vmax += offset;
-    if (t->vmax - t->vbase > (float)(CTEX_Q_REBASE / CTEX_VQ)) ctex_tex_rebase(t);
+    ctex_tex_keep_base(t);
 }
 
 /* §3.6: changes the resolution to nw x nh: box filter (area average of valid
