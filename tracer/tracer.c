@@ -134,6 +134,13 @@ void trc_free(trc_tracer *t)
     free(t);
 }
 
+void trc_light_choice(const trc_tracer *t, uint32_t *emitters, bool *spatial, double *gain)
+{
+    *emitters = light_emitters(t->lights);
+    *spatial = light_is_spatial(t->lights);
+    *gain = light_spatial_gain(t->lights);
+}
+
 const trc_options *trc_get_options(const trc_tracer *t) { return &t->opt; }
 
 static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)

@@ -108,6 +108,10 @@ void trc_free(trc_tracer *t);
 /* The options it was made with. */
 const trc_options *trc_get_options(const trc_tracer *t);
 
+/* How the tracer picks lights, for logs: its emitters, whether each shading
+ * point weighs them itself, and the estimated gain of doing so (lights.h). */
+void trc_light_choice(const trc_tracer *t, uint32_t *emitters, bool *spatial, double *gain);
+
 /* Traces n requests into n sample records (full L_hq). */
 void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
                ct_sample *out, trc_stats *st);

@@ -348,6 +348,13 @@ int cmd_reference(int argc, char **argv)
     if ((rc = trc_new(s, have_rad ? &rad : NULL, &to, &t, &err))) goto fail;
     ct_info(CMD, "%s: %u triangles, %u lights; Embree scene built in %.2f s", a.scene, s->ntris, s->nemitters,
             ct_now() - tb);
+    uint32_t nem;
+    bool spatial;
+    double gain;
+    trc_light_choice(t, &nem, &spatial, &gain);
+    if (nem >= 2)
+        ct_info(CMD, "%u emitters, picked %s (estimated gain of a per-point choice %.2f)", nem,
+                spatial ? "per shading point" : "by power", gain);
     img.width = a.width;
     img.height = a.height;
     img.px = calloc((size_t)a.width * (size_t)a.height * 3, sizeof(float));

@@ -2,7 +2,8 @@
  * wall, a point's shadow rays go to its own room's light, on either face of
  * the wall; the pdf that light_pdf_area reports is the density light_sample
  * draws from; emitters behind a point get only the defensive share; racing
- * threads make the same estimates. */
+ * threads make the same estimates; the per-point choice is kept only where
+ * it can gain. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <pthread.h>
@@ -192,4 +193,41 @@ Test(lights, racing_threads_make_the_same_estimate)
     cr_expect(memcmp(again.cdf, once.cdf, sizeof once.cdf[0] * (once.n + 1)) == 0);
     two_rooms_free(&a);
     two_rooms_free(&b);
+}
+
+/* The per-point choice costs a lookup and a weighing at every shading point;
+ * light_build keeps it only where it can gain (lights.h). Two like panels
+ * side by side over one room light every point about alike: by power. Two
+ * rooms apart: per point. */
+Test(lights, per_point_choice_only_where_it_gains)
+{
+    ct_error err;
+    ct_scene *s = scene_new("one room, two panels");
+    int wall = ts_diffuse(s, "wall", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(10.0f), &err);
+    cr_assert(wall >= 0 && lamp >= 0);
+    cr_assert(ts_box(s, "room", (uint32_t)wall, v3(0, 0, 0), v3(5, 2.8f, 4.5f), true, &err) >= 0);
+    cr_assert(ts_quad(s, "left", (uint32_t)lamp, v3(1.5f, 2.79f, 2.6f), v3(0.8f, 0, 0), v3(0, 0, 0.4f), &err) >= 0);
+    cr_assert(ts_quad(s, "right", (uint32_t)lamp, v3(2.7f, 2.79f, 2.6f), v3(0.8f, 0, 0), v3(0, 0, 0.4f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    emb_mesh m = emb_mesh_of_scene(s);
+    emb_scene *e;
+    light_set *l;
+    CHECK(emb_new(&m, NULL, &e, &err));
+    CHECK(light_build(e, &l, &err));
+    double g = light_spatial_gain(l);
+    cr_expect(g >= 1.0 && g < 1.2, "gain %g", g);
+    cr_expect(!light_is_spatial(l));
+    light_sel sel;
+    light_select(l, v3(1.0f, 0.0f, 1.0f), v3(0, 1, 0), &sel);
+    cr_expect_eq(sel.n, 0u, "picked by power");
+    light_free(l);
+    emb_free(e);
+    scene_free(s);
+
+    two_rooms r;
+    two_rooms_make(&r);
+    cr_expect(light_is_spatial(r.l));
+    cr_expect(light_spatial_gain(r.l) > 2.0, "gain %g", light_spatial_gain(r.l));
+    two_rooms_free(&r);
 }
