@@ -140,21 +140,15 @@ static int start_all(worker *ws, int n, void *(*fn)(void *), ct_error *err)
     return CT_OK;
 }
 
-/* Wall time of replaying every worker's log on its own thread; the best of
- * `runs`, so a burst of load from other processes counts less. */
-static double replay(worker *ws, int n, int as_traced, int runs, ct_error *err, int *rc)
+/* Wall time of replaying every worker's log on its own thread. */
+static double replay(worker *ws, int n, int as_traced, ct_error *err, int *rc)
 {
-    double best = 0.0;
-    for (int run = 0; run < runs; run++) {
-        for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
-        double t0 = ct_now();
-        *rc = start_all(ws, n, run_replay, err);
-        if (*rc) return 0.0;
-        for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
-        double dt = ct_now() - t0;
-        if (run == 0 || dt < best) best = dt;
-    }
-    return best;
+    for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
+    double t0 = ct_now();
+    *rc = start_all(ws, n, run_replay, err);
+    if (*rc) return 0.0;
+    for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
+    return ct_now() - t0;
 }
 
 /* One pass over every tile on n threads (logging rays when log is set),
@@ -233,22 +227,40 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     }
     /* The timed pass traces without the ray log: recording every ray costs
      * the tracer some 15 % and is no part of its work. The log, when asked
-     * for, comes from a later, untimed pass over the same requests, which
-     * traces the very same rays (a sample is a pure function of its
-     * request). With the log (a benchmark) the timed pass runs bench_runs
-     * times and the fastest counts, as for the raw replays it is compared
-     * with. */
+     * for (a benchmark), comes from a first, untimed pass over the same
+     * requests, which traces the very same rays (a sample is a pure function
+     * of its request). Then bench_runs rounds of a timed pass and the two
+     * raw replays, the fastest of each counting: interleaved, so that a
+     * burst of load from other processes on a shared machine falls on both
+     * sides of the comparison rather than on one. */
     int rc = CT_OK;
-    int runs = o->bench_runs > 1 ? o->bench_runs : 1;
-    for (int run = 0; run < (o->raylog_cap ? runs : 1); run++) {
-        double t0 = ct_now();
-        rc = run_pass(&j, ws, o->threads, false, run == 0 ? o->progress : NULL, err);
+    if (o->raylog_cap) {
+        rc = run_pass(&j, ws, o->threads, true, NULL, err);
         if (rc) {
             free_workers(ws, o->threads);
             return rc;
         }
+        for (int i = 0; i < o->threads; i++) {
+            res->logged += ws[i].log.n;
+            trc_raylog_sort(&ws[i].log);
+        }
+    }
+    int runs = o->raylog_cap && o->bench_runs > 1 ? o->bench_runs : 1;
+    for (int run = 0; run < runs && !rc; run++) {
+        double t0 = ct_now();
+        rc = run_pass(&j, ws, o->threads, false, run == 0 ? o->progress : NULL, err);
+        if (rc) break;
         double dt = ct_now() - t0;
         if (run == 0 || dt < res->seconds) res->seconds = dt;
+        if (!res->logged) continue;
+        double ri = replay(ws, o->threads, 0, err, &rc);
+        double rt = rc ? 0.0 : replay(ws, o->threads, 1, err, &rc);
+        if (run == 0 || ri < res->replay_isect_s) res->replay_isect_s = ri;
+        if (run == 0 || rt < res->replay_traced_s) res->replay_traced_s = rt;
+    }
+    if (rc) {
+        free_workers(ws, o->threads);
+        return rc;
     }
     if (o->progress) ct_progress(o->progress, 1.0, 1, "%d tiles, %.2f s", j.ntiles, res->seconds);
     for (int i = 0; i < o->threads; i++) {
@@ -256,19 +268,6 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         res->stats.secondary += ws[i].st.secondary;
         res->stats.shadow += ws[i].st.shadow;
         res->stats.samples += ws[i].st.samples;
-    }
-    if (o->raylog_cap) {
-        rc = run_pass(&j, ws, o->threads, true, NULL, err);
-        if (rc) {
-            free_workers(ws, o->threads);
-            return rc;
-        }
-        for (int i = 0; i < o->threads; i++) res->logged += ws[i].log.n;
-    }
-    if (res->logged) {
-        for (int i = 0; i < o->threads; i++) trc_raylog_sort(&ws[i].log);
-        res->replay_isect_s = replay(ws, o->threads, 0, runs, err, &rc);
-        if (!rc) res->replay_traced_s = replay(ws, o->threads, 1, runs, err, &rc);
     }
     free_workers(ws, o->threads);
     return rc;

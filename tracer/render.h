@@ -25,8 +25,8 @@ typedef struct render_options {
     uint32_t epoch;       /* the requests' epoch (frame index for --frames) */
     size_t raylog_cap;    /* rays logged per thread for the raw replay (0: none);
                              a uniform random subset of the traced rays */
-    int bench_runs;       /* with a ray log: timed renders and replays, the fastest
-                             of each counts (>= 1) */
+    int bench_runs;       /* with a ray log: rounds of a timed render and the raw
+                             replays, interleaved; the fastest of each counts (>= 1) */
     const char *progress; /* progress line component, NULL: silent */
 } render_options;
 

@@ -84,12 +84,12 @@ static void help(FILE *f)
         "  --half            write half-float EXR (default: 32-bit float)\n"
         "  --png             also write a PNG preview beside each EXR\n"
         "  --exposure E      PNG preview exposure in stops (default 0)\n"
-        "  --raw-embree      benchmark: render R times (the fastest counts), log the rays\n"
-        "                    in one more, untimed render and replay them with raw Embree\n"
-        "                    queries (the fastest of R replays)\n"
+        "  --raw-embree      benchmark: log the rays in a first, untimed render, then R\n"
+        "                    rounds of a timed render and raw Embree replays of the log\n"
+        "                    (the fastest of each counts)\n"
         "  --raw-cap N       rays logged per thread, a uniform random subset of all\n"
         "                    traced rays (default 2000000)\n"
-        "  --bench-runs R    renders and replays of --raw-embree (default 2)\n"
+        "  --bench-runs R    rounds of --raw-embree (default 2)\n"
         "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
         "  --quiet, --verbose\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
