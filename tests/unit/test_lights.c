@@ -22,6 +22,16 @@ typedef struct two_rooms {
     int light_a, light_b, lamp_b;   /* part nodes */
 } two_rooms;
 
+/* Finalizes s and builds its Embree scene and light set. */
+static void lights_of(ct_scene *s, emb_scene **e, light_set **l)
+{
+    ct_error err;
+    CHECK(scene_finalize(s, &err));
+    emb_mesh m = emb_mesh_of_scene(s);
+    CHECK(emb_new(&m, NULL, e, &err));
+    CHECK(light_build(*e, l, &err));
+}
+
 /* Room A is x in [0, 4], room B x in [4.1, 8.1] (a 0.1 wall between, closed
  * boxes), 3 high, 4 deep; a ceiling light in each, facing down, and a small
  * floor lamp (a closed box: not flat) in B. */
@@ -39,10 +49,7 @@ static void two_rooms_make(two_rooms *r)
     r->light_b = ts_quad(r->s, "light_b", (uint32_t)lamp, v3(5.6f, 2.99f, 1.5f), v3(1, 0, 0), v3(0, 0, 1), &err);
     r->lamp_b = ts_box(r->s, "lamp_b", (uint32_t)lamp, v3(7.5f, 0.5f, 3.5f), v3(7.6f, 0.6f, 3.6f), false, &err);
     cr_assert(r->light_a >= 0 && r->light_b >= 0 && r->lamp_b >= 0);
-    CHECK(scene_finalize(r->s, &err));
-    emb_mesh m = emb_mesh_of_scene(r->s);
-    CHECK(emb_new(&m, NULL, &r->emb, &err));
-    CHECK(light_build(r->emb, &r->l, &err));
+    lights_of(r->s, &r->emb, &r->l);
 }
 
 static void two_rooms_free(two_rooms *r)
@@ -142,12 +149,9 @@ Test(lights, emitters_behind_get_only_the_defensive_share)
     int p2 = ts_quad(s, "p2", (uint32_t)lamp, v3(2, 1, 0), v3(1, 0, 0), v3(0, 0, 1), &err);
     int p3 = ts_quad(s, "p3", (uint32_t)lamp, v3(1, 3, 0), v3(1, 0, 0), v3(0, 0, 1), &err);
     cr_assert(p1 >= 0 && p2 >= 0 && p3 >= 0);
-    CHECK(scene_finalize(s, &err));
-    emb_mesh m = emb_mesh_of_scene(s);
     emb_scene *e;
     light_set *l;
-    CHECK(emb_new(&m, NULL, &e, &err));
-    CHECK(light_build(e, &l, &err));
+    lights_of(s, &e, &l);
     light_sel sel;
     light_select(l, v3(1.5f, 1.5f, 0.5f), v3(0, 1, 0), &sel);
     double p[3] = {p_on(l, e, &sel, p1), p_on(l, e, &sel, p2), p_on(l, e, &sel, p3)};
@@ -209,12 +213,9 @@ Test(lights, per_point_choice_only_where_it_gains)
     cr_assert(ts_box(s, "room", (uint32_t)wall, v3(0, 0, 0), v3(5, 2.8f, 4.5f), true, &err) >= 0);
     cr_assert(ts_quad(s, "left", (uint32_t)lamp, v3(1.5f, 2.79f, 2.6f), v3(0.8f, 0, 0), v3(0, 0, 0.4f), &err) >= 0);
     cr_assert(ts_quad(s, "right", (uint32_t)lamp, v3(2.7f, 2.79f, 2.6f), v3(0.8f, 0, 0), v3(0, 0, 0.4f), &err) >= 0);
-    CHECK(scene_finalize(s, &err));
-    emb_mesh m = emb_mesh_of_scene(s);
     emb_scene *e;
     light_set *l;
-    CHECK(emb_new(&m, NULL, &e, &err));
-    CHECK(light_build(e, &l, &err));
+    lights_of(s, &e, &l);
     double g = light_spatial_gain(l);
     cr_expect(g >= 1.0 && g < 1.2, "gain %g", g);
     cr_expect(!light_is_spatial(l));
