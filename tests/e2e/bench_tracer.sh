@@ -16,7 +16,7 @@ cat "$tmp/b.md"
 [[ $(grep -c '^+ pass [12]/2: ' "$tmp/log") == 4 ]] || fail "not 2 passes over 2 rows"
 grep -q '^kept$' "$tmp/b.md" || fail "another section was lost"
 grep -q '^old$' "$tmp/b.md" && fail "the old Tracer section stayed"
-rows=$(grep -cE '^\| mini \| [0-9]+ \| (path|drt[^|]*) \| 1 \| [0-9.]+ \|.* [0-9]+ % \| [0-9]+-[0-9]+ % \| [0-9]+ % \| (yes|no) \|$' "$tmp/b.md")
+rows=$(grep -cE '^\| mini \| [0-9]+ \| (path|drt[^|]*) \| 1 \| [0-9.]+ \|.* [0-9]+\.[0-9] % \| [0-9]+\.[0-9]-[0-9]+\.[0-9] % \| [0-9]+\.[0-9] % \| (yes|no) \|$' "$tmp/b.md")
 [[ $rows == 2 ]] || fail "$rows well-formed table rows, want 2"
 grep -q 'met in [0-2] of 2 rows' "$tmp/b.md" || fail "no goal summary"
 CORRTEX_BIN=$bin scripts/bench-tracer --passes 0 --out "$tmp/c.md" >/dev/null 2>"$tmp/err"
