@@ -49,6 +49,16 @@ static inline vec3 integ_vertex_lerp(const vec3 *val, const emb_hit *h)
     return v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
 }
 
+/* Starts loading the per-vertex values integ_vertex_lerp will read at h (three
+ * random reads into a large mesh's arrays). */
+static inline void integ_vertex_prefetch(const vec3 *val, const emb_hit *h)
+{
+    const uint32_t *i = h->rec->v;
+    __builtin_prefetch(&val[i[0]]);
+    __builtin_prefetch(&val[i[1]]);
+    __builtin_prefetch(&val[i[2]]);
+}
+
 /* Traces a primary ray (counted as primary); false on a miss. */
 bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s);
 

@@ -250,6 +250,15 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
             st->samples++;
             hit[k] = primary_start(&c, v, &vp, &req[i0 + k], &out[i0 + k], &h[k], &d[k]);
         }
+        /* The radiosity at the hits (L_base; drt also takes its direct
+         * part for the indirect light) is three more random reads per
+         * array: started together once the records are in. */
+        if (t->rad)
+            for (size_t k = 0; k < m; k++) {
+                if (!hit[k]) continue;
+                integ_vertex_prefetch(t->rad->rad, &h[k]);
+                if (t->opt.mode == TRC_MODE_DRT) integ_vertex_prefetch(t->rad->rad_direct, &h[k]);
+            }
         for (size_t k = 0; k < m; k++)
             if (hit[k]) primary_finish(t, &c, &h[k], d[k], &out[i0 + k], &s[k]);
         for (size_t k = 0; k < m; k++) {
