@@ -85,7 +85,7 @@ struct light_set {
     float *em_cdf;       /* ne + 1 entries: emitters by power */
     /* The visibility grid (only with 2..LIGHT_SEL_MAX emitters). */
     bool spatial;
-    double gain;                 /* spatial_gain (1 with fewer than 2 emitters) */
+    double gain;                 /* spatial_gain; 0 where not estimated (see light_spatial_gain) */
     vec3 lo;
     float h;
     uint32_t nx, ny, nz;
@@ -347,9 +347,9 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
     }
     if (l->ne) l->em_cdf[l->ne] = 1.0f;
     if (l->ne >= 2 && l->ne <= LIGHT_SEL_MAX) {
-        if (build_soa(l) != CT_OK) goto oom;
         l->gain = spatial_gain(l);
-        if (!(l->gain < LIGHT_SPATIAL_MIN_GAIN) && build_grid(l) != CT_OK) goto oom;
+        /* The weighing arrays and the grid serve the per-point choice only. */
+        if (!(l->gain < LIGHT_SPATIAL_MIN_GAIN) && (build_soa(l) != CT_OK || build_grid(l) != CT_OK)) goto oom;
     }
     free(node_em);
     free(fill);
@@ -385,7 +385,7 @@ uint32_t light_emitters(const light_set *l) { return l->ne; }
 
 bool light_is_spatial(const light_set *l) { return l->spatial; }
 
-double light_spatial_gain(const light_set *l) { return l->ne >= 2 ? l->gain : 1.0; }
+double light_spatial_gain(const light_set *l) { return l->gain; }
 
 /* The light of emitter em that v in [0, 1) picks by power (the emitter's
  * cdf has no leading 0). */

@@ -90,8 +90,9 @@ uint32_t light_emitters(const light_set *l);
  * power alone, see above). */
 bool light_is_spatial(const light_set *l);
 
-/* The estimated gain of the per-point choice over the power choice (>= 1;
- * 1 with fewer than two emitters). */
+/* The estimated gain of the per-point choice over the power choice (>= 1),
+ * or 0 where it is not estimated: fewer than two emitters, or more than
+ * LIGHT_SEL_MAX (both pick by power). */
 double light_spatial_gain(const light_set *l);
 
 /* Fills sel with the emitter probabilities at x on a surface with normal n

@@ -352,7 +352,7 @@ int cmd_reference(int argc, char **argv)
     bool spatial;
     double gain;
     trc_light_choice(t, &nem, &spatial, &gain);
-    if (nem >= 2)
+    if (gain > 0.0)
         ct_info(CMD, "%u emitters, picked %s (estimated gain of a per-point choice %.2f)", nem,
                 spatial ? "per shading point" : "by power", gain);
     img.width = a.width;
