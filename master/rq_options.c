@@ -24,7 +24,10 @@ void rq_options_default(rq_options *o)
     o->prio_reproject = 4e9f;      /* §3.7: high priority, above every |E| * s */
     o->prio_seed = 2e9f;           /* §3.7: high priority */
     o->prio_mismatch = 1e9f;
-    o->reseed = 0;                 /* §3.7 / Fig. 4: a new view starts from reprojected samples */
+    /* Fig. 4 starts a new view from the reprojected samples alone and adds
+     * global requests when the queue runs dry; while the camera moves it
+     * never does, and what comes into view is never sampled (docs/sampling.md). */
+    o->reseed = 1;
     o->max_queue = 0;
 }
 

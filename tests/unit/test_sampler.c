@@ -479,7 +479,7 @@ Test(sampler, significant_samples_reproject_to_their_world_points)
     rq_stats st;
     rq_stats_get(e, &st);
     cr_assert_eq(st.reprojected + st.reproject_dropped, (uint64_t)NSIG);
-    /* After them, global requests (reseed is off). */
+    /* After them, the new grid (reseed is on by default). */
     for (int i = j; i < k; i++) cr_assert_eq(r[i].priority, o.prio_seed);
     rq_free(e);
 }
@@ -489,6 +489,7 @@ Test(sampler, epochs_drop_old_requests_and_samples)
     enum { W = 32, H = 32 };
     rq_options o = spaced(8);
     o.n_sig = 0;
+    o.reseed = 0;   /* nothing new queued: what is left is old */
     rq_engine *e = make(W, H, &o, 10);
     ct_camera a = cam_a();
     ct_request r[16];
@@ -540,11 +541,11 @@ Test(sampler, epochs_drop_old_requests_and_samples)
     rq_free(e);
 }
 
-Test(sampler, reseed_option_queues_a_new_grid)
+Test(sampler, camera_change_queues_a_new_grid_unless_reseed_is_off)
 {
     rq_options o = spaced(16);
+    cr_assert_eq(o.reseed, 1, "on by default");
     o.n_sig = 0;
-    o.reseed = 1;
     rq_engine *e = make(64, 64, &o, 12);
     ct_camera a = cam_a();
     cr_assert_eq(rq_set_camera(e, &a, 1, NULL), 0);
@@ -552,6 +553,14 @@ Test(sampler, reseed_option_queues_a_new_grid)
     rq_stats_get(e, &st);
     cr_assert_eq(st.seeds, 32u);
     cr_assert_eq(st.queued, 16u);
+    rq_free(e);
+
+    o.reseed = 0;   /* Fig. 4: only the reprojected samples (none here) */
+    e = make(64, 64, &o, 12);
+    cr_assert_eq(rq_set_camera(e, &a, 1, NULL), 0);
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.seeds, 16u);
+    cr_assert_eq(st.queued, 0u);
     rq_free(e);
 }
 
@@ -682,6 +691,7 @@ Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
     enum { W = 32, H = 32 };
     rq_options o = spaced(8);
     o.n_sig = 50;
+    o.reseed = 0;   /* only reprojected requests in the queue */
     rq_engine *e = make(W, H, &o, 14);
     ct_camera a = cam_a();
     ct_request r[16];
