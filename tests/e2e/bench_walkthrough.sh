@@ -7,6 +7,7 @@
 # with other options); recorded commands are copy-pastable; the caches stay
 # under --work; a bad option -> exit 2 with one error line.
 source "$(dirname "$0")/lib/common.sh"
+source "$root/tests/e2e/lib/walk-san-env.bash"
 cd "$root" || exit 1
 w=$tmp/w
 printf '# Benchmarks\n\n## Other\n\nkept\n\n## Walkthrough\n\nold\n' > "$tmp/b.md"
