@@ -459,7 +459,8 @@ static vec3 probe_point(const light_set *l, vec3 base, int side, ct_rng *r)
 /* The candidates of (cell, side) (ix, iy, iz, side): emitters scored by
  * their unblocked contribution at the cell centre times the visibility
  * factor of LIGHT_VIS_RAYS test rays between points of surfaces facing
- * `side` in the cell and the emitter; the best LIGHT_CANDS. Emitters under
+ * `side` in the cell and the emitter; the best LIGHT_CANDS of those with at
+ * least LIGHT_CAND_MIN_SHARE of the summed scores. Emitters under
  * LIGHT_VIS_SKIP of the strongest are left to the defensive picks (no rays).
  * A pure function of the key. */
 static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t iy, uint32_t iz, int side,
@@ -499,6 +500,14 @@ static void estimate_key(const light_set *l, uint32_t key, uint32_t ix, uint32_t
         vis[k] = (uint8_t)open;
         score[k] = wk[k] * (LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * (float)open / (float)LIGHT_VIS_RAYS);
     }
+    /* Emitters under LIGHT_CAND_MIN_SHARE of the total are left to the
+     * defensive picks: nearly all are lights of other rooms that no test
+     * ray reached (only the floor beta keeps their score above 0), and
+     * weighing them at every shading point cost more than they saved. */
+    float total = 0.0f;
+    for (uint32_t k = 0; k < l->ne; k++) total += score[k];
+    for (uint32_t k = 0; k < l->ne; k++)
+        if (score[k] < LIGHT_CAND_MIN_SHARE * total) score[k] = 0.0f;
     /* The best LIGHT_CANDS by score (ties: lower index), in that order. */
     out->n = 0;
     bool taken[LIGHT_SEL_MAX] = {false};

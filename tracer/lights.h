@@ -16,8 +16,9 @@
  *   - with probability LIGHT_DEFENSIVE among all emitters by power (every
  *     emitter keeps a positive density: the estimator stays unbiased).
  * The candidates of a (cell, side) are its LIGHT_CANDS strongest emitters by
- * that estimate at the cell centre, made the first time the cell and side is
- * used (deterministically). So p_A(y | x) = P(emitter | x) * lum(L_e(y)) /
+ * that estimate at the cell centre, leaving out those under
+ * LIGHT_CAND_MIN_SHARE of the sum over all emitters, made the first time the
+ * cell and side is used (deterministically). So p_A(y | x) = P(emitter | x) * lum(L_e(y)) /
  * power(emitter). Without a shading point (or with one emitter, or more than
  * LIGHT_SEL_MAX) the emitter is picked by power alone.
  *
@@ -45,6 +46,9 @@
 #define LIGHT_SEL_MAX 255
 /* Emitters weighed at each shading point (a cell's strongest). */
 #define LIGHT_CANDS 16
+/* Emitters below this share of a cell's summed estimate are no candidates
+ * (they keep the defensive share). */
+#define LIGHT_CAND_MIN_SHARE 0.01f
 /* Share of emitter picks by power among all emitters (the defensive part). */
 #define LIGHT_DEFENSIVE 0.02f
 /* beta: the visibility estimate's floor (see above). */

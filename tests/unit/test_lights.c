@@ -2,11 +2,13 @@
  * wall, a point's shadow rays go to its own room's light, on either face of
  * the wall; the pdf that light_pdf_area reports is the density light_sample
  * draws from; emitters behind a point get only the defensive share; racing
- * threads make the same estimates; the per-point choice is kept only where
+ * emitters of negligible estimate are no candidates; racing threads make
+ * the same estimates; the per-point choice is kept only where
  * it can gain. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "tests/support/testscenes.h"
@@ -158,6 +160,51 @@ Test(lights, emitters_behind_get_only_the_defensive_share)
     cr_expect(fabs(p[0] + p[1] + p[2] - 1.0) < 1e-4);
     cr_expect(p[0] + p[1] <= LIGHT_DEFENSIVE + 1e-6, "panels behind the point get %g", p[0] + p[1]);
     cr_expect(p[0] > 0.0 && p[1] > 0.0, "but keep a positive density");
+    light_free(l);
+    emb_free(e);
+    scene_free(s);
+}
+
+/* Three rooms in a row, a ceiling panel in each: from the far end of room A,
+ * room C's blocked panel is under LIGHT_CAND_MIN_SHARE of the summed
+ * estimate (distance and the visibility floor), room B's just above it. C is
+ * then no candidate and keeps only the defensive share, which stays
+ * positive. */
+Test(lights, negligible_emitters_are_no_candidates)
+{
+    ct_error err;
+    ct_scene *s = scene_new("three rooms");
+    int wall = ts_diffuse(s, "wall", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(10.0f), &err);
+    cr_assert(wall >= 0 && lamp >= 0);
+    int panel[3];
+    for (int k = 0; k < 3; k++) {
+        float x0 = 4.1f * (float)k;
+        char name[16];
+        snprintf(name, sizeof name, "room_%c", 'a' + k);
+        cr_assert(ts_box(s, name, (uint32_t)wall, v3(x0, 0, 0), v3(x0 + 4, 3, 4), true, &err) >= 0);
+        snprintf(name, sizeof name, "light_%c", 'a' + k);
+        panel[k] = ts_quad(s, name, (uint32_t)lamp, v3(x0 + 1.5f, 2.99f, 1.5f), v3(1, 0, 0), v3(0, 0, 1), &err);
+        cr_assert(panel[k] >= 0);
+    }
+    emb_scene *e;
+    light_set *l;
+    lights_of(s, &e, &l);
+    cr_assert(light_is_spatial(l));
+    light_sel sel;
+    light_select(l, v3(0.3f, 0.0f, 2.0f), v3(0, 1, 0), &sel);
+    /* Which panel each candidate is: all of a selection that has only that
+     * candidate and no defensive share lands on it. */
+    bool cand[3] = {false, false, false};
+    for (uint32_t j = 0; j < sel.n; j++) {
+        light_sel one = {.n = 1, .defensive = 0.0f, .idx = {sel.idx[j]}, .cdf = {0.0f, 1.0f}};
+        for (int k = 0; k < 3; k++)
+            if (p_on(l, e, &one, panel[k]) > 0.5) cand[k] = true;
+    }
+    cr_expect(cand[0] && cand[1], "rooms A and B's panels are candidates");
+    cr_expect(!cand[2], "room C's panel is no candidate");
+    double pc = p_on(l, e, &sel, panel[2]);
+    cr_expect(pc > 0.0 && pc <= LIGHT_DEFENSIVE / 3.0 + 1e-6, "room C's panel keeps the defensive share: %g", pc);
     light_free(l);
     emb_free(e);
     scene_free(s);
