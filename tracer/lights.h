@@ -18,9 +18,10 @@
  * The candidates of a (cell, side) are its LIGHT_CANDS strongest emitters by
  * that estimate at the cell centre, leaving out those under
  * LIGHT_CAND_MIN_SHARE of the sum over all emitters, made the first time the
- * cell and side is used (deterministically). So p_A(y | x) = P(emitter | x) * lum(L_e(y)) /
- * power(emitter). Without a shading point (or with one emitter, or more than
- * LIGHT_SEL_MAX) the emitter is picked by power alone.
+ * cell and side is used (deterministically). So
+ * p_A(y | x) = P(emitter | x) * lum(L_e(y)) / power(emitter). Without a
+ * shading point (or with one emitter, or more than LIGHT_SEL_MAX) the
+ * emitter is picked by power alone.
  *
  * The per-point choice costs a grid lookup (a cache miss) and the weighing
  * of the candidates at every shading point: about 13 % of path tracing's
