@@ -92,9 +92,25 @@ struct light_set {
     grid_key *keys;              /* per key (cell * 6 + side) */
 };
 
+/* Below this many entries a CDF is searched by counting instead of
+ * bisecting: the count has no data-dependent branch, and a bisection's
+ * branches (one per halving, taken at random) mispredicted about every
+ * other time. */
+#define CDF_SCAN_MAX 32
+
+/* Number of a[0..n) <= u: for a non-decreasing a, the first index whose
+ * entry exceeds u. */
+static inline uint32_t count_le(const float *a, uint32_t n, float u)
+{
+    uint32_t c = 0;
+    for (uint32_t i = 0; i < n; i++) c += a[i] <= u;
+    return c;
+}
+
 static uint32_t emitter_of_cdf(const float *cdf, uint32_t n, float u)
 {
-    /* First index whose cdf[i + 1] > u. */
+    /* First index whose cdf[i + 1] > u (n - 1 when none). */
+    if (n <= CDF_SCAN_MAX) return count_le(cdf + 1, n - 1, u);
     uint32_t lo = 0, hi = n - 1;
     while (lo < hi) {
         uint32_t mid = (lo + hi) / 2;
@@ -391,6 +407,7 @@ double light_spatial_gain(const light_set *l) { return l->gain; }
  * cdf has no leading 0). */
 static uint32_t light_of_emitter(const light_set *l, const emitter *em, float v)
 {
+    if (em->count <= CDF_SCAN_MAX) return em->first + count_le(l->cdf + em->first, em->count - 1, v);
     uint32_t lo = em->first, hi = em->first + em->count - 1;
     while (lo < hi) {
         uint32_t mid = (lo + hi) / 2;

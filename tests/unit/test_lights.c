@@ -4,11 +4,13 @@
  * draws from; emitters behind a point get only the defensive share; racing
  * emitters of negligible estimate are no candidates; racing threads make
  * the same estimates; the per-point choice is kept only where
- * it can gain. */
+ * it can gain; every triangle is picked as often as its pdf says, through
+ * short and long CDFs alike. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "tests/support/testscenes.h"
@@ -278,4 +280,69 @@ Test(lights, per_point_choice_only_where_it_gains)
     cr_expect(light_is_spatial(r.l));
     cr_expect(light_spatial_gain(r.l) > 2.0, "gain %g", light_spatial_gain(r.l));
     two_rooms_free(&r);
+}
+
+/* Frequencies with which light_sample picks each emissive triangle under
+ * sel, against what light_pdf_area says (pdf * area), stratified over u0. */
+static void expect_triangle_frequencies(const light_set *l, const emb_scene *e, const light_sel *sel,
+                                        const char *what)
+{
+    const emb_mesh *m = emb_get_mesh(e);
+    enum { N = 400000 };
+    int *hits = calloc(m->ntris, sizeof *hits);
+    cr_assert(hits);
+    for (int i = 0; i < N; i++) {
+        float u0 = ((float)i + 0.5f) / N, u1 = fmodf((float)i * 0.618034f, 1.0f),
+              u2 = fmodf((float)i * 0.754878f, 1.0f);
+        light_point lp;
+        cr_assert(light_sample(l, sel, u0, u1, u2, &lp));
+        cr_assert(lp.tri < m->ntris);
+        hits[lp.tri]++;
+    }
+    double worst = 0.0;
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        double want = (double)light_pdf_area(l, sel, t) * emb_tri_area(m, t), got = (double)hits[t] / N;
+        worst = fmax(worst, fabs(got - want));
+        cr_expect(fabs(got - want) < 1e-4 + 1e-3 * want, "%s: triangle %u picked %g, pdf says %g", what, t, got,
+                  want);
+    }
+    printf("%s: largest frequency error %.2g over %u triangles\n", what, worst, m->ntris);
+    free(hits);
+}
+
+/* light_sample searches short CDFs by counting and long ones by bisection
+ * (lights.c): both must pick every triangle as often as its pdf says. A
+ * sphere lamp of 96 facets of unequal area (a long emitter CDF) and 40 small
+ * panels (41 emitters: a long power CDF) pick by power; a point's few
+ * candidates give a short CDF. */
+Test(lights, every_triangle_is_picked_as_often_as_its_pdf_says)
+{
+    ct_error err;
+    ct_scene *s = scene_new("many lamps");
+    int wall = ts_diffuse(s, "wall", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(4.0f), &err);
+    int dim = ts_diffuse(s, "dim", v3s(0.0f), v3(1.0f, 0.5f, 0.25f), &err);
+    cr_assert(wall >= 0 && lamp >= 0 && dim >= 0);
+    cr_assert(ts_box(s, "hall", (uint32_t)wall, v3(0, 0, 0), v3(20, 3, 4), true, &err) >= 0);
+    cr_assert(ts_sphere(s, "globe", (uint32_t)lamp, v3(2, 1.5f, 2), 0.3f, 12, 4, false, &err) >= 0);
+    for (int i = 0; i < 40; i++) {
+        char name[16];
+        snprintf(name, sizeof name, "panel%d", i);
+        float x = 0.25f + 0.49f * (float)i, w = 0.1f + 0.01f * (float)(i % 7);
+        cr_assert(ts_quad(s, name, (uint32_t)(i % 3 ? lamp : dim), v3(x, 2.99f, 1.0f + 0.05f * (float)(i % 5)),
+                          v3(w, 0, 0), v3(0, 0, 0.3f), &err) >= 0);
+    }
+    emb_scene *e;
+    light_set *l;
+    lights_of(s, &e, &l);
+    cr_assert_eq(light_emitters(l), 41u);
+    light_sel sel;
+    light_select_power(&sel);
+    expect_triangle_frequencies(l, e, &sel, "by power");
+    light_select(l, v3(10.0f, 0.0f, 2.0f), v3(0, 1, 0), &sel);
+    if (light_is_spatial(l)) cr_expect(sel.n > 0 && sel.n <= LIGHT_CANDS);
+    expect_triangle_frequencies(l, e, &sel, "at a floor point");
+    light_free(l);
+    emb_free(e);
+    scene_free(s);
 }
