@@ -1,7 +1,7 @@
 /* The tracer's light selection (tracer/lights.h): in two rooms separated by a
  * wall, a point's shadow rays go to its own room's light, on either face of
  * the wall; the pdf that light_pdf_area reports is the density light_sample
- * draws from; emitters behind a point get only the defensive share; racing
+ * draws from; emitters behind a point get only the defensive share;
  * emitters of negligible estimate are no candidates; racing threads make
  * the same estimates; the per-point choice is kept only where
  * it can gain; every triangle is picked as often as its pdf says, through
