@@ -277,6 +277,40 @@ void ctex_export_nodes(const ctex *c, rmesh_node *out)
     }
 }
 
+int ctex_display_mesh(const ctex *c, const ct_radmesh *mesh, ct_radmesh *out, ct_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (mesh->ntris != c->h.ntris)
+        return ct_fail(err, CT_EINVAL, "display mesh: %u triangles, the texture hierarchy has %u", mesh->ntris,
+                       c->h.ntris);
+    rmesh_node *nodes = malloc((c->h.nnodes ? c->h.nnodes : 1) * sizeof *nodes);
+    uint32_t *tri_node = malloc((mesh->ntris ? mesh->ntris : 1) * sizeof *tri_node);
+    if (!nodes || !tri_node) {
+        free(nodes);
+        free(tri_node);
+        return ct_fail(err, CT_ENOMEM, "out of memory for the display's node table (%u nodes, %u triangles)",
+                       c->h.nnodes, mesh->ntris);
+    }
+    ctex_export_nodes(c, nodes);
+    /* (Every triangle lies in a leaf; the root only guards the range.) */
+    for (uint32_t t = 0; t < mesh->ntris; t++) {
+        uint32_t h = ctex_hnode_of_tri(c, t);
+        tri_node[t] = h < c->h.nnodes ? h : 0;
+    }
+    *out = *mesh;
+    out->nnodes = c->h.nnodes;
+    out->nodes = nodes;
+    out->tri_node = tri_node;
+    return CT_OK;
+}
+
+void ctex_display_mesh_free(ct_radmesh *out)
+{
+    free(out->nodes);
+    free(out->tri_node);
+    memset(out, 0, sizeof *out);
+}
+
 uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part)
 {
     if (part >= c->h.npart_map || c->h.part_hnode[part] < 0) return UINT32_MAX;

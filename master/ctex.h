@@ -190,6 +190,19 @@ const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n);
  * holds ctex_get_stats(c).hier_nodes entries. */
 void ctex_export_nodes(const ctex *c, rmesh_node *out);
 
+/* The radiosity mesh as the display receives it (SCENE): mesh's vertices,
+ * triangles and materials with the texture hierarchy as its node table
+ * (ctex_export_nodes) and each triangle's hierarchy leaf as its node
+ * (ctex_hnode_of_tri), so that a texture on hierarchy node h is drawn on
+ * exactly the triangles of h's subtree: a cluster's texture on its cluster,
+ * not on its whole part. mesh must be the mesh c was built from. out shares
+ * mesh's other arrays and owns nodes and tri_node: release them with
+ * ctex_display_mesh_free (not rmesh_free). */
+int ctex_display_mesh(const ctex *c, const ct_radmesh *mesh, ct_radmesh *out, ct_error *err);
+
+/* Frees what ctex_display_mesh allocated and zeroes out. */
+void ctex_display_mesh_free(ct_radmesh *out);
+
 /* The hierarchy node of scene part node `part` (its leaf, or the root of its
  * clusters), or UINT32_MAX when it has no triangles. */
 uint32_t ctex_hnode_of_part(const ctex *c, uint32_t part);

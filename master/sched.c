@@ -132,15 +132,6 @@ typedef struct frame_req {
     wire_camera cam;
 } frame_req;
 
-/* Display ids of the extra copies of one texture. */
-typedef struct tex_copies {
-    uint32_t *ids;
-    uint32_t n, cap;
-} tex_copies;
-
-#define MAX_COPY_IDS 4096          /* reusable copy ids kept */
-#define FIRST_COPY_ID (1u << 30)   /* copy ids never meet the engine's texture ids */
-
 /* Everything the loop keeps between turns. */
 typedef struct loop_state {
     const sched_config *c;
@@ -181,20 +172,11 @@ typedef struct loop_state {
     wire_buf mbuf, obuf;
     uint16_t *patch_h;
     size_t patch_cap;
-    uint32_t *has_tris;         /* mesh node -> 1 when it owns triangles */
     /* timing */
     double t_tex, t_sample_wait, t_render_wait, t_mark;
     double last_patch, last_stats;
     uint64_t bytes_mark;
-    uint64_t stale, inserted, dropped_tex, copied_textures;
-    /* display copies of textures on groups of parts (display_targets) */
-    tex_copies *cp;
-    uint32_t ncp;
-    uint32_t free_ids[MAX_COPY_IDS];
-    uint32_t nfree;
-    uint32_t next_copy_id;
-    uint32_t *parts;            /* display_targets' scratch */
-    uint32_t parts_cap;
+    uint64_t stale, inserted, dropped_tex;
     uint64_t total_samples;
     /* SAMPLES: hit points inserted since the last send (droppable) */
     float *pts;                 /* 3 * WIRE_SAMPLES_MAX_POINTS floats once a display is there */
@@ -216,106 +198,6 @@ static int grow(void **p, uint32_t *cap, uint32_t need, size_t elem, ct_error *e
 }
 
 /* --- texture events -> display --------------------------------------------- */
-
-/* The mesh nodes a hierarchy node's texture is drawn on (TEX_ALLOC names
- * one node, whose whole subtree the display draws with it): its single part;
- * the lowest common ancestor of its parts when they are exactly that
- * ancestor's parts; else every part on its own (a BVH group of some of a
- * node's children), each then gets a copy of the texture. Returns the count. */
-static int by_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return x < y ? -1 : x > y;
-}
-
-static uint32_t display_targets(loop_state *s, uint32_t hnode, const uint32_t **list, uint32_t *one)
-{
-    uint32_t n = 0;
-    const uint32_t *raw = ctex_node_parts(s->tex, hnode, &n);
-    *list = one;
-    *one = 0;
-    if (!raw || n == 0) return 1;
-    /* Each part once (a part may be listed once per leaf it has). */
-    if (n > s->parts_cap) {
-        uint32_t *p = realloc(s->parts, n * sizeof *p);
-        if (!p) {
-            *one = raw[0];
-            return 1;
-        }
-        s->parts = p;
-        s->parts_cap = n;
-    }
-    memcpy(s->parts, raw, n * sizeof *raw);
-    qsort(s->parts, n, sizeof *s->parts, by_u32);
-    uint32_t u = 0;
-    for (uint32_t i = 0; i < n; i++)
-        if (u == 0 || s->parts[i] != s->parts[u - 1]) s->parts[u++] = s->parts[i];
-    n = u;
-    const uint32_t *parts = s->parts;
-    *one = parts[0];
-    if (n == 1) return 1;
-    const ct_radmesh *m = s->c->mesh;
-    int32_t a = (int32_t)parts[0];
-    for (uint32_t i = 1; i < n && a >= 0; i++) {
-        uint32_t p = parts[i];
-        while (a >= 0 && !(p >= (uint32_t)a && p < m->nodes[a].node_end)) a = m->nodes[a].parent;
-    }
-    if (a >= 0) {
-        uint32_t owned = 0;
-        for (uint32_t k = (uint32_t)a; k < m->nodes[a].node_end; k++) owned += s->has_tris[k];
-        if (owned == n) {
-            *one = (uint32_t)a;
-            return 1;
-        }
-    }
-    *list = parts;
-    return n;
-}
-
-static int send_msg(loop_state *s, const wire_msg *m, ct_error *err);
-
-/* Forgets texture tex's copies (sending TEX_FREE for each when send). */
-static int release_copies(loop_state *s, uint32_t tex, int send, ct_error *err)
-{
-    if (tex >= s->ncp) return 0;
-    tex_copies *c = &s->cp[tex];
-    int rc = 0;
-    for (uint32_t i = 0; i < c->n; i++) {
-        if (send && rc == 0) {
-            wire_msg m = {.type = WIRE_TEX_FREE};
-            m.u.tex_free.tex = c->ids[i];
-            rc = send_msg(s, &m, err);
-        }
-        if (s->nfree < MAX_COPY_IDS) s->free_ids[s->nfree++] = c->ids[i];
-    }
-    c->n = 0;
-    return rc;
-}
-
-/* Records a new copy of texture tex; its display id in *id. */
-static int add_copy(loop_state *s, uint32_t tex, uint32_t *id, ct_error *err)
-{
-    if (tex >= s->ncp) {
-        uint32_t n = s->ncp ? s->ncp : 64;
-        while (n <= tex) n *= 2;
-        tex_copies *p = realloc(s->cp, n * sizeof *p);
-        if (!p) return ct_fail(err, CT_ENOMEM, "master: out of memory for texture copies");
-        memset(p + s->ncp, 0, (n - s->ncp) * sizeof *p);
-        s->cp = p;
-        s->ncp = n;
-    }
-    tex_copies *c = &s->cp[tex];
-    if (c->n == c->cap) {
-        uint32_t n = c->cap ? 2 * c->cap : 4;
-        uint32_t *p = realloc(c->ids, n * sizeof *p);
-        if (!p) return ct_fail(err, CT_ENOMEM, "master: out of memory for texture copies");
-        c->ids = p;
-        c->cap = n;
-    }
-    *id = s->nfree ? s->free_ids[--s->nfree] : s->next_copy_id++;
-    c->ids[c->n++] = *id;
-    return 0;
-}
 
 static int send_msg(loop_state *s, const wire_msg *m, ct_error *err)
 {
@@ -345,33 +227,20 @@ static int send_patch(loop_state *s, uint32_t tex, int x, int y, int w, int h, c
         m.u.tex_patch = (wire_tex_patch){tex, (uint32_t)x, (uint32_t)y0, (uint32_t)w, (uint32_t)hh, s->patch_h};
         if ((rc = send_msg(s, &m, err))) return rc;
         s->frame_patches++;
-        for (uint32_t i = 0; tex < s->ncp && i < s->cp[tex].n; i++) {
-            m.u.tex_patch.tex = s->cp[tex].ids[i];
-            if ((rc = send_msg(s, &m, err))) return rc;
-            s->frame_patches++;
-        }
     }
     return 0;
 }
 
+/* TEX_ALLOC names the texture's hierarchy node: the display's node table is
+ * the texture hierarchy (send_state), so it draws the texture on exactly the
+ * triangles of that node's subtree. */
 static int send_alloc(loop_state *s, uint32_t tex, uint32_t hnode, int w, int h, int kind, ct_error *err)
 {
-    const uint32_t *nodes;
-    uint32_t one;
-    uint32_t n = display_targets(s, hnode, &nodes, &one);
-    int rc = release_copies(s, tex, 1, err);
     wire_msg m = {.type = WIRE_TEX_ALLOC};
-    m.u.tex_alloc = (wire_tex_alloc){tex, nodes[0], (uint32_t)w, (uint32_t)h,
+    m.u.tex_alloc = (wire_tex_alloc){tex, hnode, (uint32_t)w, (uint32_t)h,
                                      kind == CTEX_PROJ_OBJECT ? WIRE_PROJ_OBJECT_PARALLEL
                                                               : WIRE_PROJ_CAMERA_PERSPECTIVE};
-    if (rc == 0) rc = send_msg(s, &m, err);
-    if (n > 1) s->copied_textures++;
-    for (uint32_t i = 1; i < n && rc == 0; i++) {
-        if ((rc = add_copy(s, tex, &m.u.tex_alloc.tex, err))) break;
-        m.u.tex_alloc.node = nodes[i];
-        rc = send_msg(s, &m, err);
-    }
-    return rc;
+    return send_msg(s, &m, err);
 }
 
 static int send_proj(loop_state *s, uint32_t tex, const mat4 *mat, ct_error *err)
@@ -380,12 +249,7 @@ static int send_proj(loop_state *s, uint32_t tex, const mat4 *mat, ct_error *err
     m.u.tex_projection.tex = tex;
     m.u.tex_projection.epoch = s->disp_epoch;
     m.u.tex_projection.world_to_tex = *mat;
-    int rc = send_msg(s, &m, err);
-    for (uint32_t i = 0; rc == 0 && tex < s->ncp && i < s->cp[tex].n; i++) {
-        m.u.tex_projection.tex = s->cp[tex].ids[i];
-        rc = send_msg(s, &m, err);
-    }
-    return rc;
+    return send_msg(s, &m, err);
 }
 
 /* Sends the hit points collected since the last call as one SAMPLES
@@ -456,7 +320,6 @@ static int flush_events(loop_state *s, ct_error *err)
                 m.type = WIRE_TEX_FREE;
                 m.u.tex_free.tex = e->tex;
                 rc = send_msg(s, &m, err);
-                if (rc == 0) rc = release_copies(s, e->tex, 1, err);
                 break;
             }
         }
@@ -473,7 +336,13 @@ static int send_state(loop_state *s, const wire_settings *set, ct_error *err)
     char peer[CT_ERROR_LEN];
     snprintf(peer, sizeof peer, "%s", dsrv_peer(s->ds));   /* the display may leave meanwhile */
     if (!s->have_scene_tx) {
-        if ((rc = wire_scene_tx_init(&s->scene_tx, s->c->mesh, err))) return rc;
+        /* The radiosity mesh with the texture hierarchy as its node table
+         * (made once, content-hashed: a display keeps it cached). */
+        ct_radmesh dm;
+        if ((rc = ctex_display_mesh(s->tex, s->c->mesh, &dm, err))) return rc;
+        rc = wire_scene_tx_init(&s->scene_tx, &dm, err);
+        ctex_display_mesh_free(&dm);
+        if (rc) return rc;
         s->have_scene_tx = 1;
     }
     int cached = memcmp(set->cached_scene, s->scene_tx.hash, WIRE_HASH_SIZE) == 0;
@@ -487,11 +356,9 @@ static int send_state(loop_state *s, const wire_settings *set, ct_error *err)
     }
     wire_scene_tx_end(&s->scene_tx, &m);
     if ((rc = send_msg(s, &m, err))) return rc;
-    /* Pending events describe changes the snapshot already contains; the
-     * new display has no texture yet, so no copy either. */
+    /* Pending events describe changes the snapshot already contains. */
     ctex_flush_patches(s->tex);
     ctex_events_clear(s->tex);
-    for (uint32_t t = 0; t < s->ncp; t++) release_copies(s, t, 0, err);
     ctex_stats st = ctex_get_stats(s->tex);
     uint32_t live = st.textures + st.parked, found = 0;
     for (uint32_t id = 0; found < live && id < (1u << 24); id++) {
@@ -964,16 +831,12 @@ int sched_run(const sched_config *c, ct_error *err)
     s.c = c;
     s.T = c->ntracers;
     s.all_positive = 1;
-    s.next_copy_id = FIRST_COPY_ID;
     int rc = 0;
     s.tr = calloc((size_t)s.T, sizeof *s.tr);
-    s.has_tris = calloc(c->mesh->nnodes ? c->mesh->nnodes : 1, sizeof *s.has_tris);
-    if (!s.tr || !s.has_tris) {
+    if (!s.tr) {
         rc = ct_fail(err, CT_ENOMEM, "master: out of memory");
         goto out;
     }
-    for (uint32_t t = 0; t < c->mesh->ntris; t++)
-        if (c->mesh->tri_node[t] < c->mesh->nnodes) s.has_tris[c->mesh->tri_node[t]] = 1;
     if ((rc = ctex_new(c->mesh, c->scene->mats, c->scene->nmats, c->ctex, &s.tex, err))) goto out;
     dsrv_config dc = {.listen = c->listen, .token = c->token, .handshake_timeout_ms = c->opt.handshake_ms,
                       .queue_bytes = c->opt.queue_mb << 20};
@@ -1027,9 +890,6 @@ int sched_run(const sched_config *c, ct_error *err)
         dsrv_bye(s.ds, WIRE_BYE_SHUTDOWN, 2000);
     }
     if (c->stop && *c->stop) ct_info(COMPONENT, "signal %d: shutting down", *c->stop);
-    if (s.copied_textures)
-        ct_debug(COMPONENT, "%llu texture allocations covered a group of parts that is not one modeling subtree "
-                 "(sent as one copy per part)", (unsigned long long)s.copied_textures);
     /* The socket file goes first: nothing should connect to a job that ends. */
     dsrv_free(s.ds);
     s.ds = NULL;
@@ -1041,15 +901,11 @@ out:
     ctex_free(s.tex);
     if (s.have_scene_tx) wire_scene_tx_free(&s.scene_tx);
     free(s.tr);
-    free(s.has_tris);
     free(s.reqs);
     free(s.samples);
     free(s.round_buf);
     free(s.patch_h);
     free(s.pts);
-    for (uint32_t t = 0; t < s.ncp; t++) free(s.cp[t].ids);
-    free(s.cp);
-    free(s.parts);
     wire_buf_free(&s.mbuf);
     wire_buf_free(&s.obuf);
     return rc;

@@ -775,6 +775,62 @@ Test(ctex_engine, large_parts_split_into_flat_clusters)
     scene_free(s);
 }
 
+/* What the display draws a texture on (ctex_display_mesh): the node table is
+ * the hierarchy and each triangle's node its leaf, so the subtree of a
+ * texture's node holds exactly the triangles whose samples go into that
+ * texture. A part split into clusters has one texture per cluster; drawn on
+ * the whole part (the part's node table), a flat cluster's parallel
+ * projection smeared its texels across the part's other faces as stripes. */
+Test(ctex_engine, display_mesh_draws_each_texture_on_its_own_triangles)
+{
+    ct_scene *s = l_scene(32);   /* one part, floor + wall: two flat clusters */
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_options o = ctex_options_default();
+    o.cluster_tris = 512;
+    o.eps = 0.0f;
+    ctex *c = NULL;
+    cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &o, &c, &err), 0);
+    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    cr_assert_eq(ctex_get_stats(c).textures, 2);
+    ct_radmesh d;
+    cr_assert_eq(ctex_display_mesh(c, &m, &d, &err), 0, "%s", err.msg);
+    cr_assert_eq(d.nnodes, ctex_get_stats(c).hier_nodes);
+    cr_assert_eq(d.ntris, m.ntris);
+    cr_assert(d.pos == m.pos && d.tris == m.tris && d.tri_mat == m.tri_mat, "geometry shared, not copied");
+    for (uint32_t i = 1; i < d.nnodes; i++)
+        cr_assert(d.nodes[i].parent >= 0 && (uint32_t)d.nodes[i].parent < i && d.nodes[i].node_end > i);
+    uint32_t part = m.tri_node[0];
+    int seen = 0;
+    for (uint32_t tex = 0; tex < 16; tex++) {
+        uint32_t hn;
+        if (ctex_texture_info(c, tex, &hn, NULL, NULL, NULL, NULL, NULL) != 1) continue;
+        seen++;
+        uint32_t end = d.nodes[hn].node_end, drawn = 0;
+        for (uint32_t t = 0; t < m.ntris; t++) {
+            const uint32_t *v = m.tris + 3 * (size_t)t;
+            vec3 p = v3_scale(v3_add(m.pos[v[0]], v3_add(m.pos[v[1]], m.pos[v[2]])), 1.0f / 3.0f);
+            bool in_subtree = d.tri_node[t] >= hn && d.tri_node[t] < end;
+            bool owned = ctex_owner(c, part, t, p) == (int32_t)tex;
+            cr_assert_eq(in_subtree, owned, "texture %u, triangle %u: drawn %d, its samples go there %d", tex, t,
+                         in_subtree, owned);
+            drawn += in_subtree;
+        }
+        cr_assert_eq(drawn, 2048u, "texture %u is drawn on its cluster only", tex);
+    }
+    cr_assert_eq(seen, 2);
+    ctex_display_mesh_free(&d);
+    cr_assert_null(d.nodes);
+    /* a mesh that is not the engine's */
+    ct_radmesh other = m;
+    other.ntris = m.ntris - 1;
+    cr_assert_eq(ctex_display_mesh(c, &other, &d, &err), CT_EINVAL);
+    ctex_free(c);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
 /* Fills the box part's camera-local texture with samples whose value is
  * their x coordinate, on the faces seen from the front. */
 static void fill_box(ctex *c, uint32_t node, float x0)
