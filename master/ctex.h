@@ -177,8 +177,8 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
 int ctex_read_patch_half(const ctex *c, uint32_t tex, int x, int y, int w, int h, uint16_t *out,
                          ct_error *err);
 
-/* The scene part nodes a hierarchy node covers (what the display draws with
- * its texture). */
+/* The scene part nodes of a hierarchy node's leaves (a split part once per
+ * cluster). */
 const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n);
 
 /* The texture hierarchy as a mesh node table in pre-order (modeling nodes
