@@ -713,6 +713,20 @@ static ct_scene *l_scene(int n)
     return s;
 }
 
+/* The engine over l_scene's mesh with clusters of at most 512 triangles and
+ * a texture per visible leaf (ε = 0), the camera looking at the corner. */
+static ctex *l_engine(const ct_scene *s, const ct_radmesh *m)
+{
+    ctex_options o = ctex_options_default();
+    o.cluster_tris = 512;
+    o.eps = 0.0f;
+    ctex *c = NULL;
+    cr_assert_eq(ctex_new(m, s->mats, s->nmats, &o, &c, &err), 0);
+    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    return c;
+}
+
 Test(ctex_engine, large_parts_split_into_flat_clusters)
 {
     ct_scene *s = l_scene(32);   /* 2 x 2048 triangles */
@@ -738,13 +752,7 @@ Test(ctex_engine, large_parts_split_into_flat_clusters)
 
     /* through the engine: a sample goes into its triangle's cluster, the
      * lookup without a triangle finds the same texture by position */
-    ctex_options o = ctex_options_default();
-    o.cluster_tris = 512;
-    o.eps = 0.0f;
-    ctex *c = NULL;
-    cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &o, &c, &err), 0);
-    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    ctex *c = l_engine(s, &m);
     cr_assert_eq(ctex_get_stats(c).textures, 2, "one texture per visible cluster (ε = 0)");
     uint32_t tri = 100;   /* a floor triangle */
     const uint32_t *v = m.tris + 3 * tri;
@@ -786,13 +794,7 @@ Test(ctex_engine, display_mesh_draws_each_texture_on_its_own_triangles)
     ct_scene *s = l_scene(32);   /* one part, floor + wall: two flat clusters */
     ct_radmesh m;
     cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
-    ctex_options o = ctex_options_default();
-    o.cluster_tris = 512;
-    o.eps = 0.0f;
-    ctex *c = NULL;
-    cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &o, &c, &err), 0);
-    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
+    ctex *c = l_engine(s, &m);
     cr_assert_eq(ctex_get_stats(c).textures, 2);
     ct_radmesh d;
     cr_assert_eq(ctex_display_mesh(c, &m, &d, &err), 0, "%s", err.msg);
