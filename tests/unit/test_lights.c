@@ -312,7 +312,7 @@ static void expect_triangle_frequencies(const light_set *l, const emb_scene *e, 
 
 /* light_sample searches short CDFs by counting and long ones by bisection
  * (lights.c): both must pick every triangle as often as its pdf says. A
- * sphere lamp of 96 facets of unequal area (a long emitter CDF) and 40 small
+ * sphere lamp of 72 triangles of unequal area (a long emitter CDF) and 40 small
  * panels (41 emitters: a long power CDF) pick by power; a point's few
  * candidates give a short CDF. */
 Test(lights, every_triangle_is_picked_as_often_as_its_pdf_says)
