@@ -36,6 +36,7 @@ void disp_app_defaults(disp_app_opts *o)
     o->reconnect = false;
     o->sample_frames = DISP_SAMPLE_FRAMES;
     o->sample_max = DISP_SAMPLE_MAX;
+    o->cache_max_mb = DISP_CACHE_MAX_MB;
 }
 
 const char *disp_app_keys_help(void)
@@ -463,7 +464,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
-        rc = disp_scene_cache_new(o->cache_dir, &a.cache, err);
+        rc = disp_scene_cache_new(o->cache_dir, (uint64_t)o->cache_max_mb << 20, &a.cache, err);
         ct_error e;
         ct_error_clear(&e);
         if (!rc && try_connect(&a, &e) && connection_lost(&a, &e, ct_now(), err)) {

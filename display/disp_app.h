@@ -47,6 +47,7 @@ typedef struct disp_app_opts {
     const char *connect;          /* unix:PATH or tcp:HOST:PORT */
     const char *token_file;
     const char *cache_dir;        /* scene cache directory (NULL: memory only) */
+    uint32_t cache_max_mb;        /* payloads kept there, at most (0: no bound) */
     bool reconnect;
     double max_seconds;           /* stop after this long (0: no limit) */
     uint32_t sample_frames;       /* the samples view shows the points of this many frames */

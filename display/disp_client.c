@@ -5,20 +5,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common/fsutil.h"
 #include "common/log.h"
 #include "proto/auth.h"
 #include "proto/chan.h"
 #include "proto/wire.h"
 
 #define COMP "corrtex-display"
-
-struct disp_scene_cache {
-    uint8_t *raw;
-    uint64_t size;
-    uint8_t hash[WIRE_HASH_SIZE];
-    char dir[2048];    /* "" = memory only */
-};
 
 struct disp_client {
     chan *ch;
@@ -34,89 +26,6 @@ struct disp_client {
     uint64_t frame_taken;     /* the last frame drawn */
     uint64_t bytes_seen;      /* received bytes already counted */
 };
-
-/* Loads DIR/last and the payload it names; quietly empty on any problem. */
-static void cache_load(disp_scene_cache *c)
-{
-    char path[4096], *text = NULL, *raw = NULL;
-    size_t len = 0, size = 0;
-    ct_error e;
-    fs_join(c->dir, "last", path, sizeof path);
-    if (fs_read_all(path, 2 * WIRE_HASH_SIZE + 8, &text, &len, &e)) return;
-    char hex[2 * WIRE_HASH_SIZE + 1];
-    snprintf(hex, sizeof hex, "%s", text);
-    free(text);
-    char name[2 * WIRE_HASH_SIZE + 16];
-    snprintf(name, sizeof name, "%s.ctscene", hex);
-    fs_join(c->dir, name, path, sizeof path);
-    if (fs_read_all(path, (size_t)WIRE_SCENE_MAX_RAW, &raw, &size, &e)) {
-        ct_warn(COMP, "scene cache: %s", e.msg);
-        return;
-    }
-    uint8_t h[WIRE_HASH_SIZE];
-    char got[2 * WIRE_HASH_SIZE + 1];
-    wire_scene_hash((const uint8_t *)raw, size, h);
-    wire_hash_hex(h, got);
-    if (strcmp(got, hex) != 0) {
-        ct_warn(COMP, "scene cache: %s does not match its hash; ignored", path);
-        free(raw);
-        return;
-    }
-    c->raw = (uint8_t *)raw;
-    c->size = size;
-    memcpy(c->hash, h, WIRE_HASH_SIZE);
-    ct_info(COMP, "scene cache: %s (%zu bytes)", path, size);
-}
-
-/* Writes the payload and DIR/last (atomically); failures only warn. */
-static void cache_save(const disp_scene_cache *c)
-{
-    if (!c->dir[0]) return;
-    char hex[2 * WIRE_HASH_SIZE + 1], name[2 * WIRE_HASH_SIZE + 16], path[4096];
-    ct_error e;
-    wire_hash_hex(c->hash, hex);
-    snprintf(name, sizeof name, "%s.ctscene", hex);
-    fs_join(c->dir, name, path, sizeof path);
-    fs_atomic a;
-    int rc = fs_mkdirs(c->dir, &e);
-    if (!rc) rc = fs_atomic_open(&a, path, &e);
-    if (!rc) {
-        if (fwrite(c->raw, 1, (size_t)c->size, a.f) != (size_t)c->size) {
-            fs_atomic_abort(&a);
-            rc = ct_fail(&e, CT_EIO, "%s: short write", path);
-        } else {
-            rc = fs_atomic_commit(&a, &e);
-        }
-    }
-    if (!rc) {
-        fs_join(c->dir, "last", path, sizeof path);
-        rc = fs_atomic_open(&a, path, &e);
-        if (!rc) {
-            fprintf(a.f, "%s\n", hex);
-            rc = fs_atomic_commit(&a, &e);
-        }
-    }
-    if (rc) ct_warn(COMP, "scene cache: %s", e.msg);
-}
-
-int disp_scene_cache_new(const char *dir, disp_scene_cache **out, ct_error *err)
-{
-    disp_scene_cache *c = calloc(1, sizeof *c);
-    *out = c;
-    if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for the scene cache");
-    if (dir) {
-        snprintf(c->dir, sizeof c->dir, "%s", dir);
-        cache_load(c);
-    }
-    return CT_OK;
-}
-
-void disp_scene_cache_free(disp_scene_cache *c)
-{
-    if (!c) return;
-    free(c->raw);
-    free(c);
-}
 
 int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp_client **out,
                         ct_error *err)
@@ -148,7 +57,8 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
     memset(&m, 0, sizeof m);
     m.type = WIRE_SETTINGS;
     m.u.settings.samples_per_frame = o->samples_per_frame;
-    if (cache && cache->raw) memcpy(m.u.settings.cached_scene, cache->hash, WIRE_HASH_SIZE);
+    disp_scene_cache_select(cache, o->addr);
+    (void)disp_scene_cache_hash(cache, m.u.settings.cached_scene);
     rc = chan_send(c->ch, &m, err);
     if (rc == XPORT_QUEUE_FULL) rc = ct_fail(err, CT_EIO, "%s: send queue full at start", c->addr);
     if (!rc) rc = chan_pump(c->ch, err);
@@ -211,10 +121,12 @@ static int scene_done(disp_client *c, disp_session *s, ct_error *err)
     ct_radmesh m;
     int rc;
     if (b->flags & WIRE_SCENE_CACHED) {
-        if (!c->cache || !c->cache->raw || memcmp(c->cache->hash, b->hash, WIRE_HASH_SIZE) != 0)
+        const uint8_t *raw = NULL;
+        uint64_t size = 0;
+        if (!disp_scene_cache_get(c->cache, b->hash, &raw, &size))
             return ct_fail(err, CT_EPROTO, "%s: master says the scene is cached, but it is not",
                            c->addr);
-        rc = wire_scene_parse(c->cache->raw, (size_t)c->cache->size, c->addr, &m, err);
+        rc = wire_scene_parse(raw, (size_t)size, c->addr, &m, err);
         if (rc) return rc;
         ct_info(COMP, "scene from the cache: %u triangles, %u nodes", m.ntris, m.nnodes);
     } else {
@@ -222,17 +134,7 @@ static int scene_done(disp_client *c, disp_session *s, ct_error *err)
         if (rc) return rc;
         uint64_t size = 0;
         const uint8_t *raw = wire_scene_rx_raw(c->rx, &size);
-        if (c->cache && raw && size) {
-            uint8_t *copy = malloc((size_t)size);
-            if (copy) {   /* without memory the next connection just gets the scene again */
-                memcpy(copy, raw, (size_t)size);
-                free(c->cache->raw);
-                c->cache->raw = copy;
-                c->cache->size = size;
-                memcpy(c->cache->hash, b->hash, WIRE_HASH_SIZE);
-                cache_save(c->cache);
-            }
-        }
+        if (raw && size) disp_scene_cache_put(c->cache, c->addr, b->hash, raw, size);
         ct_info(COMP, "scene received: %u triangles, %u nodes, %llu bytes", m.ntris, m.nnodes,
                 (unsigned long long)size);
     }

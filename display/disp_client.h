@@ -2,8 +2,8 @@
  * (docs/protocol.md): connects to the master (handshake, token), sends
  * SETTINGS and CAMERA, and turns every received message into disp_session
  * events (scene, texture allocation / projection / patch / free, sample
- * points, frame ends, statistics). Keeps the last scene's payload so a reconnect can announce it
- * as cached. Lost connections and ERROR / BYE from the master come back as
+ * points, frame ends, statistics). Announces the cached scene
+ * (disp_cache.h) and fills the cache with a received one. Lost connections and ERROR / BYE from the master come back as
  * errors whose message says what happened. */
 #ifndef CT_DISP_CLIENT_H
 #define CT_DISP_CLIENT_H
@@ -13,6 +13,7 @@
 
 #include "common/camera.h"
 #include "common/error.h"
+#include "display/disp_cache.h"
 #include "display/disp_session.h"
 
 typedef struct disp_client_opts {
@@ -21,19 +22,6 @@ typedef struct disp_client_opts {
     uint32_t samples_per_frame;   /* lockstep K (0: free running) */
     int connect_timeout_ms;       /* connect + handshake */
 } disp_client_opts;
-
-/* The scene payload of a previous connection, announced in SETTINGS so the
- * master can skip sending it. Kept in memory, and with a directory also on
- * disk: DIR/<hash>.ctscene (the payload) and DIR/last (the hash of the last
- * scene), so a restarted display announces the scene it showed last. */
-typedef struct disp_scene_cache disp_scene_cache;
-
-/* A cache; dir may be NULL (memory only). A missing or unreadable DIR/last
- * just means an empty cache (logged), never an error. */
-int disp_scene_cache_new(const char *dir, disp_scene_cache **out, ct_error *err);
-
-/* Frees it (NULL is fine). */
-void disp_scene_cache_free(disp_scene_cache *c);
 
 typedef struct disp_client disp_client;
 

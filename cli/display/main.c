@@ -21,6 +21,8 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --token-file FILE     shared token for the handshake (else $CORRTEX_TOKEN)\n"
             "  --reconnect           on a lost connection retry with back-off (default: exit 3)\n"
             "  --cache DIR           keep received scenes in DIR by content hash (default %s)\n"
+            "  --cache-max-mb N      scenes kept there, at most, least recently used removed first\n"
+            "                        (default %u MiB; 0: no bound)\n"
             "  --no-cache            keep the scene in memory only\n"
             "  --samples-per-frame K lockstep: the master inserts K samples per frame (default 0: free-running)\n"
             "  --mesh FILE.ctmesh    a radiosity mesh cache (corrtex radiosity), no master\n"
@@ -50,7 +52,7 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --out DIR             write frame_NNNNN.exr/.png and frames.csv\n"
             "  --reference DIR       add RMSE/PSNR against DIR/frame_NNNNN.exr to frames.csv\n"
             "  --quiet | --verbose\n\n%s",
-            d->cache_dir ? d->cache_dir : "none", d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
+            d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
 }
 
@@ -205,6 +207,12 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--reconnect")) o.reconnect = true;
         else if (!strcmp(a, "--cache")) { NEED(); o.cache_dir = v; }
         else if (!strcmp(a, "--no-cache")) o.cache_dir = NULL;
+        else if (!strcmp(a, "--cache-max-mb")) {
+            NEED();
+            int n;
+            bad = parse_int(a, v, 0, 1 << 24, &n);
+            o.cache_max_mb = (uint32_t)n;
+        }
         else if (!strcmp(a, "--quiet")) ct_log_set_level(CT_LOG_WARN);
         else if (!strcmp(a, "--verbose")) ct_log_set_level(CT_LOG_DEBUG);
         else {

@@ -73,6 +73,7 @@ bad "bad.path" --backend osmesa --scene "$SCENE" --path "$tmp/bad.path"
 bad "no camera named" --backend osmesa --scene "$SCENE" --camera-name nope
 bad "--sample-frames" --backend osmesa --scene "$SCENE" --sample-frames 0
 bad "--sample-max" --backend osmesa --scene "$SCENE" --sample-max abc
+bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5
 # No master at the address and no --reconnect: exit 3, one error line.
 "$BIN/corrtex-display" --backend osmesa --connect "unix:$tmp/none.sock" --width 32 --height 32 >"$tmp/o" 2>"$tmp/e"; rc=$?
 echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock  -> exit $rc: $(cat "$tmp/e")"

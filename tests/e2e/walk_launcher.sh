@@ -23,12 +23,17 @@ cmd=("$walk" cornell --path walk --frames $n --samples-per-frame $spf --width $w
      --listen "unix:$sock" --out "$out" --reference "$tmp/ref" --radiosity-cache "$tmp/cornell.ctmesh"
      --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240)
 log_cmd "${cmd[@]}"
-(cd "$root" && env -u DISPLAY "${cmd[@]}") >"$tmp/walk.out" 2>&1; rc=$?
+(cd "$root" && env -u DISPLAY XDG_CACHE_HOME="$tmp/xdg" "${cmd[@]}") >"$tmp/walk.out" 2>&1; rc=$?
 sed 's/^/  /' "$tmp/walk.out"
 ((rc == 0)) || fail "corrtex-walk exit status $rc"
 no_strays "after the walk"
 no_sockets "after the walk"
 [[ -f $tmp/cornell.ctmesh ]] || fail "no radiosity cache written"
+# the display kept the scene by its hash, indexed by the master's address
+sc=("$tmp"/xdg/corrtex/*.ctscene)
+[[ ${#sc[@]} -eq 1 && -s ${sc[0]} ]] || fail "want one cached scene, got: ${sc[*]}"
+ix=("$tmp"/xdg/corrtex/addr-*.last)
+[[ -s $tmp/xdg/corrtex/last && ${#ix[@]} -eq 1 && -s ${ix[0]} ]] || fail "no scene cache index files"
 grep -q "radiosity: computing" "$tmp/walk.out" || fail "no line announcing the radiosity step"
 grep -q "progress radiosity" "$tmp/walk.out" || fail "no progress line of the radiosity solver"
 grep -q "MPI job: 2 ranks" "$tmp/walk.out" || fail "no line announcing the MPI job"

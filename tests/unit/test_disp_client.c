@@ -63,7 +63,7 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
     disp_scene_cache *cache = NULL;
-    cr_assert_eq(disp_scene_cache_new(NULL, &cache, &err), 0);
+    cr_assert_eq(disp_scene_cache_new(NULL, 0, &cache, &err), 0);
     disp_client *c = NULL;
     disp_client_opts o = {p->addr, token_file, k, 5000};
     cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
@@ -223,11 +223,11 @@ Test(disp_client, scene_cache_on_disk)
     snprintf(dir, sizeof dir, "/tmp/ctdisp-cache-XXXXXX");
     cr_assert(mkdtemp(dir));
     disp_scene_cache *cache = NULL;
-    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    cr_assert_eq(disp_scene_cache_new(dir, 0, &cache, &err), 0);
     uint64_t first = session_bytes(cache);
     disp_scene_cache_free(cache);
     /* A new display process: the cache comes from the directory. */
-    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    cr_assert_eq(disp_scene_cache_new(dir, 0, &cache, &err), 0);
     uint64_t second = session_bytes(cache);
     disp_scene_cache_free(cache);
     printf("metric: bytes received: %llu with the scene, %llu with it cached\n",
@@ -237,7 +237,7 @@ Test(disp_client, scene_cache_on_disk)
     char cmd[256];
     snprintf(cmd, sizeof cmd, "for f in %s/*.ctscene; do printf 'x' >> \"$f\"; done", dir);
     cr_assert_eq(system(cmd), 0);
-    cr_assert_eq(disp_scene_cache_new(dir, &cache, &err), 0);
+    cr_assert_eq(disp_scene_cache_new(dir, 0, &cache, &err), 0);
     uint64_t third = session_bytes(cache);
     disp_scene_cache_free(cache);
     cr_expect_gt(third, second + 1000, "a corrupt cache must not be announced");
