@@ -103,7 +103,7 @@ static const optdef OPTS[] = {
     {"--age-brdf", 0, OF(age_brdf), 0, 1e9, "aging weight of BRDF change: texture sizes per radian at glossiness 1 (§3.5)"},
     {"--resample-age", 0, OF(resample_age), 0, 1e9, "validity (texels) a resampled texel loses to fresh samples"},
     {"--bvh-mat-weight", 0, OF(bvh_mat_weight), 0, 1e9, "BVH cost factor for groups mixing materials (§3.3)"},
-    {"--cluster-tris", 1, OF(cluster_tris), 0, 1e9, "parts with more triangles are split into clusters of at most this many; 0 = never"},
+    {"--cluster-tris", 1, OF(cluster_tris), 0, 1e9, "parts with more triangles are split into clusters: one per face, curved ones into at most this many; 0 = never"},
 };
 #undef OF
 

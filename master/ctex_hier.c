@@ -3,6 +3,7 @@
  * where a node has more than two children, and per-node geometry. */
 #include "master/ctex_hier.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -19,6 +20,9 @@ typedef struct mstat {
 } mstat;
 
 #define NOMAT (UINT32_MAX - 1)
+/* Splits below this depth keep their cluster whole (a part of many parallel
+ * faces at distinct offsets is cut one gap at a time). */
+#define CLUSTER_DEPTH_MAX 256
 
 static uint32_t mat_merge(uint32_t a, uint32_t b)
 {
@@ -51,13 +55,26 @@ typedef struct builder {
     uint32_t cluster_max;     /* split parts with more triangles (0: never) */
     float flat_cos;           /* cos(flat_deg): normal agreement of a flat cluster */
     float flat_thickness;     /* coplanarity of a flat cluster */
+    float normal_gap;         /* 2 sin(flat_deg / 2): normal components of faces flat_deg apart */
     struct tkey { float k; uint32_t t; } *keys;   /* scratch for partitioning */
     ct_error *err;
 } builder;
 
 static int new_node(builder *B, int32_t parent, int32_t snode, uint32_t *id)
 {
-    if (B->h->nnodes >= B->cap) return ct_fail(B->err, CT_ERANGE, "texture hierarchy overflow");
+    if (B->h->nnodes >= B->cap) {
+        /* clusters split at gaps are not bounded by cluster_max: grow */
+        if (B->cap >= UINT32_MAX / 4) return ct_fail(B->err, CT_ERANGE, "texture hierarchy overflow");
+        uint32_t ncap = 2 * B->cap;
+        ctex_hnode *nodes = realloc(B->h->nodes, (size_t)ncap * sizeof *nodes);
+        if (nodes) B->h->nodes = nodes;
+        uint32_t *ln = nodes ? realloc(B->h->leaf_node, (size_t)ncap * sizeof *ln) : NULL;
+        if (ln) B->h->leaf_node = ln;
+        uint32_t *lp = ln ? realloc(B->h->leaf_part, (size_t)ncap * sizeof *lp) : NULL;
+        if (!lp) return ct_fail(B->err, CT_ENOMEM, "out of memory building the texture hierarchy");
+        B->h->leaf_part = lp;
+        B->cap = ncap;
+    }
     *id = B->h->nnodes++;
     ctex_hnode *n = &B->h->nodes[*id];
     memset(n, 0, sizeof *n);
@@ -146,77 +163,177 @@ static int tris_flat(const builder *B, uint32_t begin, uint32_t end)
     return dmax - dmin <= B->flat_thickness * v3_maxc(b3_extent(bb));
 }
 
-/* Splits a large part's triangles [begin, end) into clusters: at the middle
- * of the range of the normal component that varies most while the normals
- * disagree (so walls meeting at a corner separate), else at the median
- * centroid along the longest axis; a flat set is not split. */
-static int emit_tris(builder *B, uint32_t part, uint32_t begin, uint32_t end, int32_t parent, int depth)
+static vec3 tri_normal(const ct_radmesh *m, uint32_t t)
+{
+    const uint32_t *v = m->tris + 3 * (size_t)t;
+    vec3 a = m->pos[v[0]], b = m->pos[v[1]], c = m->pos[v[2]];
+    return v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+}
+
+static vec3 tri_centroid(const ct_radmesh *m, uint32_t t)
+{
+    const uint32_t *v = m->tris + 3 * (size_t)t;
+    return v3_scale(v3_add(m->pos[v[0]], v3_add(m->pos[v[1]], m->pos[v[2]])), 1.0f / 3.0f);
+}
+
+static int key_less(const void *a, const void *b)
+{
+    const struct tkey *x = a, *y = b;
+    if (x->k != y->k) return x->k < y->k ? -1 : 1;
+    return x->t < y->t ? -1 : (x->t > y->t);
+}
+
+/* Sorts keys[0, n) (so that the result does not depend on the triangles'
+ * order) and looks at the gaps between consecutive values: returns the
+ * widest one's width and, in *cut, the middle of the gap at least min_gap
+ * wide that divides the keys most evenly (a balanced tree when a part has
+ * many parallel faces; *cut is NAN when no gap is that wide). */
+static float split_gap(struct tkey *k, uint32_t n, float min_gap, float *cut)
+{
+    qsort(k, n, sizeof *k, key_less);
+    float widest = 0.0f;
+    uint32_t best_off = UINT32_MAX;
+    *cut = NAN;
+    for (uint32_t i = 0; i + 1 < n; i++) {
+        float g = k[i + 1].k - k[i].k;
+        widest = MAXF(widest, g);
+        if (!(g >= min_gap)) continue;
+        uint32_t below = i + 1, off = below > n / 2 ? below - n / 2 : n / 2 - below;
+        if (off < best_off) { best_off = off; *cut = k[i].k + 0.5f * g; }
+    }
+    return widest;
+}
+
+/* Moves the keys below cut to the front; returns how many there are. */
+static uint32_t partition_keys(struct tkey *k, uint32_t n, float cut)
+{
+    uint32_t lo = 0;
+    for (uint32_t i = 0; i < n; i++)
+        if (k[i].k < cut) { struct tkey t = k[i]; k[i] = k[lo]; k[lo] = t; lo++; }
+    return lo;
+}
+
+enum { KEY_NORMAL_X, KEY_NORMAL_Y, KEY_NORMAL_Z, KEY_OFFSET };
+
+/* keys[i] := the key of triangle begin + i: a normal component, or the
+ * offset of its centroid along dir. */
+static void fill_keys(builder *B, uint32_t begin, uint32_t end, int what, vec3 dir)
+{
+    const uint32_t *tris = B->h->tris;
+    for (uint32_t i = begin; i < end; i++) {
+        uint32_t t = tris[i];
+        float k = what == KEY_OFFSET ? v3_dot(tri_centroid(B->m, t), dir)
+                                     : v3_get(tri_normal(B->m, t), what);
+        B->keys[i - begin].k = k;
+        B->keys[i - begin].t = t;
+    }
+}
+
+/* Chooses how a cluster [begin, end) of a large part splits, reordering its
+ * triangles so that [begin, *mid) and [*mid, end) are the halves; returns 0
+ * when it stays one leaf. In this order:
+ *   1. a gap of at least 2 sin(flat_deg / 2) in the sorted values of the
+ *      normal component with the widest gap: two groups of faces at least
+ *      flat_deg apart (the walls, reveals and faces of a box-like part), at
+ *      any size. Cutting at
+ *      a gap, never inside a group of equal normals, keeps each face whole:
+ *      a cut at a fixed value (0 between walls facing +x and -x) would split
+ *      the faces perpendicular to them by rounding noise, and their
+ *      triangles would draw two textures interleaved;
+ *   2. a flat set (tris_flat) stays whole, whatever its size;
+ *   3. normals that agree but faces that are not coplanar (parallel faces at
+ *      different offsets: a wall and the reveals of its doors): a gap in the
+ *      centroids' offsets along the mean normal wider than flat_thickness
+ *      times the set's extent, at any size, so that the wall stays flat;
+ * (of several such gaps, the one that halves the set most evenly);
+ *   4. above cluster_max triangles: the median centroid along the longest
+ *      axis (a curved surface, which has no gaps). */
+static int choose_split(builder *B, uint32_t begin, uint32_t end, int depth, uint32_t *mid)
 {
     uint32_t n = end - begin;
-    if (n <= B->cluster_max || depth > 64 || tris_flat(B, begin, end))
-        return tri_leaf(B, part, -1, begin, end, parent);
-    const ct_radmesh *m = B->m;
+    if (n < 2 || depth > CLUSTER_DEPTH_MAX) return 0;
     uint32_t *tris = B->h->tris;
-    vec3 nsum = v3s(0.0f), nsq = v3s(0.0f);
-    bounds3 cb = b3_empty();
-    for (uint32_t i = begin; i < end; i++) {
-        const uint32_t *v = m->tris + 3 * (size_t)tris[i];
-        vec3 a = m->pos[v[0]], b = m->pos[v[1]], c = m->pos[v[2]];
-        vec3 nn = v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a)));
-        nsum = v3_add(nsum, nn);
-        nsq = v3_add(nsq, v3_mul(nn, nn));
-        cb = b3_add(cb, v3_scale(v3_add(a, v3_add(b, c)), 1.0f / 3.0f));
-    }
-    float inv = 1.0f / (float)n;
-    vec3 mean = v3_scale(nsum, inv);
-    vec3 var = v3_sub(v3_scale(nsq, inv), v3_mul(mean, mean));
-    int by_normal = v3_len(mean) < B->flat_cos;
-    int axis;
-    if (by_normal) axis = var.x >= var.y && var.x >= var.z ? 0 : (var.y >= var.z ? 1 : 2);
-    else {
-        vec3 e = b3_extent(cb);
-        axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
-    }
     struct tkey *k = B->keys;
-    for (uint32_t i = begin; i < end; i++) {
-        const uint32_t *v = m->tris + 3 * (size_t)tris[i];
-        vec3 a = m->pos[v[0]], b = m->pos[v[1]], c = m->pos[v[2]];
-        vec3 key = by_normal ? v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a))) : v3_add(a, v3_add(b, c));
-        k[i - begin].k = v3_get(key, axis);
-        k[i - begin].t = tris[i];
+    int best = -1;
+    float best_gap = 0.0f, best_cut = NAN, cut;
+    for (int axis = KEY_NORMAL_X; axis <= KEY_NORMAL_Z; axis++) {
+        fill_keys(B, begin, end, axis, v3s(0.0f));
+        float g = split_gap(k, n, B->normal_gap, &cut);
+        if (g > best_gap) { best_gap = g; best_cut = cut; best = axis; }
     }
-    uint32_t half = n / 2;
-    if (by_normal) {
-        /* split at the middle of the component's range, not at its median:
-         * equal normals (one wall) must not straddle the split */
-        float kmin = INFINITY, kmax = -INFINITY;
-        for (uint32_t i = 0; i < n; i++) { kmin = MINF(kmin, k[i].k); kmax = MAXF(kmax, k[i].k); }
-        float cut = 0.5f * (kmin + kmax);
-        uint32_t lo = 0;
-        for (uint32_t i = 0; i < n; i++)
-            if (k[i].k < cut) { struct tkey t = k[i]; k[i] = k[lo]; k[lo] = t; lo++; }
-        if (lo > 0 && lo < n) half = lo;
-        else select_k(k, n, half);
-    } else {
-        select_k(k, n, half);
+    int what = -1;
+    vec3 dir = v3s(0.0f);
+    float at = 0.0f;
+    if (best >= 0 && !isnan(best_cut)) {
+        what = best;
+        at = best_cut;
+    } else if (!tris_flat(B, begin, end)) {
+        vec3 nsum = v3s(0.0f);
+        bounds3 bb = b3_empty();
+        for (uint32_t i = begin; i < end; i++) {
+            nsum = v3_add(nsum, tri_normal(B->m, tris[i]));
+            bb = b3_add(bb, tri_centroid(B->m, tris[i]));
+        }
+        if (v3_len(nsum) >= B->flat_cos * (float)n) {
+            dir = v3_norm(nsum);
+            fill_keys(B, begin, end, KEY_OFFSET, dir);
+            (void)split_gap(k, n, B->flat_thickness * v3_maxc(b3_extent(bb)), &cut);
+            if (!isnan(cut)) {
+                what = KEY_OFFSET;
+                at = cut;
+            }
+        }
+        if (what < 0 && n > B->cluster_max) {
+            vec3 e = b3_extent(bb);
+            int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+            for (uint32_t i = begin; i < end; i++) {
+                k[i - begin].k = v3_get(tri_centroid(B->m, tris[i]), axis);
+                k[i - begin].t = tris[i];
+            }
+            select_k(k, n, n / 2);
+            for (uint32_t i = 0; i < n; i++) tris[begin + i] = k[i].t;
+            *mid = begin + n / 2;
+            return 1;
+        }
     }
+    if (what < 0) return 0;
+    fill_keys(B, begin, end, what, dir);
+    uint32_t lo = partition_keys(k, n, at);
+    if (lo == 0 || lo == n) return 0;   /* cannot happen for a cut inside a gap */
     for (uint32_t i = 0; i < n; i++) tris[begin + i] = k[i].t;
-    uint32_t mid = begin + half;
+    *mid = begin + lo;
+    return 1;
+}
+
+/* Emits the halves [begin, mid) and [mid, end) of a split cluster below
+ * parent: a leaf for a half that choose_split keeps whole, else a node over
+ * the clusters of that half. */
+static int emit_split(builder *B, uint32_t part, uint32_t begin, uint32_t mid, uint32_t end,
+                      int32_t parent, int depth)
+{
     for (int side = 0; side < 2; side++) {
-        uint32_t a = side ? mid : begin, b = side ? end : mid;
-        if (b - a <= B->cluster_max) {
+        uint32_t a = side ? mid : begin, b = side ? end : mid, m2 = 0;
+        if (!choose_split(B, a, b, depth + 1, &m2)) {
             int rc = tri_leaf(B, part, -1, a, b, parent);
             if (rc) return rc;
             continue;
         }
         uint32_t id = 0;
         int rc = new_node(B, parent, -1, &id);
-        if (!rc) rc = emit_tris(B, part, a, b, (int32_t)id, depth + 1);
+        if (!rc) rc = emit_split(B, part, a, m2, b, (int32_t)id, depth + 1);
         if (rc) return rc;
         B->h->nodes[id].end = B->h->nnodes;
         B->h->nodes[id].leaf_end = B->h->nleaves;
     }
     return CT_OK;
+}
+
+/* The clusters of a large part's triangles [begin, end) below parent. */
+static int emit_tris(builder *B, uint32_t part, uint32_t begin, uint32_t end, int32_t parent)
+{
+    uint32_t mid = 0;
+    if (!choose_split(B, begin, end, 0, &mid)) return tri_leaf(B, part, -1, begin, end, parent);
+    return emit_split(B, part, begin, mid, end, parent, 0);
 }
 
 /* A leaf for node's own triangles, or a node over clusters of them when
@@ -236,7 +353,7 @@ static int emit_leaf(builder *B, uint32_t node, int32_t parent)
     if (rc) return rc;
     B->leaf_of_node[node] = -2;   /* split: leaves by triangle */
     B->h->part_hnode[node] = (int32_t)id;
-    rc = emit_tris(B, node, begin, begin + count, (int32_t)id, 0);
+    rc = emit_tris(B, node, begin, begin + count, (int32_t)id);
     if (rc) return rc;
     B->h->nodes[id].end = B->h->nnodes;
     B->h->nodes[id].leaf_end = B->h->nleaves;
@@ -651,6 +768,7 @@ int ctex_hier_build(const ct_radmesh *m, const scene_material *mats, uint32_t nm
     B.cluster_max = cluster_tris;
     B.flat_cos = cosf(flat_deg * CT_PI / 180.0f);
     B.flat_thickness = flat_thickness;
+    B.normal_gap = 2.0f * sinf(0.5f * flat_deg * CT_PI / 180.0f);
     /* nodes: modeling ones, BVH nodes above them, pseudo leaves, and at most
      * 2 n / cluster_max cluster nodes per split part */
     size_t cap = 3 * (size_t)N + 2 + (cluster_tris ? 4 * ((size_t)m->ntris / cluster_tris + N) : 0);

@@ -921,6 +921,75 @@ Test(ctex_engine, non_flat_large_parts_split_by_space)
     scene_free(s);
 }
 
+/* One part shaped like a room: four walls of n x n quads facing inwards
+ * (+x, -x, +z, -z), their vertices off their planes by up to 1e-4 (as a
+ * radiosity mesh's subdivision leaves them, so the perpendicular normal
+ * components are tiny and of either sign), and a door reveal: two small
+ * quads facing +z 0.2 in front of the -z wall. */
+static ct_scene *room_scene(int n)
+{
+    ct_scene *s = one_part_begin("room", "walls");
+    for (int w = 0; w < 4; w++)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) {
+                vec3 p[4];
+                for (int c = 0; c < 4; c++) {
+                    int ii = i + (c == 1 || c == 2), jj = j + (c >= 2);
+                    float a = -5.0f + 10.0f * (float)ii / (float)n, y = 3.0f * (float)jj / (float)n;
+                    float off = 1e-4f * (float)(((ii * 7 + jj * 13 + w) % 5) - 2) / 2.0f;
+                    /* corners ordered so that each wall faces the room's inside */
+                    switch (w) {
+                    case 0: p[c] = v3(-5.0f + off, y, -a); break;   /* faces +x */
+                    case 1: p[c] = v3(5.0f + off, y, a); break;     /* faces -x */
+                    case 2: p[c] = v3(a, y, -5.0f + off); break;    /* faces +z */
+                    default: p[c] = v3(-a, y, 5.0f + off); break;   /* faces -z */
+                    }
+                }
+                vec3 nn = v3_norm(v3_cross(v3_sub(p[1], p[0]), v3_sub(p[2], p[0])));
+                add_quad(s, p, nn);
+            }
+    for (int r = 0; r < 2; r++) {
+        float x0 = (float)r * 2.0f, x1 = x0 + 0.5f;
+        vec3 p[4] = {v3(x0, 0.0f, -4.8f), v3(x1, 0.0f, -4.8f), v3(x1, 2.0f, -4.8f), v3(x0, 2.0f, -4.8f)};
+        add_quad(s, p, v3(0, 0, 1));
+    }
+    one_part_end(s);
+    return s;
+}
+
+Test(ctex_engine, clusters_keep_each_face_whole)
+{
+    const int n = 16;   /* 512 triangles a wall */
+    ct_scene *s = room_scene(n);
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
+    ctex_hier h;
+    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 256, &h, &err), 0, "%s", err.msg);
+    /* each leaf: one face (normal and plane), flat, never split whatever
+     * the cluster size: the four walls and the two reveal quads in their
+     * own plane */
+    cr_assert_eq(h.nleaves, 5u, "four walls and the reveals: %u leaves", h.nleaves);
+    uint32_t total = 0;
+    for (uint32_t l = 0; l < h.nleaves; l++) {
+        const ctex_hnode *nd = &h.nodes[h.leaf_node[l]];
+        uint32_t cnt = nd->tri_end - nd->tri_begin;
+        total += cnt;
+        cr_assert(nd->flat, "cluster %u (%u triangles) is flat", l, cnt);
+        cr_assert(cnt == 2u * n * n || cnt == 4u, "cluster %u has %u triangles: a whole wall or the reveals", l, cnt);
+        vec3 n0 = v3s(0.0f);
+        for (uint32_t i = nd->tri_begin; i < nd->tri_end; i++) {
+            const uint32_t *v = m.tris + 3 * h.tris[i];
+            vec3 nn = v3_norm(v3_cross(v3_sub(m.pos[v[1]], m.pos[v[0]]), v3_sub(m.pos[v[2]], m.pos[v[0]])));
+            if (i == nd->tri_begin) n0 = nn;
+            cr_assert_gt(v3_dot(nn, n0), 0.99f, "cluster %u mixes faces", l);
+        }
+    }
+    cr_assert_eq(total, 4u * 2u * n * n + 4u);
+    ctex_hier_free(&h);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
 /* ctex_insert_batch (with its prefetching) inserts exactly like ctex_insert
  * one sample at a time: the same infos and the same texels, through enough
  * samples to make textures grow. */
