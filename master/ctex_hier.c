@@ -20,8 +20,8 @@ typedef struct mstat {
 } mstat;
 
 #define NOMAT (UINT32_MAX - 1)
-/* Splits below this depth keep their cluster whole (a part of many parallel
- * faces at distinct offsets is cut one gap at a time). */
+/* A cluster this deep in its part's tree stays whole: a bound on the
+ * recursion, far above what the balanced gap cuts reach. */
 #define CLUSTER_DEPTH_MAX 256
 
 static uint32_t mat_merge(uint32_t a, uint32_t b)
