@@ -53,6 +53,18 @@ int fs_atomic_commit(fs_atomic *a, ct_error *err)
     return fs_commit_temp(a->tmp, a->path, err);
 }
 
+int fs_write_atomic(const char *path, const void *data, size_t len, ct_error *err)
+{
+    fs_atomic a;
+    int rc = fs_atomic_open(&a, path, err);
+    if (rc) return rc;
+    if (fwrite(data, 1, len, a.f) != len) {
+        fs_atomic_abort(&a);
+        return ct_fail(err, CT_EIO, "%s: write failed", path);
+    }
+    return fs_atomic_commit(&a, err);
+}
+
 void fs_atomic_abort(fs_atomic *a)
 {
     if (a->f) { fclose(a->f); a->f = NULL; }

@@ -21,6 +21,9 @@ int fs_atomic_open(fs_atomic *a, const char *path, ct_error *err);
 /* Flushes, syncs and renames the temporary onto path; on failure removes it. */
 int fs_atomic_commit(fs_atomic *a, ct_error *err);
 
+/* Writes len bytes to path atomically (fs_atomic_open / commit). */
+int fs_write_atomic(const char *path, const void *data, size_t len, ct_error *err);
+
 /* Closes and removes the temporary (the target is untouched). */
 void fs_atomic_abort(fs_atomic *a);
 

@@ -112,19 +112,9 @@ int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err)
         ct_error_prefix(err, path);
         return rc;
     }
-    fs_atomic a;
-    rc = fs_atomic_open(&a, path, err);
-    if (rc) {
-        free(buf);
-        return rc;
-    }
-    if (fwrite(buf, 1, len, a.f) != len) {
-        free(buf);
-        fs_atomic_abort(&a);
-        return ct_fail(err, CT_EIO, "%s: write failed", path);
-    }
+    rc = fs_write_atomic(path, buf, len, err);
     free(buf);
-    return fs_atomic_commit(&a, err);
+    return rc;
 }
 
 static uint32_t ru32(const unsigned char *p)

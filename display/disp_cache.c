@@ -255,18 +255,6 @@ static void prune(disp_scene_cache *c)
     closedir(d);
 }
 
-static int write_file(const char *path, const void *data, size_t size, ct_error *e)
-{
-    fs_atomic a;
-    int rc = fs_atomic_open(&a, path, e);
-    if (rc) return rc;
-    if (fwrite(data, 1, size, a.f) != size) {
-        fs_atomic_abort(&a);
-        return ct_fail(e, CT_EIO, "%s: short write", path);
-    }
-    return fs_atomic_commit(&a, e);
-}
-
 void disp_scene_cache_put(disp_scene_cache *c, const char *addr,
                           const uint8_t hash[WIRE_HASH_SIZE], const uint8_t *raw, uint64_t size)
 {
@@ -287,16 +275,16 @@ void disp_scene_cache_put(disp_scene_cache *c, const char *addr,
     int rc = fs_mkdirs(c->dir, &e);
     if (!rc) {
         payload_path(c, hex, path, sizeof path);
-        rc = write_file(path, raw, (size_t)size, &e);
+        rc = fs_write_atomic(path, raw, (size_t)size, &e);
     }
     if (!rc) {
         index_name(addr, name);
         fs_join(c->dir, name, path, sizeof path);
-        rc = write_file(path, line, HEX_LEN + 1, &e);
+        rc = fs_write_atomic(path, line, HEX_LEN + 1, &e);
     }
     if (!rc) {
         fs_join(c->dir, "last", path, sizeof path);
-        rc = write_file(path, line, HEX_LEN + 1, &e);
+        rc = fs_write_atomic(path, line, HEX_LEN + 1, &e);
     }
     if (rc) ct_warn(COMP, "scene cache: %s", e.msg);
     prune(c);

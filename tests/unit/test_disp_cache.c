@@ -69,21 +69,34 @@ static bool announced(const char *addr, uint64_t max, uint8_t hash[WIRE_HASH_SIZ
     return have;
 }
 
+/* A display process receiving p[i] from addr[i] in turn; spaced: one tick
+ * between them, so that their file times are ordered. */
+static void put_all(uint64_t max, const payload *p, const char *const *addr, int n, bool spaced)
+{
+    disp_scene_cache *c = NULL;
+    ct_error err;
+    cr_assert_eq(disp_scene_cache_new(g_dir, max, &c, &err), 0);
+    for (int i = 0; i < n; i++) {
+        disp_scene_cache_put(c, addr[i], p[i].hash, p[i].raw, PAYLOAD);
+        if (spaced) tick();
+    }
+    disp_scene_cache_free(c);
+}
+
 TestSuite(disp_cache, .init = setup, .fini = teardown);
 
 Test(disp_cache, each_master_address_gets_the_scene_it_sent_last)
 {
-    payload a, b;
-    make_payload(&a, 1);
-    make_payload(&b, 2);
+    payload p[2];
+    make_payload(&p[0], 1);
+    make_payload(&p[1], 2);
+    const payload a = p[0], b = p[1];
+    uint8_t h[WIRE_HASH_SIZE];
+    cr_expect_not(announced("unix:/run/a.sock", 0, h), "an empty cache announces nothing");
+    const char *addr[2] = {"unix:/run/a.sock", "tcp:hostb:7000"};
+    put_all(0, p, addr, 2, false);
     disp_scene_cache *c = NULL;
     ct_error err;
-    cr_assert_eq(disp_scene_cache_new(g_dir, 0, &c, &err), 0);
-    uint8_t h[WIRE_HASH_SIZE];
-    cr_expect_not(disp_scene_cache_hash(c, h), "an empty cache announces nothing");
-    disp_scene_cache_put(c, "unix:/run/a.sock", a.hash, a.raw, PAYLOAD);
-    disp_scene_cache_put(c, "tcp:hostb:7000", b.hash, b.raw, PAYLOAD);
-    disp_scene_cache_free(c);
 
     cr_assert(announced("unix:/run/a.sock", 0, h));
     cr_expect_eq(memcmp(h, a.hash, WIRE_HASH_SIZE), 0, "master a sent scene a last");
@@ -106,15 +119,12 @@ Test(disp_cache, each_master_address_gets_the_scene_it_sent_last)
 
 Test(disp_cache, a_corrupt_payload_falls_back_to_the_last_scene)
 {
-    payload a, b;
-    make_payload(&a, 1);
-    make_payload(&b, 2);
-    disp_scene_cache *c = NULL;
-    ct_error err;
-    cr_assert_eq(disp_scene_cache_new(g_dir, 0, &c, &err), 0);
-    disp_scene_cache_put(c, "unix:a", a.hash, a.raw, PAYLOAD);
-    disp_scene_cache_put(c, "unix:b", b.hash, b.raw, PAYLOAD);
-    disp_scene_cache_free(c);
+    payload p[2];
+    make_payload(&p[0], 1);
+    make_payload(&p[1], 2);
+    const char *addr[2] = {"unix:a", "unix:b"};
+    put_all(0, p, addr, 2, false);
+    const payload a = p[0], b = p[1];
     FILE *f = fopen(a.path, "r+b");
     cr_assert_not_null(f);
     fputc('x', f);
@@ -130,14 +140,7 @@ Test(disp_cache, least_recently_used_payloads_go_first)
     for (int i = 0; i < 4; i++) make_payload(&p[i], (uint8_t)(i + 1));
     const char *addr[4] = {"unix:0", "unix:1", "unix:2", "unix:3"};
     const uint64_t max = 2 * PAYLOAD + PAYLOAD / 2;   /* room for two */
-    disp_scene_cache *c = NULL;
-    ct_error err;
-    cr_assert_eq(disp_scene_cache_new(g_dir, max, &c, &err), 0);
-    for (int i = 0; i < 3; i++) {
-        disp_scene_cache_put(c, addr[i], p[i].hash, p[i].raw, PAYLOAD);
-        tick();
-    }
-    disp_scene_cache_free(c);
+    put_all(max, p, addr, 3, true);
     cr_expect_not(exists(p[0].path), "the oldest payload is removed");
     cr_expect(exists(p[1].path));
     cr_expect(exists(p[2].path));
@@ -151,9 +154,7 @@ Test(disp_cache, least_recently_used_payloads_go_first)
     cr_assert(announced(addr[1], max, h));
     cr_expect_eq(memcmp(h, p[1].hash, WIRE_HASH_SIZE), 0);
     tick();
-    cr_assert_eq(disp_scene_cache_new(g_dir, max, &c, &err), 0);
-    disp_scene_cache_put(c, addr[3], p[3].hash, p[3].raw, PAYLOAD);
-    disp_scene_cache_free(c);
+    put_all(max, &p[3], &addr[3], 1, false);
     cr_expect(exists(p[1].path), "a payload just used stays");
     cr_expect_not(exists(p[2].path), "the least recently used one goes");
     cr_expect(exists(p[3].path));
