@@ -58,6 +58,8 @@ ctex_options ctex_options_default(void)
     o.flat_deg = 10.0f;      /* §3.2: flat when normals deviate less than 10° */
     o.flat_thickness = 0.01f;
     o.blend = 1.0f;
+    o.mix = 0.5f;            /* noise-aware splatting (docs/textures.md, "Mixing") */
+    o.mix_radius = 16.0f;
     o.splat_max = 64;
     o.splat_lo = 1.0f;
     o.splat_hi = 5.0f;
@@ -90,6 +92,8 @@ static const optdef OPTS[] = {
     {"--flat-deg", 0, OF(flat_deg), 0, 180, "normal spread (degrees) under which a node is flat: object-local (§3.2)"},
     {"--flat-thickness", 0, OF(flat_thickness), 0, 1e9, "flat nodes' extent along the normal / in-plane extent"},
     {"--blend", 0, OF(blend), 0, 1e6, "validity band (texels) blended at splat borders; 0 = off (§3.4)"},
+    {"--mix", 0, OF(mix), 0.01, 1, "weight of a new sample against the correction it lands on (noise-aware splatting); 1 = off: each texel holds its nearest sample"},
+    {"--mix-radius", 0, OF(mix_radius), 0, 1e6, "mix only with a correction whose sample lies within this many texels (validity below v_max)"},
     {"--splat-max", 1, OF(splat_max), 0, 65536, "largest splat radius (texels), bounds the cost of a sample in an empty region; 0 = none"},
     {"--splat-lo", 0, OF(splat_lo), 0, 1e6, "mean splat radius (texels) under which the resolution doubles (§3.6)"},
     {"--splat-hi", 0, OF(splat_hi), 0, 1e6, "mean splat radius (texels) over which the resolution halves (§3.6)"},
@@ -951,7 +955,12 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     /* §3.7: E = L - (L' + ΔL) against what is displayed now */
     info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
     info->tex = id;
-    int r = ctex_tex_splat(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->o.blend, c->o.splat_max);
+    /* Mirrors and sharp lobes carry detail (reflected images) in their
+     * corrections, diffuse surfaces mostly noise: mix less the glossier. */
+    float gloss = c->h.nodes[c->slots[id].hnode].gloss;
+    float mix = c->o.mix + (1.0f - c->o.mix) * gloss;
+    vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), mix, c->o.mix_radius);
+    int r = ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max);
     info->radius = r;
     c->st.inserted++;
     adapt_resolution(c, (uint32_t)id, r);

@@ -36,6 +36,8 @@ typedef struct ctex_options {
     float flat_deg;       /* §3.2: normal spread under which a node is flat, 10 degrees */
     float flat_thickness; /* flat nodes must also be coplanar: extent along the normal / in-plane extent */
     float blend;          /* §3.4: validity band (texels) over which splat borders are blended; 0 = off */
+    float mix;            /* weight of a new sample against the correction at its centre texel; 1 = off */
+    float mix_radius;     /* ... when that correction's sample lies within this many texels (validity) */
     int splat_max;        /* largest splat radius (texels); 0 = no limit */
     float splat_lo;       /* §3.6: mean splat radius under which the resolution doubles (texels) */
     float splat_hi;       /* §3.6: mean splat radius over which the resolution halves (texels) */

@@ -165,6 +165,21 @@ void ctex_tex_release(ctex_tex *t);
  * the dirty rectangle. */
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r);
 
+/* The value a sample of correction `value` landing on texel (ci, cj) splats
+ * (docs/textures.md, "Mixing"): the texel's correction moved by the
+ * fraction `mix` towards value when the texel holds one whose validity is
+ * at most `radius` texels below v_max (its sample is that near and the
+ * texture has not aged past it since); value itself otherwise, and always
+ * for mix >= 1. Single samples are noisy estimates; mixing neighbours
+ * averages the noise out where the correction is smooth. */
+static inline vec3 ctex_tex_mix(const ctex_tex *t, int ci, int cj, vec3 value, float mix, float radius)
+{
+    const ctex_texel *x = ctex_tex_at(t, ci, cj);
+    if (!(mix < 1.0f) || !ctex_texel_valid(x) || !(t->vmax - ctex_tex_v(t, x) <= radius)) return value;
+    vec3 o = ctex_texel_rgb(x);
+    return v3_add(o, v3_scale(v3_sub(value, o), mix));
+}
+
 /* Bilinear correction at texture position (u, v), clamp-to-edge (GL_LINEAR). */
 static inline vec3 ctex_tex_sample(const ctex_tex *t, float u, float v)
 {

@@ -469,6 +469,64 @@ Test(ctex_engine, diffuse_object_local_does_not_age)
     release(&t);
 }
 
+/* RMS deviation from `mean` of node's correction at a 24 x 24 grid of
+ * points of the rectangle [x0, x1] x [z0, z1] at height y (or, with
+ * panel, of the rectangle [x0, x1] x [y0 = z0, y1 = z1] at z = -5). */
+static double rms_dev(ctex *c, uint32_t node, bool panel, float x0, float x1, float z0, float z1, float y, float mean)
+{
+    double se = 0.0;
+    for (int i = 0; i < 24; i++)
+        for (int j = 0; j < 24; j++) {
+            float a = x0 + (x1 - x0) * ((float)i + 0.5f) / 24.0f, b = z0 + (z1 - z0) * ((float)j + 0.5f) / 24.0f;
+            vec3 l = ctex_lookup(c, node, UINT32_MAX, panel ? v3(a, b, -5.0f) : v3(a, y, b));
+            se += ((double)l.x - mean) * ((double)l.x - mean);
+        }
+    return sqrt(se / (24.0 * 24.0));
+}
+
+/* Inserts n samples of correction 0.5 + uniform noise in [-0.3, 0.3] at
+ * random points of the floor square [-4, 4]^2 and of the glossy panel, and
+ * returns the RMS deviation of the floor's and the panel's corrections. */
+static void noisy_field(float mix, int n, double *floor_dev, double *panel_dev)
+{
+    tscene t;
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    o.mix = mix;
+    ctex *c = front_engine(&t, o, 64, 64);
+    ct_rng r = rng_make(42, 0, 0, 0);
+    ctex_insert_info info;
+    for (int i = 0; i < n; i++) {
+        float u = rng_float(&r), v = rng_float(&r), e = 0.6f * (rng_float(&r) - 0.5f);
+        ct_sample s = mk_sample((uint32_t)t.floor, v3(-4.0f + 8.0f * u, 0.0f, -4.0f + 8.0f * v), v3s(0.5f + e),
+                                v3s(0.0f));
+        cr_assert_eq(ctex_insert(c, &s, &info), 1);
+        s = mk_sample((uint32_t)t.panel, v3(-2.5f + 5.0f * u, 0.7f + 2.1f * v, -5.0f), v3s(0.5f + e), v3s(0.0f));
+        cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    }
+    *floor_dev = rms_dev(c, (uint32_t)t.floor, false, -3.5f, 3.5f, -3.5f, 3.5f, 0.0f, 0.5f);
+    *panel_dev = rms_dev(c, (uint32_t)t.panel, true, -2.2f, 2.2f, 0.9f, 2.6f, 0.0f, 0.5f);
+    ctex_free(c);
+    release(&t);
+}
+
+/* Mixing averages the noise of neighbouring samples out on a diffuse
+ * surface (the default mix 0.5), and much less on a glossy one, whose
+ * corrections carry detail. Mix 1 keeps each sample's own value: the
+ * noise of single samples, 0.6 / sqrt(12) = 0.17 at a texel, somewhat less
+ * after bilinear lookups and box-filtered halvings (0.10 here). */
+Test(ctex_engine, mixing_averages_noise_on_diffuse_surfaces)
+{
+    double f1, p1, f5, p5;
+    noisy_field(1.0f, 400, &f1, &p1);
+    noisy_field(ctex_options_default().mix, 400, &f5, &p5);
+    cr_log_info("rms deviation: floor %.4f -> %.4f, glossy panel %.4f -> %.4f", f1, f5, p1, p5);
+    cr_assert_gt(f1, 0.08, "unmixed: single samples' noise (%.4f)", f1);
+    cr_assert_lt(f5, 0.75 * f1, "mixed floor: %.4f against %.4f unmixed", f5, f1);
+    cr_assert_gt(p5 / p1, f5 / f1 + 0.15, "the glossy panel mixes less (%.4f / %.4f against %.4f / %.4f)", p5, p1,
+                 f5, f1);
+}
+
 Test(ctex_engine, split_and_merge_resample_contents)
 {
     tscene t;

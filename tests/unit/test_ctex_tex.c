@@ -153,6 +153,37 @@ Test(ctex_tex, newer_sample_wins_after_aging)
     ctex_tex_release(&t);
 }
 
+/* Noise-aware splatting: a sample moves the correction it lands on by
+ * `mix` towards its own value, but only a fresh correction of a sample
+ * within `radius` texels (validity), never an empty texel, and not at all
+ * for mix 1. */
+Test(ctex_tex, mix_only_with_near_fresh_corrections)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 48, 8, NULL), 0);
+    vec3 b = v3(3.0f, 2.0f, 1.0f);
+    vec3 v = ctex_tex_mix(&t, 4, 4, b, 0.5f, 16.0f);
+    cr_assert(v.x == b.x && v.y == b.y && v.z == b.z, "an empty texel gives the sample's own value");
+    ctex_tex_splat(&t, 4, 4, v3(1.0f, 1.0f, 1.0f), 0.0f, 0);   /* floods the texture */
+    v = ctex_tex_mix(&t, 4, 4, b, 0.5f, 16.0f);
+    cr_assert_float_eq(v.x, 2.0f, 1e-6, "halfway between 1 and 3: %g", (double)v.x);
+    cr_assert_float_eq(v.y, 1.5f, 1e-6);
+    cr_assert_float_eq(v.z, 1.0f, 1e-6);
+    v = ctex_tex_mix(&t, 20, 4, b, 0.25f, 16.0f);
+    cr_assert_float_eq(v.x, 1.5f, 1e-6, "16 texels from the sample: mixed by 1/4");
+    v = ctex_tex_mix(&t, 21, 4, b, 0.25f, 16.0f);
+    cr_assert_eq(v.x, b.x, "17 texels from the sample: too far to mix");
+    v = ctex_tex_mix(&t, 4, 4, b, 1.0f, 16.0f);
+    cr_assert_eq(v.x, b.x, "mix 1: off");
+    /* aging past the radius makes the correction stale */
+    ctex_tex_age(&t, 12.0f);
+    v = ctex_tex_mix(&t, 8, 4, b, 0.5f, 16.0f);
+    cr_assert_float_eq(v.x, 2.0f, 1e-6, "4 texels + 12 of aging: still mixed");
+    v = ctex_tex_mix(&t, 9, 4, b, 0.5f, 16.0f);
+    cr_assert_eq(v.x, b.x, "5 texels + 12 of aging: stale");
+    ctex_tex_release(&t);
+}
+
 static void fill_random(ctex_tex *t, uint64_t seed)
 {
     ct_rng r = rng_make(seed, 0, 0, 0);
