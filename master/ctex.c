@@ -20,6 +20,10 @@ typedef struct slot {
     uint32_t last_epoch;
     vec3 last_eye;     /* eye of the last view it was active in (§3.5) */
     int max_w, max_h;  /* §3.6 resolution bounds in the current view */
+    /* Mixing weight of a new sample (docs/textures.md, "Mixing"): mirrors
+     * and sharp lobes carry detail (reflected images) in their corrections,
+     * diffuse surfaces mostly noise, so the glossier the less mixing. */
+    float mix;
 } slot;
 
 struct ctex {
@@ -709,6 +713,7 @@ static int create_texture(ctex *c, uint32_t n, ct_error *err)
     if (id < 0) return id;
     slot *s = &c->slots[id];
     s->hnode = n;
+    s->mix = c->o.mix + (1.0f - c->o.mix) * c->h.nodes[n].gloss;
     float pxw, pxh;
     make_projection(c, n, &s->t, &pxw, &pxh);
     size_bounds(c, pxw, pxh, &s->max_w, &s->max_h);
@@ -955,11 +960,7 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     /* §3.7: E = L - (L' + ΔL) against what is displayed now */
     info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
     info->tex = id;
-    /* Mirrors and sharp lobes carry detail (reflected images) in their
-     * corrections, diffuse surfaces mostly noise: mix less the glossier. */
-    float gloss = c->h.nodes[c->slots[id].hnode].gloss;
-    float mix = c->o.mix + (1.0f - c->o.mix) * gloss;
-    vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), mix, c->o.mix_radius);
+    vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius);
     int r = ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max);
     info->radius = r;
     c->st.inserted++;

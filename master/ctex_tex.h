@@ -174,10 +174,12 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max
  * averages the noise out where the correction is smooth. */
 static inline vec3 ctex_tex_mix(const ctex_tex *t, int ci, int cj, vec3 value, float mix, float radius)
 {
+    if (!(mix < 1.0f)) return value;
     const ctex_texel *x = ctex_tex_at(t, ci, cj);
-    if (!(mix < 1.0f) || !ctex_texel_valid(x) || !(t->vmax - ctex_tex_v(t, x) <= radius)) return value;
-    vec3 o = ctex_texel_rgb(x);
-    return v3_add(o, v3_scale(v3_sub(value, o), mix));
+    if (!ctex_texel_valid(x) || !(t->vmax - ctex_tex_v(t, x) <= radius)) return value;
+    float o[4];
+    ctex_texel_rgbx(x, o);
+    return v3(o[0] + mix * (value.x - o[0]), o[1] + mix * (value.y - o[1]), o[2] + mix * (value.z - o[2]));
 }
 
 /* Bilinear correction at texture position (u, v), clamp-to-edge (GL_LINEAR). */
