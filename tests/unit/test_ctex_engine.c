@@ -693,6 +693,11 @@ Test(ctex_engine, options_parse_and_reject)
     cr_assert_lt(ctex_options_parse(&o, "--tex-min", "2.5", &err), 0);
     cr_assert_lt(ctex_options_parse(&o, "--flat-deg", "-1", &err), 0);
     cr_assert_lt(ctex_options_parse(&o, "--eps", NULL, &err), 0);
+    /* mix 0 would freeze every texel at its first sample */
+    cr_assert_lt(ctex_options_parse(&o, "--mix", "0", &err), 0);
+    cr_assert_lt(ctex_options_parse(&o, "--mix", "1.5", &err), 0);
+    cr_assert_eq(ctex_options_parse(&o, "--mix", "1", &err), 1);
+    cr_assert_float_eq(o.mix, 1.0f, 1e-7);
 }
 
 Test(ctex_engine, bad_mesh_is_rejected)
