@@ -470,15 +470,14 @@ Test(ctex_engine, diffuse_object_local_does_not_age)
 }
 
 /* RMS deviation from `mean` of node's correction at a 24 x 24 grid of
- * points of the rectangle [x0, x1] x [z0, z1] at height y (or, with
- * panel, of the rectangle [x0, x1] x [y0 = z0, y1 = z1] at z = -5). */
-static double rms_dev(ctex *c, uint32_t node, bool panel, float x0, float x1, float z0, float z1, float y, float mean)
+ * points o + a du + b dv, a and b in (0, 1). */
+static double rms_dev(ctex *c, uint32_t node, vec3 o, vec3 du, vec3 dv, float mean)
 {
     double se = 0.0;
     for (int i = 0; i < 24; i++)
         for (int j = 0; j < 24; j++) {
-            float a = x0 + (x1 - x0) * ((float)i + 0.5f) / 24.0f, b = z0 + (z1 - z0) * ((float)j + 0.5f) / 24.0f;
-            vec3 l = ctex_lookup(c, node, UINT32_MAX, panel ? v3(a, b, -5.0f) : v3(a, y, b));
+            float a = ((float)i + 0.5f) / 24.0f, b = ((float)j + 0.5f) / 24.0f;
+            vec3 l = ctex_lookup(c, node, UINT32_MAX, v3_add(o, v3_add(v3_scale(du, a), v3_scale(dv, b))));
             se += ((double)l.x - mean) * ((double)l.x - mean);
         }
     return sqrt(se / (24.0 * 24.0));
@@ -504,8 +503,8 @@ static void noisy_field(float mix, int n, double *floor_dev, double *panel_dev)
         s = mk_sample((uint32_t)t.panel, v3(-2.5f + 5.0f * u, 0.7f + 2.1f * v, -5.0f), v3s(0.5f + e), v3s(0.0f));
         cr_assert_eq(ctex_insert(c, &s, &info), 1);
     }
-    *floor_dev = rms_dev(c, (uint32_t)t.floor, false, -3.5f, 3.5f, -3.5f, 3.5f, 0.0f, 0.5f);
-    *panel_dev = rms_dev(c, (uint32_t)t.panel, true, -2.2f, 2.2f, 0.9f, 2.6f, 0.0f, 0.5f);
+    *floor_dev = rms_dev(c, (uint32_t)t.floor, v3(-3.5f, 0.0f, -3.5f), v3(7.0f, 0, 0), v3(0, 0, 7.0f), 0.5f);
+    *panel_dev = rms_dev(c, (uint32_t)t.panel, v3(-2.2f, 0.9f, -5.0f), v3(4.4f, 0, 0), v3(0, 1.7f, 0), 0.5f);
     ctex_free(c);
     release(&t);
 }
