@@ -168,8 +168,14 @@ static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target,
         vec3 ng = h.rec->ng;
         float cosd = v3_dot(d, ng), ct;
         float ior = m->ior > 0.0f ? m->ior : 1.0f;
-        /* Entering when the ray runs against the outside (front) normal. */
-        float f = bsdf_fresnel(fabsf(cosd), cosd < 0.0f ? 1.0f / ior : ior, &ct);
+        /* Every crossing takes the Fresnel reflectance of its angle on the
+         * outside (air) side, leaving as well as entering: the light this
+         * straight ray stands for is refracted in and out of a pane at the
+         * same outside angle, and by reciprocity its exit loses what the
+         * entry did. Evaluating the exit from the inside at the unrefracted
+         * angle would make every crossing beyond asin(1 / ior) (41.8 deg for
+         * glass) a total internal reflection that blocks the light. */
+        float f = bsdf_fresnel(fabsf(cosd), 1.0f / ior, &ct);
         att = v3_scale(v3_mul(att, m->transmission), 1.0f - f);
         if (!(maxc(att) > 0.0f)) return v3s(0.0f);
         vec3 p = emb_hit_point(&h);

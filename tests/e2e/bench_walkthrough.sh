@@ -23,7 +23,7 @@ for m in 'radiosity alone' 'naive point display' 'corrective texturing'; do
 done
 [[ -f $w/cache/cornell.ctmesh ]] || fail "the radiosity cache is not under --work"
 sum=$(sha256sum "$w/cache/cornell.ctmesh" | cut -c1-12)
-ls -d "$w"/ref-cornell-32-f2-drt-s1-m"$sum" >/dev/null 2>&1 || fail "no references for the cache's mesh $sum"
+ls -d "$w"/ref-cornell-32-f2-drt-s1-m"$sum"-r* >/dev/null 2>&1 || fail "no references for the cache's mesh $sum"
 n=0
 for r in "$w"/cornell/ct-*/radiosity.out; do
     [[ -f $r ]] || continue

@@ -327,7 +327,9 @@ Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
 
 /* --- shadows of transparent objects ----------------------------------------- */
 
-static vec3 under_slab(trc_mode mode, bool with_slab)
+/* The floor under a small light at (light_x, 5, 0), lit through a glass
+ * slab at y in [1, 1.2] or not. */
+static vec3 under_slab(trc_mode mode, bool with_slab, float light_x)
 {
     ct_error err;
     ct_scene *s = scene_new("shadow");
@@ -340,8 +342,8 @@ static vec3 under_slab(trc_mode mode, bool with_slab)
     int gm = scene_add_material(s, &g, &err);
     cr_assert(floor_m >= 0 && lamp >= 0 && gm >= 0);
     cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
-    /* A small light high above: shadow rays cross the slab almost normally. */
-    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(-0.05f, 5, -0.05f), v3(0.1f, 0, 0), v3(0, 0, 0.1f), &err) >= 0);
+    cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(light_x - 0.05f, 5, -0.05f), v3(0.1f, 0, 0), v3(0, 0, 0.1f),
+                      &err) >= 0);
     if (with_slab)
         cr_assert(ts_box(s, "slab", (uint32_t)gm, v3(-3, 1, -3), v3(3, 1.2f, 3), false, &err) >= 0);
     CHECK(scene_finalize(s, &err));
@@ -362,7 +364,8 @@ static vec3 under_slab(trc_mode mode, bool with_slab)
 Test(tracer, glass_attenuates_shadow_rays_instead_of_blocking)
 {
     for (int mode = TRC_MODE_PATH; mode <= TRC_MODE_DRT; mode++) {
-        vec3 open = under_slab((trc_mode)mode, false), shaded = under_slab((trc_mode)mode, true);
+        /* A small light high above: shadow rays cross the slab almost normally. */
+        vec3 open = under_slab((trc_mode)mode, false, 0.0f), shaded = under_slab((trc_mode)mode, true, 0.0f);
         /* Two crossings at (nearly) normal incidence: (1 - F0)^2 * transmission. */
         double f0 = 0.04, want = (1 - f0) * (1 - f0);
         cr_assert(open.x > 0.0f);
@@ -371,5 +374,25 @@ Test(tracer, glass_attenuates_shadow_rays_instead_of_blocking)
                   rx, want);
         cr_expect(fabs(ry - want * 0.25) < 0.01, "%s: green passes %g, want %g", trc_mode_name((trc_mode)mode), ry,
                   want * 0.25);
+    }
+}
+
+/* Light crossing a pane at 60 degrees, beyond glass' critical angle of 41.8
+ * degrees: the straight shadow ray stands for light refracted in and out at
+ * that outside angle, so both crossings lose the Fresnel reflectance of 60
+ * degrees and nothing is totally reflected. */
+Test(tracer, glass_passes_oblique_shadow_rays)
+{
+    float lx = 5.0f * tanf(60.0f * 3.14159265f / 180.0f);
+    float ct;
+    double f = bsdf_fresnel(0.5f, 1.0f / 1.5f, &ct), want = (1 - f) * (1 - f);
+    for (int mode = TRC_MODE_PATH; mode <= TRC_MODE_DRT; mode++) {
+        vec3 open = under_slab((trc_mode)mode, false, lx), shaded = under_slab((trc_mode)mode, true, lx);
+        cr_assert(open.x > 0.0f);
+        double rx = shaded.x / open.x, ry = shaded.y / open.y;
+        cr_expect(fabs(rx - want) < 0.01, "%s: glass passes %g of the light at 60 deg, want %g",
+                  trc_mode_name((trc_mode)mode), rx, want);
+        cr_expect(fabs(ry - want * 0.25) < 0.01, "%s: green passes %g at 60 deg, want %g",
+                  trc_mode_name((trc_mode)mode), ry, want * 0.25);
     }
 }
