@@ -1,5 +1,6 @@
 #include "common/radmesh.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,7 +38,42 @@ void rmesh_free(ct_radmesh *m)
     free(m->tri_node);
     free(m->tri_mat);
     free(m->nodes);
+    free(m->mats);
     memset(m, 0, sizeof *m);
+}
+
+float rmesh_fresnel(float cos_i, float eta, float *cos_t)
+{
+    float c2 = 1.0f - cos_i * cos_i;
+    float sin2_t = eta * eta * (c2 > 0.0f ? c2 : 0.0f);
+    if (sin2_t >= 1.0f) {
+        *cos_t = 0.0f;
+        return 1.0f;
+    }
+    float ct = sqrtf(1.0f - sin2_t);
+    float rs = (eta * cos_i - ct) / (eta * cos_i + ct);
+    float rp = (cos_i - eta * ct) / (cos_i + eta * ct);
+    *cos_t = ct;
+    return 0.5f * (rs * rs + rp * rp);
+}
+
+int rmesh_set_materials(ct_radmesh *m, const ct_scene *s, ct_error *err)
+{
+    if (s->nmats > RMESH_MAX_MATS)
+        return ct_fail(err, CT_ERANGE, "%u materials, a mesh carries at most %u", s->nmats, RMESH_MAX_MATS);
+    rmesh_material *t = calloc(s->nmats ? s->nmats : 1, sizeof *t);
+    if (!t) return ct_fail(err, CT_ENOMEM, "out of memory for %u materials", s->nmats);
+    for (uint32_t i = 0; i < s->nmats; i++) {
+        const scene_material *x = &s->mats[i];
+        if (!x->dielectric) continue;
+        t[i].transmission = x->transmission;
+        /* The tracer takes an unset index as 1 (a surface that only tints). */
+        t[i].ior = x->ior > 0.0f ? x->ior : 1.0f;
+    }
+    free(m->mats);
+    m->mats = t;
+    m->nmats = s->nmats;
+    return CT_OK;
 }
 
 int rmesh_from_scene(const ct_scene *s, vec3 ambient, ct_radmesh *m, ct_error *err)
@@ -68,5 +104,7 @@ int rmesh_from_scene(const ct_scene *s, vec3 ambient, ct_radmesh *m, ct_error *e
         m->nodes[n].bounds = s->nodes[n].bounds;
     }
     m->scene_hash = s->source_hash;
-    return CT_OK;
+    rc = rmesh_set_materials(m, s, err);
+    if (rc) rmesh_free(m);
+    return rc;
 }

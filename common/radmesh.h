@@ -8,6 +8,7 @@
 #ifndef CT_RADMESH_H
 #define CT_RADMESH_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -23,6 +24,16 @@ typedef struct rmesh_node {
     bounds3 bounds;
 } rmesh_node;
 
+/* What the display needs of a material to draw it: glass (a dielectric) is
+ * see-through in the interactive solution, the surfaces behind it drawn
+ * times transmission * (1 - F) per crossing (F: Fresnel reflectance at the
+ * crossing's angle on the outside, rmesh_glass_pass); every other material
+ * is opaque (ior 0). docs/radiosity.md, "Glass". */
+typedef struct rmesh_material {
+    vec3 transmission;   /* per crossing, before Fresnel */
+    float ior;           /* index of refraction inside; 0: opaque */
+} rmesh_material;
+
 typedef struct ct_radmesh {
     uint32_t nverts;
     vec3 *pos;
@@ -35,11 +46,53 @@ typedef struct ct_radmesh {
     uint32_t *tri_mat;  /* scene material per triangle */
     uint32_t nnodes;
     rmesh_node *nodes;
+    uint32_t nmats;       /* materials; tri_mat beyond them draws opaque */
+    rmesh_material *mats;
     uint64_t scene_hash;  /* hash of the scene file and solver parameters */
 } ct_radmesh;
 
+/* Most materials a mesh may carry (file and wire). */
+#define RMESH_MAX_MATS (1u << 16)
+
 /* Allocates a mesh with the given counts (arrays zeroed). */
 int rmesh_alloc(ct_radmesh *m, uint32_t nverts, uint32_t ntris, uint32_t nnodes, ct_error *err);
+
+/* Sets m's material table from the scene's materials (dielectrics
+ * see-through, the rest opaque); replaces any table m had. */
+int rmesh_set_materials(ct_radmesh *m, const ct_scene *s, ct_error *err);
+
+/* A material read from a file or the wire is usable: a finite index of
+ * refraction (0 or positive) and a finite transmission in [0, 1]. */
+static inline bool rmesh_material_ok(const rmesh_material *x)
+{
+    vec3 t = x->transmission;
+    bool unit = t.x >= 0.0f && t.x <= 1.0f && t.y >= 0.0f && t.y <= 1.0f && t.z >= 0.0f && t.z <= 1.0f;
+    return unit && x->ior >= 0.0f && x->ior <= 1e6f;
+}
+
+/* Exact unpolarized Fresnel reflectance of a dielectric for cos_i >= 0 and
+ * eta = n_i / n_t; *cos_t receives the refracted cosine (0 on total internal
+ * reflection, where the result is 1). The tracer's dielectric (bsdf_fresnel)
+ * and the glass of the interactive solution share it. */
+float rmesh_fresnel(float cos_i, float eta, float *cos_t);
+
+/* What one straight crossing of glass x passes at cos = d . n (either
+ * side): transmission * (1 - F), F at the crossing's angle on the outside
+ * (air) side, leaving as well as entering: the light a straight ray stands
+ * for is refracted into a pane and out of it at the same outside angle, and
+ * by reciprocity the exit loses what the entry did. The display's glass
+ * pass computes the same in GLSL. */
+static inline vec3 rmesh_glass_pass(const rmesh_material *x, float cos)
+{
+    float ct, f = rmesh_fresnel(fabsf(cos), 1.0f / x->ior, &ct);
+    return v3_scale(x->transmission, 1.0f - f);
+}
+
+/* Whether material mat of m is see-through glass. */
+static inline bool rmesh_is_glass(const ct_radmesh *m, uint32_t mat)
+{
+    return mat < m->nmats && m->mats[mat].ior > 0.0f;
+}
 
 /* Frees the arrays and zeroes the struct. */
 void rmesh_free(ct_radmesh *m);

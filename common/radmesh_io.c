@@ -13,12 +13,13 @@
 
 #define RMESH_MAGIC       "CTMESH\r\n\x1a\n"   /* 10 bytes: catches text-mode and truncating transfers */
 #define RMESH_MAGIC_LEN   10
-#define RMESH_VERSION     1u
+#define RMESH_VERSION     2u   /* 2: the material table (see-through glass) */
 #define RMESH_ENDIAN      0x01020304u
 #define RMESH_HEADER      48
 #define RMESH_VERT_BYTES  48
 #define RMESH_TRI_BYTES   20
 #define RMESH_NODE_BYTES  (SCENE_NAME_LEN + 12 + 24)
+#define RMESH_MAT_BYTES   16
 #define RMESH_MAX_VERTS   (1u << 28)
 #define RMESH_MAX_TRIS    (1u << 28)
 #define RMESH_MAX_NODES   (1u << 24)
@@ -54,11 +55,12 @@ int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error
 {
     *out = NULL;
     *len = 0;
-    if (m->nverts > RMESH_MAX_VERTS || m->ntris > RMESH_MAX_TRIS || m->nnodes > RMESH_MAX_NODES)
-        return ct_fail(err, CT_ERANGE, "mesh too large to encode (%u vertices, %u triangles, %u nodes)",
-                       m->nverts, m->ntris, m->nnodes);
+    if (m->nverts > RMESH_MAX_VERTS || m->ntris > RMESH_MAX_TRIS || m->nnodes > RMESH_MAX_NODES ||
+        m->nmats > RMESH_MAX_MATS)
+        return ct_fail(err, CT_ERANGE, "mesh too large to encode (%u vertices, %u triangles, %u nodes, %u materials)",
+                       m->nverts, m->ntris, m->nnodes, m->nmats);
     size_t n = (size_t)RMESH_HEADER + (size_t)m->nverts * RMESH_VERT_BYTES + (size_t)m->ntris * RMESH_TRI_BYTES +
-               (size_t)m->nnodes * RMESH_NODE_BYTES + 8;
+               (size_t)m->nnodes * RMESH_NODE_BYTES + (size_t)m->nmats * RMESH_MAT_BYTES + 8;
     unsigned char *buf = malloc(n), *p = buf;
     if (!buf) return ct_fail(err, CT_ENOMEM, "out of memory for a %zu-byte mesh", n);
     memcpy(p, RMESH_MAGIC, RMESH_MAGIC_LEN);
@@ -71,7 +73,7 @@ int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error
     p = wu32(p, m->nverts);
     p = wu32(p, m->ntris);
     p = wu32(p, m->nnodes);
-    p = wu32(p, 0);
+    p = wu32(p, m->nmats);
     p = wu32(p, 0);
     for (uint32_t i = 0; i < m->nverts; i++) {
         p = wvec(p, m->pos[i]);
@@ -96,6 +98,10 @@ int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error
         p = wu32(p, d->material);
         p = wvec(p, d->bounds.lo);
         p = wvec(p, d->bounds.hi);
+    }
+    for (uint32_t i = 0; i < m->nmats; i++) {
+        p = wvec(p, m->mats[i].transmission);
+        p = wf32(p, m->mats[i].ior);
     }
     p = wu64(p, fnv(1469598103934665603ULL, buf, (size_t)(p - buf)));
     *out = buf;
@@ -155,16 +161,17 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
                        path, endian, RMESH_ENDIAN);
     }
     uint64_t hash = ru64(d + 20);
-    uint32_t nv = ru32(d + 28), nt = ru32(d + 32), nn = ru32(d + 36);
-    if (ru32(d + 40) != 0 || ru32(d + 44) != 0) {
-        return ct_fail(err, CT_EPARSE, "%s: reserved header fields are not zero", path);
+    uint32_t nv = ru32(d + 28), nt = ru32(d + 32), nn = ru32(d + 36), nm = ru32(d + 40);
+    if (ru32(d + 44) != 0) {
+        return ct_fail(err, CT_EPARSE, "%s: reserved header field is not zero", path);
     }
-    if (nv > RMESH_MAX_VERTS || nt > RMESH_MAX_TRIS || nn > RMESH_MAX_NODES) {
-        return ct_fail(err, CT_EPARSE, "%s: counts out of range (%u vertices, %u triangles, %u nodes)",
-                       path, nv, nt, nn);
+    if (nv > RMESH_MAX_VERTS || nt > RMESH_MAX_TRIS || nn > RMESH_MAX_NODES || nm > RMESH_MAX_MATS) {
+        return ct_fail(err, CT_EPARSE, "%s: counts out of range (%u vertices, %u triangles, %u nodes, %u materials)",
+                       path, nv, nt, nn, nm);
     }
     uint64_t need = (uint64_t)RMESH_HEADER + (uint64_t)nv * RMESH_VERT_BYTES +
-                    (uint64_t)nt * RMESH_TRI_BYTES + (uint64_t)nn * RMESH_NODE_BYTES + 8;
+                    (uint64_t)nt * RMESH_TRI_BYTES + (uint64_t)nn * RMESH_NODE_BYTES +
+                    (uint64_t)nm * RMESH_MAT_BYTES + 8;
     if (len != need) {
         return ct_fail(err, CT_EPARSE, "%s: %s (%zu bytes, header says %llu)", path,
                        len < need ? "truncated" : "trailing bytes", len, (unsigned long long)need);
@@ -227,6 +234,20 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
         if (q->parent < -1 || q->parent >= (int32_t)n || q->node_end <= n || q->node_end > nn) {
             rc = ct_fail(err, CT_EPARSE, "%s: node %u: parent %d or end %u out of range", path, n,
                          q->parent, q->node_end);
+            goto fail;
+        }
+    }
+    if (!(m->mats = calloc(nm ? nm : 1, sizeof *m->mats))) {
+        rc = ct_fail(err, CT_ENOMEM, "%s: out of memory for %u materials", path, nm);
+        goto fail;
+    }
+    m->nmats = nm;
+    for (uint32_t i = 0; i < nm; i++, p += RMESH_MAT_BYTES) {
+        rmesh_material *x = &m->mats[i];
+        x->transmission = rvec(p);
+        x->ior = rf32(p + 12);
+        if (!rmesh_material_ok(x)) {
+            rc = ct_fail(err, CT_EPARSE, "%s: material %u: transmission or index of refraction out of range", path, i);
             goto fail;
         }
     }

@@ -11,6 +11,7 @@
 typedef struct mesh_prog {
     GLuint id;
     GLint u_mvp, u_texproj, u_rad_scale, u_color, u_tex[GL_ONE_PASS_MAX_TEX];
+    GLint u_eye, u_transmission, u_ior, u_glass, u_zrev;
 } mesh_prog;
 
 struct disp_compositor {
@@ -25,6 +26,9 @@ struct disp_compositor {
     uint32_t npoints;    /* sample points in pw_vbo */
     GLint tm_image, tm_exposure, tm_mode;
     GLuint empty_vao;
+    /* depth of the nearest glass, for the one-pass programs (made when a
+     * scene with glass is first drawn in one pass) */
+    GLuint glass_fbo, glass_depth;
     /* draw segments, reused between frames */
     uint32_t *bounds;
     size_t bounds_cap;
@@ -40,6 +44,7 @@ typedef struct segment {
     uint32_t b, e;
     uint32_t first, m;
     float key;   /* depth of the far end of the innermost texture's node */
+    bool glass;  /* inside a glass run: drawn by the glass passes */
 } segment;
 
 const char *disp_view_name(disp_view v)
@@ -59,7 +64,14 @@ static int build_mesh_prog(mesh_prog *p, int pass, int ntex, ct_error *err)
     p->u_texproj = gl.GetUniformLocation(p->id, "u_texproj");
     p->u_rad_scale = gl.GetUniformLocation(p->id, "u_rad_scale");
     p->u_color = gl.GetUniformLocation(p->id, "u_color");
+    p->u_eye = gl.GetUniformLocation(p->id, "u_eye");
+    p->u_transmission = gl.GetUniformLocation(p->id, "u_transmission");
+    p->u_ior = gl.GetUniformLocation(p->id, "u_ior");
+    p->u_glass = gl.GetUniformLocation(p->id, "u_glass");
+    p->u_zrev = gl.GetUniformLocation(p->id, "u_zrev");
     gl.UseProgram(p->id);
+    GLint gd = gl.GetUniformLocation(p->id, "u_glass_depth");
+    if (gd >= 0) gl.Uniform1i(gd, GL_GLASS_DEPTH_UNIT);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++) {
         char u[16];
         snprintf(u, sizeof u, "u_tex%d", k);
@@ -137,6 +149,8 @@ void disp_compositor_free(disp_compositor *c)
     if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
     if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
+    if (c->glass_fbo) gl.DeleteFramebuffers(1, &c->glass_fbo);
+    if (c->glass_depth) gl.DeleteTextures(1, &c->glass_depth);
     free(c->bounds);
     free(c->seg_tex);
     free(c->segs);
@@ -248,6 +262,18 @@ static int grow(void **p, size_t *cap, size_t need, size_t elem, ct_error *err)
     return CT_OK;
 }
 
+/* Whether sorted triangle t lies in one of the ng glass runs (in order). */
+static bool in_glass(const disp_glass *g, uint32_t ng, uint32_t t)
+{
+    uint32_t lo = 0, hi = ng;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (g[mid].end <= t) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo < ng && g[lo].begin <= t;
+}
+
 static int by_draw_order(const void *pa, const void *pb)
 {
     const segment *a = pa, *b = pb;
@@ -270,9 +296,11 @@ static int by_draw_order(const void *pa, const void *pb)
 static int build_segments(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex,
                           uint32_t n, const ct_camera *cam, size_t *nseg, ct_error *err)
 {
-    uint32_t ntris = disp_scene_ntris(s);
-    int rc = grow((void **)&c->bounds, &c->bounds_cap, 2 * (size_t)n + 2, sizeof *c->bounds, err);
-    if (!rc) rc = grow((void **)&c->segs, &c->segs_cap, 2 * (size_t)n + 1, sizeof *c->segs, err);
+    uint32_t ntris = disp_scene_ntris(s), ng;
+    const disp_glass *glass = disp_scene_glass(s, &ng);
+    size_t ends = 2 * (size_t)n + 2 * (size_t)ng;
+    int rc = grow((void **)&c->bounds, &c->bounds_cap, ends + 2, sizeof *c->bounds, err);
+    if (!rc) rc = grow((void **)&c->segs, &c->segs_cap, ends + 1, sizeof *c->segs, err);
     if (rc) return rc;
     size_t nb = 0;
     c->bounds[nb++] = 0;
@@ -280,6 +308,11 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
     for (uint32_t i = 0; i < n; i++) {
         c->bounds[nb++] = tex[i]->tri_begin;
         c->bounds[nb++] = tex[i]->tri_end;
+    }
+    /* Glass runs are cut out: the glass passes draw them after the rest. */
+    for (uint32_t i = 0; i < ng; i++) {
+        c->bounds[nb++] = glass[i].begin;
+        c->bounds[nb++] = glass[i].end;
     }
     qsort(c->bounds, nb, sizeof *c->bounds, cmp_u32);
     vec3 fwd;
@@ -299,6 +332,7 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
                 if (!inner || tex[i]->tri_end - tex[i]->tri_begin < inner->tri_end - inner->tri_begin) inner = tex[i];
             }
         used += g->m;
+        g->glass = in_glass(glass, ng, b);
         /* Merge following untextured segments into this one when it has none. */
         if (g->m == 0) {
             while (k + 2 < nb) {
@@ -306,7 +340,7 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
                 bool covered = false;
                 for (uint32_t i = 0; i < n && !covered && b2 < e2; i++)
                     covered = tex[i]->tri_begin <= b2 && e2 <= tex[i]->tri_end;
-                if (covered) break;
+                if (covered || (b2 < e2 && in_glass(glass, ng, b2) != g->glass)) break;
                 e = e2;
                 k++;
             }
@@ -328,25 +362,43 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
     return CT_OK;
 }
 
-/* One pass: each segment is drawn once with the radiosity plus the signed
- * corrections of the (up to 4) textures covering it; untextured segments
- * with the plain radiosity program (no lookups). Any further textures on a
- * segment (rare: more than 4 textures stacked on one node) go through
- * passes 2/3. */
+/* One pass: each opaque segment is drawn once with the radiosity plus the
+ * signed corrections of the (up to 4) textures covering it; untextured
+ * segments with the plain radiosity program (no lookups). With behind_glass
+ * the programs leave out the corrections behind the nearest glass (the
+ * glass depth texture is bound). Glass segments are left to the glass
+ * passes, and so are further textures on a segment (rare: more than 4
+ * stacked on one node): late_corrections. */
 static void one_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp, float rad_scale,
-                     bool all_positive, disp_render_stats *st)
+                     bool behind_glass, disp_render_stats *st)
 {
     for (size_t k = 0; k < nseg; k++) {
         const segment *g = &c->segs[k];
+        if (g->glass) continue;
         const disp_texture **gt = c->seg_tex + g->first;
         uint32_t first = g->m < GL_ONE_PASS_MAX_TEX ? g->m : GL_ONE_PASS_MAX_TEX;
         const mesh_prog *p = first ? &c->one[first - 1] : &c->mesh[GL_PASS_RAD];
         use_mesh(p, mvp, rad_scale);
-        if (first) set_texproj(p, gt, (int)first);
+        if (first) {
+            set_texproj(p, gt, (int)first);
+            gl.Uniform1i(p->u_glass, behind_glass);
+            gl.Uniform1i(p->u_zrev, gl.reversed_z);
+        }
         disp_scene_draw(s, g->b, g->e);
         st->draws++;
-        /* Extra textures stacked on this segment: additive passes. */
-        for (uint32_t i = first; i < g->m; i++) {
+    }
+}
+
+/* After the glass passes of the one-pass mode: the textures one_pass left,
+ * by passes 2/3 on their segment (the depth test keeps them off what lies
+ * behind the nearest glass). */
+static void late_corrections(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+                             bool all_positive, disp_render_stats *st)
+{
+    for (size_t k = 0; k < nseg; k++) {
+        const segment *g = &c->segs[k];
+        const disp_texture **gt = c->seg_tex + g->first;
+        for (uint32_t i = g->glass ? 0 : GL_ONE_PASS_MAX_TEX; i < g->m; i++) {
             disp_texture tmp = *gt[i];
             tmp.tri_begin = g->b;
             tmp.tri_end = g->e;
@@ -354,6 +406,81 @@ static void one_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const
             correction_passes(c, s, &one, 1, mvp, all_positive, st);
         }
     }
+}
+
+/* The glass passes: every glass fragment in front of the opaque surfaces
+ * multiplies what lies behind it by transmission * (1 - F) (with
+ * `multiply`; a product is order-independent, so glass layers need no
+ * sorting), then the glass's depth goes into the depth buffer, so that
+ * corrections land on the nearest glass and not on what shows through it
+ * (the samples there hit the glass). */
+static void glass_passes(disp_compositor *c, const disp_scene *s, const float *mvp, const ct_camera *cam,
+                         bool multiply, disp_render_stats *st)
+{
+    uint32_t ng;
+    const disp_glass *g = disp_scene_glass(s, &ng);
+    if (!ng) return;
+    if (multiply) {
+        const mesh_prog *p = &c->mesh[GL_PASS_GLASS];
+        use_mesh(p, mvp, 1.0f);
+        gl.Uniform3f(p->u_eye, cam->eye.x, cam->eye.y, cam->eye.z);
+        gl.DepthMask(GL_FALSE);
+        gl.Enable(GL_BLEND);
+        gl.BlendEquation(GL_FUNC_ADD);
+        gl.BlendFunc(GL_ZERO, GL_SRC_COLOR);
+        for (uint32_t i = 0; i < ng; i++) {
+            gl.Uniform3f(p->u_transmission, g[i].transmission.x, g[i].transmission.y, g[i].transmission.z);
+            gl.Uniform1f(p->u_ior, g[i].ior);
+            disp_scene_draw(s, g[i].begin, g[i].end);
+            st->draws++;
+        }
+        gl.Disable(GL_BLEND);
+        gl.DepthMask(GL_TRUE);
+    }
+    gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    use_mesh(&c->mesh[GL_PASS_RAD], mvp, 0.0f);
+    for (uint32_t i = 0; i < ng; i++) {
+        disp_scene_draw(s, g[i].begin, g[i].end);
+        st->draws++;
+    }
+    gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+}
+
+/* The depth of the nearest glass into c->glass_depth (bound to
+ * GL_GLASS_DEPTH_UNIT), for one_pass; leaves the float target bound. */
+static int glass_depth_texture(disp_compositor *c, const disp_scene *s, const float *mvp, ct_error *err)
+{
+    if (!c->glass_fbo) {
+        gl.GenTextures(1, &c->glass_depth);
+        gl.BindTexture(GL_TEXTURE_2D, c->glass_depth);
+        gl.TexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, c->width, c->height, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
+                      NULL);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        gl.GenFramebuffers(1, &c->glass_fbo);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, c->glass_fbo);
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, c->glass_depth, 0);
+        gl.DrawBuffer(GL_NONE);
+        gl.ReadBuffer(GL_NONE);
+        GLenum fs = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+        if (fs != GL_FRAMEBUFFER_COMPLETE) {
+            gl_target_bind(&c->hdr, 0, 0);
+            return ct_fail(err, CT_ESYS, "glass depth framebuffer %dx%d incomplete: 0x%04x", c->width, c->height,
+                           (unsigned)fs);
+        }
+    }
+    gl.BindFramebuffer(GL_FRAMEBUFFER, c->glass_fbo);
+    gl.Viewport(0, 0, c->width, c->height);
+    gl.Clear(GL_DEPTH_BUFFER_BIT);
+    use_mesh(&c->mesh[GL_PASS_RAD], mvp, 0.0f);
+    uint32_t ng;
+    const disp_glass *g = disp_scene_glass(s, &ng);
+    for (uint32_t i = 0; i < ng; i++) disp_scene_draw(s, g[i].begin, g[i].end);
+    gl_target_bind(&c->hdr, 0, 0);
+    gl.ActiveTexture(GL_TEXTURE0 + GL_GLASS_DEPTH_UNIT);
+    gl.BindTexture(GL_TEXTURE_2D, c->glass_depth);
+    gl.ActiveTexture(GL_TEXTURE0);
+    return CT_OK;
 }
 
 static vec3 id_colour(uint32_t id)
@@ -458,16 +585,27 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     /* Every view draws the mesh in the same segment order, so the views
      * (and the two modes) differ only by what they add. */
     size_t nseg = 0;
+    uint32_t nglass;
+    disp_scene_glass(s, &nglass);
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && corrections && o->passes == 1) {
-        one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, o->all_positive, &st);
+        bool behind_glass = nglass > 0 && n > 0;
+        if (behind_glass) rc = glass_depth_texture(c, s, &mvp.m[0][0], err);
+        if (!rc) {
+            one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, behind_glass, &st);
+            glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
+            late_corrections(c, s, nseg, &mvp.m[0][0], o->all_positive, &st);
+        }
     } else if (!rc) {
-        /* Pass 1, then (with corrections) passes 2 and 3. */
+        /* Pass 1 (glass after the opaque surfaces), then (with corrections)
+         * passes 2 and 3. */
         use_mesh(&c->mesh[GL_PASS_RAD], &mvp.m[0][0], rad_scale);
         for (size_t k = 0; k < nseg; k++) {
+            if (c->segs[k].glass) continue;
             disp_scene_draw(s, c->segs[k].b, c->segs[k].e);
             st.draws++;
         }
+        glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
         if (corrections) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
     }
     if (!rc && o->view == DISP_VIEW_ASSIGNMENT && n) {

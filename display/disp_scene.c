@@ -12,6 +12,8 @@ struct disp_scene {
     uint32_t *node_end;     /* subtree end node of each node */
     bounds3 *node_bounds;   /* world bounds of each node's subtree triangles */
     bounds3 bounds;
+    disp_glass *glass;      /* runs of see-through triangles, in order */
+    uint32_t nglass;
 };
 
 static int validate(const ct_radmesh *m, ct_error *err)
@@ -34,6 +36,28 @@ static int validate(const ct_radmesh *m, ct_error *err)
     for (uint32_t v = 0; v < m->nverts; v++)
         if (!v3_finite(m->pos[v]) || !v3_finite(m->rad[v]))
             return ct_fail(err, CT_ERANGE, "mesh vertex %u is not finite", v);
+    return CT_OK;
+}
+
+/* The runs of see-through triangles of one material in the sorted order
+ * (smat: each sorted triangle's material). */
+static int glass_runs(disp_scene *s, const ct_radmesh *m, const uint32_t *smat, ct_error *err)
+{
+    uint32_t n = 0;
+    for (uint32_t t = 0; t < m->ntris; t++)
+        if (rmesh_is_glass(m, smat[t]) && (t == 0 || smat[t - 1] != smat[t])) n++;
+    if (!n) return CT_OK;
+    s->glass = malloc((size_t)n * sizeof *s->glass);
+    if (!s->glass) return ct_fail(err, CT_ENOMEM, "out of memory for %u glass runs", n);
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        if (!rmesh_is_glass(m, smat[t])) continue;
+        if (t == 0 || smat[t - 1] != smat[t]) {
+            const rmesh_material *x = &m->mats[smat[t]];
+            s->glass[s->nglass++] = (disp_glass){t, t + 1, x->transmission, x->ior};
+        } else {
+            s->glass[s->nglass - 1].end = t + 1;
+        }
+    }
     return CT_OK;
 }
 
@@ -78,11 +102,30 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err)
         return ct_fail(err, CT_ENOMEM, "out of memory sorting %u triangles", m->ntris);
     }
     memcpy(fill, s->node_first, (size_t)m->nnodes * sizeof *fill);
+    /* fill's slots then hold each sorted triangle's material (the glass
+     * runs), reusing the index buffer's order. */
+    uint32_t *smat = malloc((size_t)m->ntris * sizeof *smat);
+    if (!smat) {
+        free(fill);
+        free(verts);
+        free(idx);
+        disp_scene_free(s);
+        return ct_fail(err, CT_ENOMEM, "out of memory sorting %u triangles", m->ntris);
+    }
     for (uint32_t t = 0; t < m->ntris; t++) {
         uint32_t at = fill[m->tri_node[t]]++;
         memcpy(idx + 3 * (size_t)at, m->tris + 3 * (size_t)t, 3 * sizeof *idx);
+        smat[at] = m->tri_mat[t];
     }
     free(fill);
+    rc = glass_runs(s, m, smat, err);
+    free(smat);
+    if (rc) {
+        free(verts);
+        free(idx);
+        disp_scene_free(s);
+        return rc;
+    }
     for (uint32_t n = 0; n < m->nnodes; n++) s->node_end[n] = m->nodes[n].node_end;
     /* Subtree bounds from the triangles themselves: a node's own triangles,
      * then each node's into its parent (pre-order: children after parents). */
@@ -134,7 +177,14 @@ void disp_scene_free(disp_scene *s)
     free(s->node_first);
     free(s->node_end);
     free(s->node_bounds);
+    free(s->glass);
     free(s);
+}
+
+const disp_glass *disp_scene_glass(const disp_scene *s, uint32_t *n)
+{
+    *n = s->nglass;
+    return s->glass;
 }
 
 int disp_scene_set_radiance(disp_scene *s, const vec3 *rad, uint32_t nverts, ct_error *err)

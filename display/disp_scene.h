@@ -2,7 +2,9 @@
  * vertices (position, per-vertex radiance) and its triangles sorted by part
  * node. Nodes are in depth-first pre-order, so after the sort every node's
  * subtree (a part, or an inner node a texture may cover) is one contiguous
- * triangle range, drawn with a single glDrawElements. */
+ * triangle range, drawn with a single glDrawElements. The runs of glass
+ * triangles (see-through materials of the mesh, rmesh_material) are listed
+ * for the compositor's glass passes. */
 #ifndef CT_DISP_SCENE_H
 #define CT_DISP_SCENE_H
 
@@ -12,6 +14,14 @@
 #include "common/radmesh.h"
 
 typedef struct disp_scene disp_scene;
+
+/* A run of see-through triangles [begin, end) in drawing order, all of one
+ * material. */
+typedef struct disp_glass {
+    uint32_t begin, end;
+    vec3 transmission;
+    float ior;
+} disp_glass;
 
 /* Validates m (indices, node table) and uploads it; needs a current context. */
 int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err);
@@ -25,6 +35,9 @@ int disp_scene_set_radiance(disp_scene *s, const vec3 *rad, uint32_t nverts, ct_
 /* Counts. */
 uint32_t disp_scene_ntris(const disp_scene *s);
 uint32_t disp_scene_nnodes(const disp_scene *s);
+
+/* The glass runs, in drawing order (*n of them; NULL when none). */
+const disp_glass *disp_scene_glass(const disp_scene *s, uint32_t *n);
 
 /* World bounds of all vertices. */
 bounds3 disp_scene_bounds(const disp_scene *s);

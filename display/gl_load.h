@@ -31,6 +31,7 @@
     X(PFNGLBLENDCOLORPROC, BlendColor)                                            \
     X(PFNGLDEPTHFUNCPROC, DepthFunc)                                              \
     X(PFNGLDEPTHMASKPROC, DepthMask)                                              \
+    X(PFNGLCOLORMASKPROC, ColorMask)                                              \
     X(PFNGLFINISHPROC, Finish)                                                    \
     X(PFNGLFLUSHPROC, Flush)                                                      \
     X(PFNGLPIXELSTOREIPROC, PixelStorei)                                          \

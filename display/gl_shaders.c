@@ -9,6 +9,7 @@ const char *const gl_src_mesh_vs =
     "uniform mat4 u_mvp;\n"
     "uniform mat4 u_texproj[4];\n"
     "out vec3 v_rad;\n"
+    "out vec3 v_pos;\n"
     "out vec4 v_tex0;\n"
     "out vec4 v_tex1;\n"
     "out vec4 v_tex2;\n"
@@ -18,6 +19,7 @@ const char *const gl_src_mesh_vs =
     "    vec4 p = vec4(a_pos, 1.0);\n"
     "    gl_Position = u_mvp * p;\n"
     "    v_rad = a_rad;\n"
+    "    v_pos = a_pos;\n"
     "    v_tex0 = u_texproj[0] * p;\n"
     "    v_tex1 = u_texproj[1] * p;\n"
     "    v_tex2 = u_texproj[2] * p;\n"
@@ -29,15 +31,28 @@ const char *const gl_src_mesh_vs =
  * correction. Textures have no mipmaps, so textureLod(level 0) is the
  * same bilinear lookup as texture() and may sit behind the test (no
  * derivatives needed): fragments outside a texture skip its fetch. The
- * one-pass variant is compiled for NTEX = 1..4 textures. */
+ * one-pass variant is compiled for NTEX = 1..4 textures; with u_glass set
+ * it leaves out the corrections of fragments behind the nearest glass
+ * (u_glass_depth, drawn before), whose samples hit the glass instead.
+ * The glass pass draws transmission * (1 - F) per crossing, F the exact
+ * unpolarized Fresnel reflectance at the angle between the eye ray and the
+ * face (from the derivatives of the world position), evaluated as the
+ * tracer's bsdf_fresnel on the outside (air) side. */
 const char *const gl_src_mesh_fs =
     "in vec3 v_rad;\n"
     "in vec4 v_tex0;\n"
     "in vec4 v_tex1;\n"
     "in vec4 v_tex2;\n"
     "in vec4 v_tex3;\n"
+    "in vec3 v_pos;\n"
     "uniform float u_rad_scale;\n"
-        "uniform vec3 u_color;\n"
+    "uniform vec3 u_color;\n"
+    "uniform vec3 u_eye;\n"
+    "uniform vec3 u_transmission;\n"
+    "uniform float u_ior;\n"
+    "uniform int u_glass;\n"
+    "uniform int u_zrev;\n"
+    "uniform sampler2D u_glass_depth;\n"
     "uniform sampler2D u_tex0;\n"
     "uniform sampler2D u_tex1;\n"
     "uniform sampler2D u_tex2;\n"
@@ -49,6 +64,19 @@ const char *const gl_src_mesh_fs =
     "             all(lessThanEqual(tc, vec2(1.0)));\n"
     "    if (!inside) return vec3(0.0);\n"
     "    return textureLod(s, tc, 0.0).rgb;\n"
+    "}\n"
+    "float fresnel(float ci, float eta) {\n"
+    "    float s2 = eta * eta * max(0.0, 1.0 - ci * ci);\n"
+    "    if (s2 >= 1.0) return 1.0;\n"
+    "    float ct = sqrt(1.0 - s2);\n"
+    "    float rs = (eta * ci - ct) / (eta * ci + ct);\n"
+    "    float rp = (ci - eta * ct) / (ci + eta * ct);\n"
+    "    return 0.5 * (rs * rs + rp * rp);\n"
+    "}\n"
+    "bool behind_glass() {\n"
+    "    if (u_glass == 0) return false;\n"
+    "    float g = texelFetch(u_glass_depth, ivec2(gl_FragCoord.xy), 0).r;\n"
+    "    return u_zrev != 0 ? gl_FragCoord.z < g : gl_FragCoord.z > g;\n"
     "}\n"
     "void main() {\n"
     "    bool in0, in1, in2, in3;\n"
@@ -64,6 +92,7 @@ const char *const gl_src_mesh_fs =
     "    o_color = vec4(max(-c, vec3(0.0)), 0.0);\n"
     "#elif PASS == 3\n"
     "    vec3 sum = u_rad_scale * v_rad;\n"
+    "    if (behind_glass()) { o_color = vec4(sum, 1.0); return; }\n"
     "    sum += corr(u_tex0, v_tex0, in0);\n"
     "#if NTEX > 1\n"
     "    sum += corr(u_tex1, v_tex1, in1);\n"
@@ -75,6 +104,11 @@ const char *const gl_src_mesh_fs =
     "    sum += corr(u_tex3, v_tex3, in3);\n"
     "#endif\n"
     "    o_color = vec4(sum, 1.0);\n"
+    "#elif PASS == 5\n"
+    "    vec3 n = cross(dFdx(v_pos), dFdy(v_pos));\n"
+    "    float len = length(n);\n"
+    "    float c = len > 0.0 ? abs(dot(normalize(v_pos - u_eye), n)) / len : 1.0;\n"
+    "    o_color = vec4(u_transmission * (1.0 - fresnel(min(c, 1.0), 1.0 / u_ior)), 1.0);\n"
     "#else\n"
     "    o_color = vec4(u_color, 1.0);\n"
     "#endif\n"

@@ -14,14 +14,18 @@ typedef enum gl_mesh_pass {
     GL_PASS_NEG  = 2,   /* pass 3: negative part (drawn with REVERSE_SUBTRACT) */
     GL_PASS_ONE  = 3,   /* one pass: radiosity + signed corrections of NTEX (1..4) textures */
     GL_PASS_FLAT = 4,   /* flat colour u_color (texture assignment view) */
-    GL_PASS_COUNT = 5
+    GL_PASS_GLASS = 5,  /* see-through glass: u_transmission * (1 - F), a multiplicative blend */
+    GL_PASS_COUNT = 6
 } gl_mesh_pass;
 
 /* Textures the one-pass program samples at once. */
 #define GL_ONE_PASS_MAX_TEX 4
+/* Texture unit of the glass depth the one-pass program reads (u_glass_depth). */
+#define GL_GLASS_DEPTH_UNIT GL_ONE_PASS_MAX_TEX
 
 /* Vertex shader of every mesh pass: a_pos (location 0), a_rad (location 1),
- * u_mvp, u_texproj[4] (world -> texture, projective). */
+ * u_mvp, u_texproj[4] (world -> texture, projective); passes the world
+ * position on for the glass pass's Fresnel term. */
 extern const char *const gl_src_mesh_vs;
 /* Fragment shader of the mesh passes, specialised by "#define PASS n" (and
  * "#define NTEX n" for GL_PASS_ONE). */

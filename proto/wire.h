@@ -18,7 +18,7 @@
 #include "common/radmesh.h"
 #include "common/vecmath.h"
 
-#define WIRE_VERSION        2u          /* 2: SAMPLES added */
+#define WIRE_VERSION        3u          /* 2: SAMPLES added; 3: the scene's material table */
 #define WIRE_HEADER_SIZE    8u          /* u16 type, u16 flags (0), u32 body length */
 #define WIRE_HASH_SIZE      32u         /* BLAKE2b-256 content hash of a SCENE payload */
 #define WIRE_MAC_SIZE       32u         /* HMAC-SHA256 */
@@ -345,7 +345,11 @@ const uint8_t *wire_scene_rx_raw(const wire_scene_rx *rx, uint64_t *size);
 int wire_scene_parse(const uint8_t *raw, size_t size, const char *peer, ct_radmesh *m,
                      ct_error *err);
 /* Bytes of the payload of a mesh with these counts. */
-uint64_t wire_scene_payload_size(uint64_t nverts, uint64_t ntris, uint64_t nnodes);
+uint64_t wire_scene_payload_size(uint64_t nverts, uint64_t ntris, uint64_t nnodes, uint64_t nmats);
+/* Whether a payload of raw_size bytes fits these counts with some number of
+ * materials (at most RMESH_MAX_MATS): what SCENE_BEGIN, which does not
+ * count the materials, can be checked against. */
+bool wire_scene_size_fits(uint64_t raw_size, uint64_t nverts, uint64_t ntris, uint64_t nnodes);
 /* Lower-case hex of a content hash (65 bytes with the NUL), e.g. for a cache file name. */
 void wire_hash_hex(const uint8_t hash[WIRE_HASH_SIZE], char out[2 * WIRE_HASH_SIZE + 1]);
 /* The content hash of a payload. */

@@ -194,7 +194,7 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
         if (b->raw_size == 0 || b->raw_size > WIRE_SCENE_MAX_RAW)
             return ct_fail(err, CT_EPROTO, "%s: SCENE_BEGIN payload size %llu out of range", who,
                            (unsigned long long)b->raw_size);
-        if (b->raw_size != wire_scene_payload_size(b->nverts, b->ntris, b->nnodes))
+        if (!wire_scene_size_fits(b->raw_size, b->nverts, b->ntris, b->nnodes))
             return ct_fail(err, CT_EPROTO, "%s: SCENE_BEGIN payload size %llu does not match its counts", who,
                            (unsigned long long)b->raw_size);
         uint64_t want = (b->flags & WIRE_SCENE_CACHED)

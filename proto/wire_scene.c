@@ -13,12 +13,19 @@
 
 #include "proto/wire_io.h"
 
-#define PAYLOAD_HDR 24u   /* nverts, ntris, nnodes, reserved, scene_hash */
+#define PAYLOAD_HDR 24u   /* nverts, ntris, nnodes, nmats, scene_hash */
 #define NODE_SIZE   100u  /* name[64], parent, node_end, material, bounds (6 f32) */
+#define MAT_SIZE    16u   /* transmission (3 f32), ior */
 
-uint64_t wire_scene_payload_size(uint64_t nv, uint64_t nt, uint64_t nn)
+uint64_t wire_scene_payload_size(uint64_t nv, uint64_t nt, uint64_t nn, uint64_t nm)
 {
-    return PAYLOAD_HDR + 48 * nv + 20 * nt + NODE_SIZE * nn;
+    return PAYLOAD_HDR + 48 * nv + 20 * nt + NODE_SIZE * nn + MAT_SIZE * nm;
+}
+
+bool wire_scene_size_fits(uint64_t raw_size, uint64_t nv, uint64_t nt, uint64_t nn)
+{
+    uint64_t base = wire_scene_payload_size(nv, nt, nn, 0);
+    return raw_size >= base && (raw_size - base) % MAT_SIZE == 0 && (raw_size - base) / MAT_SIZE <= RMESH_MAX_MATS;
 }
 
 void wire_scene_hash(const uint8_t *raw, size_t size, uint8_t out[WIRE_HASH_SIZE])
@@ -45,16 +52,15 @@ static bool vec_ok(vec3 v)
 static int parse_payload(const uint8_t *raw, size_t size, const char *peer, ct_radmesh *m, ct_error *err)
 {
     wio_r r = {raw, size, false};
-    uint32_t nv = wr_u32(&r), nt = wr_u32(&r), nn = wr_u32(&r), reserved = wr_u32(&r);
+    uint32_t nv = wr_u32(&r), nt = wr_u32(&r), nn = wr_u32(&r), nm = wr_u32(&r);
     uint64_t scene_hash = wr_u64(&r);
     if (r.bad) return ct_fail(err, CT_EPROTO, "%s: scene payload of %zu bytes is truncated", peer, size);
-    if (reserved != 0) return ct_fail(err, CT_EPROTO, "%s: scene payload reserved field is %u, not 0", peer, reserved);
-    if (nv > WIRE_SCENE_MAX_VERTS || nt > WIRE_SCENE_MAX_TRIS || nn > WIRE_SCENE_MAX_NODES)
-        return ct_fail(err, CT_EPROTO, "%s: scene counts %u vertices, %u triangles, %u nodes over the limits", peer,
-                       nv, nt, nn);
-    if (wire_scene_payload_size(nv, nt, nn) != size)
+    if (nv > WIRE_SCENE_MAX_VERTS || nt > WIRE_SCENE_MAX_TRIS || nn > WIRE_SCENE_MAX_NODES || nm > RMESH_MAX_MATS)
+        return ct_fail(err, CT_EPROTO, "%s: scene counts %u vertices, %u triangles, %u nodes, %u materials over the limits",
+                       peer, nv, nt, nn, nm);
+    if (wire_scene_payload_size(nv, nt, nn, nm) != size)
         return ct_fail(err, CT_EPROTO, "%s: scene payload is %zu bytes, its counts need %llu", peer, size,
-                       (unsigned long long)wire_scene_payload_size(nv, nt, nn));
+                       (unsigned long long)wire_scene_payload_size(nv, nt, nn, nm));
     if (nt > 0 && nn == 0) return ct_fail(err, CT_EPROTO, "%s: scene has triangles but no nodes", peer);
     if (m) {
         int rc = rmesh_alloc(m, nv, nt, nn, err);
@@ -129,6 +135,25 @@ static int parse_payload(const uint8_t *raw, size_t size, const char *peer, ct_r
             n->bounds = b;
         }
     }
+    if (m) {
+        m->mats = calloc(nm ? nm : 1, sizeof *m->mats);
+        if (!m->mats) {
+            rmesh_free(m);
+            return ct_fail(err, CT_ENOMEM, "%s: out of memory for %u materials", peer, nm);
+        }
+        m->nmats = nm;
+    }
+    for (uint32_t i = 0; i < nm; i++) {
+        rmesh_material x;
+        x.transmission = wr_vec3(&r);
+        x.ior = wr_f32(&r);
+        if (!rmesh_material_ok(&x)) {
+            if (m) rmesh_free(m);
+            return ct_fail(err, CT_EPROTO, "%s: scene material %u has a transmission or index of refraction out of range",
+                           peer, i);
+        }
+        if (m) m->mats[i] = x;
+    }
     /* The size check above makes these unreachable; kept as a backstop. */
     if (r.bad || r.left) {
         if (m) rmesh_free(m);
@@ -148,10 +173,11 @@ int wire_scene_parse(const uint8_t *raw, size_t size, const char *peer, ct_radme
 int wire_scene_tx_init(wire_scene_tx *tx, const ct_radmesh *m, ct_error *err)
 {
     memset(tx, 0, sizeof *tx);
-    if (m->nverts > WIRE_SCENE_MAX_VERTS || m->ntris > WIRE_SCENE_MAX_TRIS || m->nnodes > WIRE_SCENE_MAX_NODES)
-        return ct_fail(err, CT_ERANGE, "scene: %u vertices, %u triangles, %u nodes exceed the protocol limits",
-                       m->nverts, m->ntris, m->nnodes);
-    uint64_t size = wire_scene_payload_size(m->nverts, m->ntris, m->nnodes);
+    if (m->nverts > WIRE_SCENE_MAX_VERTS || m->ntris > WIRE_SCENE_MAX_TRIS || m->nnodes > WIRE_SCENE_MAX_NODES ||
+        m->nmats > RMESH_MAX_MATS)
+        return ct_fail(err, CT_ERANGE, "scene: %u vertices, %u triangles, %u nodes, %u materials exceed the protocol limits",
+                       m->nverts, m->ntris, m->nnodes, m->nmats);
+    uint64_t size = wire_scene_payload_size(m->nverts, m->ntris, m->nnodes, m->nmats);
     if (size > WIRE_SCENE_MAX_RAW)
         return ct_fail(err, CT_ERANGE, "scene: payload of %llu bytes exceeds the protocol limit",
                        (unsigned long long)size);
@@ -161,7 +187,7 @@ int wire_scene_tx_init(wire_scene_tx *tx, const ct_radmesh *m, ct_error *err)
     ww_u32(&w, m->nverts);
     ww_u32(&w, m->ntris);
     ww_u32(&w, m->nnodes);
-    ww_u32(&w, 0);
+    ww_u32(&w, m->nmats);
     ww_u64(&w, m->scene_hash);
     const vec3 *arrays[4] = {m->pos, m->nrm, m->rad, m->rad_direct};
     for (int a = 0; a < 4; a++)
@@ -179,6 +205,10 @@ int wire_scene_tx_init(wire_scene_tx *tx, const ct_radmesh *m, ct_error *err)
         ww_u32(&w, n->material);
         ww_vec3(&w, n->bounds.lo);
         ww_vec3(&w, n->bounds.hi);
+    }
+    for (uint32_t i = 0; i < m->nmats; i++) {
+        ww_vec3(&w, m->mats[i].transmission);
+        ww_f32(&w, m->mats[i].ior);
     }
     ct_error why;
     int rc = parse_payload(raw, size, "scene", NULL, &why);
@@ -285,7 +315,7 @@ int wire_scene_rx_feed(wire_scene_rx *rx, const wire_msg *m, ct_error *err)
             return ct_fail(err, CT_EPROTO, "%s: SCENE_BEGIN before the previous scene ended", peer);
         rx_reset(rx);
         const wire_scene_begin *b = &m->u.scene_begin;
-        if (wire_scene_payload_size(b->nverts, b->ntris, b->nnodes) != b->raw_size)
+        if (!wire_scene_size_fits(b->raw_size, b->nverts, b->ntris, b->nnodes))
             return ct_fail(err, CT_EPROTO, "%s: SCENE_BEGIN payload size %llu does not match its counts", peer,
                            (unsigned long long)b->raw_size);
         rx->begin = *b;

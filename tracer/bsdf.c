@@ -3,6 +3,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "common/radmesh.h"
+
 #define INV_PI (1.0f / CT_PI)
 /* Smallest (h.n)^2 the Ward lobe is evaluated at: (h.n)^4 stays a normal
  * float (see ward_f). */
@@ -219,19 +221,7 @@ vec3 bsdf_eval(const bsdf *b, vec3 wo, vec3 wi, float *pdf)
     return f;
 }
 
-float bsdf_fresnel(float cos_i, float eta, float *cos_t)
-{
-    float sin2_t = eta * eta * bsdf_maxf(0.0f, 1.0f - cos_i * cos_i);
-    if (sin2_t >= 1.0f) {
-        *cos_t = 0.0f;
-        return 1.0f;
-    }
-    float ct = sqrtf(1.0f - sin2_t);
-    float rs = (eta * cos_i - ct) / (eta * cos_i + ct);
-    float rp = (cos_i - eta * ct) / (cos_i + eta * ct);
-    *cos_t = ct;
-    return 0.5f * (rs * rs + rp * rp);
-}
+float bsdf_fresnel(float cos_i, float eta, float *cos_t) { return rmesh_fresnel(cos_i, eta, cos_t); }
 
 float bsdf_dielectric(const bsdf *b, vec3 wo, vec3 *wr, vec3 *wt, bool *refr_ok)
 {

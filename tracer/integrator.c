@@ -153,6 +153,17 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
  * surface; through dielectrics, their transmission colour times (1 -
  * Fresnel) per crossing (refraction of the shadow ray itself is ignored, so
  * glass casts a lighter, unfocused shadow as in the paper). */
+/* What one straight crossing of glass material m passes, d.ng = cosd
+ * (rmesh_glass_pass: the display's see-through glass draws the same).
+ * Evaluating the exit from the inside at the unrefracted angle instead would
+ * make every crossing beyond asin(1 / ior), 41.8 deg for glass, a total
+ * internal reflection that blocks the light. */
+static inline vec3 glass_pass(const scene_material *m, float cosd)
+{
+    rmesh_material x = {m->transmission, m->ior > 0.0f ? m->ior : 1.0f};
+    return rmesh_glass_pass(&x, cosd);
+}
+
 static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target, bool *crossed)
 {
     if (!c->has_dielectric) return v3s(0.0f);
@@ -166,17 +177,8 @@ static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target,
         if (!m->dielectric) return v3s(0.0f);
         *crossed = true;
         vec3 ng = h.rec->ng;
-        float cosd = v3_dot(d, ng), ct;
-        float ior = m->ior > 0.0f ? m->ior : 1.0f;
-        /* Every crossing takes the Fresnel reflectance of its angle on the
-         * outside (air) side, leaving as well as entering: the light this
-         * straight ray stands for is refracted in and out of a pane at the
-         * same outside angle, and by reciprocity its exit loses what the
-         * entry did. Evaluating the exit from the inside at the unrefracted
-         * angle would make every crossing beyond asin(1 / ior) (41.8 deg for
-         * glass) a total internal reflection that blocks the light. */
-        float f = bsdf_fresnel(fabsf(cosd), 1.0f / ior, &ct);
-        att = v3_scale(v3_mul(att, m->transmission), 1.0f - f);
+        float cosd = v3_dot(d, ng);
+        att = v3_mul(att, glass_pass(m, cosd));
         if (!(maxc(att) > 0.0f)) return v3s(0.0f);
         vec3 p = emb_hit_point(&h);
         o = offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
@@ -184,6 +186,25 @@ static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target,
         dist = v3_len(d);
         if (!(dist > 0.0f) || v3_dot(d, d) <= 0.0f) return att;
         d = v3_scale(d, 1.0f / dist);
+    }
+    return v3s(0.0f);
+}
+
+vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d)
+{
+    vec3 att = v3s(1.0f);
+    emb_hit h = *first;
+    for (int k = 0; k < MAX_GLASS_CROSSINGS; k++) {
+        const scene_material *m = &c->mesh->mats[h.mat];
+        if (!m->dielectric) return v3_mul(att, integ_vertex_lerp(c->rad->rad, &h));
+        vec3 ng = h.rec->ng;
+        float cosd = v3_dot(d, ng);
+        att = v3_mul(att, glass_pass(m, cosd));
+        if (!(maxc(att) > 0.0f)) return v3s(0.0f);
+        vec3 o = offset_ray(emb_hit_point(&h), cosd < 0.0f ? v3_neg(ng) : ng);
+        c->st->secondary++;
+        log_ray(c, o, d, INFINITY, 0);
+        if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return v3s(0.0f);
     }
     return v3s(0.0f);
 }

@@ -67,6 +67,14 @@ bool integ_primary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s);
 bool integ_primary_start(integ_ctx *c, vec3 o, vec3 d, emb_hit *h);
 void integ_primary_finish(const integ_ctx *c, emb_hit *h, vec3 d, integ_surf *s);
 
+/* L_base of a primary ray in direction d whose first hit is glass: what the
+ * display's see-through glass shows (rmesh_material): the radiosity of the
+ * first opaque surface along the straight ray (Gouraud, as integ_vertex_lerp)
+ * times transmission * (1 - F) for every glass crossed before it; black when
+ * the ray leaves the scene or crosses more than 16 glass surfaces. Needs
+ * c->rad. */
+vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d);
+
 /* Radiance along the primary ray o + t d whose first hit is s (the mode in
  * c->opt). In reuse-diffuse mode *base receives the radiosity part (the
  * result is *base + a non-negative remainder); otherwise it is untouched. */

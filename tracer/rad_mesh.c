@@ -450,7 +450,8 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
         out->nodes[n].material = s->nodes[n].material;
         out->nodes[n].bounds = s->nodes[n].bounds;
     }
-    rc = CT_OK;
+    rc = rmesh_set_materials(out, s, err);
+    if (rc) rmesh_free(out);
     goto done;
 oom:
     rc = ct_fail(err, CT_ENOMEM, "radiosity: out of memory while meshing %zu leaves", leaves.n);

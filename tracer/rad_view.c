@@ -1,5 +1,7 @@
 /* rad_view.c: renders a radiosity mesh as the display shows it (Gouraud
- * interpolation of the per-vertex radiance at the primary hit, rmesh_eval),
+ * interpolation of the per-vertex radiance at the primary hit, rmesh_eval;
+ * through see-through glass, the surface behind it times each crossing's
+ * rmesh_glass_pass),
  * by ray casting with Embree: a preview image for users and the image the
  * tests compare against a path-traced reference. */
 #include "tracer/radiosity.h"
@@ -48,10 +50,26 @@ static void *view_rows(void *arg)
                 rh.ray.mask = 0xFFFFFFFFu;
                 rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
                 rtcIntersect1(j->scn, &ctx, &rh);
+                vec3 att = v3s(1.0f);
+                for (int k = 0; rh.hit.geomID != RTC_INVALID_GEOMETRY_ID; k++) {
+                    uint32_t mat = j->m->tri_mat[rh.hit.primID];
+                    if (!rmesh_is_glass(j->m, mat)) break;
+                    if (k == 16) {   /* as the tracer: black after 16 crossings */
+                        att = v3s(0.0f);
+                        break;
+                    }
+                    vec3 ng = v3_norm(v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+                    att = v3_mul(att, rmesh_glass_pass(&j->m->mats[mat], v3_dot(d, ng)));
+                    /* On along the same ray, just past this surface. */
+                    rh.ray.tnear = rh.ray.tfar * (1.0f + 1e-5f);
+                    rh.ray.tfar = INFINITY;
+                    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+                    rtcIntersect1(j->scn, &ctx, &rh);
+                }
                 if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
                 vec3 v = j->which == 1 ? rmesh_eval_direct(j->m, rh.hit.primID, rh.hit.u, rh.hit.v)
                                        : rmesh_eval(j->m, rh.hit.primID, rh.hit.u, rh.hit.v);
-                sum = v3_add(sum, v);
+                sum = v3_add(sum, v3_mul(att, v));
             }
             img_set(j->img, x, y, v3_scale(sum, 1.0f / (float)j->spp));
         }

@@ -195,7 +195,7 @@ static bool primary_start(integ_ctx *c, const trc_view *v, const view_pre *vp, c
 }
 
 /* Second half, for a hit: the surface, the hit fields and L_base. */
-static void primary_finish(const trc_tracer *t, const integ_ctx *c, emb_hit *h, vec3 d, ct_sample *out,
+static void primary_finish(const trc_tracer *t, integ_ctx *c, emb_hit *h, vec3 d, ct_sample *out,
                            integ_surf *s)
 {
     integ_primary_finish(c, h, d, s);
@@ -207,7 +207,9 @@ static void primary_finish(const trc_tracer *t, const integ_ctx *c, emb_hit *h, 
     out->v = s->h.v;
     out->hit = s->p;
     if (t->rad) {
-        out->l_base = integ_vertex_lerp(t->rad->rad, &s->h);
+        /* Glass is see-through in the interactive solution: its L_base is
+         * what the display draws there, the surfaces behind it. */
+        out->l_base = s->m->dielectric ? integ_base_through_glass(c, &s->h, d) : integ_vertex_lerp(t->rad->rad, &s->h);
         out->flags |= CT_SAMPLE_HAS_BASE;
     }
 }

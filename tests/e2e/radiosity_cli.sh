@@ -24,10 +24,10 @@ grep -q "^progress radiosity" "$tmp/a.err" || { echo "FAIL: no progress line"; f
 tris=$(awk '$1 == "triangles" { print $2 }' "$tmp/a.out")
 patches=$(awk '$1 == "patches" { print $2 }' "$tmp/a.out")
 (( tris > 2 * patches )) || { echo "FAIL: $tris triangles for $patches patches: no refinement"; fail=1; }
-# Header of the cache: magic, version 1, little-endian check.
+# Header of the cache: magic, version 2, little-endian check.
 head -c 10 "$tmp/a.ctmesh" | od -An -c | tr -s ' ' | grep -q 'C T M E S H \\r \\n 032 \\n' \
   || { echo "FAIL: bad magic"; od -An -c -N 16 "$tmp/a.ctmesh"; fail=1; }
-[[ $(od -An -tu4 -j12 -N4 "$tmp/a.ctmesh" | tr -d ' ') == 1 ]] || { echo "FAIL: version is not 1"; fail=1; }
+[[ $(od -An -tu4 -j12 -N4 "$tmp/a.ctmesh" | tr -d ' ') == 2 ]] || { echo "FAIL: version is not 2"; fail=1; }
 echo "metric: cornell_triangles=$tris"
 
 run "$BIN/corrtex" radiosity "$scene" -o "$tmp/b.ctmesh" --error 1e-4 --threads 2 --quiet >/dev/null \

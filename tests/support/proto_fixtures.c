@@ -36,7 +36,7 @@ size_t fx_messages(wire_msg *out)
     m->u.scene_begin.nverts = 30000;
     m->u.scene_begin.ntris = 20000;
     m->u.scene_begin.nnodes = 12;
-    m->u.scene_begin.raw_size = wire_scene_payload_size(30000, 20000, 12);
+    m->u.scene_begin.raw_size = wire_scene_payload_size(30000, 20000, 12, 0);
     m->u.scene_begin.nchunks = (uint32_t)((m->u.scene_begin.raw_size + WIRE_SCENE_CHUNK_RAW - 1) / WIRE_SCENE_CHUNK_RAW);
     m->u.scene_begin.scene_hash = 0x0123456789abcdefull;
     for (int i = 0; i < 32; i++) m->u.scene_begin.hash[i] = (uint8_t)(255 - i);
@@ -46,7 +46,7 @@ size_t fx_messages(wire_msg *out)
     m->u.scene_begin.nverts = 3;
     m->u.scene_begin.ntris = 1;
     m->u.scene_begin.nnodes = 1;
-    m->u.scene_begin.raw_size = wire_scene_payload_size(3, 1, 1);
+    m->u.scene_begin.raw_size = wire_scene_payload_size(3, 1, 1, 0);
     m->u.scene_begin.flags = WIRE_SCENE_CACHED;
 
     m = &out[n++];
@@ -178,6 +178,14 @@ int fx_mesh(ct_radmesh *m, uint32_t nquads)
         m->nodes[n].material = (uint32_t)n;
         m->nodes[n].bounds = b3_empty();
     }
+    /* materials 0..3, the third one glass */
+    m->mats = calloc(4, sizeof *m->mats);
+    if (!m->mats) {
+        rmesh_free(m);
+        return CT_ENOMEM;
+    }
+    m->nmats = 4;
+    m->mats[2] = (rmesh_material){v3(0.9f, 0.8f, 0.7f), 1.5f};
     m->scene_hash = 0x5eed5eed5eed5eedull;
     return 0;
 }

@@ -49,6 +49,10 @@ static void sample_mesh(ct_radmesh *m)
         m->nodes[n].bounds.lo = v3(-1, -2, -3);
         m->nodes[n].bounds.hi = v3(1, 2, 3);
     }
+    m->mats = calloc(3, sizeof *m->mats);
+    cr_assert_not_null(m->mats);
+    m->nmats = 3;
+    m->mats[1] = (rmesh_material){v3(0.9f, 0.5f, 0.25f), 1.5f};
     m->scene_hash = 0x0123456789abcdefULL;
 }
 
@@ -83,6 +87,9 @@ Test(radmesh_io, round_trip_is_exact)
     cr_assert_eq(r.ntris, m.ntris);
     cr_assert_eq(r.nnodes, m.nnodes);
     cr_assert_eq(r.scene_hash, m.scene_hash);
+    cr_assert_eq(r.nmats, 3u);
+    cr_assert_eq(memcmp(r.mats, m.mats, 3 * sizeof *m.mats), 0);
+    cr_assert(rmesh_is_glass(&r, 1) && !rmesh_is_glass(&r, 0) && !rmesh_is_glass(&r, 2) && !rmesh_is_glass(&r, 3));
     cr_assert_eq(memcmp(r.pos, m.pos, 5 * sizeof(vec3)), 0);
     cr_assert_eq(memcmp(r.nrm, m.nrm, 5 * sizeof(vec3)), 0);
     cr_assert_eq(memcmp(r.rad, m.rad, 5 * sizeof(vec3)), 0);
@@ -103,8 +110,9 @@ Test(radmesh_io, round_trip_is_exact)
     unsigned char *d1 = read_file(p1, &l1), *d2 = read_file(p2, &l2);
     cr_assert_eq(l1, l2);
     cr_assert_eq(memcmp(d1, d2, l1), 0);
-    /* Layout: 48-byte header, 48 per vertex, 20 per triangle, 100 per node, 8 checksum. */
-    cr_assert_eq(l1, 48u + 5 * 48 + 3 * 20 + 3 * 100 + 8);
+    /* Layout: 48-byte header, 48 per vertex, 20 per triangle, 100 per node,
+     * 16 per material, 8 checksum. */
+    cr_assert_eq(l1, 48u + 5 * 48 + 3 * 20 + 3 * 100 + 3 * 16 + 8);
     /* expect_hash 0 accepts any hash. */
     rmesh_free(&r);
     cr_assert_eq(rmesh_load(p1, 0, &r, &err), 0, "%s", err.msg);
@@ -152,7 +160,7 @@ Test(radmesh_io, broken_files_give_clear_errors)
     cr_assert_eq(rmesh_save(&m, good, &err), 0, "%s", err.msg);
     size_t len;
     unsigned char *orig = read_file(good, &len);
-    const size_t tri0 = 48 + 5 * 48;
+    const size_t tri0 = 48 + 5 * 48, mat0 = tri0 + 3 * 20 + 3 * 100;
     const breakage cases[] = {
         {"empty file", 0, 1, 0, CT_EPARSE, "bad magic"},
         {"truncated header", 20, 1, 0, CT_EPARSE, "truncated header"},
@@ -165,6 +173,10 @@ Test(radmesh_io, broken_files_give_clear_errors)
         {"corrupted payload", 60, 0, 0xee, CT_EPARSE, "checksum"},
         {"vertex index out of range", tri0, 0, 200, CT_EPARSE, "vertex 200 out of range"},
         {"node out of range", tri0 + 12, 0, 9, CT_EPARSE, "node 9 out of range"},
+        {"huge material count", 43, 0, 0x7f, CT_EPARSE, "out of range"},
+        {"reserved header field", 44, 0, 1, CT_EPARSE, "reserved header field"},
+        {"transmission over 1", mat0 + 16 + 3, 0, 0x7f, CT_EPARSE, "material 1: transmission"},
+        {"negative index of refraction", mat0 + 32 + 15, 0, 0xbf, CT_EPARSE, "material 2: transmission"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         const breakage *b = &cases[i];

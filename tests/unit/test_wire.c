@@ -549,17 +549,22 @@ static void broken_payload(void (*f)(uint8_t *raw), const char *want)
     rmesh_free(&m);
 }
 
-/* 4 quads: 10 vertices, 8 triangles, 3 nodes. Offsets per docs/protocol.md. */
+/* 4 quads: 10 vertices, 8 triangles, 3 nodes, 4 materials. Offsets per
+ * docs/protocol.md. */
 #define OFF_TRIS  (24 + 48 * 10)
 #define OFF_TNODE (OFF_TRIS + 12 * 8)
 #define OFF_NODES (OFF_TNODE + 8 * 8)
+#define OFF_MATS  (OFF_NODES + 100 * 3)
 static void bad_index(uint8_t *raw) { wio_put_u32(raw + OFF_TRIS + 4 * 5, 10); }
 static void bad_node(uint8_t *raw) { wio_put_u32(raw + OFF_TNODE + 4 * 2, 3); }
 static void nan_pos(uint8_t *raw) { wio_put_u32(raw + 24 + 12 * 2 + 4, 0x7fc00000u); }
 static void bad_parent(uint8_t *raw) { wio_put_u32(raw + OFF_NODES + 100 * 1 + 64, 1); }
 static void bad_end(uint8_t *raw) { wio_put_u32(raw + OFF_NODES + 100 * 2 + 68, 4); }
 static void unterminated(uint8_t *raw) { memset(raw + OFF_NODES + 100, 'x', 64); }
-static void reserved(uint8_t *raw) { raw[12] = 1; }
+static void mat_count(uint8_t *raw) { raw[12] = 3; }
+static void bright_glass(uint8_t *raw) { wio_put_f32(raw + OFF_MATS + 16 * 2 + 4, 1.5f); }
+static void nan_ior(uint8_t *raw) { wio_put_u32(raw + OFF_MATS + 16 * 1 + 12, 0x7fc00000u); }
+static void negative_ior(uint8_t *raw) { wio_put_f32(raw + OFF_MATS + 16 * 3 + 12, -1.0f); }
 static void counts(uint8_t *raw) { wio_put_u32(raw, 11); }
 
 Test(scene, broken_payloads)
@@ -570,8 +575,11 @@ Test(scene, broken_payloads)
     broken_payload(bad_parent, "master: scene node 1 has a parent out of order");
     broken_payload(bad_end, "master: scene node 2 has an end index out of range");
     broken_payload(unterminated, "master: scene node 1 has a name without a terminating NUL");
-    broken_payload(reserved, "master: scene payload reserved field is 1, not 0");
-    broken_payload(counts, "master: scene payload is 964 bytes, its counts need 1012");
+    broken_payload(mat_count, "master: scene payload is 1028 bytes, its counts need 1012");
+    broken_payload(bright_glass, "master: scene material 2 has a transmission or index of refraction out of range");
+    broken_payload(nan_ior, "master: scene material 1 has a transmission or index of refraction out of range");
+    broken_payload(negative_ior, "master: scene material 3 has a transmission or index of refraction out of range");
+    broken_payload(counts, "master: scene payload is 1028 bytes, its counts need 1076");
 }
 
 Test(scene, broken_sequences)
@@ -725,7 +733,7 @@ static const broken_hs broken_handshakes[] = {
      "peer: bad magic byte 0x47 at offset 0 (not a corrtex peer?)"},
     {"magic without \\x1a", AUTH_ROLE_MASTER, false, {0x89, 'C', 'T', 'X', '\r', '\n', '\n'}, 7, CT_EPROTO,
      "peer: bad magic byte 0x0a at offset 6 (not a corrtex peer?)"},
-    {"wrong version (an older peer)", AUTH_ROLE_MASTER, false, {MAGIC, 1, 0, 2, 0, BID}, 64, CT_EPROTO, "peer: protocol version 1, expected 2"},
+    {"wrong version (an older peer)", AUTH_ROLE_MASTER, false, {MAGIC, 2, 0, 2, 0, BID}, 64, CT_EPROTO, "peer: protocol version 2, expected 3"},
     {"wrong role", AUTH_ROLE_MASTER, false, {MAGIC, WIRE_VERSION, 0, 1, 0, BID}, 64, CT_EPROTO,
      "peer: peer has role master (1), expected display"},
     {"unknown role", AUTH_ROLE_DISPLAY, false, {MAGIC, WIRE_VERSION, 0, 9, 0, BID}, 64, CT_EPROTO,
