@@ -57,6 +57,19 @@ static ct_scene *glass_scene(glass_nodes *nd, ct_radmesh *rad, ct_error *err)
     return s;
 }
 
+/* The node ids of glass_scene. */
+static glass_nodes scene_nodes(void)
+{
+    glass_nodes nd;
+    ct_radmesh rad;
+    ct_error err;
+    ct_scene *s = glass_scene(&nd, &rad, &err);
+    cr_assert_not_null(s, "%s", err.msg);
+    scene_free(s);
+    rmesh_free(&rad);
+    return nd;
+}
+
 static ct_camera glass_camera(void) { return cam_look_at(v3(0, 0, 3), v3(0, 0, -2), v3(0, 1, 0), 50.0f); }
 
 /* The textures of a frame: a constant correction on the nodes given. */
@@ -153,13 +166,7 @@ static bool glass_node(const glass_nodes *nd, uint32_t n) { return n == (uint32_
 static void check_frames(const base_image *b, glass_setup *f, disp_view view, const char *what,
                          vec3 (*expect)(const base_image *, size_t, const glass_nodes *))
 {
-    glass_nodes nd;
-    ct_radmesh rad;
-    ct_error err;
-    ct_scene *s = glass_scene(&nd, &rad, &err);
-    cr_assert_not_null(s, "%s", err.msg);
-    scene_free(s);
-    rmesh_free(&rad);
+    glass_nodes nd = scene_nodes();
     ct_camera cam = glass_camera();
     for (int passes = 1; passes <= 3; passes += 2) {
         disp_render_opts o = {passes, view, 0.0f, false};
@@ -220,13 +227,7 @@ Test(disp_glass, corrections_land_on_the_nearest_glass)
 {
     static base_image b;
     trace_bases(&b);
-    glass_nodes nd;
-    ct_radmesh rad;
-    ct_error err;
-    ct_scene *s = glass_scene(&nd, &rad, &err);
-    cr_assert_not_null(s, "%s", err.msg);
-    scene_free(s);
-    rmesh_free(&rad);
+    glass_nodes nd = scene_nodes();
     glass_setup f = {2, {(uint32_t)nd.red, (uint32_t)nd.slab}, {0.25f, -0.125f},
                      {xy_proj(-5, -5, 10, 10), xy_proj(-1.5f, -1, 3, 2)}};
     /* Some red-wall pixels are seen directly, some through the slab. */
