@@ -1,5 +1,6 @@
 /* disp_compositor.h: draws one frame. Into a float framebuffer (RGBA32F by
- * default): pass 1 the radiosity mesh (Gouraud), then per textured node pass
+ * default): pass 1 the radiosity mesh (Gouraud), glass see-through over it
+ * (a multiplicative blend, then its depth), then per textured node pass
  * 2 adds the positive part of its correction and pass 3 subtracts the
  * negative part with GL_FUNC_REVERSE_SUBTRACT (§4.3; skipped when all
  * corrections are positive), or all of it in one shader pass (--passes 1).
