@@ -63,13 +63,7 @@ int rmesh_set_materials(ct_radmesh *m, const ct_scene *s, ct_error *err)
         return ct_fail(err, CT_ERANGE, "%u materials, a mesh carries at most %u", s->nmats, RMESH_MAX_MATS);
     rmesh_material *t = calloc(s->nmats ? s->nmats : 1, sizeof *t);
     if (!t) return ct_fail(err, CT_ENOMEM, "out of memory for %u materials", s->nmats);
-    for (uint32_t i = 0; i < s->nmats; i++) {
-        const scene_material *x = &s->mats[i];
-        if (!x->dielectric) continue;
-        t[i].transmission = x->transmission;
-        /* The tracer takes an unset index as 1 (a surface that only tints). */
-        t[i].ior = x->ior > 0.0f ? x->ior : 1.0f;
-    }
+    for (uint32_t i = 0; i < s->nmats; i++) t[i] = rmesh_material_of(&s->mats[i]);
     free(m->mats);
     m->mats = t;
     m->nmats = s->nmats;

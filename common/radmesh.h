@@ -54,11 +54,28 @@ typedef struct ct_radmesh {
 /* Most materials a mesh may carry (file and wire). */
 #define RMESH_MAX_MATS (1u << 16)
 
+/* Glass surfaces a straight ray crosses at most: beyond them the tracer's
+ * shadow rays and L_base, and the radiosity view, take the ray as blocked. */
+#define RMESH_MAX_GLASS_CROSSINGS 16
+
 /* Allocates a mesh with the given counts (arrays zeroed). */
 int rmesh_alloc(ct_radmesh *m, uint32_t nverts, uint32_t ntris, uint32_t nnodes, ct_error *err);
 
-/* Sets m's material table from the scene's materials (dielectrics
- * see-through, the rest opaque); replaces any table m had. */
+/* What the interactive solution draws of scene material x: a dielectric
+ * see-through (an unset index of refraction taken as 1, as the tracer does:
+ * a surface that only tints), anything else opaque. */
+static inline rmesh_material rmesh_material_of(const scene_material *x)
+{
+    rmesh_material r = {{0.0f, 0.0f, 0.0f}, 0.0f};
+    if (x->dielectric) {
+        r.transmission = x->transmission;
+        r.ior = x->ior > 0.0f ? x->ior : 1.0f;
+    }
+    return r;
+}
+
+/* Sets m's material table from the scene's materials (rmesh_material_of);
+ * replaces any table m had. */
 int rmesh_set_materials(ct_radmesh *m, const ct_scene *s, ct_error *err);
 
 /* A material read from a file or the wire is usable: a finite index of

@@ -102,8 +102,7 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err)
         return ct_fail(err, CT_ENOMEM, "out of memory sorting %u triangles", m->ntris);
     }
     memcpy(fill, s->node_first, (size_t)m->nnodes * sizeof *fill);
-    /* fill's slots then hold each sorted triangle's material (the glass
-     * runs), reusing the index buffer's order. */
+    /* Each sorted triangle's material, for the glass runs. */
     uint32_t *smat = malloc((size_t)m->ntris * sizeof *smat);
     if (!smat) {
         free(fill);

@@ -7,7 +7,6 @@
 
 /* Crossings a shadow ray may make through dielectrics before it is counted
  * as blocked (a stack of glasses; also bounds the work per shadow ray). */
-#define MAX_GLASS_CROSSINGS 16
 /* Bounces of the path-traced indirect light of drt without a radiosity mesh. */
 #define DRT_INDIRECT_DEPTH 64
 /* Russian roulette starts after this many bounces of a path. */
@@ -148,11 +147,6 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
     return true;
 }
 
-/* Fraction of light reaching o from target along the straight line o + t d,
- * t in (0, dist), known to be blocked by something: 0 behind an opaque
- * surface; through dielectrics, their transmission colour times (1 -
- * Fresnel) per crossing (refraction of the shadow ray itself is ignored, so
- * glass casts a lighter, unfocused shadow as in the paper). */
 /* What one straight crossing of glass material m passes, d.ng = cosd
  * (rmesh_glass_pass: the display's see-through glass draws the same).
  * Evaluating the exit from the inside at the unrefracted angle instead would
@@ -160,15 +154,21 @@ static bool trace_secondary(integ_ctx *c, vec3 o, vec3 d, integ_surf *s)
  * internal reflection that blocks the light. */
 static inline vec3 glass_pass(const scene_material *m, float cosd)
 {
-    rmesh_material x = {m->transmission, m->ior > 0.0f ? m->ior : 1.0f};
+    rmesh_material x = rmesh_material_of(m);
     return rmesh_glass_pass(&x, cosd);
 }
+
+/* Fraction of light reaching o from target along the straight line o + t d,
+ * t in (0, dist), known to be blocked by something: 0 behind an opaque
+ * surface; through dielectrics, their transmission colour times (1 -
+ * Fresnel) per crossing (refraction of the shadow ray itself is ignored, so
+ * glass casts a lighter, unfocused shadow as in the paper). */
 
 static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target, bool *crossed)
 {
     if (!c->has_dielectric) return v3s(0.0f);
     vec3 att = v3s(1.0f);
-    for (int k = 0; k < MAX_GLASS_CROSSINGS; k++) {
+    for (int k = 0; k < RMESH_MAX_GLASS_CROSSINGS; k++) {
         emb_hit h;
         c->st->shadow++;
         log_ray(c, o, d, dist, 0);
@@ -194,7 +194,7 @@ vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d)
 {
     vec3 att = v3s(1.0f);
     emb_hit h = *first;
-    for (int k = 0; k < MAX_GLASS_CROSSINGS; k++) {
+    for (int k = 0; k < RMESH_MAX_GLASS_CROSSINGS; k++) {
         const scene_material *m = &c->mesh->mats[h.mat];
         if (!m->dielectric) return v3_mul(att, integ_vertex_lerp(c->rad->rad, &h));
         vec3 ng = h.rec->ng;

@@ -54,7 +54,7 @@ static void *view_rows(void *arg)
                 for (int k = 0; rh.hit.geomID != RTC_INVALID_GEOMETRY_ID; k++) {
                     uint32_t mat = j->m->tri_mat[rh.hit.primID];
                     if (!rmesh_is_glass(j->m, mat)) break;
-                    if (k == 16) {   /* as the tracer: black after 16 crossings */
+                    if (k == RMESH_MAX_GLASS_CROSSINGS) {   /* black, as the tracer */
                         att = v3s(0.0f);
                         break;
                     }
