@@ -65,6 +65,7 @@ ctex_options ctex_options_default(void)
     o.mix = 0.5f;            /* noise-aware splatting (docs/textures.md, "Mixing") */
     o.mix_radius = 16.0f;
     o.splat_max = 64;
+    o.splat_aniso = 1;
     o.splat_lo = 1.0f;
     o.splat_hi = 5.0f;
     o.splat_window = 64;
@@ -99,6 +100,7 @@ static const optdef OPTS[] = {
     {"--mix", 0, OF(mix), 0.01, 1, "weight of a new sample against the correction it lands on (noise-aware splatting); 1 = off: each texel holds its nearest sample"},
     {"--mix-radius", 0, OF(mix_radius), 0, 1e6, "mix only with a correction whose sample lies within this many texels (validity below v_max)"},
     {"--splat-max", 1, OF(splat_max), 0, 65536, "largest splat radius (texels), bounds the cost of a sample in an empty region; 0 = none"},
+    {"--splat-aniso", 1, OF(splat_aniso), 0, 1, "1: splat rings measured on screen (texels seen at a slant get elongated rings); 0: square rings in texels"},
     {"--splat-lo", 0, OF(splat_lo), 0, 1e6, "mean splat radius (texels) under which the resolution doubles (§3.6)"},
     {"--splat-hi", 0, OF(splat_hi), 0, 1e6, "mean splat radius (texels) over which the resolution halves (§3.6)"},
     {"--splat-window", 1, OF(splat_window), 1, 1e6, "samples in the running mean of splat radii (§3.6)"},
@@ -930,6 +932,43 @@ static void adapt_resolution(ctex *c, uint32_t id, int r)
     ev_alloc(c, id);
 }
 
+/* The image of world vector d at e (relative to the eye, depth z > 0) on
+ * screen, times z / fpx (the perspective projection's derivative along d,
+ * up to a factor that is the same for every d at e): its squared length. */
+static inline float screen_len2(const ctex *c, vec3 e, float z, vec3 d)
+{
+    float dz = v3_dot(d, c->fwd);
+    float dx = z * v3_dot(d, c->right) - v3_dot(e, c->right) * dz;
+    float dy = z * v3_dot(d, c->up) - v3_dot(e, c->up) * dz;
+    return dx * dx + dy * dy;
+}
+
+/* ex of ctex_tex_splat_aniso for a sample at p on texture t, after
+ * ctex_aniso_ex: sqrt(s_y / s_x) for a texel s_x by s_y pixels on screen
+ * there. A camera-local texture lies in the current view's pixels (constant
+ * texel size); an object-local one is seen through the perspective at p, so
+ * a wall along the view shows its texels stretched towards the vanishing
+ * point near the eye and squeezed far away. Compares squared ratios first:
+ * most samples splat square rings and need no root. */
+static inline float splat_ex(const ctex *c, const ctex_tex *t, vec3 p)
+{
+    float r4;   /* (s_y / s_x)^2 */
+    if (t->kind == CTEX_PROJ_CAMERA) {
+        float q = ((t->y1 - t->y0) * (float)t->w) / ((t->x1 - t->x0) * (float)t->h);
+        r4 = q * q;
+    } else {
+        vec3 e = v3_sub(p, c->cam.eye);
+        float z = v3_dot(e, c->fwd);
+        if (!(z > c->znear)) return 1.0f;
+        float lx = screen_len2(c, e, z, v3_scale(t->t, 1.0f / (float)t->w));
+        float ly = screen_len2(c, e, z, v3_scale(t->b, 1.0f / (float)t->h));
+        r4 = ly / lx;
+    }
+    const float iso4 = CTEX_ANISO_ISO * CTEX_ANISO_ISO * CTEX_ANISO_ISO * CTEX_ANISO_ISO;
+    if (r4 > iso4 && r4 < 1.0f / iso4) return 1.0f;
+    return ctex_aniso_ex(sqrtf(sqrtf(r4)));
+}
+
 int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
 {
     info->tex = -1;
@@ -961,7 +1000,9 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
     info->tex = id;
     vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius);
-    int r = ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max);
+    float ex = c->o.splat_aniso ? splat_ex(c, t, s->hit) : 1.0f;
+    int r = ex == 1.0f ? ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max)
+                       : ctex_tex_splat_aniso(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex);
     info->radius = r;
     c->st.inserted++;
     adapt_resolution(c, (uint32_t)id, r);
@@ -979,6 +1020,8 @@ static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c,
     if (id < 0 || !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) return;
     const ctex_tex *t = &c->slots[id].t;
     int ci = (int)(u * (float)t->w), cj = (int)(v * (float)t->h);
+    /* (ring 1 of an anisotropic splat may reach further: its ex is not
+     * worth computing twice) */
     if (ci < 1 || cj < 1 || ci >= t->w - 1 || cj >= t->h - 1) return;
     for (int j = cj - 1; j <= cj + 1; j++) {
         const ctex_texel *row = ctex_tex_at(t, ci, j);
@@ -1037,6 +1080,12 @@ int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int 
     if (m) *m = s->t.m;
     if (vmax) *vmax = s->t.vmax;
     return s->active ? 1 : 0;
+}
+
+float ctex_splat_ex(const ctex *c, uint32_t tex, vec3 p)
+{
+    if (tex >= c->nslots || !c->slots[tex].live || !c->have_cam) return 1.0f;
+    return splat_ex(c, &c->slots[tex].t, p);
 }
 
 ctex_stats ctex_get_stats(const ctex *c)

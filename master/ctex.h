@@ -39,6 +39,7 @@ typedef struct ctex_options {
     float mix;            /* weight of a new sample against the correction at its centre texel; 1 = off */
     float mix_radius;     /* ... when that correction's sample lies within this many texels (validity) */
     int splat_max;        /* largest splat radius (texels); 0 = no limit */
+    int splat_aniso;      /* 1: rings measured on screen (ctex_tex_splat_aniso); 0: in texels */
     float splat_lo;       /* §3.6: mean splat radius under which the resolution doubles (texels) */
     float splat_hi;       /* §3.6: mean splat radius over which the resolution halves (texels) */
     int splat_window;     /* §3.6: samples in the running mean, and between two resolution changes */
@@ -222,6 +223,12 @@ int32_t ctex_owner(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
 /* Hierarchy node of texture tex, its size and projection; -1 when not live. */
 int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int *h,
                       ctex_proj_kind *kind, mat4 *m, float *vmax);
+
+/* The ex a sample at p on texture tex splats with (ctex_tex_splat_aniso;
+ * docs/textures.md, "Anisotropic splats"): sqrt(s_y / s_x) for the texel at
+ * p, s_x by s_y pixels in the current view, through ctex_aniso_ex (1: square
+ * rings). 1 when tex is not live or p lies behind the eye. */
+float ctex_splat_ex(const ctex *c, uint32_t tex, vec3 p);
 
 /* Counters. */
 ctex_stats ctex_get_stats(const ctex *c);

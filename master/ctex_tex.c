@@ -157,6 +157,21 @@ static inline int put(ctex_texel *x, int32_t vn, const splat_val *sv)
     return 0;
 }
 
+/* Grows the dirty rectangle by the texels within ex, ey of (ci, cj). */
+static void grow_dirty(ctex_tex *t, int ci, int cj, int ex, int ey)
+{
+    int x0 = ci - ex < 0 ? 0 : ci - ex, x1 = ci + ex + 1 > t->w ? t->w : ci + ex + 1;
+    int y0 = cj - ey < 0 ? 0 : cj - ey, y1 = cj + ey + 1 > t->h ? t->h : cj + ey + 1;
+    if (t->dx0 >= t->dx1 || t->dy0 >= t->dy1) {
+        t->dx0 = x0; t->dx1 = x1; t->dy0 = y0; t->dy1 = y1;
+    } else {
+        if (x0 < t->dx0) t->dx0 = x0;
+        if (x1 > t->dx1) t->dx1 = x1;
+        if (y0 < t->dy0) t->dy0 = y0;
+        if (y1 > t->dy1) t->dy1 = y1;
+    }
+}
+
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
 {
     const int W = t->w, H = t->h;
@@ -224,16 +239,104 @@ dirty:;
     /* Dirty: everything up to the ring that stopped the splat (it may have
      * been blended). */
     int e = k > kmax ? kmax : k;
-    int x0 = ci - e < 0 ? 0 : ci - e, x1 = ci + e + 1 > W ? W : ci + e + 1;
-    int y0 = cj - e < 0 ? 0 : cj - e, y1 = cj + e + 1 > H ? H : cj + e + 1;
-    if (t->dx0 >= t->dx1 || t->dy0 >= t->dy1) {
-        t->dx0 = x0; t->dx1 = x1; t->dy0 = y0; t->dy1 = y1;
-    } else {
-        if (x0 < t->dx0) t->dx0 = x0;
-        if (x1 > t->dx1) t->dx1 = x1;
-        if (y0 < t->dy0) t->dy0 = y0;
-        if (y1 > t->dy1) t->dy1 = y1;
+    grow_dirty(t, ci, cj, e, e);
+    return r;
+}
+
+/* put() over the texels of [x0, x1] x [y0, y1] inside the texture; adds
+ * the number of those texels to *inside. Returns whether a validity rose. */
+static inline __attribute__((always_inline)) int put_rect(ctex_tex *t, int x0, int x1, int y0, int y1, int32_t vn, const splat_val *sv, int *inside)
+{
+    if (x0 < 0) x0 = 0;
+    if (y0 < 0) y0 = 0;
+    if (x1 > t->w - 1) x1 = t->w - 1;
+    if (y1 > t->h - 1) y1 = t->h - 1;
+    if (x0 > x1 || y0 > y1) return 0;
+    *inside += (x1 - x0 + 1) * (y1 - y0 + 1);
+    int changed = 0;
+    for (int y = y0; y <= y1; y++) {
+        ctex_texel *row = ctex_tex_at(t, 0, y);
+        for (int x = x0; x <= x1; x++) changed |= put(row + x, vn, sv);
     }
+    return changed;
+}
+
+/* Prefetches the rows ring k adds above and below ring k - 1's rectangle
+ * (py rows either side of cj), for writing: prefetch_ring's counterpart. */
+static inline __attribute__((always_inline)) void prefetch_bands(const ctex_tex *t, int ci, int cj, float ex, int k,
+                                                                 int py)
+{
+    int xk, yk;
+    ctex_aniso_ring(ex, k, &xk, &yk);
+    int xa = ci - xk < 0 ? 0 : ci - xk, xb = ci + xk > t->w - 1 ? t->w - 1 : ci + xk;
+    for (int d = py + 1; d <= yk; d++)
+        for (int y = cj - d; y <= cj + d; y += 2 * d) {
+            if (y < 0 || y >= t->h) continue;
+            const ctex_texel *row = ctex_tex_at(t, 0, y);
+            for (int x = xa; x < xb; x += 8) __builtin_prefetch(row + x, 1, 1);
+            __builtin_prefetch(row + xb, 1, 1);
+        }
+}
+
+int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r, float ex)
+{
+    ex = ctex_aniso_ex(ex);
+    if (ex == 1.0f) return ctex_tex_splat(t, ci, cj, val, blend, max_r);
+    ctex_tex_keep_base(t);
+    splat_val sv;
+    ctex_texel h;
+    ctex_texel_set(t, &h, val, 0.0f);
+    h.q = 0;
+    memcpy(&sv.rgb, &h, sizeof sv.rgb);
+    sv.f = ctex_texel_rgb(&h);
+    sv.blend = blend < 0.0f ? 0.0f : blend;
+    const int32_t qmax = ctex_tex_q(t, t->vmax);
+    ctex_texel *c = ctex_tex_at(t, ci, cj);
+    store(c, sv.rgb, c->q > qmax ? c->q : qmax);
+    /* Ring k: the texels of its rectangle outside ring k - 1's; one of the
+     * two extents grows by at least one texel a ring (ex ey = 1). */
+    const int reachx = ci > t->w - 1 - ci ? ci : t->w - 1 - ci;
+    const int reachy = cj > t->h - 1 - cj ? cj : t->h - 1 - cj;
+    int px = 0, py = 0, r = 0, dx = 0, dy = 0;
+    for (int k = 1; (max_r <= 0 || k <= max_r) && (px < reachx || py < reachy); k++) {
+        int xk, yk;
+        ctex_aniso_ring(ex, k, &xk, &yk);
+        /* Ring k + 1's new rows, while ring k is written; not from ring 1,
+         * after which most samples stop (ctex_tex_splat does the same). */
+        if (k > 1 && (max_r <= 0 || k < max_r)) prefetch_bands(t, ci, cj, ex, k + 1, yk);
+        const int32_t vq = qmax - CTEX_VQ * k;
+        const int32_t vn = vq < CTEX_Q_OLDEST ? CTEX_Q_OLDEST : vq;
+        int changed = 0, inside = 0;
+        if (yk > py) {
+            changed |= put_rect(t, ci - xk, ci + xk, cj - yk, cj - py - 1, vn, &sv, &inside);
+            changed |= put_rect(t, ci - xk, ci + xk, cj + py + 1, cj + yk, vn, &sv, &inside);
+        }
+        if (xk > px) {
+            changed |= put_rect(t, ci - xk, ci - px - 1, cj - py, cj + py, vn, &sv, &inside);
+            changed |= put_rect(t, ci + px + 1, ci + xk, cj - py, cj + py, vn, &sv, &inside);
+        }
+        int full = xk > px && yk > py;
+        dx = xk;
+        dy = yk;
+        px = xk;
+        py = yk;
+        /* A ring wholly outside the texture stops nothing: a later one may
+         * grow along the axis that still has texels. */
+        if (!inside) continue;
+        /* Only a ring around the whole last rectangle stops the splat: one
+         * that grew along one axis leaves the texels past the other
+         * rectangle's sides, where a later ring may still win (the
+         * Voronoi property, tested). */
+        if (!changed) {
+            if (full) break;
+            continue;
+        }
+        r = k;
+        if (k == 1 && (max_r <= 0 || max_r > 1)) prefetch_bands(t, ci, cj, ex, 2, yk);
+    }
+    /* Dirty: everything up to the ring that stopped the splat (it may have
+     * been blended). */
+    grow_dirty(t, ci, cj, dx, dy);
     return r;
 }
 

@@ -165,6 +165,36 @@ void ctex_tex_release(ctex_tex *t);
  * the dirty rectangle. */
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r);
 
+/* Anisotropic splats: ex in (CTEX_ANISO_ISO, 1 / CTEX_ANISO_ISO) splats
+ * square rings; ex is clamped to [1 / CTEX_ANISO_MAX, CTEX_ANISO_MAX]. */
+#define CTEX_ANISO_ISO 0.8f
+#define CTEX_ANISO_MAX 4.0f
+
+/* The ex ctex_tex_splat_aniso uses for ex: 1 near 1 (square rings) and for
+ * anything but a positive finite number, else ex clamped. */
+static inline float ctex_aniso_ex(float ex)
+{
+    if (!(ex > 0.0f && ex < INFINITY) || (ex > CTEX_ANISO_ISO && ex < 1.0f / CTEX_ANISO_ISO)) return 1.0f;
+    return ex < 1.0f / CTEX_ANISO_MAX ? 1.0f / CTEX_ANISO_MAX : (ex > CTEX_ANISO_MAX ? CTEX_ANISO_MAX : ex);
+}
+
+/* Half-extents of ring k of an anisotropic splat (ex from ctex_aniso_ex):
+ * round(k ex) x round(k / ex). */
+static inline void ctex_aniso_ring(float ex, int k, int *xk, int *yk)
+{
+    *xk = (int)((float)k * ex + 0.5f);
+    *yk = (int)((float)k / ex + 0.5f);
+}
+
+/* ctex_tex_splat with distances measured on screen rather than in texels
+ * (docs/textures.md, "Anisotropic splats"): a texel offset (dx, dy) lies
+ * max(|dx| / ex, |dy| * ex) rings out, where ex = sqrt(s_y / s_x) for a
+ * texel s_x by s_y pixels on screen. Ring k then covers the texels of the
+ * ctex_aniso_ring rectangle outside ring k - 1's, about as many as a square
+ * ring of k holds; validities, radii and max_r count rings as before. ex
+ * near 1 (ctex_aniso_ex) splats square rings (ctex_tex_splat). */
+int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r, float ex);
+
 /* The value a sample of correction `value` landing on texel (ci, cj) splats
  * (docs/textures.md, "Mixing"): the texel's correction moved by the
  * fraction `mix` towards value when the texel holds one whose validity is

@@ -12,6 +12,7 @@
 #include "common/rng.h"
 #include "common/scene.h"
 #include "master/ctex.h"
+#include "master/ctex_tex.h"
 #include "master/ctex_hier.h"
 
 static ct_error err;
@@ -424,6 +425,62 @@ Test(ctex_engine, insert_reads_correction_and_error)
     ctex_stats st = ctex_get_stats(c);
     cr_assert_eq(st.inserted, 2);
     cr_assert_eq(st.dropped, 3);
+    ctex_free(c);
+    release(&t);
+}
+
+/* Pixels between the images of p and p + d under the front camera. */
+static double px_dist(vec3 p, vec3 d, int w, int h)
+{
+    ct_camera cam = front_cam();
+    float ax, ay, bx, by, z;
+    cr_assert(cam_project(&cam, w, h, p, &ax, &ay, &z));
+    cr_assert(cam_project(&cam, w, h, v3_add(p, d), &bx, &by, &z));
+    return hypot((double)bx - ax, (double)by - ay);
+}
+
+/* The floor seen at a slant (about 16 degrees): its texels look far wider
+ * than deep, so splat rings reach further in depth (ex away from 1), by the
+ * ratio of the texel's sides on screen, here measured by projecting a texel's
+ * two edges (finite differences, independent of the engine's derivative).
+ * A camera-local texture's texels are (x1 - x0) / w by (y1 - y0) / h pixels. */
+Test(ctex_engine, splat_ex_follows_the_texels_on_screen)
+{
+    tscene t;
+    const int W = 256, H = 256;
+    ctex *c = leaf_engine(&t, W, H);
+    ctex_insert_info info;
+    ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 6), v3s(1.0f), v3s(0.0f));
+    cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    int tw, th;
+    ctex_proj_kind kind;
+    mat4 m;
+    ctex_texture_info(c, (uint32_t)info.tex, NULL, &tw, &th, &kind, &m, NULL);
+    cr_assert_eq(kind, CTEX_PROJ_OBJECT);
+    /* world -> texture rows u = a.p + .., v = b.p + ..: a texel's edges are
+     * a / |a|^2 / w and b / |b|^2 / h */
+    vec3 a = v3(m.m[0][0], m.m[0][1], m.m[0][2]), b = v3(m.m[1][0], m.m[1][1], m.m[1][2]);
+    vec3 eu = v3_scale(a, 1.0f / (v3_len2(a) * (float)tw)), ev = v3_scale(b, 1.0f / (v3_len2(b) * (float)th));
+    const float pts[][3] = {{1, 0, 6}, {-3, 0, 2}, {4, 0, -6}, {0, 0, 11.5f}};
+    for (size_t i = 0; i < sizeof pts / sizeof pts[0]; i++) {
+        vec3 p = v3(pts[i][0], pts[i][1], pts[i][2]);
+        const double f = 1e-3;
+        double sx = px_dist(p, v3_scale(eu, (float)f), W, H) / f, sy = px_dist(p, v3_scale(ev, (float)f), W, H) / f;
+        double want = ctex_aniso_ex((float)sqrt(sy / sx)), got = ctex_splat_ex(c, (uint32_t)info.tex, p);
+        cr_assert(fabs(got / want - 1.0) < 0.01, "at (%g,%g,%g): ex %g, projected texel %g x %g px: %g", (double)p.x,
+                  (double)p.y, (double)p.z, got, sx, sy, want);
+        /* the floor's depth axis is squeezed, rings stretch along it;
+         * except right below the eye (the last point), where the texels
+         * look nearly square */
+        int depth_is_u = fabsf(a.z) > fabsf(a.x);
+        if (i < 3) cr_assert(depth_is_u ? got > 1.0 / CTEX_ANISO_ISO : got < CTEX_ANISO_ISO, "ex %g: rings should stretch in depth", got);
+    }
+    cr_assert_eq(ctex_splat_ex(c, 9999, v3s(0.0f)), 1.0f, "not a texture");
+    /* the glossy panel faces the camera: camera-local or not, near 1 */
+    ct_sample sp = mk_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
+    cr_assert_eq(ctex_insert(c, &sp, &info), 1);
+    float e = ctex_splat_ex(c, (uint32_t)info.tex, v3(0, 1, -5));
+    cr_assert_eq(ctex_aniso_ex(e), 1.0f, "a facing panel splats square rings (ex %g)", (double)e);
     ctex_free(c);
     release(&t);
 }

@@ -86,6 +86,107 @@ Test(ctex_tex, voronoi_20_samples) { voronoi_case(64, 48, 20, 7); }
 Test(ctex_tex, voronoi_100_samples) { voronoi_case(64, 48, 100, 11); }
 Test(ctex_tex, voronoi_dense) { voronoi_case(33, 17, 300, 3); }
 
+/* The ring of texel offset (dx, dy) in an anisotropic splat (ex from
+ * ctex_aniso_ex): the first k whose ctex_aniso_ring rectangle holds it. */
+static int aniso_ring_of(float ex, int dx, int dy)
+{
+    dx = abs(dx);
+    dy = abs(dy);
+    for (int k = 0;; k++) {
+        int xk, yk;
+        ctex_aniso_ring(ex, k, &xk, &yk);
+        if (dx <= xk && dy <= yk) return k;
+    }
+}
+
+/* voronoi_case for ctex_tex_splat_aniso: every texel holds its nearest
+ * sample in the screen metric of the rings, ties to the earliest. */
+static void aniso_voronoi_case(int W, int H, int n, float ex, uint64_t seed)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, W, H, NULL), 0);
+    int *sx = malloc((size_t)n * sizeof *sx), *sy = malloc((size_t)n * sizeof *sy);
+    uint8_t *used = calloc((size_t)W * (size_t)H, 1);
+    ct_rng r = rng_make(seed, 4, 5, 6);
+    float e = ctex_aniso_ex(ex);
+    cr_assert_neq(e, 1.0f, "ex %g should splat anisotropic rings", (double)ex);
+    for (int k = 0; k < n; k++) {
+        int x, y;
+        do {
+            x = (int)rng_below(&r, (uint32_t)W);
+            y = (int)rng_below(&r, (uint32_t)H);
+        } while (used[y * W + x]);
+        used[y * W + x] = 1;
+        sx[k] = x; sy[k] = y;
+        ctex_tex_splat_aniso(&t, x, y, v3((float)k, 0.0f, 0.0f), 0.0f, 0, ex);
+    }
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            int best = -1, bd = 1 << 30;
+            for (int k = 0; k < n; k++) {
+                int d = aniso_ring_of(e, x - sx[k], y - sy[k]);
+                if (d < bd) { bd = d; best = k; }
+            }
+            int got = (int)R(&t, x, y);
+            int dg = aniso_ring_of(e, x - sx[got], y - sy[got]);
+            cr_assert_eq(V(&t, x, y), -(float)dg, "validity is the held sample's ring");
+            cr_assert_eq(got, best, "ex %g: texel (%d,%d) holds sample %d at (%d,%d), ring %d; nearest is %d at (%d,%d), ring %d",
+                         (double)ex, x, y, got, sx[got], sy[got], dg, best, sx[best], sy[best], bd);
+        }
+    free(sx); free(sy); free(used);
+    ctex_tex_release(&t);
+}
+
+/* Texels seen 4 times wider than high on screen (ex = 0.5) take rings half
+ * as wide and twice as high, and so on; near the texture's borders rings
+ * wholly outside along one axis still grow along the other. */
+Test(ctex_tex, anisotropic_voronoi)
+{
+    const float exs[] = {0.5f, 0.7f, 1.6f, 3.0f, 0.25f, 100.0f};
+    for (size_t i = 0; i < sizeof exs / sizeof exs[0]; i++) {
+        aniso_voronoi_case(64, 48, 40, exs[i], 20 + i);
+        aniso_voronoi_case(64, 48, 300, exs[i], 40 + i);
+        aniso_voronoi_case(9, 70, 12, exs[i], 30 + i);
+        aniso_voronoi_case(70, 5, 25, exs[i], 50 + i);
+    }
+}
+
+/* A lone sample in an empty texture: ring k of ex = 0.5 reaches k / 2
+ * texels across and 2 k along; the dirty rectangle is the texture. */
+Test(ctex_tex, anisotropic_ring_shape)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 32, 32, NULL), 0);
+    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    int r = ctex_tex_splat_aniso(&t, 16, 16, v3(1.0f, 0.0f, 0.0f), 0.0f, 0, 0.5f);
+    cr_assert_eq(r, 31, "the splat reaches the far border (16 texels across at ring 31: round(15.5))");
+    cr_assert_eq(V(&t, 16, 16 + 8), -4.0f);   /* 8 texels along: ring 4 */
+    cr_assert_eq(V(&t, 16 + 8, 16), -15.0f);  /* 8 texels across: ring 15 (round(7.5)) */
+    cr_assert_eq(V(&t, 16 + 1, 16), -1.0f);   /* round(0.5) = 1 */
+    cr_assert(t.dx0 == 0 && t.dy0 == 0 && t.dx1 == 32 && t.dy1 == 32);
+    ctex_tex_release(&t);
+}
+
+/* ex near 1, or no number, splats square rings, bit for bit. */
+Test(ctex_tex, nearly_isotropic_splats_square_rings)
+{
+    const float exs[] = {1.0f, 0.85f, 1.2f, NAN, INFINITY, 0.0f, -2.0f};
+    for (size_t i = 0; i < sizeof exs / sizeof exs[0]; i++) {
+        ctex_tex a = {0}, b = {0};
+        cr_assert_eq(ctex_tex_init(&a, 33, 17, NULL), 0);
+        cr_assert_eq(ctex_tex_init(&b, 33, 17, NULL), 0);
+        ct_rng r = rng_make(7, i, 0, 0);
+        for (int n = 0; n < 60; n++) {
+            int x = (int)rng_below(&r, 33), y = (int)rng_below(&r, 17);
+            vec3 v = v3(rng_float(&r), 0.0f, 0.0f);
+            cr_assert_eq(ctex_tex_splat_aniso(&a, x, y, v, 1.0f, 0, exs[i]), ctex_tex_splat(&b, x, y, v, 1.0f, 0));
+        }
+        cr_assert_eq(memcmp(a.tx, b.tx, (size_t)a.pitch * 17 * sizeof *a.tx), 0, "ex %g", (double)exs[i]);
+        ctex_tex_release(&a);
+        ctex_tex_release(&b);
+    }
+}
+
 Test(ctex_tex, splat_radius_and_dirty_rect)
 {
     ctex_tex t = {0};
