@@ -157,6 +157,24 @@ static inline int put(ctex_texel *x, int32_t vn, const splat_val *sv)
     return 0;
 }
 
+/* A splat's start: sv from the value, the centre texel (which always takes
+ * the newest sample) written at v_max's step, which it returns. */
+static inline __attribute__((always_inline)) int32_t splat_centre(ctex_tex *t, int ci, int cj, vec3 val, float blend,
+                                                                  splat_val *sv)
+{
+    ctex_tex_keep_base(t);
+    ctex_texel h;
+    ctex_texel_set(t, &h, val, 0.0f);
+    h.q = 0;
+    memcpy(&sv->rgb, &h, sizeof sv->rgb);
+    sv->f = ctex_texel_rgb(&h);
+    sv->blend = blend < 0.0f ? 0.0f : blend;
+    const int32_t qmax = ctex_tex_q(t, t->vmax);
+    ctex_texel *c = ctex_tex_at(t, ci, cj);
+    store(c, sv->rgb, c->q > qmax ? c->q : qmax);
+    return qmax;
+}
+
 /* Grows the dirty rectangle by the texels within ex, ey of (ci, cj). */
 static void grow_dirty(ctex_tex *t, int ci, int cj, int ex, int ey)
 {
@@ -177,19 +195,10 @@ int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r
     const int W = t->w, H = t->h;
     const size_t P = (size_t)t->pitch;
     ctex_texel *T = t->tx;
-    ctex_tex_keep_base(t);
     splat_val sv;
-    ctex_texel h;
-    ctex_texel_set(t, &h, val, 0.0f);
-    h.q = 0;
-    memcpy(&sv.rgb, &h, sizeof sv.rgb);
-    sv.f = ctex_texel_rgb(&h);
-    sv.blend = blend < 0.0f ? 0.0f : blend;
     /* validity steps: v_max's, and ring k's v_max - k (§3.4) */
-    const int32_t qmax = ctex_tex_q(t, t->vmax);
-    /* The centre texel always takes the newest sample. */
+    const int32_t qmax = splat_centre(t, ci, cj, val, blend, &sv);
     ctex_texel *c = T + (size_t)cj * P + (size_t)ci;
-    store(c, sv.rgb, c->q > qmax ? c->q : qmax);
     int r = 0, k = 1;
     /* The largest ring that still has a texel inside the texture. */
     int kmax = ci;
@@ -282,17 +291,8 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
 {
     ex = ctex_aniso_ex(ex);
     if (ex == 1.0f) return ctex_tex_splat(t, ci, cj, val, blend, max_r);
-    ctex_tex_keep_base(t);
     splat_val sv;
-    ctex_texel h;
-    ctex_texel_set(t, &h, val, 0.0f);
-    h.q = 0;
-    memcpy(&sv.rgb, &h, sizeof sv.rgb);
-    sv.f = ctex_texel_rgb(&h);
-    sv.blend = blend < 0.0f ? 0.0f : blend;
-    const int32_t qmax = ctex_tex_q(t, t->vmax);
-    ctex_texel *c = ctex_tex_at(t, ci, cj);
-    store(c, sv.rgb, c->q > qmax ? c->q : qmax);
+    const int32_t qmax = splat_centre(t, ci, cj, val, blend, &sv);
     /* Ring k: the texels of its rectangle outside ring k - 1's; one of the
      * two extents grows by at least one texel a ring (ex ey = 1). */
     const int reachx = ci > t->w - 1 - ci ? ci : t->w - 1 - ci;

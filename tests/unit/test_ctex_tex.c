@@ -39,6 +39,16 @@ static int cheb(int ax, int ay, int bx, int by)
     return dx > dy ? dx : dy;
 }
 
+/* A random texel of a W x H texture not used before; marks it used. */
+static void free_texel(ct_rng *r, uint8_t *used, int W, int H, int *x, int *y)
+{
+    do {
+        *x = (int)rng_below(r, (uint32_t)W);
+        *y = (int)rng_below(r, (uint32_t)H);
+    } while (used[*y * W + *x]);
+    used[*y * W + *x] = 1;
+}
+
 /* Splats n samples at distinct random texels (value = index) with blending
  * off and checks that every texel holds its nearest sample in the
  * Chebyshev metric, ties going to the earliest sample. */
@@ -51,14 +61,8 @@ static void voronoi_case(int W, int H, int n, uint64_t seed)
     uint8_t *used = calloc((size_t)W * (size_t)H, 1);
     ct_rng r = rng_make(seed, 1, 2, 3);
     for (int k = 0; k < n; k++) {
-        int x, y;
-        do {
-            x = (int)rng_below(&r, (uint32_t)W);
-            y = (int)rng_below(&r, (uint32_t)H);
-        } while (used[y * W + x]);
-        used[y * W + x] = 1;
-        sx[k] = x; sy[k] = y;
-        ctex_tex_splat(&t, x, y, v3((float)k, (float)-k, 0.5f), 0.0f, 0);
+        free_texel(&r, used, W, H, &sx[k], &sy[k]);
+        ctex_tex_splat(&t, sx[k], sy[k], v3((float)k, (float)-k, 0.5f), 0.0f, 0);
     }
     int ties = 0;
     for (int y = 0; y < H; y++)
@@ -111,14 +115,8 @@ static void aniso_voronoi_case(int W, int H, int n, float ex, uint64_t seed)
     float e = ctex_aniso_ex(ex);
     cr_assert_neq(e, 1.0f, "ex %g should splat anisotropic rings", (double)ex);
     for (int k = 0; k < n; k++) {
-        int x, y;
-        do {
-            x = (int)rng_below(&r, (uint32_t)W);
-            y = (int)rng_below(&r, (uint32_t)H);
-        } while (used[y * W + x]);
-        used[y * W + x] = 1;
-        sx[k] = x; sy[k] = y;
-        ctex_tex_splat_aniso(&t, x, y, v3((float)k, 0.0f, 0.0f), 0.0f, 0, ex);
+        free_texel(&r, used, W, H, &sx[k], &sy[k]);
+        ctex_tex_splat_aniso(&t, sx[k], sy[k], v3((float)k, 0.0f, 0.0f), 0.0f, 0, ex);
     }
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
