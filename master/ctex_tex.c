@@ -254,7 +254,8 @@ dirty:;
 
 /* put() over the texels of [x0, x1] x [y0, y1] inside the texture; adds
  * the number of those texels to *inside. Returns whether a validity rose. */
-static inline __attribute__((always_inline)) int put_rect(ctex_tex *t, int x0, int x1, int y0, int y1, int32_t vn, const splat_val *sv, int *inside)
+static inline __attribute__((always_inline)) int put_rect(ctex_tex *t, int x0, int x1, int y0, int y1, int32_t vn,
+                                                          const splat_val *sv, int *inside)
 {
     if (x0 < 0) x0 = 0;
     if (y0 < 0) y0 = 0;
@@ -297,7 +298,7 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
      * two extents grows by at least one texel a ring (ex ey = 1). */
     const int reachx = ci > t->w - 1 - ci ? ci : t->w - 1 - ci;
     const int reachy = cj > t->h - 1 - cj ? cj : t->h - 1 - cj;
-    int px = 0, py = 0, r = 0, dx = 0, dy = 0;
+    int px = 0, py = 0, r = 0;   /* the last visited ring's half-extents */
     for (int k = 1; (max_r <= 0 || k <= max_r) && (px < reachx || py < reachy); k++) {
         int xk, yk;
         ctex_aniso_ring(ex, k, &xk, &yk);
@@ -316,8 +317,6 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
             changed |= put_rect(t, ci + px + 1, ci + xk, cj - py, cj + py, vn, &sv, &inside);
         }
         int full = xk > px && yk > py;
-        dx = xk;
-        dy = yk;
         px = xk;
         py = yk;
         /* A ring wholly outside the texture stops nothing: a later one may
@@ -336,7 +335,7 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
     }
     /* Dirty: everything up to the ring that stopped the splat (it may have
      * been blended). */
-    grow_dirty(t, ci, cj, dx, dy);
+    grow_dirty(t, ci, cj, px, py);
     return r;
 }
 
