@@ -5,8 +5,6 @@
 
 #include "tracer/bsdf.h"
 
-/* Crossings a shadow ray may make through dielectrics before it is counted
- * as blocked (a stack of glasses; also bounds the work per shadow ray). */
 /* Bounces of the path-traced indirect light of drt without a radiosity mesh. */
 #define DRT_INDIRECT_DEPTH 64
 /* Russian roulette starts after this many bounces of a path. */
@@ -162,8 +160,9 @@ static inline vec3 glass_pass(const scene_material *m, float cosd)
  * t in (0, dist), known to be blocked by something: 0 behind an opaque
  * surface; through dielectrics, their transmission colour times (1 -
  * Fresnel) per crossing (refraction of the shadow ray itself is ignored, so
- * glass casts a lighter, unfocused shadow as in the paper). */
-
+ * glass casts a lighter, unfocused shadow as in the paper). At most
+ * RMESH_MAX_GLASS_CROSSINGS crossings (a stack of glasses; also bounds the
+ * work per shadow ray), then blocked. */
 static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target, bool *crossed)
 {
     if (!c->has_dielectric) return v3s(0.0f);

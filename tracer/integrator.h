@@ -72,8 +72,7 @@ void integ_primary_finish(const integ_ctx *c, emb_hit *h, vec3 d, integ_surf *s)
  * first opaque surface along the straight ray (Gouraud, as integ_vertex_lerp)
  * times transmission * (1 - F) for every glass crossed before it; black when
  * the ray leaves the scene or crosses more than RMESH_MAX_GLASS_CROSSINGS
- * glass surfaces. Needs
- * c->rad. */
+ * glass surfaces. Needs c->rad. */
 vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d);
 
 /* Radiance along the primary ray o + t d whose first hit is s (the mode in

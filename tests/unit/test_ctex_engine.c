@@ -754,6 +754,13 @@ Test(ctex_engine, options_parse_and_reject)
     cr_assert_lt(ctex_options_parse(&o, "--mix", "1.5", &err), 0);
     cr_assert_eq(ctex_options_parse(&o, "--mix", "1", &err), 1);
     cr_assert_float_eq(o.mix, 1.0f, 1e-7);
+    /* --splat-aniso is a switch */
+    cr_assert_eq(o.splat_aniso, 1);
+    cr_assert_lt(ctex_options_parse(&o, "--splat-aniso", "2", &err), 0);
+    cr_assert(strstr(err.msg, "--splat-aniso") != NULL, "the error names the option: %s", err.msg);
+    cr_assert_lt(ctex_options_parse(&o, "--splat-aniso", "0.5", &err), 0);
+    cr_assert_eq(ctex_options_parse(&o, "--splat-aniso", "0", &err), 1);
+    cr_assert_eq(o.splat_aniso, 0);
 }
 
 Test(ctex_engine, bad_mesh_is_rejected)
