@@ -11,7 +11,7 @@
 typedef struct mesh_prog {
     GLuint id;
     GLint u_mvp, u_texproj, u_rad_scale, u_color, u_tex[GL_ONE_PASS_MAX_TEX];
-    GLint u_eye, u_transmission, u_ior, u_glass, u_zrev;
+    GLint u_eye, u_transmission, u_ior;
 } mesh_prog;
 
 struct disp_compositor {
@@ -26,9 +26,6 @@ struct disp_compositor {
     uint32_t npoints;    /* sample points in pw_vbo */
     GLint tm_image, tm_exposure, tm_mode;
     GLuint empty_vao;
-    /* depth of the nearest glass, for the one-pass programs (made when a
-     * scene with glass is first drawn in one pass) */
-    GLuint glass_fbo, glass_depth;
     /* draw segments, reused between frames */
     uint32_t *bounds;
     size_t bounds_cap;
@@ -67,11 +64,7 @@ static int build_mesh_prog(mesh_prog *p, int pass, int ntex, ct_error *err)
     p->u_eye = gl.GetUniformLocation(p->id, "u_eye");
     p->u_transmission = gl.GetUniformLocation(p->id, "u_transmission");
     p->u_ior = gl.GetUniformLocation(p->id, "u_ior");
-    p->u_glass = gl.GetUniformLocation(p->id, "u_glass");
-    p->u_zrev = gl.GetUniformLocation(p->id, "u_zrev");
     gl.UseProgram(p->id);
-    GLint gd = gl.GetUniformLocation(p->id, "u_glass_depth");
-    if (gd >= 0) gl.Uniform1i(gd, GL_GLASS_DEPTH_UNIT);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++) {
         char u[16];
         snprintf(u, sizeof u, "u_tex%d", k);
@@ -149,8 +142,6 @@ void disp_compositor_free(disp_compositor *c)
     if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
     if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
-    if (c->glass_fbo) gl.DeleteFramebuffers(1, &c->glass_fbo);
-    if (c->glass_depth) gl.DeleteTextures(1, &c->glass_depth);
     free(c->bounds);
     free(c->seg_tex);
     free(c->segs);
@@ -364,13 +355,11 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
 
 /* One pass: each opaque segment is drawn once with the radiosity plus the
  * signed corrections of the (up to 4) textures covering it; untextured
- * segments with the plain radiosity program (no lookups). With behind_glass
- * the programs leave out the corrections behind the nearest glass (the
- * glass depth texture is bound). Glass segments are left to the glass
- * passes, and so are further textures on a segment (rare: more than 4
- * stacked on one node): late_corrections. */
+ * segments with the plain radiosity program (no lookups). Glass segments
+ * are left to the glass passes, and so are further textures on a segment
+ * (rare: more than 4 stacked on one node): late_corrections. */
 static void one_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp, float rad_scale,
-                     bool behind_glass, disp_render_stats *st)
+                     disp_render_stats *st)
 {
     for (size_t k = 0; k < nseg; k++) {
         const segment *g = &c->segs[k];
@@ -379,33 +368,85 @@ static void one_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const
         uint32_t first = g->m < GL_ONE_PASS_MAX_TEX ? g->m : GL_ONE_PASS_MAX_TEX;
         const mesh_prog *p = first ? &c->one[first - 1] : &c->mesh[GL_PASS_RAD];
         use_mesh(p, mvp, rad_scale);
-        if (first) {
-            set_texproj(p, gt, (int)first);
-            gl.Uniform1i(p->u_glass, behind_glass);
-            gl.Uniform1i(p->u_zrev, gl.reversed_z);
-        }
+        if (first) set_texproj(p, gt, (int)first);
         disp_scene_draw(s, g->b, g->e);
         st->draws++;
     }
 }
 
-/* After the glass passes of the one-pass mode: the textures one_pass left,
- * by passes 2/3 on their segment (the depth test keeps them off what lies
- * behind the nearest glass). */
-static void late_corrections(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
-                             bool all_positive, disp_render_stats *st)
+/* After one_pass: where glass lies in front, the corrections one_pass added
+ * to the opaque surfaces seen through it are taken back (their samples hit
+ * the glass, whose own corrections come later). The glass marks the
+ * stencil where it passes the depth test; the textured opaque segments are
+ * drawn again there with the plain radiosity program at equal depth, each
+ * pixel once (the first segment to reach it, as one_pass's strict depth
+ * test kept the first of equal depths). Costs two draws per glass run and
+ * one per textured segment, with fragments only behind glass; no lookups
+ * in the one pass itself. */
+static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+                                   float rad_scale, disp_render_stats *st)
 {
+    uint32_t ng;
+    const disp_glass *glass = disp_scene_glass(s, &ng);
+    gl.Enable(GL_STENCIL_TEST);
+    gl.StencilFunc(GL_ALWAYS, 1, 0xff);
+    gl.StencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+    gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    gl.DepthMask(GL_FALSE);
+    use_mesh(&c->mesh[GL_PASS_RAD], mvp, rad_scale);
+    for (uint32_t i = 0; i < ng; i++) {
+        disp_scene_draw(s, glass[i].begin, glass[i].end);
+        st->draws++;
+    }
+    gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    gl.StencilFunc(GL_EQUAL, 1, 0xff);
+    gl.StencilOp(GL_KEEP, GL_KEEP, GL_INCR);
+    gl.DepthFunc(depth_lequal());
+    for (size_t k = 0; k < nseg; k++) {
+        const segment *g = &c->segs[k];
+        if (g->glass || !g->m) continue;
+        disp_scene_draw(s, g->b, g->e);
+        st->draws++;
+    }
+    gl.Disable(GL_STENCIL_TEST);
+    gl.DepthFunc(depth_less());
+    gl.DepthMask(GL_TRUE);
+}
+
+/* After the glass passes of the one-pass mode: the corrections one_pass
+ * left (glass segments', and a segment's fifth texture on), added signed
+ * by the one-pass programs with the radiosity scaled to zero, up to 4
+ * textures a draw (the float target holds negative sums, so the add and
+ * reverse-subtract of passes 2/3 need not be split); the depth test keeps
+ * them off what lies behind the nearest glass. */
+static void late_corrections(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+                             disp_render_stats *st)
+{
+    bool any = false;
     for (size_t k = 0; k < nseg; k++) {
         const segment *g = &c->segs[k];
         const disp_texture **gt = c->seg_tex + g->first;
-        for (uint32_t i = g->glass ? 0 : GL_ONE_PASS_MAX_TEX; i < g->m; i++) {
-            disp_texture tmp = *gt[i];
-            tmp.tri_begin = g->b;
-            tmp.tri_end = g->e;
-            const disp_texture *one = &tmp;
-            correction_passes(c, s, &one, 1, mvp, all_positive, st);
+        for (uint32_t i = g->glass ? 0 : GL_ONE_PASS_MAX_TEX; i < g->m; i += GL_ONE_PASS_MAX_TEX) {
+            if (!any) {
+                gl.Enable(GL_BLEND);
+                gl.BlendEquation(GL_FUNC_ADD);
+                gl.BlendFunc(GL_ONE, GL_ONE);
+                gl.DepthMask(GL_FALSE);
+                gl.DepthFunc(depth_lequal());
+                any = true;
+            }
+            uint32_t m = g->m - i < GL_ONE_PASS_MAX_TEX ? g->m - i : GL_ONE_PASS_MAX_TEX;
+            const mesh_prog *p = &c->one[m - 1];
+            use_mesh(p, mvp, 0.0f);
+            set_texproj(p, gt + i, (int)m);
+            disp_scene_draw(s, g->b, g->e);
+            st->draws++;
         }
     }
+    if (!any) return;
+    gl.Disable(GL_BLEND);
+    gl.DepthMask(GL_TRUE);
+    gl.DepthFunc(depth_less());
 }
 
 /* The glass passes: every glass fragment in front of the opaque surfaces
@@ -444,43 +485,6 @@ static void glass_passes(disp_compositor *c, const disp_scene *s, const float *m
         st->draws++;
     }
     gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-}
-
-/* The depth of the nearest glass into c->glass_depth (bound to
- * GL_GLASS_DEPTH_UNIT), for one_pass; leaves the float target bound. */
-static int glass_depth_texture(disp_compositor *c, const disp_scene *s, const float *mvp, ct_error *err)
-{
-    if (!c->glass_fbo) {
-        gl.GenTextures(1, &c->glass_depth);
-        gl.BindTexture(GL_TEXTURE_2D, c->glass_depth);
-        gl.TexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, c->width, c->height, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
-                      NULL);
-        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-        gl.GenFramebuffers(1, &c->glass_fbo);
-        gl.BindFramebuffer(GL_FRAMEBUFFER, c->glass_fbo);
-        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, c->glass_depth, 0);
-        gl.DrawBuffer(GL_NONE);
-        gl.ReadBuffer(GL_NONE);
-        GLenum fs = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
-        if (fs != GL_FRAMEBUFFER_COMPLETE) {
-            gl_target_bind(&c->hdr, 0, 0);
-            return ct_fail(err, CT_ESYS, "glass depth framebuffer %dx%d incomplete: 0x%04x", c->width, c->height,
-                           (unsigned)fs);
-        }
-    }
-    gl.BindFramebuffer(GL_FRAMEBUFFER, c->glass_fbo);
-    gl.Viewport(0, 0, c->width, c->height);
-    gl.Clear(GL_DEPTH_BUFFER_BIT);
-    use_mesh(&c->mesh[GL_PASS_RAD], mvp, 0.0f);
-    uint32_t ng;
-    const disp_glass *g = disp_scene_glass(s, &ng);
-    for (uint32_t i = 0; i < ng; i++) disp_scene_draw(s, g[i].begin, g[i].end);
-    gl_target_bind(&c->hdr, 0, 0);
-    gl.ActiveTexture(GL_TEXTURE0 + GL_GLASS_DEPTH_UNIT);
-    gl.BindTexture(GL_TEXTURE_2D, c->glass_depth);
-    gl.ActiveTexture(GL_TEXTURE0);
-    return CT_OK;
 }
 
 static vec3 id_colour(uint32_t id)
@@ -576,7 +580,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     gl.DepthMask(GL_TRUE);
     gl.Disable(GL_BLEND);
     gl.Disable(GL_CULL_FACE);
-    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
     disp_scene_bind(s);
 
     bool corrections = o->view == DISP_VIEW_FULL || o->view == DISP_VIEW_CORRECTIONS ||
@@ -589,13 +593,10 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     disp_scene_glass(s, &nglass);
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && corrections && o->passes == 1) {
-        bool behind_glass = nglass > 0 && n > 0;
-        if (behind_glass) rc = glass_depth_texture(c, s, &mvp.m[0][0], err);
-        if (!rc) {
-            one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, behind_glass, &st);
-            glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
-            late_corrections(c, s, nseg, &mvp.m[0][0], o->all_positive, &st);
-        }
+        one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
+        if (nglass && n) uncorrect_behind_glass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
+        glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
+        late_corrections(c, s, nseg, &mvp.m[0][0], &st);
     } else if (!rc) {
         /* Pass 1 (glass after the opaque surfaces), then (with corrections)
          * passes 2 and 3. */

@@ -32,6 +32,8 @@
     X(PFNGLDEPTHFUNCPROC, DepthFunc)                                              \
     X(PFNGLDEPTHMASKPROC, DepthMask)                                              \
     X(PFNGLCOLORMASKPROC, ColorMask)                                              \
+    X(PFNGLSTENCILFUNCPROC, StencilFunc)                                          \
+    X(PFNGLSTENCILOPPROC, StencilOp)                                              \
     X(PFNGLFINISHPROC, Finish)                                                    \
     X(PFNGLFLUSHPROC, Flush)                                                      \
     X(PFNGLPIXELSTOREIPROC, PixelStorei)                                          \

@@ -31,9 +31,7 @@ const char *const gl_src_mesh_vs =
  * correction. Textures have no mipmaps, so textureLod(level 0) is the
  * same bilinear lookup as texture() and may sit behind the test (no
  * derivatives needed): fragments outside a texture skip its fetch. The
- * one-pass variant is compiled for NTEX = 1..4 textures; with u_glass set
- * it leaves out the corrections of fragments behind the nearest glass
- * (u_glass_depth, drawn before), whose samples hit the glass instead.
+ * one-pass variant is compiled for NTEX = 1..4 textures.
  * The glass pass draws transmission * (1 - F) per crossing, F the exact
  * unpolarized Fresnel reflectance at the angle between the eye ray and the
  * face (from the derivatives of the world position), evaluated as the
@@ -50,9 +48,6 @@ const char *const gl_src_mesh_fs =
     "uniform vec3 u_eye;\n"
     "uniform vec3 u_transmission;\n"
     "uniform float u_ior;\n"
-    "uniform int u_glass;\n"
-    "uniform int u_zrev;\n"
-    "uniform sampler2D u_glass_depth;\n"
     "uniform sampler2D u_tex0;\n"
     "uniform sampler2D u_tex1;\n"
     "uniform sampler2D u_tex2;\n"
@@ -73,11 +68,6 @@ const char *const gl_src_mesh_fs =
     "    float rp = (ci - eta * ct) / (ci + eta * ct);\n"
     "    return 0.5 * (rs * rs + rp * rp);\n"
     "}\n"
-    "bool behind_glass() {\n"
-    "    if (u_glass == 0) return false;\n"
-    "    float g = texelFetch(u_glass_depth, ivec2(gl_FragCoord.xy), 0).r;\n"
-    "    return u_zrev != 0 ? gl_FragCoord.z < g : gl_FragCoord.z > g;\n"
-    "}\n"
     "void main() {\n"
     "    bool in0, in1, in2, in3;\n"
     "#if PASS == 0\n"
@@ -92,7 +82,6 @@ const char *const gl_src_mesh_fs =
     "    o_color = vec4(max(-c, vec3(0.0)), 0.0);\n"
     "#elif PASS == 3\n"
     "    vec3 sum = u_rad_scale * v_rad;\n"
-    "    if (behind_glass()) { o_color = vec4(sum, 1.0); return; }\n"
     "    sum += corr(u_tex0, v_tex0, in0);\n"
     "#if NTEX > 1\n"
     "    sum += corr(u_tex1, v_tex1, in1);\n"

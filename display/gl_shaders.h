@@ -20,8 +20,6 @@ typedef enum gl_mesh_pass {
 
 /* Textures the one-pass program samples at once. */
 #define GL_ONE_PASS_MAX_TEX 4
-/* Texture unit of the glass depth the one-pass program reads (u_glass_depth). */
-#define GL_GLASS_DEPTH_UNIT GL_ONE_PASS_MAX_TEX
 
 /* Vertex shader of every mesh pass: a_pos (location 0), a_rad (location 1),
  * u_mvp, u_texproj[4] (world -> texture, projective); passes the world

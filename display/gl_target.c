@@ -22,9 +22,9 @@ int gl_target_init(gl_target *t, int width, int height, GLenum format, bool dept
     if (depth) {
         gl.GenRenderbuffers(1, &t->depth);
         gl.BindRenderbuffer(GL_RENDERBUFFER, t->depth);
-        gl.RenderbufferStorage(GL_RENDERBUFFER, gl.reversed_z ? GL_DEPTH_COMPONENT32F : GL_DEPTH_COMPONENT24,
-                               width, height);
-        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->depth);
+        gl.RenderbufferStorage(GL_RENDERBUFFER, gl.reversed_z ? GL_DEPTH32F_STENCIL8 : GL_DEPTH24_STENCIL8, width,
+                               height);
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, t->depth);
     }
     GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);

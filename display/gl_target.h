@@ -1,5 +1,5 @@
 /* gl_target.h: off-screen render targets (a colour texture, optionally a
- * depth buffer, in one framebuffer object) and pixel read-back. Pixels come
+ * depth and stencil buffer, in one framebuffer object) and pixel read-back. Pixels come
  * back in GL order: row 0 is the bottom row. */
 #ifndef CT_GL_TARGET_H
 #define CT_GL_TARGET_H
@@ -16,8 +16,8 @@ typedef struct gl_target {
 } gl_target;
 
 /* Creates a width x height target with the given colour format and an
- * optional depth buffer (32-bit float with reversed depth, else 24-bit);
- * checks completeness. */
+ * optional depth buffer (32-bit float with reversed depth, else 24-bit)
+ * with an 8-bit stencil; checks completeness. */
 int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err);
 
 /* Deletes the GL objects and zeroes t. */
