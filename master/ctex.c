@@ -969,7 +969,17 @@ static inline float splat_ex(const ctex *c, const ctex_tex *t, vec3 p)
     return ctex_aniso_ex(sqrtf(sqrtf(r4)));
 }
 
-int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
+/* ex of a sample's splat as the prefetch stage found it, for the texture
+ * (slot and size) it was computed on. */
+typedef struct {
+    int32_t id;
+    int w, h;
+    float ex;
+} ex_hint;
+
+/* ctex_insert, with ex taken from hint when it was computed on the same
+ * texture at the same size (bit for bit what splat_ex gives here). */
+static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const ex_hint *hint)
 {
     info->tex = -1;
     info->radius = 0;
@@ -1000,7 +1010,9 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
     info->tex = id;
     vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius);
-    float ex = c->o.splat_aniso ? splat_ex(c, t, s->hit) : 1.0f;
+    float ex = 1.0f;
+    if (c->o.splat_aniso)
+        ex = hint && hint->id == id && hint->w == t->w && hint->h == t->h ? hint->ex : splat_ex(c, t, s->hit);
     int r = ex == 1.0f ? ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max)
                        : ctex_tex_splat_aniso(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex);
     info->radius = r;
@@ -1009,24 +1021,38 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
     return 1;
 }
 
-/* Prefetches the texel rows a sample will read and splat first. Always
+int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
+{
+    return insert_one(c, s, info, NULL);
+}
+
+/* Prefetches the texel rows a sample will read and splat first: the
+ * rectangle of its splat's first two rings (anisotropic rings reach up to
+ * 8 rows out, and a rectangle's rows are its cache misses), whose ex it
+ * leaves in *hint so that the insertion need not compute it again. Always
  * inlined: a separate function whose only effect is __builtin_prefetch
  * counts as pure for GCC, which then drops the calls (their result is
  * unused) and with them the prefetches. */
-static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c, const ct_sample *s)
+static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c, const ct_sample *s, ex_hint *hint)
 {
+    hint->id = -1;
     int32_t id = (s->flags & CT_SAMPLE_HIT) ? owner_of(c, s->node, s->tri, s->hit) : -1;
     float u, v;
     if (id < 0 || !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) return;
     const ctex_tex *t = &c->slots[id].t;
     int ci = (int)(u * (float)t->w), cj = (int)(v * (float)t->h);
-    /* (ring 1 of an anisotropic splat may reach further: its ex is not
-     * worth computing twice) */
-    if (ci < 1 || cj < 1 || ci >= t->w - 1 || cj >= t->h - 1) return;
-    for (int j = cj - 1; j <= cj + 1; j++) {
-        const ctex_texel *row = ctex_tex_at(t, ci, j);
-        __builtin_prefetch(row - 1, 1, 1);
-        __builtin_prefetch(row + 1, 1, 1);
+    if (ci < 0 || cj < 0 || ci >= t->w || cj >= t->h) return;
+    int xk = 2, yk = 2;
+    if (c->o.splat_aniso) {
+        *hint = (ex_hint){id, t->w, t->h, splat_ex(c, t, s->hit)};
+        if (hint->ex != 1.0f) ctex_aniso_ring(hint->ex, 2, &xk, &yk);
+    }
+    int y0 = cj - yk < 0 ? 0 : cj - yk, y1 = cj + yk >= t->h ? t->h - 1 : cj + yk;
+    int x0 = ci - xk < 0 ? 0 : ci - xk, x1 = ci + xk >= t->w ? t->w - 1 : ci + xk;
+    for (int j = y0; j <= y1; j++) {
+        const ctex_texel *row = ctex_tex_at(t, 0, j);
+        __builtin_prefetch(row + x0, 1, 1);
+        __builtin_prefetch(row + x1, 1, 1);
     }
 }
 
@@ -1042,13 +1068,14 @@ size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info
     /* two stages ahead: the leaf entries 8 samples ahead, the texel rows 4
      * ahead (their address needs the leaf); hides DRAM latency */
     enum { AHEAD = 4, AHEAD2 = 8 };
+    ex_hint hint[2 * AHEAD];   /* sample i's in hint[i % (2 AHEAD)] */
     size_t done = 0;
     for (size_t i = 0; i < n && i < AHEAD2; i++) prefetch_leaf(c, &s[i]);
-    for (size_t i = 0; i < n && i < AHEAD; i++) prefetch_sample(c, &s[i]);
+    for (size_t i = 0; i < n && i < AHEAD; i++) prefetch_sample(c, &s[i], &hint[i % (2 * AHEAD)]);
     for (size_t i = 0; i < n; i++) {
         if (i + AHEAD2 < n) prefetch_leaf(c, &s[i + AHEAD2]);
-        if (i + AHEAD < n) prefetch_sample(c, &s[i + AHEAD]);
-        done += (size_t)ctex_insert(c, &s[i], &info[i]);
+        if (i + AHEAD < n) prefetch_sample(c, &s[i + AHEAD], &hint[(i + AHEAD) % (2 * AHEAD)]);
+        done += (size_t)insert_one(c, &s[i], &info[i], &hint[i % (2 * AHEAD)]);
     }
     return done;
 }

@@ -252,25 +252,6 @@ dirty:;
     return r;
 }
 
-/* put() over the texels of [x0, x1] x [y0, y1] inside the texture; adds
- * the number of those texels to *inside. Returns whether a validity rose. */
-static inline __attribute__((always_inline)) int put_rect(ctex_tex *t, int x0, int x1, int y0, int y1, int32_t vn,
-                                                          const splat_val *sv, int *inside)
-{
-    if (x0 < 0) x0 = 0;
-    if (y0 < 0) y0 = 0;
-    if (x1 > t->w - 1) x1 = t->w - 1;
-    if (y1 > t->h - 1) y1 = t->h - 1;
-    if (x0 > x1 || y0 > y1) return 0;
-    *inside += (x1 - x0 + 1) * (y1 - y0 + 1);
-    int changed = 0;
-    for (int y = y0; y <= y1; y++) {
-        ctex_texel *row = ctex_tex_at(t, 0, y);
-        for (int x = x0; x <= x1; x++) changed |= put(row + x, vn, sv);
-    }
-    return changed;
-}
-
 /* Prefetches the rows ring k adds above and below ring k - 1's rectangle
  * (py rows either side of cj), for writing: prefetch_ring's counterpart. */
 static inline __attribute__((always_inline)) void prefetch_bands(const ctex_tex *t, int ci, int cj, float ex, int k,
@@ -292,12 +273,16 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
 {
     ex = ctex_aniso_ex(ex);
     if (ex == 1.0f) return ctex_tex_splat(t, ci, cj, val, blend, max_r);
+    /* locals: the texel stores could alias t's fields */
+    const int W = t->w, H = t->h;
+    const size_t P = (size_t)t->pitch;
+    ctex_texel *const T = t->tx;
     splat_val sv;
     const int32_t qmax = splat_centre(t, ci, cj, val, blend, &sv);
     /* Ring k: the texels of its rectangle outside ring k - 1's; one of the
      * two extents grows by at least one texel a ring (ex ey = 1). */
-    const int reachx = ci > t->w - 1 - ci ? ci : t->w - 1 - ci;
-    const int reachy = cj > t->h - 1 - cj ? cj : t->h - 1 - cj;
+    const int reachx = ci > W - 1 - ci ? ci : W - 1 - ci;
+    const int reachy = cj > H - 1 - cj ? cj : H - 1 - cj;
     int px = 0, py = 0, r = 0;   /* the last visited ring's half-extents */
     for (int k = 1; (max_r <= 0 || k <= max_r) && (px < reachx || py < reachy); k++) {
         int xk, yk;
@@ -307,14 +292,24 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
         if (k > 1 && (max_r <= 0 || k < max_r)) prefetch_bands(t, ci, cj, ex, k + 1, yk);
         const int32_t vq = qmax - CTEX_VQ * k;
         const int32_t vn = vq < CTEX_Q_OLDEST ? CTEX_Q_OLDEST : vq;
+        /* The rectangle clipped to the texture, row by row (ascending
+         * addresses): whole rows above and below ring k - 1's rows, the
+         * left and right strips beside them. */
+        const int xa = ci - xk < 0 ? 0 : ci - xk, xb = ci + xk > W - 1 ? W - 1 : ci + xk;
+        const int ya = cj - yk < 0 ? 0 : cj - yk, yb = cj + yk > H - 1 ? H - 1 : cj + yk;
+        const int la = xa, lb = ci - px - 1 < xb ? ci - px - 1 : xb;   /* left strip */
+        const int ra = ci + px + 1 > xa ? ci + px + 1 : xa, rb = xb;   /* right strip */
         int changed = 0, inside = 0;
-        if (yk > py) {
-            changed |= put_rect(t, ci - xk, ci + xk, cj - yk, cj - py - 1, vn, &sv, &inside);
-            changed |= put_rect(t, ci - xk, ci + xk, cj + py + 1, cj + yk, vn, &sv, &inside);
-        }
-        if (xk > px) {
-            changed |= put_rect(t, ci - xk, ci - px - 1, cj - py, cj + py, vn, &sv, &inside);
-            changed |= put_rect(t, ci + px + 1, ci + xk, cj - py, cj + py, vn, &sv, &inside);
+        for (int y = ya; y <= yb; y++) {
+            ctex_texel *row = T + (size_t)y * P;
+            if (y < cj - py || y > cj + py) {
+                for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, &sv);
+                inside += xb - xa + 1;
+            } else {
+                for (int x = la; x <= lb; x++) changed |= put(row + x, vn, &sv);
+                for (int x = ra; x <= rb; x++) changed |= put(row + x, vn, &sv);
+                inside += (lb >= la ? lb - la + 1 : 0) + (rb >= ra ? rb - ra + 1 : 0);
+            }
         }
         int full = xk > px && yk > py;
         px = xk;

@@ -474,39 +474,49 @@ static int next_requests(loop_state *s, uint32_t n, ct_error *err)
     return k;
 }
 
-/* Inserts samples (already in the order that must be used). */
+/* Inserts samples (already in the order that must be used). The current
+ * ones go to the textures in runs of up to INSERT_RUN (ctex_insert_batch
+ * prefetches the texels of the samples ahead), then to the request queue in
+ * the same order; neither reads the other's state. */
+enum { INSERT_RUN = 64 };
+
 static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *err)
 {
     double t0 = ct_now();
-    for (uint32_t i = 0; i < n; i++) {
-        ct_sample *x = &smp[i];
-        if (x->epoch != s->epoch) {
-            s->stale++;
-            continue;
+    ct_sample run[INSERT_RUN];
+    ctex_insert_info info[INSERT_RUN];
+    for (uint32_t i0 = 0; i0 < n; i0 += INSERT_RUN) {
+        uint32_t i1 = n - i0 < INSERT_RUN ? n : i0 + INSERT_RUN, m = 0;
+        for (uint32_t i = i0; i < i1; i++)
+            if (smp[i].epoch == s->epoch) run[m++] = smp[i];
+        s->stale += (i1 - i0) - m;
+        memset(info, 0, (size_t)m * sizeof *info);
+        ctex_insert_batch(s->tex, run, m, info);
+        for (uint32_t j = 0; j < m; j++) {
+            ct_sample *x = &run[j];
+            vec3 E;
+            if (info[j].tex >= 0) {
+                E = info[j].error;
+                s->inserted++;
+            } else {
+                E = v3_sub(x->l_hq, x->l_base);
+                s->dropped_tex++;
+            }
+            if (info[j].correction.x < 0 || info[j].correction.y < 0 || info[j].correction.z < 0)
+                s->all_positive = 0;
+            vec3 d = v3_sub(x->l_hq, x->l_base);
+            if (d.x < 0 || d.y < 0 || d.z < 0) s->all_positive = 0;
+            collect_point(s, x);
+            x->epoch = s->rq_epoch;
+            int rc = rq_report(s->rq, x, E, RQ_NODE_UNKNOWN, err);
+            if (rc < 0) {
+                ct_warn(COMPONENT, "sample %llu rejected by the request queue: %s",
+                        (unsigned long long)x->request_id, err->msg);
+                ct_error_clear(err);
+            }
+            s->total_samples++;
+            if (s->in_frame) s->frame_samples++;
         }
-        ctex_insert_info info;
-        memset(&info, 0, sizeof info);
-        vec3 E;
-        if (ctex_insert(s->tex, x, &info) == 1) {
-            E = info.error;
-            s->inserted++;
-        } else {
-            E = v3_sub(x->l_hq, x->l_base);
-            s->dropped_tex++;
-        }
-        if (info.correction.x < 0 || info.correction.y < 0 || info.correction.z < 0) s->all_positive = 0;
-        vec3 d = v3_sub(x->l_hq, x->l_base);
-        if (d.x < 0 || d.y < 0 || d.z < 0) s->all_positive = 0;
-        collect_point(s, x);
-        x->epoch = s->rq_epoch;
-        int rc = rq_report(s->rq, x, E, RQ_NODE_UNKNOWN, err);
-        if (rc < 0) {
-            ct_warn(COMPONENT, "sample %llu rejected by the request queue: %s", (unsigned long long)x->request_id,
-                    err->msg);
-            ct_error_clear(err);
-        }
-        s->total_samples++;
-        if (s->in_frame) s->frame_samples++;
     }
     s->t_tex += ct_now() - t0;
     return 0;
