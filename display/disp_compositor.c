@@ -41,6 +41,7 @@ typedef struct segment {
     uint32_t b, e;
     uint32_t first, m;
     float key;   /* depth of the far end of the innermost texture's node */
+    bounds3 box; /* world bounds of the innermost texture's node (textured ones) */
     bool glass;  /* inside a glass run: drawn by the glass passes */
 } segment;
 
@@ -339,8 +340,10 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
         g->b = b;
         g->e = e;
         g->key = 0.0f;
+        g->box = b3_empty();
         if (inner) {
             bounds3 nbx = disp_scene_node_bounds(s, inner->node);
+            g->box = nbx;
             g->key = INFINITY;
             if (nbx.lo.x <= nbx.hi.x) {
                 g->key = -INFINITY;
@@ -374,20 +377,69 @@ static void one_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const
     }
 }
 
+/* A pixel rectangle [x0, x1) x [y0, y1), GL's window coordinates (row 0 at
+ * the bottom, as glScissor takes them). */
+typedef struct px_rect {
+    int x0, y0, x1, y1;
+} px_rect;
+
+static bool rect_empty(px_rect r) { return r.x0 >= r.x1 || r.y0 >= r.y1; }
+
+static int clamp_px(float v, int n) { return v < 0.0f ? 0 : v > (float)n ? n : (int)v; }
+
+/* The pixels b's projection may cover, a pixel wider each side (empty for
+ * empty bounds; the whole target when b reaches behind the eye, where the
+ * projection of its corners bounds nothing). With every corner in front,
+ * the box projects into the hull of its projected corners. */
+static px_rect screen_rect(const disp_compositor *c, const mat4 *mvp, bounds3 b)
+{
+    px_rect r = {c->width, c->height, 0, 0};
+    if (b3_is_empty(b)) return r;
+    float lx = INFINITY, ly = INFINITY, hx = -INFINITY, hy = -INFINITY;
+    for (int i = 0; i < 8; i++) {
+        vec4 q = m4_point4(mvp, b3_corner(b, i));
+        if (!(q.w > 1e-6f)) return (px_rect){0, 0, c->width, c->height};
+        float x = q.x / q.w, y = q.y / q.w;
+        lx = fminf(lx, x); hx = fmaxf(hx, x);
+        ly = fminf(ly, y); hy = fmaxf(hy, y);
+    }
+    float w = (float)c->width, h = (float)c->height;
+    r.x0 = clamp_px(floorf((0.5f * lx + 0.5f) * w) - 1.0f, c->width);
+    r.x1 = clamp_px(ceilf((0.5f * hx + 0.5f) * w) + 1.0f, c->width);
+    r.y0 = clamp_px(floorf((0.5f * ly + 0.5f) * h) - 1.0f, c->height);
+    r.y1 = clamp_px(ceilf((0.5f * hy + 0.5f) * h) + 1.0f, c->height);
+    return r;
+}
+
 /* After one_pass: where glass lies in front, the corrections one_pass added
  * to the opaque surfaces seen through it are taken back (their samples hit
  * the glass, whose own corrections come later). The glass marks the
  * stencil where it passes the depth test; the textured opaque segments are
  * drawn again there with the plain radiosity program at equal depth, each
  * pixel once (the first segment to reach it, as one_pass's strict depth
- * test kept the first of equal depths). Costs two draws per glass run and
- * one per textured segment, with fragments only behind glass; no lookups
- * in the one pass itself. */
-static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+ * test kept the first of equal depths). Costs a draw per glass run and one
+ * per textured segment, with fragments only behind glass; no lookups in
+ * the one pass itself. Both are kept to the glass's screen rectangle (the
+ * scissor), and segments whose node lies wholly outside it are not drawn:
+ * on a CPU rasteriser every triangle costs, drawn or not. */
+static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size_t nseg, const mat4 *mvp4,
                                    float rad_scale, disp_render_stats *st)
 {
     uint32_t ng;
     const disp_glass *glass = disp_scene_glass(s, &ng);
+    const float *mvp = &mvp4->m[0][0];
+    px_rect gr = {c->width, c->height, 0, 0};
+    for (uint32_t i = 0; i < ng; i++) {
+        px_rect r = screen_rect(c, mvp4, glass[i].bounds);
+        if (rect_empty(r)) continue;
+        if (r.x0 < gr.x0) gr.x0 = r.x0;
+        if (r.y0 < gr.y0) gr.y0 = r.y0;
+        if (r.x1 > gr.x1) gr.x1 = r.x1;
+        if (r.y1 > gr.y1) gr.y1 = r.y1;
+    }
+    if (rect_empty(gr)) return;
+    gl.Enable(GL_SCISSOR_TEST);
+    gl.Scissor(gr.x0, gr.y0, gr.x1 - gr.x0, gr.y1 - gr.y0);
     gl.Enable(GL_STENCIL_TEST);
     gl.StencilFunc(GL_ALWAYS, 1, 0xff);
     gl.StencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
@@ -405,10 +457,13 @@ static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size
     for (size_t k = 0; k < nseg; k++) {
         const segment *g = &c->segs[k];
         if (g->glass || !g->m) continue;
+        px_rect r = screen_rect(c, mvp4, g->box);
+        if (r.x1 <= gr.x0 || gr.x1 <= r.x0 || r.y1 <= gr.y0 || gr.y1 <= r.y0) continue;
         disp_scene_draw(s, g->b, g->e);
         st->draws++;
     }
     gl.Disable(GL_STENCIL_TEST);
+    gl.Disable(GL_SCISSOR_TEST);
     gl.DepthFunc(depth_less());
     gl.DepthMask(GL_TRUE);
 }
@@ -594,7 +649,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && corrections && o->passes == 1) {
         one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
-        if (nglass && n) uncorrect_behind_glass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
+        if (nglass && n) uncorrect_behind_glass(c, s, nseg, &mvp, rad_scale, &st);
         glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
         late_corrections(c, s, nseg, &mvp.m[0][0], &st);
     } else if (!rc) {

@@ -40,8 +40,9 @@ static int validate(const ct_radmesh *m, ct_error *err)
 }
 
 /* The runs of see-through triangles of one material in the sorted order
- * (smat: each sorted triangle's material). */
-static int glass_runs(disp_scene *s, const ct_radmesh *m, const uint32_t *smat, ct_error *err)
+ * (smat: each sorted triangle's material, idx its vertices). */
+static int glass_runs(disp_scene *s, const ct_radmesh *m, const uint32_t *smat, const uint32_t *idx,
+                      ct_error *err)
 {
     uint32_t n = 0;
     for (uint32_t t = 0; t < m->ntris; t++)
@@ -53,10 +54,12 @@ static int glass_runs(disp_scene *s, const ct_radmesh *m, const uint32_t *smat, 
         if (!rmesh_is_glass(m, smat[t])) continue;
         if (t == 0 || smat[t - 1] != smat[t]) {
             const rmesh_material *x = &m->mats[smat[t]];
-            s->glass[s->nglass++] = (disp_glass){t, t + 1, x->transmission, x->ior};
+            s->glass[s->nglass++] = (disp_glass){t, t + 1, x->transmission, x->ior, b3_empty()};
         } else {
             s->glass[s->nglass - 1].end = t + 1;
         }
+        disp_glass *g = &s->glass[s->nglass - 1];
+        for (int k = 0; k < 3; k++) g->bounds = b3_add(g->bounds, m->pos[idx[3 * (size_t)t + (size_t)k]]);
     }
     return CT_OK;
 }
@@ -117,7 +120,7 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err)
         smat[at] = m->tri_mat[t];
     }
     free(fill);
-    rc = glass_runs(s, m, smat, err);
+    rc = glass_runs(s, m, smat, idx, err);
     free(smat);
     if (rc) {
         free(verts);

@@ -21,6 +21,7 @@ typedef struct disp_glass {
     uint32_t begin, end;
     vec3 transmission;
     float ior;
+    bounds3 bounds;   /* world bounds of the run's triangles */
 } disp_glass;
 
 /* Validates m (indices, node table) and uploads it; needs a current context. */

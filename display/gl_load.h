@@ -34,6 +34,7 @@
     X(PFNGLCOLORMASKPROC, ColorMask)                                              \
     X(PFNGLSTENCILFUNCPROC, StencilFunc)                                          \
     X(PFNGLSTENCILOPPROC, StencilOp)                                              \
+    X(PFNGLSCISSORPROC, Scissor)                                                  \
     X(PFNGLFINISHPROC, Finish)                                                    \
     X(PFNGLFLUSHPROC, Flush)                                                      \
     X(PFNGLPIXELSTOREIPROC, PixelStorei)                                          \
