@@ -385,6 +385,16 @@ typedef struct px_rect {
 
 static bool rect_empty(px_rect r) { return r.x0 >= r.x1 || r.y0 >= r.y1; }
 
+static bool rects_meet(px_rect a, px_rect b) { return a.x0 < b.x1 && b.x0 < a.x1 && a.y0 < b.y1 && b.y0 < a.y1; }
+
+static px_rect rect_union(px_rect a, px_rect b)
+{
+    if (rect_empty(a)) return b;
+    if (rect_empty(b)) return a;
+    return (px_rect){a.x0 < b.x0 ? a.x0 : b.x0, a.y0 < b.y0 ? a.y0 : b.y0, a.x1 > b.x1 ? a.x1 : b.x1,
+                     a.y1 > b.y1 ? a.y1 : b.y1};
+}
+
 static int clamp_px(float v, int n) { return v < 0.0f ? 0 : v > (float)n ? n : (int)v; }
 
 /* The pixels b's projection may cover, a pixel wider each side (empty for
@@ -428,15 +438,8 @@ static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size
     uint32_t ng;
     const disp_glass *glass = disp_scene_glass(s, &ng);
     const float *mvp = &mvp4->m[0][0];
-    px_rect gr = {c->width, c->height, 0, 0};
-    for (uint32_t i = 0; i < ng; i++) {
-        px_rect r = screen_rect(c, mvp4, glass[i].bounds);
-        if (rect_empty(r)) continue;
-        if (r.x0 < gr.x0) gr.x0 = r.x0;
-        if (r.y0 < gr.y0) gr.y0 = r.y0;
-        if (r.x1 > gr.x1) gr.x1 = r.x1;
-        if (r.y1 > gr.y1) gr.y1 = r.y1;
-    }
+    px_rect gr = {c->width, c->height, 0, 0};   /* empty: no glass in view */
+    for (uint32_t i = 0; i < ng; i++) gr = rect_union(gr, screen_rect(c, mvp4, glass[i].bounds));
     if (rect_empty(gr)) return;
     gl.Enable(GL_SCISSOR_TEST);
     gl.Scissor(gr.x0, gr.y0, gr.x1 - gr.x0, gr.y1 - gr.y0);
@@ -457,8 +460,7 @@ static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size
     for (size_t k = 0; k < nseg; k++) {
         const segment *g = &c->segs[k];
         if (g->glass || !g->m) continue;
-        px_rect r = screen_rect(c, mvp4, g->box);
-        if (r.x1 <= gr.x0 || gr.x1 <= r.x0 || r.y1 <= gr.y0 || gr.y1 <= r.y0) continue;
+        if (!rects_meet(screen_rect(c, mvp4, g->box), gr)) continue;
         disp_scene_draw(s, g->b, g->e);
         st->draws++;
     }
@@ -644,12 +646,10 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     /* Every view draws the mesh in the same segment order, so the views
      * (and the two modes) differ only by what they add. */
     size_t nseg = 0;
-    uint32_t nglass;
-    disp_scene_glass(s, &nglass);
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && corrections && o->passes == 1) {
         one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
-        if (nglass && n) uncorrect_behind_glass(c, s, nseg, &mvp, rad_scale, &st);
+        if (n) uncorrect_behind_glass(c, s, nseg, &mvp, rad_scale, &st);
         glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
         late_corrections(c, s, nseg, &mvp.m[0][0], &st);
     } else if (!rc) {

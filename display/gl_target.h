@@ -1,6 +1,6 @@
 /* gl_target.h: off-screen render targets (a colour texture, optionally a
- * depth and stencil buffer, in one framebuffer object) and pixel read-back. Pixels come
- * back in GL order: row 0 is the bottom row. */
+ * depth and stencil buffer, in one framebuffer object) and pixel
+ * read-back. Pixels come back in GL order: row 0 is the bottom row. */
 #ifndef CT_GL_TARGET_H
 #define CT_GL_TARGET_H
 

@@ -297,8 +297,9 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
          * left and right strips beside them. */
         const int xa = ci - xk < 0 ? 0 : ci - xk, xb = ci + xk > W - 1 ? W - 1 : ci + xk;
         const int ya = cj - yk < 0 ? 0 : cj - yk, yb = cj + yk > H - 1 ? H - 1 : cj + yk;
-        const int la = xa, lb = ci - px - 1 < xb ? ci - px - 1 : xb;   /* left strip */
-        const int ra = ci + px + 1 > xa ? ci + px + 1 : xa, rb = xb;   /* right strip */
+        const int lb = ci - px - 1 < xb ? ci - px - 1 : xb;   /* left strip [xa, lb] */
+        const int ra = ci + px + 1 > xa ? ci + px + 1 : xa;   /* right strip [ra, xb] */
+        const int strips = (lb >= xa ? lb - xa + 1 : 0) + (xb >= ra ? xb - ra + 1 : 0);
         int changed = 0, inside = 0;
         for (int y = ya; y <= yb; y++) {
             ctex_texel *row = T + (size_t)y * P;
@@ -306,9 +307,9 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
                 for (int x = xa; x <= xb; x++) changed |= put(row + x, vn, &sv);
                 inside += xb - xa + 1;
             } else {
-                for (int x = la; x <= lb; x++) changed |= put(row + x, vn, &sv);
-                for (int x = ra; x <= rb; x++) changed |= put(row + x, vn, &sv);
-                inside += (lb >= la ? lb - la + 1 : 0) + (rb >= ra ? rb - ra + 1 : 0);
+                for (int x = xa; x <= lb; x++) changed |= put(row + x, vn, &sv);
+                for (int x = ra; x <= xb; x++) changed |= put(row + x, vn, &sv);
+                inside += strips;
             }
         }
         int full = xk > px && yk > py;

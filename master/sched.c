@@ -474,23 +474,23 @@ static int next_requests(loop_state *s, uint32_t n, ct_error *err)
     return k;
 }
 
-/* Inserts samples (already in the order that must be used). The current
- * ones go to the textures in runs of up to INSERT_RUN (ctex_insert_batch
- * prefetches the texels of the samples ahead), then to the request queue in
- * the same order; neither reads the other's state. */
+/* Inserts samples (already in the order that must be used; smp is
+ * consumed: its current samples are moved together in place). They go to
+ * the textures in runs of up to INSERT_RUN (ctex_insert_batch prefetches
+ * the texels of the samples ahead), then to the request queue in the same
+ * order; neither reads the other's state. */
 enum { INSERT_RUN = 64 };
 
 static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *err)
 {
     double t0 = ct_now();
-    ct_sample run[INSERT_RUN];
     ctex_insert_info info[INSERT_RUN];
     for (uint32_t i0 = 0; i0 < n; i0 += INSERT_RUN) {
         uint32_t i1 = n - i0 < INSERT_RUN ? n : i0 + INSERT_RUN, m = 0;
+        ct_sample *run = smp + i0;
         for (uint32_t i = i0; i < i1; i++)
             if (smp[i].epoch == s->epoch) run[m++] = smp[i];
         s->stale += (i1 - i0) - m;
-        memset(info, 0, (size_t)m * sizeof *info);
         ctex_insert_batch(s->tex, run, m, info);
         for (uint32_t j = 0; j < m; j++) {
             ct_sample *x = &run[j];
