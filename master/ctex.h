@@ -94,7 +94,7 @@ typedef struct ctex_event {
 /* Result of inserting one sample. */
 typedef struct ctex_insert_info {
     vec3 correction;   /* ΔL read at the hit before the splat (bilinear, as displayed) */
-    vec3 error;        /* E = l_hq - (l_base + ΔL), §3.7 */
+    vec3 error;        /* E = l_hq - (l_base + ΔL), §3.7 (ΔL = 0 when dropped) */
     int32_t tex;       /* texture it went into, -1 when dropped */
     int radius;        /* splat radius r (texels) */
 } ctex_insert_info;

@@ -494,14 +494,9 @@ static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *e
         ctex_insert_batch(s->tex, run, m, info);
         for (uint32_t j = 0; j < m; j++) {
             ct_sample *x = &run[j];
-            vec3 E;
-            if (info[j].tex >= 0) {
-                E = info[j].error;
-                s->inserted++;
-            } else {
-                E = v3_sub(x->l_hq, x->l_base);
-                s->dropped_tex++;
-            }
+            vec3 E = info[j].error;
+            if (info[j].tex >= 0) s->inserted++;
+            else s->dropped_tex++;
             if (info[j].correction.x < 0 || info[j].correction.y < 0 || info[j].correction.z < 0)
                 s->all_positive = 0;
             vec3 d = v3_sub(x->l_hq, x->l_base);

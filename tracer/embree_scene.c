@@ -2,11 +2,13 @@
 
 #include <embree3/rtcore.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 _Static_assert(sizeof(emb_tri) == 128, "emb_tri must fill two cache lines");
+_Static_assert(offsetof(emb_tri, na) == 64, "emb_tri's second cache line must start at na");
 
 struct emb_scene {
     emb_mesh mesh;
@@ -18,7 +20,7 @@ struct emb_scene {
     uint32_t *geom_base;  /* geomID -> first grouped position */
     uint32_t ngeoms;
     emb_tri *recs;        /* per grouped position: the triangle's shading record */
-    bool has_nrm;         /* the mesh has vertex normals */
+    uint64_t *curved;     /* per grouped position, a bit: the record is not flat */
     ct_error dev_err;     /* last device error (filled by the callback) */
     int dev_code;
 };
@@ -36,6 +38,7 @@ emb_mesh emb_mesh_of_scene(const ct_scene *s)
     m.nnodes = s->nnodes;
     m.nmats = s->nmats;
     m.mats = s->mats;
+    m.vertex_reads = false;
     return m;
 }
 
@@ -52,6 +55,7 @@ emb_mesh emb_mesh_of_radmesh(const ct_radmesh *r, const ct_scene *s)
     m.nnodes = r->nnodes;
     m.nmats = s->nmats;
     m.mats = s->mats;
+    m.vertex_reads = true;
     return m;
 }
 
@@ -110,6 +114,19 @@ static int validate(const emb_mesh *m, ct_error *err)
                            m->tri_node[t], m->nnodes);
     }
     return CT_OK;
+}
+
+/* Whether r's shading normal may be taken as its geometric one: every vertex
+ * normal within 1e-6 of ng in cosine (0.08 degrees), as on the faces of boxes
+ * and walls; their interpolation differs from ng by rounding alone. */
+static bool flat_normals(const emb_tri *r)
+{
+    const vec3 n[3] = {r->na, r->nb, r->nc};
+    for (int k = 0; k < 3; k++) {
+        float l2 = v3_len2(n[k]);
+        if (!(l2 > 1e-12f) || !(v3_dot(n[k], r->ng) > (1.0f - 1e-6f) * sqrtf(l2))) return false;
+    }
+    return true;
 }
 
 /* Groups the triangles by part node (counting sort, stable) so each node's
@@ -174,7 +191,11 @@ int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct
         rc = ct_fail(err, CT_ENOMEM, "out of memory for %u triangles", mesh->ntris);
         goto fail;
     }
-    e->has_nrm = mesh->nrm != NULL;
+    e->curved = calloc((size_t)mesh->ntris / 64 + 1, sizeof *e->curved);
+    if (!e->curved) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u triangles", mesh->ntris);
+        goto fail;
+    }
     for (uint32_t i = 0; i < mesh->ntris; i++) {
         uint32_t t = e->order[i];
         const uint32_t *vi = mesh->tris + 3 * (size_t)t;
@@ -192,6 +213,8 @@ int emb_new(const emb_mesh *mesh, const char *device_config, emb_scene **out, ct
         r->mat = mesh->tri_mat[t];
         memcpy(r->v, vi, sizeof r->v);
         memset(r->pad, 0, sizeof r->pad);
+        r->flat = !mesh->nrm || flat_normals(r);
+        if (!r->flat) e->curved[i / 64] |= 1ull << (i % 64);
     }
     free(e->order);   /* the records carry the mesh triangle */
     e->order = NULL;
@@ -243,6 +266,7 @@ void emb_free(emb_scene *e)
     free(e->order);
     free(e->geom_base);
     free(e->recs);
+    free(e->curved);
     free(e);
 }
 
@@ -275,9 +299,12 @@ bool emb_intersect_start(const emb_scene *e, vec3 o, vec3 d, float tnear, float 
     rtcIntersect1(e->scene, &ctx, &rh);
     hit->rec = NULL;
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    const emb_tri *r = &e->recs[e->geom_base[rh.hit.geomID] + rh.hit.primID];
+    const uint32_t i = e->geom_base[rh.hit.geomID] + rh.hit.primID;
+    const emb_tri *r = &e->recs[i];
     __builtin_prefetch(r);
-    __builtin_prefetch((const char *)r + 64);
+    /* the second line only when it will be read (a small bitset says so
+     * before the record arrives) */
+    if (e->mesh.vertex_reads || (e->curved[i / 64] >> (i % 64) & 1u)) __builtin_prefetch((const char *)r + 64);
     hit->t = rh.ray.tfar;
     hit->u = rh.hit.u;
     hit->v = rh.hit.v;
@@ -361,10 +388,10 @@ bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfa
     return emb_occluded(e, o, d, tnear, tfar);
 }
 
-vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h)
+vec3 emb_shading_normal(const emb_hit *h)
 {
     const emb_tri *r = h->rec;
-    if (e->has_nrm) {
+    if (!r->flat) {
         float u = h->u, v = h->v, w = 1.0f - u - v;
         vec3 na = r->na, nb = r->nb, nc = r->nc;
         vec3 n = v3(w * na.x + u * nb.x + v * nc.x, w * na.y + u * nb.y + v * nc.y,
@@ -373,13 +400,6 @@ vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h)
         if (l2 > 1e-12f && isfinite(l2)) return v3_scale(n, 1.0f / sqrtf(l2));
     }
     return r->ng;
-}
-
-void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns)
-{
-    *p = emb_hit_point(h);
-    *ng = h->rec->ng;
-    *ns = emb_shading_normal(e, h);
 }
 
 vec3 emb_tri_normal(const emb_mesh *m, uint32_t t)
@@ -399,17 +419,4 @@ vec3 emb_tri_point(const emb_mesh *m, uint32_t t, float u, float v)
     const uint32_t *i = m->tris + 3 * (size_t)t;
     vec3 a = m->pos[i[0]], b = m->pos[i[1]], c = m->pos[i[2]];
     return v3_add(a, v3_add(v3_scale(v3_sub(b, a), u), v3_scale(v3_sub(c, a), v)));
-}
-
-vec3 emb_tri_shading_normal(const emb_mesh *m, uint32_t t, float u, float v)
-{
-    const uint32_t *i = m->tris + 3 * (size_t)t;
-    if (m->nrm) {
-        float w = 1.0f - u - v;
-        vec3 a = m->nrm[i[0]], b = m->nrm[i[1]], c = m->nrm[i[2]];
-        vec3 n = v3(w * a.x + u * b.x + v * c.x, w * a.y + u * b.y + v * c.y, w * a.z + u * b.z + v * c.z);
-        float l2 = v3_len2(n);
-        if (l2 > 1e-12f && isfinite(l2)) return v3_scale(n, 1.0f / sqrtf(l2));
-    }
-    return emb_tri_normal(m, t);
 }

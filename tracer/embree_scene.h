@@ -28,6 +28,7 @@ typedef struct emb_mesh {
     uint32_t nnodes;
     uint32_t nmats;
     const scene_material *mats;
+    bool vertex_reads;         /* hits read per-vertex values (a radiosity mesh) */
 } emb_mesh;
 
 /* The view of a scene's own triangles. */
@@ -39,16 +40,23 @@ emb_mesh emb_mesh_of_radmesh(const ct_radmesh *m, const ct_scene *s);
 /* What shading needs of one triangle, stored in Embree's (geomID, primID)
  * order at build: a hit reads this one record (128 bytes, two aligned cache
  * lines) instead of the order, node, material, index, position and normal
- * arrays (up to ten scattered cache misses per hit on a large mesh). */
+ * arrays (up to ten scattered cache misses per hit on a large mesh). The
+ * first line holds what every hit needs; the second, the vertex normals and
+ * indices, is loaded only for triangles with curved shading normals and on
+ * meshes whose hits read per-vertex values: on office 60 % of the hits of
+ * path tracing then touch one line instead of two. */
 typedef struct emb_tri {
     vec3 a, e1, e2;     /* vertex 0 and the edges to vertices 1 and 2 */
     vec3 ng;            /* unit front (winding) normal */
-    vec3 na, nb, nc;    /* vertex normals (unused when the mesh has none) */
     uint32_t tri;       /* mesh triangle */
     uint32_t node;      /* its part node */
     uint32_t mat;       /* its material */
+    uint32_t flat;      /* 1: the shading normal is ng (no vertex normals, or
+                         * all three within 1e-6 of ng) */
+    /* second cache line */
+    vec3 na, nb, nc;    /* vertex normals (unused when flat) */
     uint32_t v[3];      /* its vertex indices (per-vertex data: radiosity) */
-    uint32_t pad[5];    /* to 128 bytes */
+    uint32_t pad[4];    /* to 128 bytes */
 } emb_tri;
 
 /* A ray hit mapped back to the mesh. */
@@ -105,16 +113,13 @@ float emb_raw_intersect(const emb_scene *e, vec3 o, vec3 d, float tnear, float t
 /* Raw rtcOccluded1 (benchmark baseline). */
 bool emb_raw_occluded(const emb_scene *e, vec3 o, vec3 d, float tnear, float tfar);
 
-/* Point, unit front (winding) normal and unit shading normal of a hit, from
- * its triangle's record (the same arithmetic as emb_tri_point and
- * emb_tri_shading_normal, so the same values bit for bit). */
-void emb_surface(const emb_scene *e, const emb_hit *h, vec3 *p, vec3 *ng, vec3 *ns);
+/* Unit shading normal of a hit: the vertex normals interpolated at its
+ * barycentrics and normalized, or the face normal ng for a flat record
+ * (emb_tri) and where the interpolation degenerates. Shading asks for it
+ * only where a bsdf is set up. */
+vec3 emb_shading_normal(const emb_hit *h);
 
-/* The shading normal alone (as emb_surface's ns): shading asks for it only
- * where a bsdf is set up. */
-vec3 emb_shading_normal(const emb_scene *e, const emb_hit *h);
-
-/* Point of a hit at its barycentrics (as emb_surface's p). */
+/* Point of a hit at its barycentrics. */
 static inline vec3 emb_hit_point(const emb_hit *h)
 {
     const emb_tri *r = h->rec;
@@ -129,9 +134,5 @@ float emb_tri_area(const emb_mesh *m, uint32_t t);
 
 /* Point of triangle t at barycentrics (u, v), computed from the vertices. */
 vec3 emb_tri_point(const emb_mesh *m, uint32_t t, float u, float v);
-
-/* Interpolated shading normal of triangle t at (u, v) (unit; the geometric
- * normal when the vertex normals are missing or degenerate). */
-vec3 emb_tri_shading_normal(const emb_mesh *m, uint32_t t, float u, float v);
 
 #endif

@@ -109,9 +109,9 @@ static void make_surf(const integ_ctx *c, const emb_hit *h, vec3 d, integ_surf *
 }
 
 /* The bsdf at s seen from wo (with its shading normal). */
-static inline void surf_bsdf(const integ_ctx *c, const integ_surf *s, vec3 wo, bsdf *b)
+static inline void surf_bsdf(const integ_surf *s, vec3 wo, bsdf *b)
 {
-    bsdf_setup(b, s->bm, emb_shading_normal(c->emb, &s->h), s->ng, wo);
+    bsdf_setup(b, s->bm, emb_shading_normal(&s->h), s->ng, wo);
 }
 
 bool integ_primary_start(integ_ctx *c, vec3 o, vec3 d, emb_hit *h)
@@ -395,7 +395,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         L = v3_add(L, v3_mul(beta, emitted(c, &s, d, ew)));
         if (depth >= max_depth) break;
         bsdf b;
-        surf_bsdf(c, &s, wo, &b);
+        surf_bsdf(&s, wo, &b);
         L = v3_add(L, v3_mul(beta, direct_light(c, &s, &b, wo, DIRECT_ALL, 1)));
         float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
         bsdf_sample bs;
@@ -488,7 +488,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     vec3 wo = v3_neg(d);
     vec3 L = emitted(c, &s, d, ew);
     bsdf b;
-    surf_bsdf(c, &s, wo, &b);
+    surf_bsdf(&s, wo, &b);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
@@ -538,7 +538,7 @@ static vec3 reuse_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int 
     if (!s.bm->traced) return base;
     vec3 wo = v3_neg(d);
     bsdf b;
-    surf_bsdf(c, &s, wo, &b);
+    surf_bsdf(&s, wo, &b);
     bool recurse = depth < opt->depth;
     int nb = glossy_rays(opt, &b, depth);
     vec3 extra = direct_light(c, &s, &b, wo, DIRECT_GLOSSY_ONLY, nb);

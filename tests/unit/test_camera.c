@@ -2,6 +2,7 @@
  * and with the GL matrices (pixel origin top-left, y down). */
 #include <criterion/criterion.h>
 
+#include <float.h>
 #include <math.h>
 
 #include "common/camera.h"
@@ -112,15 +113,20 @@ Test(camera, gl_matrices_match_project)
         cr_assert_gt(clip.w, 0.0f);
         float gx = 0.5f * (clip.x / clip.w + 1.0f) * (float)cc.w;
         float gy = 0.5f * (1.0f - clip.y / clip.w) * (float)cc.h;
-        /* Float view matrices carry -dot(axis, eye) in their translation, so a
-         * point much closer to the eye than the eye is to the origin loses
-         * precision (on the GPU too): 3.5e-3 px at depth 0.17 with the eye
-         * 12.7 units out, 1024 px wide. From depth 1 on, 1e-3 px holds. */
-        double tol = depth >= 1.0f ? 1e-3 : 2e-2;
-        cr_assert_float_eq(gx, qx, tol, "case %d: GL x %g vs project %g", k, (double)gx, (double)qx);
-        cr_assert_float_eq(gy, qy, tol, "case %d: GL y %g vs project %g", k, (double)gy, (double)qy);
+        /* Float view matrices carry -dot(axis, eye) in their translation,
+         * rounded to a few ulps of |eye|: an eye-space error of about
+         * |eye| * FLT_EPSILON, which the projection scales by focal / depth
+         * pixels (on the GPU too). Four such ulps, plus the rounding of the
+         * pixel coordinate itself. */
+        double focal = 0.5 * cc.h / tan(0.5 * (double)cc.cam.fov_y);
+        double tol = 1e-3 + 4.0 * (double)v3_len(cc.cam.eye) * FLT_EPSILON * focal / (double)depth;
+        cr_assert_float_eq(gx, qx, tol, "case %d: GL x %.9g vs project %.9g (depth %g, eye %g from the origin)", k,
+                           (double)gx, (double)qx, (double)depth, (double)v3_len(cc.cam.eye));
+        cr_assert_float_eq(gy, qy, tol, "case %d: GL y %.9g vs project %.9g (depth %g, eye %g from the origin)", k,
+                           (double)gy, (double)qy, (double)depth, (double)v3_len(cc.cam.eye));
         /* Eye-space depth is GL's w. */
-        cr_assert_float_eq(clip.w, depth, 1e-4 * (1 + depth));
+        cr_assert_float_eq(clip.w, depth, 1e-4 * (1 + depth), "case %d: GL w %.9g vs depth %.9g", k, (double)clip.w,
+                           (double)depth);
         float nz = clip.z / clip.w;
         cr_assert(nz > -1.0f && nz < 1.0f, "ndc z %g inside the depth range", (double)nz);
         tested++;

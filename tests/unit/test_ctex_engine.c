@@ -420,6 +420,9 @@ Test(ctex_engine, insert_reads_correction_and_error)
     s = mk_sample((uint32_t)t.behind, v3(0, 1, 30), v3s(1), v3s(0));
     cr_assert_eq(ctex_insert(c, &s, &info), 0);
     cr_assert_eq(info.tex, -1);
+    /* a dropped sample's error is its whole ΔL (the request queue uses it) */
+    cr_assert_float_eq(info.error.x, 1.0f, 1e-7);
+    cr_assert_float_eq(info.correction.x, 0.0f, 1e-7);
     s = mk_sample(9999, v3(0, 0, 0), v3s(1), v3s(0));
     cr_assert_eq(ctex_insert(c, &s, &info), 0);
     ctex_stats st = ctex_get_stats(c);
