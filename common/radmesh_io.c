@@ -151,6 +151,11 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
     if (len < RMESH_HEADER) {
         return ct_fail(err, CT_EPARSE, "%s: truncated header (%zu bytes, need %d)", path, len, RMESH_HEADER);
     }
+    /* The two bytes after the magic are padding the encoder zeroes; a
+     * decoder that ignored them would accept files it cannot write back. */
+    if (d[RMESH_MAGIC_LEN] != 0 || d[RMESH_MAGIC_LEN + 1] != 0) {
+        return ct_fail(err, CT_EPARSE, "%s: header padding after the magic is not zero", path);
+    }
     uint32_t version = ru32(d + 12), endian = ru32(d + 16);
     if (version != RMESH_VERSION) {
         return ct_fail(err, CT_EPARSE, "%s: mesh cache version %u not supported (this build reads %u)",

@@ -175,6 +175,7 @@ Test(radmesh_io, broken_files_give_clear_errors)
         {"node out of range", tri0 + 12, 0, 9, CT_EPARSE, "node 9 out of range"},
         {"huge material count", 43, 0, 0x7f, CT_EPARSE, "out of range"},
         {"reserved header field", 44, 0, 1, CT_EPARSE, "reserved header field"},
+        {"padding after the magic", 11, 0, 0x63, CT_EPARSE, "padding after the magic"},
         {"transmission over 1", mat0 + 16 + 3, 0, 0x7f, CT_EPARSE, "material 1: transmission"},
         {"negative index of refraction", mat0 + 32 + 15, 0, 0xbf, CT_EPARSE, "material 2: transmission"},
     };
