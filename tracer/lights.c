@@ -61,13 +61,18 @@ typedef struct emitter {
     uint32_t first, count;   /* its lights: [first, first + count) */
 } emitter;
 
-/* The emitters' data light_select weighs, as arrays (structure of arrays),
- * gathered four candidates at a time into vector registers. Non-flat
- * emitters have a zero normal and flat = 0. */
-typedef struct emitter_soa {
-    float *cx, *cy, *cz, *nx, *ny, *nz, *r2, *power;
-    int32_t *flat;   /* -1 (all bits set: a lane mask) when flat, else 0 */
-} emitter_soa;
+/* Four floats or ints in one register (GCC and Clang vector extensions). */
+typedef float v4f __attribute__((vector_size(16)));
+typedef int32_t v4i __attribute__((vector_size(16)));
+
+/* What light_select weighs of one emitter, in two vector registers: four
+ * candidates' records load as eight vectors and transpose into columns with
+ * eight shuffles (gathering the columns lane by lane took 36 inserts, the
+ * better part of the weighing's time). */
+typedef struct em_rec {
+    v4f a;   /* centre x, y, z; squared bounding radius, negated when flat */
+    v4f b;   /* front normal x, y, z (zero when not flat); power */
+} em_rec;
 
 struct light_set {
     const emb_scene *emb;
@@ -81,7 +86,7 @@ struct light_set {
     uint32_t *tri_em;    /* per mesh triangle: its emitter, UINT32_MAX if not a light */
     uint32_t ne;
     emitter *em;
-    emitter_soa es;
+    em_rec *rec;         /* per emitter, for the per-point choice */
     float *em_cdf;       /* ne + 1 entries: emitters by power */
     /* The visibility grid (only with 2..LIGHT_SEL_MAX emitters). */
     bool spatial;
@@ -154,32 +159,30 @@ static void describe_emitters(light_set *l)
     }
 }
 
-/* Four floats or ints in one register (GCC and Clang vector extensions). */
-typedef float v4f __attribute__((vector_size(16)));
-typedef int32_t v4i __attribute__((vector_size(16)));
-
 /* mask ? a : b per lane (mask lanes all ones or zero, as comparisons give). */
 static inline v4f select4(v4i mask, v4f a, v4f b) { return (v4f)(((v4i)a & mask) | ((v4i)b & ~mask)); }
 
-/* The emitters' weighing data as arrays (light_select). */
-static int build_soa(light_set *l)
+/* The rows r0..r3 (x, y, z, w each) as columns: col[0] the four x. */
+static inline void transpose4(v4f r0, v4f r1, v4f r2, v4f r3, v4f col[4])
 {
-    size_t n = l->ne ? l->ne : 1;
-    float *f = calloc(8 * n, sizeof *f);
-    l->es.flat = calloc(n, sizeof *l->es.flat);
-    if (!f || !l->es.flat) {
-        free(f);
-        return CT_ENOMEM;
-    }
-    float **col[8] = {&l->es.cx, &l->es.cy, &l->es.cz, &l->es.nx, &l->es.ny, &l->es.nz, &l->es.r2, &l->es.power};
-    for (int k = 0; k < 8; k++) *col[k] = f + (size_t)k * n;
+    v4f t0 = __builtin_shufflevector(r0, r1, 0, 4, 1, 5), t1 = __builtin_shufflevector(r2, r3, 0, 4, 1, 5);
+    v4f t2 = __builtin_shufflevector(r0, r1, 2, 6, 3, 7), t3 = __builtin_shufflevector(r2, r3, 2, 6, 3, 7);
+    col[0] = __builtin_shufflevector(t0, t1, 0, 1, 4, 5);
+    col[1] = __builtin_shufflevector(t0, t1, 2, 3, 6, 7);
+    col[2] = __builtin_shufflevector(t2, t3, 0, 1, 4, 5);
+    col[3] = __builtin_shufflevector(t2, t3, 2, 3, 6, 7);
+}
+
+/* The emitters' weighing records (light_select). */
+static int build_rec(light_set *l)
+{
+    l->rec = aligned_alloc(sizeof(em_rec), (l->ne ? l->ne : 1) * sizeof *l->rec);
+    if (!l->rec) return CT_ENOMEM;
     for (uint32_t k = 0; k < l->ne; k++) {
         const emitter *em = &l->em[k];
-        l->es.cx[k] = em->c.x, l->es.cy[k] = em->c.y, l->es.cz[k] = em->c.z;
-        if (em->flat) l->es.nx[k] = em->n.x, l->es.ny[k] = em->n.y, l->es.nz[k] = em->n.z;
-        l->es.r2[k] = em->r2;
-        l->es.power[k] = em->power;
-        l->es.flat[k] = em->flat ? -1 : 0;
+        vec3 n = em->flat ? em->n : v3s(0.0f);
+        l->rec[k].a = (v4f){em->c.x, em->c.y, em->c.z, em->flat ? -em->r2 : em->r2};
+        l->rec[k].b = (v4f){n.x, n.y, n.z, em->power};
     }
     return CT_OK;
 }
@@ -365,7 +368,7 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
     if (l->ne >= 2 && l->ne <= LIGHT_SEL_MAX) {
         l->gain = spatial_gain(l);
         /* The weighing arrays and the grid serve the per-point choice only. */
-        if (!(l->gain < LIGHT_SPATIAL_MIN_GAIN) && (build_soa(l) != CT_OK || build_grid(l) != CT_OK)) goto oom;
+        if (!(l->gain < LIGHT_SPATIAL_MIN_GAIN) && (build_rec(l) != CT_OK || build_grid(l) != CT_OK)) goto oom;
     }
     free(node_em);
     free(fill);
@@ -389,8 +392,7 @@ void light_free(light_set *l)
     free(l->tri_em);
     free(l->em);
     free(l->em_cdf);
-    free(l->es.cx);   /* the block of all eight columns */
-    free(l->es.flat);
+    free(l->rec);
     free(l->keys);
     free(l);
 }
@@ -580,7 +582,7 @@ void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
     if (atomic_load_explicit(&gk->state, memory_order_acquire) == CELL_READY) {
         kc.n = gk->n;
         memcpy(kc.idx, gk->idx, sizeof kc.idx);
-        for (uint32_t j = 0; j < kc.n; j++) kc.vis[j] = (uint8_t)(gk->vis2[j / 2] >> (4 * (j % 2)) & 15u);
+        for (uint32_t j = 0; j < LIGHT_CANDS; j++) kc.vis[j] = (uint8_t)(gk->vis2[j / 2] >> (4 * (j % 2)) & 15u);
     } else {
         uint32_t cell = key / LIGHT_SIDES;
         estimate_key(l, key, cell % l->nx, cell / l->nx % l->ny, cell / l->nx / l->ny, (int)(key % LIGHT_SIDES), &kc);
@@ -593,32 +595,25 @@ void light_select_key(const light_set *l, uint32_t key, vec3 x, light_sel *sel)
             atomic_store_explicit(&gk->state, CELL_READY, memory_order_release);
         }
     }
-    /* Every candidate's weight (see lights.h), four at a time: gathered
-     * straight into vector registers (GCC/Clang vector extensions; gathering
-     * through an array would stall every vector load on the scalar stores
-     * before it). The same operations in the same order as one candidate at
-     * a time; unused lanes have zero power and are ignored. */
+    /* Every candidate's weight (see lights.h), four at a time: the same
+     * operations in the same order as one candidate at a time. Lanes past
+     * kc.n weigh emitter 0 (kc.idx is zero there) and are ignored. */
     float w[LIGHT_CANDS];
-    const emitter_soa *es = &l->es;
     const v4f zero = {0.0f, 0.0f, 0.0f, 0.0f};
+    const v4i sign = {INT32_MIN, INT32_MIN, INT32_MIN, INT32_MIN};
     for (uint32_t j0 = 0; j0 < kc.n; j0 += 4) {
-        uint32_t k[4];
-        float live[4], vis[4];
-        for (uint32_t i = 0; i < 4; i++) {
-            bool on = j0 + i < kc.n;
-            k[i] = on ? kc.idx[j0 + i] : 0;
-            live[i] = on ? 1.0f : 0.0f;
-            vis[i] = on ? (float)kc.vis[j0 + i] : 0.0f;
-        }
-#define GATHER(col) ((v4f){es->col[k[0]], es->col[k[1]], es->col[k[2]], es->col[k[3]]})
-        v4f dx = x.x - GATHER(cx), dy = x.y - GATHER(cy), dz = x.z - GATHER(cz);
-        v4f r2 = GATHER(r2);
-        v4f pw = GATHER(power) * (v4f){live[0], live[1], live[2], live[3]};
-        v4f c = dx * GATHER(nx) + dy * GATHER(ny) + dz * GATHER(nz);
-#undef GATHER
-        v4i flat = {es->flat[k[0]], es->flat[k[1]], es->flat[k[2]], es->flat[k[3]]};
-        v4f gv = LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * ((v4f){vis[0], vis[1], vis[2], vis[3]} /
-                                                               (float)LIGHT_VIS_RAYS);
+        const em_rec *e0 = &l->rec[kc.idx[j0]], *e1 = &l->rec[kc.idx[j0 + 1]];
+        const em_rec *e2 = &l->rec[kc.idx[j0 + 2]], *e3 = &l->rec[kc.idx[j0 + 3]];
+        v4f a[4], b[4];
+        transpose4(e0->a, e1->a, e2->a, e3->a, a);
+        transpose4(e0->b, e1->b, e2->b, e3->b, b);
+        v4f cx = a[0], cy = a[1], cz = a[2], r2s = a[3], nx = b[0], ny = b[1], nz = b[2], pw = b[3];
+        v4i flat = r2s < zero;
+        v4f r2 = (v4f)((v4i)r2s & ~sign);
+        v4f vis = {(float)kc.vis[j0], (float)kc.vis[j0 + 1], (float)kc.vis[j0 + 2], (float)kc.vis[j0 + 3]};
+        v4f gv = LIGHT_VIS_FLOOR + (1.0f - LIGHT_VIS_FLOOR) * (vis / (float)LIGHT_VIS_RAYS);
+        v4f dx = x.x - cx, dy = x.y - cy, dz = x.z - cz;
+        v4f c = dx * nx + dy * ny + dz * nz;
         v4f d2 = dx * dx + dy * dy + dz * dz;
         v4f m = select4(d2 > r2, d2, r2);
         v4f wj = pw / m;
