@@ -2,7 +2,8 @@
  * wall, a point's shadow rays go to its own room's light, on either face of
  * the wall; the pdf that light_pdf_area reports is the density light_sample
  * draws from; emitters behind a point get only the defensive share;
- * emitters of negligible estimate are no candidates; racing threads make
+ * emitters of negligible estimate are no candidates; unblocked candidates
+ * are weighed by power * cos / d^2; racing threads make
  * the same estimates; the per-point choice is kept only where
  * it can gain; every triangle is picked as often as its pdf says, through
  * short and long CDFs alike. */
@@ -162,6 +163,73 @@ Test(lights, emitters_behind_get_only_the_defensive_share)
     cr_expect(fabs(p[0] + p[1] + p[2] - 1.0) < 1e-4);
     cr_expect(p[0] + p[1] <= LIGHT_DEFENSIVE + 1e-6, "panels behind the point get %g", p[0] + p[1]);
     cr_expect(p[0] > 0.0 && p[1] > 0.0, "but keep a positive density");
+    light_free(l);
+    emb_free(e);
+    scene_free(s);
+}
+
+/* The weight of a flat emitter facing down onto a point x below it, as
+ * lights.h states it with an unblocked view (V = 1): power * cos / max(d^2,
+ * r^2)^(3/2) with d and cos taken to its centre c, r its bounding radius. */
+static double flat_weight(double power, vec3 c, double r2, vec3 x)
+{
+    double dx = x.x - c.x, dy = x.y - c.y, dz = x.z - c.z;
+    double m = fmax(dx * dx + dy * dy + dz * dz, r2);
+    return power * (c.y - x.y) / (m * sqrt(m));
+}
+
+/* Four ceiling panels of different sizes and radiances over an open floor,
+ * and a small lamp box (not flat), all seen unblocked from a point on the
+ * floor under the largest panel (closer than its bounding radius): the
+ * candidate picks of the panels follow power * cos / d^2 exactly, relative
+ * to each other. Five candidates: the weighing's second group of four has
+ * three idle lanes. */
+Test(lights, candidate_weights_follow_power_cos_over_d2)
+{
+    ct_error err;
+    ct_scene *s = scene_new("open floor");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    float le[4] = {10.0f, 20.0f, 5.0f, 40.0f};
+    vec3 corner[4] = {v3(-1, 3, -1), v3(3, 3, 2), v3(-6, 3, -6), v3(2, 3, -5)};
+    float size[4][2] = {{2, 2}, {1, 3}, {6, 6}, {1, 1}};
+    int panel[4];
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-20, 0, -20), v3(0, 0, 40), v3(40, 0, 0), &err) >= 0);
+    for (int i = 0; i < 4; i++) {
+        char name[16];
+        snprintf(name, sizeof name, "panel%d", i);
+        int mat = ts_diffuse(s, name, v3s(0.0f), v3s(le[i]), &err);
+        /* Front side (1,0,0) x (0,0,1) = (0,-1,0): down. */
+        panel[i] = ts_quad(s, name, (uint32_t)mat, corner[i], v3(size[i][0], 0, 0), v3(0, 0, size[i][1]), &err);
+        cr_assert(mat >= 0 && panel[i] >= 0);
+    }
+    int bulb = ts_diffuse(s, "bulb", v3s(0.0f), v3s(100.0f), &err);
+    int lamp = ts_box(s, "lamp", (uint32_t)bulb, v3(-3, 0.5f, 3), v3(-2.8f, 0.7f, 3.2f), false, &err);
+    cr_assert(bulb >= 0 && lamp >= 0);
+    emb_scene *e;
+    light_set *l;
+    lights_of(s, &e, &l);
+    cr_assert(light_is_spatial(l), "gain %g", light_spatial_gain(l));
+    vec3 x = v3(-3.0f, 0.0f, -3.0f);
+    light_sel sel, pow;
+    light_select(l, x, v3(0, 1, 0), &sel);
+    light_select_power(&pow);
+    cr_assert_eq(sel.n, 5u, "candidates: %u", sel.n);
+    /* Each panel's share among the candidates: its probability less the
+     * defensive pick by power. */
+    double share[4], w[4];
+    for (int i = 0; i < 4; i++) {
+        share[i] = (p_on(l, e, &sel, panel[i]) - LIGHT_DEFENSIVE * p_on(l, e, &pow, panel[i])) / (1.0 - LIGHT_DEFENSIVE);
+        vec3 c = v3(corner[i].x + 0.5f * size[i][0], 3.0f, corner[i].z + 0.5f * size[i][1]);
+        double r2 = 0.25 * (size[i][0] * size[i][0] + size[i][1] * size[i][1]);
+        w[i] = flat_weight(size[i][0] * size[i][1] * le[i], c, r2, x);
+    }
+    for (int i = 0; i < 4; i++) {
+        double got = share[i] / share[2], want = w[i] / w[2];
+        cr_expect(fabs(got - want) <= 1e-3 * want, "panel %d: share %g of the largest panel's, want %g", i, got, want);
+    }
+    /* The lamp: between the visibility floor's share and its unblocked one. */
+    double lamp_share = (p_on(l, e, &sel, lamp) - LIGHT_DEFENSIVE * p_on(l, e, &pow, lamp)) / (1.0 - LIGHT_DEFENSIVE);
+    cr_expect(lamp_share > 0.0 && lamp_share < share[2]);
     light_free(l);
     emb_free(e);
     scene_free(s);
