@@ -367,7 +367,7 @@ int light_build(const emb_scene *e, light_set **out, ct_error *err)
     if (l->ne) l->em_cdf[l->ne] = 1.0f;
     if (l->ne >= 2 && l->ne <= LIGHT_SEL_MAX) {
         l->gain = spatial_gain(l);
-        /* The weighing arrays and the grid serve the per-point choice only. */
+        /* The weighing records and the grid serve the per-point choice only. */
         if (!(l->gain < LIGHT_SPATIAL_MIN_GAIN) && (build_rec(l) != CT_OK || build_grid(l) != CT_OK)) goto oom;
     }
     free(node_em);
