@@ -178,6 +178,13 @@ static double flat_weight(double power, vec3 c, double r2, vec3 x)
     return power * (c.y - x.y) / (m * sqrt(m));
 }
 
+/* Node's share of the candidate picks under sel: its probability less the
+ * defensive pick by power (pow). */
+static double cand_share(const light_set *l, const emb_scene *e, const light_sel *sel, const light_sel *pow, int node)
+{
+    return (p_on(l, e, sel, node) - LIGHT_DEFENSIVE * p_on(l, e, pow, node)) / (1.0 - LIGHT_DEFENSIVE);
+}
+
 /* Four ceiling panels of different sizes and radiances over an open floor,
  * and a small lamp box (not flat), all seen unblocked from a point on the
  * floor under the largest panel (closer than its bounding radius): the
@@ -214,11 +221,9 @@ Test(lights, candidate_weights_follow_power_cos_over_d2)
     light_select(l, x, v3(0, 1, 0), &sel);
     light_select_power(&pow);
     cr_assert_eq(sel.n, 5u, "candidates: %u", sel.n);
-    /* Each panel's share among the candidates: its probability less the
-     * defensive pick by power. */
     double share[4], w[4];
     for (int i = 0; i < 4; i++) {
-        share[i] = (p_on(l, e, &sel, panel[i]) - LIGHT_DEFENSIVE * p_on(l, e, &pow, panel[i])) / (1.0 - LIGHT_DEFENSIVE);
+        share[i] = cand_share(l, e, &sel, &pow, panel[i]);
         vec3 c = v3(corner[i].x + 0.5f * size[i][0], 3.0f, corner[i].z + 0.5f * size[i][1]);
         double r2 = 0.25 * (size[i][0] * size[i][0] + size[i][1] * size[i][1]);
         w[i] = flat_weight(size[i][0] * size[i][1] * le[i], c, r2, x);
@@ -227,8 +232,9 @@ Test(lights, candidate_weights_follow_power_cos_over_d2)
         double got = share[i] / share[2], want = w[i] / w[2];
         cr_expect(fabs(got - want) <= 1e-3 * want, "panel %d: share %g of the largest panel's, want %g", i, got, want);
     }
-    /* The lamp: between the visibility floor's share and its unblocked one. */
-    double lamp_share = (p_on(l, e, &sel, lamp) - LIGHT_DEFENSIVE * p_on(l, e, &pow, lamp)) / (1.0 - LIGHT_DEFENSIVE);
+    /* The lamp (partly blocked by its own faces): a candidate, and far
+     * weaker than the panel over the point. */
+    double lamp_share = cand_share(l, e, &sel, &pow, lamp);
     cr_expect(lamp_share > 0.0 && lamp_share < share[2]);
     light_free(l);
     emb_free(e);
