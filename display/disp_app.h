@@ -52,6 +52,7 @@ typedef struct disp_app_opts {
     double max_seconds;           /* stop after this long (0: no limit) */
     uint32_t sample_frames;       /* the samples view shows the points of this many frames */
     uint32_t sample_max;          /* and keeps at most this many points */
+    volatile int *stop;           /* set (by a signal handler) to end the run in order; NULL: none */
 } disp_app_opts;
 
 /* The defaults --help prints. */

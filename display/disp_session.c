@@ -174,6 +174,17 @@ int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, in
     return rc;
 }
 
+int disp_session_tex_upload(disp_session *s, uint32_t id, int x, int y, int w, int h, size_t off, bool negative,
+                            bool nonzero, ct_error *err)
+{
+    int rc = disp_textures_patch_pbo(s->tex, id, x, y, w, h, off, negative, nonzero, err);
+    if (!rc) {
+        s->cnt.texels += (uint64_t)w * (uint64_t)h;
+        s->cnt.patches++;
+    }
+    return rc;
+}
+
 int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int w, int h,
                                  const float *rgb, ct_error *err)
 {

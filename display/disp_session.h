@@ -61,6 +61,11 @@ int disp_session_tex_projection(disp_session *s, uint32_t id, const mat4 *world_
 int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, int h,
                            const uint16_t *rgb, ct_error *err);
 
+/* The same from the bound pixel unpack buffer at byte offset off (the
+ * inbox's uploads, disp_inbox.h). */
+int disp_session_tex_upload(disp_session *s, uint32_t id, int x, int y, int w, int h, size_t off, bool negative,
+                            bool nonzero, ct_error *err);
+
 /* The same with float texels (tests, synthetic contents). */
 int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int w, int h,
                                  const float *rgb, ct_error *err);

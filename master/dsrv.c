@@ -81,7 +81,8 @@ int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
 static void add_event(dsrv *s, dsrv_event_kind kind, const wire_msg *m, const char *text)
 {
     if (s->ev_n == MAX_EVENTS) {
-        /* Only cameras can pile up; the oldest is the least useful. */
+        /* Only cameras and ACKs can pile up; the oldest is the least useful
+         * (an ACK covers every update before it). */
         s->ev_head = (s->ev_head + 1) % MAX_EVENTS;
         s->ev_n--;
     }
@@ -261,11 +262,14 @@ static void service_display(dsrv *s)
         }
         switch (m.type) {
         case WIRE_CAMERA:
+        case WIRE_ACK:
             add_event(s, DSRV_EV_MESSAGE, &m, NULL);
             break;
         case WIRE_PING: {
+            /* With our clock: the display estimates its offset (lag stats). */
             wire_msg pong = m;
             pong.type = WIRE_PONG;
+            pong.u.ping.clock_us = ct_now_us();
             if (chan_send(s->disp, &pong, &e) < 0) {
                 close_display(s, e.msg);
                 return;
@@ -359,6 +363,28 @@ int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err)
         poll(&p, 1, 10);
     }
     (void)err;
+}
+
+wire_buf *dsrv_tail(dsrv *s)
+{
+    if (!s->disp) return NULL;
+    ct_error e;
+    wire_buf *b = chan_tail(s->disp, &e);
+    if (!b) {
+        ct_info(COMPONENT, "display %s lost: %s", s->disp_peer, e.msg);
+        close_display(s, e.msg);
+    }
+    return b;
+}
+
+void dsrv_commit(dsrv *s, uint64_t frames)
+{
+    if (s->disp) chan_commit(s->disp, frames);
+}
+
+size_t dsrv_queued(const dsrv *s)
+{
+    return s->disp ? chan_queue_stats(s->disp).bytes : 0;
 }
 
 int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued)

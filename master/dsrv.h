@@ -80,6 +80,15 @@ int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err);
  * connected), DSRV_DROPPED when not. */
 int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued);
 
+/* The display's send queue tail for frames encoded in place (chan_tail),
+ * then dsrv_commit(frames). NULL when no display is connected (or it just
+ * failed: it is dropped). */
+wire_buf *dsrv_tail(dsrv *s);
+void dsrv_commit(dsrv *s, uint64_t frames);
+
+/* Bytes queued to the display and not yet written (0 without a display). */
+size_t dsrv_queued(const dsrv *s);
+
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);
 

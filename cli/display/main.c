@@ -1,5 +1,6 @@
 /* bin/corrtex-display: the display client. Parses options and runs
  * display/disp_app.c; links common, proto, display and GL only. */
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,6 +10,15 @@
 #include "display/gl_load.h"
 
 #define COMP "corrtex-display"
+
+static volatile int g_stop;
+
+/* SIGINT and SIGTERM end the run in order: the frames written so far and
+ * frames.csv are completed, the master gets BYE. */
+static void on_signal(int sig)
+{
+    g_stop = sig;
+}
 
 static void usage(FILE *f, const disp_app_opts *d)
 {
@@ -47,7 +57,8 @@ static void usage(FILE *f, const disp_app_opts *d)
             "walkthroughs and output:\n"
             "  --path FILE           camera path (common/campath.h format)\n"
             "  --frames N            N frames spread over the path (default 0: real time; headless\n"
-            "                        without a path: N frames of the still camera, default 1)\n"
+            "                        without a path: N frames of the still camera, default: 1,\n"
+            "                        or with --connect until the master ends or a signal)\n"
             "  --seconds S           stop after S seconds (default 0: no limit)\n"
             "  --out DIR             write frame_NNNNN.exr/.png and frames.csv\n"
             "  --reference DIR       add RMSE/PSNR against DIR/frame_NNNNN.exr to frames.csv\n"
@@ -231,6 +242,13 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "--reference needs --out");
         return DISP_EXIT_USAGE;
     }
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    o.stop = &g_stop;
     ct_error err;
     ct_error_clear(&err);
     int status = disp_app_run(&o, &err);
