@@ -563,8 +563,11 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
 
     char full[4096];
     fs_join(L->dir, file, full, sizeof full);
-    FILE *probe = fopen(full, "rb");
-    if (!probe) return ct_fail(L->err, CT_EIO, "%s: cannot open mesh file: %s", full, strerror(errno));
+    /* Checked here because assimp's own message for a file it cannot open
+     * does not say why; a FIFO fails at once instead of blocking. */
+    FILE *probe;
+    size_t size;
+    if ((rc = fs_open_regular(full, &probe, &size, L->err))) return rc;
     fclose(probe);
 
     struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
