@@ -211,8 +211,9 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
         m->nrm[i] = rvec(p + 12);
         m->rad[i] = rvec(p + 24);
         m->rad_direct[i] = rvec(p + 36);
-        if (!v3_finite(m->pos[i]) || !v3_finite(m->rad[i]) || !v3_finite(m->rad_direct[i])) {
-            rc = ct_fail(err, CT_EPARSE, "%s: vertex %u is not finite", path, i);
+        if (!v3_in_range(m->pos[i]) || !v3_finite(m->rad[i]) || !v3_finite(m->rad_direct[i])) {
+            rc = ct_fail(err, CT_EPARSE, "%s: vertex %u is not finite or outside the coordinate range +-%g", path, i,
+                         (double)CT_COORD_MAX);
             goto fail;
         }
     }

@@ -163,6 +163,9 @@ int scene_end_node(ct_scene *s, ct_error *err)
 
 int64_t scene_add_vertex(ct_scene *s, vec3 pos, vec3 nrm, ct_error *err)
 {
+    if (!v3_in_range(pos))
+        return ct_fail(err, CT_ERANGE, "vertex (%g, %g, %g) not finite or outside the coordinate range +-%g",
+                       (double)pos.x, (double)pos.y, (double)pos.z, (double)CT_COORD_MAX);
     uint32_t cap = s->cap_verts;
     int rc = grow((void **)&s->pos, &cap, s->nverts + 1, sizeof *s->pos, SCENE_MAX_VERTS, err,
                   "vertices");
@@ -242,6 +245,9 @@ int scene_add_camera(ct_scene *s, const char *name, vec3 eye, vec3 target, vec3 
 {
     if (!v3_finite(eye) || !v3_finite(target) || !v3_finite(up) || !isfinite(fov_deg))
         return ct_fail(err, CT_EINVAL, "camera '%s': non-finite value", name);
+    if (!v3_in_range(eye) || !v3_in_range(target))
+        return ct_fail(err, CT_ERANGE, "camera '%s': eye or target outside the coordinate range +-%g", name,
+                       (double)CT_COORD_MAX);
     if (v3_len2(v3_sub(target, eye)) <= 0.0f)
         return ct_fail(err, CT_EINVAL, "camera '%s': eye and target coincide", name);
     if (!(fov_deg > 0.0f && fov_deg < 180.0f))

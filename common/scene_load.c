@@ -367,28 +367,21 @@ static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
     uint32_t base = s->nverts;
     const char *mname = am->mName.length ? am->mName.data : "mesh";
 
-    if (has_n) {
-        for (unsigned i = 0; i < am->mNumVertices; i++) {
-            vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
-            if (!v3_finite(p))
-                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
-                               C->file, mname, i + 1);
-            vec3 n = v3(am->mNormals[i].x, am->mNormals[i].y, am->mNormals[i].z);
-            vec3 wp = m4_point(xf, p);
-            if (!v3_finite(wp))
-                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u overflows after transform",
-                               C->file, mname, i + 1);
-            vec3 wn = v3_finite(n) && v3_len2(n) > 0.0f ? m4_normal(&inv, n) : v3s(0);
-            int64_t r = scene_add_vertex(s, wp, wn, L->err);
-            if (r < 0) return (int)r;
-        }
-    } else {
-        for (unsigned i = 0; i < am->mNumVertices; i++) {
-            vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
-            if (!v3_finite(p))
-                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
-                               C->file, mname, i + 1);
-        }
+    for (unsigned i = 0; i < am->mNumVertices; i++) {
+        vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+        if (!v3_finite(p))
+            return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
+                           C->file, mname, i + 1);
+        vec3 wp = m4_point(xf, p);
+        if (!v3_in_range(wp))
+            return ct_fail(L->err, CT_ERANGE,
+                           "%s: mesh '%s': vertex %u at (%g, %g, %g) in the scene is outside the coordinate range +-%g",
+                           C->file, mname, i + 1, (double)wp.x, (double)wp.y, (double)wp.z, (double)CT_COORD_MAX);
+        if (!has_n) continue;
+        vec3 n = v3(am->mNormals[i].x, am->mNormals[i].y, am->mNormals[i].z);
+        vec3 wn = v3_finite(n) && v3_len2(n) > 0.0f ? m4_normal(&inv, n) : v3s(0);
+        int64_t r = scene_add_vertex(s, wp, wn, L->err);
+        if (r < 0) return (int)r;
     }
 
     uint32_t stackidx[64];
@@ -622,6 +615,12 @@ static int import_lights(loader *L, const cJSON *lights)
         if ((rc = get_vec3(L, l, "corner", ctx, 1, v3s(0), &p))) return rc;
         if ((rc = get_vec3(L, l, "edge1", ctx, 1, v3s(0), &e1))) return rc;
         if ((rc = get_vec3(L, l, "edge2", ctx, 1, v3s(0), &e2))) return rc;
+        vec3 corners[4] = {p, v3_add(p, e1), v3_add(v3_add(p, e1), e2), v3_add(p, e2)};
+        for (int k = 0; k < 4; k++)
+            if (!v3_in_range(corners[k]))
+                return ct_fail(L->err, CT_ERANGE, "%s: %s: corner %d at (%g, %g, %g) is outside the coordinate range +-%g",
+                               L->path, ctx, k, (double)corners[k].x, (double)corners[k].y, (double)corners[k].z,
+                               (double)CT_COORD_MAX);
         vec3 n = v3_cross(e1, e2);
         if (!(v3_len2(n) > 0.0f)) return bad(L, ctx, "edges are parallel or zero (no area)");
         char lname[SCENE_NAME_LEN];
@@ -647,7 +646,6 @@ static int import_lights(loader *L, const cJSON *lights)
         }
         if ((rc = scene_begin_node(L->s, lname, SCENE_NODE_PART, (uint32_t)mat, L->err)) < 0) return rc;
         vec3 nn = v3_norm(n);
-        vec3 corners[4] = {p, v3_add(p, e1), v3_add(v3_add(p, e1), e2), v3_add(p, e2)};
         uint32_t idx[4];
         for (int k = 0; k < 4; k++) {
             int64_t r = scene_add_vertex(L->s, corners[k], nn, L->err);

@@ -255,7 +255,14 @@ static void service_display(dsrv *s)
         int rc = chan_recv(s->disp, &m, &e);
         if (rc == WIRE_NEED_MORE) return;
         if (rc < 0) {
-            ct_info(COMPONENT, "display left: %s", e.msg);
+            if (rc == CT_EIO) {
+                ct_info(COMPONENT, "display left: %s", e.msg);
+            } else {
+                /* A message the decoder refused (a CAMERA out of range, say):
+                 * the display hears why. */
+                ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, e.msg);
+                chan_send_error(s->disp, WIRE_ERR_PROTOCOL, e.msg, 200);
+            }
             close_display(s, e.msg);
             return;
         }

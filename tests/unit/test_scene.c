@@ -310,3 +310,49 @@ Test(scene_bad, wrong_types_and_values)
         cr_expect(strstr(err.msg, cases[i].needle) != NULL, "case %zu: '%s' lacks '%s'", i, err.msg, cases[i].needle);
     }
 }
+
+/* Every coordinate that reaches a ray is bounded (CT_COORD_MAX): a camera eye
+ * at -1e30 made the tracer abort inside Embree, a light edge of 1e30 gave an
+ * all-black image. Each such scene fails with one line naming the place. */
+Test(scene_bad, coordinates_out_of_range)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    fx_write(d, "far.obj", "v 0 0 0\nv 2e9 0 0\nv 0 1 0\nf 1 2 3\n");
+    fx_write(d, "far.path", "0  0 1 -1e30  0 1 0\n1  0 1 4  0 1 0\n");
+    struct { const char *json; const char *needle; } cases[] = {
+        {"{\"meshes\":[{\"file\":\"far.obj\"}]}", "far.obj: mesh 'defaultobject': vertex 2 at (2e+09, 0, 0)"},
+        {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"scale\":1e30}}]}", "vertex 2 at (1e+30, 0, 0) in the scene"},
+        {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"translate\":[0,-1e10,0]}}]}", "outside the coordinate range"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"lights\":[{\"type\":\"quad\",\"corner\":[0,2,0],\"edge1\":[1e30,0,0],"
+         "\"edge2\":[0,0,1],\"emission\":[1,1,1]}]}", "lights[0]: corner 1 at (1e+30, 2, 0)"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,1,-1e30],\"target\":[0,1,0]}]}",
+         "camera 'c': eye or target outside the coordinate range"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,1,4],\"target\":[0,1,-2e9]}]}",
+         "camera 'c': eye or target outside"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"keys\":[[0,0,1,4,0,1,0],[1,0,1,4,0,1e20,0]]}]}",
+         "paths[0]: keyframe 2: eye or target outside the coordinate range"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"file\":\"far.path\"}]}",
+         "far.path:1: eye or target outside"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        const char *p = fx_write(d, "s.json", cases[i].json);
+        ct_error err;
+        ct_scene *s = NULL;
+        int rc = scene_load(p, &s, &err);
+        cr_expect_eq(rc, CT_ERANGE, "case %zu: rc %d: %s", i, rc, err.msg);
+        cr_expect(strstr(err.msg, cases[i].needle) != NULL, "case %zu: '%s' lacks '%s'", i, err.msg, cases[i].needle);
+        cr_expect(strchr(err.msg, '\n') == NULL);
+        scene_free(s);
+    }
+    /* The range's edge itself is fine, also for a builder that bypasses the loader. */
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\","
+                                          "\"eye\":[0,1,-1e9],\"target\":[0,1,0]}]}");
+    ct_scene *s = load_ok(p);
+    ct_error err;
+    cr_expect_eq(scene_add_vertex(s, v3(0, 0, 1e9f), v3(0, 1, 0), &err), (int64_t)s->nverts - 1);
+    cr_expect_eq(scene_add_vertex(s, v3(0, -1.5e9f, 0), v3(0, 1, 0), &err), CT_ERANGE);
+    cr_expect(strstr(err.msg, "outside the coordinate range"), "%s", err.msg);
+    cr_expect_eq(scene_add_vertex(s, v3(NAN, 0, 0), v3(0, 1, 0), &err), CT_ERANGE);
+    scene_free(s);
+}
