@@ -37,11 +37,27 @@ typedef struct pending_send {
     wire_buf buf;
 } pending_send;
 
+/* A receive under way (mpil_poll_recv), in the order its message was matched. */
+typedef struct pending_recv {
+    MPI_Request req;
+    mpil_info info;
+    wire_buf buf;
+    int done;
+} pending_recv;
+
+/* At most this many receives in flight: far above what the tracers' windows
+ * can have outstanding, low enough to bound the memory a flood could take. */
+#define MAX_RECVS 4096
+
 static struct {
     int active;
     pending_send *sends;
     size_t n, cap;
+    pending_recv *recvs;
+    size_t nr, rcap;
 } L;
+
+static void finish_recvs(void);
 
 int mpil_init(int *argc, char ***argv, int *rank, int *size, ct_error *err)
 {
@@ -86,6 +102,7 @@ int mpil_finalize(ct_error *err)
     if (!L.active) return 0;
     int rc = mpil_drain(5.0, err);
     if (rc < 0) mpil_cancel_pending();
+    finish_recvs();
     free(L.sends);
     L.sends = NULL;
     L.n = L.cap = 0;
@@ -243,6 +260,88 @@ int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err)
               err);
     out->len = info->size;
     return 0;
+}
+
+/* Matches every message that arrived and starts its receive. */
+static int start_recvs(int source, int tag, ct_error *err)
+{
+    while (L.nr < MAX_RECVS) {
+        int flag = 0;
+        MPI_Message msg;
+        MPI_Status st;
+        MPI_CHECK(MPI_Improbe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
+                              MPI_COMM_WORLD, &flag, &msg, &st),
+                  err);
+        if (!flag) return 0;
+        if (L.nr == L.rcap) {
+            size_t cap = L.rcap ? 2 * L.rcap : 16;
+            pending_recv *p = realloc(L.recvs, cap * sizeof *p);
+            if (!p) return ct_fail(err, CT_ENOMEM, "MPI receive list: out of memory for %zu entries", cap);
+            L.recvs = p;
+            L.rcap = cap;
+        }
+        pending_recv *r = &L.recvs[L.nr];
+        memset(r, 0, sizeof *r);
+        if (info_of(&st, &r->info, err) < 0) return CT_EIO;
+        /* A matched message must be received: one over the limit is taken
+         * into a one-byte buffer (MPI reports the truncation) and refused. */
+        int over = check_len(r->info.size, err) < 0;
+        if (wire_buf_reserve(&r->buf, over || !r->info.size ? 1 : r->info.size, err) < 0) return CT_ENOMEM;
+        MPI_CHECK(MPI_Imrecv(r->buf.data, over ? 0 : (int)r->info.size, MPI_BYTE, &msg, &r->req), err);
+        L.nr++;
+        if (over) return CT_ERANGE;
+    }
+    return 0;
+}
+
+int mpil_poll_recv(int source, int tag, mpil_info *info, wire_buf *out, ct_error *err)
+{
+    int rc = start_recvs(source, tag, err);
+    if (rc < 0) return rc;
+    for (size_t i = 0; i < L.nr; i++) {
+        pending_recv *r = &L.recvs[i];
+        if (!r->done) MPI_CHECK(MPI_Test(&r->req, &r->done, MPI_STATUS_IGNORE), err);
+        if (!r->done) continue;
+        /* The first completed message whose sender has no older one still
+         * in flight: a sender's messages keep their order. */
+        int older = 0;
+        for (size_t j = 0; j < i && !older; j++) older = L.recvs[j].info.source == r->info.source;
+        if (older) continue;
+        *info = r->info;
+        wire_buf_free(out);
+        *out = r->buf;
+        out->len = r->info.size;
+        memmove(r, r + 1, (L.nr - i - 1) * sizeof *r);
+        L.nr--;
+        return 1;
+    }
+    return 0;
+}
+
+/* At the end, receives still in flight (a tracer was sending when the loop
+ * stopped) get the time the senders' own drain needs; what is left then
+ * (a stopped sender) is left to MPI, its buffer still reachable from L. */
+static void finish_recvs(void)
+{
+    double end = ct_now() + 2.0;
+    while (L.nr && ct_now() < end) {
+        size_t j = 0;
+        for (size_t i = 0; i < L.nr; i++) {
+            pending_recv *r = &L.recvs[i];
+            if (!r->done && MPI_Test(&r->req, &r->done, MPI_STATUS_IGNORE) != MPI_SUCCESS) r->done = -1;
+            if (r->done > 0) wire_buf_free(&r->buf);
+            else L.recvs[j++] = *r;
+        }
+        L.nr = j;
+        if (L.nr) sleep_us(200);
+    }
+    for (size_t i = 0; i < L.nr; i++)
+        if (L.recvs[i].done == 0) MPI_Request_free(&L.recvs[i].req);
+    if (L.nr == 0) {
+        free(L.recvs);
+        L.recvs = NULL;
+        L.rcap = 0;
+    }
 }
 
 int mpil_bcast_u64(int root, uint64_t *v, ct_error *err)
