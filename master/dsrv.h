@@ -16,7 +16,13 @@
 #include "proto/auth.h"
 #include "proto/wire.h"
 
-#define DSRV_MAX_PENDING 16   /* connections in handshake at once; more are closed */
+/* Connections in handshake at once, and of those from one peer address (a
+ * TCP host, a local process). A newcomer beyond either bound takes the place
+ * of the oldest connection there that has not authenticated (one that has
+ * sent nothing first), so idle connections cannot lock a display out; only
+ * when all of them have authenticated is the newcomer refused. */
+#define DSRV_MAX_PENDING 16
+#define DSRV_MAX_PENDING_PER_PEER 4
 
 typedef struct dsrv dsrv;
 
