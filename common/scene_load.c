@@ -342,19 +342,6 @@ static float det3(const mat4 *m)
            m->m[0][2] * (m->m[1][0] * m->m[2][1] - m->m[1][1] * m->m[2][0]);
 }
 
-/* Newell's normal of a polygon: robust for non-planar quads. */
-static vec3 polygon_normal(const ct_scene *s, const uint32_t *idx, int n)
-{
-    vec3 nn = v3s(0);
-    for (int i = 0; i < n; i++) {
-        vec3 a = s->pos[idx[i]], b = s->pos[idx[(i + 1) % n]];
-        nn.x += (a.y - b.y) * (a.z + b.z);
-        nn.y += (a.z - b.z) * (a.x + b.x);
-        nn.z += (a.x - b.x) * (a.y + b.y);
-    }
-    return v3_norm(nn);
-}
-
 static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
 {
     loader *L = C->L;
@@ -410,7 +397,7 @@ static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
             }
         }
         if (rc == CT_OK) {
-            vec3 fn = polygon_normal(s, idx, (int)n);
+            vec3 fn = scene_polygon_normal(s, idx, (int)n);
             /* Flat shading for files without normals; repair for broken ones. */
             for (unsigned k = 0; k < n; k++)
                 if (v3_len2(s->nrm[idx[k]]) == 0.0f) s->nrm[idx[k]] = fn;
