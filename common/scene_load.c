@@ -563,7 +563,7 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     char nodename[SCENE_NAME_LEN];
     if (name) snprintf(nodename, sizeof nodename, "%s", name);
     else basename_noext(file, nodename, sizeof nodename);
-    uint32_t dropped_before = L->s->dropped_degenerate;
+    uint32_t dropped_before = L->s->dropped_degenerate, tris_before = L->s->ntris;
     if (rc == CT_OK && (rc = scene_begin_node(L->s, nodename, SCENE_NODE_FILE, UINT32_MAX, L->err)) >= 0) {
         mesh_ctx C = {L, full, ai, matmap};
         rc = import_node(&C, ai->mRootNode, xf, 1);
@@ -574,6 +574,9 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     if (rc < 0) return rc;
     uint32_t dropped = L->s->dropped_degenerate - dropped_before;
     if (dropped) ct_warn("scene", "%s: dropped %u degenerate triangle%s", full, dropped, dropped == 1 ? "" : "s");
+    /* Likely the wrong file (points or lines only): say so rather than
+     * render a scene without it. */
+    if (L->s->ntris == tris_before) ct_warn("scene", "%s: no triangles: it adds nothing to the scene", full);
     return CT_OK;
 }
 
@@ -744,6 +747,44 @@ static void line_col(const char *text, const char *at, int *line, int *col)
     }
 }
 
+static int by_name(const void *a, const void *b)
+{
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* Fails on a key that appears twice in one object, anywhere in the tree:
+ * cJSON keeps both and every lookup finds the first, so the second would be
+ * dropped without a word. Sorting keeps a hostile object of many keys
+ * O(n log n). where names the enclosing key ("in 'oak'"). */
+static int check_duplicates(loader *L, const cJSON *j, const char *where)
+{
+    if (cJSON_IsObject(j)) {
+        size_t n = 0;
+        for (const cJSON *it = j->child; it; it = it->next) n++;
+        if (n > 1) {
+            const char **names = malloc(n * sizeof *names);
+            if (!names) return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", L->path);
+            size_t k = 0;
+            for (const cJSON *it = j->child; it; it = it->next) names[k++] = it->string ? it->string : "";
+            qsort(names, n, sizeof *names, by_name);
+            const char *dup = NULL;
+            for (k = 1; k < n && !dup; k++)
+                if (strcmp(names[k - 1], names[k]) == 0) dup = names[k];
+            int rc = dup ? ct_fail(L->err, CT_EPARSE, "%s: duplicate key '%s' %s", L->path, dup, where) : CT_OK;
+            free(names);
+            if (rc) return rc;
+        }
+    }
+    for (const cJSON *it = j->child; it; it = it->next) {
+        char inner[96];
+        if (it->string) snprintf(inner, sizeof inner, "in '%.80s'", it->string);
+        else snprintf(inner, sizeof inner, "%s", where);
+        int rc = check_duplicates(L, it, inner);
+        if (rc) return rc;
+    }
+    return CT_OK;
+}
+
 static int load_json(loader *L, const char *text, size_t len)
 {
     const char *end = NULL;
@@ -753,7 +794,15 @@ static int load_json(loader *L, const char *text, size_t len)
         line_col(text, end ? end : text + len, &line, &col);
         return ct_fail(L->err, CT_EPARSE, "%s:%d:%d: JSON syntax error", L->path, line, col);
     }
+    while (end && end < text + len && (*end == ' ' || *end == '\t' || *end == '\n' || *end == '\r')) end++;
     int rc = CT_OK;
+    if (end && end < text + len) {
+        int line, col;
+        line_col(text, end, &line, &col);
+        rc = ct_fail(L->err, CT_EPARSE, "%s:%d:%d: trailing characters after the JSON value", L->path, line, col);
+        goto done;
+    }
+    if ((rc = check_duplicates(L, root, "at the top level"))) goto done;
     if (!cJSON_IsObject(root)) {
         rc = bad(L, "top level", "must be a JSON object");
         goto done;

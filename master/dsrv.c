@@ -48,16 +48,29 @@ void dsrv_default_listen(char *out, size_t cap)
     snprintf(out, cap, "unix:%s/corrtex-%ld.sock", dir, (long)getpid());
 }
 
-int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
+static int check_config(const dsrv_config *cfg, xport_addr *a, ct_error *err)
 {
-    xport_addr a;
-    int rc = xport_parse(cfg->listen, true, &a, err);
+    int rc = xport_parse(cfg->listen, true, a, err);
     if (rc) return rc;
-    if (a.kind == XPORT_TCP && !cfg->token)
+    if (a->kind == XPORT_TCP && !cfg->token)
         return ct_fail(err, CT_EINVAL,
                        "%s: TCP needs a token (--token-file FILE or %s): without one anyone who reaches the port "
                        "could drive the master",
                        cfg->listen, AUTH_TOKEN_ENV);
+    return 0;
+}
+
+int dsrv_check_config(const dsrv_config *cfg, ct_error *err)
+{
+    xport_addr a;
+    return check_config(cfg, &a, err);
+}
+
+int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
+{
+    xport_addr a;
+    int rc = check_config(cfg, &a, err);
+    if (rc) return rc;
     dsrv *s = calloc(1, sizeof *s);
     if (!s) return ct_fail(err, CT_ENOMEM, "display server: out of memory");
     s->cfg = *cfg;

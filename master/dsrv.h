@@ -49,6 +49,11 @@ typedef struct dsrv_event {
  * /tmp when XDG_RUNTIME_DIR is not set. */
 void dsrv_default_listen(char *out, size_t cap);
 
+/* Fails as dsrv_new would on the configuration alone (an address that does
+ * not parse, TCP without a token): a program checks it before expensive
+ * work (corrtex-render: before the radiosity solve). */
+int dsrv_check_config(const dsrv_config *cfg, ct_error *err);
+
 /* Starts listening (a UNIX socket file gets mode 0600). TCP without a token
  * fails: the socket would be open to anyone who can reach the port. */
 int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err);

@@ -22,6 +22,10 @@ printf '{"meshes":[{"file":"nan.obj"}]}' > "$tmp/nan.json"
 printf '{"meshes":[{"file":"degen.obj"}]}' > "$tmp/degen.json"
 printf '{"meshes":[{"file":"ok.obj"}],"materials":{"m":{"shiny":1}}}' > "$tmp/key.json"
 printf '{}' > "$tmp/empty.json"
+# Trailing garbage, and a key given twice (the first used to win silently).
+printf '{"meshes":[{"file":"ok.obj"}]}\n} x\n' > "$tmp/trailing.json"
+printf '{"meshes":[{"file":"ok.obj"}],"materials":{"m":{"diffuse":[1,0,0],"diffuse":[0,0,1]}}}' > "$tmp/dupkey.json"
+printf '{"meshes":[{"file":"ok.obj"}],\n "meshes":[]}' > "$tmp/dupmesh.json"
 # Coordinates beyond the range rays can take (a camera at -1e30 aborted the
 # tracer inside Embree; a light edge of 1e30 rendered black).
 printf '{"meshes":[{"file":"ok.obj"}],"cameras":[{"name":"c","eye":[0,1,-1e30],"target":[0,0,0]}]}' > "$tmp/far_cam.json"
@@ -42,6 +46,16 @@ check "$tmp/nan.json" "nan.obj"
 check "$tmp/degen.json" "no triangles"
 check "$tmp/key.json" "unknown key 'shiny'"
 check "$tmp/empty.json" "empty.json"
+check "$tmp/trailing.json" "trailing.json:2:1: trailing characters after the JSON value"
+check "$tmp/dupkey.json" "dupkey.json: duplicate key 'diffuse' in 'm'"
+check "$tmp/dupmesh.json" "dupmesh.json: duplicate key 'meshes' at the top level"
+# A mesh file without triangles next to others: loaded, with a warning naming it.
+printf 'v 0 0 0\nv 1 0 0\nl 1 2\n' > "$tmp/lines.obj"
+printf '{"meshes":[{"file":"ok.obj"},{"file":"lines.obj"}]}' > "$tmp/lines.json"
+"$BIN/corrtex" info "$tmp/lines.json" >"$tmp/o" 2>"$tmp/e"; rc=$?
+echo "+ $BIN/corrtex info $tmp/lines.json  -> exit $rc: $(cat "$tmp/e")"
+[[ $rc -eq 0 ]] || { echo "FAIL: lines.json: exit $rc, want 0"; fail=1; }
+grep -q '^warn scene: .*lines.obj: no triangles' "$tmp/e" || { echo "FAIL: no warning naming lines.obj"; fail=1; }
 check "$tmp/far_cam.json" "far_cam.json: camera 'c': eye or target outside the coordinate range"
 check "$tmp/far_light.json" "far_light.json: lights\[0\]: corner 1 at (1e+30, 2, 0) is outside the coordinate range"
 for cmd in "reference --width 8 --height 8 --spp 1 --mode path -o $tmp/far.exr" "radiosity -o $tmp/far.ctmesh --image $tmp/far.png"; do

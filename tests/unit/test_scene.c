@@ -217,6 +217,22 @@ Test(scene_bad, json_syntax_error_line_col)
     expect_fail(p, CT_EPARSE, "s.json:3:", "JSON syntax error");
 }
 
+/* cJSON stops at the end of the first value and keeps every copy of a key
+ * (a lookup finds the first): both were accepted silently. */
+Test(scene_bad, json_trailing_garbage_and_duplicate_keys)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}\n\n  ]\n"), CT_EPARSE, "s.json:3:3:",
+                "trailing characters after the JSON value");
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\",\"name\":\"a\",\"file\":\"b.obj\"}]}"),
+                CT_EPARSE, "s.json: duplicate key 'file' in 'meshes'", NULL);
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}],\"name\":\"x\",\"name\":\"y\"}"),
+                CT_EPARSE, "s.json: duplicate key 'name' at the top level", NULL);
+    ct_scene *s = load_ok(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}\n \t\n"));
+    scene_free(s);
+}
+
 Test(scene_bad, obj_index_out_of_range)
 {
     const char *p = one_mesh_scene("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
