@@ -55,6 +55,7 @@ static struct {
     size_t n, cap;
     pending_recv *recvs;
     size_t nr, rcap;
+    wire_buf spare;   /* the caller's last buffer, for the next receive */
 } L;
 
 static void finish_recvs(void);
@@ -282,6 +283,9 @@ static int start_recvs(int source, int tag, ct_error *err)
         }
         pending_recv *r = &L.recvs[L.nr];
         memset(r, 0, sizeof *r);
+        r->buf = L.spare;
+        r->buf.len = 0;
+        memset(&L.spare, 0, sizeof L.spare);
         if (info_of(&st, &r->info, err) < 0) return CT_EIO;
         /* A matched message must be received: one over the limit is taken
          * into a one-byte buffer (MPI reports the truncation) and refused. */
@@ -308,7 +312,9 @@ int mpil_poll_recv(int source, int tag, mpil_info *info, wire_buf *out, ct_error
         for (size_t j = 0; j < i && !older; j++) older = L.recvs[j].info.source == r->info.source;
         if (older) continue;
         *info = r->info;
-        wire_buf_free(out);
+        /* Buffers go round: the caller's last one takes the next message. */
+        if (L.spare.data) wire_buf_free(out);
+        else L.spare = *out;
         *out = r->buf;
         out->len = r->info.size;
         memmove(r, r + 1, (L.nr - i - 1) * sizeof *r);
@@ -335,6 +341,7 @@ static void finish_recvs(void)
         L.nr = j;
         if (L.nr) sleep_us(200);
     }
+    wire_buf_free(&L.spare);
     for (size_t i = 0; i < L.nr; i++)
         if (L.recvs[i].done == 0) MPI_Request_free(&L.recvs[i].req);
     if (L.nr == 0) {
