@@ -126,6 +126,18 @@ void mpil_abort(int code)
     MPI_Abort(MPI_COMM_WORLD, code);
 }
 
+/* Room for one more entry of elem bytes in the list *p of *n entries. */
+static int grow_list(void **p, size_t n, size_t *cap, size_t elem, const char *what, ct_error *err)
+{
+    if (n < *cap) return 0;
+    size_t c = *cap ? 2 * *cap : 16;
+    void *q = realloc(*p, c * elem);
+    if (!q) return ct_fail(err, CT_ENOMEM, "MPI %s list: out of memory for %zu entries", what, c);
+    *p = q;
+    *cap = c;
+    return 0;
+}
+
 static int check_len(size_t len, ct_error *err)
 {
     if (len > MPIL_MAX_MESSAGE || len > INT_MAX)
@@ -143,13 +155,7 @@ int mpil_send(int dest, int tag, const void *data, size_t len, ct_error *err)
 int mpil_isend(int dest, int tag, wire_buf *buf, ct_error *err)
 {
     if (check_len(buf->len, err) < 0) return CT_ERANGE;
-    if (L.n == L.cap) {
-        size_t cap = L.cap ? 2 * L.cap : 16;
-        pending_send *p = realloc(L.sends, cap * sizeof *p);
-        if (!p) return ct_fail(err, CT_ENOMEM, "MPI send list: out of memory for %zu entries", cap);
-        L.sends = p;
-        L.cap = cap;
-    }
+    if (grow_list((void **)&L.sends, L.n, &L.cap, sizeof *L.sends, "send", err) < 0) return CT_ENOMEM;
     pending_send *s = &L.sends[L.n];
     s->buf = *buf;
     MPI_CHECK(MPI_Isend(s->buf.data, (int)s->buf.len, MPI_BYTE, dest, tag, MPI_COMM_WORLD, &s->req), err);
@@ -274,13 +280,7 @@ static int start_recvs(int source, int tag, ct_error *err)
                               MPI_COMM_WORLD, &flag, &msg, &st),
                   err);
         if (!flag) return 0;
-        if (L.nr == L.rcap) {
-            size_t cap = L.rcap ? 2 * L.rcap : 16;
-            pending_recv *p = realloc(L.recvs, cap * sizeof *p);
-            if (!p) return ct_fail(err, CT_ENOMEM, "MPI receive list: out of memory for %zu entries", cap);
-            L.recvs = p;
-            L.rcap = cap;
-        }
+        if (grow_list((void **)&L.recvs, L.nr, &L.rcap, sizeof *L.recvs, "receive", err) < 0) return CT_ENOMEM;
         pending_recv *r = &L.recvs[L.nr];
         memset(r, 0, sizeof *r);
         r->buf = L.spare;

@@ -15,33 +15,15 @@
 #include <unistd.h>
 
 #include "common/fsutil.h"
+#include "tests/support/fixtures.h"
 
-static char g_dir[256];
+static const char *g_dir;
 
-static void make_dir(void)
-{
-    snprintf(g_dir, sizeof g_dir, "/tmp/ct_fsutil_%ld", (long)getpid());
-    ct_error err;
-    cr_assert_eq(fs_mkdirs(g_dir, &err), 0, "%s", err.msg);
-}
+static void make_dir(void) { g_dir = fx_tmpdir(); }
 
-static void remove_dir(void)
-{
-    char cmd[300];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
-    cr_expect_eq(system(cmd), 0);
-}
+TestSuite(fsutil, .init = make_dir, .timeout = 10);
 
-TestSuite(fsutil, .init = make_dir, .fini = remove_dir, .timeout = 10);
-
-static const char *at(const char *name)
-{
-    static char p[4][300];
-    static int k;
-    k = (k + 1) % 4;
-    snprintf(p[k], sizeof p[k], "%s/%s", g_dir, name);
-    return p[k];
-}
+static const char *at(const char *name) { return fx_path(g_dir, name); }
 
 static const char *fifo(const char *name)
 {
