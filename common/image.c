@@ -313,15 +313,47 @@ static exr_result_t write_exr_ctx(exr_context_t ctx, const ct_image *img, img_pi
     return write_chunks(ctx, part, img);
 }
 
+/* The EXR bytes are assembled in memory and written with fs_write_atomic:
+ * the library's own file writing would rename a temporary over a device or
+ * FIFO target, and it seeks back to fill the chunk offset table, which a
+ * FIFO cannot do. */
+typedef struct exr_mem {
+    unsigned char *data;
+    size_t len, cap;
+} exr_mem;
+
+static int64_t exr_mem_write(exr_const_context_t ctxt, void *user, const void *buf, uint64_t sz, uint64_t offset,
+                             exr_stream_error_func_ptr_t error_cb)
+{
+    exr_mem *m = user;
+    if (offset > SIZE_MAX / 2 || sz > SIZE_MAX / 2 - offset) {
+        error_cb(ctxt, EXR_ERR_WRITE_IO, "EXR larger than memory");
+        return -1;
+    }
+    size_t end = (size_t)(offset + sz);
+    if (end > m->cap) {
+        size_t cap = m->cap ? m->cap : 1 << 16;
+        while (cap < end) cap *= 2;
+        unsigned char *p = realloc(m->data, cap);
+        if (!p) {
+            error_cb(ctxt, EXR_ERR_OUT_OF_MEMORY, "out of memory for the EXR bytes");
+            return -1;
+        }
+        m->data = p;
+        m->cap = cap;
+    }
+    if (offset > m->len) memset(m->data + m->len, 0, (size_t)offset - m->len);
+    memcpy(m->data + offset, buf, (size_t)sz);
+    if (end > m->len) m->len = end;
+    return (int64_t)sz;
+}
+
 int img_write_exr(const char *path, const ct_image *img, img_pixel_type type, ct_error *err)
 {
     int rc = check_image(path, img, err);
     if (rc) return rc;
     if (type != IMG_HALF && type != IMG_FLOAT)
         return ct_fail(err, CT_EINVAL, "%s: unknown EXR pixel type %d", path, (int)type);
-    char tmp[4096];
-    if (strlen(path) + 32 >= sizeof tmp) return ct_fail(err, CT_EINVAL, "%s: path too long", path);
-    fs_temp_name(path, tmp, sizeof tmp);
 
     /* Half overflows to infinity above 65504; a bright firefly should stay
      * a finite (clamped) value rather than poison every later metric. */
@@ -338,27 +370,27 @@ int img_write_exr(const char *path, const ct_image *img, img_pixel_type type, ct
         src = &clamped;
     }
 
+    exr_mem mem = {NULL, 0, 0};
     exr_context_initializer_t init = exr_init();
     init.flags = 0;
+    init.user_data = &mem;
+    init.write_fn = exr_mem_write;
     exr_context_t ctx = NULL;
     exr_last_msg[0] = '\0';
-    exr_result_t rv = exr_start_write(&ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
-    if (rv != EXR_ERR_SUCCESS) {
-        if (ctx) exr_finish(&ctx);
-        unlink(tmp);
-        img_free(&clamped);
-        return ct_fail(err, CT_EIO, "%s: cannot create EXR: %s", path, exr_why(rv));
+    exr_result_t rv = exr_start_write(&ctx, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS) {
+        rv = write_exr_ctx(ctx, src, type);
+        /* exr_finish writes the chunk offset table; its failure is a write failure too. */
+        exr_result_t frv = exr_finish(&ctx);
+        if (rv == EXR_ERR_SUCCESS) rv = frv;
+    } else if (ctx) {
+        exr_finish(&ctx);
     }
-    rv = write_exr_ctx(ctx, src, type);
-    /* exr_finish writes the chunk offset table; its failure is a write failure too. */
-    exr_result_t frv = exr_finish(&ctx);
-    if (rv == EXR_ERR_SUCCESS) rv = frv;
     img_free(&clamped);
-    if (rv != EXR_ERR_SUCCESS) {
-        unlink(tmp);
-        return ct_fail(err, CT_EIO, "%s: cannot write EXR: %s", path, exr_why(rv));
-    }
-    return fs_commit_temp(tmp, path, err);
+    if (rv != EXR_ERR_SUCCESS) rc = ct_fail(err, CT_EIO, "%s: cannot write EXR: %s", path, exr_why(rv));
+    else rc = fs_write_atomic(path, mem.data, mem.len, err);
+    free(mem.data);
+    return rc;
 }
 
 /* --- PNG ------------------------------------------------------------------ */
@@ -414,8 +446,10 @@ int img_write_png(const char *path, const ct_image *img, float exposure, ct_erro
 int img_read_png(const char *path, ct_image *img, ct_error *err)
 {
     memset(img, 0, sizeof *img);
-    FILE *f = fopen(path, "rb");
-    if (!f) return ct_fail(err, CT_EIO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *f;
+    size_t size;
+    int rc = fs_open_regular(path, &f, &size, err);
+    if (rc) return rc;
     png_image pi;
     memset(&pi, 0, sizeof pi);
     pi.version = PNG_IMAGE_VERSION;
@@ -430,7 +464,7 @@ int img_read_png(const char *path, ct_image *img, ct_error *err)
                        (unsigned)pi.height, IMG_MAX_SIDE);
     }
     pi.format = PNG_FORMAT_RGB;
-    int rc = img_alloc(img, (int)pi.width, (int)pi.height, err);
+    rc = img_alloc(img, (int)pi.width, (int)pi.height, err);
     if (rc) {
         png_image_free(&pi);
         fclose(f);

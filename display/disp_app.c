@@ -20,6 +20,7 @@
 #include "display/disp_session.h"
 #include "display/disp_synthetic.h"
 #include "display/gl_load.h"
+#include "proto/auth.h"
 
 #define COMP "corrtex-display"
 
@@ -515,7 +516,15 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         if (rc) return DISP_EXIT_USAGE;
         a.have_path = true;
     }
-    /* Input files first, so bad input fails before any window opens. */
+    /* Input files first, so bad input fails before any window opens; a bad
+     * token file is bad input too, not a lost connection (exit 3). */
+    if (o->connect) {
+        auth_token tok;
+        bool have;
+        rc = auth_token_get(o->token_file, &tok, &have, err);
+        auth_token_wipe(&tok);
+        if (rc) return DISP_EXIT_USAGE;
+    }
     if (o->has_camera) {
         a.fly.cam = o->camera;
         a.have_cam = true;

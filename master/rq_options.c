@@ -83,6 +83,13 @@ static const optdesc opts[] = {
 
 static const char *norm_names[] = {"max", "lum", "avg"};
 
+bool rq_options_has(const char *name)
+{
+    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
+        if (strcmp(opts[i].name, name) == 0) return true;
+    return false;
+}
+
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err)
 {
     for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) {

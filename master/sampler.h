@@ -105,6 +105,9 @@ void rq_options_default(rq_options *o);
  * "min-priority"); CT_EINVAL with a message naming it on a bad name or value. */
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err);
 
+/* Whether name (without "--") is a sampler option. */
+bool rq_options_has(const char *name);
+
 /* Prints one "--name VALUE  help (default X)" line per option to f. */
 void rq_options_usage(FILE *f);
 

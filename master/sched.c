@@ -481,11 +481,12 @@ static int receive_samples(loop_state *s, ct_error *err)
     int any = 0;
     mpil_info info;
     for (;;) {
-        int got = mpil_probe(MPIL_ANY, MPIL_ANY, &info, err);
+        /* Never a blocking receive: a stopped tracer in the middle of a
+         * large message would hold the loop, its watchdog included. */
+        int got = mpil_poll_recv(MPIL_ANY, MPIL_ANY, &info, &s->mbuf, err);
         if (got < 0) return got;
         if (!got) break;
-        int rc = mpil_recv(&info, &s->mbuf, err);
-        if (rc) return rc;
+        int rc;
         char peer[32];
         snprintf(peer, sizeof peer, "tracer rank %d", info.source);
         if (info.tag != MPIL_TAG_SAMPLES || info.source < 1 || info.source > s->T)

@@ -165,12 +165,6 @@ void wire_make_error(wire_msg *m, uint32_t code, const char *text)
     m->u.error.text[n] = '\0';
 }
 
-static bool finite_camera(const ct_camera *c)
-{
-    return isfinite(c->eye.x) && isfinite(c->eye.y) && isfinite(c->eye.z) && isfinite(c->orient.w) &&
-           isfinite(c->orient.x) && isfinite(c->orient.y) && isfinite(c->orient.z) && isfinite(c->fov_y);
-}
-
 /* The checks every message passes on both sides. who: "peer X" text for errors. */
 static int validate(const wire_msg *m, const char *who, ct_error *err)
 {
@@ -224,10 +218,8 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
         const wire_camera *c = &m->u.camera;
         if (c->width == 0 || c->height == 0 || c->width > WIRE_IMAGE_MAX_DIM || c->height > WIRE_IMAGE_MAX_DIM)
             return ct_fail(err, CT_EPROTO, "%s: CAMERA image size %ux%u out of range", who, c->width, c->height);
-        if (!finite_camera(&c->cam))
-            return ct_fail(err, CT_EPROTO, "%s: CAMERA has a non-finite value", who);
-        if (!(c->cam.fov_y > 0.0f && c->cam.fov_y < 3.14159f))
-            return ct_fail(err, CT_EPROTO, "%s: CAMERA field of view %g out of range", who, (double)c->cam.fov_y);
+        char why[96];
+        if (!cam_valid(&c->cam, why, sizeof why)) return ct_fail(err, CT_EPROTO, "%s: CAMERA %s", who, why);
         return 0;
     }
     case WIRE_TEX_ALLOC: {

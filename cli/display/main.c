@@ -113,6 +113,11 @@ static int parse_camera(const char *s, ct_camera *cam)
         return -1;
     }
     vec3 eye = v3(v[0], v[1], v[2]), target = v3(v[3], v[4], v[5]);
+    if (!v3_in_range(eye) || !v3_in_range(target)) {
+        ct_log(CT_LOG_ERROR, COMP, "--camera: '%s': eye and target must be finite and within +-%g", s,
+               (double)CT_COORD_MAX);
+        return -1;
+    }
     if (v3_len(v3_sub(target, eye)) <= 0) {
         ct_log(CT_LOG_ERROR, COMP, "--camera: eye and target coincide");
         return -1;

@@ -360,6 +360,13 @@ static const broken broken_frames[] = {
                     ONE}, 52, CT_EPROTO, "peer: CAMERA has a non-finite value"},
     {"CAMERA fov", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE, ONE, ONE, ONE, ONE,
                     F32(0, 0, 0x80, 0xbf)}, 52, CT_EPROTO, "peer: CAMERA field of view -1 out of range"},
+    /* An eye far outside the scene range made a tracer abort inside Embree. */
+    {"CAMERA eye far away", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE,
+                             F32(0x23, 0xc7, 0x0a, 0xdf), ONE, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, ONE}, 52,
+     CT_EPROTO, "peer: CAMERA eye coordinate -1e+19 outside +-1e+09"},
+    {"CAMERA zero orientation", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE,
+                                 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, ONE}, 52, CT_EPROTO,
+     "peer: CAMERA orientation is not a unit quaternion (norm^2 0)"},
     {"CAMERA image size", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 0, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE, ONE, ONE, ONE, ONE,
                            ONE}, 52, CT_EPROTO, "peer: CAMERA image size 0x64 out of range"},
     {"SETTINGS flags", {H(WIRE_SETTINGS, 0, 40), 0, 0, 0, 0, 4, 0, 0, 0}, 48, CT_EPROTO, "peer: SETTINGS flags 0x4 unknown"},
