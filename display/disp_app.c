@@ -353,7 +353,7 @@ static int run(app *a, ct_error *err)
         rgb = malloc(npx * 3 * sizeof *rgb);
         if (!rgb) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d frame", o->width, o->height);
     }
-    double render_ms_sum = 0, first_ms = 0, cpu_ms_sum = 0;
+    double render_ms_sum = 0, first_ms = 0, cpu_ms_sum = 0, t_captured = 0;
     uint32_t k = 0;
     int rc = CT_OK;
     bool fly_ready = disp_session_scene_of(a->session) != NULL;
@@ -400,10 +400,11 @@ static int run(app *a, ct_error *err)
                 cam = campath_frame(&a->path, (int)k, nframes);
                 ftime = nframes > 1 ? (double)dur * k / (double)(nframes - 1) : 0.0;
             } else {
-                /* Real time: the frame at or after the path's end is its last. */
+                /* Real time: the frame at or after the path's end is its
+                 * last, or the camera stops there for --hold seconds. */
                 if (ftime >= dur) {
+                    path_done = last = ftime >= dur + o->hold_seconds;
                     ftime = dur;
-                    path_done = last = true;
                 }
                 cam = campath_eval(&a->path, t_first + (float)ftime);
             }
@@ -463,7 +464,8 @@ static int run(app *a, ct_error *err)
             cpu_ms_sum += 1000.0 * (cpu_now() - c0);
         }
         a->stat_frames++;
-        if (a->capture) {
+        if (a->capture && (o->out_every <= 0 || k == 0 || last || ct_now() - t_captured >= o->out_every)) {
+            t_captured = ct_now();
             disp_counters c = disp_session_counters(a->session);
             /* Lockstep: the FRAME's own count (STATS arrive between frames). */
             uint64_t fs = o->samples_per_frame > 0 ? c.frame_samples - prev.frame_samples : c.samples - prev.samples;
@@ -568,7 +570,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         }
     }
     if (!rc && o->out_dir) {
-        rc = disp_capture_open(o->out_dir, o->ref_dir, o->exposure, &a.capture, err);
+        rc = disp_capture_open(o->out_dir, o->ref_dir, o->exposure, !o->no_images, &a.capture, err);
         if (rc) status = DISP_EXIT_USAGE;
     }
     if (!rc) {

@@ -40,7 +40,10 @@ typedef struct disp_app_opts {
     int frames;                   /* --frames N; 0: real time (path) or until closed */
     int samples_per_frame;        /* lockstep frames from the master */
     const char *out_dir;
-    const char *ref_dir;
+    const char *ref_dir;          /* --reference: a folder of per-frame references or one image */
+    double out_every;             /* capture a frame at most every this many seconds (0: every frame) */
+    bool no_images;               /* frames.csv only */
+    double hold_seconds;          /* real-time path: keep its last camera this long after it ends */
     uint32_t synthetic;           /* synthetic correction textures (no master) */
     bool synthetic_positive;
     bool synthetic_tiles;         /* cut parts into tiles to reach the count */

@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <sys/stat.h>
+
 #include "common/fsutil.h"
 #include "common/image.h"
 #include "common/metrics.h"
@@ -16,6 +18,8 @@ struct disp_capture {
     char dir[2048];
     char ref_dir[2048];
     bool has_ref;
+    ct_image ref_one;   /* one reference for every frame (ref_dir unused) */
+    bool images;
     float exposure;
     char *csv;          /* rows so far */
     size_t len, cap;
@@ -25,7 +29,7 @@ struct disp_capture {
 static const char *header =
     "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures";
 
-int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp_capture **out,
+int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err)
 {
     *out = NULL;
@@ -34,10 +38,20 @@ int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp
     disp_capture *c = calloc(1, sizeof *c);
     if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for frame capture");
     snprintf(c->dir, sizeof c->dir, "%s", dir);
-    if (ref_dir) {
-        snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref_dir);
+    struct stat st;
+    if (ref && stat(ref, &st) == 0 && S_ISREG(st.st_mode)) {
+        /* One image: a still view's converged reference. */
+        if ((rc = img_read_exr(ref, &c->ref_one, err))) {
+            ct_error_prefix(err, "reference");
+            free(c);
+            return rc;
+        }
+        c->has_ref = true;
+    } else if (ref) {
+        snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref);
         c->has_ref = true;
     }
+    c->images = images;
     c->exposure = exposure;
     *out = c;
     return CT_OK;
@@ -76,14 +90,15 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
 {
     char name[64], path[4096];
     ct_image img = {width, height, (float *)rgb};
-    snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
-    fs_join(c->dir, name, path, sizeof path);
-    int rc = img_write_exr(path, &img, IMG_HALF, err);
-    if (rc) return rc;
-    snprintf(name, sizeof name, "frame_%05u.png", fi->frame);
-    fs_join(c->dir, name, path, sizeof path);
-    rc = img_write_png(path, &img, c->exposure, err);
-    if (rc) return rc;
+    int rc;
+    if (c->images) {
+        snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
+        fs_join(c->dir, name, path, sizeof path);
+        if ((rc = img_write_exr(path, &img, IMG_HALF, err))) return rc;
+        snprintf(name, sizeof name, "frame_%05u.png", fi->frame);
+        fs_join(c->dir, name, path, sizeof path);
+        if ((rc = img_write_png(path, &img, c->exposure, err))) return rc;
+    }
 
     char row[768];
     int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u",
@@ -92,17 +107,22 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
                      fi->cam.fov_y * 180.0f / CT_PI, fi->frame_ms, (unsigned long long)fi->samples,
                      (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures);
     if (c->has_ref) {
-        snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
-        fs_join(c->ref_dir, name, path, sizeof path);
         ct_image ref = {0, 0, NULL};
-        rc = img_read_exr(path, &ref, err);
-        if (rc) {
-            ct_error_prefix(err, "reference");
-            return rc;
+        if (c->ref_one.px) {
+            ref = c->ref_one;
+            snprintf(path, sizeof path, "the reference image");
+        } else {
+            snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
+            fs_join(c->ref_dir, name, path, sizeof path);
+            rc = img_read_exr(path, &ref, err);
+            if (rc) {
+                ct_error_prefix(err, "reference");
+                return rc;
+            }
         }
         img_metrics m;
         rc = metrics_compare(&img, &ref, &m, err);
-        img_free(&ref);
+        if (!c->ref_one.px) img_free(&ref);
         if (rc) {
             ct_error_prefix(err, path);
             return rc;
@@ -125,6 +145,7 @@ int disp_capture_close(disp_capture *c, ct_error *err)
 {
     if (!c) return CT_OK;
     int rc = write_csv(c, err);
+    img_free(&c->ref_one);
     free(c->csv);
     free(c);
     return rc;

@@ -1,12 +1,14 @@
 /* disp_capture.h: frame output for --out DIR: frame_NNNNN.exr (linear RGB,
- * half) and frame_NNNNN.png (exposure + sRGB, 8 bit) per frame, and
- * frames.csv with one row per frame (camera, timings, per-frame counts and,
- * with --reference DIR, the RMSE and PSNR against DIR/frame_NNNNN.exr).
- * Every file is written atomically; frames.csv is rewritten every few
- * frames and at the end so it is always complete up to some frame. */
+ * half) and frame_NNNNN.png (exposure + sRGB, 8 bit) per frame (unless
+ * images are off: --no-images), and frames.csv with one row per frame
+ * (camera, timings, per-frame counts and, with --reference, the RMSE and
+ * PSNR against DIR/frame_NNNNN.exr, or against one image FILE.exr for every
+ * frame). Every file is written atomically; frames.csv is rewritten every
+ * few frames and at the end so it is always complete up to some frame. */
 #ifndef CT_DISP_CAPTURE_H
 #define CT_DISP_CAPTURE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "common/camera.h"
@@ -26,8 +28,10 @@ typedef struct disp_frame_info {
 
 typedef struct disp_capture disp_capture;
 
-/* Creates dir (mkdir -p); ref_dir may be NULL. */
-int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp_capture **out,
+/* Creates dir (mkdir -p); ref may be NULL, a folder of per-frame
+ * references or one reference image (read now); images: write each frame's
+ * EXR and PNG. */
+int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err);
 
 /* Writes the frame's EXR and PNG (rgb: linear, 3 floats per pixel, top row

@@ -161,6 +161,8 @@ typedef struct loop_state {
     uint32_t epoch;             /* internal epoch: what tracers see */
     uint32_t rq_epoch;          /* the request queue's own epoch */
     uint32_t disp_epoch;        /* the display's epoch number of the current camera */
+    double view_t0;             /* when the current view was set */
+    int view_covered;           /* its every pixel has been handed out (logged once) */
     uint64_t batch_id;
     int rr;                     /* free-running: the rank served first next time */
     /* lockstep */
@@ -338,6 +340,8 @@ static int apply_camera(loop_state *s, const wire_camera *c, ct_error *err)
     s->have_cam = 1;
     s->epoch++;
     ctex_set_clock(s->tex, ct_now_us());   /* stamps of the textures it makes */
+    s->view_t0 = t0;
+    s->view_covered = 0;
     rc = ctex_set_camera(s->tex, &s->cam, s->w, s->h, err);
     s->t_tex += ct_now() - t0;
     if (rc) {
@@ -844,6 +848,15 @@ int sched_run(const sched_config *c, ct_error *err)
         if (fed < 0) { rc = fed; break; }
         busy = got || fed;
         now = ct_now();
+        if (s.have_cam && !s.view_covered) {
+            rq_stats rs;
+            rq_stats_get(s.rq, &rs);
+            if (rs.coverage >= 1.0) {
+                s.view_covered = 1;
+                ct_info(COMPONENT, "view covered: every pixel sampled %.2f s after the camera stopped (%llu samples)",
+                        now - s.view_t0, (unsigned long long)s.total_samples);
+            }
+        }
         if (!s.lockstep && now - s.last_patch >= c->opt.patch_ms / 1000.0 && dsync_can_send(s.sync)) {
             if ((rc = send_update(&s, err))) break;
             s.last_patch = now;

@@ -61,7 +61,11 @@ static void usage(FILE *f, const disp_app_opts *d)
             "                        or with --connect until the master ends or a signal)\n"
             "  --seconds S           stop after S seconds (default 0: no limit)\n"
             "  --out DIR             write frame_NNNNN.exr/.png and frames.csv\n"
-            "  --reference DIR       add RMSE/PSNR against DIR/frame_NNNNN.exr to frames.csv\n"
+            "  --out-every S         capture a frame at most every S seconds (default 0: every frame)\n"
+            "  --no-images           with --out: frames.csv only\n"
+            "  --reference DIR|FILE  add RMSE/PSNR against DIR/frame_NNNNN.exr, or against FILE.exr for\n"
+            "                        every frame (a still view), to frames.csv\n"
+            "  --hold S              real-time path: stay at its last camera S seconds after it ends (0)\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
@@ -218,6 +222,14 @@ int main(int argc, char **argv)
         } else if (!strcmp(a, "--samples-per-frame")) { NEED(); bad = parse_int(a, v, 0, 100000000, &o.samples_per_frame); }
         else if (!strcmp(a, "--out")) { NEED(); o.out_dir = v; }
         else if (!strcmp(a, "--reference")) { NEED(); o.ref_dir = v; }
+        else if (!strcmp(a, "--no-images")) o.no_images = true;
+        else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
+            NEED();
+            float x;
+            bad = parse_float(a, v, 0, 1e6f, &x);
+            if (!strcmp(a, "--hold")) o.hold_seconds = x;
+            else o.out_every = x;
+        }
         else if (!strcmp(a, "--connect")) { NEED(); o.connect = v; }
         else if (!strcmp(a, "--token-file")) { NEED(); o.token_file = v; }
         else if (!strcmp(a, "--reconnect")) o.reconnect = true;
@@ -243,8 +255,8 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "give exactly one of --connect, --mesh or --scene (see --help)");
         return DISP_EXIT_USAGE;
     }
-    if (o.ref_dir && !o.out_dir) {
-        ct_log(CT_LOG_ERROR, COMP, "--reference needs --out");
+    if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {
+        ct_log(CT_LOG_ERROR, COMP, "--reference, --no-images and --out-every need --out");
         return DISP_EXIT_USAGE;
     }
     struct sigaction sa;
