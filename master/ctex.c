@@ -1035,12 +1035,54 @@ static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const
     return 1;
 }
 
+/* Texture position (in texels) of the point the ray through image position
+ * (x, y) meets on texture t: a camera-local texture maps rays to positions,
+ * an object-local one its plane through the hit p (normal t->n). */
+static bool texel_of_ray(const ctex *c, const ctex_tex *t, vec3 p, float x, float y, float *tx, float *ty)
+{
+    vec3 d = cam_ray_dir(&c->cam, c->W, c->H, x, y);
+    vec3 q = v3_add(c->cam.eye, d);
+    if (t->kind == CTEX_PROJ_OBJECT) {
+        float dn = v3_dot(d, t->n);
+        if (!(fabsf(dn) > 1e-6f)) return false;
+        q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), t->n) / dn);
+    }
+    float u, v;
+    if (!ctex_tex_project(t, q, &u, &v)) return false;
+    *tx = u * (float)t->w;
+    *ty = v * (float)t->h;
+    return isfinite(*tx) && isfinite(*ty);
+}
+
 int ctex_refine(ctex *c, const ct_sample *s, vec3 dl, ctex_insert_info *info)
 {
     int ci, cj;
     int32_t id = locate(c, s, info, &ci, &cj);
     if (id < 0 || !v3_finite(dl)) return 0;
-    ctex_tex_refine(&c->slots[id].t, ci, cj, dl);
+    ctex_tex *t = &c->slots[id].t;
+    /* The texels the display reads for this pixel: those whose centres lie
+     * in the pixel's footprint on the texture (its corners' rays), within 4
+     * texels of the hit's; at least the hit's own. */
+    float fx = floorf(s->px), fy = floorf(s->py);
+    float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    bool ok = c->have_cam;
+    for (int k = 0; k < 4 && ok; k++) {
+        float tx, ty;
+        ok = texel_of_ray(c, t, s->hit, fx + (float)(k & 1), fy + (float)(k >> 1), &tx, &ty);
+        if (!ok) break;
+        x0 = fminf(x0, tx); x1 = fmaxf(x1, tx);
+        y0 = fminf(y0, ty); y1 = fmaxf(y1, ty);
+    }
+    int a = ci, b = ci, e = cj, f = cj;
+    if (ok) {
+        a = (int)ceilf(x0 - 0.5f); b = (int)floorf(x1 - 0.5f);
+        e = (int)ceilf(y0 - 0.5f); f = (int)floorf(y1 - 0.5f);
+        a = a < ci - 4 ? ci - 4 : (a > ci ? ci : a);
+        b = b > ci + 4 ? ci + 4 : (b < ci ? ci : b);
+        e = e < cj - 4 ? cj - 4 : (e > cj ? cj : e);
+        f = f > cj + 4 ? cj + 4 : (f < cj ? cj : f);
+    }
+    ctex_tex_refine(t, a < 0 ? 0 : a, e < 0 ? 0 : e, b >= t->w ? t->w - 1 : b, f >= t->h ? t->h - 1 : f, cj, dl);
     c->st.inserted++;
     return 1;
 }

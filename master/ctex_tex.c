@@ -187,13 +187,16 @@ static inline void grow_dirty(ctex_tex *t, int ci, int cj, int ex, int ey)
     ctex_dirty_mark(&t->d, x0, y0, x1, y1, cj);
 }
 
-void ctex_tex_refine(ctex_tex *t, int ci, int cj, vec3 value)
+void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value)
 {
     ctex_tex_keep_base(t);
-    ctex_texel *p = ctex_tex_at(t, ci, cj);
-    float v = ctex_tex_v(t, p);
-    ctex_texel_set(t, p, value, v > t->vmax ? v : t->vmax);
-    grow_dirty(t, ci, cj, 0, 0);
+    for (int y = y0; y <= y1; y++)
+        for (int x = x0; x <= x1; x++) {
+            ctex_texel *p = ctex_tex_at(t, x, y);
+            float v = ctex_tex_v(t, p);
+            ctex_texel_set(t, p, value, v > t->vmax ? v : t->vmax);
+        }
+    ctex_dirty_mark(&t->d, x0, y0, x1 + 1, y1 + 1, cy);
 }
 
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)

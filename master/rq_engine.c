@@ -59,6 +59,7 @@ struct rq_engine {
     size_t fl_cap;           /* power of two */
     uint64_t fl_lo;          /* ids below are reported or stale */
     uint64_t fl_out;         /* outstanding this epoch */
+    uint64_t fl_refine;      /* of them refinement requests */
     sigsample *sig;          /* min-heap: least significant at [0] */
     int n_sig;
     rq_refine ref;           /* past full coverage (px NULL: refinement off) */
@@ -223,6 +224,7 @@ static inline void emit(rq_engine *e, const rq_item *it, ct_request *r)
     f->outstanding = 1;
     f->kind = (uint16_t)it->kind;
     e->fl_out++;
+    e->fl_refine += it->kind == RQ_KIND_REFINE;
     r->id = id;
     r->parent = it->parent;
     r->epoch = e->epoch;
@@ -396,23 +398,26 @@ int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_
     flight req = *f;
     f->outstanding = 0;
     e->fl_out--;
+    e->fl_refine -= req.kind == RQ_KIND_REFINE;
     while (e->fl_lo < e->next_id && !e->fl[e->fl_lo & (e->fl_cap - 1)].outstanding) e->fl_lo++;
     e->st.reported++;
 
     float en = rq_error_norm(E, e->o.norm);
     bool hit = (s->flags & CT_SAMPLE_HIT) != 0;
     bool refine = req.kind == RQ_KIND_REFINE;
+    int in_mean = 0;
     if (e->ref.px && hit && v3_finite(s->l_hq) && v3_finite(s->l_base)) {
         int64_t p = pixel_of(e, req.px, req.py);
-        int rc = p >= 0 ? rq_refine_add(&e->ref, (uint32_t)p, s->node, v3_sub(s->l_hq, s->l_base), en, err) : 0;
-        if (rc) return rc;
+        in_mean = p >= 0 ? rq_refine_add(&e->ref, (uint32_t)p, s->node, v3_sub(s->l_hq, s->l_base), en, err) : 0;
+        if (in_mean < 0) return in_mean;
     }
     if (refine) {
-        /* Its pixel's mean goes into the texture; no children (the pixel
-         * is the domain), and the significant samples are the view's
-         * first ones. */
+        /* Its pixel's mean goes into the texture (not for a sample on
+         * another node than the pixel's: that mean is not its node's); no
+         * children (the pixel is the domain), and the significant samples
+         * are the view's first ones. */
         if (!hit) e->ref.samples++;
-        return RQ_REPORT_REFINE;
+        return in_mean ? RQ_REPORT_REFINE : 0;
     }
     uint32_t hq_node = hit ? s->node : RQ_NODE_NONE;
     bool mismatch = shown_node != RQ_NODE_UNKNOWN && shown_node != hq_node;
@@ -460,6 +465,7 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
     e->list_mode = 0;
     e->fl_lo = e->next_id;
     e->fl_out = 0;
+    e->fl_refine = 0;
     e->seq = 0;
     e->global_round = 0;
     e->epoch = epoch;
@@ -554,6 +560,7 @@ void rq_stats_get(const rq_engine *e, rq_stats *st)
     st->allocations = e->grows + e->heap.grows + e->mask.grows;
     st->queued = e->heap.n;
     st->in_flight = e->fl_out;
+    st->covered = st->sampled_pixels == st->total_pixels && e->fl_out == e->fl_refine;
     st->epoch = e->epoch;
     st->list_mode = e->list_mode;
     st->sampled_pixels = e->mask.count;

@@ -149,7 +149,8 @@ int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float err_no
     if (node != x->node) {
         x->n++;
         if (r->active) r->samples++;
-        return r->active ? queue(r, p, err) : 0;
+        int rc = r->active ? queue(r, p, err) : 0;
+        return rc < 0 ? rc : 0;
     }
     /* Welford: the mean of dL, the squared deviations of its luminance. */
     float y_old = x->n ? v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2])) : 0.0f;
@@ -169,9 +170,10 @@ int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float err_no
     } else {
         x->m2 += (y - y_old) * (y - y_new);
     }
-    if (!r->active) return 0;
+    if (!r->active) return 1;
     r->samples++;
-    return queue(r, p, err);
+    int rc = queue(r, p, err);
+    return rc < 0 ? rc : 1;
 }
 
 int rq_refine_start(rq_refine *r, ct_error *err)

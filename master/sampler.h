@@ -44,7 +44,7 @@ typedef enum rq_norm {
 enum {
     RQ_REPORT_STALE    = 1,  /* the sample belongs to an older epoch: ignored */
     RQ_REPORT_MISMATCH = 2,  /* hit node != shown node */
-    RQ_REPORT_REFINE   = 4   /* a refinement sample: its pixel's mean is rq_pixel_mean */
+    RQ_REPORT_REFINE   = 4   /* a refinement sample in its pixel's mean (rq_pixel_mean): write it */
 };
 
 /* Every tunable parameter, with its default (rq_options_default). */
@@ -93,6 +93,7 @@ typedef struct rq_stats {
     uint64_t sampled_pixels;      /* pixels handed out this epoch */
     uint64_t total_pixels;        /* width * height */
     double coverage;              /* sampled_pixels / total_pixels */
+    int covered;                  /* every pixel handed out and its first sample reported */
     int refining;                 /* 1 once every pixel was handed out and refinement goes on */
     uint64_t refine_samples;      /* refinement samples reported this epoch */
     float refine_error;           /* priority of the last pixel refined: the largest error left */
@@ -140,7 +141,7 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
 
 /* Whether outstanding request id is a refinement request (its sample is not
  * splatted: the caller writes the pixel's mean, rq_pixel_mean, after
- * rq_report). */
+ * rq_report when that says RQ_REPORT_REFINE). */
 bool rq_refines(const rq_engine *e, uint64_t id);
 
 /* The mean correction dL of the samples of the pixel at image position

@@ -464,8 +464,8 @@ static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *e
                 rejected(x, err);
                 continue;
             }
-            ctex_insert_info ri;
-            ctex_refine(s->tex, x, rq_pixel_mean(s->rq, x->px, x->py), &ri);
+            ctex_insert_info ri = {.tex = -1};
+            if (rc & RQ_REPORT_REFINE) ctex_refine(s->tex, x, rq_pixel_mean(s->rq, x->px, x->py), &ri);
             count_sample(s, x, &ri);
         }
     }
@@ -851,7 +851,7 @@ int sched_run(const sched_config *c, ct_error *err)
         if (s.have_cam && !s.view_covered) {
             rq_stats rs;
             rq_stats_get(s.rq, &rs);
-            if (rs.coverage >= 1.0) {
+            if (rs.covered) {
                 s.view_covered = 1;
                 ct_info(COMPONENT, "view covered: every pixel sampled %.2f s after the camera stopped (%llu samples)",
                         now - s.view_t0, (unsigned long long)s.total_samples);

@@ -782,7 +782,7 @@ static rq_engine *refine_until_idle(refine_run *rr, uint64_t seed, bool (*other_
             bool other = other_node && other_node(&r[i]) && rr->samples[p] > 0;
             if (other) smp.node = 2;
             int f = report(e, &smp, dl, 1);
-            cr_assert_eq((f & RQ_REPORT_REFINE) != 0, refine);
+            cr_assert_eq((f & RQ_REPORT_REFINE) != 0, refine && !other, "write the mean of same-node samples only");
             rr->samples[p]++;
             if (!other) rr->sum[p] += (double)dl.x;
         }
