@@ -66,6 +66,7 @@ typedef struct app {
     disp_inbox *inbox;            /* what its thread received, applied before each frame */
     disp_inbox_took took;         /* what the frame being drawn took from it */
     disp_lag *lag;                /* insertion at the master -> presented frame */
+    double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
     disp_scene_cache *cache;
     double retry_at, backoff;     /* next reconnection attempt, its delay */
     bool cam_sent;                /* last_cam went to this connection */
@@ -247,7 +248,10 @@ static int service(app *a, ct_error *err)
 static int take_inbox(app *a, ct_error *err)
 {
     if (!a->inbox) return CT_OK;
-    return disp_inbox_apply(a->inbox, a->session, &a->took, err);
+    double t0 = ct_now();
+    int rc = disp_inbox_apply(a->inbox, a->session, &a->took, err);
+    a->t_take += ct_now() - t0;
+    return rc;
 }
 
 /* After a frame is presented: the lag of every sample its patches carried
@@ -289,24 +293,33 @@ static int connection_begin(app *a, ct_error *err)
  * yet, it starts from the view the master suggests or an overview of the
  * scene once the scene is there), STEP_WAIT until there is a scene, and in
  * lockstep waits until the master's FRAME of the current epoch and all its
- * texels are in. */
-static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_start, ct_error *err)
+ * texels are in. With the next frame's camera known (next), lockstep asks
+ * for that frame at once, before this one is drawn: the master computes it
+ * while the display draws (the texels it sends wait in the inbox, which
+ * this frame has already taken), so a frame costs the longer of the two,
+ * not their sum. */
+static int send_camera(app *a, const ct_camera *cam, ct_error *err)
+{
+    ct_error e;
+    if (disp_client_send_camera(a->client, cam, a->o->width, a->o->height, &e))
+        return connection_lost(a, &e, ct_now(), err) ? STEP_LOST : STEP_DRAW;
+    a->cam_sent = true;
+    a->last_cam = *cam;
+    a->frame_taken = false;
+    return STEP_DRAW;
+}
+
+static int connection_step(app *a, const ct_camera *cam, const ct_camera *next, gl_input *in, double t_start,
+                           ct_error *err)
 {
     const disp_app_opts *o = a->o;
     int st;
     /* In lockstep every CAMERA asks for one frame, so a still camera sends
      * its (unchanged) camera again once the previous frame was drawn. */
     bool ask_frame = o->samples_per_frame > 0 && a->frame_taken;
-    if (cam && a->client && (!a->cam_sent || ask_frame || !same_camera(cam, &a->last_cam))) {
-        ct_error e;
-        if (disp_client_send_camera(a->client, cam, o->width, o->height, &e)) {
-            if (connection_lost(a, &e, ct_now(), err)) return STEP_LOST;
-        } else {
-            a->cam_sent = true;
-            a->last_cam = *cam;
-            a->frame_taken = false;
-        }
-    }
+    if (cam && a->client && (!a->cam_sent || ask_frame || !same_camera(cam, &a->last_cam)) &&
+        send_camera(a, cam, err) == STEP_LOST)
+        return STEP_LOST;
     if (!disp_session_scene_of(a->session)) {
         if (a->client) snprintf(a->status, sizeof a->status, "waiting for the scene from %s", o->connect);
         set_title(a, ct_now(), false);
@@ -316,6 +329,7 @@ static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_
     }
     if (!strncmp(a->status, "waiting", 7)) a->status[0] = '\0';
     /* Lockstep (docs/protocol.md): draw frame k only after FRAME k. */
+    double w0 = ct_now(), take0 = a->t_take;
     while (a->client && o->samples_per_frame > 0 && !disp_inbox_frame_ready(a->inbox, NULL)) {
         st = service(a, err);
         if (st) return st == 1 ? STEP_END : STEP_LOST;
@@ -327,9 +341,11 @@ static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_
         if (!handle_keys(a, in)) return STEP_QUIT;
         if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
     }
+    a->t_wait += ct_now() - w0 - (a->t_take - take0);
     if (a->client) {
         disp_inbox_take_frame(a->inbox);
         a->frame_taken = true;
+        if (o->samples_per_frame > 0 && next && send_camera(a, next, err) == STEP_LOST) return STEP_LOST;
     }
     return STEP_DRAW;
 }
@@ -412,8 +428,15 @@ static int run(app *a, ct_error *err)
             if (fly_ready) disp_fly_update(&a->fly, &in, dt);
             cam = a->fly.cam;
         }
+        /* Lockstep asks for the next frame ahead when its camera is known:
+         * the next of N frames of a path, or the same still or fly camera. */
+        ct_camera next = cam;
+        bool have_next = o->samples_per_frame > 0 && (nframes <= 0 || k + 1 < (uint32_t)nframes) &&
+                         (!a->have_path || nframes > 0);
+        if (have_next && a->have_path) next = campath_frame(&a->path, (int)k + 1, nframes);
         if (o->connect && !ended) {
-            int st = connection_step(a, a->have_path || a->have_cam ? &cam : NULL, &in, t_start, err);
+            int st = connection_step(a, a->have_path || a->have_cam ? &cam : NULL, have_next ? &next : NULL, &in,
+                                     t_start, err);
             if (st == STEP_QUIT) break;
             if (st == STEP_END) {
                 if (!disp_session_scene_of(a->session)) break;
@@ -466,15 +489,18 @@ static int run(app *a, ct_error *err)
         a->stat_frames++;
         if (a->capture && (o->out_every <= 0 || k == 0 || last || ct_now() - t_captured >= o->out_every)) {
             t_captured = ct_now();
+            double cap0 = t_captured;
             disp_counters c = disp_session_counters(a->session);
             /* Lockstep: the FRAME's own count (STATS arrive between frames). */
             uint64_t fs = o->samples_per_frame > 0 ? c.frame_samples - prev.frame_samples : c.samples - prev.samples;
             disp_frame_info fi = {k, ftime, cam, frame_ms, fs, c.texels - prev.texels,
-                                  c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session))};
+                                  c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session)),
+                                  ct_now() - t_start};
             prev = c;
             disp_compositor_read_linear(a->comp, rgb);
             double rmse = 0, psnr = 0;
             rc = disp_capture_frame(a->capture, &fi, rgb, o->width, o->height, &rmse, &psnr, err);
+            a->t_capture += ct_now() - cap0;
             if (rc) break;
             if (o->ref_dir) ct_info(COMP, "frame %u: rmse %.5f, psnr %.2f dB", k, rmse, psnr);
         }
@@ -494,6 +520,10 @@ static int run(app *a, ct_error *err)
                disp_textures_count(disp_session_textures(a->session)), disp_view_name(a->ropts.view),
                a->ropts.passes, gl_backend_name(gl_backend_kind_of(a->backend)));
     }
+    if (k > 0 && o->connect)
+        printf("display: per frame besides drawing: %.1f ms waiting for lockstep frames, %.1f ms taking what "
+               "arrived (texel uploads), %.1f ms capturing\n",
+               1000.0 * a->t_wait / k, 1000.0 * a->t_take / k, 1000.0 * a->t_capture / k);
     if (a->lag && a->lag->n)
         printf("display: lag from insertion at the master to the screen: median %.0f ms, p90 %.0f ms, p99 %.0f ms, "
                "max %.0f ms over %llu samples\n",

@@ -27,7 +27,7 @@ struct disp_capture {
 };
 
 static const char *header =
-    "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures";
+    "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures,wall_s";
 
 int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err)
@@ -101,11 +101,11 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
     }
 
     char row[768];
-    int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u",
+    int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u,%.6f",
                      fi->frame, fi->time, fi->cam.eye.x, fi->cam.eye.y, fi->cam.eye.z,
                      fi->cam.orient.w, fi->cam.orient.x, fi->cam.orient.y, fi->cam.orient.z,
                      fi->cam.fov_y * 180.0f / CT_PI, fi->frame_ms, (unsigned long long)fi->samples,
-                     (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures);
+                     (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures, fi->wall);
     if (c->has_ref) {
         ct_image ref = {0, 0, NULL};
         if (c->ref_one.px) {

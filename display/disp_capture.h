@@ -24,6 +24,7 @@ typedef struct disp_frame_info {
     uint64_t texels;      /* texels received since the previous frame */
     uint64_t bytes;       /* bytes received since the previous frame */
     uint32_t textures;    /* textures allocated now */
+    double wall;          /* seconds since the run started (wall clock, also for paths) */
 } disp_frame_info;
 
 typedef struct disp_capture disp_capture;

@@ -365,9 +365,10 @@ static void *thread_main(void *arg)
     ct_error_clear(&err);
     uint64_t next_ping = ct_now_us();
     int pings = 0, rc = 0;
+    bool more = false;   /* the last pump read bytes nobody has decoded yet */
     while (!atomic_load(&c->stop)) {
         uint64_t now = ct_now_us();
-        int timeout = next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
+        int timeout = more ? 0 : next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
         struct pollfd p[2] = {{chan_fd(c->ch), chan_events(c->ch), 0}, {c->wake[0], POLLIN, 0}};
         poll(p, 2, timeout);
         if (p[1].revents & POLLIN) {
@@ -388,7 +389,13 @@ static void *thread_main(void *arg)
         chan_byte_counts(c->ch, &rx, &tx);
         disp_inbox_bytes(c->inbox, rx);   /* before the messages it brought are visible */
         if ((rc = receive(c, &err))) break;
-        if ((rc = chan_pump(c->ch, &err))) break;   /* ACKs go out at once */
+        /* ACKs go out at once; the same pump also reads, and what it read
+         * must be decoded before the thread sleeps in poll, or a frame that
+         * is complete in memory waits for the next ping. */
+        if ((rc = chan_pump(c->ch, &err))) break;
+        uint64_t rx2;
+        chan_byte_counts(c->ch, &rx2, &tx);
+        more = rx2 != rx;
     }
     if (rc) {
         pthread_mutex_lock(&c->mu);

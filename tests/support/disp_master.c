@@ -143,6 +143,37 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
         }
         chan_free(c);
         return got;
+    } else if (end == FXM_END_ROUNDS) {
+        enum { S = 1024 };
+        uint16_t *big = calloc(32 * 32 * 3, sizeof *big);
+        if (!big) return 40;
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_ALLOC;
+        m.u.tex_alloc = (wire_tex_alloc){6, nd.back, S, S, WIRE_PROJ_OBJECT_PARALLEL};
+        if (send_all(c, &m)) return 41;
+        for (uint32_t k = 1; k <= FXM_ROUNDS; k++) {
+            if (recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 42;
+            epoch = m.u.camera.epoch;
+            for (size_t i = 0; i < 32 * 32 * 3; i++) big[i] = wire_half_from_float((float)((i + k) % 7) / 16.0f);
+            /* Many tiles, as a master sends them: reads end mid-message. */
+            for (int py = 0; py < S; py += 32)
+                for (int px = 0; px < S; px += 32) {
+                    memset(&m, 0, sizeof m);
+                    m.type = WIRE_TEX_PATCH;
+                    m.u.tex_patch = (wire_tex_patch){.tex = 6, .x = (uint32_t)px, .y = (uint32_t)py, .w = 32,
+                                                     .h = 32, .texels = big};
+                    if (chan_send(c, &m, &err)) return 43;
+                }
+            memset(&m, 0, sizeof m);
+            m.type = WIRE_FRAME;
+            m.u.frame = (wire_frame){k, epoch, 0, 123, 2};
+            if (send_all(c, &m)) return 44;
+        }
+        free(big);
+        for (int i = 0; i < 50; i++) {
+            int rc = recv_wait(c, &m, 100, &err);
+            if (rc < 0 || (rc == WIRE_OK && m.type == WIRE_BYE)) break;
+        }
     } else if (end == FXM_END_STAY) {
         /* Wait for the display's BYE. */
         for (int i = 0; i < 50; i++) {
