@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <openexr.h>
 #include <png.h>
+#include <setjmp.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +16,8 @@
 /* Total pixel cap (16384^2): a corrupt header claiming 65536x65536 must not
  * make us allocate 48 GiB before the first chunk fails to decode. */
 #define IMG_MAX_PIXELS ((size_t)1 << 28)
+/* zlib level of EXR chunks and PNG streams: see write_exr_ctx. */
+#define IMG_ZIP_LEVEL 1
 /* Largest finite half. */
 #define IMG_HALF_MAX 65504.0f
 
@@ -305,6 +308,10 @@ static exr_result_t write_exr_ctx(exr_context_t ctx, const ct_image *img, img_pi
     if ((rv = exr_add_part(ctx, "rgb", EXR_STORAGE_SCANLINE, &part)) != EXR_ERR_SUCCESS) return rv;
     rv = exr_initialize_required_attr_simple(ctx, part, img->width, img->height, EXR_COMPRESSION_ZIP);
     if (rv != EXR_ERR_SUCCESS) return rv;
+    /* The library's default level (6) took 300 ms for a 1024^2 frame here;
+     * level 1 takes 90 ms for files 20% larger. Frames are written while a
+     * walkthrough runs, so speed wins. */
+    if ((rv = exr_set_zip_compression_level(ctx, part, IMG_ZIP_LEVEL)) != EXR_ERR_SUCCESS) return rv;
     for (int c = 0; c < 3; c++) {
         rv = exr_add_channel(ctx, part, exr_names[c], pt, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
         if (rv != EXR_ERR_SUCCESS) return rv;
@@ -410,6 +417,58 @@ static float srgb_to_linear(float s)
     return s <= 0.04045f ? s / 12.92f : powf((s + 0.055f) / 1.055f, 2.4f);
 }
 
+/* libpng reports errors by longjmp from its error callback; the message is
+ * kept for the caller. */
+typedef struct png_err {
+    jmp_buf jb;
+    char *why;
+    size_t cap;
+} png_err;
+
+static void png_on_error(png_structp png, png_const_charp msg)
+{
+    png_err *pe = png_get_error_ptr(png);
+    snprintf(pe->why, pe->cap, "%s", msg);
+    longjmp(pe->jb, 1);
+}
+
+static void png_on_warning(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    (void)msg;
+}
+
+/* Writes 8-bit RGB rows to f. The simplified API (png_image_write_*) has no
+ * compression setting and its default (zlib 6, every filter tried) took
+ * 150 ms for a 1024^2 frame; zlib level 1 with the Sub/Up filters, which
+ * suit rendered images, takes a fraction of that. Returns 1 or 0 (why). */
+static int png_write_rgb8(FILE *f, const uint8_t *rgb, int width, int height, char *why, size_t cap)
+{
+    png_err pe = {.why = why, .cap = cap};
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &pe, png_on_error, png_on_warning);
+    if (!png) {
+        snprintf(why, cap, "out of memory");
+        return 0;
+    }
+    png_infop info = png_create_info_struct(png);
+    if (!info || setjmp(pe.jb)) {
+        if (!info) snprintf(why, cap, "out of memory");
+        png_destroy_write_struct(&png, info ? &info : NULL);
+        return 0;
+    }
+    png_init_io(png, f);
+    png_set_compression_level(png, IMG_ZIP_LEVEL);
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB | PNG_FILTER_UP);
+    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_BASE, PNG_FILTER_TYPE_BASE);
+    png_set_sRGB(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+    png_write_info(png, info);
+    for (int y = 0; y < height; y++) png_write_row(png, rgb + (size_t)y * (size_t)width * 3);
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
+    return 1;
+}
+
 int img_write_png(const char *path, const ct_image *img, float exposure, ct_error *err)
 {
     int rc = check_image(path, img, err);
@@ -424,21 +483,12 @@ int img_write_png(const char *path, const ct_image *img, float exposure, ct_erro
     fs_atomic a;
     rc = fs_atomic_open(&a, path, err);
     if (rc) { free(buf); return rc; }
-    /* libpng's simplified API: no setjmp in our code, errors in .message. */
-    png_image pi;
-    memset(&pi, 0, sizeof pi);
-    pi.version = PNG_IMAGE_VERSION;
-    pi.width = (png_uint_32)img->width;
-    pi.height = (png_uint_32)img->height;
-    pi.format = PNG_FORMAT_RGB;
-    int ok = png_image_write_to_stdio(&pi, a.f, 0, buf, 0, NULL);
+    char why[128] = "";
+    int ok = png_write_rgb8(a.f, buf, img->width, img->height, why, sizeof why);
     free(buf);
     if (!ok) {
-        char msg[128];
-        snprintf(msg, sizeof msg, "%s", pi.message);
-        png_image_free(&pi);
         fs_atomic_abort(&a);
-        return ct_fail(err, CT_EIO, "%s: cannot write PNG: %s", path, msg);
+        return ct_fail(err, CT_EIO, "%s: cannot write PNG: %s", path, why);
     }
     return fs_atomic_commit(&a, err);
 }

@@ -1,6 +1,7 @@
 #include "display/disp_capture.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,12 +10,34 @@
 
 #include "common/fsutil.h"
 #include "common/image.h"
+#include "common/log.h"
 #include "common/metrics.h"
 
 /* frames.csv is rewritten every this many frames (and at the end). */
 #define CSV_EVERY 25
 
+/* Frames waiting for the writer: encoding a 1024^2 frame (EXR and PNG)
+ * takes about 170 ms here, longer than drawing it, so it runs on its own
+ * thread; a third frame waits for a free slot (output is never dropped). */
+#define SLOTS 2
+
+typedef struct cap_job {
+    disp_frame_info fi;
+    float *rgb;
+    size_t cap;          /* floats allocated in rgb */
+    int width, height;
+} cap_job;
+
 struct disp_capture {
+    pthread_t writer;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    cap_job jobs[SLOTS];
+    unsigned head, count; /* ring of queued jobs */
+    bool writing;         /* the writer holds the job at head */
+    bool stop;
+    int rc;               /* the writer's first error (sticky) */
+    ct_error err;
     char dir[2048];
     char ref_dir[2048];
     bool has_ref;
@@ -25,6 +48,8 @@ struct disp_capture {
     size_t len, cap;
     uint32_t rows;
 };
+
+static void *writer_main(void *arg);
 
 static const char *header =
     "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures,wall_s";
@@ -53,6 +78,15 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
     }
     c->images = images;
     c->exposure = exposure;
+    pthread_mutex_init(&c->mu, NULL);
+    pthread_cond_init(&c->cv, NULL);
+    if (pthread_create(&c->writer, NULL, writer_main, c)) {
+        pthread_mutex_destroy(&c->mu);
+        pthread_cond_destroy(&c->cv);
+        img_free(&c->ref_one);
+        free(c);
+        return ct_fail(err, CT_ESYS, "cannot start the frame writer thread");
+    }
     *out = c;
     return CT_OK;
 }
@@ -85,8 +119,8 @@ static int write_csv(disp_capture *c, ct_error *err)
     return fs_atomic_commit(&a, err);
 }
 
-int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width,
-                       int height, double *rmse, double *psnr, ct_error *err)
+static int write_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width, int height,
+                       ct_error *err)
 {
     char name[64], path[4096];
     ct_image img = {width, height, (float *)rgb};
@@ -127,8 +161,7 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
             ct_error_prefix(err, path);
             return rc;
         }
-        if (rmse) *rmse = m.rmse;
-        if (psnr) *psnr = m.psnr;
+        ct_info("corrtex-display", "frame %u: rmse %.5f, psnr %.2f dB", fi->frame, m.rmse, m.psnr);
         snprintf(row + n, sizeof row - (size_t)n, ",%.6g,%.4f", m.rmse, isinf(m.psnr) ? 999.0 : m.psnr);
     }
     size_t len = strlen(row);
@@ -141,10 +174,83 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
     return CT_OK;
 }
 
+static void *writer_main(void *arg)
+{
+    disp_capture *c = arg;
+    pthread_mutex_lock(&c->mu);
+    for (;;) {
+        while (!c->count && !c->stop) pthread_cond_wait(&c->cv, &c->mu);
+        if (!c->count) break;
+        cap_job *j = &c->jobs[c->head];
+        c->writing = true;
+        bool failed = c->rc != 0;
+        pthread_mutex_unlock(&c->mu);
+        ct_error e;
+        /* After an error the rest is dropped: the caller stops at its next frame. */
+        int rc = failed ? 0 : write_frame(c, &j->fi, j->rgb, j->width, j->height, &e);
+        pthread_mutex_lock(&c->mu);
+        if (rc && !c->rc) {
+            c->rc = rc;
+            c->err = e;
+        }
+        c->writing = false;
+        c->head = (c->head + 1) % SLOTS;
+        c->count--;
+        pthread_cond_broadcast(&c->cv);
+    }
+    pthread_mutex_unlock(&c->mu);
+    return NULL;
+}
+
+int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width, int height,
+                       ct_error *err)
+{
+    size_t n = (size_t)width * (size_t)height * 3;
+    pthread_mutex_lock(&c->mu);
+    while (c->count == SLOTS && !c->rc) pthread_cond_wait(&c->cv, &c->mu);
+    if (c->rc) {
+        *err = c->err;
+        int rc = c->rc;
+        pthread_mutex_unlock(&c->mu);
+        return rc;
+    }
+    cap_job *j = &c->jobs[(c->head + c->count) % SLOTS];
+    pthread_mutex_unlock(&c->mu);
+    /* The slot is ours until count covers it: the writer never touches it. */
+    if (j->cap < n) {
+        float *p = realloc(j->rgb, n * sizeof *p);
+        if (!p) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d frame to write", width, height);
+        j->rgb = p;
+        j->cap = n;
+    }
+    memcpy(j->rgb, rgb, n * sizeof *rgb);
+    j->fi = *fi;
+    j->width = width;
+    j->height = height;
+    pthread_mutex_lock(&c->mu);
+    c->count++;
+    pthread_cond_broadcast(&c->cv);
+    pthread_mutex_unlock(&c->mu);
+    return CT_OK;
+}
+
 int disp_capture_close(disp_capture *c, ct_error *err)
 {
     if (!c) return CT_OK;
-    int rc = write_csv(c, err);
+    /* Every queued frame is written before frames.csv. */
+    pthread_mutex_lock(&c->mu);
+    c->stop = true;
+    pthread_cond_broadcast(&c->cv);
+    pthread_mutex_unlock(&c->mu);
+    pthread_join(c->writer, NULL);
+    int rc = c->rc;
+    if (rc) *err = c->err;
+    ct_error e;
+    int rc2 = write_csv(c, rc ? &e : err);
+    if (!rc) rc = rc2;
+    pthread_mutex_destroy(&c->mu);
+    pthread_cond_destroy(&c->cv);
+    for (int i = 0; i < SLOTS; i++) free(c->jobs[i].rgb);
     img_free(&c->ref_one);
     free(c->csv);
     free(c);

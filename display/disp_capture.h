@@ -3,8 +3,9 @@
  * images are off: --no-images), and frames.csv with one row per frame
  * (camera, timings, per-frame counts and, with --reference, the RMSE and
  * PSNR against DIR/frame_NNNNN.exr, or against one image FILE.exr for every
- * frame). Every file is written atomically; frames.csv is rewritten every
- * few frames and at the end so it is always complete up to some frame. */
+ * frame). Frames are written on a thread of their own. Every file is
+ * written atomically; frames.csv is rewritten every few frames and at the
+ * end so it is always complete up to some frame. */
 #ifndef CT_DISP_CAPTURE_H
 #define CT_DISP_CAPTURE_H
 
@@ -35,13 +36,16 @@ typedef struct disp_capture disp_capture;
 int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err);
 
-/* Writes the frame's EXR and PNG (rgb: linear, 3 floats per pixel, top row
- * first) and records its row; with a reference, also its RMSE and PSNR,
- * returned in *rmse / *psnr when not NULL. */
+/* Queues the frame (rgb: linear, 3 floats per pixel, top row first, copied)
+ * for the writer thread, which writes its EXR and PNG and records its row;
+ * with a reference also its RMSE and PSNR (logged). Waits only while two
+ * frames are still being written. An error of an earlier frame's writing
+ * is returned here (and by close). */
 int disp_capture_frame(disp_capture *c, const disp_frame_info *info, const float *rgb, int width,
-                       int height, double *rmse, double *psnr, ct_error *err);
+                       int height, ct_error *err);
 
-/* Writes frames.csv (atomically) and frees c; NULL is fine. */
+/* Writes every queued frame, then frames.csv (atomically), and frees c;
+ * NULL is fine. */
 int disp_capture_close(disp_capture *c, ct_error *err);
 
 #endif
