@@ -35,6 +35,7 @@ struct disp_client {
     atomic_bool stop;
     int wake[2];                  /* the render thread writes a byte to wake the thread */
     uint32_t epoch;               /* render thread only */
+    bool lockstep;                /* every CAMERA asks for a frame */
     pthread_mutex_t mu;           /* guards what follows */
     wire_msg out[MAX_OUT];        /* CAMERA messages for the thread to send */
     int nout;
@@ -81,6 +82,7 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
     memset(&m, 0, sizeof m);
     m.type = WIRE_SETTINGS;
     m.u.settings.samples_per_frame = o->samples_per_frame;
+    c->lockstep = o->samples_per_frame > 0;
     disp_scene_cache_select(cache, o->addr);
     (void)disp_scene_cache_hash(cache, m.u.settings.cached_scene);
     rc = chan_send(c->ch, &m, err);
@@ -142,7 +144,14 @@ int disp_client_send_camera(disp_client *c, const ct_camera *cam, int width, int
     if (c->end_rc) {
         rc = c->end_rc;
         if (err) *err = c->end_err;
+    } else if (!c->lockstep && c->nout > 0) {
+        /* Free running only the newest view matters: it replaces an unsent
+         * one (the master skips that epoch), so a display drawing hundreds
+         * of frames a second never piles cameras up while the connection
+         * thread or the master is slow. */
+        c->out[c->nout - 1] = m;
     } else if (c->nout == MAX_OUT) {
+        /* Lockstep has at most two frames asked for ahead: the thread is stuck. */
         rc = ct_fail(err, CT_EIO, "%s: the master does not read (%d cameras unsent)", c->addr, MAX_OUT);
     } else {
         c->out[c->nout++] = m;

@@ -163,6 +163,7 @@ typedef struct loop_state {
     uint32_t disp_epoch;        /* the display's epoch number of the current camera */
     double view_t0;             /* when the current view was set */
     int view_covered;           /* its every pixel has been handed out (logged once) */
+    double covered_logged;      /* when a coverage line was last logged at info level */
     uint64_t batch_id;
     int rr;                     /* free-running: the rank served first next time */
     /* lockstep */
@@ -853,7 +854,11 @@ int sched_run(const sched_config *c, ct_error *err)
             rq_stats_get(s.rq, &rs);
             if (rs.covered) {
                 s.view_covered = 1;
-                ct_info(COMPONENT, "view covered: every pixel sampled %.2f s after the camera stopped (%llu samples)",
+                /* A moving camera covers small views every frame: one
+                 * info line per stats interval, the rest at debug level. */
+                int lvl = now - s.covered_logged >= c->opt.stats_s ? CT_LOG_INFO : CT_LOG_DEBUG;
+                if (lvl == CT_LOG_INFO) s.covered_logged = now;
+                ct_log(lvl, COMPONENT, "view covered: every pixel sampled %.2f s after the camera stopped (%llu samples)",
                         now - s.view_t0, (unsigned long long)s.total_samples);
             }
         }

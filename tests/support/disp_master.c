@@ -174,6 +174,21 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
             int rc = recv_wait(c, &m, 100, &err);
             if (rc < 0 || (rc == WIRE_OK && m.type == WIRE_BYE)) break;
         }
+    } else if (end == FXM_END_CAMERAS) {
+        float last_x = 0;
+        uint32_t last_epoch = 0;
+        for (int i = 0; i < 100; i++) {
+            int rc = recv_wait(c, &m, 100, &err);
+            if (rc < 0) return 50;
+            if (rc != WIRE_OK) continue;
+            if (m.type == WIRE_BYE) break;
+            if (m.type != WIRE_CAMERA) continue;
+            if (m.u.camera.epoch <= last_epoch) return 51;   /* epochs only grow */
+            last_epoch = m.u.camera.epoch;
+            last_x = m.u.camera.cam.eye.x;
+        }
+        chan_free(c);
+        return last_x == FXM_LAST_X ? 0 : 52;
     } else if (end == FXM_END_STAY) {
         /* Wait for the display's BYE. */
         for (int i = 0; i < 50; i++) {

@@ -362,3 +362,27 @@ Test(disp_client, lockstep_rounds_do_not_wait_for_the_ping)
     disp_session_free(s);
     gl_backend_close(b);
 }
+
+/* Free running, cameras drawn faster than they can be sent replace the
+ * unsent one: no error however many, and the newest one arrives. */
+Test(disp_client, free_running_cameras_never_pile_up)
+{
+    ct_error err;
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_CAMERAS, 0, W, H), 0, "%s", p.msg);
+    disp_inbox *in = new_inbox();
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    for (int i = 0; i < 5000; i++) {
+        cam.eye.x = i == 4999 ? FXM_LAST_X : (float)i * 1e-4f;
+        cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0, "camera %d: %s", i, err.msg);
+    }
+    cr_expect_eq(disp_client_epoch(c), 5000u);
+    usleep(200000);
+    cr_expect_eq(disp_client_status(c, &err), 0, "%s", err.msg);
+    disp_client_close(c);   /* BYE */
+    disp_inbox_free(in);
+    cr_expect_eq(fxm_stop(&p), 0, "the master did not get the newest camera last (or epochs went back)");
+}
