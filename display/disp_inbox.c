@@ -498,8 +498,34 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
     uint32_t npts = 0;
     uint64_t dropped, bytes, stats_total = 0;
     bool stats_new, stats_pos, ops_ok;
-    size_t want;
+    int rc = CT_OK;
 
+    /* The upload buffer is sized from a first look (mapping it may not
+     * happen under the lock); what arrives after it waits for the next
+     * frame. Changed tiles go into it orphaned each frame, so the driver
+     * never waits for the previous frame's upload. */
+    pthread_mutex_lock(&b->mu);
+    size_t want = b->dirty_bytes < DISP_INBOX_FRAME_BYTES ? b->dirty_bytes : DISP_INBOX_FRAME_BYTES;
+    pthread_mutex_unlock(&b->mu);
+    uint8_t *dst = NULL;
+    if (want) {
+        if (!b->pbo) gl.GenBuffers(1, &b->pbo);
+        gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, b->pbo);
+        gl.BufferData(GL_PIXEL_UNPACK_BUFFER, (GLsizeiptr)want, NULL, GL_STREAM_DRAW);
+        dst = gl.MapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, (GLsizeiptr)want,
+                                GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
+        if (!dst) {
+            rc = gl_check("mapping the texel upload buffer", err);
+            if (!rc) rc = ct_fail(err, CT_ESYS, "cannot map a %zu-byte texel upload buffer", want);
+            gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+            return rc;
+        }
+    }
+
+    /* One critical section: the texture operations and the texels taken
+     * together, so every upload fits the GL texture the operations make
+     * (a texture re-allocated at a new size between two looks had its
+     * old ALLOC applied and its new texels uploaded). */
     pthread_mutex_lock(&b->mu);
     if (b->scene_new) {
         scene = b->scene;
@@ -508,7 +534,23 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
         have_scene = true;
     }
     ops_ok = collect_ops(b);
-    want = b->dirty_bytes < DISP_INBOX_FRAME_BYTES ? b->dirty_bytes : DISP_INBOX_FRAME_BYTES;
+    b->nups = 0;
+    b->ntaken = 0;
+    if (dst && ops_ok) {
+        collect_uploads(b, dst, want);
+        /* The stamps go with the texels they describe: once nothing is
+         * left marked, every patch received so far is on a texture. */
+        if (b->dirty_bytes == 0) {
+            disp_inbox_stamp *t = b->taken;
+            uint32_t ct = b->cap_taken;
+            b->taken = b->stamps;
+            b->cap_taken = b->cap_stamps;
+            b->ntaken = b->nstamps;
+            b->stamps = t;
+            b->cap_stamps = ct;
+            b->nstamps = 0;
+        }
+    }
     nframes = b->nframes;
     memcpy(frames, b->frames, nframes * sizeof *frames);
     b->nframes = 0;
@@ -529,7 +571,12 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
     b->patches_in = 0;
     pthread_mutex_unlock(&b->mu);
 
-    int rc = ops_ok ? CT_OK : ct_fail(err, CT_ENOMEM, "out of memory for texture operations");
+    if (dst) {
+        gl.UnmapBuffer(GL_PIXEL_UNPACK_BUFFER);
+        /* Texture creation reads no pixels: no unpack buffer bound. */
+        gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    }
+    if (!ops_ok) rc = ct_fail(err, CT_ENOMEM, "out of memory for texture operations");
     if (!rc && have_scene) rc = disp_session_scene(s, &scene, err);
     rmesh_free(&scene);
     for (uint32_t i = 0; i < b->nops && !rc; i++) {
@@ -538,51 +585,17 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
         else if (o->kind == OP_ALLOC) rc = disp_session_tex_alloc(s, o->id, o->node, o->w, o->h, o->pk, err);
         else rc = disp_session_tex_projection(s, o->id, &o->m, err);
     }
-
-    /* Changed tiles: into a pixel buffer (orphaned each frame, so the
-     * driver never waits for the previous frame's upload), then uploaded
-     * from it. The lock is held only for the copy. */
-    if (!rc && want) {
-        if (!b->pbo) gl.GenBuffers(1, &b->pbo);
+    if (b->nups) {
         gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, b->pbo);
-        gl.BufferData(GL_PIXEL_UNPACK_BUFFER, (GLsizeiptr)want, NULL, GL_STREAM_DRAW);
-        uint8_t *dst = gl.MapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, (GLsizeiptr)want,
-                                         GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
-        if (!dst) {
-            rc = gl_check("mapping the texel upload buffer", err);
-            if (!rc) rc = ct_fail(err, CT_ESYS, "cannot map a %zu-byte texel upload buffer", want);
-        } else {
-            pthread_mutex_lock(&b->mu);
-            collect_uploads(b, dst, want);
-            /* The stamps go with the texels they describe: once nothing is
-             * left marked, every patch received so far is on a texture. */
-            if (b->dirty_bytes == 0) {
-                disp_inbox_stamp *t = b->taken;
-                uint32_t ct = b->cap_taken;
-                b->taken = b->stamps;
-                b->cap_taken = b->cap_stamps;
-                b->ntaken = b->nstamps;
-                b->stamps = t;
-                b->cap_stamps = ct;
-                b->nstamps = 0;
-            } else {
-                b->ntaken = 0;
-            }
-            pthread_mutex_unlock(&b->mu);
-            gl.UnmapBuffer(GL_PIXEL_UNPACK_BUFFER);
-            for (uint32_t i = 0; i < b->nups && !rc; i++) {
-                const upload *u = &b->ups[i];
-                rc = disp_session_tex_upload(s, u->id, u->x, u->y, u->w, u->h, u->off, u->negative, u->nonzero,
-                                             err);
-                took->texels += (uint64_t)u->w * (uint64_t)u->h;
-            }
-            took->stamps = b->taken;
-            took->nstamps = b->ntaken;
+        for (uint32_t i = 0; i < b->nups && !rc; i++) {
+            const upload *u = &b->ups[i];
+            rc = disp_session_tex_upload(s, u->id, u->x, u->y, u->w, u->h, u->off, u->negative, u->nonzero, err);
+            took->texels += (uint64_t)u->w * (uint64_t)u->h;
         }
         gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
-    } else {
-        b->ntaken = 0;
     }
+    took->stamps = b->taken;
+    took->nstamps = b->ntaken;
     if (npts) disp_session_sample_points(s, pts, npts, dropped);
     free(pts);
     for (uint32_t i = 0; i < nframes; i++)

@@ -6,8 +6,11 @@
  * textures; a texture freed and allocated again between two frames starts
  * from zero at its new size; stamps reach the frame that shows them;
  * messages that do not fit are refused with their reason; the lag
- * histogram's quantiles. */
+ * histogram's quantiles; resizes racing the frames that take them. */
 #include <criterion/criterion.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -252,4 +255,70 @@ Test(disp_lag, quantiles_are_weighted_by_samples)
     cr_expect_eq(disp_lag_quantile(&l, 0.25), 1.0);
     disp_lag_add(&l, 1e9, 1);      /* beyond the histogram: the last bin */
     cr_expect_eq(disp_lag_quantile(&l, 1.0), (double)DISP_LAG_BINS);
+}
+
+/* The connection thread re-allocates a texture at a new size and patches
+ * it all while frames are taken: every frame's uploads fit the GL texture
+ * its operations made (the texture's operations and its texels are taken
+ * together), and the projection of a texture is on the GL side before the
+ * texels made for it. */
+typedef struct resizer {
+    disp_inbox *in;
+    uint32_t node;
+    int rounds;
+    int rc;
+    ct_error err;
+    atomic_bool done;
+} resizer;
+
+static void *resize_loop(void *arg)
+{
+    resizer *r = arg;
+    static uint16_t px[64 * 64 * 3];
+    fill(px, 64 * 64 * 3, 0.2f, 0.01f);
+    mat4 p = wall_proj();
+    for (int i = 0; i < r->rounds && !r->rc; i++) {
+        int s = 16 << (i % 3);
+        r->rc = disp_inbox_tex_alloc(r->in, 7, r->node, s, s, DISP_PROJ_OBJECT_PARALLEL, &r->err);
+        if (!r->rc) r->rc = disp_inbox_tex_projection(r->in, 7, &p, &r->err);
+        for (int y = 0; y < s && !r->rc; y += 8)
+            r->rc = disp_inbox_tex_patch(r->in, 7, 0, y, s, 8, px, 0, 0, &r->err);
+    }
+    atomic_store(&r->done, true);
+    return NULL;
+}
+
+Test(disp_inbox, resizes_racing_frames_upload_into_the_texture_they_were_made_for)
+{
+    ct_error err;
+    gl_backend *b = gl_open();
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox_scene(in, &mesh);
+    resizer r = {.in = in, .node = nd.back, .rounds = 20000};
+    atomic_init(&r.done, false);
+    pthread_t th;
+    cr_assert_eq(pthread_create(&th, NULL, resize_loop, &r), 0);
+    int frames = 0, rc = 0;
+    uint64_t texels = 0;
+    while (!rc && !atomic_load(&r.done)) {
+        disp_inbox_took took;
+        rc = disp_inbox_apply(in, s, &took, &err);
+        texels += took.texels;
+        frames++;
+    }
+    pthread_join(th, NULL);
+    cr_assert_eq(r.rc, 0, "%s", r.err.msg);
+    printf("metric: %d frames taken while 20000 resizes raced them, %llu texels uploaded\n", frames,
+           (unsigned long long)texels);
+    cr_expect_eq(rc, 0, "frame %d: %s", frames, err.msg);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
+    disp_session_free(s);
+    gl_backend_close(b);
 }
