@@ -67,6 +67,7 @@ typedef struct app {
     disp_inbox_took took;         /* what the frame being drawn took from it */
     disp_lag *lag;                /* insertion at the master -> presented frame */
     double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
+    double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
     disp_scene_cache *cache;
     double retry_at, backoff;     /* next reconnection attempt, its delay */
     bool cam_sent;                /* last_cam went to this connection */
@@ -371,6 +372,13 @@ static int run(app *a, ct_error *err)
     }
     double render_ms_sum = 0, first_ms = 0, cpu_ms_sum = 0, t_captured = 0;
     uint32_t k = 0;
+    /* What the last frame drawn showed. */
+    uint64_t drawn_gen = 0;
+    ct_camera drawn_cam;
+    memset(&drawn_cam, 0, sizeof drawn_cam);
+    disp_render_opts drawn_opts = a->ropts;
+    int drawn_w = 0, drawn_h = 0;
+    double t_drawn = 0;
     int rc = CT_OK;
     bool fly_ready = disp_session_scene_of(a->session) != NULL;
     bool path_done = false;
@@ -456,9 +464,35 @@ static int run(app *a, ct_error *err)
                 continue;
             }
         }
+        a->ropts.all_positive = disp_session_all_positive(a->session);
+        /* A still picture is not drawn again: free running, a frame is
+         * drawn when what it shows may have changed (the session's texels,
+         * the camera, the render options, the window's size), when a
+         * capture is due, and in a window at least 4 times a second. A
+         * scripted path (--frames), lockstep and --continuous draw every
+         * frame. Software GL takes a core for a 1024^2 frame: a display
+         * that redrew an unchanged view took it from the tracers. */
+        uint64_t gen = disp_session_image_gen(a->session);
+        bool capture_due = a->capture && (k == 0 || last || (o->out_every > 0 && now - t_captured >= o->out_every));
+        bool draw = o->continuous || nframes > 0 || o->samples_per_frame > 0 || k == 0 || last || capture_due ||
+                    gen != drawn_gen || !same_camera(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
+                    a->ropts.view != drawn_opts.view || a->ropts.exposure != drawn_opts.exposure ||
+                    a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
+                    in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);
+        if (!draw) {
+            struct timespec ts = {0, 2 * 1000 * 1000};
+            nanosleep(&ts, NULL);
+            a->t_idle += ct_now() - now;
+            continue;
+        }
+        drawn_gen = gen;
+        drawn_cam = cam;
+        drawn_opts = a->ropts;
+        drawn_w = in.fb_width;
+        drawn_h = in.fb_height;
+        t_drawn = now;
         double t0 = ct_now(), c0 = cpu_now();
         disp_render_stats rs;
-        a->ropts.all_positive = disp_session_all_positive(a->session);
         if (a->ropts.view == DISP_VIEW_SAMPLES) {
             const float *pa, *pb;
             uint32_t na, nb;
@@ -497,8 +531,10 @@ static int run(app *a, ct_error *err)
                                   c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session)),
                                   ct_now() - t_start};
             prev = c;
-            disp_compositor_read_linear(a->comp, rgb);
-            rc = disp_capture_frame(a->capture, &fi, rgb, o->width, o->height, err);
+            /* frames.csv alone needs no pixels: no read-back. */
+            bool pixels = disp_capture_needs_pixels(a->capture);
+            if (pixels) disp_compositor_read_linear(a->comp, rgb);
+            rc = disp_capture_frame(a->capture, &fi, pixels ? rgb : NULL, o->width, o->height, err);
             a->t_capture += ct_now() - cap0;
             if (rc) break;
         }
@@ -522,6 +558,8 @@ static int run(app *a, ct_error *err)
         printf("display: per frame besides drawing: %.1f ms waiting for lockstep frames, %.1f ms taking what "
                "arrived (texel uploads), %.1f ms capturing\n",
                1000.0 * a->t_wait / k, 1000.0 * a->t_take / k, 1000.0 * a->t_capture / k);
+    if (a->t_idle > 0.05)
+        printf("display: nothing new to draw for %.1f s of %.1f s (no frame drawn then)\n", a->t_idle, total);
     if (a->lag && a->lag->n)
         printf("display: lag from insertion at the master to the screen: median %.0f ms, p90 %.0f ms, p99 %.0f ms, "
                "max %.0f ms over %llu samples\n",

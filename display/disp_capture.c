@@ -202,10 +202,17 @@ static void *writer_main(void *arg)
     return NULL;
 }
 
+bool disp_capture_needs_pixels(const disp_capture *c)
+{
+    return c->images || c->has_ref;
+}
+
 int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width, int height,
                        ct_error *err)
 {
-    size_t n = (size_t)width * (size_t)height * 3;
+    size_t n = rgb ? (size_t)width * (size_t)height * 3 : 0;
+    if (!rgb && disp_capture_needs_pixels(c))
+        return ct_fail(err, CT_EINVAL, "frame %u: no pixels to write", fi->frame);
     pthread_mutex_lock(&c->mu);
     while (c->count == SLOTS && !c->rc) pthread_cond_wait(&c->cv, &c->mu);
     if (c->rc) {
@@ -223,7 +230,7 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
         j->rgb = p;
         j->cap = n;
     }
-    memcpy(j->rgb, rgb, n * sizeof *rgb);
+    if (n) memcpy(j->rgb, rgb, n * sizeof *rgb);
     j->fi = *fi;
     j->width = width;
     j->height = height;

@@ -44,6 +44,10 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
 int disp_capture_frame(disp_capture *c, const disp_frame_info *info, const float *rgb, int width,
                        int height, ct_error *err);
 
+/* Whether frames need their pixels (images or a reference); without,
+ * disp_capture_frame takes rgb NULL and records the row only. */
+bool disp_capture_needs_pixels(const disp_capture *c);
+
 /* Writes every queued frame, then frames.csv (atomically), and frees c;
  * NULL is fine. */
 int disp_capture_close(disp_capture *c, ct_error *err);

@@ -113,4 +113,9 @@ bool disp_session_all_positive(const disp_session *s);
 /* Running totals. */
 disp_counters disp_session_counters(const disp_session *s);
 
+/* A number that changes whenever what a frame of this session shows may
+ * change (scene, textures, their texels, sample points): the run loop
+ * redraws a still camera only when it moved. */
+uint64_t disp_session_image_gen(const disp_session *s);
+
 #endif

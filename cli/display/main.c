@@ -66,6 +66,8 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --reference DIR|FILE  add RMSE/PSNR against DIR/frame_NNNNN.exr, or against FILE.exr for\n"
             "                        every frame (a still view), to frames.csv\n"
             "  --hold S              real-time path: stay at its last camera S seconds after it ends (0)\n"
+            "  --continuous          draw every frame, also when nothing changed (frame-rate\n"
+            "                        measurements; by default a still, unchanged view is not redrawn)\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
@@ -223,6 +225,7 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--out")) { NEED(); o.out_dir = v; }
         else if (!strcmp(a, "--reference")) { NEED(); o.ref_dir = v; }
         else if (!strcmp(a, "--no-images")) o.no_images = true;
+        else if (!strcmp(a, "--continuous")) o.continuous = true;
         else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
             NEED();
             float x;

@@ -6,7 +6,8 @@
 # sample per pixel (the master logs full coverage, then refinement, and the
 # image ends closer to a converged reference of the same mode than one
 # sample per pixel gets: drt with one shadow ray, so that noise is what one
-# sample per pixel leaves); corrtex-walk on a scene without a camera path
+# sample per pixel leaves); once the master is idle the display stops
+# redrawing the unchanged view (--continuous draws anyway); corrtex-walk on a scene without a camera path
 # walks the still view.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs "$corrtex"
@@ -52,6 +53,15 @@ once=$(awk -F, 'NR > 1 { p = $NF } END { print p }' "$tmp/once/frames.csv")
 echo "metric: PSNR against the 64-spp reference: one sample per pixel $once dB, refined $refined dB"
 awk -v a="$once" -v b="$refined" 'BEGIN { exit !(b > a + 0.5) }' ||
   fail "refinement did not bring the still view closer to the reference ($once -> $refined dB)"
+# A master that went idle sends nothing new: the display stops redrawing
+# the unchanged view (but for its captures), unless told --continuous.
+idle=$(sed -n 's/^display: nothing new to draw for \([0-9.]*\) s.*/\1/p' "$tmp/once.log")
+echo "metric: display idle (nothing new to draw) for ${idle:-0} s of 2 s once the master went idle"
+awk -v t="${idle:-0}" 'BEGIN { exit !(t >= 0.5) }' || fail "the display kept redrawing an unchanged view"
+display_run cont --connect "$ADDR" "${HEADLESS[@]}" --seconds 1 --continuous --out "$tmp/cont" --no-images
+grep -q 'nothing new to draw' "$tmp/cont.log" && fail "--continuous skipped frames"
+n_cont=$(($(wc -l <"$tmp/cont/frames.csv") - 1))
+((n_cont >= 5)) || fail "--continuous drew $n_cont frames in 1 s"
 master_term once
 # 3. corrtex-walk on a scene without a camera path: the still view.
 mkdir -p "$tmp/nopath"

@@ -87,6 +87,7 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
     memcpy(cached, m.u.settings.cached_scene, WIRE_HASH_SIZE);
     if (recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 14;
     uint32_t epoch = m.u.camera.epoch;
+    float first_x = m.u.camera.cam.eye.x;
     if (m.u.camera.width != (uint32_t)w || m.u.camera.height != (uint32_t)h) return 15;
     ct_radmesh mesh;
     fx_box_nodes nd;
@@ -175,9 +176,10 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
             if (rc < 0 || (rc == WIRE_OK && m.type == WIRE_BYE)) break;
         }
     } else if (end == FXM_END_CAMERAS) {
-        float last_x = 0;
-        uint32_t last_epoch = 0;
-        for (int i = 0; i < 100; i++) {
+        /* Cameras drawn before the connection was up arrive as the first. */
+        float last_x = first_x;
+        uint32_t last_epoch = epoch;
+        for (double until = ct_now() + 5.0; ct_now() < until;) {
             int rc = recv_wait(c, &m, 100, &err);
             if (rc < 0) return 50;
             if (rc != WIRE_OK) continue;

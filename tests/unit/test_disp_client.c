@@ -384,5 +384,6 @@ Test(disp_client, free_running_cameras_never_pile_up)
     cr_expect_eq(disp_client_status(c, &err), 0, "%s", err.msg);
     disp_client_close(c);   /* BYE */
     disp_inbox_free(in);
-    cr_expect_eq(fxm_stop(&p), 0, "the master did not get the newest camera last (or epochs went back)");
+    int st = fxm_stop(&p);
+    cr_expect_eq(st, 0, "the master did not get the newest camera last (or epochs went back): %d", st);
 }
