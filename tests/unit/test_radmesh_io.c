@@ -20,6 +20,17 @@ static void make_dir(void)
     cr_assert_eq(fs_mkdirs(g_dir, &err), 0, "%s", err.msg);
 }
 
+/* Whatever a test left there (it may stop at a failed assertion). */
+static void remove_dir(void)
+{
+    if (!g_dir[0]) return;
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+}
+
+TestSuite(radmesh_io, .fini = remove_dir);
+
 static void path_of(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", g_dir, name); }
 
 /* A small mesh with every field set to a distinct value. */
