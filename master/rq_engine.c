@@ -560,11 +560,11 @@ void rq_stats_get(const rq_engine *e, rq_stats *st)
     st->allocations = e->grows + e->heap.grows + e->mask.grows;
     st->queued = e->heap.n;
     st->in_flight = e->fl_out;
-    st->covered = st->sampled_pixels == st->total_pixels && e->fl_out == e->fl_refine;
     st->epoch = e->epoch;
     st->list_mode = e->list_mode;
     st->sampled_pixels = e->mask.count;
     st->total_pixels = (uint64_t)e->w * (uint64_t)e->h;
+    st->covered = st->sampled_pixels == st->total_pixels && e->fl_out == e->fl_refine;
     st->coverage = (double)st->sampled_pixels / (double)st->total_pixels;
     st->refining = e->ref.active;
     st->refine_samples = e->ref.samples;

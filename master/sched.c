@@ -8,6 +8,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "common/half.h"
 #include "common/log.h"
@@ -137,6 +138,7 @@ typedef struct tracer {
     uint64_t samples;           /* samples returned since the start */
     uint64_t samples_mark;      /* at the last stats line */
     double last_reply;
+    double left_at;             /* when it said BYE (0: still working) */
 } tracer;
 
 typedef struct frame_req {
@@ -494,6 +496,12 @@ static int receive_samples(loop_state *s, ct_error *err)
         int rc;
         char peer[32];
         snprintf(peer, sizeof peer, "tracer rank %d", info.source);
+        if (info.tag == MPIL_TAG_BYE && info.source >= 1 && info.source <= s->T) {
+            /* It left on a signal (check_tracers decides what that means). */
+            tracer *t = &s->tr[info.source - 1];
+            if (t->left_at == 0) t->left_at = ct_now();
+            continue;
+        }
         if (info.tag != MPIL_TAG_SAMPLES || info.source < 1 || info.source > s->T)
             return ct_fail(err, CT_EPROTO, "%s: unexpected MPI message with tag %d", peer, info.tag);
         unsigned kind;
@@ -783,6 +791,10 @@ static int check_tracers(loop_state *s, double now, ct_error *err)
 {
     for (int r = 1; r <= s->T; r++) {
         tracer *t = &s->tr[r - 1];
+        /* mpirun signals every rank at once: a master whose own signal
+         * has not come within a second lost a tracer. */
+        if (t->left_at > 0 && now - t->left_at > 1.0)
+            return ct_fail(err, CT_EIO, "tracer rank %d left the job (it got a signal)", r);
         if (t->inflight > 0 && now - t->sent_at[t->sent_head] > s->c->opt.tracer_timeout_s)
             return ct_fail(err, CT_EIO, "tracer rank %d has not answered for %.0f s (%d batches outstanding)", r,
                            now - t->sent_at[t->sent_head], t->inflight);
@@ -790,6 +802,10 @@ static int check_tracers(loop_state *s, double now, ct_error *err)
     return 0;
 }
 
+/* Sends SHUTDOWN, then takes (and drops) what the tracers still send until
+ * each has said BYE: a large sample message completes only when it is
+ * received, and a tracer's MPI_Finalize waits for its sends. A tracer that
+ * stopped or died gets wait_s. */
 static void shutdown_tracers(loop_state *s, double wait_s)
 {
     wire_mpi_control ctl = {.op = WIRE_MPI_OP_SHUTDOWN};
@@ -798,7 +814,30 @@ static void shutdown_tracers(loop_state *s, double wait_s)
         s->obuf.len = 0;
         if (wire_mpi_encode_control(&ctl, &s->obuf, &e) == 0) mpil_isend(r, MPIL_TAG_CONTROL, &s->obuf, &e);
     }
-    if (mpil_drain(wait_s, &e) < 0) ct_warn(COMPONENT, "%s", e.msg);
+    double end = ct_now() + wait_s;
+    unsigned char *said = s->T > 0 ? calloc((size_t)s->T + 1, 1) : NULL;
+    int left = said ? s->T : 0;
+    for (int r = 1; said && r <= s->T; r++)
+        if (s->tr && s->tr[r - 1].left_at > 0) said[r] = 1, left--;
+    while (left > 0 && ct_now() < end) {
+        mpil_info info;
+        int got = mpil_poll_recv(MPIL_ANY, MPIL_ANY, &info, &s->mbuf, &e);
+        if (got < 0) break;
+        if (got) {
+            if (info.tag == MPIL_TAG_BYE && info.source >= 1 && info.source <= s->T && !said[info.source]) {
+                said[info.source] = 1;
+                left--;
+            }
+            continue;
+        }
+        if (mpil_progress(&e) < 0) break;
+        struct timespec ts = {.tv_sec = 0, .tv_nsec = 200000L};
+        nanosleep(&ts, NULL);
+    }
+    free(said);
+    if (left > 0) ct_debug(COMPONENT, "%d tracer rank%s did not say BYE within %.1f s", left, left == 1 ? "" : "s", wait_s);
+    double rest = end - ct_now();
+    if (mpil_drain(rest > 0.1 ? rest : 0.1, &e) < 0) ct_warn(COMPONENT, "%s", e.msg);
 }
 
 int sched_run(const sched_config *c, ct_error *err)

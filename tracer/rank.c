@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "common/log.h"
 #include "common/timer.h"
@@ -170,6 +171,40 @@ static uint64_t trace_threads(const trank_config *c, const trc_view *v, const ct
     return rays;
 }
 
+/* Leaving in order: a large sample message completes only when the master
+ * receives it, so the master takes (and drops) what is still on its way
+ * until each tracer says BYE, which goes after the last samples. Left on a
+ * signal (mpirun sends SIGTERM to every rank), the master's SHUTDOWN is
+ * still to come: its messages are taken until then so its sends complete
+ * too. Never blocks on a master that stopped: 3 s at most. */
+static int farewell(const trank_config *c, int shutdown, wire_buf *msg, ct_error *err)
+{
+    wire_buf bye = {0};
+    int rc = mpil_isend(0, MPIL_TAG_BYE, &bye, err);
+    if (rc < 0) return rc;
+    char peer[32];
+    snprintf(peer, sizeof peer, "master (rank 0)");
+    double end = ct_now() + 3.0;
+    while (!shutdown && ct_now() < end) {
+        mpil_info info;
+        int got = mpil_poll_recv(0, MPIL_ANY, &info, msg, err);
+        if (got < 0) return got;
+        if (!got) {
+            struct timespec ts = {.tv_sec = 0, .tv_nsec = 200000L};
+            nanosleep(&ts, NULL);
+            continue;
+        }
+        unsigned kind = 0;
+        uint32_t count = 0;
+        if (wire_mpi_peek(msg->data, msg->len, peer, &kind, &count, err) < 0 || kind != WIRE_MPI_CONTROL) continue;
+        wire_mpi_control ctl;
+        if (wire_mpi_decode_control(msg->data, msg->len, peer, &ctl, err) == 0 && ctl.op == WIRE_MPI_OP_SHUTDOWN)
+            shutdown = 1;
+    }
+    if (!shutdown) ct_debug(COMPONENT, "rank %d: no SHUTDOWN from the master within 3 s of leaving", c->rank);
+    return 0;
+}
+
 int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
 {
     memset(st, 0, sizeof *st);
@@ -255,6 +290,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         if ((rc = wire_mpi_encode_samples(&sh, samples, nout, &reply, err)) < 0) goto out;
         if ((rc = mpil_isend(0, MPIL_TAG_SAMPLES, &reply, err)) < 0) goto out;
     }
+    rc = farewell(c, shutdown, &msg, err);
 out:
     fifo_free(&q);
     wire_buf_free(&msg);

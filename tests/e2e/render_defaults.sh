@@ -10,6 +10,7 @@
 # redrawing the unchanged view (--continuous draws anyway); corrtex-walk on a scene without a camera path
 # walks the still view.
 source "$(dirname "$0")/lib/mpi.sh"
+source "$root/tests/e2e/lib/walk-san-env.bash"
 need_programs "$corrtex"
 scene="$root/scenes/cornell/cornell.json"
 # One radiosity mesh for the job and the reference: drt takes its indirect light from it.

@@ -43,7 +43,7 @@ VIEW=(--backend egl --width $N --height $N --quiet --seconds 6 --no-images)
 master_start fast 2 "$scene" --mesh "$tmp/cornell.ctmesh" --listen "unix:$tmp/fast.sock" --stats-s 0.5
 master_wait_listen fast || finish
 display_run dfast --connect "$ADDR" "${VIEW[@]}" --out "$tmp/fast"
-master_term fast >/dev/null
+master_term fast >"$tmp/fast.term"; grep -e "^metric" -e "^FAIL" "$tmp/fast.term"
 
 # Over the 100 Mbit/s link.
 mpi_cmd 2 "$scene" --mesh "$tmp/cornell.ctmesh" --listen tcp:10.79.0.1:0 --token-file "$tmp/token" --stats-s 0.5
@@ -55,7 +55,7 @@ dcmd=(ip netns exec "$NSD" timeout 60 "$display" --connect "$ADDR" --token-file 
 log_cmd "${dcmd[@]}"
 "${dcmd[@]}" >"$tmp/dslow.log" 2>&1 || fail "the display over the slow link failed: $(tail -n 2 "$tmp/dslow.log")"
 sed 's/^/  dslow: /' "$tmp/dslow.log"
-master_term slow >/dev/null
+master_term slow >"$tmp/slow.term"; grep -e "^metric" -e "^FAIL" "$tmp/slow.term"
 
 medfms() { awk -F, 'NR > 1 && $2 > 1 { print $11 }' "$1" | sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 mbs() { awk -F, 'NR > 1 { b += $14 } END { printf "%.1f", b / 6 / 1e6 }' "$1"; }

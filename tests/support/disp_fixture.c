@@ -431,8 +431,15 @@ uint16_t fx_half(float f)
     int e;
     float m = frexpf(a, &e);   /* a = m * 2^e, m in [0.5, 1) */
     int he = e - 1 + 15;       /* a = (2m) * 2^(e-1) */
+    if (he <= 0) {
+        /* Below the smallest normal half: a multiple of 2^-24. */
+        long sub = lroundf(a * 16777216.0f);
+        return (uint16_t)(sign | (uint16_t)(sub > 1023 ? 1024 : sub));
+    }
+    if (he >= 31) return (uint16_t)(sign | 0x7c00u);   /* too large: infinity */
     uint32_t mant = (uint32_t)lroundf((2.0f * m - 1.0f) * 1024.0f);
-    return (uint16_t)(sign | (uint16_t)(he << 10) | (uint16_t)mant);
+    /* Rounding up may carry into the exponent: still the right bits. */
+    return (uint16_t)(sign | (uint16_t)(((uint32_t)he << 10) + mant));
 }
 
 static vec3 texel(const float *rgb, int w, int h, int x, int y)

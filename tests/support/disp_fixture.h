@@ -77,7 +77,7 @@ void fx_xvfb_stop(pid_t pid);
 /* Max and mean absolute difference over n floats. */
 void fx_diff(const float *a, const float *b, size_t n, double *max, double *mean);
 
-/* Half-float bits of f (f must be 0 or a normal half value; exact). */
+/* Half-float bits of f: round to nearest, subnormals below 2^-14, infinity above the range. */
 uint16_t fx_half(float f);
 
 /* GL's bilinear lookup (clamp to edge) of an RGB float texture at (s, t). */

@@ -348,6 +348,33 @@ static int *converge(rq_engine *e, int w, int h, vec3 (*field)(float, float), in
     return order;
 }
 
+/* `covered` (the master's "view covered" line) means every pixel sampled,
+ * not "nothing in flight": between lockstep frames nothing is in flight
+ * long before the view is covered. */
+Test(sampler, covered_only_when_every_pixel_is_sampled)
+{
+    enum { W = 32, H = 32 };
+    rq_engine *e = make(W, H, NULL, 3);
+    ct_camera c = cam_a();
+    ct_request r[16];
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert_not(st.covered, "a fresh view is not covered");
+    int k = batch(e, r, 16);
+    cr_assert_eq(k, 16);
+    answer_all(e, &c, W, H, r, k, disc_error(r[0].px, r[0].py));
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.in_flight, 0u);
+    cr_assert_lt(st.coverage, 1.0);
+    cr_assert_not(st.covered, "16 of %d pixels sampled, nothing in flight: not covered", W * H);
+    int n;
+    free(converge(e, W, H, disc_error, 16, &n));
+    rq_stats_get(e, &st);
+    cr_assert_eq(st.coverage, 1.0);
+    cr_assert(st.covered);
+    rq_free(e);
+}
+
 Test(sampler, still_camera_covers_every_pixel_once_and_concentrates_on_error)
 {
     /* Eight seeds, each run to full coverage; concentration is measured on

@@ -104,12 +104,19 @@ master_wait() {
   return 1
 }
 
-# master_term NAME: SIGTERM to rank 0 ends the job in order (status 0, 20 s
-# at most); its last log lines are printed.
+# master_term NAME: SIGTERM to rank 0 ends the job in order (status 0) and
+# soon: every rank's sends complete (a tracer's last large sample message
+# too, which only the master's receive completes), so no rank waits out a
+# drain timeout (5 s); its last log lines are printed.
 master_term() {
   echo "+ kill -TERM <rank 0>"
+  local t0=$EPOCHREALTIME
   kill -TERM "$(rank_pid "$1" 0)"
   master_wait "$1" 20 || fail "$1: the job did not end"
+  local dt
+  dt=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
+  echo "metric: $1 ended $dt s after SIGTERM"
+  awk -v t="$dt" 'BEGIN { exit !(t < 4.5) }' || fail "$1: the job took $dt s to end after SIGTERM (want < 4.5 s)"
   ((MASTER_RC == 0)) || fail "$1: job exit status $MASTER_RC"
   master_log "$1" | grep -v -e progress -e stats | tail -n 12
 }
