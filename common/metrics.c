@@ -129,14 +129,17 @@ static double px_mean(const ct_image *img, int x, int y)
 
 /* Whether the block at (x0, y0) counts (metrics_regions); mean is the
  * reference's mean over it. */
-static int block_counts(const ct_image *planes, const ct_image *flat, double flat_ratio, int x0, int y0, int b,
-                        double mean)
+static int block_counts(const ct_image *planes, int margin, const ct_image *flat, double flat_ratio, int x0, int y0,
+                        int b, double mean)
 {
     if (planes) {
         vec3 k = img_get(planes, x0, y0);
         if (k.x == 0.0f && k.y == 0.0f && k.z == 0.0f) return 0;
-        for (int y = y0; y < y0 + b; y++)
-            for (int x = x0; x < x0 + b; x++) {
+        int xa = x0 - margin > 0 ? x0 - margin : 0, ya = y0 - margin > 0 ? y0 - margin : 0;
+        int xb = x0 + b + margin < planes->width ? x0 + b + margin : planes->width;
+        int yb = y0 + b + margin < planes->height ? y0 + b + margin : planes->height;
+        for (int y = ya; y < yb; y++)
+            for (int x = xa; x < xb; x++) {
                 vec3 q = img_get(planes, x, y);
                 if (q.x != k.x || q.y != k.y || q.z != k.z) return 0;
             }
@@ -154,7 +157,7 @@ static int block_counts(const ct_image *planes, const ct_image *flat, double fla
     return 1;
 }
 
-int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, const ct_image *flat,
+int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, int margin, const ct_image *flat,
                     double flat_ratio, int block, img_regions *out, ct_error *err)
 {
     memset(out, 0, sizeof *out);
@@ -186,7 +189,7 @@ int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *plan
                 }
             float *r = &out->ratio[by * out->nx + bx];
             *r = NAN;
-            if (!(sb > 0.0) || !isfinite(sa) || !block_counts(planes, flat, flat_ratio, x0, y0, block, sb / ((double)block * block))) continue;
+            if (!(sb > 0.0) || !isfinite(sa) || !block_counts(planes, margin, flat, flat_ratio, x0, y0, block, sb / ((double)block * block))) continue;
             double q = sa / sb;
             *r = (float)q;
             out->counted++;

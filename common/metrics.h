@@ -21,8 +21,9 @@ int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct
  * shows in the means of blocks, whose noise falls with their pixel count.
  * A block (block x block pixels; partial blocks at the right and bottom
  * are left out) counts when the reference's mean (of R, G, B) is positive
- * and, when given, every pixel of planes carries one and the same non-zero
- * value (one flat surface: rad_render_view's RAD_VIEW_PLANES) and flat's
+ * and, when given, every pixel of planes within margin pixels of it carries
+ * one and the same non-zero value (one flat surface, away from its edges:
+ * rad_render_view's RAD_VIEW_PLANES) and flat's
  * pixel means vary over it by at most (flat_ratio - 1) times the
  * reference's mean (flat the direct light: no shadow boundary inside). */
 typedef struct img_regions {
@@ -36,8 +37,9 @@ typedef struct img_regions {
                          * does not count (free with metrics_regions_free) */
 } img_regions;
 
-/* Block means of a against ref (same sizes; planes and flat may be NULL). */
-int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, const ct_image *flat,
+/* Block means of a against ref (same sizes; planes and flat may be NULL;
+ * margin >= 0). */
+int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, int margin, const ct_image *flat,
                     double flat_ratio, int block, img_regions *out, ct_error *err);
 
 /* Frees out->ratio. */

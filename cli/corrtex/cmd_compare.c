@@ -18,7 +18,8 @@ static void usage(FILE *f)
 {
     fprintf(f,
             "usage: corrtex compare A.exr B.exr [--json] [--max-rmse X]\n"
-            "                       [--regions S [--planes P.exr] [--flat F.exr [--flat-ratio R]]\n"
+            "                       [--regions S [--planes P.exr [--planes-margin M]]\n"
+            "                        [--flat F.exr [--flat-ratio R]]\n"
             "                        [--max-region-error X] [--region-table]]\n"
             "Compares image A against the reference B (same size, R G B channels).\n"
             "Metrics: rmse and rel_mse on linear RGB; psnr (dB) and ssim on sRGB values\n"
@@ -33,6 +34,8 @@ static void usage(FILE *f)
             "                  B's mean is positive and the masks below agree    default: off\n"
             "  --planes P.exr  count only blocks lying on one flat surface: one non-zero value\n"
             "                  of P at every pixel (corrtex radiosity --image-planes)\n"
+            "  --planes-margin M  ... and at every pixel within M pixels of the block: away\n"
+            "                  from the surface's edges                          default: 0\n"
             "  --flat F.exr    count only blocks where F's pixel means vary by at most (R - 1)\n"
             "                  x B's block mean (F the direct light: no shadow boundary inside)\n"
             "  --flat-ratio R  R of --flat (R >= 1)                           default: 1.25\n"
@@ -69,6 +72,7 @@ int cmd_compare(int argc, char **argv)
         {"max-rmse", required_argument, NULL, 'm'},
         {"regions", required_argument, NULL, 'r'},
         {"planes", required_argument, NULL, 'p'},
+        {"planes-margin", required_argument, NULL, 'g'},
         {"flat", required_argument, NULL, 'f'},
         {"flat-ratio", required_argument, NULL, 'F'},
         {"max-region-error", required_argument, NULL, 'M'},
@@ -76,7 +80,7 @@ int cmd_compare(int argc, char **argv)
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}
     };
-    int json = 0, have_max = 0, have_max_region = 0, regions = 0, table = 0;
+    int json = 0, have_max = 0, have_max_region = 0, regions = 0, table = 0, margin = 0;
     double max_rmse = 0.0, max_region = 0.0, flat_ratio = 1.25, v;
     const char *planes_path = NULL, *flat_path = NULL;
     optind = 1;
@@ -104,6 +108,10 @@ int cmd_compare(int argc, char **argv)
             }
             break;
         case 'p': planes_path = optarg; break;
+        case 'g':
+            if (number(optarg, "--planes-margin", 0.0, 65536.0, &v)) return 2;
+            margin = (int)v;
+            break;
         case 'f': flat_path = optarg; break;
         case 'F':
             if (number(optarg, "--flat-ratio", 1.0, HUGE_VAL, &flat_ratio)) return 2;
@@ -126,7 +134,7 @@ int cmd_compare(int argc, char **argv)
         return 2;
     }
     const char *pa = argv[optind], *pb = argv[optind + 1];
-    if ((planes_path || flat_path || have_max_region || table) && !regions) {
+    if ((planes_path || flat_path || have_max_region || table || margin) && !regions) {
         ct_log(CT_LOG_ERROR, COMPONENT, "--planes, --flat, --max-region-error and --region-table need --regions");
         return 2;
     }
@@ -146,8 +154,8 @@ int cmd_compare(int argc, char **argv)
         if (rc) ct_error_prefix(&err, pa);
     }
     if (!rc && regions)
-        rc = metrics_regions(&img[0], &img[1], planes_path ? &img[2] : NULL, flat_path ? &img[3] : NULL, flat_ratio,
-                             regions, &reg, &err);
+        rc = metrics_regions(&img[0], &img[1], planes_path ? &img[2] : NULL, margin, flat_path ? &img[3] : NULL,
+                             flat_ratio, regions, &reg, &err);
     int w = img[0].width, h = img[0].height;
     for (int i = 0; i < 4; i++) img_free(&img[i]);
     if (rc) {

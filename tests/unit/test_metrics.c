@@ -195,7 +195,7 @@ static img_regions regions_ok(const ct_image *a, const ct_image *ref, const ct_i
 {
     img_regions r;
     ct_error err;
-    cr_assert_eq(metrics_regions(a, ref, planes, flat, flat_ratio, block, &r, &err), 0, "%s", err.msg);
+    cr_assert_eq(metrics_regions(a, ref, planes, 0, flat, flat_ratio, block, &r, &err), 0, "%s", err.msg);
     return r;
 }
 
@@ -248,6 +248,13 @@ Test(metrics, region_masks_planes_flat_and_dark_reference)
     cr_assert(isnan(r.ratio[0]));
     cr_assert_float_eq(r.ratio[2], 2.0f, 1e-6f);
     metrics_regions_free(&r);
+    /* Block (0, 1) covers x 0-1, y 2-3; a margin of 1 adds x 2 and y 1: a
+     * pixel of another plane at (2, 1) keeps it out. */
+    img_set(&planes, 2, 1, v3(7, 3, 2));
+    ct_error err;
+    cr_assert_eq(metrics_regions(&a, &ref, &planes, 1, &flat, 1.35, 2, &r, &err), 0, "%s", err.msg);
+    cr_assert_eq(r.counted, 0, "a plane edge one pixel from block (0, 1) must keep it out");
+    metrics_regions_free(&r);
     img_free(&a);
     img_free(&ref);
     img_free(&planes);
@@ -259,9 +266,9 @@ Test(metrics, region_size_and_mask_size_errors)
     ct_image a = make(4, 4, 1, 1, 1), ref = make(4, 4, 1, 1, 1), small = make(3, 4, 1, 1, 1);
     img_regions r;
     ct_error err;
-    cr_assert_eq(metrics_regions(&a, &ref, NULL, NULL, 1.25, 5, &r, &err), CT_EINVAL);
+    cr_assert_eq(metrics_regions(&a, &ref, NULL, 0, NULL, 1.25, 5, &r, &err), CT_EINVAL);
     cr_assert(strstr(err.msg, "region size 5"), "%s", err.msg);
-    cr_assert_eq(metrics_regions(&a, &ref, &small, NULL, 1.25, 2, &r, &err), CT_EINVAL);
+    cr_assert_eq(metrics_regions(&a, &ref, &small, 0, NULL, 1.25, 2, &r, &err), CT_EINVAL);
     cr_assert(strstr(err.msg, "sizes differ"), "%s", err.msg);
     img_free(&a);
     img_free(&ref);
