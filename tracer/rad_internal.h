@@ -217,9 +217,26 @@ void rad_tls_free(rad_tls *t);
 /* Meshes the leaves into a conforming triangle mesh with per-vertex values. */
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err);
 
+/* What the final gather reads per element (by element id): the sums over
+ * its links whose factor is the same at every vertex (clusters, and
+ * factors flat over the element), and the others, to be taken at each
+ * vertex, as indices into the patch's link block. */
+typedef struct rad_gather_prep {
+    vec3 *flat, *flat_d;     /* sum of ff * B and of ff * E of the flat links */
+    uint32_t *off;           /* first entry of an element's other links in idx (nelems + 1) */
+    uint32_t *idx;
+} rad_gather_prep;
+
+/* Fills g from the final links (rad_link.c); CT_ENOMEM when out of memory. */
+int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g);
+
+/* Frees g's arrays. */
+void rad_gather_prep_free(rad_gather_prep *g);
+
 /* The final gather at a mesh vertex x of leaf (normal n): the irradiance H
  * and its direct part Hd over the links of the leaf and its ancestors, each
  * element source's factor taken at x itself (rad_link.c). */
-void rad_final_gather(const rad_ctx *c, uint32_t leaf, vec3 x, vec3 n, vec3 *H, vec3 *Hd);
+void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, uint32_t leaf, vec3 x, vec3 n, vec3 *H,
+                      vec3 *Hd);
 
 #endif

@@ -226,6 +226,7 @@ static float on_segment(vec3 a, vec3 b, vec3 p)
  * c->prm.threads threads taking runs of vertices from a shared counter. */
 typedef struct gather_job {
     const rad_ctx *c;
+    const rad_gather_prep *prep;
     const uint32_t *leaf;
     const vec3 *pos;
     vec3 *B, *Bd;
@@ -243,7 +244,7 @@ static void *gather_worker(void *arg)
         for (uint32_t g = b; g < e; g++) {
             const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
             vec3 H, Hd;
-            rad_final_gather(j->c, j->leaf[g], j->pos[g], p->n, &H, &Hd);
+            rad_final_gather(j->c, j->prep, j->leaf[g], j->pos[g], p->n, &H, &Hd);
             j->B[g] = v3_add(p->E, v3_mul(p->rho, H));
             j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
         }
@@ -254,8 +255,13 @@ static void *gather_worker(void *arg)
 /* Radiosity B and its direct part Bd of the n vertices pos[g] of leaf[g]. */
 static int gather_vertices(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
 {
+    rad_gather_prep prep;
+    if (rad_gather_prepare(c, &prep) != CT_OK) {
+        rad_gather_prep_free(&prep);
+        return CT_ENOMEM;
+    }
     atomic_uint next = 0;
-    gather_job j = {c, leaf, pos, B, Bd, n, &next};
+    gather_job j = {c, &prep, leaf, pos, B, Bd, n, &next};
     pthread_t th[256];
     int started = 0, nth = c->prm.threads < 256 ? c->prm.threads : 256;
     for (int i = 1; i < nth; i++) {
@@ -264,6 +270,7 @@ static int gather_vertices(const rad_ctx *c, const uint32_t *leaf, const vec3 *p
     }
     gather_worker(&j);
     for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
+    rad_gather_prep_free(&prep);
     return 0;
 }
 
