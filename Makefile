@@ -180,6 +180,15 @@ $(BUILD)/bench/%: tests/bench/%.c $(ALL_LIBS)
 	$(Q)$(CC) $(CFLAGS) -o $@ $< $(ALL_LIBS) $(LDFLAGS_BASE) \
 	  $(LIBS_GL) $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)
 
+# Test tools (tests/tools/*.c): programs the end-to-end tests run, such as
+# peers that send what the real programs never would; built with the tests.
+TOOL_SRCS := $(sort $(wildcard tests/tools/*.c))
+TOOL_BINS := $(patsubst tests/tools/%.c,$(BUILD)/tools/%,$(TOOL_SRCS))
+$(BUILD)/tools/%: tests/tools/%.c $(LIB_proto) $(LIB_common)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  TOOL-LD $@"
+	$(Q)$(CC) $(CFLAGS) -o $@ $< $(LIB_proto) $(LIB_common) $(LDFLAGS_BASE) $(LIBS_PROTO) $(LIBS_COMMON)
+
 setup:
 	@scripts/setup-deps
 
@@ -189,7 +198,7 @@ test: setup
 	@$(MAKE) --no-print-directory unit-bins
 	@CORRTEX_BIN=$(BINDIR) CORRTEX_BUILD=$(BUILD) scripts/run-tests $(UNIT_BINS) -- $(sort $(wildcard tests/e2e/*.sh))
 
-unit-bins: $(UNIT_BINS) $(BENCH_BINS)
+unit-bins: $(UNIT_BINS) $(BENCH_BINS) $(TOOL_BINS)
 
 test-asan: setup
 	@$(MAKE) --no-print-directory SANITIZE=address,undefined test

@@ -1,5 +1,7 @@
 #include "common/camera.h"
 
+#include <stdio.h>
+
 ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg)
 {
     vec3 f = v3_norm(v3_sub(target, eye));
@@ -17,6 +19,35 @@ ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg)
     c.orient = q_from_basis(r, u, v3_neg(f));
     c.fov_y = fov_y_deg * CT_PI / 180.0f;
     return c;
+}
+
+bool cam_valid(const ct_camera *c, char *why, size_t cap)
+{
+    const quat q = c->orient;
+    char buf[96];
+    if (!why) {
+        why = buf;
+        cap = sizeof buf;
+    }
+    if (!v3_finite(c->eye) || !isfinite(q.w) || !isfinite(q.x) || !isfinite(q.y) || !isfinite(q.z) ||
+        !isfinite(c->fov_y)) {
+        snprintf(why, cap, "has a non-finite value");
+        return false;
+    }
+    if (!(c->fov_y > 0.0f && c->fov_y < 3.14159f)) {
+        snprintf(why, cap, "field of view %g out of range", (double)c->fov_y);
+        return false;
+    }
+    if (!v3_in_range(c->eye)) {
+        float e = fabsf(c->eye.x) > CT_COORD_MAX ? c->eye.x : fabsf(c->eye.y) > CT_COORD_MAX ? c->eye.y : c->eye.z;
+        snprintf(why, cap, "eye coordinate %g outside +-%g", (double)e, (double)CT_COORD_MAX);
+        return false;
+    }
+    if (!(fabsf(q_dot(q, q) - 1.0f) <= 1e-3f)) {
+        snprintf(why, cap, "orientation is not a unit quaternion (norm^2 %g)", (double)q_dot(q, q));
+        return false;
+    }
+    return true;
 }
 
 void cam_axes(const ct_camera *c, vec3 *right, vec3 *up, vec3 *forward)

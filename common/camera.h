@@ -7,6 +7,7 @@
 #define CT_CAMERA_H
 
 #include <stdbool.h>
+#include <stddef.h>
 
 #include "common/vecmath.h"
 
@@ -19,6 +20,12 @@ typedef struct ct_camera {
 /* A camera at eye looking at target with the given up vector and vertical
  * field of view in degrees. */
 ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg);
+
+/* Whether c can be traced: every value finite, a field of view in (0, pi),
+ * the eye within +-CT_COORD_MAX and a unit orientation (within 1e-3; a zero
+ * or huge quaternion makes the rays NaN or infinite). When not, why gets
+ * the problem ("eye coordinate -1e+19 outside +-1e+09"; may be NULL). */
+bool cam_valid(const ct_camera *c, char *why, size_t cap);
 
 /* World-space unit axes of the camera. */
 void cam_axes(const ct_camera *c, vec3 *right, vec3 *up, vec3 *forward);

@@ -26,6 +26,9 @@ static int validate(const campath_key *k, int n, vec3 up, const char *origin, co
         if (!isfinite(k[i].t) || !v3_finite(k[i].eye) || !v3_finite(k[i].target) ||
             !isfinite(k[i].fov_deg))
             return ct_fail(err, CT_EINVAL, "%s: non-finite value", where);
+        if (!v3_in_range(k[i].eye) || !v3_in_range(k[i].target))
+            return ct_fail(err, CT_ERANGE, "%s: eye or target outside the coordinate range +-%g", where,
+                           (double)CT_COORD_MAX);
         if (!(k[i].fov_deg > 0.0f && k[i].fov_deg < 180.0f))
             return ct_fail(err, CT_EINVAL, "%s: fov %g outside (0, 180)", where, (double)k[i].fov_deg);
         if (v3_len2(v3_sub(k[i].target, k[i].eye)) <= 0.0f)
@@ -192,7 +195,9 @@ ct_camera campath_eval(const ct_campath *p, float t)
     }
     float u = (t - p->keys[lo].t) / (p->keys[lo + 1].t - p->keys[lo].t);
     ct_camera c = cam_lerp(&p->cams[lo], &p->cams[lo + 1], u);
-    c.eye = spline(p->keys, p->nkeys, lo, u);
+    /* The spline overshoots its keys by up to about half their spread: keep
+     * the eye in the range a master accepts in a CAMERA. */
+    c.eye = v3_min(v3_max(spline(p->keys, p->nkeys, lo, u), v3s(-CT_COORD_MAX)), v3s(CT_COORD_MAX));
     return c;
 }
 

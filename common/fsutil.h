@@ -1,6 +1,9 @@
 /* fsutil.h: file helpers: atomic writes (write a temporary beside the target,
  * fsync, rename) so no reader ever sees a half-written output, whole-file
- * reads with a size cap, and directory creation. */
+ * reads with a size cap, and directory creation. Only regular files are
+ * read, and only regular files are replaced: a FIFO would block a reader for
+ * good, and renaming over a device or FIFO would replace the node itself (as
+ * root, /dev/null); those are written in place (docs/architecture.md). */
 #ifndef CT_FSUTIL_H
 #define CT_FSUTIL_H
 
@@ -11,15 +14,22 @@
 
 typedef struct fs_atomic {
     FILE *f;
-    char tmp[4096];
+    char tmp[4096];    /* "" when path is a device or FIFO written in place */
     char path[4096];
 } fs_atomic;
 
-/* Opens a temporary file beside path for writing. */
+/* Opens a temporary file beside path for writing; when path is a character
+ * device or a FIFO, opens path itself (a FIFO without a reader fails at
+ * once). Other file types (folders, sockets, block devices) are refused. */
 int fs_atomic_open(fs_atomic *a, const char *path, ct_error *err);
 
 /* Flushes, syncs and renames the temporary onto path; on failure removes it. */
 int fs_atomic_commit(fs_atomic *a, ct_error *err);
+
+/* Fails now when fs_atomic_open(path) would (a refused file type, a folder
+ * that cannot be written), without changing path or opening a FIFO: a
+ * reader would take the close for the end of the output. */
+int fs_output_check(const char *path, ct_error *err);
 
 /* Writes len bytes to path atomically (fs_atomic_open / commit). */
 int fs_write_atomic(const char *path, const void *data, size_t len, ct_error *err);
@@ -27,11 +37,9 @@ int fs_write_atomic(const char *path, const void *data, size_t len, ct_error *er
 /* Closes and removes the temporary (the target is untouched). */
 void fs_atomic_abort(fs_atomic *a);
 
-/* A unique temporary name beside path (for libraries that open files themselves). */
-void fs_temp_name(const char *path, char *out, size_t cap);
-
-/* Renames tmp onto path after syncing it; removes tmp on failure. */
-int fs_commit_temp(const char *tmp, const char *path, ct_error *err);
+/* Opens a regular file for reading (anything else fails at once, a FIFO
+ * included, without blocking); *size gets its size. */
+int fs_open_regular(const char *path, FILE **f, size_t *size, ct_error *err);
 
 /* Reads a whole file (NUL-terminated copy in *data); fails over max bytes. */
 int fs_read_all(const char *path, size_t max, char **data, size_t *len, ct_error *err);

@@ -140,16 +140,17 @@ static float rf32(const unsigned char *p)
 
 static vec3 rvec(const unsigned char *p) { return v3(rf32(p), rf32(p + 4), rf32(p + 8)); }
 
-int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t expect_hash, ct_radmesh *m,
-                 ct_error *err)
+/* The checks the fixed header allows (avail of its bytes are in d): magic,
+ * version, byte order, counts, and the size they imply against the file's
+ * size, so that a file that is no mesh cache fails before it is read in
+ * full. */
+static int check_header(const unsigned char *d, size_t avail, uint64_t file_len, const char *path, ct_error *err)
 {
-    memset(m, 0, sizeof *m);
-    int rc;
-    if (len < RMESH_MAGIC_LEN || memcmp(d, RMESH_MAGIC, RMESH_MAGIC_LEN) != 0) {
+    if (avail < RMESH_MAGIC_LEN || memcmp(d, RMESH_MAGIC, RMESH_MAGIC_LEN) != 0) {
         return ct_fail(err, CT_EPARSE, "%s: not a corrtex mesh cache (bad magic)", path);
     }
-    if (len < RMESH_HEADER) {
-        return ct_fail(err, CT_EPARSE, "%s: truncated header (%zu bytes, need %d)", path, len, RMESH_HEADER);
+    if (avail < RMESH_HEADER) {
+        return ct_fail(err, CT_EPARSE, "%s: truncated header (%zu bytes, need %d)", path, avail, RMESH_HEADER);
     }
     /* The two bytes after the magic are padding the encoder zeroes; a
      * decoder that ignored them would accept files it cannot write back. */
@@ -165,7 +166,6 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
         return ct_fail(err, CT_EPARSE, "%s: endianness check 0x%08x, expected 0x%08x (written byte-swapped?)",
                        path, endian, RMESH_ENDIAN);
     }
-    uint64_t hash = ru64(d + 20);
     uint32_t nv = ru32(d + 28), nt = ru32(d + 32), nn = ru32(d + 36), nm = ru32(d + 40);
     if (ru32(d + 44) != 0) {
         return ct_fail(err, CT_EPARSE, "%s: reserved header field is not zero", path);
@@ -177,10 +177,22 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
     uint64_t need = (uint64_t)RMESH_HEADER + (uint64_t)nv * RMESH_VERT_BYTES +
                     (uint64_t)nt * RMESH_TRI_BYTES + (uint64_t)nn * RMESH_NODE_BYTES +
                     (uint64_t)nm * RMESH_MAT_BYTES + 8;
-    if (len != need) {
-        return ct_fail(err, CT_EPARSE, "%s: %s (%zu bytes, header says %llu)", path,
-                       len < need ? "truncated" : "trailing bytes", len, (unsigned long long)need);
+    if (file_len != need) {
+        return ct_fail(err, CT_EPARSE, "%s: %s (%llu bytes, header says %llu)", path,
+                       file_len < need ? "truncated" : "trailing bytes", (unsigned long long)file_len,
+                       (unsigned long long)need);
     }
+    return CT_OK;
+}
+
+int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t expect_hash, ct_radmesh *m,
+                 ct_error *err)
+{
+    memset(m, 0, sizeof *m);
+    int rc = check_header(d, len, len, path, err);
+    if (rc) return rc;
+    uint64_t hash = ru64(d + 20);
+    uint32_t nv = ru32(d + 28), nt = ru32(d + 32), nn = ru32(d + 36), nm = ru32(d + 40);
     if (fnv(1469598103934665603ULL, d, len - 8) != ru64(d + len - 8)) {
         return ct_fail(err, CT_EPARSE, "%s: checksum mismatch (corrupted cache)", path);
     }
@@ -199,8 +211,9 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
         m->nrm[i] = rvec(p + 12);
         m->rad[i] = rvec(p + 24);
         m->rad_direct[i] = rvec(p + 36);
-        if (!v3_finite(m->pos[i]) || !v3_finite(m->rad[i]) || !v3_finite(m->rad_direct[i])) {
-            rc = ct_fail(err, CT_EPARSE, "%s: vertex %u is not finite", path, i);
+        if (!v3_in_range(m->pos[i]) || !v3_finite(m->rad[i]) || !v3_finite(m->rad_direct[i])) {
+            rc = ct_fail(err, CT_EPARSE, "%s: vertex %u is not finite or outside the coordinate range +-%g", path, i,
+                         (double)CT_COORD_MAX);
             goto fail;
         }
     }
@@ -265,11 +278,27 @@ fail:
 int rmesh_load(const char *path, uint64_t expect_hash, ct_radmesh *m, ct_error *err)
 {
     memset(m, 0, sizeof *m);
-    char *data = NULL;
-    size_t len = 0;
-    int rc = fs_read_all(path, RMESH_MAX_FILE, &data, &len, err);
+    FILE *f;
+    size_t len;
+    int rc = fs_open_regular(path, &f, &len, err);
     if (rc) return rc;
-    rc = rmesh_decode((const unsigned char *)data, len, path, expect_hash, m, err);
+    unsigned char hdr[RMESH_HEADER];
+    size_t got = fread(hdr, 1, sizeof hdr, f);
+    unsigned char *data = NULL;
+    if (len > RMESH_MAX_FILE)
+        rc = ct_fail(err, CT_ERANGE, "%s: file too large (%zu bytes, limit %zu)", path, len, RMESH_MAX_FILE);
+    else rc = check_header(hdr, got, len, path, err);
+    if (rc == CT_OK) {
+        if (!(data = malloc(len))) {
+            rc = ct_fail(err, CT_ENOMEM, "%s: out of memory for %zu bytes", path, len);
+        } else {
+            memcpy(data, hdr, got);
+            if (fread(data + got, 1, len - got, f) != len - got)
+                rc = ct_fail(err, CT_EIO, "%s: read failed", path);
+        }
+    }
+    fclose(f);
+    if (rc == CT_OK) rc = rmesh_decode(data, len, path, expect_hash, m, err);
     free(data);
     return rc;
 }

@@ -163,6 +163,9 @@ int scene_end_node(ct_scene *s, ct_error *err)
 
 int64_t scene_add_vertex(ct_scene *s, vec3 pos, vec3 nrm, ct_error *err)
 {
+    if (!v3_in_range(pos))
+        return ct_fail(err, CT_ERANGE, "vertex (%g, %g, %g) not finite or outside the coordinate range +-%g",
+                       (double)pos.x, (double)pos.y, (double)pos.z, (double)CT_COORD_MAX);
     uint32_t cap = s->cap_verts;
     int rc = grow((void **)&s->pos, &cap, s->nverts + 1, sizeof *s->pos, SCENE_MAX_VERTS, err,
                   "vertices");
@@ -214,6 +217,107 @@ static int add_triangle(ct_scene *s, uint32_t a, uint32_t b, uint32_t c, uint32_
     return 1;
 }
 
+vec3 scene_polygon_normal(const ct_scene *s, const uint32_t *idx, int n)
+{
+    vec3 nn = v3s(0);
+    for (int i = 0; i < n; i++) {
+        vec3 a = s->pos[idx[i]], b = s->pos[idx[(i + 1) % n]];
+        nn.x += (a.y - b.y) * (a.z + b.z);
+        nn.y += (a.z - b.z) * (a.x + b.x);
+        nn.z += (a.x - b.x) * (a.y + b.y);
+    }
+    return v3_norm(nn);
+}
+
+/* Concave polygons are cut into ears (triangles whose corner turns the
+ * polygon's way and holds no other vertex) rather than fanned: a fan of a
+ * ring-shaped n-gon covered its hole. Not aiProcess_Triangulate: it would
+ * forget which triangles form one input polygon (tri_prim, which radiosity
+ * patches and the primitive counts read), and lights' quads never pass
+ * through assimp. The ear test scans the remaining vertices, O(n^2) per
+ * polygon at worst; larger concave polygons are refused. */
+#define SCENE_MAX_EAR_VERTS 1024
+
+/* Twice the signed area of the projected triangle (a, b, c). */
+static double turn(const double *a, const double *b, const double *c)
+{
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/* The polygon's vertices in the plane of its normal n, counter-clockwise
+ * seen from n's side (uv, 2n values); whether every corner turns that way
+ * (within a relative tolerance, so a slightly bent convex quad stays a fan). */
+static bool project_polygon(const ct_scene *s, const uint32_t *idx, int n, vec3 nrm, double *uv)
+{
+    int k = fabsf(nrm.x) > fabsf(nrm.y) ? (fabsf(nrm.x) > fabsf(nrm.z) ? 0 : 2) : (fabsf(nrm.y) > fabsf(nrm.z) ? 1 : 2);
+    float sign = v3_get(nrm, k) < 0.0f ? -1.0f : 1.0f;
+    for (int i = 0; i < n; i++) {
+        vec3 p = s->pos[idx[i]];
+        uv[2 * i] = v3_get(p, (k + 1) % 3);
+        uv[2 * i + 1] = sign * v3_get(p, (k + 2) % 3);
+    }
+    bool convex = true;
+    for (int i = 0; i < n && convex; i++) {
+        const double *a = uv + 2 * ((i + n - 1) % n), *b = uv + 2 * i, *c = uv + 2 * ((i + 1) % n);
+        double ab = hypot(b[0] - a[0], b[1] - a[1]), bc = hypot(c[0] - b[0], c[1] - b[1]);
+        convex = turn(a, b, c) >= -1e-6 * ab * bc;
+    }
+    return convex;
+}
+
+static bool same_point(const double *a, const double *b) { return a[0] == b[0] && a[1] == b[1]; }
+
+/* Whether corner i (between prev a and next c) of the remaining ring is an
+ * ear. Vertices at the same place as a corner (the two sides of a bridge
+ * into a hole) do not block it. */
+static bool is_ear(const double *uv, const int *next, int a, int i, int c)
+{
+    const double *pa = uv + 2 * a, *pb = uv + 2 * i, *pc = uv + 2 * c;
+    if (!(turn(pa, pb, pc) > 0.0)) return false;
+    for (int j = next[c]; j != a; j = next[j]) {
+        const double *q = uv + 2 * j;
+        if (same_point(q, pa) || same_point(q, pb) || same_point(q, pc)) continue;
+        if (turn(pa, pb, q) >= 0.0 && turn(pb, pc, q) >= 0.0 && turn(pc, pa, q) >= 0.0) return false;
+    }
+    return true;
+}
+
+static int ear_clip(ct_scene *s, const uint32_t *idx, int n, const double *uv, uint32_t part, int *added,
+                    ct_error *err)
+{
+    int *next = malloc((size_t)n * 2 * sizeof *next);
+    if (!next) return ct_fail(err, CT_ENOMEM, "out of memory for a polygon of %d vertices", n);
+    int *prev = next + n;
+    for (int i = 0; i < n; i++) {
+        next[i] = (i + 1) % n;
+        prev[i] = (i + n - 1) % n;
+    }
+    int m = n, i = 0, misses = 0, rc = 0;
+    while (m > 3 && rc >= 0) {
+        int a = prev[i], c = next[i];
+        if (!is_ear(uv, next, a, i, c)) {
+            i = c;
+            /* A full round without an ear: the polygon crosses itself. */
+            if (++misses > m) break;
+            continue;
+        }
+        rc = add_triangle(s, idx[a], idx[i], idx[c], part, s->nprims, err);
+        *added += rc > 0;
+        next[a] = c;
+        prev[c] = a;
+        m--;
+        misses = 0;
+        i = a;
+    }
+    /* The last triangle, or a fan of what a self-crossing polygon left. */
+    for (int b = next[i]; rc >= 0 && next[b] != i; b = next[b]) {
+        rc = add_triangle(s, idx[i], idx[b], idx[next[b]], part, s->nprims, err);
+        *added += rc > 0;
+    }
+    free(next);
+    return rc < 0 ? rc : 0;
+}
+
 int scene_add_polygon(ct_scene *s, const uint32_t *idx, int n, ct_error *err)
 {
     if (s->open_depth <= 0 || s->nodes[s->open_stack[s->open_depth - 1]].kind != SCENE_NODE_PART)
@@ -225,11 +329,23 @@ int scene_add_polygon(ct_scene *s, const uint32_t *idx, int n, ct_error *err)
                            s->nverts);
     uint32_t part = (uint32_t)s->open_stack[s->open_depth - 1];
     int added = 0;
-    for (int i = 1; i + 1 < n; i++) {
-        int rc = add_triangle(s, idx[0], idx[i], idx[i + 1], part, s->nprims, err);
-        if (rc < 0) return rc;
-        added += rc;
+    double small[2 * 64], *uv = n <= 64 ? small : malloc((size_t)n * 2 * sizeof *uv);
+    if (!uv) return ct_fail(err, CT_ENOMEM, "out of memory for a polygon of %d vertices", n);
+    bool convex = n == 3 || project_polygon(s, idx, n, scene_polygon_normal(s, idx, n), uv);
+    int rc = 0;
+    if (convex) {
+        for (int i = 1; i + 1 < n && rc >= 0; i++) {
+            rc = add_triangle(s, idx[0], idx[i], idx[i + 1], part, s->nprims, err);
+            added += rc > 0;
+        }
+    } else if (n > SCENE_MAX_EAR_VERTS) {
+        rc = ct_fail(err, CT_ERANGE, "concave polygon of %d vertices (at most %d are triangulated)", n,
+                     SCENE_MAX_EAR_VERTS);
+    } else {
+        rc = ear_clip(s, idx, n, uv, part, &added, err);
     }
+    if (uv != small) free(uv);
+    if (rc < 0) return rc;
     if (added > 0) {
         s->nprims++;
         if (n == 4) s->nquads++;
@@ -242,6 +358,9 @@ int scene_add_camera(ct_scene *s, const char *name, vec3 eye, vec3 target, vec3 
 {
     if (!v3_finite(eye) || !v3_finite(target) || !v3_finite(up) || !isfinite(fov_deg))
         return ct_fail(err, CT_EINVAL, "camera '%s': non-finite value", name);
+    if (!v3_in_range(eye) || !v3_in_range(target))
+        return ct_fail(err, CT_ERANGE, "camera '%s': eye or target outside the coordinate range +-%g", name,
+                       (double)CT_COORD_MAX);
     if (v3_len2(v3_sub(target, eye)) <= 0.0f)
         return ct_fail(err, CT_EINVAL, "camera '%s': eye and target coincide", name);
     if (!(fov_deg > 0.0f && fov_deg < 180.0f))

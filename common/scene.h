@@ -149,10 +149,15 @@ int scene_end_node(ct_scene *s, ct_error *err);
 /* Adds a vertex; returns its index or < 0. */
 int64_t scene_add_vertex(ct_scene *s, vec3 pos, vec3 nrm, ct_error *err);
 
-/* Adds a polygon of n >= 3 vertex indices to the open part node (fan
- * triangulation; quads and n-gons count as one primitive). Degenerate
- * triangles are dropped and counted. Returns 0 or < 0. */
+/* Adds a polygon of n >= 3 vertex indices to the open part node (quads and
+ * n-gons count as one primitive): a convex polygon is fanned from its first
+ * vertex (a quad as (0,1,2), (0,2,3)), a concave one cut into ears in the
+ * plane of its normal. Degenerate triangles are dropped and counted.
+ * Returns 0 or < 0. */
 int scene_add_polygon(ct_scene *s, const uint32_t *idx, int n, ct_error *err);
+
+/* Newell's normal of a polygon (unit; robust for non-planar ones). */
+vec3 scene_polygon_normal(const ct_scene *s, const uint32_t *idx, int n);
 
 /* Adds a named camera. */
 int scene_add_camera(ct_scene *s, const char *name, vec3 eye, vec3 target, vec3 up,

@@ -342,19 +342,6 @@ static float det3(const mat4 *m)
            m->m[0][2] * (m->m[1][0] * m->m[2][1] - m->m[1][1] * m->m[2][0]);
 }
 
-/* Newell's normal of a polygon: robust for non-planar quads. */
-static vec3 polygon_normal(const ct_scene *s, const uint32_t *idx, int n)
-{
-    vec3 nn = v3s(0);
-    for (int i = 0; i < n; i++) {
-        vec3 a = s->pos[idx[i]], b = s->pos[idx[(i + 1) % n]];
-        nn.x += (a.y - b.y) * (a.z + b.z);
-        nn.y += (a.z - b.z) * (a.x + b.x);
-        nn.z += (a.x - b.x) * (a.y + b.y);
-    }
-    return v3_norm(nn);
-}
-
 static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
 {
     loader *L = C->L;
@@ -367,28 +354,21 @@ static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
     uint32_t base = s->nverts;
     const char *mname = am->mName.length ? am->mName.data : "mesh";
 
-    if (has_n) {
-        for (unsigned i = 0; i < am->mNumVertices; i++) {
-            vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
-            if (!v3_finite(p))
-                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
-                               C->file, mname, i + 1);
-            vec3 n = v3(am->mNormals[i].x, am->mNormals[i].y, am->mNormals[i].z);
-            vec3 wp = m4_point(xf, p);
-            if (!v3_finite(wp))
-                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u overflows after transform",
-                               C->file, mname, i + 1);
-            vec3 wn = v3_finite(n) && v3_len2(n) > 0.0f ? m4_normal(&inv, n) : v3s(0);
-            int64_t r = scene_add_vertex(s, wp, wn, L->err);
-            if (r < 0) return (int)r;
-        }
-    } else {
-        for (unsigned i = 0; i < am->mNumVertices; i++) {
-            vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
-            if (!v3_finite(p))
-                return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
-                               C->file, mname, i + 1);
-        }
+    for (unsigned i = 0; i < am->mNumVertices; i++) {
+        vec3 p = v3(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+        if (!v3_finite(p))
+            return ct_fail(L->err, CT_EPARSE, "%s: mesh '%s': vertex %u has a non-finite coordinate",
+                           C->file, mname, i + 1);
+        vec3 wp = m4_point(xf, p);
+        if (!v3_in_range(wp))
+            return ct_fail(L->err, CT_ERANGE,
+                           "%s: mesh '%s': vertex %u at (%g, %g, %g) in the scene is outside the coordinate range +-%g",
+                           C->file, mname, i + 1, (double)wp.x, (double)wp.y, (double)wp.z, (double)CT_COORD_MAX);
+        if (!has_n) continue;
+        vec3 n = v3(am->mNormals[i].x, am->mNormals[i].y, am->mNormals[i].z);
+        vec3 wn = v3_finite(n) && v3_len2(n) > 0.0f ? m4_normal(&inv, n) : v3s(0);
+        int64_t r = scene_add_vertex(s, wp, wn, L->err);
+        if (r < 0) return (int)r;
     }
 
     uint32_t stackidx[64];
@@ -417,7 +397,7 @@ static int import_mesh(mesh_ctx *C, const struct aiMesh *am, const mat4 *xf)
             }
         }
         if (rc == CT_OK) {
-            vec3 fn = polygon_normal(s, idx, (int)n);
+            vec3 fn = scene_polygon_normal(s, idx, (int)n);
             /* Flat shading for files without normals; repair for broken ones. */
             for (unsigned k = 0; k < n; k++)
                 if (v3_len2(s->nrm[idx[k]]) == 0.0f) s->nrm[idx[k]] = fn;
@@ -563,8 +543,11 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
 
     char full[4096];
     fs_join(L->dir, file, full, sizeof full);
-    FILE *probe = fopen(full, "rb");
-    if (!probe) return ct_fail(L->err, CT_EIO, "%s: cannot open mesh file: %s", full, strerror(errno));
+    /* Checked here because assimp's own message for a file it cannot open
+     * does not say why; a FIFO fails at once instead of blocking. */
+    FILE *probe;
+    size_t size;
+    if ((rc = fs_open_regular(full, &probe, &size, L->err))) return rc;
     fclose(probe);
 
     struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
@@ -580,7 +563,7 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     char nodename[SCENE_NAME_LEN];
     if (name) snprintf(nodename, sizeof nodename, "%s", name);
     else basename_noext(file, nodename, sizeof nodename);
-    uint32_t dropped_before = L->s->dropped_degenerate;
+    uint32_t dropped_before = L->s->dropped_degenerate, tris_before = L->s->ntris;
     if (rc == CT_OK && (rc = scene_begin_node(L->s, nodename, SCENE_NODE_FILE, UINT32_MAX, L->err)) >= 0) {
         mesh_ctx C = {L, full, ai, matmap};
         rc = import_node(&C, ai->mRootNode, xf, 1);
@@ -591,6 +574,9 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     if (rc < 0) return rc;
     uint32_t dropped = L->s->dropped_degenerate - dropped_before;
     if (dropped) ct_warn("scene", "%s: dropped %u degenerate triangle%s", full, dropped, dropped == 1 ? "" : "s");
+    /* Likely the wrong file (points or lines only): say so rather than
+     * render a scene without it. */
+    if (L->s->ntris == tris_before) ct_warn("scene", "%s: no triangles: it adds nothing to the scene", full);
     return CT_OK;
 }
 
@@ -619,6 +605,12 @@ static int import_lights(loader *L, const cJSON *lights)
         if ((rc = get_vec3(L, l, "corner", ctx, 1, v3s(0), &p))) return rc;
         if ((rc = get_vec3(L, l, "edge1", ctx, 1, v3s(0), &e1))) return rc;
         if ((rc = get_vec3(L, l, "edge2", ctx, 1, v3s(0), &e2))) return rc;
+        vec3 corners[4] = {p, v3_add(p, e1), v3_add(v3_add(p, e1), e2), v3_add(p, e2)};
+        for (int k = 0; k < 4; k++)
+            if (!v3_in_range(corners[k]))
+                return ct_fail(L->err, CT_ERANGE, "%s: %s: corner %d at (%g, %g, %g) is outside the coordinate range +-%g",
+                               L->path, ctx, k, (double)corners[k].x, (double)corners[k].y, (double)corners[k].z,
+                               (double)CT_COORD_MAX);
         vec3 n = v3_cross(e1, e2);
         if (!(v3_len2(n) > 0.0f)) return bad(L, ctx, "edges are parallel or zero (no area)");
         char lname[SCENE_NAME_LEN];
@@ -644,7 +636,6 @@ static int import_lights(loader *L, const cJSON *lights)
         }
         if ((rc = scene_begin_node(L->s, lname, SCENE_NODE_PART, (uint32_t)mat, L->err)) < 0) return rc;
         vec3 nn = v3_norm(n);
-        vec3 corners[4] = {p, v3_add(p, e1), v3_add(v3_add(p, e1), e2), v3_add(p, e2)};
         uint32_t idx[4];
         for (int k = 0; k < 4; k++) {
             int64_t r = scene_add_vertex(L->s, corners[k], nn, L->err);
@@ -756,6 +747,44 @@ static void line_col(const char *text, const char *at, int *line, int *col)
     }
 }
 
+static int by_name(const void *a, const void *b)
+{
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* Fails on a key that appears twice in one object, anywhere in the tree:
+ * cJSON keeps both and every lookup finds the first, so the second would be
+ * dropped without a word. Sorting keeps a hostile object of many keys
+ * O(n log n). where names the enclosing key ("in 'oak'"). */
+static int check_duplicates(loader *L, const cJSON *j, const char *where)
+{
+    if (cJSON_IsObject(j)) {
+        size_t n = 0;
+        for (const cJSON *it = j->child; it; it = it->next) n++;
+        if (n > 1) {
+            const char **names = malloc(n * sizeof *names);
+            if (!names) return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", L->path);
+            size_t k = 0;
+            for (const cJSON *it = j->child; it; it = it->next) names[k++] = it->string ? it->string : "";
+            qsort(names, n, sizeof *names, by_name);
+            const char *dup = NULL;
+            for (k = 1; k < n && !dup; k++)
+                if (strcmp(names[k - 1], names[k]) == 0) dup = names[k];
+            int rc = dup ? ct_fail(L->err, CT_EPARSE, "%s: duplicate key '%s' %s", L->path, dup, where) : CT_OK;
+            free(names);
+            if (rc) return rc;
+        }
+    }
+    for (const cJSON *it = j->child; it; it = it->next) {
+        char inner[96];
+        if (it->string) snprintf(inner, sizeof inner, "in '%.80s'", it->string);
+        else snprintf(inner, sizeof inner, "%s", where);
+        int rc = check_duplicates(L, it, inner);
+        if (rc) return rc;
+    }
+    return CT_OK;
+}
+
 static int load_json(loader *L, const char *text, size_t len)
 {
     const char *end = NULL;
@@ -765,7 +794,15 @@ static int load_json(loader *L, const char *text, size_t len)
         line_col(text, end ? end : text + len, &line, &col);
         return ct_fail(L->err, CT_EPARSE, "%s:%d:%d: JSON syntax error", L->path, line, col);
     }
+    while (end && end < text + len && (*end == ' ' || *end == '\t' || *end == '\n' || *end == '\r')) end++;
     int rc = CT_OK;
+    if (end && end < text + len) {
+        int line, col;
+        line_col(text, end, &line, &col);
+        rc = ct_fail(L->err, CT_EPARSE, "%s:%d:%d: trailing characters after the JSON value", L->path, line, col);
+        goto done;
+    }
+    if ((rc = check_duplicates(L, root, "at the top level"))) goto done;
     if (!cJSON_IsObject(root)) {
         rc = bad(L, "top level", "must be a JSON object");
         goto done;

@@ -2,7 +2,13 @@
 #ifndef CT_TIMER_H
 #define CT_TIMER_H
 
+#include <stdint.h>
+
 /* Seconds from an arbitrary fixed origin, monotonic. */
 double ct_now(void);
+
+/* Microseconds of the same clock (CLOCK_MONOTONIC: one origin for every
+ * process of a host, so stamps of one program can be read by another). */
+uint64_t ct_now_us(void);
 
 #endif

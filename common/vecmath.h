@@ -10,6 +10,13 @@
 
 #define CT_PI 3.14159265358979323846f
 
+/* Largest magnitude of any coordinate that can reach a ray: scene vertices,
+ * lights, cameras, camera paths, CAMERA messages (docs/scene-format.md).
+ * Embree asserts (and the job dies) on ray origins beyond about 1.8e18;
+ * 1e9 also keeps products of four coordinates, such as a triangle's squared
+ * cross product, finite in float. */
+#define CT_COORD_MAX 1e9f
+
 typedef struct vec3 { float x, y, z; } vec3;
 typedef struct vec4 { float x, y, z, w; } vec4;
 typedef struct mat4 { float m[4][4]; } mat4;   /* m[row][col] */
@@ -43,6 +50,11 @@ static inline float v3_maxc(vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
 static inline float v3_avg(vec3 a) { return (a.x + a.y + a.z) * (1.0f / 3.0f); }
 static inline float v3_luminance(vec3 a) { return 0.2126f * a.x + 0.7152f * a.y + 0.0722f * a.z; }
 static inline bool v3_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+/* Every coordinate within +-CT_COORD_MAX (false for NaN). */
+static inline bool v3_in_range(vec3 a)
+{
+    return fabsf(a.x) <= CT_COORD_MAX && fabsf(a.y) <= CT_COORD_MAX && fabsf(a.z) <= CT_COORD_MAX;
+}
 static inline bool v3_is_zero(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
 static inline float v3_get(vec3 a, int i) { return i == 0 ? a.x : (i == 1 ? a.y : a.z); }
 

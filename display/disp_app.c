@@ -14,10 +14,13 @@
 #include "display/disp_camera_control.h"
 #include "display/disp_capture.h"
 #include "display/disp_client.h"
+#include "display/disp_inbox.h"
 #include "display/disp_keys.h"
+#include "display/disp_lag.h"
 #include "display/disp_session.h"
 #include "display/disp_synthetic.h"
 #include "display/gl_load.h"
+#include "proto/auth.h"
 
 #define COMP "corrtex-display"
 
@@ -60,6 +63,11 @@ typedef struct app {
     disp_render_opts ropts;
     /* the master connection */
     disp_client *client;
+    disp_inbox *inbox;            /* what its thread received, applied before each frame */
+    disp_inbox_took took;         /* what the frame being drawn took from it */
+    disp_lag *lag;                /* insertion at the master -> presented frame */
+    double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
+    double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
     disp_scene_cache *cache;
     double retry_at, backoff;     /* next reconnection attempt, its delay */
     bool cam_sent;                /* last_cam went to this connection */
@@ -181,7 +189,7 @@ static int try_connect(app *a, ct_error *err)
     /* 3 s for connect + handshake: a master answers at once or not at all,
      * and a reconnecting display must not freeze for long. */
     disp_client_opts co = {a->o->connect, a->o->token_file, (uint32_t)a->o->samples_per_frame, 3000};
-    int rc = disp_client_connect(&co, a->cache, &a->client, err);
+    int rc = disp_client_connect(&co, a->cache, a->inbox, &a->client, err);
     if (rc) return rc;
     a->cam_sent = false;
     a->ever_connected = true;
@@ -211,9 +219,10 @@ static int connection_lost(app *a, ct_error *cause, double now, ct_error *err)
     return CT_OK;
 }
 
-/* Services the connection without waiting (or up to wait_ms); reconnects
- * when due. Returns 0, or DISP_EXIT_LOST with err filled. */
-static int service(app *a, int wait_ms, ct_error *err)
+/* Checks the connection (its thread reads on its own) and reconnects when
+ * due. Returns 0, 1 when the master ended the session, or DISP_EXIT_LOST
+ * with err filled. */
+static int service(app *a, ct_error *err)
 {
     if (!a->o->connect) return CT_OK;
     double now = ct_now();
@@ -225,7 +234,7 @@ static int service(app *a, int wait_ms, ct_error *err)
         ct_info(COMP, "reconnected to %s", a->o->connect);
         return CT_OK;
     }
-    if (disp_client_service(a->client, a->session, wait_ms, &e)) {
+    if (disp_client_status(a->client, &e)) {
         if (disp_client_ended(a->client)) {
             ct_info(COMP, "%s", e.msg);
             return 1;   /* orderly end */
@@ -235,52 +244,109 @@ static int service(app *a, int wait_ms, ct_error *err)
     return CT_OK;
 }
 
+/* Moves what the connection thread received into the session: scene,
+ * textures, changed texels (uploaded once each), points, statistics. */
+static int take_inbox(app *a, ct_error *err)
+{
+    if (!a->inbox) return CT_OK;
+    double t0 = ct_now();
+    int rc = disp_inbox_apply(a->inbox, a->session, &a->took, err);
+    a->t_take += ct_now() - t0;
+    return rc;
+}
+
+/* After a frame is presented: the lag of every sample its patches carried
+ * (master clock of the patch's oldest change to now, on the master's clock). */
+static void count_lag(app *a)
+{
+    int64_t off;
+    if (!a->lag || !a->client || !a->took.nstamps || !disp_client_clock_offset(a->client, &off)) return;
+    int64_t now = (int64_t)ct_now_us() + off;
+    for (uint32_t i = 0; i < a->took.nstamps; i++) {
+        const disp_inbox_stamp *t = &a->took.stamps[i];
+        disp_lag_add(a->lag, (double)(now - (int64_t)t->stamp_us) / 1000.0, t->samples);
+    }
+}
+
 static bool same_camera(const ct_camera *x, const ct_camera *y)
 {
     return memcmp(x, y, sizeof *x) == 0;
 }
 
 /* What the connection says about the frame about to be drawn. */
-enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4 };
+enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4, STEP_ERROR = 5 };
 
-/* With --connect: services the connection, sends the camera when it changed,
- * and in lockstep waits for the master's FRAME of the current epoch. */
-static int connection_step(app *a, const ct_camera *cam, gl_input *in, double t_start, ct_error *err)
+/* With --connect, before the camera of a frame is known: checks the
+ * connection and takes what arrived. */
+static int connection_begin(app *a, ct_error *err)
+{
+    if (take_inbox(a, err)) return STEP_ERROR;
+    int st = service(a, err);
+    if (st == 0) return STEP_DRAW;
+    /* What arrived before the connection ended (the thread has stopped:
+     * nothing comes after this) is drawn too. */
+    ct_error e;
+    if (take_inbox(a, &e)) ct_warn(COMP, "%s", e.msg);
+    return st == 1 ? STEP_END : STEP_LOST;
+}
+
+/* Then: sends the camera when it changed (cam NULL: the display has none
+ * yet, it starts from the view the master suggests or an overview of the
+ * scene once the scene is there), STEP_WAIT until there is a scene, and in
+ * lockstep waits until the master's FRAME of the current epoch and all its
+ * texels are in. With the next frame's camera known (next), lockstep asks
+ * for that frame at once, before this one is drawn: the master computes it
+ * while the display draws (the texels it sends wait in the inbox, which
+ * this frame has already taken), so a frame costs the longer of the two,
+ * not their sum. */
+static int send_camera(app *a, const ct_camera *cam, ct_error *err)
+{
+    ct_error e;
+    if (disp_client_send_camera(a->client, cam, a->o->width, a->o->height, &e))
+        return connection_lost(a, &e, ct_now(), err) ? STEP_LOST : STEP_DRAW;
+    a->cam_sent = true;
+    a->last_cam = *cam;
+    a->frame_taken = false;
+    return STEP_DRAW;
+}
+
+static int connection_step(app *a, const ct_camera *cam, const ct_camera *next, gl_input *in, double t_start,
+                           ct_error *err)
 {
     const disp_app_opts *o = a->o;
-    int st = service(a, 0, err);
-    if (st) return st == 1 ? STEP_END : STEP_LOST;
+    int st;
     /* In lockstep every CAMERA asks for one frame, so a still camera sends
      * its (unchanged) camera again once the previous frame was drawn. */
     bool ask_frame = o->samples_per_frame > 0 && a->frame_taken;
-    if (a->client && (!a->cam_sent || ask_frame || !same_camera(cam, &a->last_cam))) {
-        ct_error e;
-        if (disp_client_send_camera(a->client, cam, o->width, o->height, &e)) {
-            if (connection_lost(a, &e, ct_now(), err)) return STEP_LOST;
-        } else {
-            a->cam_sent = true;
-            a->last_cam = *cam;
-            a->frame_taken = false;
-        }
-    }
+    if (cam && a->client && (!a->cam_sent || ask_frame || !same_camera(cam, &a->last_cam)) &&
+        send_camera(a, cam, err) == STEP_LOST)
+        return STEP_LOST;
     if (!disp_session_scene_of(a->session)) {
         if (a->client) snprintf(a->status, sizeof a->status, "waiting for the scene from %s", o->connect);
         set_title(a, ct_now(), false);
-        st = service(a, 20, err);
-        return st == 1 ? STEP_END : st ? STEP_LOST : STEP_WAIT;
+        struct timespec ts = {0, 5 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+        return STEP_WAIT;
     }
     if (!strncmp(a->status, "waiting", 7)) a->status[0] = '\0';
     /* Lockstep (docs/protocol.md): draw frame k only after FRAME k. */
-    while (a->client && o->samples_per_frame > 0 && !disp_client_frame_ready(a->client, NULL)) {
-        st = service(a, 20, err);
+    double w0 = ct_now(), take0 = a->t_take;
+    while (a->client && o->samples_per_frame > 0 && !disp_inbox_frame_ready(a->inbox, NULL)) {
+        st = service(a, err);
         if (st) return st == 1 ? STEP_END : STEP_LOST;
+        if (!a->client) break;
+        struct timespec ts = {0, 1000 * 1000};
+        nanosleep(&ts, NULL);
+        if (take_inbox(a, err)) return STEP_ERROR;
         gl_backend_poll(a->backend, in);
         if (!handle_keys(a, in)) return STEP_QUIT;
         if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
     }
+    a->t_wait += ct_now() - w0 - (a->t_take - take0);
     if (a->client) {
-        disp_client_take_frame(a->client);
+        disp_inbox_take_frame(a->inbox);
         a->frame_taken = true;
+        if (o->samples_per_frame > 0 && next && send_camera(a, next, err) == STEP_LOST) return STEP_LOST;
     }
     return STEP_DRAW;
 }
@@ -304,8 +370,15 @@ static int run(app *a, ct_error *err)
         rgb = malloc(npx * 3 * sizeof *rgb);
         if (!rgb) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d frame", o->width, o->height);
     }
-    double render_ms_sum = 0, first_ms = 0, cpu_ms_sum = 0;
+    double render_ms_sum = 0, first_ms = 0, cpu_ms_sum = 0, t_captured = 0;
     uint32_t k = 0;
+    /* What the last frame drawn showed. */
+    uint64_t drawn_gen = 0;
+    ct_camera drawn_cam;
+    memset(&drawn_cam, 0, sizeof drawn_cam);
+    disp_render_opts drawn_opts = a->ropts;
+    int drawn_w = 0, drawn_h = 0;
+    double t_drawn = 0;
     int rc = CT_OK;
     bool fly_ready = disp_session_scene_of(a->session) != NULL;
     bool path_done = false;
@@ -319,10 +392,28 @@ static int run(app *a, ct_error *err)
         gl_backend_poll(a->backend, &in);
         if (!handle_keys(a, &in)) break;
         if (o->max_seconds > 0 && now - t_start >= o->max_seconds) break;
+        if (o->stop && *o->stop) break;
+        bool last = path_done, ended = false;
+        if (o->connect) {
+            int st = connection_begin(a, err);
+            if (st == STEP_END) {
+                /* The master ended the run: draw (and capture) what arrived, then stop. */
+                if (!disp_session_scene_of(a->session)) break;
+                last = ended = true;
+            } else if (st == STEP_LOST || st == STEP_ERROR) {
+                rc = st == STEP_LOST ? DISP_EXIT_LOST : CT_EIO;
+                break;
+            }
+        }
         if (!fly_ready && disp_session_scene_of(a->session)) {
-            /* The master's scene arrived: start the fly camera over it. */
+            /* The scene arrived: start the fly camera over it, at the view
+             * the master suggested when the user gave none. */
             bounds3 b = disp_scene_bounds(disp_session_scene_of(a->session));
-            if (!a->have_cam) a->fly.cam = disp_camera_overview(b, 50.0f);
+            if (!a->have_cam) {
+                disp_inbox_state is = a->inbox ? disp_inbox_get_state(a->inbox) : (disp_inbox_state){0};
+                a->fly.cam = is.have_view ? is.view : disp_camera_overview(b, 50.0f);
+                a->have_cam = true;
+            }
             disp_fly_init(&a->fly, &a->fly.cam, b);
             fly_ready = true;
         }
@@ -333,31 +424,35 @@ static int run(app *a, ct_error *err)
                 cam = campath_frame(&a->path, (int)k, nframes);
                 ftime = nframes > 1 ? (double)dur * k / (double)(nframes - 1) : 0.0;
             } else {
-                /* Real time: the frame at or after the path's end is its last. */
+                /* Real time: the frame at or after the path's end is its
+                 * last, or the camera stops there for --hold seconds. */
                 if (ftime >= dur) {
+                    path_done = last = ftime >= dur + o->hold_seconds;
                     ftime = dur;
-                    path_done = true;
                 }
                 cam = campath_eval(&a->path, t_first + (float)ftime);
             }
         } else {
-            disp_fly_update(&a->fly, &in, dt);
+            if (fly_ready) disp_fly_update(&a->fly, &in, dt);
             cam = a->fly.cam;
         }
-        bool last = path_done;
-        if (o->connect) {
-            int st = connection_step(a, &cam, &in, t_start, err);
+        /* Lockstep asks for the next frame ahead when its camera is known:
+         * the next of N frames of a path, or the same still or fly camera. */
+        ct_camera next = cam;
+        bool have_next = o->samples_per_frame > 0 && (nframes <= 0 || k + 1 < (uint32_t)nframes) &&
+                         (!a->have_path || nframes > 0);
+        if (have_next && a->have_path) next = campath_frame(&a->path, (int)k + 1, nframes);
+        if (o->connect && !ended) {
+            int st = connection_step(a, a->have_path || a->have_cam ? &cam : NULL, have_next ? &next : NULL, &in,
+                                     t_start, err);
             if (st == STEP_QUIT) break;
-            /* The master ended the run: draw (and capture) what arrived, then stop. */
             if (st == STEP_END) {
                 if (!disp_session_scene_of(a->session)) break;
                 last = true;
-            }
-            if (st == STEP_LOST) {
-                rc = DISP_EXIT_LOST;
+            } else if (st == STEP_LOST || st == STEP_ERROR) {
+                rc = st == STEP_LOST ? DISP_EXIT_LOST : CT_EIO;
                 break;
-            }
-            if (st == STEP_WAIT) {
+            } else if (st == STEP_WAIT) {
                 /* Nothing to draw yet: a dark grey window, the title says why. */
                 if (window) {
                     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -369,9 +464,35 @@ static int run(app *a, ct_error *err)
                 continue;
             }
         }
+        a->ropts.all_positive = disp_session_all_positive(a->session);
+        /* A still picture is not drawn again: free running, a frame is
+         * drawn when what it shows may have changed (the session's texels,
+         * the camera, the render options, the window's size), when a
+         * capture is due, and in a window at least 4 times a second. A
+         * scripted path (--frames), lockstep and --continuous draw every
+         * frame. Software GL takes a core for a 1024^2 frame: a display
+         * that redrew an unchanged view took it from the tracers. */
+        uint64_t gen = disp_session_image_gen(a->session);
+        bool capture_due = a->capture && (k == 0 || last || (o->out_every > 0 && now - t_captured >= o->out_every));
+        bool draw = o->continuous || nframes > 0 || o->samples_per_frame > 0 || k == 0 || last || capture_due ||
+                    gen != drawn_gen || !same_camera(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
+                    a->ropts.view != drawn_opts.view || a->ropts.exposure != drawn_opts.exposure ||
+                    a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
+                    in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);
+        if (!draw) {
+            struct timespec ts = {0, 2 * 1000 * 1000};
+            nanosleep(&ts, NULL);
+            a->t_idle += ct_now() - now;
+            continue;
+        }
+        drawn_gen = gen;
+        drawn_cam = cam;
+        drawn_opts = a->ropts;
+        drawn_w = in.fb_width;
+        drawn_h = in.fb_height;
+        t_drawn = now;
         double t0 = ct_now(), c0 = cpu_now();
         disp_render_stats rs;
-        a->ropts.all_positive = disp_session_all_positive(a->session);
         if (a->ropts.view == DISP_VIEW_SAMPLES) {
             const float *pa, *pb;
             uint32_t na, nb;
@@ -390,6 +511,7 @@ static int run(app *a, ct_error *err)
         disp_session_frame_drawn(a->session);
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
+        count_lag(a);
         double frame_ms = 1000.0 * (ct_now() - t0);
         /* The first frame pays for shader compilation (JIT on llvmpipe). */
         if (k == 0) {
@@ -399,18 +521,22 @@ static int run(app *a, ct_error *err)
             cpu_ms_sum += 1000.0 * (cpu_now() - c0);
         }
         a->stat_frames++;
-        if (a->capture) {
+        if (a->capture && (o->out_every <= 0 || k == 0 || last || ct_now() - t_captured >= o->out_every)) {
+            t_captured = ct_now();
+            double cap0 = t_captured;
             disp_counters c = disp_session_counters(a->session);
             /* Lockstep: the FRAME's own count (STATS arrive between frames). */
             uint64_t fs = o->samples_per_frame > 0 ? c.frame_samples - prev.frame_samples : c.samples - prev.samples;
             disp_frame_info fi = {k, ftime, cam, frame_ms, fs, c.texels - prev.texels,
-                                  c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session))};
+                                  c.bytes - prev.bytes, disp_textures_count(disp_session_textures(a->session)),
+                                  ct_now() - t_start};
             prev = c;
-            disp_compositor_read_linear(a->comp, rgb);
-            double rmse = 0, psnr = 0;
-            rc = disp_capture_frame(a->capture, &fi, rgb, o->width, o->height, &rmse, &psnr, err);
+            /* frames.csv alone needs no pixels: no read-back. */
+            bool pixels = disp_capture_needs_pixels(a->capture);
+            if (pixels) disp_compositor_read_linear(a->comp, rgb);
+            rc = disp_capture_frame(a->capture, &fi, pixels ? rgb : NULL, o->width, o->height, err);
+            a->t_capture += ct_now() - cap0;
             if (rc) break;
-            if (o->ref_dir) ct_info(COMP, "frame %u: rmse %.5f, psnr %.2f dB", k, rmse, psnr);
         }
         set_title(a, ct_now(), false);
         k++;
@@ -428,6 +554,17 @@ static int run(app *a, ct_error *err)
                disp_textures_count(disp_session_textures(a->session)), disp_view_name(a->ropts.view),
                a->ropts.passes, gl_backend_name(gl_backend_kind_of(a->backend)));
     }
+    if (k > 0 && o->connect)
+        printf("display: per frame besides drawing: %.1f ms waiting for lockstep frames, %.1f ms taking what "
+               "arrived (texel uploads), %.1f ms capturing\n",
+               1000.0 * a->t_wait / k, 1000.0 * a->t_take / k, 1000.0 * a->t_capture / k);
+    if (a->t_idle > 0.05)
+        printf("display: nothing new to draw for %.1f s of %.1f s (no frame drawn then)\n", a->t_idle, total);
+    if (a->lag && a->lag->n)
+        printf("display: lag from insertion at the master to the screen: median %.0f ms, p90 %.0f ms, p99 %.0f ms, "
+               "max %.0f ms over %llu samples\n",
+               disp_lag_quantile(a->lag, 0.5), disp_lag_quantile(a->lag, 0.9), disp_lag_quantile(a->lag, 0.99),
+               a->lag->max_ms, (unsigned long long)a->lag->n);
     free(rgb);
     return rc;
 }
@@ -447,7 +584,15 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         if (rc) return DISP_EXIT_USAGE;
         a.have_path = true;
     }
-    /* Input files first, so bad input fails before any window opens. */
+    /* Input files first, so bad input fails before any window opens; a bad
+     * token file is bad input too, not a lost connection (exit 3). */
+    if (o->connect) {
+        auth_token tok;
+        bool have;
+        rc = auth_token_get(o->token_file, &tok, &have, err);
+        auth_token_wipe(&tok);
+        if (rc) return DISP_EXIT_USAGE;
+    }
     if (o->has_camera) {
         a.fly.cam = o->camera;
         a.have_cam = true;
@@ -464,7 +609,11 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
-        rc = disp_scene_cache_new(o->cache_dir, (uint64_t)o->cache_max_mb << 20, &a.cache, err);
+        GLint max = 0;
+        gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &max);
+        rc = disp_inbox_new(max < DISP_TEX_MAX_SIZE ? (int)max : DISP_TEX_MAX_SIZE, &a.inbox, err);
+        if (!rc && !(a.lag = calloc(1, sizeof *a.lag))) rc = ct_fail(err, CT_ENOMEM, "out of memory for lag statistics");
+        if (!rc) rc = disp_scene_cache_new(o->cache_dir, (uint64_t)o->cache_max_mb << 20, &a.cache, err);
         ct_error e;
         ct_error_clear(&e);
         if (!rc && try_connect(&a, &e) && connection_lost(&a, &e, ct_now(), err)) {
@@ -487,7 +636,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         }
     }
     if (!rc && o->out_dir) {
-        rc = disp_capture_open(o->out_dir, o->ref_dir, o->exposure, &a.capture, err);
+        rc = disp_capture_open(o->out_dir, o->ref_dir, o->exposure, !o->no_images, &a.capture, err);
         if (rc) status = DISP_EXIT_USAGE;
     }
     if (!rc) {
@@ -506,6 +655,9 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         disp_capture_close(a.capture, &e2);
     }
     disp_client_close(a.client);
+    if (a.inbox) disp_inbox_release_gl(a.inbox);
+    disp_inbox_free(a.inbox);
+    free(a.lag);
     disp_scene_cache_free(a.cache);
     disp_compositor_free(a.comp);
     disp_session_free(a.session);

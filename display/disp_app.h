@@ -40,7 +40,10 @@ typedef struct disp_app_opts {
     int frames;                   /* --frames N; 0: real time (path) or until closed */
     int samples_per_frame;        /* lockstep frames from the master */
     const char *out_dir;
-    const char *ref_dir;
+    const char *ref_dir;          /* --reference: a folder of per-frame references or one image */
+    double out_every;             /* capture a frame at most every this many seconds (0: every frame) */
+    bool no_images;               /* frames.csv only */
+    double hold_seconds;          /* real-time path: keep its last camera this long after it ends */
     uint32_t synthetic;           /* synthetic correction textures (no master) */
     bool synthetic_positive;
     bool synthetic_tiles;         /* cut parts into tiles to reach the count */
@@ -50,8 +53,10 @@ typedef struct disp_app_opts {
     uint32_t cache_max_mb;        /* payloads kept there, at most (0: no bound) */
     bool reconnect;
     double max_seconds;           /* stop after this long (0: no limit) */
+    bool continuous;              /* draw every frame, also when nothing changed (timings) */
     uint32_t sample_frames;       /* the samples view shows the points of this many frames */
     uint32_t sample_max;          /* and keeps at most this many points */
+    volatile int *stop;           /* set (by a signal handler) to end the run in order; NULL: none */
 } disp_app_opts;
 
 /* The defaults --help prints. */

@@ -1,31 +1,60 @@
 #include "display/disp_capture.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include <sys/stat.h>
+
 #include "common/fsutil.h"
 #include "common/image.h"
+#include "common/log.h"
 #include "common/metrics.h"
 
 /* frames.csv is rewritten every this many frames (and at the end). */
 #define CSV_EVERY 25
 
+/* Frames waiting for the writer: encoding a 1024^2 frame (EXR and PNG)
+ * takes about 170 ms here, longer than drawing it, so it runs on its own
+ * thread; a third frame waits for a free slot (output is never dropped). */
+#define SLOTS 2
+
+typedef struct cap_job {
+    disp_frame_info fi;
+    float *rgb;
+    size_t cap;          /* floats allocated in rgb */
+    int width, height;
+} cap_job;
+
 struct disp_capture {
+    pthread_t writer;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    cap_job jobs[SLOTS];
+    unsigned head, count; /* ring of queued jobs */
+    bool writing;         /* the writer holds the job at head */
+    bool stop;
+    int rc;               /* the writer's first error (sticky) */
+    ct_error err;
     char dir[2048];
     char ref_dir[2048];
     bool has_ref;
+    ct_image ref_one;   /* one reference for every frame (ref_dir unused) */
+    bool images;
     float exposure;
     char *csv;          /* rows so far */
     size_t len, cap;
     uint32_t rows;
 };
 
-static const char *header =
-    "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures";
+static void *writer_main(void *arg);
 
-int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp_capture **out,
+static const char *header =
+    "frame,time_s,eye_x,eye_y,eye_z,q_w,q_x,q_y,q_z,fov_deg,frame_ms,samples,texels,bytes,textures,wall_s";
+
+int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err)
 {
     *out = NULL;
@@ -34,11 +63,30 @@ int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp
     disp_capture *c = calloc(1, sizeof *c);
     if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for frame capture");
     snprintf(c->dir, sizeof c->dir, "%s", dir);
-    if (ref_dir) {
-        snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref_dir);
+    struct stat st;
+    if (ref && stat(ref, &st) == 0 && S_ISREG(st.st_mode)) {
+        /* One image: a still view's converged reference. */
+        if ((rc = img_read_exr(ref, &c->ref_one, err))) {
+            ct_error_prefix(err, "reference");
+            free(c);
+            return rc;
+        }
+        c->has_ref = true;
+    } else if (ref) {
+        snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref);
         c->has_ref = true;
     }
+    c->images = images;
     c->exposure = exposure;
+    pthread_mutex_init(&c->mu, NULL);
+    pthread_cond_init(&c->cv, NULL);
+    if (pthread_create(&c->writer, NULL, writer_main, c)) {
+        pthread_mutex_destroy(&c->mu);
+        pthread_cond_destroy(&c->cv);
+        img_free(&c->ref_one);
+        free(c);
+        return ct_fail(err, CT_ESYS, "cannot start the frame writer thread");
+    }
     *out = c;
     return CT_OK;
 }
@@ -71,44 +119,49 @@ static int write_csv(disp_capture *c, ct_error *err)
     return fs_atomic_commit(&a, err);
 }
 
-int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width,
-                       int height, double *rmse, double *psnr, ct_error *err)
+static int write_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width, int height,
+                       ct_error *err)
 {
     char name[64], path[4096];
     ct_image img = {width, height, (float *)rgb};
-    snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
-    fs_join(c->dir, name, path, sizeof path);
-    int rc = img_write_exr(path, &img, IMG_HALF, err);
-    if (rc) return rc;
-    snprintf(name, sizeof name, "frame_%05u.png", fi->frame);
-    fs_join(c->dir, name, path, sizeof path);
-    rc = img_write_png(path, &img, c->exposure, err);
-    if (rc) return rc;
+    int rc;
+    if (c->images) {
+        snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
+        fs_join(c->dir, name, path, sizeof path);
+        if ((rc = img_write_exr(path, &img, IMG_HALF, err))) return rc;
+        snprintf(name, sizeof name, "frame_%05u.png", fi->frame);
+        fs_join(c->dir, name, path, sizeof path);
+        if ((rc = img_write_png(path, &img, c->exposure, err))) return rc;
+    }
 
     char row[768];
-    int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u",
+    int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u,%.6f",
                      fi->frame, fi->time, fi->cam.eye.x, fi->cam.eye.y, fi->cam.eye.z,
                      fi->cam.orient.w, fi->cam.orient.x, fi->cam.orient.y, fi->cam.orient.z,
                      fi->cam.fov_y * 180.0f / CT_PI, fi->frame_ms, (unsigned long long)fi->samples,
-                     (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures);
+                     (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures, fi->wall);
     if (c->has_ref) {
-        snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
-        fs_join(c->ref_dir, name, path, sizeof path);
         ct_image ref = {0, 0, NULL};
-        rc = img_read_exr(path, &ref, err);
-        if (rc) {
-            ct_error_prefix(err, "reference");
-            return rc;
+        if (c->ref_one.px) {
+            ref = c->ref_one;
+            snprintf(path, sizeof path, "the reference image");
+        } else {
+            snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
+            fs_join(c->ref_dir, name, path, sizeof path);
+            rc = img_read_exr(path, &ref, err);
+            if (rc) {
+                ct_error_prefix(err, "reference");
+                return rc;
+            }
         }
         img_metrics m;
         rc = metrics_compare(&img, &ref, &m, err);
-        img_free(&ref);
+        if (!c->ref_one.px) img_free(&ref);
         if (rc) {
             ct_error_prefix(err, path);
             return rc;
         }
-        if (rmse) *rmse = m.rmse;
-        if (psnr) *psnr = m.psnr;
+        ct_info("corrtex-display", "frame %u: rmse %.5f, psnr %.2f dB", fi->frame, m.rmse, m.psnr);
         snprintf(row + n, sizeof row - (size_t)n, ",%.6g,%.4f", m.rmse, isinf(m.psnr) ? 999.0 : m.psnr);
     }
     size_t len = strlen(row);
@@ -121,10 +174,91 @@ int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *
     return CT_OK;
 }
 
+static void *writer_main(void *arg)
+{
+    disp_capture *c = arg;
+    pthread_mutex_lock(&c->mu);
+    for (;;) {
+        while (!c->count && !c->stop) pthread_cond_wait(&c->cv, &c->mu);
+        if (!c->count) break;
+        cap_job *j = &c->jobs[c->head];
+        c->writing = true;
+        bool failed = c->rc != 0;
+        pthread_mutex_unlock(&c->mu);
+        ct_error e;
+        /* After an error the rest is dropped: the caller stops at its next frame. */
+        int rc = failed ? 0 : write_frame(c, &j->fi, j->rgb, j->width, j->height, &e);
+        pthread_mutex_lock(&c->mu);
+        if (rc && !c->rc) {
+            c->rc = rc;
+            c->err = e;
+        }
+        c->writing = false;
+        c->head = (c->head + 1) % SLOTS;
+        c->count--;
+        pthread_cond_broadcast(&c->cv);
+    }
+    pthread_mutex_unlock(&c->mu);
+    return NULL;
+}
+
+bool disp_capture_needs_pixels(const disp_capture *c)
+{
+    return c->images || c->has_ref;
+}
+
+int disp_capture_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width, int height,
+                       ct_error *err)
+{
+    size_t n = rgb ? (size_t)width * (size_t)height * 3 : 0;
+    if (!rgb && disp_capture_needs_pixels(c))
+        return ct_fail(err, CT_EINVAL, "frame %u: no pixels to write", fi->frame);
+    pthread_mutex_lock(&c->mu);
+    while (c->count == SLOTS && !c->rc) pthread_cond_wait(&c->cv, &c->mu);
+    if (c->rc) {
+        *err = c->err;
+        int rc = c->rc;
+        pthread_mutex_unlock(&c->mu);
+        return rc;
+    }
+    cap_job *j = &c->jobs[(c->head + c->count) % SLOTS];
+    pthread_mutex_unlock(&c->mu);
+    /* The slot is ours until count covers it: the writer never touches it. */
+    if (j->cap < n) {
+        float *p = realloc(j->rgb, n * sizeof *p);
+        if (!p) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d frame to write", width, height);
+        j->rgb = p;
+        j->cap = n;
+    }
+    if (n) memcpy(j->rgb, rgb, n * sizeof *rgb);
+    j->fi = *fi;
+    j->width = width;
+    j->height = height;
+    pthread_mutex_lock(&c->mu);
+    c->count++;
+    pthread_cond_broadcast(&c->cv);
+    pthread_mutex_unlock(&c->mu);
+    return CT_OK;
+}
+
 int disp_capture_close(disp_capture *c, ct_error *err)
 {
     if (!c) return CT_OK;
-    int rc = write_csv(c, err);
+    /* Every queued frame is written before frames.csv. */
+    pthread_mutex_lock(&c->mu);
+    c->stop = true;
+    pthread_cond_broadcast(&c->cv);
+    pthread_mutex_unlock(&c->mu);
+    pthread_join(c->writer, NULL);
+    int rc = c->rc;
+    if (rc) *err = c->err;
+    ct_error e;
+    int rc2 = write_csv(c, rc ? &e : err);
+    if (!rc) rc = rc2;
+    pthread_mutex_destroy(&c->mu);
+    pthread_cond_destroy(&c->cv);
+    for (int i = 0; i < SLOTS; i++) free(c->jobs[i].rgb);
+    img_free(&c->ref_one);
     free(c->csv);
     free(c);
     return rc;

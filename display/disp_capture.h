@@ -1,12 +1,15 @@
 /* disp_capture.h: frame output for --out DIR: frame_NNNNN.exr (linear RGB,
- * half) and frame_NNNNN.png (exposure + sRGB, 8 bit) per frame, and
- * frames.csv with one row per frame (camera, timings, per-frame counts and,
- * with --reference DIR, the RMSE and PSNR against DIR/frame_NNNNN.exr).
- * Every file is written atomically; frames.csv is rewritten every few
- * frames and at the end so it is always complete up to some frame. */
+ * half) and frame_NNNNN.png (exposure + sRGB, 8 bit) per frame (unless
+ * images are off: --no-images), and frames.csv with one row per frame
+ * (camera, timings, per-frame counts and, with --reference, the RMSE and
+ * PSNR against DIR/frame_NNNNN.exr, or against one image FILE.exr for every
+ * frame). Frames are written on a thread of their own. Every file is
+ * written atomically; frames.csv is rewritten every few frames and at the
+ * end so it is always complete up to some frame. */
 #ifndef CT_DISP_CAPTURE_H
 #define CT_DISP_CAPTURE_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "common/camera.h"
@@ -22,21 +25,31 @@ typedef struct disp_frame_info {
     uint64_t texels;      /* texels received since the previous frame */
     uint64_t bytes;       /* bytes received since the previous frame */
     uint32_t textures;    /* textures allocated now */
+    double wall;          /* seconds since the run started (wall clock, also for paths) */
 } disp_frame_info;
 
 typedef struct disp_capture disp_capture;
 
-/* Creates dir (mkdir -p); ref_dir may be NULL. */
-int disp_capture_open(const char *dir, const char *ref_dir, float exposure, disp_capture **out,
+/* Creates dir (mkdir -p); ref may be NULL, a folder of per-frame
+ * references or one reference image (read now); images: write each frame's
+ * EXR and PNG. */
+int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err);
 
-/* Writes the frame's EXR and PNG (rgb: linear, 3 floats per pixel, top row
- * first) and records its row; with a reference, also its RMSE and PSNR,
- * returned in *rmse / *psnr when not NULL. */
+/* Queues the frame (rgb: linear, 3 floats per pixel, top row first, copied)
+ * for the writer thread, which writes its EXR and PNG and records its row;
+ * with a reference also its RMSE and PSNR (logged). Waits only while two
+ * frames are still being written. An error of an earlier frame's writing
+ * is returned here (and by close). */
 int disp_capture_frame(disp_capture *c, const disp_frame_info *info, const float *rgb, int width,
-                       int height, double *rmse, double *psnr, ct_error *err);
+                       int height, ct_error *err);
 
-/* Writes frames.csv (atomically) and frees c; NULL is fine. */
+/* Whether frames need their pixels (images or a reference); without,
+ * disp_capture_frame takes rgb NULL and records the row only. */
+bool disp_capture_needs_pixels(const disp_capture *c);
+
+/* Writes every queued frame, then frames.csv (atomically), and frees c;
+ * NULL is fine. */
 int disp_capture_close(disp_capture *c, ct_error *err);
 
 #endif

@@ -1,34 +1,56 @@
+/* disp_client.c: the connection to the master and its thread (disp_client.h). */
 #include "display/disp_client.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <poll.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "common/log.h"
+#include "common/timer.h"
 #include "proto/auth.h"
 #include "proto/chan.h"
 #include "proto/wire.h"
 
 #define COMP "corrtex-display"
+#define MAX_OUT 64
+/* PING: a few quickly for a first clock offset, then once a second. */
+#define PING_FIRST_US 100000u
+#define PING_EVERY_US 1000000u
+#define PING_QUICK 4
 
 struct disp_client {
     chan *ch;
     char addr[XPORT_ADDR_LEN];
     disp_scene_cache *cache;
-    wire_scene_rx *rx;
-    bool have_scene;
-    bool ended;               /* BYE received */
-    uint32_t epoch;
-    bool frame_seen;          /* a FRAME of the current epoch arrived... */
-    uint64_t frame_last;      /* ...with this number */
-    bool frame_taken_any;
-    uint64_t frame_taken;     /* the last frame drawn */
-    uint64_t bytes_seen;      /* received bytes already counted */
+    disp_inbox *inbox;
+    wire_scene_rx *rx;            /* thread only */
+    pthread_t thread;
+    bool started;
+    atomic_bool stop;
+    int wake[2];                  /* the render thread writes a byte to wake the thread */
+    uint32_t epoch;               /* render thread only */
+    bool lockstep;                /* every CAMERA asks for a frame */
+    pthread_mutex_t mu;           /* guards what follows */
+    wire_msg out[MAX_OUT];        /* CAMERA messages for the thread to send */
+    int nout;
+    int end_rc;                   /* 0 while the connection lives */
+    ct_error end_err;
+    bool ended;                   /* BYE received */
+    bool have_offset;
+    int64_t offset_us;
+    uint64_t best_rtt_us;
 };
 
-int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp_client **out,
-                        ct_error *err)
+static void *thread_main(void *arg);
+
+int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp_inbox *inbox,
+                        disp_client **out, ct_error *err)
 {
     *out = NULL;
     auth_token tok;
@@ -40,8 +62,11 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
         auth_token_wipe(&tok);
         return ct_fail(err, CT_ENOMEM, "out of memory for a connection");
     }
+    c->wake[0] = c->wake[1] = -1;
     snprintf(c->addr, sizeof c->addr, "%s", o->addr);
     c->cache = cache;
+    c->inbox = inbox;
+    pthread_mutex_init(&c->mu, NULL);
     chan_config cfg;
     memset(&cfg, 0, sizeof cfg);
     cfg.role = AUTH_ROLE_DISPLAY;
@@ -50,18 +75,28 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
     rc = chan_connect(o->addr, &cfg, o->connect_timeout_ms > 0 ? o->connect_timeout_ms : 10000, &c->ch, err);
     auth_token_wipe(&tok);
     if (rc) {
-        free(c);
+        disp_client_close(c);
         return rc;
     }
     wire_msg m;
     memset(&m, 0, sizeof m);
     m.type = WIRE_SETTINGS;
     m.u.settings.samples_per_frame = o->samples_per_frame;
+    c->lockstep = o->samples_per_frame > 0;
     disp_scene_cache_select(cache, o->addr);
     (void)disp_scene_cache_hash(cache, m.u.settings.cached_scene);
     rc = chan_send(c->ch, &m, err);
     if (rc == XPORT_QUEUE_FULL) rc = ct_fail(err, CT_EIO, "%s: send queue full at start", c->addr);
     if (!rc) rc = chan_pump(c->ch, err);
+    if (!rc && pipe2(c->wake, O_NONBLOCK | O_CLOEXEC) != 0)
+        rc = ct_fail(err, CT_ESYS, "cannot make a pipe for the connection thread: %s", strerror(errno));
+    if (!rc) {
+        disp_inbox_connection(inbox);
+        if (pthread_create(&c->thread, NULL, thread_main, c) != 0)
+            rc = ct_fail(err, CT_ESYS, "cannot start the connection thread");
+        else
+            c->started = true;
+    }
     if (rc) {
         disp_client_close(c);
         return rc;
@@ -71,33 +106,31 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
     return CT_OK;
 }
 
+static void wake(disp_client *c)
+{
+    if (c->wake[1] >= 0) {
+        ssize_t n = write(c->wake[1], "x", 1);
+        (void)n;   /* a full pipe is awake already */
+    }
+}
+
 void disp_client_close(disp_client *c)
 {
     if (!c) return;
-    if (c->ch) {
-        wire_msg m;
-        memset(&m, 0, sizeof m);
-        m.type = WIRE_BYE;
-        m.u.bye.reason = WIRE_BYE_QUIT;
-        ct_error e;
-        if (chan_send(c->ch, &m, &e) == 0) chan_flush(c->ch, 500, &e);
-        chan_free(c->ch);
+    if (c->started) {
+        atomic_store(&c->stop, true);
+        wake(c);
+        pthread_join(c->thread, NULL);
     }
+    if (c->ch) chan_free(c->ch);
+    if (c->wake[0] >= 0) close(c->wake[0]);
+    if (c->wake[1] >= 0) close(c->wake[1]);
     wire_scene_rx_free(c->rx);
+    pthread_mutex_destroy(&c->mu);
     free(c);
 }
 
-static int send_msg(disp_client *c, const wire_msg *m, ct_error *err)
-{
-    int rc = chan_send(c->ch, m, err);
-    if (rc == XPORT_QUEUE_FULL)
-        return ct_fail(err, CT_EIO, "%s: the master does not read (send queue full)", c->addr);
-    if (rc) return rc;
-    return chan_pump(c->ch, err);
-}
-
-int disp_client_send_camera(disp_client *c, const ct_camera *cam, int width, int height,
-                            ct_error *err)
+int disp_client_send_camera(disp_client *c, const ct_camera *cam, int width, int height, ct_error *err)
 {
     wire_msg m;
     memset(&m, 0, sizeof m);
@@ -106,16 +139,62 @@ int disp_client_send_camera(disp_client *c, const ct_camera *cam, int width, int
     m.u.camera.width = (uint32_t)width;
     m.u.camera.height = (uint32_t)height;
     m.u.camera.cam = *cam;
-    int rc = send_msg(c, &m, err);
+    int rc = CT_OK;
+    pthread_mutex_lock(&c->mu);
+    if (c->end_rc) {
+        rc = c->end_rc;
+        if (err) *err = c->end_err;
+    } else if (!c->lockstep && c->nout > 0) {
+        /* Free running only the newest view matters: it replaces an unsent
+         * one (the master skips that epoch), so a display drawing hundreds
+         * of frames a second never piles cameras up while the connection
+         * thread or the master is slow. */
+        c->out[c->nout - 1] = m;
+    } else if (c->nout == MAX_OUT) {
+        /* Lockstep has at most two frames asked for ahead: the thread is stuck. */
+        rc = ct_fail(err, CT_EIO, "%s: the master does not read (%d cameras unsent)", c->addr, MAX_OUT);
+    } else {
+        c->out[c->nout++] = m;
+    }
+    pthread_mutex_unlock(&c->mu);
     if (rc) return rc;
     c->epoch++;
-    c->frame_seen = false;
+    disp_inbox_new_epoch(c->inbox, c->epoch);
+    wake(c);
     return CT_OK;
 }
 
 uint32_t disp_client_epoch(const disp_client *c) { return c->epoch; }
 
-static int scene_done(disp_client *c, disp_session *s, ct_error *err)
+int disp_client_status(disp_client *c, ct_error *err)
+{
+    pthread_mutex_lock(&c->mu);
+    int rc = c->end_rc;
+    if (rc && err) *err = c->end_err;
+    pthread_mutex_unlock(&c->mu);
+    return rc;
+}
+
+bool disp_client_ended(disp_client *c)
+{
+    pthread_mutex_lock(&c->mu);
+    bool e = c->ended;
+    pthread_mutex_unlock(&c->mu);
+    return e;
+}
+
+bool disp_client_clock_offset(disp_client *c, int64_t *offset_us)
+{
+    pthread_mutex_lock(&c->mu);
+    bool ok = c->have_offset;
+    if (ok) *offset_us = c->offset_us;
+    pthread_mutex_unlock(&c->mu);
+    return ok;
+}
+
+/* --- the connection thread --------------------------------------------------- */
+
+static int scene_done(disp_client *c, ct_error *err)
 {
     const wire_scene_begin *b = wire_scene_rx_info(c->rx);
     ct_radmesh m;
@@ -124,8 +203,7 @@ static int scene_done(disp_client *c, disp_session *s, ct_error *err)
         const uint8_t *raw = NULL;
         uint64_t size = 0;
         if (!disp_scene_cache_get(c->cache, b->hash, &raw, &size))
-            return ct_fail(err, CT_EPROTO, "%s: master says the scene is cached, but it is not",
-                           c->addr);
+            return ct_fail(err, CT_EPROTO, "%s: master says the scene is cached, but it is not", c->addr);
         rc = wire_scene_parse(raw, (size_t)size, c->addr, &m, err);
         if (rc) return rc;
         ct_info(COMP, "scene from the cache: %u triangles, %u nodes", m.ntris, m.nnodes);
@@ -138,16 +216,39 @@ static int scene_done(disp_client *c, disp_session *s, ct_error *err)
         ct_info(COMP, "scene received: %u triangles, %u nodes, %llu bytes", m.ntris, m.nnodes,
                 (unsigned long long)size);
     }
-    rc = disp_session_scene(s, &m, err);
+    disp_inbox_scene(c->inbox, &m);
     rmesh_free(&m);
     wire_scene_rx_free(c->rx);
     c->rx = NULL;
-    if (!rc) c->have_scene = true;
+    return CT_OK;
+}
+
+static int send_now(disp_client *c, const wire_msg *m, ct_error *err)
+{
+    int rc = chan_send(c->ch, m, err);
+    if (rc == XPORT_QUEUE_FULL) return ct_fail(err, CT_EIO, "%s: the master does not read (send queue full)", c->addr);
     return rc;
 }
 
-static int apply(disp_client *c, disp_session *s, const wire_msg *m, ct_error *err)
+/* A PONG: the master's clock at the middle of the round trip. */
+static void pong(disp_client *c, const wire_ping *p)
 {
+    uint64_t now = ct_now_us();
+    if (p->token > now) return;   /* not one of ours */
+    uint64_t rtt = now - p->token;
+    int64_t off = (int64_t)p->clock_us - (int64_t)(p->token + rtt / 2);
+    pthread_mutex_lock(&c->mu);
+    if (!c->have_offset || rtt <= c->best_rtt_us) {
+        c->have_offset = true;
+        c->offset_us = off;
+        c->best_rtt_us = rtt;
+    }
+    pthread_mutex_unlock(&c->mu);
+}
+
+static int apply(disp_client *c, const wire_msg *m, ct_error *err)
+{
+    disp_inbox *b = c->inbox;
     switch (m->type) {
     case WIRE_SCENE_BEGIN: {
         wire_scene_rx_free(c->rx);
@@ -158,54 +259,63 @@ static int apply(disp_client *c, disp_session *s, const wire_msg *m, ct_error *e
     /* FALLTHROUGH */
     case WIRE_SCENE_CHUNK:
     case WIRE_SCENE_END: {
-        if (!c->rx)
-            return ct_fail(err, CT_EPROTO, "%s: %s without SCENE_BEGIN", c->addr, wire_type_name(m->type));
+        if (!c->rx) return ct_fail(err, CT_EPROTO, "%s: %s without SCENE_BEGIN", c->addr, wire_type_name(m->type));
         int rc = wire_scene_rx_feed(c->rx, m, err);
         if (rc < 0) return rc;
-        return rc == 1 ? scene_done(c, s, err) : CT_OK;
+        return rc == 1 ? scene_done(c, err) : CT_OK;
     }
+    case WIRE_CAMERA:
+        disp_inbox_view(b, &m->u.camera.cam);
+        return CT_OK;
     case WIRE_TEX_ALLOC: {
         const wire_tex_alloc *a = &m->u.tex_alloc;
         disp_proj_kind k = a->proj == WIRE_PROJ_CAMERA_PERSPECTIVE ? DISP_PROJ_CAMERA_PERSPECTIVE
                                                                    : DISP_PROJ_OBJECT_PARALLEL;
-        return disp_session_tex_alloc(s, a->tex, a->node, (int)a->width, (int)a->height, k, err);
+        return disp_inbox_tex_alloc(b, a->tex, a->node, (int)a->width, (int)a->height, k, err);
     }
     case WIRE_TEX_PROJECTION:
-        return disp_session_tex_projection(s, m->u.tex_projection.tex, &m->u.tex_projection.world_to_tex, err);
+        return disp_inbox_tex_projection(b, m->u.tex_projection.tex, &m->u.tex_projection.world_to_tex, err);
     case WIRE_TEX_PATCH: {
         const wire_tex_patch *p = &m->u.tex_patch;
-        return disp_session_tex_patch(s, p->tex, (int)p->x, (int)p->y, (int)p->w, (int)p->h, p->texels, err);
+        return disp_inbox_tex_patch(b, p->tex, (int)p->x, (int)p->y, (int)p->w, (int)p->h, p->texels, p->stamp_us,
+                                    p->samples, err);
     }
     case WIRE_TEX_FREE:
-        return disp_session_tex_free(s, m->u.tex_free.tex, err);
+        return disp_inbox_tex_free(b, m->u.tex_free.tex, err);
     case WIRE_FRAME:
-        disp_session_frame_end(s, (uint32_t)m->u.frame.frame, m->u.frame.samples,
-                               (m->u.frame.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
-        if (m->u.frame.epoch == c->epoch) {
-            c->frame_seen = true;
-            c->frame_last = m->u.frame.frame;
-        }
+        disp_inbox_frame_end(b, m->u.frame.frame, m->u.frame.epoch, m->u.frame.samples,
+                             (m->u.frame.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
         return CT_OK;
+    case WIRE_SYNC: {
+        /* Everything before it is in the inbox: the master may send more. */
+        wire_msg a = {.type = WIRE_ACK};
+        a.u.ack.seq = m->u.sync.seq;
+        return send_now(c, &a, err);
+    }
     case WIRE_SAMPLES:
         /* Points of an older camera still land on surfaces: keep them all. */
-        disp_session_sample_points(s, m->u.samples.xyz, m->u.samples.count, m->u.samples.dropped);
+        disp_inbox_points(b, m->u.samples.xyz, m->u.samples.count, m->u.samples.dropped);
         return CT_OK;
     case WIRE_STATS:
-        disp_session_stats(s, m->u.stats.samples_total, (m->u.stats.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
+        disp_inbox_stats(b, m->u.stats.samples_total, (m->u.stats.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
         return CT_OK;
     case WIRE_PING: {
-        wire_msg pong;
-        memset(&pong, 0, sizeof pong);
-        pong.type = WIRE_PONG;
-        pong.u.ping.token = m->u.ping.token;
-        return send_msg(c, &pong, err);
+        wire_msg p;
+        memset(&p, 0, sizeof p);
+        p.type = WIRE_PONG;
+        p.u.ping.token = m->u.ping.token;
+        p.u.ping.clock_us = ct_now_us();
+        return send_now(c, &p, err);
     }
     case WIRE_PONG:
+        pong(c, &m->u.ping);
         return CT_OK;
     case WIRE_ERROR:
         return ct_fail(err, CT_EPROTO, "%s: master reports an error: %s", c->addr, m->u.error.text);
     case WIRE_BYE:
+        pthread_mutex_lock(&c->mu);
         c->ended = true;
+        pthread_mutex_unlock(&c->mu);
         return ct_fail(err, CT_EIO, "%s: the master ended the session (%s)", c->addr,
                        m->u.bye.reason == WIRE_BYE_SHUTDOWN ? "shutting down"
                        : m->u.bye.reason == WIRE_BYE_DONE   ? "run finished"
@@ -215,57 +325,98 @@ static int apply(disp_client *c, disp_session *s, const wire_msg *m, ct_error *e
     }
 }
 
-int disp_client_service(disp_client *c, disp_session *s, int timeout_ms, ct_error *err)
+/* Reads and applies every message that arrived; 0 or the error that ends
+ * the connection (the master is told why when it is ours to tell). */
+static int receive(disp_client *c, ct_error *err)
 {
-    struct pollfd p = {chan_fd(c->ch), chan_events(c->ch), 0};
-    if (timeout_ms > 0) poll(&p, 1, timeout_ms);
-    int rc = chan_pump(c->ch, err);
-    if (rc) return rc;
     for (;;) {
         wire_msg m;
-        rc = chan_recv(c->ch, &m, err);
-        if (rc == WIRE_NEED_MORE) break;
-        if (rc < 0) break;
-        rc = apply(c, s, &m, err);
-        if (rc && m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) {
-            /* Session errors do not know the peer: name it and the message. */
+        int rc = chan_recv(c->ch, &m, err);
+        if (rc == WIRE_NEED_MORE) return 0;
+        if (rc < 0) return rc;
+        rc = apply(c, &m, err);
+        if (!rc) continue;
+        if (m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) {
+            /* Inbox errors do not know the peer: name it and the message. */
             char what[64];
             snprintf(what, sizeof what, "%s from %s", wire_type_name(m.type), c->addr);
             ct_error_prefix(err, what);
         }
-        if (rc) {
-            /* A message that does not fit our state: tell the master why
-             * before the connection is dropped (not after its own ERROR/BYE). */
-            if (m.type != WIRE_ERROR && m.type != WIRE_BYE)
-                chan_send_error(c->ch, rc == CT_ENOMEM || rc == CT_ESYS ? WIRE_ERR_INTERNAL : WIRE_ERR_PROTOCOL,
-                                err->msg, 200);
-            break;
-        }
+        /* A message that does not fit our state: tell the master why before
+         * the connection is dropped (not after its own ERROR or BYE). */
+        if (m.type != WIRE_ERROR && m.type != WIRE_BYE)
+            chan_send_error(c->ch, rc == CT_ENOMEM || rc == CT_ESYS ? WIRE_ERR_INTERNAL : WIRE_ERR_PROTOCOL, err->msg,
+                            200);
+        return rc;
     }
-    uint64_t rx = 0, tx = 0;
-    chan_byte_counts(c->ch, &rx, &tx);
-    if (rx > c->bytes_seen) disp_session_add_bytes(s, rx - c->bytes_seen);
-    c->bytes_seen = rx;
-    return rc == WIRE_NEED_MORE ? CT_OK : rc;
 }
 
-bool disp_client_frame_ready(const disp_client *c, uint64_t *frame)
+/* Sends the cameras the render thread queued. */
+static int send_queued(disp_client *c, ct_error *err)
 {
-    if (!c->frame_seen) return false;
-    if (c->frame_taken_any && c->frame_last <= c->frame_taken) return false;
-    if (frame) *frame = c->frame_last;
-    return true;
+    wire_msg out[MAX_OUT];
+    pthread_mutex_lock(&c->mu);
+    int n = c->nout;
+    memcpy(out, c->out, (size_t)n * sizeof *out);
+    c->nout = 0;
+    pthread_mutex_unlock(&c->mu);
+    for (int i = 0; i < n; i++) {
+        int rc = send_now(c, &out[i], err);
+        if (rc) return rc;
+    }
+    return 0;
 }
 
-void disp_client_take_frame(disp_client *c)
+static void *thread_main(void *arg)
 {
-    if (!c->frame_seen) return;
-    c->frame_taken = c->frame_last;
-    c->frame_taken_any = true;
+    disp_client *c = arg;
+    ct_error err;
+    ct_error_clear(&err);
+    uint64_t next_ping = ct_now_us();
+    int pings = 0, rc = 0;
+    bool more = false;   /* the last pump read bytes nobody has decoded yet */
+    while (!atomic_load(&c->stop)) {
+        uint64_t now = ct_now_us();
+        int timeout = more ? 0 : next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
+        struct pollfd p[2] = {{chan_fd(c->ch), chan_events(c->ch), 0}, {c->wake[0], POLLIN, 0}};
+        poll(p, 2, timeout);
+        if (p[1].revents & POLLIN) {
+            char buf[64];
+            while (read(c->wake[0], buf, sizeof buf) > 0) {
+            }
+        }
+        if ((rc = send_queued(c, &err))) break;
+        now = ct_now_us();
+        if (now >= next_ping) {
+            wire_msg m = {.type = WIRE_PING};
+            m.u.ping.token = now;
+            if ((rc = send_now(c, &m, &err))) break;
+            next_ping = now + (++pings < PING_QUICK ? PING_FIRST_US : PING_EVERY_US);
+        }
+        if ((rc = chan_pump(c->ch, &err))) break;
+        uint64_t rx, tx;
+        chan_byte_counts(c->ch, &rx, &tx);
+        disp_inbox_bytes(c->inbox, rx);   /* before the messages it brought are visible */
+        if ((rc = receive(c, &err))) break;
+        /* ACKs go out at once; the same pump also reads, and what it read
+         * must be decoded before the thread sleeps in poll, or a frame that
+         * is complete in memory waits for the next ping. */
+        if ((rc = chan_pump(c->ch, &err))) break;
+        uint64_t rx2;
+        chan_byte_counts(c->ch, &rx2, &tx);
+        more = rx2 != rx;
+    }
+    if (rc) {
+        pthread_mutex_lock(&c->mu);
+        c->end_rc = rc;
+        c->end_err = err;
+        pthread_mutex_unlock(&c->mu);
+    } else {
+        /* Asked to stop: a BYE, briefly. */
+        wire_msg m = {.type = WIRE_BYE};
+        m.u.bye.reason = WIRE_BYE_QUIT;
+        ct_error e;
+        if (chan_send(c->ch, &m, &e) == 0) chan_flush(c->ch, 500, &e);
+    }
+    return NULL;
 }
-
-bool disp_client_has_scene(const disp_client *c) { return c->have_scene; }
-
-bool disp_client_ended(const disp_client *c) { return c->ended; }
-
-const char *disp_client_addr(const disp_client *c) { return c->addr; }

@@ -1,10 +1,13 @@
 /* disp_client.h: the display's side of the socket protocol
- * (docs/protocol.md): connects to the master (handshake, token), sends
- * SETTINGS and CAMERA, and turns every received message into disp_session
- * events (scene, texture allocation / projection / patch / free, sample
- * points, frame ends, statistics). Announces the cached scene
- * (disp_cache.h) and fills the cache with a received one. Lost connections and ERROR / BYE from the master come back as
- * errors whose message says what happened. */
+ * (docs/protocol.md). Connects to the master (handshake, token) and sends
+ * SETTINGS announcing the cached scene (disp_cache.h); from then on a
+ * thread of its own reads, decodes and applies every message to the
+ * disp_inbox as it arrives (so decoding never waits for a frame to be
+ * drawn), acknowledges each texture update once it is in the inbox (the
+ * master's flow control), measures the offset of the master's clock
+ * (PING/PONG, for the lag statistics) and sends the cameras the render
+ * thread hands it. A lost connection, a protocol error, or ERROR / BYE from
+ * the master end the thread; disp_client_status then says why. */
 #ifndef CT_DISP_CLIENT_H
 #define CT_DISP_CLIENT_H
 
@@ -14,7 +17,7 @@
 #include "common/camera.h"
 #include "common/error.h"
 #include "display/disp_cache.h"
-#include "display/disp_session.h"
+#include "display/disp_inbox.h"
 
 typedef struct disp_client_opts {
     const char *addr;             /* unix:PATH or tcp:HOST:PORT */
@@ -25,38 +28,30 @@ typedef struct disp_client_opts {
 
 typedef struct disp_client disp_client;
 
-/* Connects, authenticates and sends SETTINGS (announcing cache's scene). */
-int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp_client **out,
-                        ct_error *err);
+/* Connects, authenticates, sends SETTINGS and starts the connection thread,
+ * which fills inbox until disp_client_close. */
+int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp_inbox *inbox,
+                        disp_client **out, ct_error *err);
 
-/* Sends BYE (best effort, briefly) and closes. NULL is fine. */
+/* Stops the thread, sends BYE (best effort, briefly) and closes. NULL is fine. */
 void disp_client_close(disp_client *c);
 
-/* Sends a CAMERA with the next epoch for a width x height image. */
-int disp_client_send_camera(disp_client *c, const ct_camera *cam, int width, int height,
-                            ct_error *err);
+/* Queues a CAMERA with the next epoch for a width x height image. */
+int disp_client_send_camera(disp_client *c, const ct_camera *cam, int width, int height, ct_error *err);
 
-/* The epoch of the last CAMERA sent (0 before any). */
+/* The epoch of the last CAMERA queued (0 before any). */
 uint32_t disp_client_epoch(const disp_client *c);
 
-/* Waits up to timeout_ms for traffic, sends what is queued and applies every
- * message that arrived to s. CT_EIO when the connection is lost or the master
- * ended the session, CT_EPROTO on a protocol violation or an ERROR from the
- * master, CT_EAUTH on a failed handshake; err says which. */
-int disp_client_service(disp_client *c, disp_session *s, int timeout_ms, ct_error *err);
-
-/* Lockstep: true (and the frame number) when a FRAME of the current epoch
- * arrived after the one last taken; disp_client_take_frame marks it used. */
-bool disp_client_frame_ready(const disp_client *c, uint64_t *frame);
-void disp_client_take_frame(disp_client *c);
+/* CT_OK while the connection lives; else how it ended: CT_EIO when it was
+ * lost or the master ended the session (BYE), CT_EPROTO on a protocol
+ * violation or an ERROR from the master; err says which. */
+int disp_client_status(disp_client *c, ct_error *err);
 
 /* Whether the master ended the session in order (BYE). */
-bool disp_client_ended(const disp_client *c);
+bool disp_client_ended(disp_client *c);
 
-/* Whether a scene has arrived on this connection. */
-bool disp_client_has_scene(const disp_client *c);
-
-/* The master's address as given. */
-const char *disp_client_addr(const disp_client *c);
+/* The master's clock minus ours, in microseconds, from the PING/PONG with
+ * the shortest round trip so far; false until a PONG arrived. */
+bool disp_client_clock_offset(disp_client *c, int64_t *offset_us);
 
 #endif

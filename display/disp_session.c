@@ -103,6 +103,7 @@ struct disp_session {
     uint32_t drawn;            /* frames drawn (tags of the points) */
     uint32_t keep_frames, max_points;
     uint64_t version;          /* changes whenever pts changes */
+    uint64_t image_gen;        /* changes whenever what a frame shows may change */
 };
 
 int disp_session_new(disp_session **out, ct_error *err)
@@ -139,6 +140,7 @@ int disp_session_scene(disp_session *s, const ct_radmesh *m, ct_error *err)
     s->scene = n;
     ring_drop(&s->pts, s->pts.n);
     s->version++;
+    s->image_gen++;
     return CT_OK;
 }
 
@@ -154,12 +156,14 @@ int disp_session_tex_alloc(disp_session *s, uint32_t id, uint32_t node, int widt
     }
     if (kind != DISP_PROJ_OBJECT_PARALLEL && kind != DISP_PROJ_CAMERA_PERSPECTIVE)
         return ct_fail(err, CT_EPROTO, "texture %u: unknown projection kind %d", id, (int)kind);
+    s->image_gen++;
     return disp_textures_alloc(s->tex, id, node, b, e, width, height, kind, err);
 }
 
 int disp_session_tex_projection(disp_session *s, uint32_t id, const mat4 *world_to_tex,
                                 ct_error *err)
 {
+    s->image_gen++;
     return disp_textures_set_projection(s->tex, id, world_to_tex, err);
 }
 
@@ -170,6 +174,19 @@ int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, in
     if (!rc) {
         s->cnt.texels += (uint64_t)w * (uint64_t)h;
         s->cnt.patches++;
+        s->image_gen++;
+    }
+    return rc;
+}
+
+int disp_session_tex_upload(disp_session *s, uint32_t id, int x, int y, int w, int h, size_t off, bool negative,
+                            bool nonzero, ct_error *err)
+{
+    int rc = disp_textures_patch_pbo(s->tex, id, x, y, w, h, off, negative, nonzero, err);
+    if (!rc) {
+        s->cnt.texels += (uint64_t)w * (uint64_t)h;
+        s->cnt.patches++;
+        s->image_gen++;
     }
     return rc;
 }
@@ -181,12 +198,14 @@ int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int
     if (!rc) {
         s->cnt.texels += (uint64_t)w * (uint64_t)h;
         s->cnt.patches++;
+        s->image_gen++;
     }
     return rc;
 }
 
 int disp_session_tex_free(disp_session *s, uint32_t id, ct_error *err)
 {
+    s->image_gen++;
     return disp_textures_release(s->tex, id, err);
 }
 
@@ -196,6 +215,7 @@ void disp_session_set_sample_limits(disp_session *s, uint32_t frames, uint32_t m
     s->max_points = max_points;
     if (s->pts.n > max_points) ring_drop(&s->pts, s->pts.n - max_points);
     s->version++;
+    s->image_gen++;
 }
 
 void disp_session_sample_points(disp_session *s, const float *xyz, uint32_t n, uint64_t dropped)
@@ -205,6 +225,7 @@ void disp_session_sample_points(disp_session *s, const float *xyz, uint32_t n, u
     if (!n) return;
     ring_push(&s->pts, xyz, n, s->drawn, s->max_points);
     s->version++;
+    s->image_gen++;
 }
 
 void disp_session_frame_drawn(disp_session *s)
@@ -212,7 +233,10 @@ void disp_session_frame_drawn(disp_session *s)
     s->drawn++;
     /* The next frame shows the points of the frames drawn last and its own. */
     uint32_t keep_from = s->drawn + 1 > s->keep_frames ? s->drawn + 1 - s->keep_frames : 0;
-    if (ring_trim(&s->pts, keep_from)) s->version++;
+    if (ring_trim(&s->pts, keep_from)) {
+        s->version++;
+        s->image_gen++;   /* the samples view loses the oldest points */
+    }
 }
 
 uint64_t disp_session_points(const disp_session *s, const float **a, uint32_t *na, const float **b,
@@ -231,6 +255,7 @@ void disp_session_frame_end(disp_session *s, uint32_t frame, uint32_t samples, b
 {
     if (!s->samples_from_stats) s->cnt.samples += samples;
     s->cnt.frame_samples += samples;
+    if (s->all_positive != all_positive) s->image_gen++;
     s->all_positive = all_positive;
     s->cnt.frames++;
     s->cnt.last_frame = frame;
@@ -240,6 +265,7 @@ void disp_session_stats(disp_session *s, uint64_t samples_total, bool all_positi
 {
     s->samples_from_stats = true;
     s->cnt.samples = samples_total;
+    if (s->all_positive != all_positive) s->image_gen++;
     s->all_positive = all_positive;
 }
 
@@ -250,3 +276,4 @@ const disp_textures *disp_session_textures(const disp_session *s) { return s->te
 bool disp_session_all_positive(const disp_session *s) { return s->all_positive; }
 
 disp_counters disp_session_counters(const disp_session *s) { return s->cnt; }
+uint64_t disp_session_image_gen(const disp_session *s) { return s->image_gen; }

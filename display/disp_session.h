@@ -61,6 +61,11 @@ int disp_session_tex_projection(disp_session *s, uint32_t id, const mat4 *world_
 int disp_session_tex_patch(disp_session *s, uint32_t id, int x, int y, int w, int h,
                            const uint16_t *rgb, ct_error *err);
 
+/* The same from the bound pixel unpack buffer at byte offset off (the
+ * inbox's uploads, disp_inbox.h). */
+int disp_session_tex_upload(disp_session *s, uint32_t id, int x, int y, int w, int h, size_t off, bool negative,
+                            bool nonzero, ct_error *err);
+
 /* The same with float texels (tests, synthetic contents). */
 int disp_session_tex_patch_float(disp_session *s, uint32_t id, int x, int y, int w, int h,
                                  const float *rgb, ct_error *err);
@@ -107,5 +112,10 @@ bool disp_session_all_positive(const disp_session *s);
 
 /* Running totals. */
 disp_counters disp_session_counters(const disp_session *s);
+
+/* A number that changes whenever what a frame of this session shows may
+ * change (scene, textures, their texels, sample points): the run loop
+ * redraws a still camera only when it moved. */
+uint64_t disp_session_image_gen(const disp_session *s);
 
 #endif

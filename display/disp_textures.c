@@ -147,6 +147,12 @@ int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w,
     return patch(t, id, x, y, w, h, rgb, GL_HALF_FLOAT, neg, nz, err);
 }
 
+int disp_textures_patch_pbo(disp_textures *t, uint32_t id, int x, int y, int w, int h, size_t off,
+                            bool negative, bool nonzero, ct_error *err)
+{
+    return patch(t, id, x, y, w, h, (const void *)(uintptr_t)off, GL_HALF_FLOAT, negative, nonzero, err);
+}
+
 int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w, int h,
                               const float *rgb, ct_error *err)
 {

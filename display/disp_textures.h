@@ -61,6 +61,11 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
 int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w, int h,
                              const uint16_t *rgb, ct_error *err);
 
+/* The same from the pixel unpack buffer bound now, at byte offset `off`
+ * (w*h*3 halves); negative / nonzero: what the caller knows of them. */
+int disp_textures_patch_pbo(disp_textures *t, uint32_t id, int x, int y, int w, int h, size_t off,
+                            bool negative, bool nonzero, ct_error *err);
+
 /* The same with float RGB texels. */
 int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w, int h,
                               const float *rgb, ct_error *err);

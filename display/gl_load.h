@@ -46,6 +46,8 @@
     X(PFNGLBUFFERDATAPROC, BufferData)                                            \
     X(PFNGLBUFFERSUBDATAPROC, BufferSubData)                                      \
     X(PFNGLDELETEBUFFERSPROC, DeleteBuffers)                                      \
+    X(PFNGLMAPBUFFERRANGEPROC, MapBufferRange)                                    \
+    X(PFNGLUNMAPBUFFERPROC, UnmapBuffer)                                          \
     X(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays)                                  \
     X(PFNGLBINDVERTEXARRAYPROC, BindVertexArray)                                  \
     X(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays)                            \

@@ -50,6 +50,7 @@ struct ctex {
     uint32_t epoch;
     size_t bytes;
     ctex_stats st;
+    uint64_t now_us;       /* stamped on texel changes (ctex_set_clock) */
 };
 
 /* --- options ------------------------------------------------------------------ */
@@ -187,19 +188,30 @@ static void ev_proj(ctex *c, uint32_t id)
     if (e) e->m = c->slots[id].t.m;
 }
 
-void ctex_flush_patches(ctex *c)
+void ctex_set_clock(ctex *c, uint64_t now_us)
 {
-    for (uint32_t i = 0; i < c->nslots; i++) {
-        ctex_tex *t = &c->slots[i].t;
-        if (!c->slots[i].live || t->dx0 >= t->dx1 || t->dy0 >= t->dy1) continue;
-        if (c->slots[i].active) {
-            ctex_event *e = push_event(c, CTEX_EV_PATCH, i);
-            if (!e) continue;   /* keep it dirty for the next flush */
-            e->node = c->slots[i].hnode;
-            e->x = t->dx0; e->y = t->dy0; e->w = t->dx1 - t->dx0; e->h = t->dy1 - t->dy0;
+    c->now_us = now_us;
+}
+
+void ctex_dirty_all(ctex *c)
+{
+    /* Stamps and counts start over: lag is measured for this display. */
+    for (uint32_t i = 0; i < c->nslots; i++)
+        if (c->slots[i].live && c->slots[i].active) {
+            ctex_dirty_clear_all(&c->slots[i].t.d);
+            ctex_dirty_mark_all(&c->slots[i].t.d);
         }
-        t->dx0 = t->dx1 = t->dy0 = t->dy1 = 0;
-    }
+}
+
+uint32_t ctex_slot_count(const ctex *c)
+{
+    return c->nslots;
+}
+
+ctex_tex *ctex_visible_texture(ctex *c, uint32_t id)
+{
+    if (id >= c->nslots || !c->slots[id].live || !c->slots[id].active) return NULL;
+    return &c->slots[id].t;
 }
 
 const ctex_event *ctex_events(const ctex *c, size_t *n)
@@ -243,18 +255,6 @@ int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, flo
     return CT_OK;
 }
 
-int ctex_read_patch_half(const ctex *c, uint32_t tex, int x, int y, int w, int h, uint16_t *out,
-                         ct_error *err)
-{
-    const ctex_tex *t = patch_texture(c, tex, x, y, w, h, err);
-    if (!t) return CT_ERANGE;
-    for (int j = 0; j < h; j++) {
-        const ctex_texel *p = ctex_tex_at(t, x, y + j);
-        uint16_t *o = out + 3 * (size_t)j * (size_t)w;
-        for (int i = 0; i < w; i++) memcpy(o + 3 * i, p[i].c, sizeof p[i].c);
-    }
-    return CT_OK;
-}
 
 const uint32_t *ctex_node_parts(const ctex *c, uint32_t hnode, uint32_t *n)
 {
@@ -734,6 +734,7 @@ static int create_texture(ctex *c, uint32_t n, ct_error *err)
     int w, h;
     aspect_size(c, pxw, pxh, longer, s->max_w, s->max_h, &w, &h);
     if (!make_room(c, ctex_tex_bytes(w, h))) aspect_size(c, pxw, pxh, (float)c->o.tex_min, s->max_w, s->max_h, &w, &h);
+    s->t.d.clock = &c->now_us;
     int rc = ctex_tex_init(&s->t, w, h, err);
     if (rc) return rc;
     c->bytes += ctex_tex_bytes(w, h);
@@ -822,7 +823,7 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
             s->active = 1;
             s->last_epoch = c->epoch;
             s->last_eye = c->cam.eye;
-            s->t.dx0 = 0; s->t.dy0 = 0; s->t.dx1 = s->t.w; s->t.dy1 = s->t.h;
+            ctex_dirty_mark_all(&s->t.d);   /* the display gets it anew */
             ev_alloc(c, (uint32_t)id);
             ev_proj(c, (uint32_t)id);
             continue;
@@ -979,7 +980,9 @@ typedef struct {
 
 /* ctex_insert, with ex taken from hint when it was computed on the same
  * texture at the same size (bit for bit what splat_ex gives here). */
-static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const ex_hint *hint)
+/* The texture and texel of a sample, with what is displayed there now and
+ * the error against it (§3.7); -1 when it has none (info says dropped). */
+static int32_t locate(ctex *c, const ct_sample *s, ctex_insert_info *info, int *pci, int *pcj)
 {
     info->tex = -1;
     info->radius = 0;
@@ -990,14 +993,14 @@ static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const
     if (id < 0 || !v3_finite(s->l_hq) || !v3_finite(s->l_base) || !v3_finite(s->hit) ||
         !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) {
         c->st.dropped++;
-        return 0;
+        return -1;
     }
     ctex_tex *t = &c->slots[id].t;
     float fx = u * (float)t->w, fy = v * (float)t->h;
     /* a hit more than a texel off the texture belongs to no texel */
     if (!(fx > -1.0f && fy > -1.0f && fx < (float)t->w + 1.0f && fy < (float)t->h + 1.0f)) {
         c->st.dropped++;
-        return 0;
+        return -1;
     }
     int ci = (int)fx, cj = (int)fy;
     if (fx < 0.0f) ci = 0;
@@ -1009,6 +1012,17 @@ static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const
     /* §3.7: E = L - (L' + ΔL) against what is displayed now */
     info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
     info->tex = id;
+    *pci = ci;
+    *pcj = cj;
+    return id;
+}
+
+static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const ex_hint *hint)
+{
+    int ci, cj;
+    int32_t id = locate(c, s, info, &ci, &cj);
+    if (id < 0) return 0;
+    ctex_tex *t = &c->slots[id].t;
     vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius);
     float ex = 1.0f;
     if (c->o.splat_aniso)
@@ -1018,6 +1032,58 @@ static int insert_one(ctex *c, const ct_sample *s, ctex_insert_info *info, const
     info->radius = r;
     c->st.inserted++;
     adapt_resolution(c, (uint32_t)id, r);
+    return 1;
+}
+
+/* Texture position (in texels) of the point the ray through image position
+ * (x, y) meets on texture t: a camera-local texture maps rays to positions,
+ * an object-local one its plane through the hit p (normal t->n). */
+static bool texel_of_ray(const ctex *c, const ctex_tex *t, vec3 p, float x, float y, float *tx, float *ty)
+{
+    vec3 d = cam_ray_dir(&c->cam, c->W, c->H, x, y);
+    vec3 q = v3_add(c->cam.eye, d);
+    if (t->kind == CTEX_PROJ_OBJECT) {
+        float dn = v3_dot(d, t->n);
+        if (!(fabsf(dn) > 1e-6f)) return false;
+        q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), t->n) / dn);
+    }
+    float u, v;
+    if (!ctex_tex_project(t, q, &u, &v)) return false;
+    *tx = u * (float)t->w;
+    *ty = v * (float)t->h;
+    return isfinite(*tx) && isfinite(*ty);
+}
+
+int ctex_refine(ctex *c, const ct_sample *s, vec3 dl, ctex_insert_info *info)
+{
+    int ci, cj;
+    int32_t id = locate(c, s, info, &ci, &cj);
+    if (id < 0 || !v3_finite(dl)) return 0;
+    ctex_tex *t = &c->slots[id].t;
+    /* The texels the display reads for this pixel: those whose centres lie
+     * in the pixel's footprint on the texture (its corners' rays), within 4
+     * texels of the hit's; at least the hit's own. */
+    float fx = floorf(s->px), fy = floorf(s->py);
+    float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    bool ok = c->have_cam;
+    for (int k = 0; k < 4 && ok; k++) {
+        float tx, ty;
+        ok = texel_of_ray(c, t, s->hit, fx + (float)(k & 1), fy + (float)(k >> 1), &tx, &ty);
+        if (!ok) break;
+        x0 = fminf(x0, tx); x1 = fmaxf(x1, tx);
+        y0 = fminf(y0, ty); y1 = fmaxf(y1, ty);
+    }
+    int a = ci, b = ci, e = cj, f = cj;
+    if (ok) {
+        a = (int)ceilf(x0 - 0.5f); b = (int)floorf(x1 - 0.5f);
+        e = (int)ceilf(y0 - 0.5f); f = (int)floorf(y1 - 0.5f);
+        a = a < ci - 4 ? ci - 4 : (a > ci ? ci : a);
+        b = b > ci + 4 ? ci + 4 : (b < ci ? ci : b);
+        e = e < cj - 4 ? cj - 4 : (e > cj ? cj : e);
+        f = f > cj + 4 ? cj + 4 : (f < cj ? cj : f);
+    }
+    ctex_tex_refine(t, a < 0 ? 0 : a, e < 0 ? 0 : e, b >= t->w ? t->w - 1 : b, f >= t->h ? t->h - 1 : f, cj, dl);
+    c->st.inserted++;
     return 1;
 }
 

@@ -73,12 +73,13 @@ typedef enum ctex_proj_kind {
 } ctex_proj_kind;
 
 /* What the display must do, in order (ctex_events). A texture id is reused
- * after its FREE. ALLOC of a live id is a resize: its contents follow as a
- * full PATCH. */
+ * after its FREE. ALLOC of a live id is a resize. Texels are not events:
+ * each texture marks the ones the display has not received
+ * (ctex_visible_texture, master/ctex_dirty.h); every texel of an ALLOC'ed
+ * texture is marked. */
 typedef enum ctex_event_kind {
     CTEX_EV_ALLOC = 1,   /* tex, node, kind, w, h */
     CTEX_EV_PROJ  = 2,   /* tex, matrix */
-    CTEX_EV_PATCH = 3,   /* tex, x, y, w, h: read the texels with ctex_read_patch */
     CTEX_EV_FREE  = 4    /* tex */
 } ctex_event_kind;
 
@@ -87,7 +88,7 @@ typedef struct ctex_event {
     uint32_t tex;
     uint32_t node;        /* hierarchy node (ALLOC) */
     ctex_proj_kind proj;  /* ALLOC */
-    int x, y, w, h;       /* ALLOC: w, h; PATCH: the rectangle */
+    int w, h;             /* ALLOC: the size */
     mat4 m;               /* PROJ: world -> texture */
 } ctex_event;
 
@@ -154,6 +155,12 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
  * Returns how many were splatted. */
 size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info);
 
+/* A refinement sample (docs/sampling.md, "Refinement"): its texel takes dl,
+ * the mean correction of its pixel's samples, instead of a splat; info as
+ * ctex_insert (E against what was displayed before). Returns 1 when
+ * written, 0 when dropped. */
+int ctex_refine(ctex *c, const ct_sample *s, vec3 dl, ctex_insert_info *info);
+
 /* The correction the display shows at world point p on mesh triangle tri of
  * scene part `node` (tri = UINT32_MAX when unknown; only parts split into
  * clusters need it); zero when it has no texture. */
@@ -161,8 +168,17 @@ vec3 ctex_lookup(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
 
 /* --- display events -------------------------------------------------------- */
 
-/* Turns every texture's dirty rectangle into a PATCH event and clears it. */
-void ctex_flush_patches(ctex *c);
+/* The clock (us) stamped on texel changes from now on (ctex_dirty.h). */
+void ctex_set_clock(ctex *c, uint64_t now_us);
+
+/* Marks every texel of every visible texture unsent (a new display). */
+void ctex_dirty_all(ctex *c);
+
+/* Texture ids are below ctex_slot_count; the texture of an id when the
+ * display has it (live and visible: ALLOC'ed and not FREE'd), else NULL.
+ * The display server reads and clears its unsent tiles (ctex_tex.d). */
+uint32_t ctex_slot_count(const ctex *c);
+struct ctex_tex *ctex_visible_texture(ctex *c, uint32_t id);
 
 /* The pending events in order (valid until the next call that changes c). */
 const ctex_event *ctex_events(const ctex *c, size_t *n);
@@ -174,11 +190,6 @@ void ctex_events_clear(ctex *c);
  * first) into out (w*h*3 floats). */
 int ctex_read_patch(const ctex *c, uint32_t tex, int x, int y, int w, int h, float *out,
                     ct_error *err);
-
-/* The same as the IEEE half floats the texels hold (w*h*3, what TEX_PATCH
- * carries): a copy, no conversion. */
-int ctex_read_patch_half(const ctex *c, uint32_t tex, int x, int y, int w, int h, uint16_t *out,
-                         ct_error *err);
 
 /* The scene part nodes of a hierarchy node's leaves (a split part once per
  * cluster). */

@@ -52,6 +52,10 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     const int pitch = ctex_tex_pitch(w);
     ctex_texel *tx = alloc_texels((size_t)pitch * (size_t)h);
     if (!tx) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
+    if (ctex_dirty_reset(&t->d, w, h, err)) {
+        free(tx);
+        return CT_ENOMEM;
+    }
     clear_texels(tx, (size_t)pitch * (size_t)h);
     free(t->tx);
     t->tx = tx;
@@ -63,7 +67,6 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     t->mean_r = 0.0f;
     t->since_resize = 0;
     t->last_resize = 0;
-    t->dx0 = 0; t->dy0 = 0; t->dx1 = w; t->dy1 = h;
     return CT_OK;
 }
 
@@ -72,6 +75,7 @@ void ctex_tex_release(ctex_tex *t)
     free(t->tx);
     t->tx = NULL;
     t->w = t->h = t->pitch = 0;
+    ctex_dirty_free(&t->d);
 }
 
 void ctex_tex_rebase(ctex_tex *t)
@@ -175,19 +179,24 @@ static inline __attribute__((always_inline)) int32_t splat_centre(ctex_tex *t, i
     return qmax;
 }
 
-/* Grows the dirty rectangle by the texels within ex, ey of (ci, cj). */
-static void grow_dirty(ctex_tex *t, int ci, int cj, int ex, int ey)
+/* Marks the texels within ex, ey of (ci, cj) unsent. */
+static inline void grow_dirty(ctex_tex *t, int ci, int cj, int ex, int ey)
 {
     int x0 = ci - ex < 0 ? 0 : ci - ex, x1 = ci + ex + 1 > t->w ? t->w : ci + ex + 1;
     int y0 = cj - ey < 0 ? 0 : cj - ey, y1 = cj + ey + 1 > t->h ? t->h : cj + ey + 1;
-    if (t->dx0 >= t->dx1 || t->dy0 >= t->dy1) {
-        t->dx0 = x0; t->dx1 = x1; t->dy0 = y0; t->dy1 = y1;
-    } else {
-        if (x0 < t->dx0) t->dx0 = x0;
-        if (x1 > t->dx1) t->dx1 = x1;
-        if (y0 < t->dy0) t->dy0 = y0;
-        if (y1 > t->dy1) t->dy1 = y1;
-    }
+    ctex_dirty_mark(&t->d, x0, y0, x1, y1, cj);
+}
+
+void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value)
+{
+    ctex_tex_keep_base(t);
+    for (int y = y0; y <= y1; y++)
+        for (int x = x0; x <= x1; x++) {
+            ctex_texel *p = ctex_tex_at(t, x, y);
+            float v = ctex_tex_v(t, p);
+            ctex_texel_set(t, p, value, v > t->vmax ? v : t->vmax);
+        }
+    ctex_dirty_mark(&t->d, x0, y0, x1 + 1, y1 + 1, cy);
 }
 
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
@@ -536,6 +545,10 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
     const int npitch = ctex_tex_pitch(nw);
     ctex_texel *nt = alloc_texels((size_t)npitch * (size_t)nh);
     if (!nt) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", nw, nh);
+    if (ctex_dirty_reset(&t->d, nw, nh, err)) {
+        free(nt);
+        return CT_ENOMEM;
+    }
     {
         int fx = nw == 2 * t->w ? 2 : (nw == t->w ? 1 : 0), fy = nh == 2 * t->h ? 2 : (nh == t->h ? 1 : 0);
         if (fx && fy) {
@@ -607,7 +620,6 @@ done:
     t->w = nw;
     t->h = nh;
     t->pitch = npitch;
-    t->dx0 = 0; t->dy0 = 0; t->dx1 = nw; t->dy1 = nh;
     return CT_OK;
 }
 
@@ -650,7 +662,7 @@ void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, floa
                 ctex_texel_clear(o);
         }
     }
-    dst->dx0 = 0; dst->dy0 = 0; dst->dx1 = dst->w; dst->dy1 = dst->h;
+    ctex_dirty_mark_all(&dst->d);
 }
 
 vec3 ctex_tex_mean(const ctex_tex *t, uint32_t *nvalid)

@@ -16,6 +16,7 @@
 #include "common/half.h"
 #include "common/vecmath.h"
 #include "master/ctex.h"
+#include "master/ctex_dirty.h"
 
 /* One texel, 8 bytes: the signed RGB correction as IEEE half floats (the
  * values the display receives and draws, so the ΔL the master reads back is
@@ -54,8 +55,7 @@ typedef struct ctex_tex {
     float mean_r;
     uint32_t since_resize;
     int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
-    /* dirty rectangle [dx0, dx1) x [dy0, dy1), empty when dx0 >= dx1 */
-    int dx0, dy0, dx1, dy1;
+    ctex_dirty d;          /* texels the display has not received (ctex_dirty.h) */
 } ctex_tex;
 
 /* Row pitch of a texture w texels wide: w rounded up to whole 64-byte cache
@@ -151,19 +151,27 @@ static inline void ctex_tex_keep_base(ctex_tex *t)
     if (t->vmax - t->vbase > (float)(CTEX_Q_REBASE / CTEX_VQ) || t->vmax < t->vbase) ctex_tex_rebase(t);
 }
 
-/* Allocates w x h empty texels (validity -inf, correction 0), vmax = 0. */
+/* Allocates w x h empty texels (validity -inf, correction 0), vmax = 0,
+ * all unsent. */
 int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err);
 
-/* Frees the texels. */
+/* Frees the texels and the tile map. */
 void ctex_tex_release(ctex_tex *t);
 
 /* Splats value at texel (ci, cj) with the texture's v_max (§3.4): the centre
  * texel is always overwritten; ring k (Chebyshev distance k) overwrites texels
  * whose validity is below v_max - k, and blends texels within `blend` of it;
  * stops after the first ring that overwrote nothing, or after ring max_r
- * (0 = no limit). Returns the splat radius (last overwriting ring) and grows
- * the dirty rectangle. */
+ * (0 = no limit). Returns the splat radius (last overwriting ring) and marks
+ * the texels it visited unsent (ctex_dirty_mark). */
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r);
+
+/* Sets the texels [x0, x1] x [y0, y1] (inclusive, inside the texture) to
+ * value (refinement: the mean of a pixel's samples, written where the
+ * display reads that pixel), at least as valid as a new sample's centre,
+ * and marks them unsent, counting one sample in texel row cy. No rings: the
+ * Voronoi cells around keep their owners. */
+void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value);
 
 /* Anisotropic splats: ex in (CTEX_ANISO_ISO, 1 / CTEX_ANISO_ISO) splats
  * square rings; ex is clamped to [1 / CTEX_ANISO_MAX, CTEX_ANISO_MAX]. */
@@ -260,14 +268,14 @@ static inline void ctex_tex_age(ctex_tex *t, float offset)
 
 /* §3.6: changes the resolution to nw x nh: box filter (area average of valid
  * texels) when shrinking, bilinear when growing; validities are rescaled to
- * the new texel size relative to v_max. The whole texture becomes dirty. */
+ * the new texel size relative to v_max. The whole texture becomes unsent. */
 int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err);
 
 /* Fills dst's texels from the sources: each texel centre is unprojected to a
  * world point, projected into every source, and takes the bilinear value of
  * the source whose nearest texel is most valid (relative to its v_max), with
  * that relative validity minus `penalty`. Texels no source covers stay
- * empty. dst's texels must be allocated; it becomes dirty. */
+ * empty. dst's texels must be allocated; it becomes unsent. */
 void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, float penalty);
 
 /* Mean correction over the valid texels (tests, stats); 0 when none. */

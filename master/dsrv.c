@@ -21,8 +21,9 @@
 
 typedef struct pconn {
     chan *c;
-    double deadline;     /* handshake + SETTINGS must be done by then */
+    double deadline;     /* handshake + SETTINGS must be done by then (also its age) */
     int ready_logged;
+    char host[XPORT_ADDR_LEN];   /* peer address without the port: the per-peer bound's key */
 } pconn;
 
 struct dsrv {
@@ -36,6 +37,8 @@ struct dsrv {
     uint64_t sent_closed;   /* bytes sent on connections already closed */
     dsrv_event ev[MAX_EVENTS];
     int ev_head, ev_n;
+    uint64_t evicted;       /* handshakes dropped for newcomers, not yet logged */
+    double evict_logged;    /* when they were last logged */
 };
 
 void dsrv_default_listen(char *out, size_t cap)
@@ -45,16 +48,29 @@ void dsrv_default_listen(char *out, size_t cap)
     snprintf(out, cap, "unix:%s/corrtex-%ld.sock", dir, (long)getpid());
 }
 
-int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
+static int check_config(const dsrv_config *cfg, xport_addr *a, ct_error *err)
 {
-    xport_addr a;
-    int rc = xport_parse(cfg->listen, true, &a, err);
+    int rc = xport_parse(cfg->listen, true, a, err);
     if (rc) return rc;
-    if (a.kind == XPORT_TCP && !cfg->token)
+    if (a->kind == XPORT_TCP && !cfg->token)
         return ct_fail(err, CT_EINVAL,
                        "%s: TCP needs a token (--token-file FILE or %s): without one anyone who reaches the port "
                        "could drive the master",
                        cfg->listen, AUTH_TOKEN_ENV);
+    return 0;
+}
+
+int dsrv_check_config(const dsrv_config *cfg, ct_error *err)
+{
+    xport_addr a;
+    return check_config(cfg, &a, err);
+}
+
+int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
+{
+    xport_addr a;
+    int rc = check_config(cfg, &a, err);
+    if (rc) return rc;
     dsrv *s = calloc(1, sizeof *s);
     if (!s) return ct_fail(err, CT_ENOMEM, "display server: out of memory");
     s->cfg = *cfg;
@@ -81,7 +97,8 @@ int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
 static void add_event(dsrv *s, dsrv_event_kind kind, const wire_msg *m, const char *text)
 {
     if (s->ev_n == MAX_EVENTS) {
-        /* Only cameras can pile up; the oldest is the least useful. */
+        /* Only cameras and ACKs can pile up; the oldest is the least useful
+         * (an ACK covers every update before it). */
         s->ev_head = (s->ev_head + 1) % MAX_EVENTS;
         s->ev_n--;
     }
@@ -155,6 +172,49 @@ uint64_t dsrv_bytes_sent(const dsrv *s)
     return total;
 }
 
+/* "tcp:[::1]:5123" -> "tcp:[::1]"; a UNIX peer ("unix:PATH (pid N)") is its
+ * own key. */
+static void peer_host(const char *peer, char *out, size_t cap)
+{
+    const char *colon = strrchr(peer, ':');
+    int n = strncmp(peer, "tcp:", 4) == 0 && colon > peer + 3 ? (int)(colon - peer) : (int)strlen(peer);
+    snprintf(out, cap, "%.*s", n, peer);
+}
+
+/* The pending connection a newcomer from host may replace (any host when
+ * NULL): the oldest of those that sent nothing yet, else the oldest that has
+ * not authenticated; -1 when every one has authenticated. */
+static int eviction_victim(const dsrv *s, const char *host)
+{
+    int best = -1, best_idle = 0;
+    for (int i = 0; i < s->npend; i++) {
+        const pconn *p = &s->pend[i];
+        if (chan_ready(p->c) || (host && strcmp(p->host, host) != 0)) continue;
+        uint64_t rx, tx;
+        chan_byte_counts(p->c, &rx, &tx);
+        int idle = rx == 0;
+        if (best < 0 || idle > best_idle || (idle == best_idle && p->deadline < s->pend[best].deadline)) {
+            best = i;
+            best_idle = idle;
+        }
+    }
+    return best;
+}
+
+/* Makes room for a newcomer from host; 0, or -1 when it must be refused. */
+static int make_room(dsrv *s, const char *host)
+{
+    int same = 0;
+    for (int i = 0; i < s->npend; i++) same += strcmp(s->pend[i].host, host) == 0;
+    if (same < DSRV_MAX_PENDING_PER_PEER && s->npend < DSRV_MAX_PENDING) return 0;
+    int v = eviction_victim(s, same >= DSRV_MAX_PENDING_PER_PEER ? host : NULL);
+    if (v < 0) return -1;
+    ct_debug(COMPONENT, "%s: dropped to make room for a newer connection", chan_peer(s->pend[v].c));
+    close_pending(s, v);
+    s->evicted++;
+    return 0;
+}
+
 static void accept_all(dsrv *s)
 {
     for (;;) {
@@ -165,9 +225,12 @@ static void accept_all(dsrv *s)
             return;
         }
         if (!conn) return;
-        if (s->npend == DSRV_MAX_PENDING) {
-            ct_warn(COMPONENT, "%s: dropped: %d connections already in handshake", xport_peer(conn),
-                    DSRV_MAX_PENDING);
+        char host[XPORT_ADDR_LEN];
+        peer_host(xport_peer(conn), host, sizeof host);
+        if (make_room(s, host) != 0) {
+            ct_warn(COMPONENT, "%s: dropped: every connection it could replace (%d in handshake, %d per address) "
+                    "has authenticated and waits for SETTINGS", xport_peer(conn), DSRV_MAX_PENDING,
+                    DSRV_MAX_PENDING_PER_PEER);
             xport_close(conn);
             continue;
         }
@@ -182,8 +245,24 @@ static void accept_all(dsrv *s)
             continue;
         }
         ct_debug(COMPONENT, "%s: connected, handshake started", chan_peer(c));
-        s->pend[s->npend++] = (pconn){c, ct_now() + s->cfg.handshake_timeout_ms / 1000.0, 0};
+        pconn *p = &s->pend[s->npend++];
+        *p = (pconn){c, ct_now() + s->cfg.handshake_timeout_ms / 1000.0, 0, ""};
+        snprintf(p->host, sizeof p->host, "%s", host);
     }
+}
+
+/* One line a second at most: a client that keeps re-opening connections
+ * would otherwise fill the log. */
+static void log_evictions(dsrv *s)
+{
+    if (!s->evicted) return;
+    double now = ct_now();
+    if (now - s->evict_logged < 1.0) return;
+    ct_warn(COMPONENT, "dropped %llu connection%s that had not authenticated, to make room for newer ones (at most "
+            "%d in handshake, %d per address)", (unsigned long long)s->evicted, s->evicted == 1 ? "" : "s",
+            DSRV_MAX_PENDING, DSRV_MAX_PENDING_PER_PEER);
+    s->evicted = 0;
+    s->evict_logged = now;
 }
 
 /* Advances pending connection i; 1 when it was closed or promoted. */
@@ -255,17 +334,27 @@ static void service_display(dsrv *s)
         int rc = chan_recv(s->disp, &m, &e);
         if (rc == WIRE_NEED_MORE) return;
         if (rc < 0) {
-            ct_info(COMPONENT, "display left: %s", e.msg);
+            if (rc == CT_EIO) {
+                ct_info(COMPONENT, "display left: %s", e.msg);
+            } else {
+                /* A message the decoder refused (a CAMERA out of range, say):
+                 * the display hears why. */
+                ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, e.msg);
+                chan_send_error(s->disp, WIRE_ERR_PROTOCOL, e.msg, 200);
+            }
             close_display(s, e.msg);
             return;
         }
         switch (m.type) {
         case WIRE_CAMERA:
+        case WIRE_ACK:
             add_event(s, DSRV_EV_MESSAGE, &m, NULL);
             break;
         case WIRE_PING: {
+            /* With our clock: the display estimates its offset (lag stats). */
             wire_msg pong = m;
             pong.type = WIRE_PONG;
+            pong.u.ping.clock_us = ct_now_us();
             if (chan_send(s->disp, &pong, &e) < 0) {
                 close_display(s, e.msg);
                 return;
@@ -313,6 +402,7 @@ int dsrv_step(dsrv *s, int timeout_ms, ct_error *err)
     int r = poll(fds, (nfds_t)n, timeout_ms);
     if (r < 0) return 0;   /* EINTR (a signal): the caller checks its flags */
     if (fds[0].revents & POLLIN) accept_all(s);
+    log_evictions(s);
     for (int i = 0; i < s->npend;)
         if (!service_pending(s, i)) i++;
     if (s->disp) service_display(s);
@@ -359,6 +449,28 @@ int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err)
         poll(&p, 1, 10);
     }
     (void)err;
+}
+
+wire_buf *dsrv_tail(dsrv *s)
+{
+    if (!s->disp) return NULL;
+    ct_error e;
+    wire_buf *b = chan_tail(s->disp, &e);
+    if (!b) {
+        ct_info(COMPONENT, "display %s lost: %s", s->disp_peer, e.msg);
+        close_display(s, e.msg);
+    }
+    return b;
+}
+
+void dsrv_commit(dsrv *s, uint64_t frames)
+{
+    if (s->disp) chan_commit(s->disp, frames);
+}
+
+size_t dsrv_queued(const dsrv *s)
+{
+    return s->disp ? chan_queue_stats(s->disp).bytes : 0;
 }
 
 int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued)

@@ -16,7 +16,13 @@
 #include "proto/auth.h"
 #include "proto/wire.h"
 
-#define DSRV_MAX_PENDING 16   /* connections in handshake at once; more are closed */
+/* Connections in handshake at once, and of those from one peer address (a
+ * TCP host, a local process). A newcomer beyond either bound takes the place
+ * of the oldest connection there that has not authenticated (one that has
+ * sent nothing first), so idle connections cannot lock a display out; only
+ * when all of them have authenticated is the newcomer refused. */
+#define DSRV_MAX_PENDING 16
+#define DSRV_MAX_PENDING_PER_PEER 4
 
 typedef struct dsrv dsrv;
 
@@ -42,6 +48,11 @@ typedef struct dsrv_event {
 /* The default listen address: unix:$XDG_RUNTIME_DIR/corrtex-<pid>.sock, or
  * /tmp when XDG_RUNTIME_DIR is not set. */
 void dsrv_default_listen(char *out, size_t cap);
+
+/* Fails as dsrv_new would on the configuration alone (an address that does
+ * not parse, TCP without a token): a program checks it before expensive
+ * work (corrtex-render: before the radiosity solve). */
+int dsrv_check_config(const dsrv_config *cfg, ct_error *err);
 
 /* Starts listening (a UNIX socket file gets mode 0600). TCP without a token
  * fails: the socket would be open to anyone who can reach the port. */
@@ -79,6 +90,15 @@ int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err);
  * never delays texture updates. 0 when queued (or no display is
  * connected), DSRV_DROPPED when not. */
 int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued);
+
+/* The display's send queue tail for frames encoded in place (chan_tail),
+ * then dsrv_commit(frames). NULL when no display is connected (or it just
+ * failed: it is dropped). */
+wire_buf *dsrv_tail(dsrv *s);
+void dsrv_commit(dsrv *s, uint64_t frames);
+
+/* Bytes queued to the display and not yet written (0 without a display). */
+size_t dsrv_queued(const dsrv *s);
 
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);

@@ -12,6 +12,7 @@
 #include "common/rng.h"
 #include "master/rq_heap.h"
 #include "master/rq_mask.h"
+#include "master/rq_refine.h"
 #include "master/sampler.h"
 
 /* Random stream selectors; every stream is a pure function of the seed, an
@@ -21,11 +22,13 @@
 #define STREAM_SEED   0x53454544u
 #define STREAM_CHILD  0x4348494cu
 #define STREAM_GLOBAL 0x474c4f42u
+#define STREAM_REFINE 0x52454649u
 
 /* A handed-out request, kept until its sample is reported. */
 typedef struct flight {
     float px, py, radius;
-    uint32_t outstanding;
+    uint16_t outstanding;
+    uint16_t kind;       /* RQ_KIND_* */
 } flight;
 
 /* A significant sample: its error, request, world point and domain. */
@@ -56,8 +59,10 @@ struct rq_engine {
     size_t fl_cap;           /* power of two */
     uint64_t fl_lo;          /* ids below are reported or stale */
     uint64_t fl_out;         /* outstanding this epoch */
+    uint64_t fl_refine;      /* of them refinement requests */
     sigsample *sig;          /* min-heap: least significant at [0] */
     int n_sig;
+    rq_refine ref;           /* past full coverage (px NULL: refinement off) */
     uint64_t grows;          /* allocations of this file's buffers */
     rq_stats st;
 };
@@ -217,7 +222,9 @@ static inline void emit(rq_engine *e, const rq_item *it, ct_request *r)
     f->py = it->py;
     f->radius = it->radius;
     f->outstanding = 1;
+    f->kind = (uint16_t)it->kind;
     e->fl_out++;
+    e->fl_refine += it->kind == RQ_KIND_REFINE;
     r->id = id;
     r->parent = it->parent;
     r->epoch = e->epoch;
@@ -246,7 +253,24 @@ int rq_next_batch(rq_engine *e, ct_request *out, int n, ct_error *err)
             emit(e, &it, &out[k++]);
         } else if (e->list_mode) {
             uint32_t p;
-            if (!rq_mask_list_next(&e->mask, &p)) break;  /* every pixel handed out */
+            if (!rq_mask_list_next(&e->mask, &p)) {
+                /* Every pixel handed out: refine, or this view is done. */
+                if (!e->ref.px) break;
+                if (!e->ref.active && (rc = rq_refine_start(&e->ref, err))) return k ? k : rc;
+                float prio;
+                if (!rq_refine_next(&e->ref, &p, &prio)) break;
+                /* A new position in the pixel for each of its samples: a
+                 * pure function of (seed, epoch, pixel, sample count). */
+                ct_rng r = rng_make(e->seed, e->epoch, STREAM_REFINE, (uint64_t)p << 16 | e->ref.px[p].n);
+                it.key = rq_key(prio, 0);
+                it.parent = 0;
+                it.px = (float)(p % (uint32_t)e->w) + rng_float(&r);
+                it.py = (float)(p / (uint32_t)e->w) + rng_float(&r);
+                it.radius = 0.5f;
+                it.kind = RQ_KIND_REFINE;
+                emit(e, &it, &out[k++]);
+                continue;
+            }
             it.key = rq_key(e->o.prio_seed, 0);
             it.parent = 0;
             it.px = (float)(p % (uint32_t)e->w) + 0.5f;
@@ -374,11 +398,27 @@ int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_
     flight req = *f;
     f->outstanding = 0;
     e->fl_out--;
+    e->fl_refine -= req.kind == RQ_KIND_REFINE;
     while (e->fl_lo < e->next_id && !e->fl[e->fl_lo & (e->fl_cap - 1)].outstanding) e->fl_lo++;
     e->st.reported++;
 
     float en = rq_error_norm(E, e->o.norm);
     bool hit = (s->flags & CT_SAMPLE_HIT) != 0;
+    bool refine = req.kind == RQ_KIND_REFINE;
+    int in_mean = 0;
+    if (e->ref.px && hit && v3_finite(s->l_hq) && v3_finite(s->l_base)) {
+        int64_t p = pixel_of(e, req.px, req.py);
+        in_mean = p >= 0 ? rq_refine_add(&e->ref, (uint32_t)p, s->node, v3_sub(s->l_hq, s->l_base), en, err) : 0;
+        if (in_mean < 0) return in_mean;
+    }
+    if (refine) {
+        /* Its pixel's mean goes into the texture (not for a sample on
+         * another node than the pixel's: that mean is not its node's); no
+         * children (the pixel is the domain), and the significant samples
+         * are the view's first ones. */
+        if (!hit) e->ref.samples++;
+        return in_mean ? RQ_REPORT_REFINE : 0;
+    }
     uint32_t hq_node = hit ? s->node : RQ_NODE_NONE;
     bool mismatch = shown_node != RQ_NODE_UNKNOWN && shown_node != hq_node;
     int flags = 0;
@@ -421,9 +461,11 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
     /* Older requests point at positions of the old image: drop them all. */
     rq_heap_clear(&e->heap);
     rq_mask_clear(&e->mask);
+    rq_refine_epoch(&e->ref);
     e->list_mode = 0;
     e->fl_lo = e->next_id;
     e->fl_out = 0;
+    e->fl_refine = 0;
     e->seq = 0;
     e->global_round = 0;
     e->epoch = epoch;
@@ -480,6 +522,11 @@ int rq_new(rq_engine **out, int width, int height, const ct_camera *cam, const r
         rq_free(e);
         return rc;
     }
+    if (o.refine_error > 0.0f &&
+        (rc = rq_refine_init(&e->ref, width, height, o.refine_error, (uint16_t)o.refine_max, err)) != 0) {
+        rq_free(e);
+        return rc;
+    }
     if (o.n_sig > 0) {
         e->sig = malloc((size_t)o.n_sig * sizeof *e->sig);
         if (!e->sig) {
@@ -501,6 +548,7 @@ void rq_free(rq_engine *e)
     if (!e) return;
     rq_heap_free(&e->heap);
     rq_mask_free(&e->mask);
+    rq_refine_free(&e->ref);
     free(e->fl);
     free(e->sig);
     free(e);
@@ -512,9 +560,26 @@ void rq_stats_get(const rq_engine *e, rq_stats *st)
     st->allocations = e->grows + e->heap.grows + e->mask.grows;
     st->queued = e->heap.n;
     st->in_flight = e->fl_out;
+    st->covered = st->sampled_pixels == st->total_pixels && e->fl_out == e->fl_refine;
     st->epoch = e->epoch;
     st->list_mode = e->list_mode;
     st->sampled_pixels = e->mask.count;
     st->total_pixels = (uint64_t)e->w * (uint64_t)e->h;
     st->coverage = (double)st->sampled_pixels / (double)st->total_pixels;
+    st->refining = e->ref.active;
+    st->refine_samples = e->ref.samples;
+    st->refine_error = e->ref.active ? e->ref.top : 0.0f;
+}
+
+bool rq_refines(const rq_engine *e, uint64_t id)
+{
+    if (id < e->fl_lo || id >= e->next_id) return false;
+    const flight *f = &e->fl[id & (e->fl_cap - 1)];
+    return f->outstanding && f->kind == RQ_KIND_REFINE;
+}
+
+vec3 rq_pixel_mean(const rq_engine *e, float px, float py)
+{
+    int64_t p = pixel_of(e, px, py);
+    return p < 0 ? v3s(0.0f) : rq_refine_mean(&e->ref, (uint32_t)p);
 }

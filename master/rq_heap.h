@@ -21,7 +21,8 @@ enum {
     RQ_KIND_MISMATCH  = 2,  /* child of a sample whose node did not match */
     RQ_KIND_GLOBAL    = 3,  /* random global request (queue ran dry) */
     RQ_KIND_REPROJECT = 4,  /* reprojected significant sample */
-    RQ_KIND_LIST      = 5   /* remaining-pixel list */
+    RQ_KIND_LIST      = 5,  /* remaining-pixel list */
+    RQ_KIND_REFINE    = 6   /* refinement past full coverage (rq_refine.h) */
 };
 
 /* One queued request as pushed and popped. */

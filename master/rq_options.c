@@ -29,6 +29,11 @@ void rq_options_default(rq_options *o)
      * never does, and what comes into view is never sampled (docs/sampling.md). */
     o->reseed = 1;
     o->max_queue = 0;
+    /* Past full coverage a still view goes on being sampled where a pixel's
+     * mean is least certain, until its standard error (luminance of the
+     * correction) is under half an 8-bit step of a mid-grey display value. */
+    o->refine_error = 0.002f;
+    o->refine_max = 256;
 }
 
 enum { T_INT, T_FLOAT, T_LONG, T_NORM };
@@ -70,9 +75,20 @@ static const optdesc opts[] = {
      "queue a fresh initial grid on every camera change too"},
     {"max-queue", T_LONG, offsetof(rq_options, max_queue), "N",
      "cap on queued requests (0 = one per pixel)"},
+    {"refine-error", T_FLOAT, offsetof(rq_options, refine_error), "E",
+     "after full coverage keep sampling pixels whose mean's standard error is over E (0: stop at one sample)"},
+    {"refine-max", T_INT, offsetof(rq_options, refine_max), "N",
+     "at most N samples per pixel when refining (1..65535)"},
 };
 
 static const char *norm_names[] = {"max", "lum", "avg"};
+
+bool rq_options_has(const char *name)
+{
+    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
+        if (strcmp(opts[i].name, name) == 0) return true;
+    return false;
+}
 
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err)
 {
@@ -170,5 +186,10 @@ int rq_options_check(const rq_options *o, ct_error *err)
         return ct_fail(err, CT_EINVAL, "sampler option --reseed %d: must be 0 or 1", o->reseed);
     if (o->max_queue < 0)
         return ct_fail(err, CT_EINVAL, "sampler option --max-queue %ld: must be >= 0", o->max_queue);
+    if (!(o->refine_error >= 0.0f) || !isfinite(o->refine_error))
+        return ct_fail(err, CT_EINVAL, "sampler option --refine-error %g: must be finite and >= 0",
+                       (double)o->refine_error);
+    if (o->refine_max < 1 || o->refine_max > 65535)
+        return ct_fail(err, CT_EINVAL, "sampler option --refine-max %d: must be 1..65535", o->refine_max);
     return 0;
 }

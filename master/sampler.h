@@ -18,6 +18,7 @@
 #ifndef CT_SAMPLER_H
 #define CT_SAMPLER_H
 
+#include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -42,7 +43,8 @@ typedef enum rq_norm {
 /* Flags returned by rq_report (>= 0). */
 enum {
     RQ_REPORT_STALE    = 1,  /* the sample belongs to an older epoch: ignored */
-    RQ_REPORT_MISMATCH = 2   /* hit node != shown node */
+    RQ_REPORT_MISMATCH = 2,  /* hit node != shown node */
+    RQ_REPORT_REFINE   = 4   /* a refinement sample in its pixel's mean (rq_pixel_mean): write it */
 };
 
 /* Every tunable parameter, with its default (rq_options_default). */
@@ -61,6 +63,8 @@ typedef struct rq_options {
     float prio_mismatch;    /* priority of children of node-mismatch samples */
     int reseed;             /* 1: a new epoch also gets a fresh initial grid */
     long max_queue;         /* cap on queued requests; 0 = width * height */
+    float refine_error;     /* past full coverage: refine pixels whose mean's error is over this (0: off) */
+    int refine_max;         /* samples per pixel at most when refining */
 } rq_options;
 
 /* Statistics since rq_new (counters) and of the current epoch (coverage). */
@@ -89,6 +93,10 @@ typedef struct rq_stats {
     uint64_t sampled_pixels;      /* pixels handed out this epoch */
     uint64_t total_pixels;        /* width * height */
     double coverage;              /* sampled_pixels / total_pixels */
+    int covered;                  /* every pixel handed out and its first sample reported */
+    int refining;                 /* 1 once every pixel was handed out and refinement goes on */
+    uint64_t refine_samples;      /* refinement samples reported this epoch */
+    float refine_error;           /* priority of the last pixel refined: the largest error left */
 } rq_stats;
 
 /* Fills *o with the defaults (docs/sampling.md lists them). */
@@ -97,6 +105,9 @@ void rq_options_default(rq_options *o);
 /* Sets one option by its command-line name without "--" (e.g. "children",
  * "min-priority"); CT_EINVAL with a message naming it on a bad name or value. */
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err);
+
+/* Whether name (without "--") is a sampler option. */
+bool rq_options_has(const char *name);
 
 /* Prints one "--name VALUE  help (default X)" line per option to f. */
 void rq_options_usage(FILE *f);
@@ -127,6 +138,15 @@ int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_
  * in-flight request, clears the mask, reprojects the significant samples
  * into the new view at prio_reproject. CT_EINVAL on an old epoch or a bad camera. */
 int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *err);
+
+/* Whether outstanding request id is a refinement request (its sample is not
+ * splatted: the caller writes the pixel's mean, rq_pixel_mean, after
+ * rq_report when that says RQ_REPORT_REFINE). */
+bool rq_refines(const rq_engine *e, uint64_t id);
+
+/* The mean correction dL of the samples of the pixel at image position
+ * (px, py) in the current view (docs/sampling.md, "Refinement"). */
+vec3 rq_pixel_mean(const rq_engine *e, float px, float py);
 
 /* Fills *st. */
 void rq_stats_get(const rq_engine *e, rq_stats *st);

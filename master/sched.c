@@ -13,6 +13,7 @@
 #include "common/log.h"
 #include "common/timer.h"
 #include "master/dsrv.h"
+#include "master/dsync.h"
 #include "proto/mpi_link.h"
 #include "proto/wire.h"
 #include "proto/wire_mpi.h"
@@ -27,13 +28,14 @@ void sched_options_default(sched_options *o)
     o->batch_max = 4096;
     o->batch_ms = 20.0;
     o->round = 256;
-    o->patch_ms = 33.0;
+    o->patch_ms = 10.0;
     o->stats_s = 1.0;
     o->handshake_ms = 5000;
     o->send_timeout_ms = 10000;
     o->tracer_timeout_s = 30.0;
     o->idle_ms = 2;
     o->queue_mb = 64;
+    o->patch_encoding = -1;
     o->exit_when_display_leaves = false;
 }
 
@@ -47,13 +49,14 @@ static const opt_desc OPTS[] = {
     {"batch-max", "largest free-running batch (requests)"},
     {"batch-ms", "target tracing time of one free-running batch (ms)"},
     {"round", "lockstep: requests per round, inserted in id order"},
-    {"patch-ms", "free-running: interval of texture updates to the display (ms)"},
+    {"patch-ms", "free-running: shortest interval of texture updates to the display (ms)"},
     {"stats-s", "interval of the stats line and STATS message (s)"},
     {"handshake-ms", "a connecting display must finish its handshake within this (ms)"},
     {"send-timeout-ms", "drop a display that does not read its full queue for this long (ms)"},
     {"tracer-timeout-s", "end the job when a tracer with work is silent this long (s)"},
     {"idle-ms", "socket poll timeout while idle (ms)"},
     {"queue-mb", "display send queue bound (MiB)"},
+    {"patch-encoding", "texels to the display: raw, lz4 or auto (raw on UNIX, lz4 on TCP)"},
     {NULL, NULL}};
 
 static int parse_num(const char *name, const char *v, double lo, double hi, double *out, ct_error *err)
@@ -69,6 +72,13 @@ static int parse_num(const char *name, const char *v, double lo, double hi, doub
 int sched_options_set(sched_options *o, const char *name, const char *value, ct_error *err)
 {
     double x;
+    if (strcmp(name, "patch-encoding") == 0) {
+        if (!strcmp(value, "raw")) o->patch_encoding = WIRE_PATCH_RAW;
+        else if (!strcmp(value, "lz4")) o->patch_encoding = WIRE_PATCH_LZ4;
+        else if (!strcmp(value, "auto")) o->patch_encoding = -1;
+        else return ct_fail(err, CT_EINVAL, "--patch-encoding: '%s' is not raw, lz4 or auto", value);
+        return 1;
+    }
 #define NUM(n, lo, hi, field, type)                                               \
     if (strcmp(name, n) == 0) {                                               \
         if (parse_num(name, value, lo, hi, &x, err)) return CT_EINVAL;        \
@@ -108,9 +118,10 @@ void sched_options_usage(FILE *f)
         else if (!strcmp(p->name, "send-timeout-ms")) snprintf(v, sizeof v, "%d", d.send_timeout_ms);
         else if (!strcmp(p->name, "tracer-timeout-s")) snprintf(v, sizeof v, "%g", d.tracer_timeout_s);
         else if (!strcmp(p->name, "idle-ms")) snprintf(v, sizeof v, "%d", d.idle_ms);
-        else snprintf(v, sizeof v, "%zu", d.queue_mb);
+        else if (!strcmp(p->name, "queue-mb")) snprintf(v, sizeof v, "%zu", d.queue_mb);
+        else snprintf(v, sizeof v, "auto");
         char flag[40];
-        snprintf(flag, sizeof flag, "%s %s", p->name, strchr(v, '.') ? "X" : "N");
+        snprintf(flag, sizeof flag, "%s %s", p->name, !strcmp(p->name, "patch-encoding") ? "E" : strchr(v, '.') ? "X" : "N");
         fprintf(f, "  --%-22s %s (default %s)\n", flag, p->help, v);
     }
 }
@@ -136,6 +147,7 @@ typedef struct frame_req {
 typedef struct loop_state {
     const sched_config *c;
     dsrv *ds;
+    dsync *sync;
     rq_engine *rq;
     ctex *tex;
     wire_scene_tx scene_tx;
@@ -149,6 +161,9 @@ typedef struct loop_state {
     uint32_t epoch;             /* internal epoch: what tracers see */
     uint32_t rq_epoch;          /* the request queue's own epoch */
     uint32_t disp_epoch;        /* the display's epoch number of the current camera */
+    double view_t0;             /* when the current view was set */
+    int view_covered;           /* its every pixel has been handed out (logged once) */
+    double covered_logged;      /* when a coverage line was last logged at info level */
     uint64_t batch_id;
     int rr;                     /* free-running: the rank served first next time */
     /* lockstep */
@@ -170,8 +185,6 @@ typedef struct loop_state {
     ct_sample *samples;
     uint32_t samples_cap;
     wire_buf mbuf, obuf;
-    uint16_t *patch_h;
-    size_t patch_cap;
     /* timing */
     double t_tex, t_sample_wait, t_render_wait, t_mark;
     double last_patch, last_stats;
@@ -202,54 +215,6 @@ static int grow(void **p, uint32_t *cap, uint32_t need, size_t elem, ct_error *e
 static int send_msg(loop_state *s, const wire_msg *m, ct_error *err)
 {
     return dsrv_send(s->ds, m, s->c->opt.send_timeout_ms, err);
-}
-
-static int send_patch(loop_state *s, uint32_t tex, int x, int y, int w, int h, ct_error *err)
-{
-    if (w <= 0 || h <= 0) return 0;
-    /* Bands of whole rows within the protocol's patch limit. */
-    int rows = (int)(WIRE_PATCH_MAX_TEXELS / (uint32_t)w);
-    if (rows < 1) rows = 1;
-    for (int y0 = y; y0 < y + h; y0 += rows) {
-        int hh = y + h - y0 < rows ? y + h - y0 : rows;
-        size_t n = (size_t)w * (size_t)hh * 3;
-        if (n > s->patch_cap) {
-            uint16_t *hb = realloc(s->patch_h, n * sizeof *hb);
-            if (!hb) return ct_fail(err, CT_ENOMEM, "master: out of memory for a %dx%d patch", w, hh);
-            s->patch_h = hb;
-            s->patch_cap = n;
-        }
-        int rc = ctex_read_patch_half(s->tex, tex, x, y0, w, hh, s->patch_h, err);
-        if (rc) return rc;
-        for (size_t i = 0; i < n && s->all_positive; i++)
-            if (half_is_negative(s->patch_h[i])) s->all_positive = 0;
-        wire_msg m = {.type = WIRE_TEX_PATCH};
-        m.u.tex_patch = (wire_tex_patch){tex, (uint32_t)x, (uint32_t)y0, (uint32_t)w, (uint32_t)hh, s->patch_h};
-        if ((rc = send_msg(s, &m, err))) return rc;
-        s->frame_patches++;
-    }
-    return 0;
-}
-
-/* TEX_ALLOC names the texture's hierarchy node: the display's node table is
- * the texture hierarchy (send_state), so it draws the texture on exactly the
- * triangles of that node's subtree. */
-static int send_alloc(loop_state *s, uint32_t tex, uint32_t hnode, int w, int h, int kind, ct_error *err)
-{
-    wire_msg m = {.type = WIRE_TEX_ALLOC};
-    m.u.tex_alloc = (wire_tex_alloc){tex, hnode, (uint32_t)w, (uint32_t)h,
-                                     kind == CTEX_PROJ_OBJECT ? WIRE_PROJ_OBJECT_PARALLEL
-                                                              : WIRE_PROJ_CAMERA_PERSPECTIVE};
-    return send_msg(s, &m, err);
-}
-
-static int send_proj(loop_state *s, uint32_t tex, const mat4 *mat, ct_error *err)
-{
-    wire_msg m = {.type = WIRE_TEX_PROJECTION};
-    m.u.tex_projection.tex = tex;
-    m.u.tex_projection.epoch = s->disp_epoch;
-    m.u.tex_projection.world_to_tex = *mat;
-    return send_msg(s, &m, err);
 }
 
 /* Sends the hit points collected since the last call as one SAMPLES
@@ -288,45 +253,17 @@ static void collect_point(loop_state *s, const ct_sample *x)
     p[2] = x->hit.z;
 }
 
-/* Turns dirty rectangles into events and sends every pending event (after
- * the sample points collected since the last time). */
-static int flush_events(loop_state *s, ct_error *err)
+/* Free running: one texture update when the display has acknowledged
+ * enough of the last ones (dsync.h), after the sample points collected
+ * since the last one. */
+static int send_update(loop_state *s, ct_error *err)
 {
+    if (!dsync_can_send(s->sync)) return 0;
     flush_samples(s);
     double t0 = ct_now();
-    ctex_flush_patches(s->tex);
-    size_t n = 0;
-    const ctex_event *ev = ctex_events(s->tex, &n);
-    int rc = 0;
-    if (dsrv_has_display(s->ds)) {
-        for (size_t i = 0; i < n && rc == 0 && dsrv_has_display(s->ds); i++) {
-            const ctex_event *e = &ev[i];
-            wire_msg m;
-            switch (e->kind) {
-            case CTEX_EV_ALLOC: {
-                /* A display (re)creates the texture on ALLOC, a resize
-                 * included, and needs its projection again: every ALLOC is
-                 * followed by the texture's current projection (a later PROJ
-                 * event in this list still comes after it and wins). */
-                mat4 pm;
-                rc = send_alloc(s, e->tex, e->node, e->w, e->h, e->proj, err);
-                if (rc == 0 && ctex_texture_info(s->tex, e->tex, NULL, NULL, NULL, NULL, &pm, NULL) >= 0)
-                    rc = send_proj(s, e->tex, &pm, err);
-                break;
-            }
-            case CTEX_EV_PROJ: rc = send_proj(s, e->tex, &e->m, err); break;
-            case CTEX_EV_PATCH: rc = send_patch(s, e->tex, e->x, e->y, e->w, e->h, err); break;
-            case CTEX_EV_FREE:
-                m.type = WIRE_TEX_FREE;
-                m.u.tex_free.tex = e->tex;
-                rc = send_msg(s, &m, err);
-                break;
-            }
-        }
-    }
-    ctex_events_clear(s->tex);
+    int rc = dsync_update(s->sync, s->ds, s->tex, t0, ct_now_us(), err);
     s->t_tex += ct_now() - t0;
-    return rc;
+    return rc < 0 ? rc : 0;
 }
 
 /* The scene and every live texture, for a display that just connected. */
@@ -345,8 +282,16 @@ static int send_state(loop_state *s, const wire_settings *set, ct_error *err)
         if (rc) return rc;
         s->have_scene_tx = 1;
     }
+    /* First the view to start from, for a display without a camera of its
+     * own: the current one, else the scene's first camera; it comes before
+     * the scene so that the display has it when the scene is drawn. */
+    wire_msg m = {.type = WIRE_CAMERA};
+    if (s->have_cam || s->c->scene->ncams) {
+        m.u.camera = s->have_cam ? (wire_camera){0, (uint32_t)s->w, (uint32_t)s->h, s->cam}
+                                 : (wire_camera){0, 1024, 1024, s->c->scene->cams[0].cam};
+        if ((rc = send_msg(s, &m, err))) return rc;
+    }
     int cached = memcmp(set->cached_scene, s->scene_tx.hash, WIRE_HASH_SIZE) == 0;
-    wire_msg m;
     wire_scene_tx_begin(&s->scene_tx, cached, &m);
     if ((rc = send_msg(s, &m, err))) return rc;
     uint32_t nch = cached ? 0 : m.u.scene_begin.nchunks;
@@ -356,26 +301,10 @@ static int send_state(loop_state *s, const wire_settings *set, ct_error *err)
     }
     wire_scene_tx_end(&s->scene_tx, &m);
     if ((rc = send_msg(s, &m, err))) return rc;
-    /* Pending events describe changes the snapshot already contains. */
-    ctex_flush_patches(s->tex);
-    ctex_events_clear(s->tex);
-    ctex_stats st = ctex_get_stats(s->tex);
-    uint32_t live = st.textures + st.parked, found = 0;
-    for (uint32_t id = 0; found < live && id < (1u << 24); id++) {
-        uint32_t hnode;
-        int w, h;
-        ctex_proj_kind kind;
-        mat4 mat;
-        int r = ctex_texture_info(s->tex, id, &hnode, &w, &h, &kind, &mat, NULL);
-        if (r < 0) continue;
-        found++;
-        if (r == 0) continue;   /* parked: invisible to the display */
-        if ((rc = send_alloc(s, id, hnode, w, h, kind, err)) || (rc = send_proj(s, id, &mat, err)) ||
-            (rc = send_patch(s, id, 0, 0, w, h, err)))
-            return rc;
-    }
+    uint32_t ntex = 0;
+    if ((rc = dsync_send_state(s->sync, s->ds, s->tex, &ntex, err))) return rc;
     ct_info(COMPONENT, "sent the scene (%s) and %u textures to %s", cached ? "cached on the display" : "full",
-            st.textures, peer);
+            ntex, peer);
     return 0;
 }
 
@@ -392,6 +321,7 @@ static int apply_camera(loop_state *s, const wire_camera *c, ct_error *err)
 {
     flush_samples(s);   /* the points so far belong to the previous epoch */
     s->disp_epoch = c->epoch;
+    dsync_set_epoch(s->sync, c->epoch);
     if (same_view(s, c)) return 0;
     double t0 = ct_now();
     int rc;
@@ -410,6 +340,9 @@ static int apply_camera(loop_state *s, const wire_camera *c, ct_error *err)
     s->h = (int)c->height;
     s->have_cam = 1;
     s->epoch++;
+    ctex_set_clock(s->tex, ct_now_us());   /* stamps of the textures it makes */
+    s->view_t0 = t0;
+    s->view_covered = 0;
     rc = ctex_set_camera(s->tex, &s->cam, s->w, s->h, err);
     s->t_tex += ct_now() - t0;
     if (rc) {
@@ -481,36 +414,60 @@ static int next_requests(loop_state *s, uint32_t n, ct_error *err)
  * order; neither reads the other's state. */
 enum { INSERT_RUN = 64 };
 
+/* The request queue's part of an inserted sample, and the counters. */
+static void count_sample(loop_state *s, const ct_sample *x, const ctex_insert_info *info)
+{
+    if (info->tex >= 0) s->inserted++;
+    else s->dropped_tex++;
+    if (info->correction.x < 0 || info->correction.y < 0 || info->correction.z < 0) s->all_positive = 0;
+    vec3 d = v3_sub(x->l_hq, x->l_base);
+    if (d.x < 0 || d.y < 0 || d.z < 0) s->all_positive = 0;
+    collect_point(s, x);
+    s->total_samples++;
+    if (s->in_frame) s->frame_samples++;
+}
+
+static void rejected(const ct_sample *x, ct_error *err)
+{
+    ct_warn(COMPONENT, "sample %llu rejected by the request queue: %s", (unsigned long long)x->request_id, err->msg);
+    ct_error_clear(err);
+}
+
 static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *err)
 {
     double t0 = ct_now();
+    ctex_set_clock(s->tex, ct_now_us());
     ctex_insert_info info[INSERT_RUN];
+    ct_sample refine[INSERT_RUN];
     for (uint32_t i0 = 0; i0 < n; i0 += INSERT_RUN) {
-        uint32_t i1 = n - i0 < INSERT_RUN ? n : i0 + INSERT_RUN, m = 0;
+        uint32_t i1 = n - i0 < INSERT_RUN ? n : i0 + INSERT_RUN, m = 0, nr = 0;
         ct_sample *run = smp + i0;
-        for (uint32_t i = i0; i < i1; i++)
-            if (smp[i].epoch == s->epoch) run[m++] = smp[i];
-        s->stale += (i1 - i0) - m;
+        /* Refinement samples (past full coverage) are not splatted: their
+         * pixel's mean goes into their texel once the queue has it. */
+        for (uint32_t i = i0; i < i1; i++) {
+            if (smp[i].epoch != s->epoch) continue;
+            if (rq_refines(s->rq, smp[i].request_id)) refine[nr++] = smp[i];
+            else run[m++] = smp[i];
+        }
+        s->stale += (i1 - i0) - m - nr;
         ctex_insert_batch(s->tex, run, m, info);
         for (uint32_t j = 0; j < m; j++) {
             ct_sample *x = &run[j];
-            vec3 E = info[j].error;
-            if (info[j].tex >= 0) s->inserted++;
-            else s->dropped_tex++;
-            if (info[j].correction.x < 0 || info[j].correction.y < 0 || info[j].correction.z < 0)
-                s->all_positive = 0;
-            vec3 d = v3_sub(x->l_hq, x->l_base);
-            if (d.x < 0 || d.y < 0 || d.z < 0) s->all_positive = 0;
-            collect_point(s, x);
+            count_sample(s, x, &info[j]);
             x->epoch = s->rq_epoch;
-            int rc = rq_report(s->rq, x, E, RQ_NODE_UNKNOWN, err);
+            if (rq_report(s->rq, x, info[j].error, RQ_NODE_UNKNOWN, err) < 0) rejected(x, err);
+        }
+        for (uint32_t j = 0; j < nr; j++) {
+            ct_sample *x = &refine[j];
+            x->epoch = s->rq_epoch;
+            int rc = rq_report(s->rq, x, v3s(0.0f), RQ_NODE_UNKNOWN, err);
             if (rc < 0) {
-                ct_warn(COMPONENT, "sample %llu rejected by the request queue: %s",
-                        (unsigned long long)x->request_id, err->msg);
-                ct_error_clear(err);
+                rejected(x, err);
+                continue;
             }
-            s->total_samples++;
-            if (s->in_frame) s->frame_samples++;
+            ctex_insert_info ri = {.tex = -1};
+            if (rc & RQ_REPORT_REFINE) ctex_refine(s->tex, x, rq_pixel_mean(s->rq, x->px, x->py), &ri);
+            count_sample(s, x, &ri);
         }
     }
     s->t_tex += ct_now() - t0;
@@ -529,11 +486,12 @@ static int receive_samples(loop_state *s, ct_error *err)
     int any = 0;
     mpil_info info;
     for (;;) {
-        int got = mpil_probe(MPIL_ANY, MPIL_ANY, &info, err);
+        /* Never a blocking receive: a stopped tracer in the middle of a
+         * large message would hold the loop, its watchdog included. */
+        int got = mpil_poll_recv(MPIL_ANY, MPIL_ANY, &info, &s->mbuf, err);
         if (got < 0) return got;
         if (!got) break;
-        int rc = mpil_recv(&info, &s->mbuf, err);
-        if (rc) return rc;
+        int rc;
         char peer[32];
         snprintf(peer, sizeof peer, "tracer rank %d", info.source);
         if (info.tag != MPIL_TAG_SAMPLES || info.source < 1 || info.source > s->T)
@@ -619,8 +577,10 @@ static int feed_free(loop_state *s, ct_error *err)
 
 static int end_frame(loop_state *s, ct_error *err)
 {
-    s->frame_patches = 0;
-    int rc = flush_events(s, err);
+    flush_samples(s);
+    double t0 = ct_now();
+    int rc = dsync_flush_all(s->sync, s->ds, s->tex, &s->frame_patches, err);
+    s->t_tex += ct_now() - t0;
     if (rc) return rc;
     s->in_frame = 0;
     rq_stats rs;
@@ -707,6 +667,13 @@ static int handle_display(loop_state *s, int *leave, ct_error *err)
             if ((rc = send_state(s, &ev.msg.u.settings, err))) return rc;
             break;
         case DSRV_EV_MESSAGE:
+            if (ev.msg.type == WIRE_ACK) {
+                if (dsync_ack(s->sync, ev.msg.u.ack.seq, ct_now(), err)) {
+                    dsrv_drop(s->ds, WIRE_ERR_PROTOCOL, err->msg);
+                    ct_error_clear(err);
+                }
+                break;
+            }
             if (ev.msg.type != WIRE_CAMERA) break;
             if (ev.msg.u.camera.width == 0 || ev.msg.u.camera.height == 0) {
                 dsrv_drop(s->ds, WIRE_ERR_PROTOCOL, "CAMERA with an empty image size");
@@ -726,6 +693,7 @@ static int handle_display(loop_state *s, int *leave, ct_error *err)
             break;
         case DSRV_EV_DISCONNECTED:
             s->fr_n = 0;   /* frames asked for by a display that left */
+            dsync_reset(s->sync);
             have_latest = 0;
             if (s->c->opt.exit_when_display_leaves) *leave = 1;
             break;
@@ -765,6 +733,10 @@ static void stats(loop_state *s, double now)
      * waiting for the display); all zero when the master only idled. */
     double bt = tot > 1e-3 * dt ? ft / tot : 0, bs = tot > 1e-3 * dt ? fs / tot : 0,
            br = tot > 1e-3 * dt ? fr / tot : 0;
+    char refining[96] = "";
+    if (rs.refining)
+        snprintf(refining, sizeof refining, " (refining: %llu more samples, largest pixel error %.2g)",
+                 (unsigned long long)rs.refine_samples, (double)rs.refine_error);
     char dropped[64] = "";
     if (s->pts_dropped_total)
         snprintf(dropped, sizeof dropped, ", %llu sample points dropped",
@@ -772,11 +744,11 @@ static void stats(loop_state *s, double now)
     /* Idle intervals only at debug level: a waiting master would fill the log. */
     ct_log(sum || bps > 0 ? CT_LOG_INFO : CT_LOG_DEBUG, COMPONENT,
             "stats: %.0f samples/s (%s), total %llu (%llu without texture, %llu stale), queue %llu, coverage "
-            "%.1f%%, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy %.0f%%%s",
+            "%.1f%%%s, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy %.0f%%%s",
             sum / dt, per_rank, (unsigned long long)s->total_samples, (unsigned long long)s->dropped_tex,
-            (unsigned long long)s->stale, (unsigned long long)rs.queued,
-            100.0 * rs.coverage, ts.textures, ts.bytes / 1048576.0, bps / 1000.0, 100 * br, 100 * bs, 100 * bt,
-            100 * (tot > 1 ? 1 : tot), dropped);
+            (unsigned long long)s->stale, (unsigned long long)rs.queued, 100.0 * rs.coverage, refining,
+            ts.textures, ts.bytes / 1048576.0, bps / 1000.0, 100 * br, 100 * bs, 100 * bt, 100 * (tot > 1 ? 1 : tot),
+            dropped);
     if (dsrv_has_display(s->ds)) {
         wire_msg m = {.type = WIRE_STATS};
         m.u.stats = (wire_stats){.epoch = s->disp_epoch,
@@ -846,6 +818,10 @@ int sched_run(const sched_config *c, ct_error *err)
     dsrv_config dc = {.listen = c->listen, .token = c->token, .handshake_timeout_ms = c->opt.handshake_ms,
                       .queue_bytes = c->opt.queue_mb << 20};
     if ((rc = dsrv_new(&dc, &s.ds, err))) goto out;
+    dsync_options so;
+    dsync_options_default(&so, strncmp(dsrv_addr(s.ds), "tcp:", 4) == 0);
+    if (c->opt.patch_encoding >= 0) so.encoding = (uint32_t)c->opt.patch_encoding;
+    if ((rc = dsync_new(&so, &s.sync, err))) goto out;
     ct_info(COMPONENT, "listening on %s (%d tracer rank%s)", dsrv_addr(s.ds), s.T, s.T == 1 ? "" : "s");
     /* A line scripts can wait for. */
     fprintf(stdout, "corrtex-render: listening on %s\n", dsrv_addr(s.ds));
@@ -873,8 +849,21 @@ int sched_run(const sched_config *c, ct_error *err)
         if (fed < 0) { rc = fed; break; }
         busy = got || fed;
         now = ct_now();
-        if (!s.lockstep && now - s.last_patch >= c->opt.patch_ms / 1000.0) {
-            if ((rc = flush_events(&s, err))) break;
+        if (s.have_cam && !s.view_covered) {
+            rq_stats rs;
+            rq_stats_get(s.rq, &rs);
+            if (rs.covered) {
+                s.view_covered = 1;
+                /* A moving camera covers small views every frame: one
+                 * info line per stats interval, the rest at debug level. */
+                int lvl = now - s.covered_logged >= c->opt.stats_s ? CT_LOG_INFO : CT_LOG_DEBUG;
+                if (lvl == CT_LOG_INFO) s.covered_logged = now;
+                ct_log(lvl, COMPONENT, "view covered: every pixel sampled %.2f s after the camera stopped (%llu samples)",
+                        now - s.view_t0, (unsigned long long)s.total_samples);
+            }
+        }
+        if (!s.lockstep && now - s.last_patch >= c->opt.patch_ms / 1000.0 && dsync_can_send(s.sync)) {
+            if ((rc = send_update(&s, err))) break;
             s.last_patch = now;
         }
         if (now - s.last_stats >= c->opt.stats_s) {
@@ -909,7 +898,7 @@ out:
     free(s.reqs);
     free(s.samples);
     free(s.round_buf);
-    free(s.patch_h);
+    dsync_free(s.sync);
     free(s.pts);
     wire_buf_free(&s.mbuf);
     wire_buf_free(&s.obuf);

@@ -35,6 +35,7 @@ typedef struct sched_options {
     double tracer_timeout_s;    /* a tracer silent this long with work outstanding ends the job */
     int idle_ms;                /* poll timeout while there is nothing to do */
     size_t queue_mb;            /* display send queue bound, MiB */
+    int patch_encoding;         /* TEX_PATCH texels: wire_patch_enc, or -1: by transport (dsync.h) */
     bool exit_when_display_leaves;
 } sched_options;
 

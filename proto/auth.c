@@ -33,7 +33,8 @@ static int token_from_bytes(const uint8_t *b, size_t n, const char *src, auth_to
 int auth_token_load(const char *path, auth_token *t, ct_error *err)
 {
     memset(t, 0, sizeof *t);
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: a FIFO would block the open; it is refused below. */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
     if (fd < 0) return ct_fail(err, CT_EIO, "%s: cannot open token file: %s", path, strerror(errno));
     struct stat st;
     if (fstat(fd, &st) != 0) {

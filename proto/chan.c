@@ -118,15 +118,21 @@ static int pump_write(chan *c, ct_error *err)
         if (o->len && write_some(c, o->data, o->len, &sent)) wire_buf_consume(o, sent);
         return 0;
     }
+    (void)err;
     for (;;) {
-        const uint8_t *d;
-        size_t len, sent;
-        int rc = xport_queue_head(c->q, &d, &len, err);
-        if (rc) return fail(c, rc, err);
-        if (!len) return 0;
-        if (!write_some(c, d, len, &sent)) return 0;
+        struct iovec iov[XPORT_IOV_MAX];
+        int n = xport_queue_iov(c->q, iov, XPORT_IOV_MAX);
+        if (!n) return 0;
+        size_t want = 0, sent;
+        for (int i = 0; i < n; i++) want += iov[i].iov_len;
+        ct_error e;
+        if (xport_writev(c->conn, iov, n, &sent, &e) != 0) {
+            mark_closed(c, &e, false);
+            return 0;
+        }
+        c->tx += sent;
         xport_queue_advance(c->q, sent);
-        if (sent < len) return 0;
+        if (sent < want) return 0;
     }
 }
 
@@ -256,6 +262,20 @@ int chan_send(chan *c, const wire_msg *m, ct_error *err)
     return xport_queue_push(c->q, m, err);
 }
 
+wire_buf *chan_tail(chan *c, ct_error *err)
+{
+    if (c->error || c->closed) {
+        if (err) *err = c->error ? c->last : c->closed_why;
+        return NULL;
+    }
+    return xport_queue_tail(c->q, err);
+}
+
+void chan_commit(chan *c, uint64_t frames)
+{
+    xport_queue_commit(c->q, frames);
+}
+
 void chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms)
 {
     wire_msg m;
@@ -265,14 +285,14 @@ void chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms)
         wire_buf_free(&b);
         return;
     }
-    /* Written directly, after the frame at the head of the queue (which may
-     * be half sent), so framing stays intact and the ERROR comes early. */
+    /* Written directly, after the rest of a frame that is half sent, so
+     * framing stays intact and the ERROR comes early. */
     if (c->ready) {
-        const uint8_t *d;
-        size_t len;
-        if (xport_queue_head(c->q, &d, &len, NULL) == 0 && len &&
-            xport_write_all(c->conn, d, len, timeout_ms, NULL) == 0)
-            xport_queue_advance(c->q, len);
+        size_t left = xport_queue_partial(c->q);
+        struct iovec iov[1];
+        if (left && xport_queue_iov(c->q, iov, 1) == 1 && iov[0].iov_len >= left &&
+            xport_write_all(c->conn, iov[0].iov_base, left, timeout_ms, NULL) == 0)
+            xport_queue_advance(c->q, left);
     } else if (c->hs) {
         wire_buf *o = auth_hs_output(c->hs);
         if (o->len && xport_write_all(c->conn, o->data, o->len, timeout_ms, NULL) == 0) wire_buf_consume(o, o->len);

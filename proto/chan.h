@@ -63,6 +63,12 @@ int chan_recv(chan *c, wire_msg *out, ct_error *err);
  * 0, XPORT_QUEUE_FULL, or a negative error. Call chan_pump to send. */
 int chan_send(chan *c, const wire_msg *m, ct_error *err);
 
+/* The send queue's tail for encoders that write whole frames in place
+ * (wire_encode_patch), then chan_commit(frames). NULL, with err filled, when
+ * the channel failed or its peer is gone. */
+wire_buf *chan_tail(chan *c, ct_error *err);
+void chan_commit(chan *c, uint64_t frames);
+
 /* Sends an ERROR (best effort, within timeout_ms) before the caller closes. */
 void chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms);
 

@@ -37,11 +37,28 @@ typedef struct pending_send {
     wire_buf buf;
 } pending_send;
 
+/* A receive under way (mpil_poll_recv), in the order its message was matched. */
+typedef struct pending_recv {
+    MPI_Request req;
+    mpil_info info;
+    wire_buf buf;
+    int done;
+} pending_recv;
+
+/* At most this many receives in flight: far above what the tracers' windows
+ * can have outstanding, low enough to bound the memory a flood could take. */
+#define MAX_RECVS 4096
+
 static struct {
     int active;
     pending_send *sends;
     size_t n, cap;
+    pending_recv *recvs;
+    size_t nr, rcap;
+    wire_buf spare;   /* the caller's last buffer, for the next receive */
 } L;
+
+static void finish_recvs(void);
 
 int mpil_init(int *argc, char ***argv, int *rank, int *size, ct_error *err)
 {
@@ -86,6 +103,7 @@ int mpil_finalize(ct_error *err)
     if (!L.active) return 0;
     int rc = mpil_drain(5.0, err);
     if (rc < 0) mpil_cancel_pending();
+    finish_recvs();
     free(L.sends);
     L.sends = NULL;
     L.n = L.cap = 0;
@@ -108,6 +126,18 @@ void mpil_abort(int code)
     MPI_Abort(MPI_COMM_WORLD, code);
 }
 
+/* Room for one more entry of elem bytes in the list *p of *n entries. */
+static int grow_list(void **p, size_t n, size_t *cap, size_t elem, const char *what, ct_error *err)
+{
+    if (n < *cap) return 0;
+    size_t c = *cap ? 2 * *cap : 16;
+    void *q = realloc(*p, c * elem);
+    if (!q) return ct_fail(err, CT_ENOMEM, "MPI %s list: out of memory for %zu entries", what, c);
+    *p = q;
+    *cap = c;
+    return 0;
+}
+
 static int check_len(size_t len, ct_error *err)
 {
     if (len > MPIL_MAX_MESSAGE || len > INT_MAX)
@@ -125,13 +155,7 @@ int mpil_send(int dest, int tag, const void *data, size_t len, ct_error *err)
 int mpil_isend(int dest, int tag, wire_buf *buf, ct_error *err)
 {
     if (check_len(buf->len, err) < 0) return CT_ERANGE;
-    if (L.n == L.cap) {
-        size_t cap = L.cap ? 2 * L.cap : 16;
-        pending_send *p = realloc(L.sends, cap * sizeof *p);
-        if (!p) return ct_fail(err, CT_ENOMEM, "MPI send list: out of memory for %zu entries", cap);
-        L.sends = p;
-        L.cap = cap;
-    }
+    if (grow_list((void **)&L.sends, L.n, &L.cap, sizeof *L.sends, "send", err) < 0) return CT_ENOMEM;
     pending_send *s = &L.sends[L.n];
     s->buf = *buf;
     MPI_CHECK(MPI_Isend(s->buf.data, (int)s->buf.len, MPI_BYTE, dest, tag, MPI_COMM_WORLD, &s->req), err);
@@ -243,6 +267,88 @@ int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err)
               err);
     out->len = info->size;
     return 0;
+}
+
+/* Matches every message that arrived and starts its receive. */
+static int start_recvs(int source, int tag, ct_error *err)
+{
+    while (L.nr < MAX_RECVS) {
+        int flag = 0;
+        MPI_Message msg;
+        MPI_Status st;
+        MPI_CHECK(MPI_Improbe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
+                              MPI_COMM_WORLD, &flag, &msg, &st),
+                  err);
+        if (!flag) return 0;
+        if (grow_list((void **)&L.recvs, L.nr, &L.rcap, sizeof *L.recvs, "receive", err) < 0) return CT_ENOMEM;
+        pending_recv *r = &L.recvs[L.nr];
+        memset(r, 0, sizeof *r);
+        r->buf = L.spare;
+        r->buf.len = 0;
+        memset(&L.spare, 0, sizeof L.spare);
+        if (info_of(&st, &r->info, err) < 0) return CT_EIO;
+        /* A matched message must be received: one over the limit is taken
+         * into a one-byte buffer (MPI reports the truncation) and refused. */
+        int over = check_len(r->info.size, err) < 0;
+        if (wire_buf_reserve(&r->buf, over || !r->info.size ? 1 : r->info.size, err) < 0) return CT_ENOMEM;
+        MPI_CHECK(MPI_Imrecv(r->buf.data, over ? 0 : (int)r->info.size, MPI_BYTE, &msg, &r->req), err);
+        L.nr++;
+        if (over) return CT_ERANGE;
+    }
+    return 0;
+}
+
+int mpil_poll_recv(int source, int tag, mpil_info *info, wire_buf *out, ct_error *err)
+{
+    int rc = start_recvs(source, tag, err);
+    if (rc < 0) return rc;
+    for (size_t i = 0; i < L.nr; i++) {
+        pending_recv *r = &L.recvs[i];
+        if (!r->done) MPI_CHECK(MPI_Test(&r->req, &r->done, MPI_STATUS_IGNORE), err);
+        if (!r->done) continue;
+        /* The first completed message whose sender has no older one still
+         * in flight: a sender's messages keep their order. */
+        int older = 0;
+        for (size_t j = 0; j < i && !older; j++) older = L.recvs[j].info.source == r->info.source;
+        if (older) continue;
+        *info = r->info;
+        /* Buffers go round: the caller's last one takes the next message. */
+        if (L.spare.data) wire_buf_free(out);
+        else L.spare = *out;
+        *out = r->buf;
+        out->len = r->info.size;
+        memmove(r, r + 1, (L.nr - i - 1) * sizeof *r);
+        L.nr--;
+        return 1;
+    }
+    return 0;
+}
+
+/* At the end, receives still in flight (a tracer was sending when the loop
+ * stopped) get the time the senders' own drain needs; what is left then
+ * (a stopped sender) is left to MPI, its buffer still reachable from L. */
+static void finish_recvs(void)
+{
+    double end = ct_now() + 2.0;
+    while (L.nr && ct_now() < end) {
+        size_t j = 0;
+        for (size_t i = 0; i < L.nr; i++) {
+            pending_recv *r = &L.recvs[i];
+            if (!r->done && MPI_Test(&r->req, &r->done, MPI_STATUS_IGNORE) != MPI_SUCCESS) r->done = -1;
+            if (r->done > 0) wire_buf_free(&r->buf);
+            else L.recvs[j++] = *r;
+        }
+        L.nr = j;
+        if (L.nr) sleep_us(200);
+    }
+    wire_buf_free(&L.spare);
+    for (size_t i = 0; i < L.nr; i++)
+        if (L.recvs[i].done == 0) MPI_Request_free(&L.recvs[i].req);
+    if (L.nr == 0) {
+        free(L.recvs);
+        L.recvs = NULL;
+        L.rcap = 0;
+    }
 }
 
 int mpil_bcast_u64(int root, uint64_t *v, ct_error *err)

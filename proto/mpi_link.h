@@ -80,8 +80,18 @@ int mpil_probe(int source, int tag, mpil_info *info, ct_error *err);
 int mpil_wait(int source, int tag, unsigned sleep_us, double timeout_s, mpil_info *info, ct_error *err);
 
 /* Receives the message info describes (from a probe) into out (replacing its
- * contents; out->len = info->size). */
+ * contents; out->len = info->size). Blocks until the whole message is in:
+ * for a loop that must never wait on one peer, use mpil_poll_recv. */
 int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err);
+
+/* Receives the next whole message from source with tag (MPIL_ANY) without
+ * ever blocking: every message that arrived is matched (MPI_Improbe) and
+ * its receive started (MPI_Imrecv); 1 with *info and out (its contents
+ * replaced) filled when one has completed, 0 when none has yet. A message
+ * whose transfer is under way (a large one from a sender that is slow or
+ * stopped) stays in flight for a later call, while other senders' messages
+ * come through; each sender's arrive in the order it sent them. */
+int mpil_poll_recv(int source, int tag, mpil_info *info, wire_buf *out, ct_error *err);
 
 /* Broadcasts buf from root to every rank, MPIL_BCAST_CHUNK bytes at a time:
  * on root buf holds the bytes, elsewhere it receives them (length included). */

@@ -18,7 +18,8 @@
 #include "common/radmesh.h"
 #include "common/vecmath.h"
 
-#define WIRE_VERSION        3u          /* 2: SAMPLES added; 3: the scene's material table */
+#define WIRE_VERSION        4u          /* 2: SAMPLES; 3: the scene's material table; 4: raw or LZ4 patches
+                                           with stamps, SYNC/ACK flow control, PONG clock, CAMERA from the master */
 #define WIRE_HEADER_SIZE    8u          /* u16 type, u16 flags (0), u32 body length */
 #define WIRE_HASH_SIZE      32u         /* BLAKE2b-256 content hash of a SCENE payload */
 #define WIRE_MAC_SIZE       32u         /* HMAC-SHA256 */
@@ -43,7 +44,7 @@ typedef enum wire_type {
     WIRE_SCENE_BEGIN    = 3,   /* master -> display */
     WIRE_SCENE_CHUNK    = 4,   /* master -> display */
     WIRE_SCENE_END      = 5,   /* master -> display */
-    WIRE_CAMERA         = 6,   /* display -> master */
+    WIRE_CAMERA         = 6,   /* display -> master: its view; master -> display: a view to start from */
     WIRE_TEX_ALLOC      = 7,   /* master -> display */
     WIRE_TEX_PROJECTION = 8,   /* master -> display */
     WIRE_TEX_FREE       = 9,   /* master -> display */
@@ -55,7 +56,9 @@ typedef enum wire_type {
     WIRE_PONG           = 15,  /* answer to PING */
     WIRE_BYE            = 16,  /* either direction: orderly close */
     WIRE_SAMPLES        = 17,  /* master -> display: hit points of inserted samples (droppable) */
-    WIRE_TYPE_COUNT     = 18
+    WIRE_SYNC           = 18,  /* master -> display: end of texture update n (free running) */
+    WIRE_ACK            = 19,  /* display -> master: every update up to n is applied */
+    WIRE_TYPE_COUNT     = 20
 } wire_type;
 
 /* Texture projection kinds (§3.2), u32 on the wire. */
@@ -73,6 +76,12 @@ typedef enum wire_errcode {
     WIRE_ERR_INTERNAL = 5,  /* the sender failed (out of memory, ...) */
     WIRE_ERR_LIMIT    = 6   /* a limit was exceeded (queue, sizes) */
 } wire_errcode;
+
+/* TEX_PATCH texel encodings, u32 on the wire. */
+typedef enum wire_patch_enc {
+    WIRE_PATCH_RAW = 0,  /* 6·w·h bytes of little-endian halves */
+    WIRE_PATCH_LZ4 = 1   /* one LZ4 block that decompresses to those bytes */
+} wire_patch_enc;
 
 /* BYE reasons, u32 on the wire. */
 typedef enum wire_bye_reason {
@@ -147,6 +156,9 @@ typedef struct wire_tex_patch {
     uint32_t tex;
     uint32_t x, y, w, h;       /* texel rectangle, inside the texture */
     const uint16_t *texels;    /* w*h*3 IEEE half floats (RGB), rows top to bottom */
+    uint32_t encoding;         /* wire_patch_enc the texels travel in */
+    uint32_t samples;          /* samples inserted here since the last patch of these texels (lag weight) */
+    uint64_t stamp_us;         /* master clock (us) of the oldest change in these texels not sent before */
 } wire_tex_patch;
 
 typedef struct wire_frame {
@@ -176,7 +188,8 @@ typedef struct wire_error_msg {
 } wire_error_msg;
 
 typedef struct wire_ping {
-    uint64_t token;  /* echoed by PONG */
+    uint64_t token;     /* echoed by PONG */
+    uint64_t clock_us;  /* PONG only: the answering side's clock when it answered (us) */
 } wire_ping;
 
 typedef struct wire_bye {
@@ -189,6 +202,15 @@ typedef struct wire_samples {
     uint64_t dropped;    /* points the master dropped on this connection so far (back-pressure) */
     const float *xyz;    /* 3 * count floats: world hit points */
 } wire_samples;
+
+typedef struct wire_sync {
+    uint64_t seq;        /* update number: 1, 2, ... per connection */
+    uint64_t clock_us;   /* master clock when the update was made (us) */
+} wire_sync;
+
+typedef struct wire_ack {
+    uint64_t seq;        /* the newest SYNC whose update the display has applied */
+} wire_ack;
 
 /* One decoded (or to-be-encoded) message. Pointers in a decoded message
  * point into the decoder's scratch memory and stay valid until its next call. */
@@ -211,6 +233,8 @@ typedef struct wire_msg {
         wire_ping ping;   /* PING and PONG */
         wire_bye bye;
         wire_samples samples;
+        wire_sync sync;
+        wire_ack ack;
     } u;
 } wire_msg;
 
@@ -260,6 +284,15 @@ void wire_make_error(wire_msg *m, uint32_t code, const char *text);
 /* Appends the frame (header + body) of m to out. Fails (CT_EINVAL) on a
  * message the decoder would reject, so what is sent always decodes. */
 int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err);
+
+/* Writes row j (0 .. h-1) of a patch's rectangle as 6·w little-endian bytes. */
+typedef void (*wire_patch_rows_fn)(void *ctx, uint32_t row, uint8_t *dst);
+
+/* Appends a TEX_PATCH frame whose texels come from rows() instead of
+ * p->texels, in p->encoding: raw texels are written straight into out (one
+ * copy from the caller's storage to the frame), LZ4 ones through scratch. */
+int wire_encode_patch(const wire_tex_patch *p, wire_patch_rows_fn rows, void *ctx, wire_buf *out,
+                      wire_scratch *scratch, ct_error *err);
 
 /* Parses a frame header; checks the type, flags and the type's maximum body
  * length. peer names the sender in errors. */

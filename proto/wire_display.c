@@ -23,9 +23,12 @@
 #define SZ_FRAME       24u
 #define SZ_STATS       56u
 #define SZ_PING        8u
+#define SZ_PONG        16u
+#define SZ_SYNC        16u
+#define SZ_ACK         8u
 #define SZ_BYE         4u
 #define SZ_CHUNK_HDR   8u
-#define SZ_PATCH_HDR   20u
+#define SZ_PATCH_HDR   36u
 #define SZ_ERROR_HDR   6u
 #define SZ_SAMPLES_HDR 16u
 #define SZ_POINT       12u
@@ -101,7 +104,7 @@ const char *wire_type_name(unsigned type)
         [WIRE_TEX_ALLOC] = "TEX_ALLOC", [WIRE_TEX_PROJECTION] = "TEX_PROJECTION",
         [WIRE_TEX_FREE] = "TEX_FREE", [WIRE_TEX_PATCH] = "TEX_PATCH", [WIRE_FRAME] = "FRAME",
         [WIRE_STATS] = "STATS", [WIRE_ERROR] = "ERROR", [WIRE_PING] = "PING", [WIRE_PONG] = "PONG",
-        [WIRE_BYE] = "BYE", [WIRE_SAMPLES] = "SAMPLES",
+        [WIRE_BYE] = "BYE", [WIRE_SAMPLES] = "SAMPLES", [WIRE_SYNC] = "SYNC", [WIRE_ACK] = "ACK",
     };
     if (type >= WIRE_TYPE_COUNT || !names[type]) return "?";
     return names[type];
@@ -121,9 +124,11 @@ static size_t fixed_size(unsigned type)
     case WIRE_TEX_FREE: return SZ_TEX_FREE;
     case WIRE_FRAME: return SZ_FRAME;
     case WIRE_STATS: return SZ_STATS;
-    case WIRE_PING:
-    case WIRE_PONG: return SZ_PING;
+    case WIRE_PING: return SZ_PING;
+    case WIRE_PONG: return SZ_PONG;
     case WIRE_BYE: return SZ_BYE;
+    case WIRE_SYNC: return SZ_SYNC;
+    case WIRE_ACK: return SZ_ACK;
     default: return 0;
     }
 }
@@ -160,12 +165,6 @@ void wire_make_error(wire_msg *m, uint32_t code, const char *text)
     m->u.error.text[n] = '\0';
 }
 
-static bool finite_camera(const ct_camera *c)
-{
-    return isfinite(c->eye.x) && isfinite(c->eye.y) && isfinite(c->eye.z) && isfinite(c->orient.w) &&
-           isfinite(c->orient.x) && isfinite(c->orient.y) && isfinite(c->orient.z) && isfinite(c->fov_y);
-}
-
 /* The checks every message passes on both sides. who: "peer X" text for errors. */
 static int validate(const wire_msg *m, const char *who, ct_error *err)
 {
@@ -175,6 +174,8 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
     case WIRE_TEX_FREE:
     case WIRE_PING:
     case WIRE_PONG:
+    case WIRE_SYNC:
+    case WIRE_ACK:
         return 0;
     case WIRE_SETTINGS:
         if (m->u.settings.flags != 0)
@@ -217,10 +218,8 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
         const wire_camera *c = &m->u.camera;
         if (c->width == 0 || c->height == 0 || c->width > WIRE_IMAGE_MAX_DIM || c->height > WIRE_IMAGE_MAX_DIM)
             return ct_fail(err, CT_EPROTO, "%s: CAMERA image size %ux%u out of range", who, c->width, c->height);
-        if (!finite_camera(&c->cam))
-            return ct_fail(err, CT_EPROTO, "%s: CAMERA has a non-finite value", who);
-        if (!(c->cam.fov_y > 0.0f && c->cam.fov_y < 3.14159f))
-            return ct_fail(err, CT_EPROTO, "%s: CAMERA field of view %g out of range", who, (double)c->cam.fov_y);
+        char why[96];
+        if (!cam_valid(&c->cam, why, sizeof why)) return ct_fail(err, CT_EPROTO, "%s: CAMERA %s", who, why);
         return 0;
     }
     case WIRE_TEX_ALLOC: {
@@ -243,6 +242,8 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
             return ct_fail(err, CT_EPROTO, "%s: TEX_PATCH size %ux%u out of range", who, p->w, p->h);
         if (p->x > WIRE_TEX_MAX_DIM - p->w || p->y > WIRE_TEX_MAX_DIM - p->h)
             return ct_fail(err, CT_EPROTO, "%s: TEX_PATCH rectangle at %u,%u outside any texture", who, p->x, p->y);
+        if (p->encoding != WIRE_PATCH_RAW && p->encoding != WIRE_PATCH_LZ4)
+            return ct_fail(err, CT_EPROTO, "%s: TEX_PATCH encoding %u unknown", who, p->encoding);
         return 0;
     }
     case WIRE_FRAME:
@@ -323,22 +324,7 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
         return encode_compressed(WIRE_SCENE_CHUNK, fixed, sizeof fixed, m->u.scene_chunk.data,
                                  m->u.scene_chunk.len, out, err);
     }
-    if (m->type == WIRE_TEX_PATCH) {
-        const wire_tex_patch *p = &m->u.tex_patch;
-        uint8_t fixed[SZ_PATCH_HDR];
-        wio_put_u32(fixed, p->tex);
-        wio_put_u32(fixed + 4, p->x);
-        wio_put_u32(fixed + 8, p->y);
-        wio_put_u32(fixed + 12, p->w);
-        wio_put_u32(fixed + 16, p->h);
-        size_t n = (size_t)p->w * p->h * 3;
-        uint8_t *raw = malloc(n * 2);
-        if (!raw) return ct_fail(err, CT_ENOMEM, "wire: out of memory encoding a %ux%u patch", p->w, p->h);
-        for (size_t i = 0; i < n; i++) wio_put_u16(raw + 2 * i, p->texels[i]);
-        rc = encode_compressed(WIRE_TEX_PATCH, fixed, sizeof fixed, raw, n * 2, out, err);
-        free(raw);
-        return rc;
-    }
+    if (m->type == WIRE_TEX_PATCH) return wire_encode_patch(&m->u.tex_patch, NULL, NULL, out, NULL, err);
 
     size_t body = fixed_size(m->type);
     if (m->type == WIRE_ERROR) body = SZ_ERROR_HDR + strlen(m->u.error.text);
@@ -418,9 +404,17 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
         ww_bytes(&w, m->u.error.text, n);
         break;
     }
-    case WIRE_PING:
-    case WIRE_PONG: ww_u64(&w, m->u.ping.token); break;
+    case WIRE_PING: ww_u64(&w, m->u.ping.token); break;
+    case WIRE_PONG:
+        ww_u64(&w, m->u.ping.token);
+        ww_u64(&w, m->u.ping.clock_us);
+        break;
     case WIRE_BYE: ww_u32(&w, m->u.bye.reason); break;
+    case WIRE_SYNC:
+        ww_u64(&w, m->u.sync.seq);
+        ww_u64(&w, m->u.sync.clock_us);
+        break;
+    case WIRE_ACK: ww_u64(&w, m->u.ack.seq); break;
     case WIRE_SAMPLES:
         ww_u32(&w, m->u.samples.epoch);
         ww_u32(&w, m->u.samples.count);
@@ -431,6 +425,59 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
     }
     out->len += WIRE_HEADER_SIZE + body;
     return 0;
+}
+
+/* Rows of a patch's own texels (wire_encode of a TEX_PATCH message). */
+static void texel_rows(void *ctx, uint32_t row, uint8_t *dst)
+{
+    const wire_tex_patch *p = ctx;
+    const uint16_t *src = p->texels + (size_t)row * p->w * 3;
+    for (size_t i = 0; i < (size_t)p->w * 3; i++) wio_put_u16(dst + 2 * i, src[i]);
+}
+
+int wire_encode_patch(const wire_tex_patch *p, wire_patch_rows_fn rows, void *ctx, wire_buf *out,
+                      wire_scratch *scratch, ct_error *err)
+{
+    wire_msg m = {.type = WIRE_TEX_PATCH};
+    m.u.tex_patch = *p;
+    int rc = validate(&m, "encode", err);
+    if (rc) return rc;
+    if (!rows) {
+        rows = texel_rows;
+        ctx = (void *)p;
+    }
+    uint8_t fixed[SZ_PATCH_HDR];
+    wio_w w = {fixed};
+    ww_u32(&w, p->tex);
+    ww_u32(&w, p->x);
+    ww_u32(&w, p->y);
+    ww_u32(&w, p->w);
+    ww_u32(&w, p->h);
+    ww_u32(&w, p->encoding);
+    ww_u32(&w, p->samples);
+    ww_u64(&w, p->stamp_us);
+    size_t row_bytes = (size_t)p->w * 6, raw = row_bytes * p->h;
+    if (p->encoding == WIRE_PATCH_RAW) {
+        size_t body = SZ_PATCH_HDR + raw;
+        if ((rc = wire_buf_reserve(out, WIRE_HEADER_SIZE + body, err))) return rc;
+        uint8_t *f = out->data + out->len;
+        wio_put_u16(f, WIRE_TEX_PATCH);
+        wio_put_u16(f + 2, 0);
+        wio_put_u32(f + 4, (uint32_t)body);
+        memcpy(f + WIRE_HEADER_SIZE, fixed, SZ_PATCH_HDR);
+        uint8_t *d = f + WIRE_HEADER_SIZE + SZ_PATCH_HDR;
+        for (uint32_t j = 0; j < p->h; j++) rows(ctx, j, d + j * row_bytes);
+        out->len += WIRE_HEADER_SIZE + body;
+        return 0;
+    }
+    wire_scratch local = {0};
+    wire_scratch *sc = scratch ? scratch : &local;
+    if ((rc = scratch_get(sc, raw, err)) == 0) {
+        for (uint32_t j = 0; j < p->h; j++) rows(ctx, j, sc->data + j * row_bytes);
+        rc = encode_compressed(WIRE_TEX_PATCH, fixed, sizeof fixed, sc->data, raw, out, err);
+    }
+    wire_scratch_free(&local);
+    return rc;
 }
 
 /* --- decode ----------------------------------------------------------------- */
@@ -539,12 +586,23 @@ int wire_decode_body(unsigned type, const uint8_t *body, size_t len, const char 
         p->y = wr_u32(&r);
         p->w = wr_u32(&r);
         p->h = wr_u32(&r);
+        p->encoding = wr_u32(&r);
+        p->samples = wr_u32(&r);
+        p->stamp_us = wr_u64(&r);
         if (r.bad) return ct_fail(err, CT_EPROTO, "%s: TEX_PATCH body of %zu bytes is truncated", peer, len);
         if ((rc = validate(out, peer, err))) return rc;
         size_t n = (size_t)p->w * p->h * 3;
-        /* Decompress behind room for the converted texels: [halves | bytes]. */
-        if ((rc = unpack(r.p, r.left, n * 2, peer, "TEX_PATCH", scratch, err))) return rc;
-        /* In place: element i reads bytes 2i, 2i+1 before writing them. */
+        if (p->encoding == WIRE_PATCH_LZ4) {
+            if ((rc = unpack(r.p, r.left, n * 2, peer, "TEX_PATCH", scratch, err))) return rc;
+        } else {
+            if (r.left != n * 2)
+                return ct_fail(err, CT_EPROTO, "%s: raw TEX_PATCH of %ux%u texels has %zu data bytes, expected %zu",
+                               peer, p->w, p->h, r.left, n * 2);
+            if ((rc = scratch_get(scratch, n * 2, err))) return rc;
+            memcpy(scratch->data, r.p, n * 2);
+        }
+        /* In place, little-endian to native: element i reads bytes 2i, 2i+1
+         * before writing them (a no-op loop on little-endian hosts). */
         uint16_t *t = (uint16_t *)(void *)scratch->data;
         for (size_t i = 0; i < n; i++) t[i] = wio_get_u16(scratch->data + 2 * i);
         p->texels = t;
@@ -590,9 +648,17 @@ int wire_decode_body(unsigned type, const uint8_t *body, size_t len, const char 
                            WIRE_ERROR_TEXT_MAX);
         break;
     }
-    case WIRE_PING:
-    case WIRE_PONG: out->u.ping.token = wr_u64(&r); break;
+    case WIRE_PING: out->u.ping.token = wr_u64(&r); break;
+    case WIRE_PONG:
+        out->u.ping.token = wr_u64(&r);
+        out->u.ping.clock_us = wr_u64(&r);
+        break;
     case WIRE_BYE: out->u.bye.reason = wr_u32(&r); break;
+    case WIRE_SYNC:
+        out->u.sync.seq = wr_u64(&r);
+        out->u.sync.clock_us = wr_u64(&r);
+        break;
+    case WIRE_ACK: out->u.ack.seq = wr_u64(&r); break;
     case WIRE_SAMPLES: {
         wire_samples *p = &out->u.samples;
         p->epoch = wr_u32(&r);

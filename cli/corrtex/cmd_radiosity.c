@@ -154,13 +154,10 @@ int cmd_radiosity(int argc, char **argv)
     /* Fail on an unwritable output now, not after a long solve. */
     const char *outs[3] = {out_path, image, planes};
     for (int i = 0; i < 3; i++) {
-        fs_atomic probe;
-        if (!outs[i]) continue;
-        if (fs_atomic_open(&probe, outs[i], &err) != CT_OK) {
+        if (outs[i] && fs_output_check(outs[i], &err) != CT_OK) {
             ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
             return 2;
         }
-        fs_atomic_abort(&probe);
     }
     ct_scene *s;
     if (scene_load(argv[optind], &s, &err) != CT_OK) {

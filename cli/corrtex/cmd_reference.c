@@ -128,6 +128,34 @@ static int parse_int(const char *opt, const char *s, long lo, long hi, long *out
     return 0;
 }
 
+/* The integer options, their ranges and (parse_args) their fields. */
+static const struct { const char *name; long lo, hi; } int_opts[] = {
+    {"--width", 1, 65536}, {"--height", 1, 65536}, {"--spp", 1, 1 << 20},
+    {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
+    {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
+    {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024},
+    {"--bench-runs", 1, 20}, {"--gather-rays", 1, 4096}};
+#define N_INT_OPTS (sizeof int_opts / sizeof int_opts[0])
+
+/* Index of integer option o, N_INT_OPTS when it is none. */
+static size_t int_opt(const char *o)
+{
+    size_t k = 0;
+    while (k < N_INT_OPTS && strcmp(o, int_opts[k].name)) k++;
+    return k;
+}
+
+/* Whether o takes a value (an option given last without one is then
+ * missing its value rather than unknown). */
+static bool takes_value(const char *o)
+{
+    static const char *const str_opts[] = {"--camera", "--path", "-o", "--radmesh", "--mode", "--exposure",
+                                           "--stand-in-radiosity", "--seed", "--indirect", NULL};
+    for (const char *const *s = str_opts; *s; s++)
+        if (!strcmp(o, *s)) return true;
+    return int_opt(o) < N_INT_OPTS;
+}
+
 static int parse_args(int argc, char **argv, ref_args *a)
 {
     memset(a, 0, sizeof *a);
@@ -159,7 +187,10 @@ static int parse_args(int argc, char **argv, ref_args *a)
             a->scene = o;
             continue;
         }
-        if (i + 1 >= argc) return bad("option %s needs a value%s", o, ""), -1;
+        if (i + 1 >= argc) {
+            if (takes_value(o)) return bad("option %s needs a value%s", o, ""), -1;
+            return bad("unknown option '%s' (try --help)%s", o, ""), -1;
+        }
         const char *v = argv[++i];
         long n;
         ct_error err;
@@ -188,16 +219,9 @@ static int parse_args(int argc, char **argv, ref_args *a)
             a->seed = strtoull(v, &end, 10);
             if (errno || end == v || *end || v[0] == '-') return bad("--seed: '%s' is not an unsigned integer%s", v, ""), -1;
         } else {
-            static const struct { const char *name; long lo, hi; } ints[] = {
-                {"--width", 1, 65536}, {"--height", 1, 65536}, {"--spp", 1, 1 << 20},
-                {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
-                {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
-                {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024},
-                {"--bench-runs", 1, 20}, {"--gather-rays", 1, 4096}};
-            size_t k = 0;
-            while (k < sizeof ints / sizeof ints[0] && strcmp(o, ints[k].name)) k++;
-            if (k == sizeof ints / sizeof ints[0]) return bad("unknown option '%s' (try --help)%s", o, ""), -1;
-            if (parse_int(o, v, ints[k].lo, ints[k].hi, &n)) return -1;
+            size_t k = int_opt(o);
+            if (k == N_INT_OPTS) return bad("unknown option '%s' (try --help)%s", o, ""), -1;
+            if (parse_int(o, v, int_opts[k].lo, int_opts[k].hi, &n)) return -1;
             int *dst[] = {&a->width, &a->height, &a->spp, &a->threads, &a->frame, &a->frames,
                           &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth,
                           &a->bench_runs, &a->gather_rays};

@@ -1,5 +1,6 @@
 /* bin/corrtex-display: the display client. Parses options and runs
  * display/disp_app.c; links common, proto, display and GL only. */
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,6 +10,15 @@
 #include "display/gl_load.h"
 
 #define COMP "corrtex-display"
+
+static volatile int g_stop;
+
+/* SIGINT and SIGTERM end the run in order: the frames written so far and
+ * frames.csv are completed, the master gets BYE. */
+static void on_signal(int sig)
+{
+    g_stop = sig;
+}
 
 static void usage(FILE *f, const disp_app_opts *d)
 {
@@ -47,10 +57,17 @@ static void usage(FILE *f, const disp_app_opts *d)
             "walkthroughs and output:\n"
             "  --path FILE           camera path (common/campath.h format)\n"
             "  --frames N            N frames spread over the path (default 0: real time; headless\n"
-            "                        without a path: N frames of the still camera, default 1)\n"
+            "                        without a path: N frames of the still camera, default: 1,\n"
+            "                        or with --connect until the master ends or a signal)\n"
             "  --seconds S           stop after S seconds (default 0: no limit)\n"
             "  --out DIR             write frame_NNNNN.exr/.png and frames.csv\n"
-            "  --reference DIR       add RMSE/PSNR against DIR/frame_NNNNN.exr to frames.csv\n"
+            "  --out-every S         capture a frame at most every S seconds (default 0: every frame)\n"
+            "  --no-images           with --out: frames.csv only\n"
+            "  --reference DIR|FILE  add RMSE/PSNR against DIR/frame_NNNNN.exr, or against FILE.exr for\n"
+            "                        every frame (a still view), to frames.csv\n"
+            "  --hold S              real-time path: stay at its last camera S seconds after it ends (0)\n"
+            "  --continuous          draw every frame, also when nothing changed (frame-rate\n"
+            "                        measurements; by default a still, unchanged view is not redrawn)\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
@@ -102,6 +119,11 @@ static int parse_camera(const char *s, ct_camera *cam)
         return -1;
     }
     vec3 eye = v3(v[0], v[1], v[2]), target = v3(v[3], v[4], v[5]);
+    if (!v3_in_range(eye) || !v3_in_range(target)) {
+        ct_log(CT_LOG_ERROR, COMP, "--camera: '%s': eye and target must be finite and within +-%g", s,
+               (double)CT_COORD_MAX);
+        return -1;
+    }
     if (v3_len(v3_sub(target, eye)) <= 0) {
         ct_log(CT_LOG_ERROR, COMP, "--camera: eye and target coincide");
         return -1;
@@ -202,6 +224,15 @@ int main(int argc, char **argv)
         } else if (!strcmp(a, "--samples-per-frame")) { NEED(); bad = parse_int(a, v, 0, 100000000, &o.samples_per_frame); }
         else if (!strcmp(a, "--out")) { NEED(); o.out_dir = v; }
         else if (!strcmp(a, "--reference")) { NEED(); o.ref_dir = v; }
+        else if (!strcmp(a, "--no-images")) o.no_images = true;
+        else if (!strcmp(a, "--continuous")) o.continuous = true;
+        else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
+            NEED();
+            float x;
+            bad = parse_float(a, v, 0, 1e6f, &x);
+            if (!strcmp(a, "--hold")) o.hold_seconds = x;
+            else o.out_every = x;
+        }
         else if (!strcmp(a, "--connect")) { NEED(); o.connect = v; }
         else if (!strcmp(a, "--token-file")) { NEED(); o.token_file = v; }
         else if (!strcmp(a, "--reconnect")) o.reconnect = true;
@@ -227,10 +258,17 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "give exactly one of --connect, --mesh or --scene (see --help)");
         return DISP_EXIT_USAGE;
     }
-    if (o.ref_dir && !o.out_dir) {
-        ct_log(CT_LOG_ERROR, COMP, "--reference needs --out");
+    if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {
+        ct_log(CT_LOG_ERROR, COMP, "--reference, --no-images and --out-every need --out");
         return DISP_EXIT_USAGE;
     }
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    o.stop = &g_stop;
     ct_error err;
     ct_error_clear(&err);
     int status = disp_app_run(&o, &err);

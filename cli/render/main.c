@@ -112,6 +112,43 @@ static int num(const char *name, const char *v, double lo, double hi, double *ou
     return 0;
 }
 
+/* Sets option a ("--name") to v: 0, 1 when there is no such option, or
+ * negative for a bad value (err filled). */
+static int set_option(opts *o, const char *a, const char *v, ct_error *err)
+{
+    const char *name = a + 2;
+    double x;
+    int rc = 0;
+    if (!strcmp(name, "listen")) o->listen = v;
+    else if (!strcmp(name, "token-file")) o->token_file = v;
+    else if (!strcmp(name, "mesh")) o->mesh = v;
+    else if (!strcmp(name, "rad-cache")) o->rad_cache = v;
+    else if (!strcmp(name, "mode")) rc = trc_mode_parse(v, &o->mode, err);
+    else if (!strcmp(name, "shadow-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->shadow_rays = (int)x; }
+    else if (!strcmp(name, "branch")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->branch = (int)x; }
+    else if (!strcmp(name, "depth")) { if (!(rc = num(name, v, 1, 1024, &x, err))) o->depth = (int)x; }
+    else if (!strcmp(name, "indirect")) {
+        trc_indirect ind = TRC_INDIRECT_GATHER;
+        if (!(rc = trc_indirect_parse(v, &ind, err))) o->indirect = (int)ind;
+    }
+    else if (!strcmp(name, "gather-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->gather_rays = (int)x; }
+    else if (!strcmp(name, "seed")) { if (!(rc = num(name, v, 0, 1.8e19, &x, err))) o->seed = (uint64_t)x; }
+    else if (!strcmp(name, "threads")) { if (!(rc = num(name, v, 1, 64, &x, err))) o->threads = (int)x; }
+    else if (!strcmp(name, "idle-sleep-us")) { if (!(rc = num(name, v, 0, 1e6, &x, err))) o->idle_sleep_us = (unsigned)x; }
+    else if (!strcmp(name, "rad-error")) rc = num(name, v, 1e-15, 1.0, &o->rad.error, err);
+    else if (!strcmp(name, "rad-min-area")) rc = num(name, v, 1e-15, 1.0, &o->rad.min_area, err);
+    else if (!strcmp(name, "rad-max-triangles")) { if (!(rc = num(name, v, 1, 4e9, &x, err))) o->rad.max_triangles = (uint32_t)x; }
+    else if (!strcmp(name, "rad-threads")) { if (!(rc = num(name, v, 1, 256, &x, err))) o->rad.threads = (int)x; }
+    else {
+        /* The engines' own options: the loop's, the textures', the queue's. */
+        rc = sched_options_set(&o->sched, name, v, err);
+        if (rc == 0) rc = ctex_options_parse(&o->ctex, a, v, err);
+        if (rc == 0) return rq_options_has(name) ? rq_options_set(&o->rq, name, v, err) : 1;
+        if (rc > 0) rc = 0;
+    }
+    return rc;
+}
+
 /* Parses argv into o; 1 for --help, 0 ok, negative with err filled. */
 static int parse(int argc, char **argv, opts *o, ct_error *err)
 {
@@ -137,37 +174,16 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
             o->scene = a;
             continue;
         }
-        if (i + 1 >= argc) return ct_fail(err, CT_EINVAL, "%s needs a value (try --help)", a);
-        const char *name = a + 2, *v = argv[++i];
-        double x;
-        int rc = 0;
-        if (!strcmp(name, "listen")) o->listen = v;
-        else if (!strcmp(name, "token-file")) o->token_file = v;
-        else if (!strcmp(name, "mesh")) o->mesh = v;
-        else if (!strcmp(name, "rad-cache")) o->rad_cache = v;
-        else if (!strcmp(name, "mode")) rc = trc_mode_parse(v, &o->mode, err);
-        else if (!strcmp(name, "shadow-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->shadow_rays = (int)x; }
-        else if (!strcmp(name, "branch")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->branch = (int)x; }
-        else if (!strcmp(name, "depth")) { if (!(rc = num(name, v, 1, 1024, &x, err))) o->depth = (int)x; }
-        else if (!strcmp(name, "indirect")) {
-            trc_indirect ind = TRC_INDIRECT_GATHER;
-            if (!(rc = trc_indirect_parse(v, &ind, err))) o->indirect = (int)ind;
+        if (i + 1 >= argc) {
+            /* Given last: a dry run on a copy tells a missing value from an
+             * option that does not exist. */
+            opts scratch = *o;
+            ct_error e;
+            return ct_fail(err, CT_EINVAL, set_option(&scratch, a, "", &e) == 1 ? "unknown option '%s' (try --help)"
+                                                                                 : "%s needs a value (try --help)", a);
         }
-        else if (!strcmp(name, "gather-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->gather_rays = (int)x; }
-        else if (!strcmp(name, "seed")) { if (!(rc = num(name, v, 0, 1.8e19, &x, err))) o->seed = (uint64_t)x; }
-        else if (!strcmp(name, "threads")) { if (!(rc = num(name, v, 1, 64, &x, err))) o->threads = (int)x; }
-        else if (!strcmp(name, "idle-sleep-us")) { if (!(rc = num(name, v, 0, 1e6, &x, err))) o->idle_sleep_us = (unsigned)x; }
-        else if (!strcmp(name, "rad-error")) rc = num(name, v, 1e-15, 1.0, &o->rad.error, err);
-        else if (!strcmp(name, "rad-min-area")) rc = num(name, v, 1e-15, 1.0, &o->rad.min_area, err);
-        else if (!strcmp(name, "rad-max-triangles")) { if (!(rc = num(name, v, 1, 4e9, &x, err))) o->rad.max_triangles = (uint32_t)x; }
-        else if (!strcmp(name, "rad-threads")) { if (!(rc = num(name, v, 1, 256, &x, err))) o->rad.threads = (int)x; }
-        else {
-            /* The engines' own options: the loop's, the textures', the queue's. */
-            rc = sched_options_set(&o->sched, name, v, err);
-            if (rc == 0) rc = ctex_options_parse(&o->ctex, a, v, err);
-            if (rc == 0) rc = rq_options_set(&o->rq, name, v, err);
-            if (rc > 0) rc = 0;
-        }
+        int rc = set_option(o, a, argv[++i], err);
+        if (rc == 1) return ct_fail(err, CT_EINVAL, "unknown option '%s' (try --help)", a);
         if (rc < 0) return rc;
     }
     if (!o->scene) return ct_fail(err, CT_EINVAL, "no scene file given (try --help)");
@@ -244,10 +260,19 @@ static int run_master(const opts *o, int ntracers, ct_error *err)
     memset(&tx, 0, sizeof tx);
     auth_token token;
     bool have_token = false;
-    int rc = scene_load(o->scene, &scene, err);
+    char listen[XPORT_ADDR_LEN];
+    if (o->listen) snprintf(listen, sizeof listen, "%s", o->listen);
+    else dsrv_default_listen(listen, sizeof listen);
+    /* The display socket's configuration first: TCP without a token used to
+     * be refused only after the radiosity solve and the broadcast. */
+    int rc = auth_token_get(o->token_file, &token, &have_token, err);
+    if (rc == 0) {
+        dsrv_config dc = {.listen = listen, .token = have_token ? &token : NULL};
+        rc = dsrv_check_config(&dc, err);
+    }
+    if (rc == 0) rc = scene_load(o->scene, &scene, err);
     if (rc == 0) rc = get_mesh(o, scene, &mesh, err);
     if (rc == 0) rc = wire_scene_tx_init(&tx, &mesh, err);
-    if (rc == 0) rc = auth_token_get(o->token_file, &token, &have_token, err);
     /* Everyone learns whether the master could start, so nobody waits for a
      * broadcast that never comes. */
     int status = rc ? 1 : 0;
@@ -271,9 +296,6 @@ static int run_master(const opts *o, int ntracers, ct_error *err)
         if (rc == 0 && tstatus) rc = ct_fail(err, CT_EINVAL, "a tracer rank could not start (see its log line)");
     }
     if (rc == 0 && status == 0) {
-        char listen[XPORT_ADDR_LEN];
-        if (o->listen) snprintf(listen, sizeof listen, "%s", o->listen);
-        else dsrv_default_listen(listen, sizeof listen);
         sched_config c = {.scene = scene,
                           .mesh = &mesh,
                           .ntracers = ntracers,

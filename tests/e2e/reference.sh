@@ -76,6 +76,9 @@ check "--spp: '-3'" "$SCENE" --width 8 --height 8 --spp -3 --mode path -o "$tmp/
 check "missing --mode" "$SCENE" "${common[@]}"
 check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
+# Given last, an unknown option is unknown, a known one lacks its value.
+check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus
+check "option --spp needs a value" "$SCENE" --width 8 --height 8 --mode path -o "$tmp/x.exr" --spp
 check "missing.json" "$tmp/missing.json" "${common[@]}" --mode path
 check "--frame 3 is not below --frames 3" "$SCENE" "${common[@]}" --mode path --path walk --frame 3 --frames 3
 check "needs a radiosity mesh" "$SCENE" "${common[@]}" --mode reuse-diffuse

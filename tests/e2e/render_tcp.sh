@@ -9,11 +9,18 @@ cornell_args
 head -c 32 /dev/urandom | base64 >"$tmp/token"; chmod 600 "$tmp/token"
 head -c 32 /dev/urandom | base64 >"$tmp/wrong"; chmod 600 "$tmp/wrong"
 
-# No token: refused at start, exit status 2, with the reason.
-master_start notoken 2 "${CORNELL[@]}" --listen tcp:127.0.0.1:0
+# No token: refused at start, before the radiosity solve (it used to come
+# after it and the mesh broadcast), exit status 2, with the reason.
+master_start notoken 2 "${CORNELL[@]}" --listen tcp:127.0.0.1:0 --rad-cache "$tmp/notoken.ctmesh"
 master_wait notoken 30 || fail "the job without a token did not end"
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC without a token, expected 2"
 grep -q 'TCP needs a token' "$tmp/notoken.log" || { fail "no reason given"; master_log notoken; }
+[[ ! -e $tmp/notoken.ctmesh ]] || fail "the radiosity was solved before the token was checked"
+# An unknown option given last is unknown, not missing its value.
+master_start lastopt 2 "${CORNELL[@]}" --bogus
+master_wait lastopt 30 || fail "the job with an unknown option did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with an unknown option, expected 2"
+grep -q "unknown option '--bogus'" "$tmp/lastopt.log" || { fail "unknown option not named"; master_log lastopt; }
 
 master_start job 3 "${CORNELL[@]}" --listen tcp:127.0.0.1:0 --token-file "$tmp/token" --exit-when-display-leaves
 master_wait_listen job || finish

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "common/timer.h"
 #include "proto/chan.h"
 #include "proto/wire.h"
 #include "tests/support/disp_fixture.h"
@@ -37,6 +38,22 @@ static int send_all(chan *c, const wire_msg *m)
     return chan_flush(c, 5000, &err);
 }
 
+/* The next message other than PING (answered with PONG, as a master does:
+ * the display pings from the start to learn the master's clock). */
+static int recv_wait(chan *c, wire_msg *m, int timeout_ms, ct_error *err)
+{
+    double end = ct_now() + timeout_ms / 1000.0;
+    for (;;) {
+        int left = (int)((end - ct_now()) * 1000.0);
+        int rc = chan_recv_wait(c, m, left > 0 ? left : 0, err);
+        if (rc != WIRE_OK || m->type != WIRE_PING) return rc;
+        wire_msg pong = *m;
+        pong.type = WIRE_PONG;
+        pong.u.ping.clock_us = ct_now_us();
+        if (chan_send(c, &pong, err) != 0) return CT_EIO;
+    }
+}
+
 /* The master: accepts one display, checks SETTINGS and CAMERA, sends the box
  * scene, one texture in two patches and FRAME 0 for the display's epoch. */
 static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h, const char *token)
@@ -64,12 +81,13 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
     xport_listener_close(l);
     if (!c || chan_handshake(c, 5000, &err)) return 11;
     wire_msg m;
-    if (chan_recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_SETTINGS) return 12;
+    if (recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_SETTINGS) return 12;
     if (m.u.settings.samples_per_frame != want_k) return 13;
     uint8_t cached[WIRE_HASH_SIZE];
     memcpy(cached, m.u.settings.cached_scene, WIRE_HASH_SIZE);
-    if (chan_recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 14;
+    if (recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 14;
     uint32_t epoch = m.u.camera.epoch;
+    float first_x = m.u.camera.cam.eye.x;
     if (m.u.camera.width != (uint32_t)w || m.u.camera.height != (uint32_t)h) return 15;
     ct_radmesh mesh;
     fx_box_nodes nd;
@@ -99,9 +117,9 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
     uint16_t half[8 * 6 * 3];
     for (int i = 0; i < 8 * 6 * 3; i++) half[i] = wire_half_from_float(fxm_tex_rgb()[i]);
     m.type = WIRE_TEX_PATCH;
-    m.u.tex_patch = (wire_tex_patch){5, 0, 0, 8, 3, half};
+    m.u.tex_patch = (wire_tex_patch){.tex = 5, .x = 0, .y = 0, .w = 8, .h = 3, .texels = half};
     if (send_all(c, &m)) return 23;
-    m.u.tex_patch = (wire_tex_patch){5, 0, 3, 8, 3, half + 8 * 3 * 3};
+    m.u.tex_patch = (wire_tex_patch){.tex = 5, .x = 0, .y = 3, .w = 8, .h = 3, .texels = half + 8 * 3 * 3};
     if (send_all(c, &m)) return 24;
     memset(&m, 0, sizeof m);
     m.type = WIRE_FRAME;
@@ -115,21 +133,68 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
     } else if (end == FXM_END_BAD) {
         memset(&m, 0, sizeof m);
         m.type = WIRE_TEX_PATCH;
-        m.u.tex_patch = (wire_tex_patch){77, 0, 0, 1, 1, half};
+        m.u.tex_patch = (wire_tex_patch){.tex = 77, .x = 0, .y = 0, .w = 1, .h = 1, .texels = half};
         if (send_all(c, &m)) return 30;
         int got = 31;
         for (int i = 0; i < 50 && got == 31; i++) {
-            int rc = chan_recv_wait(c, &m, 100, &err);
+            int rc = recv_wait(c, &m, 100, &err);
             if (rc < 0) break;
             if (rc == WIRE_OK && m.type == WIRE_ERROR)
                 got = m.u.error.code == WIRE_ERR_PROTOCOL && strstr(m.u.error.text, "77") ? 0 : 32;
         }
         chan_free(c);
         return got;
+    } else if (end == FXM_END_ROUNDS) {
+        enum { S = 1024 };
+        uint16_t *big = calloc(32 * 32 * 3, sizeof *big);
+        if (!big) return 40;
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_ALLOC;
+        m.u.tex_alloc = (wire_tex_alloc){6, nd.back, S, S, WIRE_PROJ_OBJECT_PARALLEL};
+        if (send_all(c, &m)) return 41;
+        for (uint32_t k = 1; k <= FXM_ROUNDS; k++) {
+            if (recv_wait(c, &m, 5000, &err) != WIRE_OK || m.type != WIRE_CAMERA) return 42;
+            epoch = m.u.camera.epoch;
+            for (size_t i = 0; i < 32 * 32 * 3; i++) big[i] = wire_half_from_float((float)((i + k) % 7) / 16.0f);
+            /* Many tiles, as a master sends them: reads end mid-message. */
+            for (int py = 0; py < S; py += 32)
+                for (int px = 0; px < S; px += 32) {
+                    memset(&m, 0, sizeof m);
+                    m.type = WIRE_TEX_PATCH;
+                    m.u.tex_patch = (wire_tex_patch){.tex = 6, .x = (uint32_t)px, .y = (uint32_t)py, .w = 32,
+                                                     .h = 32, .texels = big};
+                    if (chan_send(c, &m, &err)) return 43;
+                }
+            memset(&m, 0, sizeof m);
+            m.type = WIRE_FRAME;
+            m.u.frame = (wire_frame){k, epoch, 0, 123, 2};
+            if (send_all(c, &m)) return 44;
+        }
+        free(big);
+        for (int i = 0; i < 50; i++) {
+            int rc = recv_wait(c, &m, 100, &err);
+            if (rc < 0 || (rc == WIRE_OK && m.type == WIRE_BYE)) break;
+        }
+    } else if (end == FXM_END_CAMERAS) {
+        /* Cameras drawn before the connection was up arrive as the first. */
+        float last_x = first_x;
+        uint32_t last_epoch = epoch;
+        for (double until = ct_now() + 5.0; ct_now() < until;) {
+            int rc = recv_wait(c, &m, 100, &err);
+            if (rc < 0) return 50;
+            if (rc != WIRE_OK) continue;
+            if (m.type == WIRE_BYE) break;
+            if (m.type != WIRE_CAMERA) continue;
+            if (m.u.camera.epoch <= last_epoch) return 51;   /* epochs only grow */
+            last_epoch = m.u.camera.epoch;
+            last_x = m.u.camera.cam.eye.x;
+        }
+        chan_free(c);
+        return last_x == FXM_LAST_X ? 0 : 52;
     } else if (end == FXM_END_STAY) {
         /* Wait for the display's BYE. */
         for (int i = 0; i < 50; i++) {
-            int rc = chan_recv_wait(c, &m, 100, &err);
+            int rc = recv_wait(c, &m, 100, &err);
             if (rc < 0 || (rc == WIRE_OK && m.type == WIRE_BYE)) break;
         }
     }

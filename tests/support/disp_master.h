@@ -19,8 +19,16 @@ typedef enum fxm_end {
     FXM_END_CLOSE = 0,   /* close the socket without a word */
     FXM_END_BYE   = 1,   /* send BYE (run finished), then close */
     FXM_END_STAY  = 2,   /* wait (up to 5 s) for the display's BYE */
-    FXM_END_BAD   = 3    /* send a patch for an unknown texture; expect the display's ERROR */
+    FXM_END_BAD   = 3,   /* send a patch for an unknown texture; expect the display's ERROR */
+    FXM_END_ROUNDS = 4,  /* FXM_ROUNDS lockstep rounds: each CAMERA is answered with a
+                          * 1024x1024 texture in 32x32 patches (6 MiB, many reads) and
+                          * the next FRAME */
+    FXM_END_CAMERAS = 5  /* read until the display's BYE; succeed when the last CAMERA
+                          * before it has eye.x == FXM_LAST_X */
 } fxm_end;
+
+#define FXM_ROUNDS 30
+#define FXM_LAST_X 42.0f
 
 typedef struct fxm_peer {
     pid_t pid;

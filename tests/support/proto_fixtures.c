@@ -88,7 +88,13 @@ size_t fx_messages(wire_msg *out)
 
     m = &out[n++];
     m->type = WIRE_TEX_PATCH;
-    m->u.tex_patch = (wire_tex_patch){.tex = 42, .x = 5, .y = 9, .w = 37, .h = 11, .texels = fx_texels};
+    m->u.tex_patch = (wire_tex_patch){.tex = 42, .x = 5, .y = 9, .w = 37, .h = 11, .texels = fx_texels,
+                                      .encoding = WIRE_PATCH_LZ4, .samples = 77, .stamp_us = 0x123456789abcull};
+
+    m = &out[n++];
+    m->type = WIRE_TEX_PATCH;
+    m->u.tex_patch = (wire_tex_patch){.tex = 42, .x = 0, .y = 8, .w = 16, .h = 8, .texels = fx_texels,
+                                      .encoding = WIRE_PATCH_RAW, .samples = 0, .stamp_us = 1};
 
     m = &out[n++];
     m->type = WIRE_FRAME;
@@ -114,6 +120,15 @@ size_t fx_messages(wire_msg *out)
     m = &out[n++];
     m->type = WIRE_PONG;
     m->u.ping.token = 1;
+    m->u.ping.clock_us = 0xabcdef0123ull;
+
+    m = &out[n++];
+    m->type = WIRE_SYNC;
+    m->u.sync = (wire_sync){.seq = 12, .clock_us = 987654321};
+
+    m = &out[n++];
+    m->type = WIRE_ACK;
+    m->u.ack.seq = 11;
 
     m = &out[n++];
     m->type = WIRE_BYE;

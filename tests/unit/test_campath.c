@@ -180,6 +180,9 @@ Test(campath, parse_errors_name_the_line)
     expect_error("0 0 0 5 0 0 0 180\n", CT_EINVAL, "bad.path:1:", "fov");
     expect_error("\n\n0 1 1 1 1 1 1\n", CT_EINVAL, "bad.path:3:", "eye equals target");
     expect_error("# only a comment\n", CT_EEMPTY, "bad.path", "no keyframes");
+    /* Coordinates a ray can take (an eye at -1e19 aborted a tracer). */
+    expect_error("0 0 0 5 0 0 0\n1 0 0 -1e19 0 0 0\n", CT_ERANGE, "bad.path:2:", "outside the coordinate range");
+    expect_error("0 0 0 5 0 2e9 0\n", CT_ERANGE, "bad.path:1:", "eye or target");
     expect_error("up 0 0 0\n0 0 0 5 0 0 0\n", CT_EINVAL, "bad.path", "up");
 }
 
@@ -228,4 +231,19 @@ Test(campath, save_load_round_trip)
     campath_free(&q);
     unlink(path);
     cr_assert_eq(rmdir(dir), 0, "no temporary files left beside the path");
+}
+
+Test(campath, frames_stay_in_the_coordinate_range)
+{
+    /* Keys at the range's edges: the spline overshoots them between keys,
+     * and a master refuses a CAMERA whose eye is out of range. */
+    ct_campath p = load_text("0 0 0 0 0 0 1\n1 1e9 0 0 0 0 1\n2 1e9 0 0 0 0 1\n");
+    float most = 0.0f;
+    for (int k = 0; k < 300; k++) {
+        ct_camera c = campath_frame(&p, k, 300);
+        cr_assert(v3_in_range(c.eye), "frame %d: eye x %g", k, (double)c.eye.x);
+        most = fmaxf(most, fabsf(c.eye.x));
+    }
+    cr_expect_eq(most, CT_COORD_MAX, "the spline did not reach past the keys (%g): nothing was clamped", (double)most);
+    campath_free(&p);
 }

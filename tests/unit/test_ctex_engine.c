@@ -624,7 +624,7 @@ Test(ctex_engine, split_and_merge_resample_contents)
     release(&t);
 }
 
-Test(ctex_engine, events_alloc_proj_patch_free)
+Test(ctex_engine, events_alloc_proj_free_and_unsent_tiles)
 {
     tscene t;
     ctex *c = leaf_engine(&t, 64, 64);
@@ -640,29 +640,41 @@ Test(ctex_engine, events_alloc_proj_patch_free)
     cr_assert_eq(alloc, 8);
     cr_assert_eq(proj, 8);
     ctex_events_clear(c);
-    ctex_flush_patches(c);   /* new textures are dirty as a whole */
-    ctex_events_clear(c);
+    /* new textures are unsent as a whole; the display server sends them */
+    for (uint32_t id = 0; id < ctex_slot_count(c); id++) {
+        struct ctex_tex *vt = ctex_visible_texture(c, id);
+        if (!vt) continue;
+        int x0, y0, x1, y1;
+        cr_assert(ctex_dirty_bounds(&vt->d, vt->w, vt->h, &x0, &y0, &x1, &y1));
+        cr_assert(x0 == 0 && y0 == 0 && x1 == vt->w && y1 == vt->h, "texture %u wholly unsent", id);
+        ctex_dirty_clear_all(&vt->d);
+    }
+    ctex_set_clock(c, 4242);
     ctex_insert_info info;
     ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 2), v3s(1.0f), v3s(0.5f));
     ctex_insert(c, &s, &info);
     ctex_insert(c, &s, &info);
-    ctex_flush_patches(c);
-    ev = ctex_events(c, &n);
-    cr_assert_eq(n, 1);
-    cr_assert_eq(ev[0].kind, CTEX_EV_PATCH);
-    cr_assert_eq(ev[0].tex, (uint32_t)info.tex);
-    float buf[3 * 64 * 64];
-    cr_assert_eq(ctex_read_patch(c, ev[0].tex, ev[0].x, ev[0].y, ev[0].w, ev[0].h, buf, &err), 0);
-    cr_assert_float_eq(buf[0], 0.5f, 1e-6);
-    cr_assert_lt(ctex_read_patch(c, ev[0].tex, 0, 0, 9999, 1, buf, &err), 0);
-    /* the halves TEX_PATCH carries: the same values, no conversion */
-    static uint16_t hbuf[3 * 64 * 64];
-    cr_assert_eq(ctex_read_patch_half(c, ev[0].tex, ev[0].x, ev[0].y, ev[0].w, ev[0].h, hbuf, &err), 0);
-    for (int i = 0; i < 3 * ev[0].w * ev[0].h; i++)
-        cr_assert_eq(hbuf[i], half_from_float(buf[i]), "channel %d", i);
-    cr_assert_lt(ctex_read_patch_half(c, ev[0].tex, 0, 0, 9999, 1, hbuf, &err), 0);
-    cr_assert_lt(ctex_read_patch_half(c, 999, 0, 0, 1, 1, hbuf, &err), 0);
-    ctex_events_clear(c);
+    ctex_events(c, &n);
+    cr_assert_eq(n, 0, "texels are not events");
+    for (uint32_t id = 0; id < ctex_slot_count(c); id++) {
+        struct ctex_tex *vt = ctex_visible_texture(c, id);
+        if (!vt) continue;
+        int x0, y0, x1, y1;
+        bool any = ctex_dirty_bounds(&vt->d, vt->w, vt->h, &x0, &y0, &x1, &y1);
+        cr_assert_eq(any, id == (uint32_t)info.tex, "only the sample's texture has unsent texels (%u)", id);
+        if (!any) continue;
+        /* the unsent tiles hold the splat, stamped with the clock, counting both samples */
+        float u, v;
+        cr_assert(ctex_tex_project(vt, s.hit, &u, &v));
+        int ci = (int)(u * (float)vt->w), cj = (int)(v * (float)vt->h);
+        cr_assert(ci >= x0 && ci < x1 && cj >= y0 && cj < y1);
+        cr_assert_eq(vt->d.row_t[cj >> CTEX_TILE_SHIFT], 4242u);
+        cr_assert_eq(vt->d.row_n[cj >> CTEX_TILE_SHIFT], 2u);
+        float buf[3 * 64 * 64];
+        cr_assert_eq(ctex_read_patch(c, id, x0, y0, x1 - x0, y1 - y0, buf, &err), 0);
+        cr_assert_lt(ctex_read_patch(c, id, 0, 0, 9999, 1, buf, &err), 0);
+    }
+    cr_assert_eq(ctex_visible_texture(c, 9999), NULL);
     /* looking away frees (parks) the floor's texture for the display */
     ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
     cr_assert_eq(ctex_set_camera(c, &away, 64, 64, &err), 0);

@@ -10,6 +10,20 @@
 #include "master/ctex_tex.h"
 
 /* Texel (x, y) of t (rows are ctex_tex_pitch(w) texels apart). */
+/* The texels [x0, x1) x [y0, y1) of a splat are marked unsent, by whole
+ * tiles (ctex_dirty.h): the marked box is that rectangle widened to tile
+ * borders, clipped to the texture. */
+static void expect_unsent(const ctex_tex *t, int x0, int y0, int x1, int y1)
+{
+    int bx0, by0, bx1, by1;
+    cr_assert(ctex_dirty_bounds(&t->d, t->w, t->h, &bx0, &by0, &bx1, &by1), "nothing marked");
+    int ex1 = (x1 + CTEX_TILE - 1) / CTEX_TILE * CTEX_TILE, ey1 = (y1 + CTEX_TILE - 1) / CTEX_TILE * CTEX_TILE;
+    cr_assert_eq(bx0, x0 / CTEX_TILE * CTEX_TILE);
+    cr_assert_eq(by0, y0 / CTEX_TILE * CTEX_TILE);
+    cr_assert_eq(bx1, ex1 > t->w ? t->w : ex1);
+    cr_assert_eq(by1, ey1 > t->h ? t->h : ey1);
+}
+
 static ctex_texel *at(const ctex_tex *t, int x, int y)
 {
     return ctex_tex_at(t, x, y);
@@ -155,13 +169,13 @@ Test(ctex_tex, anisotropic_ring_shape)
 {
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, 32, 32, NULL), 0);
-    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    ctex_dirty_clear_all(&t.d);
     int r = ctex_tex_splat_aniso(&t, 16, 16, v3(1.0f, 0.0f, 0.0f), 0.0f, 0, 0.5f);
     cr_assert_eq(r, 31, "the splat reaches the far border (16 texels across at ring 31: round(15.5))");
     cr_assert_eq(V(&t, 16, 16 + 8), -4.0f);   /* 8 texels along: ring 4 */
     cr_assert_eq(V(&t, 16 + 8, 16), -15.0f);  /* 8 texels across: ring 15 (round(7.5)) */
     cr_assert_eq(V(&t, 16 + 1, 16), -1.0f);   /* round(0.5) = 1 */
-    cr_assert(t.dx0 == 0 && t.dy0 == 0 && t.dx1 == 32 && t.dy1 == 32);
+    expect_unsent(&t, 0, 0, 32, 32);
     ctex_tex_release(&t);
 }
 
@@ -189,11 +203,11 @@ Test(ctex_tex, splat_radius_and_dirty_rect)
 {
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, 32, 32, NULL), 0);
-    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    ctex_dirty_clear_all(&t.d);
     int r = ctex_tex_splat(&t, 5, 5, v3(1, 1, 1), 0.0f, 0);
     cr_assert_eq(r, 26, "first sample floods the texture: radius %d", r);
-    cr_assert_eq(t.dx0, 0); cr_assert_eq(t.dx1, 32); cr_assert_eq(t.dy0, 0); cr_assert_eq(t.dy1, 32);
-    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    expect_unsent(&t, 0, 0, 32, 32);
+    ctex_dirty_clear_all(&t.d);
     /* a second sample 8 texels away: its radius is the farthest texel it
      * takes over (strictly closer to it than to the first) */
     r = ctex_tex_splat(&t, 13, 5, v3(2, 2, 2), 0.0f, 0);
@@ -203,9 +217,8 @@ Test(ctex_tex, splat_radius_and_dirty_rect)
             if (cheb(x, y, 13, 5) < cheb(x, y, 5, 5) && cheb(x, y, 13, 5) > expect) expect = cheb(x, y, 13, 5);
     cr_assert_eq(r, expect, "radius %d, expected %d", r, expect);
     int e = r + 1;
-    cr_assert_eq(t.dx0, 13 - e < 0 ? 0 : 13 - e);
-    cr_assert_eq(t.dx1, 13 + e + 1 > 32 ? 32 : 13 + e + 1);
-    cr_assert_eq(t.dy1, 5 + e + 1 > 32 ? 32 : 5 + e + 1);
+    expect_unsent(&t, 13 - e < 0 ? 0 : 13 - e, 5 - e < 0 ? 0 : 5 - e, 13 + e + 1 > 32 ? 32 : 13 + e + 1,
+                  5 + e + 1 > 32 ? 32 : 5 + e + 1);
     cr_assert_eq(R(&t, 9, 5), 1.0f, "equidistant texel stays with the older sample");
     cr_assert_eq(R(&t, 10, 5), 2.0f);
     ctex_tex_release(&t);
@@ -377,7 +390,7 @@ Test(ctex_tex, splat_max_bounds_the_radius)
 {
     ctex_tex t = {0};
     cr_assert_eq(ctex_tex_init(&t, 64, 64, NULL), 0);
-    t.dx0 = t.dx1 = t.dy0 = t.dy1 = 0;
+    ctex_dirty_clear_all(&t.d);
     int r = ctex_tex_splat(&t, 30, 20, v3(1, 1, 1), 1.0f, 5);
     cr_assert_eq(r, 5);
     for (int y = 0; y < 64; y++)
@@ -385,7 +398,7 @@ Test(ctex_tex, splat_max_bounds_the_radius)
             int inside = cheb(x, y, 30, 20) <= 5;
             cr_assert_eq(ctex_texel_valid(at(&t, x, y)), inside, "texel (%d,%d)", x, y);
         }
-    cr_assert_eq(t.dx0, 25); cr_assert_eq(t.dx1, 36); cr_assert_eq(t.dy0, 15); cr_assert_eq(t.dy1, 26);
+    expect_unsent(&t, 25, 15, 36, 26);
     ctex_tex_release(&t);
 }
 

@@ -1,8 +1,9 @@
 /* The display's socket client against a master peer speaking the real
  * protocol over a UNIX socket (a child process using proto/'s channel): the
- * scene, texture allocation / projection / patches and FRAME arrive as
- * session events and render exactly like the same events applied directly;
- * lockstep frames; a lost connection and an orderly BYE are reported as such. */
+ * scene, texture allocation / projection / patches and FRAME arrive through
+ * the connection thread and the inbox and render exactly like the same
+ * events applied directly; lockstep frames; a lost connection and an
+ * orderly BYE are reported as such. */
 #include <criterion/criterion.h>
 #include <poll.h>
 #include <signal.h>
@@ -12,7 +13,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "common/timer.h"
 #include "display/disp_client.h"
+#include "display/disp_inbox.h"
 #include "proto/chan.h"
 #include "proto/wire.h"
 #include "tests/support/disp_fixture.h"
@@ -54,6 +57,34 @@ static void render_direct(uint8_t *out)
     disp_session_free(s);
 }
 
+/* Takes what the connection thread received, up to ms milliseconds, until
+ * done() or the connection ends; the connection's status. */
+static int pump(disp_client *c, disp_inbox *in, disp_session *s, int ms, bool (*done)(disp_inbox *), ct_error *err)
+{
+    int rc = 0;
+    for (int i = 0; i < ms / 5; i++) {
+        disp_inbox_took took;
+        cr_assert_eq(disp_inbox_apply(in, s, &took, err), 0, "%s", err->msg);
+        if (done && done(in)) break;
+        if ((rc = disp_client_status(c, err))) {
+            cr_assert_eq(disp_inbox_apply(in, s, &took, err), 0, "%s", err->msg);
+            break;
+        }
+        usleep(5000);
+    }
+    return rc;
+}
+
+static bool frame_ready(disp_inbox *in) { return disp_inbox_frame_ready(in, NULL); }
+
+static disp_inbox *new_inbox(void)
+{
+    ct_error err;
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
+    return in;
+}
+
 static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_ended,
                         const char *token_file)
 {
@@ -64,27 +95,24 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     cr_assert_eq(disp_session_new(&s, &err), 0);
     disp_scene_cache *cache = NULL;
     cr_assert_eq(disp_scene_cache_new(NULL, 0, &cache, &err), 0);
+    disp_inbox *in = new_inbox();
     disp_client *c = NULL;
     disp_client_opts o = {p->addr, token_file, k, 5000};
-    cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_client_connect(&o, cache, in, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0, "%s", err.msg);
     cr_assert_eq(disp_client_epoch(c), 1u);
-    int rc = 0;
-    for (int i = 0; i < 200 && !disp_client_frame_ready(c, NULL); i++) {
-        rc = disp_client_service(c, s, 25, &err);
-        if (rc) break;
-    }
+    int rc = pump(c, in, s, 5000, frame_ready, &err);
     uint64_t frame = 99;
-    cr_assert(disp_client_frame_ready(c, &frame), "no FRAME (rc %d: %s)", rc, err.msg);
+    cr_assert(disp_inbox_frame_ready(in, &frame), "no FRAME (rc %d: %s)", rc, err.msg);
     cr_expect_eq(frame, 0u);
-    disp_client_take_frame(c);
-    cr_expect_not(disp_client_frame_ready(c, NULL), "a frame is taken once");
-    cr_expect(disp_client_has_scene(c));
+    disp_inbox_take_frame(in);
+    cr_expect_not(disp_inbox_frame_ready(in, NULL), "a frame is taken once");
+    cr_expect(disp_inbox_get_state(in).have_scene);
     disp_counters cnt = disp_session_counters(s);
     cr_expect_eq(cnt.samples, 123u);
     cr_expect_eq(cnt.texels, 48u);
-    cr_expect_eq(cnt.patches, 2u);
+    cr_expect_eq(cnt.patches, 1u, "two patches of one tile row are one upload");
     cr_expect_gt(cnt.bytes, 1000u);
     cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
     uint8_t got[W * H * 3], want[W * H * 3];
@@ -98,12 +126,13 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     printf("metric: image from the socket vs direct events: max %d/255\n", dmax);
     cr_expect_eq(dmax, 0);
     /* What happens next: the master closes, says BYE, or stays. */
-    rc = 0;
-    for (int i = 0; i < 100 && rc == 0 && expect_end_rc; i++) rc = disp_client_service(c, s, 25, &err);
+    rc = expect_end_rc ? pump(c, in, s, 2500, NULL, &err) : disp_client_status(c, &err);
     cr_expect_eq(rc, expect_end_rc, "end: rc %d (%s)", rc, err.msg);
     if (expect_end_rc) printf("end of session reported as: %s\n", err.msg);
     cr_expect_eq(disp_client_ended(c), expect_ended);
     disp_client_close(c);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
     disp_scene_cache_free(cache);
     disp_session_free(s);
     gl_backend_close(b);
@@ -138,7 +167,9 @@ Test(disp_client, no_master_is_an_error)
     ct_error err;
     disp_client *c = NULL;
     disp_client_opts o = {"unix:/nonexistent-dir/sock", NULL, 0, 1000};
-    int rc = disp_client_connect(&o, NULL, &c, &err);
+    disp_inbox *in = new_inbox();
+    int rc = disp_client_connect(&o, NULL, in, &c, &err);
+    disp_inbox_free(in);
     cr_expect_lt(rc, 0);
     cr_expect(strstr(err.msg, "nonexistent-dir") != NULL, "message: %s", err.msg);
     printf("no master: %s\n", err.msg);
@@ -178,7 +209,9 @@ Test(disp_client, tcp_with_a_wrong_token_fails)
     ct_error err;
     disp_client *c = NULL;
     disp_client_opts o = {p.addr, tf, 0, 5000};
-    int rc = disp_client_connect(&o, NULL, &c, &err);
+    disp_inbox *in = new_inbox();
+    int rc = disp_client_connect(&o, NULL, in, &c, &err);
+    disp_inbox_free(in);
     printf("wrong token: %s\n", err.msg);
     cr_expect_lt(rc, 0);
     cr_expect_null(c);
@@ -194,14 +227,14 @@ static uint64_t session_bytes(disp_scene_cache *cache)
     ct_error err;
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox *in = new_inbox();
     disp_client *c = NULL;
     disp_client_opts o = {p.addr, NULL, 0, 5000};
-    cr_assert_eq(disp_client_connect(&o, cache, &c, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_client_connect(&o, cache, in, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
-    for (int i = 0; i < 200 && !disp_client_frame_ready(c, NULL); i++)
-        cr_assert_eq(disp_client_service(c, s, 25, &err), 0, "%s", err.msg);
-    cr_assert(disp_client_has_scene(c));
+    cr_assert_eq(pump(c, in, s, 5000, frame_ready, &err), 0, "%s", err.msg);
+    cr_assert(disp_inbox_get_state(in).have_scene);
     cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
     uint8_t img[W * H * 3], want[W * H * 3];
     render(s, img);
@@ -209,6 +242,8 @@ static uint64_t session_bytes(disp_scene_cache *cache)
     cr_expect_eq(memcmp(img, want, sizeof img), 0, "the cached scene renders the same");
     uint64_t bytes = disp_session_counters(s).bytes;
     disp_client_close(c);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
     disp_session_free(s);
     cr_expect_eq(fxm_stop(&p), 0);
     return bytes;
@@ -255,18 +290,100 @@ Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
     cr_assert_eq(fxm_start(&p, FXM_END_BAD, 0, W, H), 0, "%s", p.msg);
     disp_session *s = NULL;
     cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox *in = new_inbox();
     disp_client *c = NULL;
     disp_client_opts o = {p.addr, NULL, 0, 5000};
-    cr_assert_eq(disp_client_connect(&o, NULL, &c, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
-    int rc = 0;
-    for (int i = 0; i < 200 && rc == 0; i++) rc = disp_client_service(c, s, 25, &err);
+    int rc = pump(c, in, s, 5000, NULL, &err);
     printf("bad patch: %s\n", err.msg);
     cr_expect_eq(rc, CT_EPROTO);
     cr_expect(strstr(err.msg, "unknown texture 77") != NULL, "%s", err.msg);
     disp_client_close(c);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
     cr_expect_eq(fxm_stop(&p), 0, "the master did not get a PROTOCOL error naming texture 77");
     disp_session_free(s);
     gl_backend_close(b);
+}
+
+/* Lockstep rounds: each frame asked for arrives as soon as its bytes do.
+ * The connection thread once left a frame it had read but not decoded in
+ * memory until its next ping (up to a second) whenever the last bytes came
+ * with the read that sends ACKs. */
+Test(disp_client, lockstep_rounds_do_not_wait_for_the_ping)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_ROUNDS, 0, W, H), 0, "%s", p.msg);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox *in = new_inbox();
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    cr_assert_eq(pump(c, in, s, 5000, frame_ready, &err), 0, "%s", err.msg);
+    disp_inbox_take_frame(in);
+    usleep(500000);   /* past the quick pings of the first 400 ms: the next is a second away */
+    double worst = 0, sum = 0;
+    for (int k = 1; k <= FXM_ROUNDS; k++) {
+        double t0 = ct_now();
+        cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+        /* Poll finely: the round trip is what is measured, not our sleep. */
+        disp_inbox_took took;
+        uint64_t frame = 0;
+        for (;;) {
+            cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0, "%s", err.msg);
+            if (disp_inbox_frame_ready(in, &frame) || ct_now() - t0 > 5.0) break;
+            cr_assert_eq(disp_client_status(c, &err), 0, "%s", err.msg);
+            usleep(500);
+        }
+        cr_assert(disp_inbox_frame_ready(in, &frame), "round %d: no frame", k);
+        cr_expect_eq(frame, (uint64_t)k);
+        double dt = ct_now() - t0;
+        sum += dt;
+        if (dt > worst) worst = dt;
+        disp_inbox_take_frame(in);
+    }
+    printf("metric: lockstep round trip with 6 MiB in 1024 patches: mean %.1f ms, worst %.1f ms (%d rounds)\n",
+           1000 * sum / FXM_ROUNDS, 1000 * worst, FXM_ROUNDS);
+    /* A ping period is a second; a healthy round is milliseconds even
+     * under the sanitizers. */
+    cr_expect_lt(worst, 0.5, "a frame waited %.0f ms after its bytes were read", 1000 * worst);
+    disp_client_close(c);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
+    cr_expect_eq(fxm_stop(&p), 0, "master child failed");
+    disp_session_free(s);
+    gl_backend_close(b);
+}
+
+/* Free running, cameras drawn faster than they can be sent replace the
+ * unsent one: no error however many, and the newest one arrives. */
+Test(disp_client, free_running_cameras_never_pile_up)
+{
+    ct_error err;
+    fxm_peer p = {0};
+    cr_assert_eq(fxm_start(&p, FXM_END_CAMERAS, 0, W, H), 0, "%s", p.msg);
+    disp_inbox *in = new_inbox();
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    for (int i = 0; i < 5000; i++) {
+        cam.eye.x = i == 4999 ? FXM_LAST_X : (float)i * 1e-4f;
+        cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0, "camera %d: %s", i, err.msg);
+    }
+    cr_expect_eq(disp_client_epoch(c), 5000u);
+    usleep(200000);
+    cr_expect_eq(disp_client_status(c, &err), 0, "%s", err.msg);
+    disp_client_close(c);   /* BYE */
+    disp_inbox_free(in);
+    int st = fxm_stop(&p);
+    cr_expect_eq(st, 0, "the master did not get the newest camera last (or epochs went back): %d", st);
 }

@@ -3,13 +3,19 @@
  * display's SETTINGS and CAMERA as events, PING answered, a second display
  * refused with ERROR BUSY, and hostile peers (garbage, an oversized length,
  * a wrong token, a silent peer) dropped while the legitimate display goes on
- * undisturbed. The server runs in its own thread, as in the master's loop. */
+ * undisturbed, and idle connections that cannot take the handshake slots
+ * from a display. The server runs in its own thread, as in the master's
+ * loop. */
+#include <arpa/inet.h>
 #include <criterion/criterion.h>
+#include <errno.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -353,4 +359,70 @@ Test(dsrv, droppable_samples_under_back_pressure)
     chan_free(d);
     dsrv_free(sv.s);
     pthread_mutex_destroy(&sv.mu);
+}
+
+/* An idle TCP connection from source address 127.0.0.<host> to port. */
+static int idle_peer(int host, int port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    cr_assert_geq(fd, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET};
+    a.sin_addr.s_addr = htonl(0x7f000000u | (uint32_t)host);
+    cr_assert_eq(bind(fd, (struct sockaddr *)&a, sizeof a), 0, "bind 127.0.0.%d: %s", host, strerror(errno));
+    a.sin_addr.s_addr = htonl(0x7f000001u);
+    a.sin_port = htons((uint16_t)port);
+    cr_assert_eq(connect(fd, (struct sockaddr *)&a, sizeof a), 0, "%s", strerror(errno));
+    return fd;
+}
+
+/* Whether the server closed fd within ms (its HELLO is read and skipped). */
+static int dropped_within(int fd, int ms)
+{
+    double end = ct_now() + ms / 1000.0;
+    char buf[256];
+    while (ct_now() < end) {
+        struct pollfd p = {.fd = fd, .events = POLLIN};
+        if (poll(&p, 1, 20) > 0 && read(fd, buf, sizeof buf) <= 0) return 1;
+    }
+    return 0;
+}
+
+/* Idle connections used to hold every handshake slot (16, each for the
+ * handshake timeout) and a client re-opening them locked displays out. Now
+ * one address holds at most 4, a newcomer from it replaces its oldest idle
+ * one, a full table gives way to the newcomer the same way, and an
+ * authenticated display always gets in. */
+Test(dsrv, idle_handshakes_never_lock_a_display_out)
+{
+    auth_token tok;
+    token(&tok, 't');
+    server sv;
+    start(&sv, "tcp:127.0.0.1:0", &tok, 5000);
+    const char *addr = dsrv_addr(sv.s);
+    int port = atoi(strrchr(addr, ':') + 1);
+    int idle[4][DSRV_MAX_PENDING_PER_PEER];
+    for (int h = 0; h < 4; h++)
+        for (int k = 0; k < DSRV_MAX_PENDING_PER_PEER; k++) {
+            idle[h][k] = idle_peer(2 + h, port);
+            usleep(5000);   /* distinct ages */
+        }
+    cr_assert(!dropped_within(idle[0][0], 200), "a connection within the bounds was dropped");
+
+    /* A fifth from 127.0.0.2 takes the place of that address's oldest. */
+    int fifth = idle_peer(2, port);
+    cr_assert(dropped_within(idle[0][0], 1000), "the oldest of 127.0.0.2 was kept");
+    cr_assert(!dropped_within(idle[1][0], 200), "another address's connection was dropped");
+
+    /* The table is full of idle connections: a display still gets in. */
+    chan *d = display(addr, &tok, 0);
+    dsrv_event e;
+    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED, "the display was locked out");
+    ping_pong(d, 7);
+    cr_assert(dropped_within(idle[0][1], 1000), "the oldest idle connection was kept for the display");
+    cr_assert(!dropped_within(idle[1][0], 200), "a younger idle connection was dropped");
+    chan_free(d);
+    close(fifth);
+    for (int h = 0; h < 4; h++)
+        for (int k = 0; k < DSRV_MAX_PENDING_PER_PEER; k++) close(idle[h][k]);
+    stop(&sv);
 }

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "common/fsutil.h"
@@ -18,6 +19,17 @@ static void make_dir(void)
     ct_error err;
     cr_assert_eq(fs_mkdirs(g_dir, &err), 0, "%s", err.msg);
 }
+
+/* Whatever a test left there (it may stop at a failed assertion). */
+static void remove_dir(void)
+{
+    if (!g_dir[0]) return;
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+}
+
+TestSuite(radmesh_io, .fini = remove_dir);
 
 static void path_of(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", g_dir, name); }
 
@@ -214,6 +226,49 @@ Test(radmesh_io, broken_files_give_clear_errors)
     free(orig);
     rmesh_free(&m);
     unlink(good);
+    rmdir(g_dir);
+}
+
+/* Peak resident memory of this test's process (Criterion runs each test in
+ * its own process), in KiB. */
+static long max_rss_kib(void)
+{
+    struct rusage ru;
+    cr_assert_eq(getrusage(RUSAGE_SELF, &ru), 0);
+    return ru.ru_maxrss;
+}
+
+Test(radmesh_io, large_bad_files_fail_on_their_header)
+{
+    /* 1 GiB sparse: once read in full (seconds, 1 GiB of memory) before the
+     * magic was looked at. A good header whose counts do not match the size
+     * fails as early. */
+    make_dir();
+    char p[512];
+    path_of(p, sizeof p, "sparse.ctmesh");
+    ct_radmesh m;
+    sample_mesh(&m);
+    unsigned char *enc;
+    size_t enc_len;
+    ct_error err;
+    cr_assert_eq(rmesh_encode(&m, &enc, &enc_len, &err), 0, "%s", err.msg);
+    const struct { size_t head; const char *msg; } cases[] = {{0, "bad magic"}, {48, "trailing bytes"}};
+    long before = max_rss_kib();
+    for (int i = 0; i < 2; i++) {
+        FILE *f = fopen(p, "wb");
+        cr_assert_not_null(f);
+        cr_assert_eq(fwrite(enc, 1, cases[i].head, f), cases[i].head);
+        cr_assert_eq(ftruncate(fileno(f), (off_t)1 << 30), 0);
+        fclose(f);
+        ct_radmesh r;
+        cr_assert_eq(rmesh_load(p, 0, &r, &err), CT_EPARSE, "%s", err.msg);
+        cr_assert(strstr(err.msg, cases[i].msg) && strstr(err.msg, p), "%s", err.msg);
+    }
+    long grown = max_rss_kib() - before;
+    cr_assert_lt(grown, 64 << 10, "loading grew the resident memory by %ld KiB", grown);
+    free(enc);
+    rmesh_free(&m);
+    unlink(p);
     rmdir(g_dir);
 }
 

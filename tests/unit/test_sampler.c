@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/rng.h"
 #include "master/sampler.h"
 
 #define PLANE_Z (-10.0f)
@@ -52,11 +53,18 @@ static vec3 smooth_error(float px, float py)
     return v3s(0.01f + 0.5f * (1.0f + sinf(px * 0.3f) * cosf(py * 0.2f)) + px * 1e-4f + py * 1e-6f);
 }
 
+/* The §3.7 tests stop at full coverage: no refinement unless o asks. */
 static rq_engine *make(int w, int h, const rq_options *o, uint64_t seed)
 {
     rq_engine *e = NULL;
     ct_error err;
     ct_camera c = cam_a();
+    rq_options d;
+    if (!o) {
+        rq_options_default(&d);
+        d.refine_error = 0.0f;
+        o = &d;
+    }
     int rc = rq_new(&e, w, h, &c, o, seed, &err);
     cr_assert_eq(rc, 0, "rq_new: %s", err.msg);
     return e;
@@ -68,6 +76,7 @@ static rq_options spaced(float spacing)
     rq_options o;
     rq_options_default(&o);
     o.seed_spacing = spacing;
+    o.refine_error = 0.0f;
     return o;
 }
 
@@ -718,4 +727,168 @@ Test(sampler, reprojection_drops_points_behind_or_far_outside_the_view)
     cr_assert_eq(st.reproject_dropped, 1u + (uint64_t)k);
     cr_assert_eq(st.queued, 0u);
     rq_free(e);
+}
+
+/* --- refinement past full coverage (docs/sampling.md, "Refinement") ------------------ */
+
+/* A noisy correction: inside the disc each sample is uniform in 0.3 +- 0.5
+ * (by a hash of its request id), outside a constant 0.1. */
+static vec3 noisy_dl(const ct_request *r)
+{
+    if (!in_disc(r->px, r->py)) return v3s(0.1f);
+    return v3s(0.3f + (float)(ct_hash64(r->id) >> 40) * 0x1p-24f - 0.5f);
+}
+
+typedef struct refine_run {
+    int samples[64 * 48];     /* per pixel */
+    double sum[64 * 48];      /* of the dL that entered its mean */
+    uint64_t ids[4096];       /* the first refinement requests */
+    int nids;
+    int batches;
+} refine_run;
+
+/* Runs a 64x48 still view until the engine goes idle; every sample's dL is
+ * noisy_dl, and hits node 2 instead of 1 where other_node says. */
+static rq_engine *refine_until_idle(refine_run *rr, uint64_t seed, bool (*other_node)(const ct_request *))
+{
+    const int W = 64, H = 48;
+    rq_options o;
+    rq_options_default(&o);
+    o.seed_spacing = 8;
+    o.refine_max = 64;
+    rq_engine *e = make(W, H, &o, seed);
+    ct_camera c = cam_a();
+    memset(rr, 0, sizeof *rr);
+    static ct_request r[256];
+    for (int it = 0; it < 100000; it++) {
+        int k = batch(e, r, 256);
+        if (k == 0) break;
+        rr->batches++;
+        for (int i = 0; i < k; i++) {
+            int p = (int)r[i].py * W + (int)r[i].px;
+            bool refine = rq_refines(e, r[i].id);
+            rq_stats st;
+            rq_stats_get(e, &st);
+            if (refine) {
+                cr_assert(st.coverage == 1.0, "refinement only after full coverage");
+                cr_assert_eq(r[i].radius, 0.5f);
+                cr_assert_eq(r[i].parent, 0u);
+                if (rr->nids < 4096) rr->ids[rr->nids++] = r[i].id;
+            }
+            ct_sample smp = trace(&c, W, H, &r[i]);
+            vec3 dl = noisy_dl(&r[i]);
+            smp.l_hq = v3_add(v3s(1.0f), dl);
+            smp.l_base = v3s(1.0f);
+            bool other = other_node && other_node(&r[i]) && rr->samples[p] > 0;
+            if (other) smp.node = 2;
+            int f = report(e, &smp, dl, 1);
+            cr_assert_eq((f & RQ_REPORT_REFINE) != 0, refine && !other, "write the mean of same-node samples only");
+            rr->samples[p]++;
+            if (!other) rr->sum[p] += (double)dl.x;
+        }
+    }
+    return e;
+}
+
+Test(sampler, refinement_samples_uncertain_pixels_until_they_are_certain_then_idles)
+{
+    refine_run rr;
+    rq_engine *e = refine_until_idle(&rr, 1, NULL);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert(st.refining);
+    cr_assert_eq(st.coverage, 1.0);
+    int disc = 0, flat = 0;
+    for (int y = 0; y < 48; y++)
+        for (int x = 0; x < 64; x++) {
+            int p = y * 64 + x, n = rr.samples[p];
+            cr_assert_geq(n, 1, "pixel %d,%d never sampled", x, y);
+            if (in_disc((float)x + 0.5f, (float)y + 0.5f) && in_disc((float)x, (float)y) &&
+                in_disc((float)x + 1, (float)y + 1) && in_disc((float)x + 1, (float)y) && in_disc((float)x, (float)y + 1)) {
+                /* noise of 0.5: its standard error stays over the threshold
+                 * until the cap of 64 samples */
+                cr_assert_eq(n, 64, "disc pixel %d,%d: %d samples", x, y, n);
+                disc++;
+                vec3 m = rq_pixel_mean(e, (float)x + 0.5f, (float)y + 0.5f);
+                cr_assert_float_eq(m.x, (float)(rr.sum[p] / n), 1e-5, "pixel mean %g vs %g", (double)m.x,
+                                   rr.sum[p] / n);
+            } else if (!in_disc((float)x, (float)y) && !in_disc((float)x + 1, (float)y + 1) &&
+                       !in_disc((float)x + 1, (float)y) && !in_disc((float)x, (float)y + 1)) {
+                /* a constant 0.1: no variance once the first error (0.1)
+                 * is no longer trusted alone, at 4 samples */
+                cr_assert_eq(n, 4, "flat pixel %d,%d: %d samples", x, y, n);
+                flat++;
+            }
+        }
+    cr_assert_gt(disc, 200);
+    cr_assert_gt(flat, 2000);
+    printf("refinement: %d disc pixels at 64 samples, %d flat pixels at 4, %llu refinement samples, idle\n", disc,
+           flat, (unsigned long long)st.refine_samples);
+    /* Idle: nothing is handed out any more. */
+    ct_request r[8];
+    cr_assert_eq(batch(e, r, 8), 0);
+    rq_free(e);
+}
+
+Test(sampler, refinement_is_deterministic_and_a_camera_change_starts_over)
+{
+    static refine_run a, b;
+    rq_engine *ea = refine_until_idle(&a, 7, NULL), *eb = refine_until_idle(&b, 7, NULL);
+    cr_assert_eq(a.nids, b.nids);
+    cr_assert_gt(a.nids, 100);
+    cr_assert_eq(memcmp(a.ids, b.ids, (size_t)a.nids * sizeof a.ids[0]), 0);
+    cr_assert_eq(memcmp(a.samples, b.samples, sizeof a.samples), 0);
+    /* A new view forgets the means and stops refining until it is covered. */
+    ct_error err;
+    ct_camera c2 = cam_look_at(v3(0.5f, 0, 0), v3(0.5f, 0, -1), v3(0, 1, 0), 60.0f);
+    cr_assert_eq(rq_set_camera(ea, &c2, 1, &err), 0);
+    rq_stats st;
+    rq_stats_get(ea, &st);
+    cr_assert_not(st.refining);
+    cr_assert_eq(st.refine_samples, 0u);
+    vec3 m = rq_pixel_mean(ea, 40.5f, 24.5f);
+    cr_assert_eq(m.x, 0.0f);
+    rq_free(ea);
+    rq_free(eb);
+}
+
+static bool odd_ids_hit_another_node(const ct_request *r) { return r->id & 1; }
+
+Test(sampler, refinement_means_take_only_samples_of_the_pixels_first_node)
+{
+    static refine_run rr;
+    rq_engine *e = refine_until_idle(&rr, 3, odd_ids_hit_another_node);
+    int checked = 0;
+    for (int p = 0; p < 64 * 48; p++) {
+        if (rr.samples[p] < 3) continue;
+        /* the sum counted only same-node samples; their number is unknown
+         * here, but the mean must lie in the values' range and differ from
+         * a mean over all samples where the other-node ones were dropped */
+        vec3 m = rq_pixel_mean(e, (float)(p % 64) + 0.5f, (float)(p / 64) + 0.5f);
+        cr_assert(m.x >= -0.2f - 1e-5f && m.x <= 0.8f + 1e-5f, "mean %g", (double)m.x);
+        checked++;
+    }
+    cr_assert_gt(checked, 100);
+    rq_free(e);
+}
+
+Test(sampler, refinement_options)
+{
+    rq_options o;
+    rq_options_default(&o);
+    ct_error err;
+    cr_assert_gt(o.refine_error, 0.0f, "refinement is on by default");
+    cr_assert_eq(rq_options_set(&o, "refine-error", "0", &err), 0);
+    cr_assert_eq(o.refine_error, 0.0f);
+    cr_assert_eq(rq_options_set(&o, "refine-max", "100", &err), 0);
+    cr_assert_eq(rq_options_check(&o, &err), 0);
+    o.refine_max = 0;
+    cr_assert_eq(rq_options_check(&o, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "refine-max"), "%s", err.msg);
+    o.refine_max = 70000;
+    cr_assert_eq(rq_options_check(&o, &err), CT_EINVAL);
+    o.refine_max = 8;
+    o.refine_error = -1.0f;
+    cr_assert_eq(rq_options_check(&o, &err), CT_EINVAL);
+    cr_assert_eq(rq_options_set(&o, "refine-error", "inf", &err), CT_EINVAL);
 }

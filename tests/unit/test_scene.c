@@ -1,6 +1,7 @@
 /* Scene import: the mini test scene's counts, the MTL mapping, overrides,
  * transforms, cameras and paths, and every bad-input case with its message. */
 #include <criterion/criterion.h>
+#include <math.h>
 #include <string.h>
 
 #include "common/log.h"
@@ -216,6 +217,22 @@ Test(scene_bad, json_syntax_error_line_col)
     expect_fail(p, CT_EPARSE, "s.json:3:", "JSON syntax error");
 }
 
+/* cJSON stops at the end of the first value and keeps every copy of a key
+ * (a lookup finds the first): both were accepted silently. */
+Test(scene_bad, json_trailing_garbage_and_duplicate_keys)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}\n\n  ]\n"), CT_EPARSE, "s.json:3:3:",
+                "trailing characters after the JSON value");
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\",\"name\":\"a\",\"file\":\"b.obj\"}]}"),
+                CT_EPARSE, "s.json: duplicate key 'file' in 'meshes'", NULL);
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}],\"name\":\"x\",\"name\":\"y\"}"),
+                CT_EPARSE, "s.json: duplicate key 'name' at the top level", NULL);
+    ct_scene *s = load_ok(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}\n \t\n"));
+    scene_free(s);
+}
+
 Test(scene_bad, obj_index_out_of_range)
 {
     const char *p = one_mesh_scene("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
@@ -309,4 +326,113 @@ Test(scene_bad, wrong_types_and_values)
         cr_expect_neq(rc, CT_OK, "case %zu loaded", i);
         cr_expect(strstr(err.msg, cases[i].needle) != NULL, "case %zu: '%s' lacks '%s'", i, err.msg, cases[i].needle);
     }
+}
+
+/* Every coordinate that reaches a ray is bounded (CT_COORD_MAX): a camera eye
+ * at -1e30 made the tracer abort inside Embree, a light edge of 1e30 gave an
+ * all-black image. Each such scene fails with one line naming the place. */
+Test(scene_bad, coordinates_out_of_range)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    fx_write(d, "far.obj", "v 0 0 0\nv 2e9 0 0\nv 0 1 0\nf 1 2 3\n");
+    fx_write(d, "far.path", "0  0 1 -1e30  0 1 0\n1  0 1 4  0 1 0\n");
+    struct { const char *json; const char *needle; } cases[] = {
+        {"{\"meshes\":[{\"file\":\"far.obj\"}]}", "far.obj: mesh 'defaultobject': vertex 2 at (2e+09, 0, 0)"},
+        {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"scale\":1e30}}]}", "vertex 2 at (1e+30, 0, 0) in the scene"},
+        {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"translate\":[0,-1e10,0]}}]}", "outside the coordinate range"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"lights\":[{\"type\":\"quad\",\"corner\":[0,2,0],\"edge1\":[1e30,0,0],"
+         "\"edge2\":[0,0,1],\"emission\":[1,1,1]}]}", "lights[0]: corner 1 at (1e+30, 2, 0)"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,1,-1e30],\"target\":[0,1,0]}]}",
+         "camera 'c': eye or target outside the coordinate range"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,1,4],\"target\":[0,1,-2e9]}]}",
+         "camera 'c': eye or target outside"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"keys\":[[0,0,1,4,0,1,0],[1,0,1,4,0,1e20,0]]}]}",
+         "paths[0]: keyframe 2: eye or target outside the coordinate range"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"file\":\"far.path\"}]}",
+         "far.path:1: eye or target outside"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        const char *p = fx_write(d, "s.json", cases[i].json);
+        ct_error err;
+        ct_scene *s = NULL;
+        int rc = scene_load(p, &s, &err);
+        cr_expect_eq(rc, CT_ERANGE, "case %zu: rc %d: %s", i, rc, err.msg);
+        cr_expect(strstr(err.msg, cases[i].needle) != NULL, "case %zu: '%s' lacks '%s'", i, err.msg, cases[i].needle);
+        cr_expect(strchr(err.msg, '\n') == NULL);
+        scene_free(s);
+    }
+    /* The range's edge itself is fine, also for a builder that bypasses the loader. */
+    const char *p = fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\","
+                                          "\"eye\":[0,1,-1e9],\"target\":[0,1,0]}]}");
+    ct_scene *s = load_ok(p);
+    ct_error err;
+    cr_expect_eq(scene_add_vertex(s, v3(0, 0, 1e9f), v3(0, 1, 0), &err), (int64_t)s->nverts - 1);
+    cr_expect_eq(scene_add_vertex(s, v3(0, -1.5e9f, 0), v3(0, 1, 0), &err), CT_ERANGE);
+    cr_expect(strstr(err.msg, "outside the coordinate range"), "%s", err.msg);
+    cr_expect_eq(scene_add_vertex(s, v3(NAN, 0, 0), v3(0, 1, 0), &err), CT_ERANGE);
+    scene_free(s);
+}
+
+/* Sum of the scene's triangle areas, and whether every triangle faces +z. */
+static double area_facing_up(const ct_scene *s, int *flipped)
+{
+    double a = 0.0;
+    *flipped = 0;
+    for (uint32_t t = 0; t < s->ntris; t++) {
+        a += scene_tri_area(s, t);
+        *flipped += scene_tri_normal(s, t).z < 0.9f;
+    }
+    return a;
+}
+
+/* Concave polygons are cut into ears, not fanned: a ring-shaped face (a
+ * square with a square hole, joined by a bridge) was drawn as a filled
+ * disc, and a fan of a chevron has a triangle outside the shape. */
+Test(scene, concave_polygons_keep_their_shape)
+{
+    struct { const char *obj; double area; const char *what; } cases[] = {
+        /* Outer square 4 x 4 counter-clockwise, bridge to the inner 2 x 2
+         * hole, the hole clockwise, back over the bridge: area 16 - 4. */
+        {"v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nv 1 1 0\nv 3 1 0\nv 3 3 0\nv 1 3 0\n"
+         "f 1 2 3 4 1 5 8 7 6 5\n", 12.0, "ring"},
+        /* A chevron: the first corner's fan leaves the shape. */
+        {"v 0 0 0\nv 2 1 0\nv 4 0 0\nv 2 3 0\nf 1 2 3 4\n", 4.0, "chevron"},
+        /* A comb of 7 teeth: 30 corners, 18 of them concave. */
+        {"v 0 0 0\nv 13 0 0\nv 13 3 0\nv 12 3 0\nv 12 1 0\nv 11 1 0\nv 11 3 0\nv 10 3 0\nv 10 1 0\nv 9 1 0\n"
+         "v 9 3 0\nv 8 3 0\nv 8 1 0\nv 7 1 0\nv 7 3 0\nv 6 3 0\nv 6 1 0\nv 5 1 0\nv 5 3 0\nv 4 3 0\nv 4 1 0\n"
+         "v 3 1 0\nv 3 3 0\nv 2 3 0\nv 2 1 0\nv 1 1 0\nv 1 3 0\nv 0 3 0\n"
+         "f 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28\n", 13.0 + 7 * 2.0, "comb"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        ct_scene *s = load_ok(one_mesh_scene(cases[i].obj));
+        int flipped;
+        double a = area_facing_up(s, &flipped);
+        cr_expect(fabs(a - cases[i].area) < 1e-4, "%s: triangles cover %g, the polygon %g", cases[i].what, a,
+                  cases[i].area);
+        cr_expect_eq(flipped, 0, "%s: %d triangles face away from the polygon", cases[i].what, flipped);
+        cr_expect_eq(s->nprims, 1u, "%s: one input polygon", cases[i].what);
+        scene_free(s);
+    }
+    /* A concave polygon too large to cut into ears is refused, not fanned. */
+    ct_scene *big = scene_new("big");
+    ct_error err;
+    scene_material m = scene_material_default("m");
+    cr_assert_geq(scene_add_material(big, &m, &err), 0);
+    cr_assert_geq(scene_begin_node(big, "part", SCENE_NODE_PART, 0, &err), 0);
+    enum { NB = 1100 };
+    static uint32_t ring[NB];
+    for (int i = 0; i < NB; i++) {
+        float r = i % 2 ? 1.0f : 2.0f, phi = 2.0f * CT_PI * (float)i / NB;
+        ring[i] = (uint32_t)scene_add_vertex(big, v3(r * cosf(phi), r * sinf(phi), 0), v3(0, 0, 1), &err);
+    }
+    cr_expect_eq(scene_add_polygon(big, ring, NB, &err), CT_ERANGE);
+    cr_expect(strstr(err.msg, "concave polygon of 1100 vertices (at most 1024"), "%s", err.msg);
+    scene_free(big);
+    /* A convex quad is still fanned from its first corner (radiosity patches
+     * recognise a quad by that shape). */
+    ct_scene *s = load_ok(one_mesh_scene("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"));
+    cr_assert_eq(s->ntris, 2u);
+    cr_expect(s->tris[0] == s->tris[3] && s->tris[2] == s->tris[4], "quad not fanned as (0,1,2), (0,2,3)");
+    scene_free(s);
 }

@@ -305,6 +305,9 @@ typedef struct broken {
     (uint8_t)(l), (uint8_t)((l) >> 8), (uint8_t)((l) >> 16), (uint8_t)((l) >> 24)
 #define F32(b0, b1, b2, b3) b0, b1, b2, b3
 #define ONE  F32(0, 0, 0x80, 0x3f)
+#define U32(v) (uint8_t)(v), (uint8_t)((v) >> 8), (uint8_t)((v) >> 16), (uint8_t)((v) >> 24)
+/* A TEX_PATCH header: texture, rectangle, encoding; samples 0, stamp 0. */
+#define PH(t, x, y, w, h, e) U32(t), U32(x), U32(y), U32(w), U32(h), U32(e), U32(0), U32(0), U32(0)
 #define NAN32 F32(0, 0, 0xc0, 0x7f)
 
 static const broken broken_frames[] = {
@@ -320,15 +323,23 @@ static const broken broken_frames[] = {
     {"short header", {6, 0, 0}, 3, CT_EPROTO, "peer: frame of 3 bytes is shorter than a header"},
     {"patch header truncated", {H(WIRE_TEX_PATCH, 0, 10), 1, 0, 0, 0, 2, 0, 0, 0, 3, 0}, 18, CT_EPROTO,
      "peer: TEX_PATCH body of 10 bytes is truncated"},
-    {"patch of width 0", {H(WIRE_TEX_PATCH, 0, 21), 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0}, 29,
-     CT_EPROTO, "peer: TEX_PATCH size 0x1 out of range"},
-    {"patch outside any texture", {H(WIRE_TEX_PATCH, 0, 21), 1, 0, 0, 0, 0xff, 0x3f, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0, 1, 0, 0, 0, 0}, 29,
-     CT_EPROTO, "peer: TEX_PATCH rectangle at 16383,0 outside any texture"},
-    {"patch garbage LZ4", {H(WIRE_TEX_PATCH, 0, 24), 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0,
-                           0xff, 0xff, 0xff, 0xff}, 32, CT_EPROTO, "peer: TEX_PATCH data does not decompress to 6 bytes"},
+    {"patch of width 0", {H(WIRE_TEX_PATCH, 0, 37), PH(1, 0, 0, 0, 1, 0), 0}, 45, CT_EPROTO,
+     "peer: TEX_PATCH size 0x1 out of range"},
+    {"patch outside any texture", {H(WIRE_TEX_PATCH, 0, 37), PH(1, 0x3fff, 0, 2, 1, 0), 0}, 45, CT_EPROTO,
+     "peer: TEX_PATCH rectangle at 16383,0 outside any texture"},
+    {"patch encoding unknown", {H(WIRE_TEX_PATCH, 0, 42), PH(1, 0, 0, 1, 1, 2), 0, 0, 0, 0, 0, 0}, 50, CT_EPROTO,
+     "peer: TEX_PATCH encoding 2 unknown"},
+    {"patch garbage LZ4", {H(WIRE_TEX_PATCH, 0, 40), PH(1, 0, 0, 1, 1, 1), 0xff, 0xff, 0xff, 0xff}, 48, CT_EPROTO,
+     "peer: TEX_PATCH data does not decompress to 6 bytes"},
     /* LZ4 block "4 literals ABCD" is valid but 4 bytes, not the 6 of a 1x1 patch. */
-    {"patch wrong raw size", {H(WIRE_TEX_PATCH, 0, 25), 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0,
-                              0x40, 'A', 'B', 'C', 'D'}, 33, CT_EPROTO, "peer: TEX_PATCH data does not decompress to 6 bytes"},
+    {"patch wrong raw size", {H(WIRE_TEX_PATCH, 0, 41), PH(1, 0, 0, 1, 1, 1), 0x40, 'A', 'B', 'C', 'D'}, 49, CT_EPROTO,
+     "peer: TEX_PATCH data does not decompress to 6 bytes"},
+    {"raw patch too short", {H(WIRE_TEX_PATCH, 0, 40), PH(1, 0, 0, 1, 1, 0), 1, 2, 3, 4}, 48, CT_EPROTO,
+     "peer: raw TEX_PATCH of 1x1 texels has 4 data bytes, expected 6"},
+    {"SYNC of the wrong size", {H(WIRE_SYNC, 0, 8), 1, 0, 0, 0, 0, 0, 0, 0}, 16, CT_EPROTO,
+     "peer: SYNC body length 8, expected 16"},
+    {"PONG without its clock", {H(WIRE_PONG, 0, 8), 1, 0, 0, 0, 0, 0, 0, 0}, 16, CT_EPROTO,
+     "peer: PONG body length 8, expected 16"},
     {"chunk of length 0", {H(WIRE_SCENE_CHUNK, 0, 9), 0, 0, 0, 0, 0, 0, 0, 0, 0x00}, 17, CT_EPROTO,
      "peer: SCENE_CHUNK length 0 out of range 1..1048576"},
     {"chunk length over the limit", {H(WIRE_SCENE_CHUNK, 0, 9), 0, 0, 0, 0, 1, 0, 0x10, 0, 0x00}, 17, CT_EPROTO,
@@ -349,6 +360,13 @@ static const broken broken_frames[] = {
                     ONE}, 52, CT_EPROTO, "peer: CAMERA has a non-finite value"},
     {"CAMERA fov", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE, ONE, ONE, ONE, ONE,
                     F32(0, 0, 0x80, 0xbf)}, 52, CT_EPROTO, "peer: CAMERA field of view -1 out of range"},
+    /* An eye far outside the scene range made a tracer abort inside Embree. */
+    {"CAMERA eye far away", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE,
+                             F32(0x23, 0xc7, 0x0a, 0xdf), ONE, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, ONE}, 52,
+     CT_EPROTO, "peer: CAMERA eye coordinate -1e+19 outside +-1e+09"},
+    {"CAMERA zero orientation", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE,
+                                 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, ONE}, 52, CT_EPROTO,
+     "peer: CAMERA orientation is not a unit quaternion (norm^2 0)"},
     {"CAMERA image size", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 0, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE, ONE, ONE, ONE, ONE,
                            ONE}, 52, CT_EPROTO, "peer: CAMERA image size 0x64 out of range"},
     {"SETTINGS flags", {H(WIRE_SETTINGS, 0, 40), 0, 0, 0, 0, 4, 0, 0, 0}, 48, CT_EPROTO, "peer: SETTINGS flags 0x4 unknown"},
@@ -733,7 +751,7 @@ static const broken_hs broken_handshakes[] = {
      "peer: bad magic byte 0x47 at offset 0 (not a corrtex peer?)"},
     {"magic without \\x1a", AUTH_ROLE_MASTER, false, {0x89, 'C', 'T', 'X', '\r', '\n', '\n'}, 7, CT_EPROTO,
      "peer: bad magic byte 0x0a at offset 6 (not a corrtex peer?)"},
-    {"wrong version (an older peer)", AUTH_ROLE_MASTER, false, {MAGIC, 2, 0, 2, 0, BID}, 64, CT_EPROTO, "peer: protocol version 2, expected 3"},
+    {"wrong version (an older peer)", AUTH_ROLE_MASTER, false, {MAGIC, 3, 0, 2, 0, BID}, 64, CT_EPROTO, "peer: protocol version 3, expected 4"},
     {"wrong role", AUTH_ROLE_MASTER, false, {MAGIC, WIRE_VERSION, 0, 1, 0, BID}, 64, CT_EPROTO,
      "peer: peer has role master (1), expected display"},
     {"unknown role", AUTH_ROLE_DISPLAY, false, {MAGIC, WIRE_VERSION, 0, 9, 0, BID}, 64, CT_EPROTO,

@@ -541,7 +541,7 @@ Test(xport, scene_over_a_socket)
     free_chans(&p, l);
 }
 
-/* --- the merging send queue ---------------------------------------------------------- */
+/* --- the send queue ---------------------------------------------------------------- */
 
 /* A patch of texture tex at (x, y, w, h) whose texels all hold value v. */
 static wire_msg patch(uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t h, float v, uint16_t *store)
@@ -554,7 +554,6 @@ static wire_msg patch(uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t
     return m;
 }
 
-/* A new merging queue of max_bytes. */
 static xport_queue *new_queue(size_t max_bytes)
 {
     xport_queue *q;
@@ -563,135 +562,110 @@ static xport_queue *new_queue(size_t max_bytes)
     return q;
 }
 
-/* Queues patch(tex, x, y, w, h, v), which must go in. */
-static void push_patch(xport_queue *q, uint32_t tex, uint32_t x, uint32_t y, uint32_t w, uint32_t h, float v)
+/* Drains the queue through its iovecs, `step` bytes at a time at most
+ * (0: whole iovecs), decoding what comes out; returns the number of
+ * messages and fills patch values (the first texel of each, by order). */
+static size_t drain(xport_queue *q, size_t step, unsigned *types, float *first, size_t cap)
 {
-    static uint16_t store[64 * 64 * 3];
-    wire_msg m = patch(tex, x, y, w, h, v, store);
-    cr_assert_eq(xport_queue_push(q, &m, NULL), 0, "patch %u at %u,%u %ux%u not queued", tex, x, y, w, h);
-}
-
-/* Drains the queue, applying patches to a 64x64 RGB image per texture id
- * (0..3); returns the message types in order. */
-typedef struct drained {
-    float img[4][64][64];
-    unsigned types[1024];
-    size_t n;
-} drained;
-
-static void drain(xport_queue *q, drained *out)
-{
-    memset(out, 0, sizeof *out);
     wire_decoder *d;
     wire_decoder_new("queue", &d, NULL);
+    size_t n = 0;
     for (;;) {
-        const uint8_t *data;
-        size_t len;
-        cr_assert_eq(xport_queue_head(q, &data, &len, NULL), 0);
-        if (!len) break;
-        wire_decoder_feed(d, data, len, NULL);
-        xport_queue_advance(q, len);
+        struct iovec iov[8];
+        int k = xport_queue_iov(q, iov, 8);
+        if (!k) break;
+        size_t took = 0;
+        for (int i = 0; i < k; i++) {
+            size_t len = iov[i].iov_len;
+            if (step && took + len > step) len = step - took;
+            wire_decoder_feed(d, iov[i].iov_base, len, NULL);
+            took += len;
+            if (step && took == step) break;
+        }
+        xport_queue_advance(q, took);
+        if (took && xport_queue_partial(q)) cr_assert(step, "whole iovecs end on frame boundaries");
         wire_msg m;
         while (wire_decoder_next(d, &m, NULL) == WIRE_OK) {
-            if (out->n < 1024) out->types[out->n] = m.type;
-            out->n++;
-            if (m.type != WIRE_TEX_PATCH) continue;
-            const wire_tex_patch *p = &m.u.tex_patch;
-            for (uint32_t y = 0; y < p->h; y++)
-                for (uint32_t x = 0; x < p->w; x++)
-                    out->img[p->tex][p->y + y][p->x + x] = wire_half_to_float(p->texels[3 * (y * p->w + x)]);
+            if (n < cap) {
+                types[n] = m.type;
+                first[n] = m.type == WIRE_TEX_PATCH ? wire_half_to_float(m.u.tex_patch.texels[0]) : 0.0f;
+            }
+            n++;
         }
     }
     cr_assert(xport_queue_empty(q));
+    cr_assert_eq(wire_decoder_pending(d), 0);
     wire_decoder_free(d);
+    return n;
 }
 
-Test(queue, newer_patch_covering_older_replaces_it)
+Test(queue, frames_come_out_in_order_across_segments)
 {
-    xport_queue *q = new_queue(1 << 20);
-    push_patch(q, 1, 8, 8, 4, 4, 1.0f);
-    push_patch(q, 1, 0, 0, 16, 16, 2.0f);
-    xport_queue_stats st = xport_queue_get_stats(q);
-    cr_assert_eq(st.entries, 1);
-    cr_assert_eq(st.merged, 1);
-    drained d;
-    drain(q, &d);
-    cr_assert_eq(d.n, 1);
-    cr_assert_eq(d.img[1][9][9], 2.0f);
-    xport_queue_free(q);
-}
-
-Test(queue, newer_patch_inside_older_is_written_into_it)
-{
-    xport_queue *q = new_queue(1 << 20);
-    push_patch(q, 1, 0, 0, 16, 16, 1.0f);
-    push_patch(q, 1, 4, 4, 2, 2, 3.0f);
-    cr_assert_eq(xport_queue_get_stats(q).entries, 1);
-    drained d;
-    drain(q, &d);
-    cr_assert_eq(d.n, 1);
-    cr_assert_eq(d.img[1][4][4], 3.0f);
-    cr_assert_eq(d.img[1][5][5], 3.0f);
-    cr_assert_eq(d.img[1][6][6], 1.0f);
-    xport_queue_free(q);
-}
-
-Test(queue, adjacent_rows_merge_into_one_rectangle)
-{
-    xport_queue *q = new_queue(1 << 20);
-    for (uint32_t y = 0; y < 8; y++) push_patch(q, 2, 3, y, 10, 1, (float)y);
-    cr_assert_eq(xport_queue_get_stats(q).entries, 1);
-    drained d;
-    drain(q, &d);
-    cr_assert_eq(d.n, 1);
-    for (uint32_t y = 0; y < 8; y++) cr_assert_eq(d.img[2][y][5], (float)y);
-    xport_queue_free(q);
-}
-
-Test(queue, different_textures_and_barriers_do_not_merge)
-{
-    xport_queue *q = new_queue(1 << 20);
-    push_patch(q, 1, 0, 0, 8, 8, 1.0f);
-    push_patch(q, 2, 0, 0, 8, 8, 2.0f);
-    wire_msg frame = {.type = WIRE_FRAME, .u.frame = {.frame = 1}};
-    xport_queue_push(q, &frame, NULL);
-    push_patch(q, 1, 0, 0, 8, 8, 5.0f); /* after FRAME 1: must not replace frame 1's patch */
-    wire_msg stats = {.type = WIRE_STATS};
-    xport_queue_push(q, &stats, NULL); /* not a barrier */
-    push_patch(q, 1, 0, 0, 8, 8, 6.0f);
-    drained d;
-    drain(q, &d);
-    unsigned want[] = {WIRE_TEX_PATCH, WIRE_TEX_PATCH, WIRE_FRAME, WIRE_TEX_PATCH, WIRE_STATS};
-    cr_assert_eq(d.n, 5, "%zu messages", d.n);
-    for (size_t i = 0; i < 5; i++) cr_assert_eq(d.types[i], want[i], "message %zu", i);
-    cr_assert_eq(d.img[1][0][0], 6.0f);
-    cr_assert_eq(d.img[2][0][0], 2.0f);
-    xport_queue_free(q);
-}
-
-Test(queue, newest_wins_with_partial_overlaps)
-{
-    /* A random sequence of patches on one texture; after merging, the image
-     * the display builds must equal applying every patch in order. */
-    xport_queue *q = new_queue(64u << 20);
-    static float want[64][64];
-    memset(want, 0, sizeof want);
-    uint32_t seed = 12345;
-    for (int i = 0; i < 400; i++) {
-        seed = seed * 1664525u + 1013904223u;
-        uint32_t x = (seed >> 8) % 48, y = (seed >> 16) % 48, w = 1 + (seed >> 4) % 16, h = 1 + (seed >> 24) % 16;
-        float v = (float)(i + 1);
-        push_patch(q, 3, x, y, w, h, v);
-        for (uint32_t yy = y; yy < y + h; yy++)
-            for (uint32_t xx = x; xx < x + w; xx++) want[yy][xx] = wire_half_to_float(wire_half_from_float(v));
+    /* 2000 patches of 4 KiB spread over many segments; drained whole and
+     * in odd slices, they decode in the order they went in. */
+    for (size_t step = 0; step <= 7777; step += 7777) {
+        xport_queue *q = new_queue(64u << 20);
+        static uint16_t s[32 * 32 * 3];
+        for (int i = 0; i < 2000; i++) {
+            wire_msg m = patch(1, 0, 0, 32, 22, (float)(i % 1000), s);
+            cr_assert_eq(xport_queue_push(q, &m, NULL), 0);
+            if (i % 100 == 0) {
+                wire_msg st = {.type = WIRE_STATS};
+                cr_assert_eq(xport_queue_push(q, &st, NULL), 0);
+            }
+        }
+        cr_assert_eq(xport_queue_get_stats(q).pushed, 2020);
+        static unsigned types[4096];
+        static float first[4096];
+        size_t n = drain(q, step, types, first, 4096);
+        cr_assert_eq(n, 2020);
+        size_t k = 0;
+        for (int i = 0; i < 2000; i++) {
+            cr_assert_eq(types[k], WIRE_TEX_PATCH);
+            cr_assert_eq(first[k], (float)(i % 1000), "message %zu", k);
+            k++;
+            if (i % 100 == 0) cr_assert_eq(types[k++], WIRE_STATS);
+        }
+        xport_queue_free(q);
     }
-    xport_queue_stats st = xport_queue_get_stats(q);
-    cr_assert_gt(st.merged, 0);
-    cr_assert_lt(st.entries, 400);
-    drained d;
-    drain(q, &d);
-    for (int y = 0; y < 64; y++)
-        for (int x = 0; x < 64; x++) cr_assert_eq(d.img[3][y][x], want[y][x], "texel %d,%d", x, y);
+}
+
+/* A frame encoded in place at the tail (as the master's texture updates
+ * are) sits between pushed ones like any other. */
+static void rows_of(void *ctx, uint32_t row, uint8_t *dst)
+{
+    const float *v = ctx;
+    for (int i = 0; i < 4 * 3; i++) {
+        uint16_t h = wire_half_from_float(*v + (float)row);
+        dst[2 * i] = (uint8_t)h;
+        dst[2 * i + 1] = (uint8_t)(h >> 8);
+    }
+}
+
+Test(queue, frames_encoded_in_place_at_the_tail)
+{
+    xport_queue *q = new_queue(1 << 20);
+    ct_error err;
+    wire_msg a = {.type = WIRE_PING};
+    cr_assert_eq(xport_queue_push(q, &a, NULL), 0);
+    for (uint32_t enc = WIRE_PATCH_RAW; enc <= WIRE_PATCH_LZ4; enc++) {
+        wire_buf *t = xport_queue_tail(q, &err);
+        cr_assert_not_null(t);
+        float v = 5.0f;
+        wire_tex_patch p = {.tex = 2, .w = 4, .h = 3, .encoding = enc, .samples = 7, .stamp_us = 99};
+        cr_assert_eq(wire_encode_patch(&p, rows_of, &v, t, NULL, &err), 0, "%s", err.msg);
+        xport_queue_commit(q, 1);
+    }
+    cr_assert_eq(xport_queue_push(q, &a, NULL), 0);
+    cr_assert_eq(xport_queue_get_stats(q).pushed, 4);
+    unsigned types[8];
+    float first[8];
+    cr_assert_eq(drain(q, 3, types, first, 8), 4);
+    cr_assert_eq(types[0], WIRE_PING);
+    cr_assert_eq(types[1], WIRE_TEX_PATCH);
+    cr_assert_eq(first[1], 5.0f);
+    cr_assert_eq(types[2], WIRE_TEX_PATCH);
+    cr_assert_eq(types[3], WIRE_PING);
     xport_queue_free(q);
 }
 
@@ -699,67 +673,63 @@ Test(queue, bounded)
 {
     xport_queue *q = new_queue(10000);
     static uint16_t s[64 * 64 * 3];
-    /* Distinct areas of distinct textures cannot merge: the queue fills. */
-    int full = 0;
-    for (uint32_t i = 0; i < 100 && !full; i++) {
-        uint32_t cell = (i / 4) % 9; /* 8x8 patches 12 texels apart: nothing touches */
-        wire_msg m = patch(i % 4, (cell % 3) * 20, (cell / 3) * 20, 8, 8, 1.0f, s);
-        int rc = xport_queue_push(q, &m, NULL);
+    /* An empty queue takes any one frame, however large. */
+    wire_msg big = patch(0, 0, 0, 64, 64, 9.0f, s);
+    cr_assert_eq(xport_queue_push(q, &big, NULL), 0);
+    wire_msg small = patch(0, 0, 0, 2, 2, 1.0f, s);
+    cr_assert_eq(xport_queue_push(q, &small, NULL), XPORT_QUEUE_FULL);
+    size_t before = xport_queue_get_stats(q).bytes;
+    unsigned types[4];
+    float first[4];
+    cr_assert_eq(drain(q, 0, types, first, 4), 1, "a refused frame leaves nothing behind");
+    cr_assert_gt(before, 10000);
+    int full = 0, n = 0;
+    while (!full && n < 1000) {
+        int rc = xport_queue_push(q, &small, NULL);
         cr_assert_geq(rc, 0);
         full = rc == XPORT_QUEUE_FULL;
+        n += !full;
     }
-    cr_assert(full, "queue never filled");
+    cr_assert(full);
     cr_assert_leq(xport_queue_get_stats(q).bytes, 10000);
-    /* A patch that covers queued ones still goes in (it frees their room). */
-    wire_msg big = patch(0, 0, 0, 64, 8, 9.0f, s);
-    cr_assert_eq(xport_queue_push(q, &big, NULL), 0);
-    cr_assert_leq(xport_queue_get_stats(q).bytes, 10000 + 64 * 8 * 6 + 32);
-    drained d;
-    drain(q, &d);
-    cr_assert_eq(d.img[0][3][40], 9.0f);
+    cr_assert_eq(drain(q, 0, types, first, 4), (size_t)n);
     xport_queue_free(q);
 }
 
-Test(queue, slow_display_over_a_socket)
+Test(queue, a_display_that_stops_reading_fills_the_bounded_queue)
 {
-    /* The master sends a stream of patches over the same area to a display
-     * that does not read; the queue stays bounded by merging, and once the
-     * display reads, it ends with the newest texels. */
+    /* Over a socket: the kernel buffer fills, then the queue, whose bound
+     * refuses more; once the display reads, everything arrives in order. */
     char spec[128];
     pair p;
     xport_listener *l;
     ready_unix_chans(spec, sizeof spec, &p, &l);
     ct_error err = {{0}};
     static uint16_t s[64 * 64 * 3];
-    for (int i = 1; i <= 3000; i++) {
-        wire_msg m = patch(1, 0, (uint32_t)(i % 4) * 16, 64, 16, (float)i, s);
-        cr_assert_eq(chan_send(p.m, &m, &err), 0, "%s", err.msg);
-        chan_pump(p.m, &err); /* the socket buffer fills, then the queue merges */
+    int sent = 0, full = 0;
+    for (int i = 1; i <= 3000 && !full; i++) {
+        wire_msg m = patch(1, 0, 0, 64, 64, (float)(i % 2048), s);
+        int rc = chan_send(p.m, &m, &err);
+        cr_assert_geq(rc, 0, "%s", err.msg);
+        full = rc == XPORT_QUEUE_FULL;
+        sent += !full;
+        chan_pump(p.m, &err);
     }
-    xport_queue_stats st = chan_queue_stats(p.m);
-    cr_assert_gt(st.merged, 0, "no merging happened");
-    cr_assert_leq(st.entries, 4);
-    static float img[64][64];
-    const float h3000 = wire_half_to_float(wire_half_from_float(3000.0f));
-    const float h2999 = wire_half_to_float(wire_half_from_float(2999.0f));
-    for (int t = 0; t < 20000; t++) {
+    cr_assert(full, "the queue (64 MiB) never filled");
+    cr_assert_leq(chan_queue_stats(p.m).bytes, CHAN_DEFAULT_QUEUE_BYTES);
+    int got = 0;
+    float last = 0;
+    for (int t = 0; t < 200000 && got < sent; t++) {
         chan_pump(p.m, &err);
         chan_pump(p.d, &err);
         wire_msg m;
         while (chan_recv(p.d, &m, &err) == WIRE_OK) {
-            const wire_tex_patch *q = &m.u.tex_patch;
-            for (uint32_t y = 0; y < q->h; y++)
-                for (uint32_t x = 0; x < q->w; x++) img[q->y + y][q->x + x] = wire_half_to_float(q->texels[3 * (y * q->w + x)]);
+            got++;
+            last = wire_half_to_float(m.u.tex_patch.texels[0]);
+            cr_assert_eq(last, (float)(got % 2048), "patch %d out of order", got);
         }
-        if (chan_flushed(p.m) && img[0][0] == h3000 && img[63][63] == h2999) break;
-        usleep(100);
     }
-    /* Newest values: rows 0-15 were last written by i = 3000 (i % 4 == 0),
-     * rows 16-31 by 2997, rows 48-63 by 2999 (as halves). */
-    cr_assert_eq(img[0][0], h3000);
-    cr_assert_eq(img[20][5], wire_half_to_float(wire_half_from_float(2997.0f)));
-    cr_assert_eq(img[40][60], wire_half_to_float(wire_half_from_float(2998.0f)));
-    cr_assert_eq(img[63][63], h2999);
+    cr_assert_eq(got, sent);
     free_chans(&p, l);
 }
 

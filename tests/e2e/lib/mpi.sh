@@ -7,6 +7,7 @@
 #   master_start NAME NP ARGS...             mpirun -np NP corrtex-render ARGS in the background
 #   master_wait_listen NAME                  waits for "listening on ADDR"; sets ADDR
 #   master_wait NAME SECONDS                 waits for the job to end; sets MASTER_RC
+#   master_term NAME                         SIGTERM to rank 0; the job must end with status 0
 #   display_run NAME ARGS...                 corrtex-display ARGS (foreground, logged)
 #   cornell_args                             scene + a small radiosity mesh in $tmp
 #   same_frames A B WHAT                     counts identical frames 0..4 of $tmp/A and $tmp/B into same
@@ -101,6 +102,16 @@ master_wait() {
   done
   MASTER_RC=124
   return 1
+}
+
+# master_term NAME: SIGTERM to rank 0 ends the job in order (status 0, 20 s
+# at most); its last log lines are printed.
+master_term() {
+  echo "+ kill -TERM <rank 0>"
+  kill -TERM "$(rank_pid "$1" 0)"
+  master_wait "$1" 20 || fail "$1: the job did not end"
+  ((MASTER_RC == 0)) || fail "$1: job exit status $MASTER_RC"
+  master_log "$1" | grep -v -e progress -e stats | tail -n 12
 }
 
 # rank_pid NAME RANK: the pid of one rank of job NAME (a child of its mpirun

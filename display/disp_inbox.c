@@ -1,0 +1,612 @@
+/* disp_inbox.c: the hand-over between the connection thread and the render
+ * thread (disp_inbox.h). */
+#include "display/disp_inbox.h"
+
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/bitrow.h"
+#include "display/gl_load.h"
+
+/* Tiles of changed texels, as on the master (master/ctex_dirty.h): patches
+ * arrive as runs of them, so uploads follow the same runs. */
+#define TS_SHIFT 3
+#define TS (1 << TS_SHIFT)
+#define MAX_FRAMES 64
+
+typedef struct ib_tex {
+    uint32_t id, node;
+    int w, h;
+    disp_proj_kind kind;
+    mat4 proj;
+    bool proj_new;           /* a projection arrived since the last apply */
+    bool live;               /* allocated (false: freed since the last apply) */
+    bool fresh;              /* allocated anew since the last apply */
+    bool in_gl;              /* the render thread has made its GL texture */
+    bool negative, nonzero;  /* since its allocation (disp_textures.h) */
+    bool dirty;              /* some tile is marked */
+    uint16_t *tx;            /* w*h*3 halves, row by row */
+    uint64_t *bits;          /* th rows of `words`: tiles changed since the last apply */
+    int tw, th, words;
+} ib_tex;
+
+typedef struct frame_end {
+    uint64_t frame;
+    uint32_t samples;
+    bool all_positive;
+} frame_end;
+
+/* An upload found under the lock, issued after it. */
+typedef struct upload {
+    uint32_t id;
+    int x, y, w, h;
+    size_t off;
+    bool negative, nonzero;
+} upload;
+
+/* A texture operation found under the lock, issued after it. */
+typedef struct texop {
+    enum { OP_FREE, OP_ALLOC, OP_PROJ } kind;
+    uint32_t id, node;
+    int w, h;
+    disp_proj_kind pk;
+    mat4 m;
+} texop;
+
+struct disp_inbox {
+    pthread_mutex_t mu;
+    int max_tex;
+    /* scene */
+    ct_radmesh scene;
+    bool scene_new, have_scene;
+    uint32_t nnodes;
+    /* textures */
+    ib_tex *tex;
+    uint32_t ntex, cap;
+    uint64_t tex_bytes;            /* their CPU copies */
+    size_t dirty_bytes;            /* marked for upload (an upper bound) */
+    uint64_t texels_in, patches_in;
+    disp_inbox_stamp *stamps;      /* patches received, not yet on a texture */
+    uint32_t nstamps, cap_stamps;
+    disp_inbox_stamp *taken;       /* handed to the last apply */
+    uint32_t ntaken, cap_taken;
+    /* points, frames, stats */
+    float *pts;
+    uint32_t npts, cap_pts;
+    uint64_t pts_dropped;
+    frame_end frames[MAX_FRAMES];
+    uint32_t nframes;
+    bool stats_new, stats_pos;
+    uint64_t stats_total;
+    /* lockstep and status */
+    uint32_t epoch;
+    disp_inbox_state st;
+    bool frame_taken_any;
+    uint64_t frame_taken;
+    uint64_t bytes_applied;
+    /* render-thread scratch */
+    texop *ops;
+    uint32_t nops, cap_ops;
+    upload *ups;
+    uint32_t nups, cap_ups;
+    unsigned pbo;
+};
+
+static bool grow(void **p, uint32_t *cap, uint32_t need, size_t elem)
+{
+    if (need <= *cap) return true;
+    uint32_t n = *cap ? *cap : 64;
+    while (n < need) n *= 2;
+    void *q = realloc(*p, (size_t)n * elem);
+    if (!q) return false;
+    *p = q;
+    *cap = n;
+    return true;
+}
+
+int disp_inbox_new(int max_tex, disp_inbox **out, ct_error *err)
+{
+    disp_inbox *b = calloc(1, sizeof *b);
+    if (!b) return ct_fail(err, CT_ENOMEM, "out of memory for the inbox");
+    pthread_mutex_init(&b->mu, NULL);
+    b->max_tex = max_tex;
+    *out = b;
+    return CT_OK;
+}
+
+static void tex_release(disp_inbox *b, ib_tex *t)
+{
+    if (t->tx) b->tex_bytes -= (uint64_t)t->w * (uint64_t)t->h * 6;
+    free(t->tx);
+    free(t->bits);
+    t->tx = NULL;
+    t->bits = NULL;
+}
+
+static void drop_textures(disp_inbox *b)
+{
+    for (uint32_t i = 0; i < b->ntex; i++) tex_release(b, &b->tex[i]);
+    b->ntex = 0;
+    b->dirty_bytes = 0;
+}
+
+void disp_inbox_free(disp_inbox *b)
+{
+    if (!b) return;
+    drop_textures(b);
+    rmesh_free(&b->scene);
+    free(b->tex);
+    free(b->stamps);
+    free(b->taken);
+    free(b->pts);
+    free(b->ops);
+    free(b->ups);
+    pthread_mutex_destroy(&b->mu);
+    free(b);
+}
+
+void disp_inbox_connection(disp_inbox *b)
+{
+    pthread_mutex_lock(&b->mu);
+    b->st.have_scene = false;
+    b->st.frame_seen = false;
+    b->st.have_view = false;
+    b->frame_taken_any = false;
+    b->epoch = 0;
+    b->nframes = 0;
+    pthread_mutex_unlock(&b->mu);
+}
+
+/* --- the connection thread ------------------------------------------------ */
+
+void disp_inbox_scene(disp_inbox *b, ct_radmesh *m)
+{
+    pthread_mutex_lock(&b->mu);
+    rmesh_free(&b->scene);
+    b->scene = *m;
+    memset(m, 0, sizeof *m);
+    b->scene_new = true;
+    b->have_scene = true;
+    b->st.have_scene = true;
+    b->nnodes = b->scene.nnodes;
+    drop_textures(b);   /* the session drops its textures with the old scene */
+    b->nstamps = 0;
+    pthread_mutex_unlock(&b->mu);
+}
+
+static ib_tex *find(disp_inbox *b, uint32_t id)
+{
+    for (uint32_t i = 0; i < b->ntex; i++)
+        if (b->tex[i].id == id) return &b->tex[i];
+    return NULL;
+}
+
+int disp_inbox_tex_alloc(disp_inbox *b, uint32_t id, uint32_t node, int w, int h, disp_proj_kind kind,
+                         ct_error *err)
+{
+    if (w < 1 || h < 1 || w > b->max_tex || h > b->max_tex)
+        return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, w, h, b->max_tex);
+    if (kind != DISP_PROJ_OBJECT_PARALLEL && kind != DISP_PROJ_CAMERA_PERSPECTIVE)
+        return ct_fail(err, CT_EPROTO, "texture %u: unknown projection kind %d", id, (int)kind);
+    int rc = CT_OK;
+    pthread_mutex_lock(&b->mu);
+    ib_tex *t = find(b, id);
+    uint64_t bytes = (uint64_t)w * (uint64_t)h * 6;
+    if (!b->have_scene) {
+        rc = ct_fail(err, CT_EPROTO, "texture %u allocated before any scene", id);
+    } else if (node >= b->nnodes) {
+        rc = ct_fail(err, CT_EPROTO, "texture allocation: node %u out of range (%u nodes)", node, b->nnodes);
+    } else if (b->tex_bytes - (t && t->tx ? (uint64_t)t->w * (uint64_t)t->h * 6 : 0) + bytes >
+               DISP_INBOX_MAX_BYTES) {
+        rc = ct_fail(err, CT_ENOMEM, "texture %u: %dx%d texels would pass the display's %llu MiB", id, w, h,
+                     (unsigned long long)(DISP_INBOX_MAX_BYTES >> 20));
+    } else if (!t && !grow((void **)&b->tex, &b->cap, b->ntex + 1, sizeof *b->tex)) {
+        rc = ct_fail(err, CT_ENOMEM, "out of memory for %u textures", b->ntex + 1);
+    }
+    if (!rc) {
+        int tw = (w + TS - 1) >> TS_SHIFT, th = (h + TS - 1) >> TS_SHIFT, words = bitrow_words(tw);
+        uint16_t *tx = calloc((size_t)w * (size_t)h * 3, sizeof *tx);
+        uint64_t *bits = calloc((size_t)th * (size_t)words, sizeof *bits);
+        if (!tx || !bits) {
+            free(tx);
+            free(bits);
+            rc = ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
+        } else {
+            if (!t) {
+                t = &b->tex[b->ntex++];
+                memset(t, 0, sizeof *t);
+                t->id = id;
+                t->proj = m4_identity();
+            } else {
+                tex_release(b, t);
+            }
+            /* A new texture's texels are zero, as its GL texture will be:
+             * nothing to upload until a patch arrives. A re-allocated id
+             * keeps its projection (a resize does not move it). */
+            t->node = node;
+            t->w = w;
+            t->h = h;
+            t->kind = kind;
+            t->tx = tx;
+            t->bits = bits;
+            t->tw = tw;
+            t->th = th;
+            t->words = words;
+            t->live = t->fresh = true;
+            t->negative = t->nonzero = t->dirty = false;
+            b->tex_bytes += bytes;
+        }
+    }
+    pthread_mutex_unlock(&b->mu);
+    return rc;
+}
+
+int disp_inbox_tex_projection(disp_inbox *b, uint32_t id, const mat4 *world_to_tex, ct_error *err)
+{
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            if (!isfinite(world_to_tex->m[r][c]))
+                return ct_fail(err, CT_ERANGE, "texture %u: projection is not finite", id);
+    int rc = CT_OK;
+    pthread_mutex_lock(&b->mu);
+    ib_tex *t = find(b, id);
+    if (!t || !t->live) {
+        rc = ct_fail(err, CT_EPROTO, "projection for unknown texture %u", id);
+    } else {
+        t->proj = *world_to_tex;
+        t->proj_new = true;
+    }
+    pthread_mutex_unlock(&b->mu);
+    return rc;
+}
+
+int disp_inbox_tex_patch(disp_inbox *b, uint32_t id, int x, int y, int w, int h, const uint16_t *rgb,
+                         uint64_t stamp_us, uint32_t samples, ct_error *err)
+{
+    /* Non-zero: any bit but the sign; negative: the sign and not -0. Found
+     * here, off the render thread. */
+    bool neg = false, nz = false;
+    size_t n = w > 0 && h > 0 ? (size_t)w * (size_t)h * 3 : 0;
+    for (size_t i = 0; i < n; i++) {
+        nz |= (rgb[i] & 0x7fffu) != 0;
+        neg |= (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
+    }
+    int rc = CT_OK;
+    pthread_mutex_lock(&b->mu);
+    ib_tex *t = find(b, id);
+    if (!t || !t->live) {
+        rc = ct_fail(err, CT_EPROTO, "patch for unknown texture %u", id);
+    } else if (x < 0 || y < 0 || w < 1 || h < 1 || x > t->w - w || y > t->h - h) {
+        rc = ct_fail(err, CT_ERANGE, "texture %u: patch %dx%d at (%d,%d) outside %dx%d", id, w, h, x, y, t->w,
+                     t->h);
+    } else {
+        for (int j = 0; j < h; j++)
+            memcpy(t->tx + 3 * ((size_t)(y + j) * (size_t)t->w + (size_t)x), rgb + 3 * (size_t)j * (size_t)w,
+                   (size_t)w * 6);
+        int a = x >> TS_SHIFT, e = (x + w - 1) >> TS_SHIFT;
+        for (int ty = y >> TS_SHIFT; ty <= (y + h - 1) >> TS_SHIFT; ty++)
+            bitrow_set(t->bits + (size_t)ty * (size_t)t->words, a, e);
+        t->dirty = true;
+        t->negative |= neg;
+        t->nonzero |= nz;
+        b->dirty_bytes += (size_t)(e - a + 1) * TS * 6 * (size_t)(((y + h - 1) >> TS_SHIFT) - (y >> TS_SHIFT) + 1) * TS;
+        b->texels_in += (uint64_t)w * (uint64_t)h;
+        b->patches_in++;
+        if (samples && grow((void **)&b->stamps, &b->cap_stamps, b->nstamps + 1, sizeof *b->stamps))
+            b->stamps[b->nstamps++] = (disp_inbox_stamp){stamp_us, samples};
+    }
+    pthread_mutex_unlock(&b->mu);
+    return rc;
+}
+
+int disp_inbox_tex_free(disp_inbox *b, uint32_t id, ct_error *err)
+{
+    int rc = CT_OK;
+    pthread_mutex_lock(&b->mu);
+    ib_tex *t = find(b, id);
+    if (!t || !t->live) {
+        rc = ct_fail(err, CT_EPROTO, "free of unknown texture %u", id);
+    } else {
+        /* Kept until the render thread has deleted its GL texture. */
+        tex_release(b, t);
+        t->live = false;
+        t->fresh = false;
+        t->dirty = false;
+    }
+    pthread_mutex_unlock(&b->mu);
+    return rc;
+}
+
+void disp_inbox_points(disp_inbox *b, const float *xyz, uint32_t n, uint64_t dropped)
+{
+    pthread_mutex_lock(&b->mu);
+    b->pts_dropped = dropped;
+    /* The samples view keeps at most DISP_SAMPLE_MAX points anyway; more
+     * pending ones than that are older than what it would show. */
+    if (b->npts + n > DISP_SAMPLE_MAX) b->npts = 0;
+    if (n && grow((void **)&b->pts, &b->cap_pts, 3 * (b->npts + n), sizeof *b->pts)) {
+        memcpy(b->pts + 3 * (size_t)b->npts, xyz, 3 * (size_t)n * sizeof *xyz);
+        b->npts += n;
+    }
+    pthread_mutex_unlock(&b->mu);
+}
+
+void disp_inbox_frame_end(disp_inbox *b, uint64_t frame, uint32_t epoch, uint32_t samples, bool all_positive)
+{
+    pthread_mutex_lock(&b->mu);
+    if (b->nframes < MAX_FRAMES) b->frames[b->nframes++] = (frame_end){frame, samples, all_positive};
+    if (epoch == b->epoch) {
+        b->st.frame_seen = true;
+        b->st.frame_last = frame;
+    }
+    pthread_mutex_unlock(&b->mu);
+}
+
+void disp_inbox_stats(disp_inbox *b, uint64_t samples_total, bool all_positive)
+{
+    pthread_mutex_lock(&b->mu);
+    b->stats_new = true;
+    b->stats_total = samples_total;
+    b->stats_pos = all_positive;
+    pthread_mutex_unlock(&b->mu);
+}
+
+void disp_inbox_view(disp_inbox *b, const ct_camera *cam)
+{
+    pthread_mutex_lock(&b->mu);
+    b->st.have_view = true;
+    b->st.view = *cam;
+    pthread_mutex_unlock(&b->mu);
+}
+
+void disp_inbox_bytes(disp_inbox *b, uint64_t total)
+{
+    pthread_mutex_lock(&b->mu);
+    b->st.bytes = total;
+    pthread_mutex_unlock(&b->mu);
+}
+
+/* --- the render thread ------------------------------------------------------ */
+
+void disp_inbox_new_epoch(disp_inbox *b, uint32_t epoch)
+{
+    pthread_mutex_lock(&b->mu);
+    b->epoch = epoch;
+    b->st.frame_seen = false;
+    pthread_mutex_unlock(&b->mu);
+}
+
+disp_inbox_state disp_inbox_get_state(disp_inbox *b)
+{
+    pthread_mutex_lock(&b->mu);
+    disp_inbox_state s = b->st;
+    pthread_mutex_unlock(&b->mu);
+    return s;
+}
+
+bool disp_inbox_frame_ready(disp_inbox *b, uint64_t *frame)
+{
+    pthread_mutex_lock(&b->mu);
+    /* Every texel of the frame must be on the textures too. */
+    bool ok = b->st.frame_seen && (!b->frame_taken_any || b->st.frame_last > b->frame_taken) &&
+              b->dirty_bytes == 0 && !b->scene_new;
+    if (ok && frame) *frame = b->st.frame_last;
+    pthread_mutex_unlock(&b->mu);
+    return ok;
+}
+
+void disp_inbox_take_frame(disp_inbox *b)
+{
+    pthread_mutex_lock(&b->mu);
+    if (b->st.frame_seen) {
+        b->frame_taken = b->st.frame_last;
+        b->frame_taken_any = true;
+    }
+    pthread_mutex_unlock(&b->mu);
+}
+
+/* Under the lock: texture operations in the order the render thread must
+ * issue them (frees, then allocations, then projections). */
+static bool collect_ops(disp_inbox *b)
+{
+    b->nops = 0;
+    for (uint32_t pass = 0; pass < 3; pass++)
+        for (uint32_t i = 0; i < b->ntex; i++) {
+            ib_tex *t = &b->tex[i];
+            texop o = {.id = t->id};
+            if (pass == 0 && t->in_gl && !t->live) {
+                o.kind = OP_FREE;
+                t->in_gl = false;
+            } else if (pass == 1 && t->live && t->fresh) {
+                o = (texop){.kind = OP_ALLOC, .id = t->id, .node = t->node, .w = t->w, .h = t->h, .pk = t->kind};
+                t->fresh = false;
+                t->in_gl = true;
+                t->proj_new = true;   /* a new GL texture needs its projection */
+            } else if (pass == 2 && t->live && t->proj_new && t->in_gl) {
+                o = (texop){.kind = OP_PROJ, .id = t->id, .m = t->proj};
+                t->proj_new = false;
+            } else {
+                continue;
+            }
+            if (!grow((void **)&b->ops, &b->cap_ops, b->nops + 1, sizeof *b->ops)) return false;
+            b->ops[b->nops++] = o;
+        }
+    /* Entries freed and deleted from GL are forgotten. */
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < b->ntex; i++)
+        if (b->tex[i].live || b->tex[i].in_gl) b->tex[k++] = b->tex[i];
+    b->ntex = k;
+    return true;
+}
+
+/* Under the lock: copies marked runs into dst (cap bytes), making the
+ * upload list; what does not fit stays marked. */
+static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
+{
+    size_t off = 0;
+    b->nups = 0;
+    for (uint32_t i = 0; i < b->ntex; i++) {
+        ib_tex *t = &b->tex[i];
+        if (!t->live || !t->dirty || !t->in_gl) continue;
+        bool left = false;
+        for (int ty = 0; ty < t->th; ty++) {
+            uint64_t *row = t->bits + (size_t)ty * (size_t)t->words;
+            int len, a = bitrow_next_run(row, t->tw, 0, &len);
+            while (len) {
+                int x = a << TS_SHIFT, y = ty << TS_SHIFT, w = len << TS_SHIFT, h = TS;
+                if (x + w > t->w) w = t->w - x;
+                if (y + h > t->h) h = t->h - y;
+                size_t bytes = (size_t)w * (size_t)h * 6;
+                if (off + bytes > cap ||
+                    !grow((void **)&b->ups, &b->cap_ups, b->nups + 1, sizeof *b->ups)) {
+                    left = true;
+                    break;
+                }
+                for (int j = 0; j < h; j++)
+                    memcpy(dst + off + (size_t)j * (size_t)w * 6, t->tx + 3 * ((size_t)(y + j) * (size_t)t->w + (size_t)x),
+                           (size_t)w * 6);
+                b->ups[b->nups++] = (upload){t->id, x, y, w, h, off, t->negative, t->nonzero};
+                off += bytes;
+                bitrow_clear(row, a, len);
+                a = bitrow_next_run(row, t->tw, a + len, &len);
+            }
+            if (left) break;
+        }
+        if (left) break;
+        t->dirty = false;
+    }
+    /* What is still marked, by whole tiles. */
+    size_t rest = 0;
+    for (uint32_t i = 0; i < b->ntex; i++) {
+        const ib_tex *t = &b->tex[i];
+        if (!t->live || !t->dirty) continue;
+        for (size_t k = 0; k < (size_t)t->th * (size_t)t->words; k++)
+            rest += (size_t)__builtin_popcountll(t->bits[k]) * TS * TS * 6;
+    }
+    b->dirty_bytes = rest;
+}
+
+int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_error *err)
+{
+    memset(took, 0, sizeof *took);
+    ct_radmesh scene = {0};
+    bool have_scene = false;
+    frame_end frames[MAX_FRAMES];
+    uint32_t nframes;
+    float *pts = NULL;
+    uint32_t npts = 0;
+    uint64_t dropped, bytes, stats_total = 0;
+    bool stats_new, stats_pos, ops_ok;
+    int rc = CT_OK;
+
+    /* The upload buffer is sized from a first look (mapping it may not
+     * happen under the lock); what arrives after it waits for the next
+     * frame. Changed tiles go into it orphaned each frame, so the driver
+     * never waits for the previous frame's upload. */
+    pthread_mutex_lock(&b->mu);
+    size_t want = b->dirty_bytes < DISP_INBOX_FRAME_BYTES ? b->dirty_bytes : DISP_INBOX_FRAME_BYTES;
+    pthread_mutex_unlock(&b->mu);
+    uint8_t *dst = NULL;
+    if (want) {
+        if (!b->pbo) gl.GenBuffers(1, &b->pbo);
+        gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, b->pbo);
+        gl.BufferData(GL_PIXEL_UNPACK_BUFFER, (GLsizeiptr)want, NULL, GL_STREAM_DRAW);
+        dst = gl.MapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, (GLsizeiptr)want,
+                                GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
+        if (!dst) {
+            rc = gl_check("mapping the texel upload buffer", err);
+            if (!rc) rc = ct_fail(err, CT_ESYS, "cannot map a %zu-byte texel upload buffer", want);
+            gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+            return rc;
+        }
+    }
+
+    /* One critical section: the texture operations and the texels taken
+     * together, so every upload fits the GL texture the operations make
+     * (a texture re-allocated at a new size between two looks had its
+     * old ALLOC applied and its new texels uploaded). */
+    pthread_mutex_lock(&b->mu);
+    if (b->scene_new) {
+        scene = b->scene;
+        memset(&b->scene, 0, sizeof b->scene);
+        b->scene_new = false;
+        have_scene = true;
+    }
+    ops_ok = collect_ops(b);
+    b->nups = 0;
+    b->ntaken = 0;
+    if (dst && ops_ok) {
+        collect_uploads(b, dst, want);
+        /* The stamps go with the texels they describe: once nothing is
+         * left marked, every patch received so far is on a texture. */
+        if (b->dirty_bytes == 0) {
+            disp_inbox_stamp *t = b->taken;
+            uint32_t ct = b->cap_taken;
+            b->taken = b->stamps;
+            b->cap_taken = b->cap_stamps;
+            b->ntaken = b->nstamps;
+            b->stamps = t;
+            b->cap_stamps = ct;
+            b->nstamps = 0;
+        }
+    }
+    nframes = b->nframes;
+    memcpy(frames, b->frames, nframes * sizeof *frames);
+    b->nframes = 0;
+    if (b->npts) {
+        pts = b->pts;
+        npts = b->npts;
+        b->pts = NULL;
+        b->npts = b->cap_pts = 0;
+    }
+    dropped = b->pts_dropped;
+    stats_new = b->stats_new;
+    stats_pos = b->stats_pos;
+    stats_total = b->stats_total;
+    b->stats_new = false;
+    bytes = b->st.bytes - b->bytes_applied;
+    b->bytes_applied = b->st.bytes;
+    took->patches = b->patches_in;
+    b->patches_in = 0;
+    pthread_mutex_unlock(&b->mu);
+
+    if (dst) {
+        gl.UnmapBuffer(GL_PIXEL_UNPACK_BUFFER);
+        /* Texture creation reads no pixels: no unpack buffer bound. */
+        gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    }
+    if (!ops_ok) rc = ct_fail(err, CT_ENOMEM, "out of memory for texture operations");
+    if (!rc && have_scene) rc = disp_session_scene(s, &scene, err);
+    rmesh_free(&scene);
+    for (uint32_t i = 0; i < b->nops && !rc; i++) {
+        const texop *o = &b->ops[i];
+        if (o->kind == OP_FREE) rc = disp_session_tex_free(s, o->id, err);
+        else if (o->kind == OP_ALLOC) rc = disp_session_tex_alloc(s, o->id, o->node, o->w, o->h, o->pk, err);
+        else rc = disp_session_tex_projection(s, o->id, &o->m, err);
+    }
+    if (b->nups) {
+        gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, b->pbo);
+        for (uint32_t i = 0; i < b->nups && !rc; i++) {
+            const upload *u = &b->ups[i];
+            rc = disp_session_tex_upload(s, u->id, u->x, u->y, u->w, u->h, u->off, u->negative, u->nonzero, err);
+            took->texels += (uint64_t)u->w * (uint64_t)u->h;
+        }
+        gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+    }
+    took->stamps = b->taken;
+    took->nstamps = b->ntaken;
+    if (npts) disp_session_sample_points(s, pts, npts, dropped);
+    free(pts);
+    for (uint32_t i = 0; i < nframes; i++)
+        disp_session_frame_end(s, (uint32_t)frames[i].frame, frames[i].samples, frames[i].all_positive);
+    if (stats_new) disp_session_stats(s, stats_total, stats_pos);
+    if (bytes) disp_session_add_bytes(s, bytes);
+    return rc;
+}
+
+void disp_inbox_release_gl(disp_inbox *b)
+{
+    if (b->pbo) gl.DeleteBuffers(1, &b->pbo);
+    b->pbo = 0;
+}

@@ -1,0 +1,314 @@
+/* dsync.c: texture updates to the display, paced by its acknowledgements
+ * (dsync.h). */
+#include "master/dsync.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "master/ctex_tex.h"
+#include "proto/wire.h"
+
+#define WINDOW_MAX 16
+
+struct dsync {
+    dsync_options o;
+    uint32_t disp_epoch;            /* the display's epoch of the current camera */
+    uint64_t seq, acked;            /* last SYNC sent, last acknowledged */
+    double sent_at[WINDOW_MAX];     /* by seq % WINDOW_MAX: when it was sent */
+    size_t sent_bytes[WINDOW_MAX];  /* and its texel bytes */
+    double rate;                    /* texel bytes/s acknowledged, smoothed (0: unknown) */
+    size_t budget;
+    uint32_t cur_tex;               /* where the next update resumes its scan */
+    int cur_row;
+    wire_scratch scratch;
+    uint64_t patches, texel_bytes;
+};
+
+void dsync_options_default(dsync_options *o, bool tcp)
+{
+    /* LZ4 halves a patch's bytes but costs the master about a millisecond per
+     * MiB and the display as much again: it pays on a network link, not on a
+     * UNIX socket, where copying is cheaper than compressing
+     * (docs/protocol.md, "Flow control", measured). */
+    o->encoding = tcp ? WIRE_PATCH_LZ4 : WIRE_PATCH_RAW;
+    o->window = 2;
+    o->target_ms = 40.0;
+    o->min_bytes = 64u << 10;
+    o->max_bytes = 32u << 20;
+}
+
+int dsync_new(const dsync_options *o, dsync **out, ct_error *err)
+{
+    dsync *d = calloc(1, sizeof *d);
+    if (!d) return ct_fail(err, CT_ENOMEM, "display sync: out of memory");
+    d->o = *o;
+    if (d->o.window < 1) d->o.window = 1;
+    if (d->o.window > WINDOW_MAX) d->o.window = WINDOW_MAX;
+    dsync_reset(d);
+    *out = d;
+    return 0;
+}
+
+void dsync_free(dsync *d)
+{
+    if (!d) return;
+    wire_scratch_free(&d->scratch);
+    free(d);
+}
+
+void dsync_reset(dsync *d)
+{
+    d->seq = d->acked = 0;
+    d->rate = 0.0;
+    /* A first update of 1 MiB: about 80 ms on a 100 Mbit/s link, a few
+     * milliseconds on a UNIX socket; the rate measured from its ACK sizes
+     * the next ones. */
+    d->budget = 1u << 20;
+    if (d->budget < d->o.min_bytes) d->budget = d->o.min_bytes;
+    if (d->budget > d->o.max_bytes) d->budget = d->o.max_bytes;
+    d->cur_tex = 0;
+    d->cur_row = 0;
+}
+
+void dsync_set_epoch(dsync *d, uint32_t epoch)
+{
+    d->disp_epoch = epoch;
+}
+
+bool dsync_can_send(const dsync *d)
+{
+    return d->seq - d->acked < (uint64_t)d->o.window;
+}
+
+/* --- events ----------------------------------------------------------------- */
+
+static int send(dsrv *ds, const wire_msg *m, ct_error *err)
+{
+    return dsrv_send(ds, m, 10000, err);
+}
+
+static int send_proj(dsync *d, dsrv *ds, uint32_t tex, const mat4 *mat, ct_error *err)
+{
+    wire_msg m = {.type = WIRE_TEX_PROJECTION};
+    m.u.tex_projection.tex = tex;
+    m.u.tex_projection.epoch = d->disp_epoch;
+    m.u.tex_projection.world_to_tex = *mat;
+    return send(ds, &m, err);
+}
+
+/* TEX_ALLOC names the texture's hierarchy node: the display's node table is
+ * the texture hierarchy (the SCENE it got), so it draws the texture on
+ * exactly the triangles of that node's subtree. A display creates the
+ * texture anew on ALLOC, a resize included, and needs its projection again:
+ * every ALLOC is followed by the texture's current projection (a later
+ * PROJ event still comes after it and wins). */
+static int send_alloc(dsync *d, dsrv *ds, ctex *tex, uint32_t id, uint32_t hnode, int w, int h,
+                      ctex_proj_kind kind, ct_error *err)
+{
+    wire_msg m = {.type = WIRE_TEX_ALLOC};
+    m.u.tex_alloc = (wire_tex_alloc){id, hnode, (uint32_t)w, (uint32_t)h,
+                                     kind == CTEX_PROJ_OBJECT ? WIRE_PROJ_OBJECT_PARALLEL
+                                                              : WIRE_PROJ_CAMERA_PERSPECTIVE};
+    int rc = send(ds, &m, err);
+    mat4 pm;
+    if (rc == 0 && ctex_texture_info(tex, id, NULL, NULL, NULL, NULL, &pm, NULL) >= 0)
+        rc = send_proj(d, ds, id, &pm, err);
+    return rc;
+}
+
+static int send_events(dsync *d, dsrv *ds, ctex *tex, ct_error *err)
+{
+    size_t n = 0;
+    const ctex_event *ev = ctex_events(tex, &n);
+    int rc = 0;
+    for (size_t i = 0; i < n && rc == 0 && dsrv_has_display(ds); i++) {
+        const ctex_event *e = &ev[i];
+        wire_msg m;
+        switch (e->kind) {
+        case CTEX_EV_ALLOC: rc = send_alloc(d, ds, tex, e->tex, e->node, e->w, e->h, e->proj, err); break;
+        case CTEX_EV_PROJ: rc = send_proj(d, ds, e->tex, &e->m, err); break;
+        case CTEX_EV_FREE:
+            memset(&m, 0, sizeof m);
+            m.type = WIRE_TEX_FREE;
+            m.u.tex_free.tex = e->tex;
+            rc = send(ds, &m, err);
+            break;
+        }
+    }
+    ctex_events_clear(tex);
+    return rc;
+}
+
+int dsync_send_state(dsync *d, dsrv *ds, ctex *tex, uint32_t *ntex, ct_error *err)
+{
+    /* Pending events describe changes the state below already contains. */
+    ctex_events_clear(tex);
+    dsync_reset(d);
+    *ntex = 0;
+    uint32_t ns = ctex_slot_count(tex);
+    for (uint32_t id = 0; id < ns && dsrv_has_display(ds); id++) {
+        uint32_t hnode;
+        int w, h;
+        ctex_proj_kind kind;
+        if (!ctex_visible_texture(tex, id) || ctex_texture_info(tex, id, &hnode, &w, &h, &kind, NULL, NULL) <= 0)
+            continue;
+        int rc = send_alloc(d, ds, tex, id, hnode, w, h, kind, err);
+        if (rc) return rc;
+        (*ntex)++;
+    }
+    ctex_dirty_all(tex);
+    return 0;
+}
+
+/* --- tiles ------------------------------------------------------------------ */
+
+typedef struct gather {
+    const ctex_tex *t;
+    int x, y, w;
+} gather;
+
+/* One row of a patch: each 8-byte texel's three halves, little-endian. */
+static void gather_row(void *ctx, uint32_t row, uint8_t *dst)
+{
+    const gather *g = ctx;
+    const ctex_texel *p = ctex_tex_at(g->t, g->x, g->y + (int)row);
+    for (int i = 0; i < g->w; i++, dst += 6)
+        for (int c = 0; c < 3; c++) {
+            dst[2 * c] = (uint8_t)p[i].c[c];
+            dst[2 * c + 1] = (uint8_t)(p[i].c[c] >> 8);
+        }
+}
+
+/* Encodes the tiles [a, a + n) of tile row ty of texture id into the
+ * display's queue and clears them. Returns the texel bytes, or negative. */
+static long send_run(dsync *d, dsrv *ds, uint32_t id, ctex_tex *t, int ty, int a, int n, uint32_t samples,
+                     ct_error *err)
+{
+    wire_buf *out = dsrv_tail(ds);
+    if (!out) return 0;   /* the display is gone */
+    int x = a << CTEX_TILE_SHIFT, y = ty << CTEX_TILE_SHIFT;
+    int w = (n << CTEX_TILE_SHIFT), h = CTEX_TILE;
+    if (x + w > t->w) w = t->w - x;
+    if (y + h > t->h) h = t->h - y;
+    wire_tex_patch p = {.tex = id, .x = (uint32_t)x, .y = (uint32_t)y, .w = (uint32_t)w, .h = (uint32_t)h,
+                        .encoding = d->o.encoding, .samples = samples, .stamp_us = t->d.row_t[ty]};
+    gather g = {t, x, y, w};
+    int rc = wire_encode_patch(&p, gather_row, &g, out, &d->scratch, err);
+    if (rc) return rc;
+    dsrv_commit(ds, 1);
+    ctex_dirty_clear_run(&t->d, ty, a, n);
+    d->patches++;
+    size_t bytes = (size_t)w * (size_t)h * 6;
+    d->texel_bytes += bytes;
+    return (long)bytes;
+}
+
+/* Sends unsent tiles, resuming the round-robin scan where the last update
+ * stopped (so every tile waits at most one sweep however small the
+ * budget), until `budget` texel bytes went out; *sent gets them. The
+ * samples of a tile row go with its first patch. */
+static int send_tiles(dsync *d, dsrv *ds, ctex *tex, size_t budget, size_t *sent, uint32_t *npatches,
+                      ct_error *err)
+{
+    *sent = 0;
+    uint32_t ns = ctex_slot_count(tex);
+    if (!ns) return 0;
+    if (d->cur_tex >= ns) d->cur_tex = 0, d->cur_row = 0;
+    /* k = 0: the resumed texture from cur_row; k = ns: its rows before it. */
+    for (uint32_t k = 0; k <= ns; k++) {
+        uint32_t id = (d->cur_tex + k) % ns;
+        ctex_tex *t = ctex_visible_texture(tex, id);
+        if (k == ns && d->cur_row == 0) break;
+        if (!t || !t->d.any) continue;
+        int r0 = k == 0 ? d->cur_row : 0, r1 = k == ns ? d->cur_row : t->d.th;
+        if (r1 > t->d.th) r1 = t->d.th;
+        for (int ty = r0; ty < r1; ty++) {
+            if (!t->d.row_t[ty]) continue;
+            uint32_t samples = t->d.row_n[ty];
+            t->d.row_n[ty] = 0;
+            int len, a = ctex_dirty_next_run(&t->d, ty, 0, &len);
+            while (len) {
+                long b = send_run(d, ds, id, t, ty, a, len, samples, err);
+                if (b < 0) return (int)b;
+                if (!dsrv_has_display(ds)) return 0;
+                samples = 0;
+                *sent += (size_t)b;
+                (*npatches)++;
+                if (*sent >= budget) {
+                    d->cur_tex = id;
+                    d->cur_row = ty;
+                    return 0;
+                }
+                a = ctex_dirty_next_run(&t->d, ty, a + len, &len);
+            }
+        }
+        /* Every row of it scanned and sent (the resumed one after both parts). */
+        if (k > 0 || r0 == 0) t->d.any = false;
+    }
+    d->cur_tex = 0;
+    d->cur_row = 0;
+    return 0;
+}
+
+/* --- updates ---------------------------------------------------------------- */
+
+int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_error *err)
+{
+    if (!dsrv_has_display(ds) || !dsync_can_send(d)) return 0;
+    size_t nev = 0;
+    ctex_events(tex, &nev);
+    int rc = send_events(d, ds, tex, err);
+    if (rc) return rc;
+    size_t sent = 0;
+    uint32_t np = 0;
+    if ((rc = send_tiles(d, ds, tex, d->budget, &sent, &np, err))) return rc;
+    if (!dsrv_has_display(ds) || (!nev && !np)) return 0;   /* nothing new: no update */
+    wire_msg m = {.type = WIRE_SYNC};
+    m.u.sync = (wire_sync){d->seq + 1, now_us};
+    if ((rc = send(ds, &m, err))) return rc;
+    d->seq++;
+    d->sent_at[d->seq % WINDOW_MAX] = now;
+    d->sent_bytes[d->seq % WINDOW_MAX] = sent;
+    return 1;
+}
+
+int dsync_flush_all(dsync *d, dsrv *ds, ctex *tex, uint32_t *patches, ct_error *err)
+{
+    *patches = 0;
+    if (!dsrv_has_display(ds)) {
+        ctex_events_clear(tex);
+        return 0;
+    }
+    int rc = send_events(d, ds, tex, err);
+    if (rc) return rc;
+    size_t sent;
+    return send_tiles(d, ds, tex, SIZE_MAX, &sent, patches, err);
+}
+
+int dsync_ack(dsync *d, uint64_t seq, double now, ct_error *err)
+{
+    if (seq > d->seq)
+        return ct_fail(err, CT_EPROTO, "ACK of update %llu, but only %llu were sent", (unsigned long long)seq,
+                       (unsigned long long)d->seq);
+    if (seq <= d->acked) return 0;   /* an older ACK: nothing new */
+    /* The rate of the newest update acknowledged: its bytes over the time
+     * from its sending to its ACK (a slow display shows as a long time). */
+    double dt = now - d->sent_at[seq % WINDOW_MAX];
+    size_t bytes = d->sent_bytes[seq % WINDOW_MAX];
+    d->acked = seq;
+    if (bytes >= d->o.min_bytes / 2 && dt > 1e-4) {
+        double r = (double)bytes / dt;
+        d->rate = d->rate > 0 ? 0.7 * d->rate + 0.3 * r : r;
+        double b = d->rate * d->o.target_ms / 1000.0;
+        if (b < (double)d->o.min_bytes) b = (double)d->o.min_bytes;
+        if (b > (double)d->o.max_bytes) b = (double)d->o.max_bytes;
+        d->budget = (size_t)b;
+    }
+    return 0;
+}
+
+dsync_stats dsync_get_stats(const dsync *d)
+{
+    dsync_stats s = {d->seq, d->acked, d->patches, d->texel_bytes, d->budget, d->rate};
+    return s;
+}

@@ -1,0 +1,79 @@
+/* dsync.h: the master's side of keeping a display current (docs/protocol.md,
+ * "Flow control"). An update is the pending texture events (ALLOC,
+ * PROJECTION, FREE) followed by runs of unsent tiles read from the textures
+ * at that moment (so newer texels replace older unsent ones in place, and
+ * every texel goes out at most once per update), encoded straight into the
+ * display's send queue, and closed by SYNC n. Free running, a new update is
+ * made only while fewer than `window` are unacknowledged (the display ACKs
+ * n once it has applied update n), and its size follows the rate at which
+ * the display acknowledged the last ones: the display's pace sets what is
+ * sent, never how fast the master samples. Lockstep frames take every
+ * unsent tile before their FRAME. Owns the dsync_ prefix. */
+#ifndef CT_MASTER_DSYNC_H
+#define CT_MASTER_DSYNC_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "common/error.h"
+#include "master/ctex.h"
+#include "master/dsrv.h"
+
+typedef struct dsync_options {
+    uint32_t encoding;     /* wire_patch_enc of TEX_PATCH texels */
+    int window;            /* updates in flight before the master waits for an ACK */
+    double target_ms;      /* an update holds what the display takes in about this long */
+    size_t min_bytes;      /* bounds of an update's texel bytes (raw) */
+    size_t max_bytes;
+} dsync_options;
+
+/* What was sent (dsync_stats). */
+typedef struct dsync_stats {
+    uint64_t updates, acked;   /* SYNCs sent / acknowledged on this connection */
+    uint64_t patches;          /* TEX_PATCH messages since the start */
+    uint64_t texel_bytes;      /* their raw texel bytes */
+    size_t budget;             /* texel bytes of the next update */
+    double rate;               /* texel bytes/s the display acknowledged (smoothed) */
+} dsync_stats;
+
+typedef struct dsync dsync;
+
+/* The defaults: LZ4 on TCP, raw on a UNIX socket (docs/protocol.md). */
+void dsync_options_default(dsync_options *o, bool tcp);
+
+int dsync_new(const dsync_options *o, dsync **out, ct_error *err);
+void dsync_free(dsync *d);
+
+/* A new display: nothing sent or in flight, update numbers from 1. The
+ * caller marks every texel unsent (ctex_dirty_all). */
+void dsync_reset(dsync *d);
+
+/* A display that just got the scene: every visible texture's ALLOC and
+ * PROJECTION, every texel marked unsent (they follow in updates), and
+ * dsync_reset. *ntex: the textures announced. */
+int dsync_send_state(dsync *d, dsrv *ds, ctex *tex, uint32_t *ntex, ct_error *err);
+
+/* The display's epoch of the current camera (TEX_PROJECTION carries it). */
+void dsync_set_epoch(dsync *d, uint32_t epoch);
+
+/* Free running: when the window allows, sends one update (events, tiles
+ * within the budget, SYNC) stamped `now_us` on the master's clock. Returns
+ * 1 when one was sent, 0 when none was due, negative on failure (a display
+ * that fails is dropped by dsrv, which is not a failure). */
+int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_error *err);
+
+/* Lockstep: sends the events and every unsent tile now (no SYNC; FRAME
+ * follows). *patches counts the TEX_PATCH messages. */
+int dsync_flush_all(dsync *d, dsrv *ds, ctex *tex, uint32_t *patches, ct_error *err);
+
+/* The display applied every update up to seq. CT_EPROTO (err filled) for a
+ * number never sent. */
+int dsync_ack(dsync *d, uint64_t seq, double now, ct_error *err);
+
+/* Whether an update may be sent now (free running). */
+bool dsync_can_send(const dsync *d);
+
+dsync_stats dsync_get_stats(const dsync *d);
+
+#endif

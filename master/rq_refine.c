@@ -1,0 +1,226 @@
+/* rq_refine.c: refinement past full coverage (rq_refine.h). */
+#include "master/rq_refine.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, ct_error *err)
+{
+    size_t npx = (size_t)w * (size_t)h;
+    memset(r, 0, sizeof *r);
+    r->w = w;
+    r->h = h;
+    r->px = calloc(npx, sizeof *r->px);
+    if (!r->px) return ct_fail(err, CT_ENOMEM, "sampler: out of memory for the refinement of %zu pixels", npx);
+    r->npx = npx;
+    r->tag = 1;
+    r->threshold = threshold;
+    r->max_n = max_n;
+    return 0;
+}
+
+void rq_refine_free(rq_refine *r)
+{
+    free(r->px);
+    free(r->heap);
+    memset(r, 0, sizeof *r);
+}
+
+void rq_refine_epoch(rq_refine *r)
+{
+    if (!r->px) return;
+    if (++r->tag == 0) {
+        /* 65,535 views later the tags come round: start clean. */
+        memset(r->px, 0, r->npx * sizeof *r->px);
+        r->tag = 1;
+    }
+    r->active = false;
+    r->hn = 0;
+    r->top = 0.0f;
+    r->samples = 0;
+}
+
+/* A pixel whose first sample differed from what was displayed gets at
+ * least this many samples before its sample variance is believed: a few
+ * equal values of a noisy pixel (K shadow rays give K + 1 levels) must not
+ * pass for certainty. */
+#define MIN_TRUSTED 4
+
+float rq_refine_priority(const rq_refine *r, uint32_t p)
+{
+    const rq_pixel *x = &r->px[p];
+    if (x->tag != r->tag || x->n == 0) return 0.0f;
+    float se = x->n > 1 ? sqrtf(x->m2 / (float)(x->n - 1) / (float)x->n) : 0.0f;
+    if (x->n < MIN_TRUSTED && x->first_err / sqrtf((float)x->n) > se) return x->first_err / sqrtf((float)x->n);
+    return se;
+}
+
+static float lum_of(const rq_pixel *x)
+{
+    return v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2]));
+}
+
+/* A pixel's first sample against its neighbours' (those with a sample of
+ * the same node): the difference of its luminance from their mean. */
+static float contrast(const rq_refine *r, uint32_t p)
+{
+    const rq_pixel *x = &r->px[p];
+    int px = (int)(p % (uint32_t)r->w), py = (int)(p / (uint32_t)r->w);
+    const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+    float sum = 0.0f;
+    int n = 0;
+    for (int k = 0; k < 4; k++) {
+        int qx = px + dx[k], qy = py + dy[k];
+        if (qx < 0 || qy < 0 || qx >= r->w || qy >= r->h) continue;
+        const rq_pixel *q = &r->px[(size_t)qy * (size_t)r->w + (size_t)qx];
+        if (q->tag != r->tag || q->n == 0 || q->node != x->node) continue;
+        sum += lum_of(q);
+        n++;
+    }
+    return n ? fabsf(lum_of(x) - sum / (float)n) : 0.0f;
+}
+
+/* --- the heap ------------------------------------------------------------------- */
+
+static void sift_up(rq_refine_ent *h, size_t i)
+{
+    rq_refine_ent e = h[i];
+    while (i > 0) {
+        size_t p = (i - 1) / 2;
+        if (!(h[p].prio < e.prio)) break;
+        h[i] = h[p];
+        i = p;
+    }
+    h[i] = e;
+}
+
+static void sift_down(rq_refine_ent *h, size_t n, size_t i)
+{
+    rq_refine_ent e = h[i];
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n && h[c].prio < h[c + 1].prio) c++;
+        if (!(e.prio < h[c].prio)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = e;
+}
+
+static int grow(rq_refine *r, size_t need, ct_error *err)
+{
+    if (need <= r->hcap) return 0;
+    size_t cap = r->hcap ? r->hcap : 4096;
+    while (cap < need) cap *= 2;
+    rq_refine_ent *h = realloc(r->heap, cap * sizeof *h);
+    if (!h) return ct_fail(err, CT_ENOMEM, "sampler: out of memory for %zu pixels to refine", cap);
+    r->heap = h;
+    r->hcap = cap;
+    return 0;
+}
+
+/* Queues pixel p when it may take another sample. */
+static int queue(rq_refine *r, uint32_t p, ct_error *err)
+{
+    const rq_pixel *x = &r->px[p];
+    float prio = rq_refine_priority(r, p);
+    if (x->n >= r->max_n || !(prio > r->threshold)) return 0;
+    int rc = grow(r, r->hn + 1, err);
+    if (rc) return rc;
+    r->heap[r->hn] = (rq_refine_ent){prio, p, x->n};
+    sift_up(r->heap, r->hn++);
+    return 0;
+}
+
+/* --- samples -------------------------------------------------------------------- */
+
+int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float err_norm, ct_error *err)
+{
+    if (!r->px || p >= r->npx) return 0;
+    rq_pixel *x = &r->px[p];
+    if (x->tag != r->tag) {
+        memset(x, 0, sizeof *x);
+        x->tag = r->tag;
+        x->node = node;
+    }
+    if (x->n == UINT16_MAX) return 0;
+    if (node != x->node) {
+        x->n++;
+        if (r->active) r->samples++;
+        int rc = r->active ? queue(r, p, err) : 0;
+        return rc < 0 ? rc : 0;
+    }
+    /* Welford: the mean of dL, the squared deviations of its luminance. */
+    float y_old = x->n ? v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2])) : 0.0f;
+    x->n++;
+    float inv = 1.0f / (float)x->n;
+    x->mean[0] += (dl.x - x->mean[0]) * inv;
+    x->mean[1] += (dl.y - x->mean[1]) * inv;
+    x->mean[2] += (dl.z - x->mean[2]) * inv;
+    float y = v3_luminance(dl);
+    float y_new = v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2]));
+    if (x->n == 1) {
+        x->first_err = err_norm;
+        if (r->active) {
+            float c = contrast(r, p);
+            if (c > x->first_err) x->first_err = c;
+        }
+    } else {
+        x->m2 += (y - y_old) * (y - y_new);
+    }
+    if (!r->active) return 1;
+    r->samples++;
+    int rc = queue(r, p, err);
+    return rc < 0 ? rc : 1;
+}
+
+int rq_refine_start(rq_refine *r, ct_error *err)
+{
+    if (!r->px || r->active) return 0;
+    r->active = true;
+    r->hn = 0;
+    /* Every pixel has its first sample now (or it is in flight): the
+     * neighbours' contrast is known. */
+    for (size_t p = 0; p < r->npx; p++) {
+        rq_pixel *x = &r->px[p];
+        if (x->tag != r->tag || x->n != 1) continue;
+        float c = contrast(r, (uint32_t)p);
+        if (c > x->first_err) x->first_err = c;
+    }
+    for (size_t p = 0; p < r->npx; p++) {
+        const rq_pixel *x = &r->px[p];
+        if (x->tag != r->tag || x->n == 0) continue;
+        float prio = rq_refine_priority(r, (uint32_t)p);
+        if (x->n >= r->max_n || !(prio > r->threshold)) continue;
+        int rc = grow(r, r->hn + 1, err);
+        if (rc) return rc;
+        r->heap[r->hn++] = (rq_refine_ent){prio, (uint32_t)p, x->n};
+    }
+    for (size_t i = r->hn / 2; i-- > 0;) sift_down(r->heap, r->hn, i);
+    return 0;
+}
+
+bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio)
+{
+    while (r->hn) {
+        rq_refine_ent e = r->heap[0];
+        r->heap[0] = r->heap[--r->hn];
+        if (r->hn) sift_down(r->heap, r->hn, 0);
+        const rq_pixel *x = &r->px[e.pixel];
+        if (x->tag != r->tag || x->n != e.n) continue;   /* queued again since */
+        *p = e.pixel;
+        *prio = e.prio;
+        r->top = e.prio;
+        return true;
+    }
+    return false;
+}
+
+vec3 rq_refine_mean(const rq_refine *r, uint32_t p)
+{
+    if (!r->px || p >= r->npx || r->px[p].tag != r->tag) return v3s(0.0f);
+    const rq_pixel *x = &r->px[p];
+    return v3(x->mean[0], x->mean[1], x->mean[2]);
+}

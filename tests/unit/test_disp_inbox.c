@@ -1,0 +1,324 @@
+/* test_disp_inbox.c: the hand-over from the display's connection thread to
+ * its render thread (display/disp_inbox.h), with a real GL context
+ * (OSMesa): many patches of one area between two frames are one upload of
+ * the newest texels and render exactly like the same texels applied
+ * directly; a lockstep frame is ready only once its texels are on the
+ * textures; a texture freed and allocated again between two frames starts
+ * from zero at its new size; stamps reach the frame that shows them;
+ * messages that do not fit are refused with their reason; the lag
+ * histogram's quantiles; resizes racing the frames that take them. */
+#include <criterion/criterion.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "display/disp_inbox.h"
+#include "display/disp_lag.h"
+#include "tests/support/disp_fixture.h"
+
+#define W 64
+#define H 48
+
+static gl_backend *gl_open(void)
+{
+    ct_error err;
+    gl_backend *b = NULL;
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
+    return b;
+}
+
+static void render(disp_session *s, uint8_t *out)
+{
+    ct_error err;
+    disp_compositor *c = NULL;
+    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
+    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0,
+                 "%s", err.msg);
+    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
+    disp_compositor_read_display(c, out);
+    disp_compositor_free(c);
+}
+
+/* The back wall's projection (x, y in [-1, 1] -> [0, 1]). */
+static mat4 wall_proj(void)
+{
+    mat4 m;
+    memset(&m, 0, sizeof m);
+    m.m[0][0] = 0.5f;
+    m.m[0][3] = 0.5f;
+    m.m[1][1] = 0.5f;
+    m.m[1][3] = 0.5f;
+    m.m[3][3] = 1.0f;
+    return m;
+}
+
+static void fill(uint16_t *h, int n, float base, float step)
+{
+    for (int i = 0; i < n; i++) h[i] = fx_half(base + step * (float)(i % 37) - 0.3f * (float)((i / 37) % 3));
+}
+
+Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
+{
+    ct_error err;
+    gl_backend *b = gl_open();
+    ct_radmesh mesh, copy;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    /* The connection thread's side: scene, texture, three patches. */
+    disp_inbox_scene(in, &copy);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    mat4 p = wall_proj();
+    cr_assert_eq(disp_inbox_tex_projection(in, 5, &p, &err), 0);
+    static uint16_t a[16 * 12 * 3], c[6 * 4 * 3], d[16 * 2 * 3];
+    fill(a, 16 * 12 * 3, 0.1f, 0.01f);
+    fill(c, 6 * 4 * 3, -0.2f, 0.02f);
+    fill(d, 16 * 2 * 3, 0.5f, -0.01f);
+    cr_assert_eq(disp_inbox_tex_patch(in, 5, 0, 0, 16, 12, a, 1000, 7, &err), 0);
+    cr_assert_eq(disp_inbox_tex_patch(in, 5, 3, 2, 6, 4, c, 2000, 3, &err), 0);
+    cr_assert_eq(disp_inbox_tex_patch(in, 5, 0, 10, 16, 2, d, 3000, 0, &err), 0);
+    /* The render thread's frame. */
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0, "%s", err.msg);
+    disp_counters cnt = disp_session_counters(s);
+    /* 16 x 12 texels are 2 x 2 tiles of 8: two runs of two tiles, one upload each */
+    cr_expect_eq(cnt.patches, 2u, "%llu uploads", (unsigned long long)cnt.patches);
+    cr_expect_eq(cnt.texels, 16u * 12u);
+    cr_expect_eq(took.patches, 3u, "patches received");
+    cr_expect_eq(took.nstamps, 2u, "stamps of patches that carry samples");
+    cr_expect_eq(took.stamps[0].stamp_us, 1000u);
+    cr_expect_eq(took.stamps[1].samples, 3u);
+    /* The same texels applied directly render the same image. */
+    static uint16_t want[16 * 12 * 3];
+    memcpy(want, a, sizeof want);
+    for (int y = 0; y < 4; y++) memcpy(want + 3 * ((2 + y) * 16 + 3), c + 3 * y * 6, 6 * 6);
+    memcpy(want + 3 * 10 * 16, d, sizeof d);
+    disp_session *direct = NULL;
+    cr_assert_eq(disp_session_new(&direct, &err), 0);
+    cr_assert_eq(disp_session_scene(direct, &mesh, &err), 0);
+    cr_assert_eq(disp_session_tex_alloc(direct, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
+    cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 16, 12, want, &err), 0);
+    static uint8_t got[W * H * 3], ref[W * H * 3];
+    render(s, got);
+    render(direct, ref);
+    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "the inbox's image differs from direct patches");
+    /* Nothing new: the next frame uploads nothing. */
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
+    cr_expect_eq(disp_session_counters(s).patches, 2u);
+    cr_expect_eq(took.nstamps, 0u);
+    disp_session_free(direct);
+    disp_session_free(s);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
+    rmesh_free(&mesh);
+    gl_backend_close(b);
+}
+
+Test(disp_inbox, a_frame_is_ready_once_its_texels_are_on_the_textures)
+{
+    ct_error err;
+    gl_backend *b = gl_open();
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox_connection(in);
+    disp_inbox_new_epoch(in, 1);
+    disp_inbox_scene(in, &mesh);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 2, nd.floor, 8, 8, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);   /* the scene and the texture are drawn */
+    static uint16_t t[8 * 8 * 3];
+    fill(t, 8 * 8 * 3, 0.2f, 0.001f);
+    cr_assert_eq(disp_inbox_tex_patch(in, 2, 0, 0, 8, 8, t, 5, 1, &err), 0);
+    disp_inbox_frame_end(in, 0, 1, 100, false);
+    cr_expect_not(disp_inbox_frame_ready(in, NULL), "texels still in the inbox");
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
+    uint64_t f = 99;
+    cr_expect(disp_inbox_frame_ready(in, &f));
+    cr_expect_eq(f, 0u);
+    disp_inbox_take_frame(in);
+    cr_expect_not(disp_inbox_frame_ready(in, NULL), "taken once");
+    /* A FRAME of an older epoch does not count. */
+    disp_inbox_new_epoch(in, 2);
+    disp_inbox_frame_end(in, 1, 1, 100, false);
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
+    cr_expect_not(disp_inbox_frame_ready(in, NULL));
+    disp_inbox_frame_end(in, 2, 2, 100, true);
+    cr_expect(disp_inbox_frame_ready(in, NULL));
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
+    cr_expect(disp_session_all_positive(s));
+    cr_expect_eq(disp_session_counters(s).frames, 3u);
+    disp_session_free(s);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
+    gl_backend_close(b);
+}
+
+Test(disp_inbox, freed_and_allocated_again_between_frames_starts_from_zero)
+{
+    ct_error err;
+    gl_backend *b = gl_open();
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox_scene(in, &mesh);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 9, nd.back, 8, 8, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    static uint16_t t[16 * 16 * 3];
+    fill(t, 16 * 16 * 3, 0.7f, 0.0f);
+    cr_assert_eq(disp_inbox_tex_patch(in, 9, 0, 0, 8, 8, t, 1, 1, &err), 0);
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
+    const disp_texture *x = disp_textures_find(disp_session_textures(s), 9);
+    cr_assert_not_null(x);
+    cr_expect(x->nonzero);
+    /* FREE, then ALLOC of the same id at another size, and one more id
+     * allocated and freed unseen: the frame sees only the end state. */
+    cr_assert_eq(disp_inbox_tex_free(in, 9, &err), 0);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 9, nd.floor, 16, 16, DISP_PROJ_CAMERA_PERSPECTIVE, &err), 0);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 11, nd.left, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_inbox_tex_free(in, 11, &err), 0);
+    cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0, "%s", err.msg);
+    x = disp_textures_find(disp_session_textures(s), 9);
+    cr_assert_not_null(x);
+    cr_expect_eq(x->width, 16);
+    cr_expect_eq(x->node, nd.floor);
+    cr_expect_not(x->nonzero, "a new allocation corrects nothing yet");
+    cr_expect_null(disp_textures_find(disp_session_textures(s), 11));
+    cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
+    disp_session_free(s);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
+    gl_backend_close(b);
+}
+
+Test(disp_inbox, messages_that_do_not_fit_are_refused)
+{
+    ct_error err;
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(512, &in, &err), 0);
+    static uint16_t t[4 * 3];
+    cr_expect_eq(disp_inbox_tex_alloc(in, 1, 0, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), CT_EPROTO);
+    cr_expect(strstr(err.msg, "before any scene"), "%s", err.msg);
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    uint32_t nnodes = mesh.nnodes;
+    disp_inbox_scene(in, &mesh);
+    cr_expect_eq(disp_inbox_tex_alloc(in, 1, nnodes, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), CT_EPROTO);
+    cr_expect(strstr(err.msg, "out of range"), "%s", err.msg);
+    cr_expect_eq(disp_inbox_tex_alloc(in, 1, 0, 513, 4, DISP_PROJ_OBJECT_PARALLEL, &err), CT_ERANGE);
+    cr_expect(strstr(err.msg, "513x4"), "%s", err.msg);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 1, 0, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_expect_eq(disp_inbox_tex_patch(in, 1, 3, 0, 2, 1, t, 0, 0, &err), CT_ERANGE);
+    cr_expect(strstr(err.msg, "outside 4x4"), "%s", err.msg);
+    cr_expect_eq(disp_inbox_tex_patch(in, 2, 0, 0, 1, 1, t, 0, 0, &err), CT_EPROTO);
+    cr_expect(strstr(err.msg, "unknown texture 2"), "%s", err.msg);
+    mat4 bad = m4_identity();
+    bad.m[1][2] = NAN;
+    cr_expect_eq(disp_inbox_tex_projection(in, 1, &bad, &err), CT_ERANGE);
+    cr_expect_eq(disp_inbox_tex_free(in, 3, &err), CT_EPROTO);
+    disp_inbox_free(in);
+}
+
+Test(disp_lag, quantiles_are_weighted_by_samples)
+{
+    static disp_lag l;
+    disp_lag_reset(&l);
+    cr_expect_eq(disp_lag_quantile(&l, 0.5), 0.0);
+    disp_lag_add(&l, 10.4, 90);    /* 90 samples at 10 ms */
+    disp_lag_add(&l, 250.0, 9);    /* 9 at 250 ms */
+    disp_lag_add(&l, 7000.0, 1);   /* 1 at 7 s */
+    disp_lag_add(&l, -3.0, 0);     /* no weight: nothing */
+    cr_expect_eq(l.n, 100u);
+    cr_expect_eq(disp_lag_quantile(&l, 0.5), 11.0, "median in the 10 ms bin (upper edge)");
+    cr_expect_eq(disp_lag_quantile(&l, 0.95), 251.0);
+    cr_expect_eq(disp_lag_quantile(&l, 0.995), 7001.0);
+    cr_expect_eq(l.max_ms, 7000.0);
+    disp_lag_add(&l, -5.0, 100);   /* clock offset noise counts as 0 */
+    cr_expect_eq(disp_lag_quantile(&l, 0.25), 1.0);
+    disp_lag_add(&l, 1e9, 1);      /* beyond the histogram: the last bin */
+    cr_expect_eq(disp_lag_quantile(&l, 1.0), (double)DISP_LAG_BINS);
+}
+
+/* The connection thread re-allocates a texture at a new size and patches
+ * it all while frames are taken: every frame's uploads fit the GL texture
+ * its operations made (the texture's operations and its texels are taken
+ * together), and the projection of a texture is on the GL side before the
+ * texels made for it. */
+typedef struct resizer {
+    disp_inbox *in;
+    uint32_t node;
+    int rounds;
+    int rc;
+    ct_error err;
+    atomic_bool done;
+} resizer;
+
+static void *resize_loop(void *arg)
+{
+    resizer *r = arg;
+    static uint16_t px[64 * 64 * 3];
+    fill(px, 64 * 64 * 3, 0.2f, 0.01f);
+    mat4 p = wall_proj();
+    for (int i = 0; i < r->rounds && !r->rc; i++) {
+        int s = 16 << (i % 3);
+        r->rc = disp_inbox_tex_alloc(r->in, 7, r->node, s, s, DISP_PROJ_OBJECT_PARALLEL, &r->err);
+        if (!r->rc) r->rc = disp_inbox_tex_projection(r->in, 7, &p, &r->err);
+        for (int y = 0; y < s && !r->rc; y += 8)
+            r->rc = disp_inbox_tex_patch(r->in, 7, 0, y, s, 8, px, 0, 0, &r->err);
+    }
+    atomic_store(&r->done, true);
+    return NULL;
+}
+
+Test(disp_inbox, resizes_racing_frames_upload_into_the_texture_they_were_made_for)
+{
+    ct_error err;
+    gl_backend *b = gl_open();
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    disp_inbox *in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
+    disp_session *s = NULL;
+    cr_assert_eq(disp_session_new(&s, &err), 0);
+    disp_inbox_scene(in, &mesh);
+    resizer r = {.in = in, .node = nd.back, .rounds = 20000};
+    atomic_init(&r.done, false);
+    pthread_t th;
+    cr_assert_eq(pthread_create(&th, NULL, resize_loop, &r), 0);
+    int frames = 0, rc = 0;
+    uint64_t texels = 0;
+    while (!rc && !atomic_load(&r.done)) {
+        disp_inbox_took took;
+        rc = disp_inbox_apply(in, s, &took, &err);
+        texels += took.texels;
+        frames++;
+    }
+    pthread_join(th, NULL);
+    cr_assert_eq(r.rc, 0, "%s", r.err.msg);
+    printf("metric: %d frames taken while 20000 resizes raced them, %llu texels uploaded\n", frames,
+           (unsigned long long)texels);
+    cr_expect_eq(rc, 0, "frame %d: %s", frames, err.msg);
+    disp_inbox_release_gl(in);
+    disp_inbox_free(in);
+    disp_session_free(s);
+    gl_backend_close(b);
+}

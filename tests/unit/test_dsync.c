@@ -1,0 +1,360 @@
+/* test_dsync.c: texture updates to a display (master/dsync.h) over a real
+ * display server and socket: the display ends with exactly the master's
+ * texels; no more than `window` updates go out unacknowledged however many
+ * samples are inserted meanwhile; texels changed several times between two
+ * updates go out once (newest wins); an update holds about its budget and
+ * the next one resumes where it stopped; lockstep sends everything at once;
+ * an ACK of an update never sent is a protocol error. */
+#include <criterion/criterion.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "common/radmesh.h"
+#include "common/rng.h"
+#include "common/timer.h"
+#include "master/ctex_tex.h"
+#include "master/dsrv.h"
+#include "master/dsync.h"
+#include "proto/chan.h"
+#include "tests/support/testscenes.h"
+
+/* The display's copy: per texture id its size and halves. */
+#define MAXTEX 256
+typedef struct copy {
+    int w[MAXTEX], h[MAXTEX];
+    uint16_t *tx[MAXTEX];
+    uint64_t last_sync, patches, texel_bytes;
+} copy;
+
+typedef struct rig {
+    ct_scene *scene;
+    ct_radmesh mesh;
+    ctex *tex;
+    dsrv *ds;
+    dsync *sync;
+    chan *disp;
+    copy cp;
+    char spec[128];
+    uint64_t next_id;
+} rig;
+
+typedef struct conn_arg {
+    const char *spec;
+    chan *c;
+    int rc;
+} conn_arg;
+
+static void *connect_display(void *arg)
+{
+    conn_arg *a = arg;
+    chan_config cc = {.role = AUTH_ROLE_DISPLAY};
+    ct_error err;
+    a->rc = chan_connect(a->spec, &cc, 3000, &a->c, &err);
+    if (!a->rc) {
+        wire_msg m = {.type = WIRE_SETTINGS};
+        a->rc = chan_send(a->c, &m, &err);
+        if (!a->rc) a->rc = chan_flush(a->c, 2000, &err);
+    }
+    return NULL;
+}
+
+static void setup(rig *r, const dsync_options *o)
+{
+    memset(r, 0, sizeof *r);
+    ct_error err;
+    r->scene = ts_room(&err);
+    cr_assert_not_null(r->scene, "%s", err.msg);
+    cr_assert_eq(rmesh_from_scene(r->scene, v3s(0.5f), &r->mesh, &err), 0, "%s", err.msg);
+    ctex_options co = ctex_options_default();
+    cr_assert_eq(ctex_new(&r->mesh, r->scene->mats, r->scene->nmats, &co, &r->tex, &err), 0, "%s", err.msg);
+    cr_assert_eq(ctex_set_camera(r->tex, &r->scene->cams[0].cam, 128, 96, &err), 0, "%s", err.msg);
+    snprintf(r->spec, sizeof r->spec, "unix:/tmp/ct-dsync-%d.sock", (int)getpid());
+    dsrv_config dc = {.listen = r->spec, .handshake_timeout_ms = 3000};
+    cr_assert_eq(dsrv_new(&dc, &r->ds, &err), 0, "%s", err.msg);
+    cr_assert_eq(dsync_new(o, &r->sync, &err), 0, "%s", err.msg);
+    /* The display connects on a thread while the server steps here. */
+    conn_arg a = {r->spec, NULL, -1};
+    pthread_t th;
+    cr_assert_eq(pthread_create(&th, NULL, connect_display, &a), 0);
+    bool connected = false;
+    for (int i = 0; i < 3000 && !connected; i++) {
+        dsrv_step(r->ds, 1, &err);
+        dsrv_event ev;
+        while (dsrv_next_event(r->ds, &ev)) connected |= ev.kind == DSRV_EV_CONNECTED;
+    }
+    pthread_join(th, NULL);
+    cr_assert(connected && a.rc == 0, "display did not connect");
+    r->disp = a.c;
+    uint32_t ntex = 0;
+    cr_assert_eq(dsync_send_state(r->sync, r->ds, r->tex, &ntex, &err), 0, "%s", err.msg);
+    cr_assert_gt(ntex, 3);
+    r->next_id = 1;
+}
+
+static void teardown(rig *r)
+{
+    for (int i = 0; i < MAXTEX; i++) free(r->cp.tx[i]);
+    chan_free(r->disp);
+    dsync_free(r->sync);
+    dsrv_free(r->ds);
+    ctex_free(r->tex);
+    rmesh_free(&r->mesh);
+    scene_free(r->scene);
+}
+
+/* Moves bytes both ways and applies what the display got; with ack, SYNCs
+ * are acknowledged (as the display's connection thread does). Returns the
+ * ACKs delivered to dsync. */
+static int pump(rig *r, bool ack, int rounds)
+{
+    ct_error err;
+    int acks = 0;
+    for (int i = 0; i < rounds; i++) {
+        dsrv_step(r->ds, 0, &err);
+        chan_pump(r->disp, &err);
+        wire_msg m;
+        while (chan_recv(r->disp, &m, &err) == WIRE_OK) {
+            copy *c = &r->cp;
+            if (m.type == WIRE_TEX_ALLOC) {
+                uint32_t id = m.u.tex_alloc.tex;
+                cr_assert_lt(id, MAXTEX);
+                free(c->tx[id]);
+                c->w[id] = (int)m.u.tex_alloc.width;
+                c->h[id] = (int)m.u.tex_alloc.height;
+                c->tx[id] = calloc((size_t)c->w[id] * (size_t)c->h[id] * 3, sizeof(uint16_t));
+            } else if (m.type == WIRE_TEX_FREE) {
+                free(c->tx[m.u.tex_free.tex]);
+                c->tx[m.u.tex_free.tex] = NULL;
+            } else if (m.type == WIRE_TEX_PATCH) {
+                const wire_tex_patch *p = &m.u.tex_patch;
+                cr_assert_not_null(c->tx[p->tex], "patch of unallocated texture %u", p->tex);
+                cr_assert_leq(p->x + p->w, (uint32_t)c->w[p->tex]);
+                cr_assert_leq(p->y + p->h, (uint32_t)c->h[p->tex]);
+                for (uint32_t y = 0; y < p->h; y++)
+                    memcpy(c->tx[p->tex] + 3 * ((size_t)(p->y + y) * (size_t)c->w[p->tex] + p->x),
+                           p->texels + 3 * (size_t)y * p->w, (size_t)p->w * 6);
+                c->patches++;
+                c->texel_bytes += (uint64_t)p->w * p->h * 6;
+            } else if (m.type == WIRE_SYNC) {
+                c->last_sync = m.u.sync.seq;
+                if (ack) {
+                    wire_msg a = {.type = WIRE_ACK};
+                    a.u.ack.seq = m.u.sync.seq;
+                    chan_send(r->disp, &a, &err);
+                }
+            }
+        }
+        chan_pump(r->disp, &err);
+        dsrv_step(r->ds, 0, &err);
+        dsrv_event ev;
+        while (dsrv_next_event(r->ds, &ev))
+            if (ev.kind == DSRV_EV_MESSAGE && ev.msg.type == WIRE_ACK) {
+                cr_assert_eq(dsync_ack(r->sync, ev.msg.u.ack.seq, ct_now(), &err), 0, "%s", err.msg);
+                acks++;
+            }
+    }
+    return acks;
+}
+
+/* n samples at random points of the view: they land on the room's surfaces. */
+static void insert(rig *r, int n, uint64_t seed)
+{
+    ct_rng g = rng_make(seed, 0, 0, 0);
+    const ct_camera *cam = &r->scene->cams[0].cam;
+    for (int i = 0; i < n; i++) {
+        float px = rng_float(&g) * 128.0f, py = rng_float(&g) * 96.0f;
+        vec3 d = cam_ray_dir(cam, 128, 96, px, py);
+        /* the room's walls: the first plane the ray meets */
+        float t = 1e30f;
+        float planes[6][2] = {{0, -2}, {0, 2}, {1, 0}, {1, 3}, {2, -2}, {2, 2}};
+        for (int k = 0; k < 6; k++) {
+            float o = (&cam->eye.x)[(int)planes[k][0]], dd = (&d.x)[(int)planes[k][0]];
+            float tt = (planes[k][1] - o) / dd;
+            if (tt > 1e-3f && tt < t) t = tt;
+        }
+        ct_sample s;
+        memset(&s, 0, sizeof s);
+        s.request_id = r->next_id++;
+        s.flags = CT_SAMPLE_HIT;
+        s.px = px;
+        s.py = py;
+        s.hit = v3_madd(cam->eye, d, t * 0.999f);
+        s.node = 0;
+        s.tri = UINT32_MAX;
+        s.l_base = v3s(0.5f);
+        s.l_hq = v3(0.5f + rng_float(&g), 0.5f, 0.5f - rng_float(&g));
+        /* the part under the hit: try every node, as the tracer would know it */
+        ctex_insert_info info;
+        for (uint32_t nd = 0; nd < r->scene->nnodes; nd++) {
+            s.node = nd;
+            if (ctex_owner(r->tex, nd, UINT32_MAX, s.hit) >= 0) {
+                ctex_insert(r->tex, &s, &info);
+                break;
+            }
+        }
+    }
+}
+
+/* Every visible texture's texels, as halves, equal the display's copy. */
+static void expect_same(rig *r)
+{
+    int checked = 0;
+    for (uint32_t id = 0; id < ctex_slot_count(r->tex); id++) {
+        ctex_tex *t = ctex_visible_texture(r->tex, id);
+        if (!t) continue;
+        cr_assert_lt(id, MAXTEX);
+        cr_assert_not_null(r->cp.tx[id], "texture %u never allocated on the display", id);
+        cr_assert_eq(r->cp.w[id], t->w);
+        cr_assert_eq(r->cp.h[id], t->h);
+        for (int y = 0; y < t->h; y++)
+            for (int x = 0; x < t->w; x++)
+                cr_assert_eq(memcmp(r->cp.tx[id] + 3 * ((size_t)y * (size_t)t->w + (size_t)x), ctex_tex_at(t, x, y)->c, 6),
+                             0, "texture %u texel %d,%d differs", id, x, y);
+        checked++;
+    }
+    cr_assert_gt(checked, 3);
+}
+
+/* Updates until nothing is unsent and every update is acknowledged. */
+static void settle(rig *r)
+{
+    ct_error err;
+    for (int i = 0; i < 2000; i++) {
+        int sent = dsync_update(r->sync, r->ds, r->tex, ct_now(), ct_now_us(), &err);
+        cr_assert_geq(sent, 0, "%s", err.msg);
+        pump(r, true, 3);
+        dsync_stats st = dsync_get_stats(r->sync);
+        bool dirty = false;
+        for (uint32_t id = 0; id < ctex_slot_count(r->tex); id++) {
+            ctex_tex *t = ctex_visible_texture(r->tex, id);
+            if (t && t->d.any) dirty = true;
+        }
+        if (!dirty && st.acked == st.updates && !sent) return;
+    }
+    cr_assert_fail("updates never settled");
+}
+
+Test(dsync, the_display_ends_with_the_masters_texels_and_the_window_holds)
+{
+    dsync_options o;
+    dsync_options_default(&o, false);
+    rig r;
+    setup(&r, &o);
+    ct_error err;
+    settle(&r);
+    expect_same(&r);
+    /* No ACKs now: after `window` updates nothing more goes out, however
+     * many samples come in. */
+    uint64_t before = dsync_get_stats(r.sync).updates;
+    for (int round = 0; round < 20; round++) {
+        insert(&r, 200, 100 + (uint64_t)round);
+        cr_assert_geq(dsync_update(r.sync, r.ds, r.tex, ct_now(), ct_now_us(), &err), 0);
+        pump(&r, false, 2);
+    }
+    dsync_stats st = dsync_get_stats(r.sync);
+    cr_assert_eq(st.updates - before, (uint64_t)o.window, "%llu updates without an ACK",
+                 (unsigned long long)(st.updates - before));
+    cr_assert_not(dsync_can_send(r.sync));
+    /* The display acknowledges what it has: the newest texels follow. */
+    wire_msg a = {.type = WIRE_ACK};
+    a.u.ack.seq = r.cp.last_sync;
+    chan_send(r.disp, &a, &err);
+    pump(&r, true, 5);
+    settle(&r);
+    expect_same(&r);
+    teardown(&r);
+}
+
+Test(dsync, texels_changed_between_updates_go_out_once)
+{
+    dsync_options o;
+    dsync_options_default(&o, false);
+    rig r;
+    setup(&r, &o);
+    settle(&r);
+    ct_error err;
+    /* The same 300 points, 30 times over, between two updates: every
+     * change lands on the same tiles. */
+    uint64_t b0 = r.cp.texel_bytes;
+    for (int i = 0; i < 30; i++) insert(&r, 300, 5);
+    settle(&r);
+    uint64_t once = r.cp.texel_bytes - b0;
+    expect_same(&r);
+    /* The same again, with an update after each round. */
+    uint64_t b1 = r.cp.texel_bytes;
+    for (int i = 0; i < 30; i++) {
+        insert(&r, 300, 5);
+        settle(&r);
+    }
+    uint64_t each = r.cp.texel_bytes - b1;
+    printf("metric: texel bytes for 30 rounds of the same 300 samples: %llu in one update, %llu in 30\n",
+           (unsigned long long)once, (unsigned long long)each);
+    cr_assert_gt(once, 0u);
+    cr_assert_gt(each, 10 * once, "newest wins: one update sends the texels once");
+    (void)err;
+    teardown(&r);
+}
+
+Test(dsync, an_update_holds_its_budget_and_the_next_resumes)
+{
+    dsync_options o;
+    dsync_options_default(&o, false);
+    o.min_bytes = o.max_bytes = 4096;   /* a few tile runs an update */
+    rig r;
+    setup(&r, &o);
+    ct_error err;
+    insert(&r, 3000, 77);   /* textures grow past their first coarse size */
+    int updates = 0;
+    uint64_t prev = 0;
+    for (int i = 0; i < 5000; i++) {
+        int sent = dsync_update(r.sync, r.ds, r.tex, ct_now(), ct_now_us(), &err);
+        cr_assert_geq(sent, 0);
+        if (sent) {
+            updates++;
+            uint64_t now = dsync_get_stats(r.sync).texel_bytes;
+            /* a budget, plus the run that crossed it (at most a tile row of
+             * the widest texture) */
+            cr_assert_leq(now - prev, 4096u + 8u * 6u * 2048u, "update of %llu bytes", (unsigned long long)(now - prev));
+            prev = now;
+        }
+        pump(&r, true, 2);
+        bool dirty = false;
+        for (uint32_t id = 0; id < ctex_slot_count(r.tex); id++) {
+            ctex_tex *t = ctex_visible_texture(r.tex, id);
+            if (t && t->d.any) dirty = true;
+        }
+        dsync_stats st = dsync_get_stats(r.sync);
+        if (!dirty && st.acked == st.updates) break;
+    }
+    printf("metric: the state in %d updates of 4 KiB\n", updates);
+    cr_assert_gt(updates, 10);
+    expect_same(&r);
+    teardown(&r);
+}
+
+Test(dsync, lockstep_sends_everything_at_once_and_bad_acks_are_refused)
+{
+    dsync_options o;
+    dsync_options_default(&o, true);
+    cr_assert_eq(o.encoding, WIRE_PATCH_LZ4, "TCP: LZ4");
+    dsync_options_default(&o, false);
+    cr_assert_eq(o.encoding, WIRE_PATCH_RAW, "UNIX: raw");
+    o.encoding = WIRE_PATCH_LZ4;
+    rig r;
+    setup(&r, &o);
+    ct_error err;
+    insert(&r, 500, 9);
+    uint32_t patches = 0;
+    cr_assert_eq(dsync_flush_all(r.sync, r.ds, r.tex, &patches, &err), 0, "%s", err.msg);
+    cr_assert_gt(patches, 0);
+    pump(&r, true, 200);
+    cr_assert_eq(r.cp.last_sync, 0u, "lockstep sends no SYNC (FRAME ends it)");
+    expect_same(&r);
+    cr_assert_eq(dsync_ack(r.sync, 5, ct_now(), &err), CT_EPROTO);
+    cr_assert(strstr(err.msg, "ACK of update 5"), "%s", err.msg);
+    teardown(&r);
+}
