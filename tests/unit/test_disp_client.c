@@ -281,31 +281,52 @@ Test(disp_client, scene_cache_on_disk)
     gl_backend_close(b);
 }
 
+/* A GL context, a master child ending as asked, a session and a connected
+ * free-running client that has sent the box camera. */
+typedef struct rig {
+    gl_backend *b;
+    fxm_peer p;
+    disp_session *s;
+    disp_inbox *in;
+    disp_client *c;
+} rig;
+
+static void rig_open(rig *r, fxm_end end)
+{
+    ct_error err;
+    memset(r, 0, sizeof *r);
+    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &r->b, &err), 0, "%s", err.msg);
+    cr_assert_eq(fxm_start(&r->p, end, 0, W, H), 0, "%s", r->p.msg);
+    cr_assert_eq(disp_session_new(&r->s, &err), 0);
+    r->in = new_inbox();
+    disp_client_opts o = {r->p.addr, NULL, 0, 5000};
+    cr_assert_eq(disp_client_connect(&o, NULL, r->in, &r->c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(r->c, &cam, W, H, &err), 0);
+}
+
+/* Closes everything; the master child's exit status. */
+static int rig_close(rig *r)
+{
+    disp_client_close(r->c);
+    disp_inbox_release_gl(r->in);
+    disp_inbox_free(r->in);
+    int st = fxm_stop(&r->p);
+    disp_session_free(r->s);
+    gl_backend_close(r->b);
+    return st;
+}
+
 Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
 {
     ct_error err;
-    gl_backend *b = NULL;
-    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
-    fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_BAD, 0, W, H), 0, "%s", p.msg);
-    disp_session *s = NULL;
-    cr_assert_eq(disp_session_new(&s, &err), 0);
-    disp_inbox *in = new_inbox();
-    disp_client *c = NULL;
-    disp_client_opts o = {p.addr, NULL, 0, 5000};
-    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
-    ct_camera cam = fx_box_camera();
-    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
-    int rc = pump(c, in, s, 5000, NULL, &err);
+    rig r;
+    rig_open(&r, FXM_END_BAD);
+    int rc = pump(r.c, r.in, r.s, 5000, NULL, &err);
     printf("bad patch: %s\n", err.msg);
     cr_expect_eq(rc, CT_EPROTO);
     cr_expect(strstr(err.msg, "unknown texture 77") != NULL, "%s", err.msg);
-    disp_client_close(c);
-    disp_inbox_release_gl(in);
-    disp_inbox_free(in);
-    cr_expect_eq(fxm_stop(&p), 0, "the master did not get a PROTOCOL error naming texture 77");
-    disp_session_free(s);
-    gl_backend_close(b);
+    cr_expect_eq(rig_close(&r), 0, "the master did not get a PROTOCOL error naming texture 77");
 }
 
 /* Lockstep rounds: each frame asked for arrives as soon as its bytes do.
@@ -315,18 +336,12 @@ Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
 Test(disp_client, lockstep_rounds_do_not_wait_for_the_ping)
 {
     ct_error err;
-    gl_backend *b = NULL;
-    cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &b, &err), 0, "%s", err.msg);
-    fxm_peer p = {0};
-    cr_assert_eq(fxm_start(&p, FXM_END_ROUNDS, 0, W, H), 0, "%s", p.msg);
-    disp_session *s = NULL;
-    cr_assert_eq(disp_session_new(&s, &err), 0);
-    disp_inbox *in = new_inbox();
-    disp_client *c = NULL;
-    disp_client_opts o = {p.addr, NULL, 0, 5000};
-    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    rig r;
+    rig_open(&r, FXM_END_ROUNDS);
+    disp_client *c = r.c;
+    disp_inbox *in = r.in;
+    disp_session *s = r.s;
     ct_camera cam = fx_box_camera();
-    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
     cr_assert_eq(pump(c, in, s, 5000, frame_ready, &err), 0, "%s", err.msg);
     disp_inbox_take_frame(in);
     usleep(500000);   /* past the quick pings of the first 400 ms: the next is a second away */
@@ -355,12 +370,7 @@ Test(disp_client, lockstep_rounds_do_not_wait_for_the_ping)
     /* A ping period is a second; a healthy round is milliseconds even
      * under the sanitizers. */
     cr_expect_lt(worst, 0.5, "a frame waited %.0f ms after its bytes were read", 1000 * worst);
-    disp_client_close(c);
-    disp_inbox_release_gl(in);
-    disp_inbox_free(in);
-    cr_expect_eq(fxm_stop(&p), 0, "master child failed");
-    disp_session_free(s);
-    gl_backend_close(b);
+    cr_expect_eq(rig_close(&r), 0, "master child failed");
 }
 
 /* Free running, cameras drawn faster than they can be sent replace the
