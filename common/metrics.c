@@ -2,6 +2,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* SSIM constants for a dynamic range L = 1 (Wang et al. 2004):
  * C1 = (K1 L)^2, C2 = (K2 L)^2 with K1 = 0.01, K2 = 0.03. */
@@ -118,4 +119,93 @@ int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct
     out->ssim = ssim_planes(ya, yb, w, h, ox, oy);
     free(ya); free(yb); free(ox); free(oy);
     return CT_OK;
+}
+
+static double px_mean(const ct_image *img, int x, int y)
+{
+    vec3 v = img_get(img, x, y);
+    return ((double)v.x + v.y + v.z) / 3.0;
+}
+
+/* Whether the block at (x0, y0) counts (metrics_regions); mean is the
+ * reference's mean over it. */
+static int block_counts(const ct_image *planes, int margin, const ct_image *flat, double flat_ratio, int x0, int y0,
+                        int b, double mean)
+{
+    if (planes) {
+        vec3 k = img_get(planes, x0, y0);
+        if (k.x == 0.0f && k.y == 0.0f && k.z == 0.0f) return 0;
+        int xa = x0 - margin > 0 ? x0 - margin : 0, ya = y0 - margin > 0 ? y0 - margin : 0;
+        int xb = x0 + b + margin < planes->width ? x0 + b + margin : planes->width;
+        int yb = y0 + b + margin < planes->height ? y0 + b + margin : planes->height;
+        for (int y = ya; y < yb; y++)
+            for (int x = xa; x < xb; x++) {
+                vec3 q = img_get(planes, x, y);
+                if (q.x != k.x || q.y != k.y || q.z != k.z) return 0;
+            }
+    }
+    if (flat) {
+        double lo = HUGE_VAL, hi = -HUGE_VAL;
+        for (int y = y0; y < y0 + b; y++)
+            for (int x = x0; x < x0 + b; x++) {
+                double v = px_mean(flat, x, y);
+                lo = fmin(lo, v);
+                hi = fmax(hi, v);
+            }
+        if (hi - lo > (flat_ratio - 1.0) * mean) return 0;
+    }
+    return 1;
+}
+
+int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, int margin, const ct_image *flat,
+                    double flat_ratio, int block, img_regions *out, ct_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (!a || !ref || !a->px || !ref->px || a->width < 1 || a->height < 1)
+        return ct_fail(err, CT_EINVAL, "metrics: empty image");
+    const ct_image *all[3] = {ref, planes, flat};
+    for (int i = 0; i < 3; i++)
+        if (all[i] && (all[i]->width != a->width || all[i]->height != a->height))
+            return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs %dx%d", a->width, a->height,
+                           all[i]->width, all[i]->height);
+    if (block < 1 || block > a->width || block > a->height)
+        return ct_fail(err, CT_EINVAL, "region size %d outside [1, %d]", block,
+                       a->width < a->height ? a->width : a->height);
+    out->block = block;
+    out->nx = a->width / block;
+    out->ny = a->height / block;
+    out->worst_x = out->worst_y = -1;
+    out->ratio = malloc((size_t)out->nx * out->ny * sizeof *out->ratio);
+    if (!out->ratio) return ct_fail(err, CT_ENOMEM, "metrics: out of memory for %d regions", out->nx * out->ny);
+    double sq = 0.0;
+    for (int by = 0; by < out->ny; by++)
+        for (int bx = 0; bx < out->nx; bx++) {
+            int x0 = bx * block, y0 = by * block;
+            double sa = 0.0, sb = 0.0;
+            for (int y = y0; y < y0 + block; y++)
+                for (int x = x0; x < x0 + block; x++) {
+                    sa += px_mean(a, x, y);
+                    sb += px_mean(ref, x, y);
+                }
+            float *r = &out->ratio[by * out->nx + bx];
+            *r = NAN;
+            if (!(sb > 0.0) || !isfinite(sa) || !block_counts(planes, margin, flat, flat_ratio, x0, y0, block, sb / ((double)block * block))) continue;
+            double q = sa / sb;
+            *r = (float)q;
+            out->counted++;
+            sq += (q - 1.0) * (q - 1.0);
+            if (fabs(q - 1.0) > out->worst || out->worst_x < 0) {
+                out->worst = fabs(q - 1.0);
+                out->worst_x = bx;
+                out->worst_y = by;
+            }
+        }
+    out->rms = out->counted ? sqrt(sq / out->counted) : 0.0;
+    return CT_OK;
+}
+
+void metrics_regions_free(img_regions *r)
+{
+    free(r->ratio);
+    r->ratio = NULL;
 }

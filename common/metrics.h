@@ -17,4 +17,32 @@ typedef struct img_metrics {
 /* Compares a against reference ref; the sizes must match. */
 int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct_error *err);
 
+/* Region means: a bias that the whole image's error hides under noise
+ * shows in the means of blocks, whose noise falls with their pixel count.
+ * A block (block x block pixels; partial blocks at the right and bottom
+ * are left out) counts when the reference's mean (of R, G, B) is positive
+ * and, when given, every pixel of planes within margin pixels of it carries
+ * one and the same non-zero value (one flat surface, away from its edges:
+ * rad_render_view's RAD_VIEW_PLANES) and flat's
+ * pixel means vary over it by at most (flat_ratio - 1) times the
+ * reference's mean (flat the direct light: no shadow boundary inside). */
+typedef struct img_regions {
+    int block;          /* block side in pixels */
+    int nx, ny;         /* blocks per row, rows */
+    int counted;        /* blocks that count */
+    double worst;       /* largest |mean(a) / mean(ref) - 1| of a counted block */
+    int worst_x, worst_y;
+    double rms;         /* root mean square of mean(a) / mean(ref) - 1 over them */
+    float *ratio;       /* nx * ny block ratios mean(a) / mean(ref), NaN where a block
+                         * does not count (free with metrics_regions_free) */
+} img_regions;
+
+/* Block means of a against ref (same sizes; planes and flat may be NULL;
+ * margin >= 0). */
+int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, int margin, const ct_image *flat,
+                    double flat_ratio, int block, img_regions *out, ct_error *err);
+
+/* Frees out->ratio. */
+void metrics_regions_free(img_regions *r);
+
 #endif

@@ -189,13 +189,20 @@ static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target,
     return v3s(0.0f);
 }
 
-vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d)
+/* integ_base_through_glass; reflected: without the emission of the surface
+ * found (for the final gather: the shadow rays of the point that gathers
+ * bring that light). */
+static vec3 through_glass_base(integ_ctx *c, const emb_hit *first, vec3 d, bool reflected)
 {
     vec3 att = v3s(1.0f);
     emb_hit h = *first;
     for (int k = 0; k < RMESH_MAX_GLASS_CROSSINGS; k++) {
         const scene_material *m = &c->mesh->mats[h.mat];
-        if (!m->dielectric) return v3_mul(att, integ_vertex_lerp(c->rad->rad, &h));
+        if (!m->dielectric) {
+            vec3 l = integ_vertex_lerp(c->rad->rad, &h);
+            if (reflected) l = clamp0(v3_sub(l, m->emission));
+            return v3_mul(att, l);
+        }
         vec3 ng = h.rec->ng;
         float cosd = v3_dot(d, ng);
         att = v3_mul(att, glass_pass(m, cosd));
@@ -206,6 +213,11 @@ vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d)
         if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return v3s(0.0f);
     }
     return v3s(0.0f);
+}
+
+vec3 integ_base_through_glass(integ_ctx *c, const emb_hit *first, vec3 d)
+{
+    return through_glass_base(c, first, d, false);
 }
 
 /* x - floor(x) for x in [0, 2), kept below 1 (float rounding). */
@@ -478,6 +490,42 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
     return L;
 }
 
+/* drt's indirect diffuse light at s by a final gather from the radiosity
+ * solution: G cosine-weighted rays (stratified, one random shift per
+ * point) read the mesh's radiance where they land, less the emission the K
+ * shadow rays already brought (seen through glass as the display shows it,
+ * behind a surface's back nothing: radiosity's surfaces are one-sided).
+ * Read at s itself, the mesh's own error and its Gouraud interpolation
+ * are the image's floor; gathered, they are averaged over the hemisphere
+ * one bounce away (docs/tracer.md, "Indirect light"). */
+static vec3 final_gather(integ_ctx *c, const integ_surf *s, const bsdf *b)
+{
+    int n = c->opt->gather_rays;
+    float su = rnd(c), sv = rnd(c);
+    vec3 o = offset_ray(s->p, b->ng), sum = v3s(0.0f);
+    for (int i = 0; i < n; i++) {
+        /* (i / n, radical inverse of i in base 2), shifted: stratified in
+         * the first number for any n, each ray still uniform. */
+        float u1 = frac1((float)i / (float)n + su);
+        float u2 = frac1(radical_inverse((uint32_t)i, 2) + sv);
+        bsdf_sample bs;
+        if (!bsdf_sample_diffuse(b, u1, u2, &bs)) continue;
+        emb_hit h;
+        c->st->secondary++;
+        log_ray(c, o, bs.wi, INFINITY, 0);
+        if (!emb_intersect(c->emb, o, bs.wi, 0.0f, INFINITY, &h)) continue;
+        const scene_material *hm = &c->mesh->mats[h.mat];
+        float cosd = v3_dot(bs.wi, h.rec->ng);
+        vec3 l;
+        if (hm->dielectric) l = through_glass_base(c, &h, bs.wi, true);
+        else if (cosd >= 0.0f) continue;
+        else l = clamp0(v3_sub(integ_vertex_lerp(c->rad->rad, &h), hm->emission));
+        sum = v3_add(sum, v3_mul(bs.weight, l));
+    }
+    sum = v3_scale(sum, 1.0f / (float)n);
+    return finite3(sum) ? sum : v3s(0.0f);
+}
+
 /* Distributed ray tracing (Cook 1984) at recursion level depth. */
 static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int depth, emis_w ew)
 {
@@ -493,7 +541,13 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
     if (b.L.p_d > 0.0f) {
-        if (c->rad) {
+        if (c->rad && opt->indirect == TRC_INDIRECT_GATHER && ew.mode == EMIS_FULL) {
+            /* The first diffuse hit of the path (the camera's, or seen in
+             * mirrors and through glass: the hits whose emission counts
+             * fully); behind a glossy bounce the mesh's value at the hit is
+             * blurred by the lobe anyway. */
+            L = v3_add(L, final_gather(c, &s, &b));
+        } else if (c->rad) {
             /* The radiosity solution's indirect part at this very point. */
             vec3 ind = v3_sub(integ_vertex_lerp(c->rad->rad, &s.h), integ_vertex_lerp(c->rad->rad_direct, &s.h));
             L = v3_add(L, clamp0(ind));

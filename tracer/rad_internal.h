@@ -15,7 +15,6 @@
 
 #define RAD_NONE        UINT32_MAX
 #define RAD_CLUSTER_BIT 0x80000000u   /* a source reference naming a cluster */
-#define RAD_UNIFORM_BIT 0x40000000u   /* link flag: all its visibility rays agreed */
 #define RAD_ID_MASK     0x3FFFFFFFu
 #define RAD_CHUNK_SHIFT 14
 #define RAD_CHUNK       (1u << RAD_CHUNK_SHIFT)
@@ -23,10 +22,14 @@
 #define RAD_MAX_DEPTH   14            /* subdivision levels below an input patch */
 
 /* One link: the receiver gathers ff * B(src); ff is the form factor times
- * the fraction of visibility rays that were not blocked. */
+ * the fraction of visibility rays that were not blocked. gr and gv are its
+ * error per unit of source radiosity (rad_link.c, evaluate), kept for the
+ * oracle of the later passes. */
 typedef struct rad_link {
     uint32_t src;
     float ff;
+    float vis;           /* the visible fraction in ff (1 for a cluster: ff is all it knows) */
+    float gr, gv;
 } rad_link;
 
 /* A patch or sub-patch: a triangle (nv = 3) or a quad (nv = 4) in world
@@ -38,6 +41,7 @@ typedef struct rad_elem {
     uint32_t patch;      /* input patch */
     uint32_t child;      /* first of 4 children, RAD_NONE for a leaf; owner thread only */
     uint32_t child_pub;  /* the same, as published between passes: what sources see */
+    uint32_t parent;     /* RAD_NONE for a patch's root */
     uint32_t link_off, nlinks;  /* in the patch's link block */
     uint64_t key;        /* stable id from the patch and the child path (seeds rays) */
     vec3 Bd;             /* direct part: emission + one bounce of emitted light */
@@ -95,6 +99,7 @@ typedef struct rad_ctx {
     rad_cluster *clusters;
     uint32_t *order;     /* patch ids in cluster order */
     rad_sgeo *sgeo;      /* their geometry, same order */
+    double *sarea;       /* prefix sums of their areas, same order (npatches + 1) */
 
     rad_elem **chunks;
     vec3 **bchunks[2];   /* radiosity per element, double-buffered by iteration
@@ -175,15 +180,23 @@ typedef struct rad_out_link {
     rad_link l;
 } rad_out_link;
 
+/* A link being refined: kept from the last pass, or new (fresh: to be
+ * evaluated), with its error at the current radiosity. */
+typedef struct rad_cand {
+    rad_link l;
+    float err;
+    int fresh;
+} rad_cand;
+
 typedef struct rad_tls {
     rad_out_link *out;
     size_t nout, capout;
     uint32_t *elems;           /* the tree's elements, DFS order */
     size_t nelems, capelems;
-    uint32_t *old;             /* old (off, n) per listed element */
-    size_t capold;
     uint32_t *stack;
     size_t capstack;
+    rad_cand *work;            /* candidate links, a stack of per-element lists */
+    size_t nwork, capwork;
     int64_t quota;             /* triangles the patch being refined may still add */
     uint64_t want;             /* ...and those its quota refused */
 } rad_tls;
@@ -203,5 +216,27 @@ void rad_tls_free(rad_tls *t);
 
 /* Meshes the leaves into a conforming triangle mesh with per-vertex values. */
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err);
+
+/* What the final gather reads per element (by element id): the sums over
+ * its links whose factor is the same at every vertex (clusters, and
+ * factors flat over the element), and the others, to be taken at each
+ * vertex, as indices into the patch's link block. */
+typedef struct rad_gather_prep {
+    vec3 *flat, *flat_d;     /* sum of ff * B and of ff * E of the flat links */
+    uint32_t *off;           /* first entry of an element's other links in idx (nelems + 1) */
+    uint32_t *idx;
+} rad_gather_prep;
+
+/* Fills g from the final links (rad_link.c); CT_ENOMEM when out of memory. */
+int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g);
+
+/* Frees g's arrays. */
+void rad_gather_prep_free(rad_gather_prep *g);
+
+/* The final gather at a mesh vertex x of leaf (normal n): the irradiance H
+ * and its direct part Hd over the links of the leaf and its ancestors, each
+ * element source's factor taken at x itself (rad_link.c). */
+void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, uint32_t leaf, vec3 x, vec3 n, vec3 *H,
+                      vec3 *Hd);
 
 #endif

@@ -8,6 +8,8 @@
  * duplicated so values stay separate. */
 #include "tracer/rad_internal.h"
 
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -220,6 +222,58 @@ static float on_segment(vec3 a, vec3 b, vec3 p)
     return v3_len2(v3_sub(d, v3_scale(ab, t))) <= tol * tol ? t : -1.0f;
 }
 
+/* The final gather at the mesh's vertices (rad_final_gather), on
+ * c->prm.threads threads taking runs of vertices from a shared counter. */
+typedef struct gather_job {
+    const rad_ctx *c;
+    const rad_gather_prep *prep;
+    const uint32_t *leaf;
+    const vec3 *pos;
+    vec3 *B, *Bd;
+    uint32_t n;
+    atomic_uint *next;
+} gather_job;
+
+static void *gather_worker(void *arg)
+{
+    gather_job *j = arg;
+    for (;;) {
+        uint32_t b = atomic_fetch_add(j->next, 256);
+        if (b >= j->n) break;
+        uint32_t e = b + 256 < j->n ? b + 256 : j->n;
+        for (uint32_t g = b; g < e; g++) {
+            const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
+            vec3 H, Hd;
+            rad_final_gather(j->c, j->prep, j->leaf[g], j->pos[g], p->n, &H, &Hd);
+            j->B[g] = v3_add(p->E, v3_mul(p->rho, H));
+            j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
+        }
+    }
+    return NULL;
+}
+
+/* Radiosity B and its direct part Bd of the n vertices pos[g] of leaf[g]. */
+static int gather_vertices(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
+{
+    rad_gather_prep prep;
+    if (rad_gather_prepare(c, &prep) != CT_OK) {
+        rad_gather_prep_free(&prep);
+        return CT_ENOMEM;
+    }
+    atomic_uint next = 0;
+    gather_job j = {c, &prep, leaf, pos, B, Bd, n, &next};
+    pthread_t th[256];
+    int started = 0, nth = c->prm.threads < 256 ? c->prm.threads : 256;
+    for (int i = 1; i < nth; i++) {
+        if (pthread_create(&th[i], NULL, gather_worker, &j) != 0) break;
+        started = i;
+    }
+    gather_worker(&j);
+    for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
+    rad_gather_prep_free(&prep);
+    return 0;
+}
+
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
 {
     const ct_scene *s = c->scene;
@@ -235,7 +289,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     uint32_t stamp = 4 * c->npatches;   /* stamps below are the patch edges' */
     uint32_t *cnt = NULL, *byp = NULL, *bvert = NULL;
     vec3 *vsum = NULL, *vdsum = NULL, *vnrm = NULL, *vpos = NULL;
-    uint32_t *vcount = NULL;
+    uint32_t *vcount = NULL, *vleaf = NULL;
 
     /* Leaves in patch order, depth first. */
     for (uint32_t p = 0; p < c->npatches && !rc; p++) {
@@ -354,12 +408,12 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     vnrm = calloc(vcap, sizeof *vnrm);
     vpos = calloc(vcap, sizeof *vpos);
     vcount = calloc(vcap, sizeof *vcount);
-    if (!vsum || !vdsum || !vnrm || !vpos || !vcount) {
+    vleaf = calloc(vcap, sizeof *vleaf);
+    if (!vsum || !vdsum || !vnrm || !vpos || !vcount || !vleaf) {
         free(slot_leaf);
         goto oom;
     }
     uint32_t nv = 0;
-    int cur = c->cur;
     for (uint32_t p = 0; p < h.npts; p++) {
         uint32_t gfirst = nv;
         for (uint32_t k = cnt[p]; k < cnt[p + 1]; k++) {
@@ -379,18 +433,20 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
             }
             bvert[slot] = g;
         }
-        /* Sums per group (vcount reused once the groups are known). */
+        /* Normals per group and a leaf of each (vcount reused once the
+         * groups are known). */
         for (uint32_t q = gfirst; q < nv; q++) vcount[q] = 0;
         for (uint32_t k = cnt[p]; k < cnt[p + 1]; k++) {
             uint32_t slot = byp[k], g = bvert[slot];
             const rad_elem *e = rad_el(c, leaves.v[slot_leaf[slot]]);
-            vsum[g] = v3_add(vsum[g], *rad_B(c, cur, leaves.v[slot_leaf[slot]]));
-            vdsum[g] = v3_add(vdsum[g], e->Bd);
+            if (vcount[g] == 0) vleaf[g] = leaves.v[slot_leaf[slot]];
             vnrm[g] = v3_add(vnrm[g], c->patches[e->patch].n);
             vcount[g]++;
         }
     }
     free(slot_leaf);
+    rc = gather_vertices(c, vleaf, vpos, nv, vsum, vdsum);
+    if (rc) goto oom;
 
     /* Count triangles and centre vertices, then fill the mesh. */
     uint32_t ntris = 0, ncentres = 0;
@@ -404,11 +460,10 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     if (rc) goto done;
     const float inv_pi = 1.0f / CT_PI;
     for (uint32_t g = 0; g < nv; g++) {
-        float w = vcount[g] ? 1.0f / (float)vcount[g] : 0.0f;
         out->pos[g] = vpos[g];
         out->nrm[g] = v3_norm(vnrm[g]);
-        out->rad[g] = v3_scale(vsum[g], w * inv_pi);
-        out->rad_direct[g] = v3_scale(vdsum[g], w * inv_pi);
+        out->rad[g] = v3_scale(vsum[g], inv_pi);
+        out->rad_direct[g] = v3_scale(vdsum[g], inv_pi);
     }
     uint32_t t = 0, vc = nv;
     for (size_t i = 0; i < leaves.n; i++) {
@@ -472,6 +527,7 @@ done:
     free(bvert);
     free(vsum);
     free(vdsum);
+    free(vleaf);
     free(vnrm);
     free(vpos);
     free(vcount);

@@ -122,6 +122,7 @@ int rad_subdivide(rad_ctx *c, uint32_t ei)
         k->depth = (uint8_t)(e->depth + 1);
         k->patch = e->patch;
         k->child = k->child_pub = RAD_NONE;
+        k->parent = ei;
         k->key = ct_hash64(e->key * 4u + i + 1u);
         *rad_B(c, 0, first + i) = *rad_B(c, 0, ei);
         *rad_B(c, 1, first + i) = *rad_B(c, 1, ei);
@@ -264,6 +265,7 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         e->nv = (uint8_t)nv;
         e->patch = pi;
         e->child = e->child_pub = RAD_NONE;
+        e->parent = RAD_NONE;
         e->key = ct_hash64((uint64_t)pi + 0x51ed27ULL);
         e->Bd = p->E;
         *rad_B(c, 0, ei) = *rad_B(c, 1, ei) = p->E;
@@ -283,13 +285,17 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
     if (c->npatches > 1) build_cluster(c, 0, c->npatches);
     c->sgeo = aligned_alloc(64, ((size_t)c->npatches * sizeof *c->sgeo + 63) / 64 * 64);
     if (!c->sgeo) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for clusters");
-    rad_track(c, (int64_t)c->npatches * (int64_t)sizeof *c->sgeo);
+    c->sarea = malloc(((size_t)c->npatches + 1) * sizeof *c->sarea);
+    if (!c->sarea) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for clusters");
+    rad_track(c, (int64_t)c->npatches * (int64_t)(sizeof *c->sgeo + sizeof *c->sarea));
+    c->sarea[0] = 0.0;
     for (uint32_t i = 0; i < c->npatches; i++) {
         const rad_patch *p = &c->patches[c->order[i]];
         const rad_elem *e = rad_el(c, p->root);
         memcpy(c->sgeo[i].p, e->p, sizeof e->p);
         c->sgeo[i].n = p->n;
         c->sgeo[i].nv = e->nv;
+        c->sarea[i + 1] = c->sarea[i] + e->area;
     }
     return CT_OK;
 }
@@ -302,7 +308,9 @@ void rad_free_patches(rad_ctx *c)
     free(c->clusters);
     free(c->order);
     free(c->sgeo);
+    free(c->sarea);
     c->sgeo = NULL;
+    c->sarea = NULL;
     for (uint32_t i = 0; i < RAD_MAX_CHUNKS; i++) {
         if (c->chunks) free(c->chunks[i]);
         if (c->bchunks[0]) free(c->bchunks[0][i]);

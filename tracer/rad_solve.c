@@ -14,7 +14,8 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 2u   /* 2: --max-triangles shared out per patch and pass */
+#define RAD_SOLVER_VERSION 3u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+                                 * oracle, unbiased factors and visibility, the final gather */
 
 void rad_params_default(rad_params *p)
 {
@@ -162,7 +163,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     vec3 H = v3s(0.0f), Hd = v3s(0.0f);
     for (uint32_t i = 0; i < e->nlinks; i++) {
         const rad_link *l = &p->links[e->link_off + i];
-        uint32_t src = l->src & ~RAD_UNIFORM_BIT;
+        uint32_t src = l->src;
         vec3 B;
         if (src & RAD_CLUSTER_BIT) {
             const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];

@@ -7,6 +7,7 @@
 #include "tracer/radiosity.h"
 
 #include <embree3/rtcore.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,7 +21,24 @@ typedef struct view_job {
     const ct_camera *cam;
     ct_image *img;
     int spp, which, nthreads, id;
+    float scale;   /* plane offsets' unit (plane_key) */
 } view_job;
+
+/* The plane of triangle t, as three floats exact in an image: its part node
+ * + 1, its first vertex's normal (the mean face normal of the flat
+ * surface, the same at all its vertices; a triangle's own normal would vary
+ * with its rounding) quantized to 1/64 per axis, and its distance from the
+ * origin along that normal in units of 1/256 of the bounding radius of the
+ * mesh's vertices. */
+static vec3 plane_key(const ct_radmesh *m, uint32_t t, float scale)
+{
+    const uint32_t *i = m->tris + 3 * (size_t)t;
+    vec3 n = m->nrm[i[0]], a = m->pos[i[0]];
+    float q[3] = {roundf(n.x * 64.0f) + 64.0f, roundf(n.y * 64.0f) + 64.0f, roundf(n.z * 64.0f) + 64.0f};
+    float code = (q[0] * 129.0f + q[1]) * 129.0f + q[2];
+    float off = roundf(v3_dot(n, a) * scale);
+    return v3((float)m->tri_node[t] + 1.0f, code + 1.0f, off);
+}
 
 static void *view_rows(void *arg)
 {
@@ -31,7 +49,8 @@ static void *view_rows(void *arg)
     for (int y = j->id; y < H; y += j->nthreads) {
         ct_rng g = rng_make(0x76696577u, (uint64_t)y, 0, 0);
         for (int x = 0; x < W; x++) {
-            vec3 sum = v3s(0.0f);
+            vec3 sum = v3s(0.0f), key = v3s(0.0f);
+            int same = 1;
             for (int s = 0; s < j->spp; s++) {
                 float px = (float)x + (j->spp == 1 ? 0.5f : ((float)(s % m) + rng_float(&g)) / (float)m);
                 float py = (float)y + (j->spp == 1 ? 0.5f : ((float)((s / m) % m) + rng_float(&g)) / (float)m);
@@ -66,18 +85,25 @@ static void *view_rows(void *arg)
                     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
                     rtcIntersect1(j->scn, &ctx, &rh);
                 }
+                if (j->which == RAD_VIEW_PLANES) {
+                    vec3 k = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? v3s(0.0f) : plane_key(j->m, rh.hit.primID, j->scale);
+                    if (s == 0) key = k;
+                    else same = same && k.x == key.x && k.y == key.y && k.z == key.z;
+                    continue;
+                }
                 if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-                vec3 v = j->which == 1 ? rmesh_eval_direct(j->m, rh.hit.primID, rh.hit.u, rh.hit.v)
-                                       : rmesh_eval(j->m, rh.hit.primID, rh.hit.u, rh.hit.v);
+                vec3 v = j->which == RAD_VIEW_DIRECT ? rmesh_eval_direct(j->m, rh.hit.primID, rh.hit.u, rh.hit.v)
+                                                     : rmesh_eval(j->m, rh.hit.primID, rh.hit.u, rh.hit.v);
                 sum = v3_add(sum, v3_mul(att, v));
             }
-            img_set(j->img, x, y, v3_scale(sum, 1.0f / (float)j->spp));
+            if (j->which == RAD_VIEW_PLANES) img_set(j->img, x, y, same ? key : v3s(0.0f));
+            else img_set(j->img, x, y, v3_scale(sum, 1.0f / (float)j->spp));
         }
     }
     return NULL;
 }
 
-int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int direct, int threads,
+int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int which, int threads,
                     ct_image *img, ct_error *err)
 {
     if (spp < 1 || threads < 1) return ct_fail(err, CT_EINVAL, "radiosity view: spp and threads must be >= 1");
@@ -112,8 +138,10 @@ int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int dire
         view_job jobs[64];
         pthread_t th[64];
         int started = 0;
+        float radius = 0.0f;
+        for (uint32_t i = 0; i < m->nverts; i++) radius = fmaxf(radius, v3_len(m->pos[i]));
         for (int i = 0; i < threads; i++) {
-            jobs[i] = (view_job){scn, m, cam, img, spp, direct, threads, i};
+            jobs[i] = (view_job){scn, m, cam, img, spp, which, threads, i, radius > 0.0f ? 256.0f / radius : 1.0f};
         }
         for (int i = 1; i < threads; i++) {
             if (pthread_create(&th[i], NULL, view_rows, &jobs[i]) != 0) break;

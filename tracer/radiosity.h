@@ -85,11 +85,21 @@ int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_p
                      rad_progress_fn progress, void *user, ct_radmesh *out, rad_stats *st,
                      int *from_cache, ct_error *why, ct_error *err);
 
+/* What rad_render_view shows. */
+enum {
+    RAD_VIEW_TOTAL = 0,   /* the Gouraud radiance, as the display */
+    RAD_VIEW_DIRECT = 1,  /* its direct part (rad_direct) */
+    RAD_VIEW_PLANES = 2   /* per pixel, the plane all its samples hit (part node + 1, quantized
+                           * normal, offset), 0 where they hit more than one plane or nothing:
+                           * which regions of an image lie on one flat surface (corrtex compare
+                           * --regions) */
+};
+
 /* Renders the mesh as the display shows it (Gouraud radiance at the primary
- * hit, rmesh_eval; direct = 1: rad_direct instead) from cam into img (sized
- * by the caller), spp jittered samples per pixel, black where nothing is hit
- * (rad_view.c). */
-int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int direct, int threads,
+ * hit, rmesh_eval), its direct part or its planes (which: RAD_VIEW_*) from
+ * cam into img (sized by the caller), spp jittered samples per pixel, black
+ * where nothing is hit (rad_view.c). */
+int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int which, int threads,
                     ct_image *img, ct_error *err);
 
 /* Unoccluded form factor from a differential area at x (unit normal n) to a

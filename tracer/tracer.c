@@ -52,6 +52,8 @@ void trc_options_default(trc_options *o, trc_mode mode)
         o->branch_depth = 1;
         o->depth = 5;
     }
+    o->indirect = TRC_INDIRECT_GATHER;
+    o->gather_rays = 4;
 }
 
 const char *trc_mode_name(trc_mode m)
@@ -74,6 +76,25 @@ int trc_mode_parse(const char *name, trc_mode *out, ct_error *err)
     return ct_fail(err, CT_EINVAL, "unknown mode '%s' (path, drt, reuse-diffuse)", name);
 }
 
+const char *trc_indirect_name(trc_indirect i)
+{
+    switch (i) {
+    case TRC_INDIRECT_MESH: return "mesh";
+    case TRC_INDIRECT_GATHER: return "gather";
+    }
+    return "?";
+}
+
+int trc_indirect_parse(const char *name, trc_indirect *out, ct_error *err)
+{
+    for (int i = TRC_INDIRECT_MESH; i <= TRC_INDIRECT_GATHER; i++)
+        if (strcmp(name, trc_indirect_name((trc_indirect)i)) == 0) {
+            *out = (trc_indirect)i;
+            return CT_OK;
+        }
+    return ct_fail(err, CT_EINVAL, "unknown indirect light '%s' (mesh, gather)", name);
+}
+
 int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, trc_tracer **out,
             ct_error *err)
 {
@@ -88,6 +109,10 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
         return ct_fail(err, CT_EINVAL, "branch depth %d outside 0..1024", o->branch_depth);
     if (o->depth < 0 || o->depth > 1024)
         return ct_fail(err, CT_EINVAL, "depth %d outside 0..1024", o->depth);
+    if (o->indirect != TRC_INDIRECT_MESH && o->indirect != TRC_INDIRECT_GATHER)
+        return ct_fail(err, CT_EINVAL, "indirect light %d unknown", (int)o->indirect);
+    if (o->gather_rays < 1 || o->gather_rays > 4096)
+        return ct_fail(err, CT_EINVAL, "gather rays %d outside 1..4096", o->gather_rays);
     if (rad && rad->nnodes != scene->nnodes)
         return ct_fail(err, CT_ESTALE, "radiosity mesh has %u nodes, the scene %u", rad->nnodes,
                        scene->nnodes);

@@ -4,7 +4,8 @@
  *   drt            distributed ray tracing (Cook 1984): K shadow rays, B rays at
  *                  glossy surfaces (on the first branch-depth levels, then 1), one
  *                  per mirror and per Fresnel branch, to depth D; indirect
- *                  diffuse from the radiosity mesh (total - direct), or
+ *                  diffuse from the radiosity mesh (--indirect: read at the hit,
+ *                  total - direct, or a final gather of it over G rays), or
  *                  path-traced when no mesh is given
  *   reuse-diffuse  the diffuse part is the interpolated radiosity; only glossy,
  *                  mirror and refractive transport is traced (corrections >= 0)
@@ -30,6 +31,13 @@ typedef enum trc_mode {
     TRC_MODE_REUSE = 2
 } trc_mode;
 
+/* Where drt takes its indirect diffuse light from, when it has a radiosity
+ * mesh (docs/tracer.md, "Indirect light"). */
+typedef enum trc_indirect {
+    TRC_INDIRECT_MESH   = 0,   /* the mesh at the hit: its total minus its direct part */
+    TRC_INDIRECT_GATHER = 1    /* a final gather: G cosine rays read the mesh where they land */
+} trc_indirect;
+
 /* Random stream dimensions (the third id of rng_make). */
 enum {
     TRC_DIM_TRACE = 0,   /* everything the integrator draws */
@@ -42,13 +50,15 @@ typedef struct trc_options {
     int branch;          /* B: rays per glossy lobe (drt, reuse-diffuse) */
     int branch_depth;    /* levels that split (B glossy rays, both Fresnel branches); 1 below */
     int depth;           /* D: bounces (drt, reuse-diffuse: recursion; path: maximum length) */
+    trc_indirect indirect;   /* drt with a mesh: its indirect light */
+    int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
 
 /* Defaults of a mode: path K=1, D=64 (Russian roulette from bounce 3);
- * drt and reuse-diffuse K=4, B=4, D=5, splitting on the first level only.
- * Seed 1. */
+ * drt and reuse-diffuse K=4, B=4, D=5, splitting on the first level only;
+ * drt's indirect light by final gather, G=4. Seed 1. */
 void trc_options_default(trc_options *o, trc_mode mode);
 
 /* "path", "drt", "reuse-diffuse". */
@@ -56,6 +66,12 @@ const char *trc_mode_name(trc_mode m);
 
 /* Parses a mode name; CT_EINVAL for an unknown one. */
 int trc_mode_parse(const char *name, trc_mode *out, ct_error *err);
+
+/* "mesh", "gather". */
+const char *trc_indirect_name(trc_indirect i);
+
+/* Parses an --indirect value; CT_EINVAL for an unknown one. */
+int trc_indirect_parse(const char *name, trc_indirect *out, ct_error *err);
 
 /* A recorded ray (benchmark replay of the very rays a run traced). */
 typedef struct trc_ray {

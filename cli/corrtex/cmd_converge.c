@@ -61,6 +61,8 @@ static void usage(FILE *f)
             "  --threads T            tracing threads                    default: 2\n"
             "  --seed S               seed of the queue and the tracer   default: 1\n"
             "  --shadow-rays K --branch B --depth D   tracer options     default: the mode's\n"
+            "  --indirect mesh|gather --gather-rays G  drt's indirect light (docs/tracer.md)\n"
+            "                                                            default: gather, 4\n"
             "  --exposure E           PNG exposure (stops)               default: 0\n"
             "  --time-insert          replay all samples into a fresh engine and print the\n"
             "                         insertion rate (one thread, CPU time)  default: off\n"
@@ -556,7 +558,8 @@ int cmd_converge(int argc, char **argv)
     const char *scene_path = NULL, *cam_name = NULL, *move_name = NULL, *out = NULL, *mesh_path = NULL;
     const char *ref_path = NULL, *ref2_path = NULL, *samples_arg = NULL, *after_arg = NULL;
     int W = 512, H = 512, batch = 256, threads = 2, time_ins = 0, ins_runs = 1;
-    int shadow = -1, branch = -1, depth = -1;
+    int shadow = -1, branch = -1, depth = -1, gather = -1;
+    int indirect = -1;
     long seed = 1;
     float exposure = 0.0f, stand_in = -1.0f;
     trc_mode mode = TRC_MODE_DRT;
@@ -589,6 +592,12 @@ int cmd_converge(int argc, char **argv)
         else if (strcmp(a, "--shadow-rays") == 0) rc = parse_int(a, v, 1, 1 << 16, &shadow, &err);
         else if (strcmp(a, "--branch") == 0) rc = parse_int(a, v, 1, 1 << 16, &branch, &err);
         else if (strcmp(a, "--depth") == 0) rc = parse_int(a, v, 0, 1 << 10, &depth, &err);
+        else if (strcmp(a, "--gather-rays") == 0) rc = parse_int(a, v, 1, 4096, &gather, &err);
+        else if (strcmp(a, "--indirect") == 0) {
+            trc_indirect ind = TRC_INDIRECT_GATHER;
+            rc = v ? trc_indirect_parse(v, &ind, &err) : ct_fail(&err, CT_EINVAL, "--indirect needs a value");
+            indirect = (int)ind;
+        }
         else if (strcmp(a, "--seed") == 0) {
             int s32;
             rc = parse_int(a, v, 0, 2147483647, &s32, &err);
@@ -684,6 +693,8 @@ int cmd_converge(int argc, char **argv)
     if (shadow > 0) to.shadow_rays = shadow;
     if (branch > 0) to.branch = branch;
     if (depth >= 0) to.depth = depth;
+    if (indirect >= 0) to.indirect = (trc_indirect)indirect;
+    if (gather > 0) to.gather_rays = gather;
     if ((rc = trc_new(scene, &mesh, &to, &tr, &err))) goto fail;
     if ((rc = ctex_new(&mesh, scene->mats, scene->nmats, &co, &c, &err))) goto fail;
     {

@@ -45,6 +45,8 @@ static void usage(FILE *f, const rad_params *d)
             "  --width W, --height H  size of --image (default 512 x 512)\n"
             "  --spp S                jittered samples per pixel of --image (default 4)\n"
             "  --image-direct         --image shows the direct part only\n"
+            "  --image-planes FILE    also write FILE.exr: per pixel the plane its samples hit\n"
+            "                         (0 at edges between surfaces; corrtex compare --planes)\n"
             "  --quiet, --verbose     log level\n",
             d->error, d->min_area, d->max_triangles, d->threads, d->memory_cap_mb, d->vis_rays,
             d->shadow_rays, d->tolerance, d->max_iterations, d->max_passes, d->crease_deg,
@@ -79,7 +81,7 @@ int cmd_radiosity(int argc, char **argv)
     const char *out_path = NULL;
     enum { O_ERROR = 256, O_MINAREA, O_MAXTRI, O_THREADS, O_MEMCAP, O_VIS, O_SHADOW, O_TOL, O_MAXIT,
            O_PASSES, O_CREASE, O_SEED, O_QUIET, O_VERBOSE, O_REUSE, O_IMAGE, O_CAMERA, O_WIDTH,
-           O_HEIGHT, O_SPP, O_IMGDIRECT };
+           O_HEIGHT, O_SPP, O_IMGDIRECT, O_IMGPLANES };
     static const struct option opts[] = {
         {"output", required_argument, 0, 'o'}, {"error", required_argument, 0, O_ERROR},
         {"min-area", required_argument, 0, O_MINAREA}, {"max-triangles", required_argument, 0, O_MAXTRI},
@@ -92,9 +94,10 @@ int cmd_radiosity(int argc, char **argv)
         {"image", required_argument, 0, O_IMAGE}, {"camera", required_argument, 0, O_CAMERA},
         {"width", required_argument, 0, O_WIDTH}, {"height", required_argument, 0, O_HEIGHT},
         {"spp", required_argument, 0, O_SPP}, {"image-direct", no_argument, 0, O_IMGDIRECT},
+        {"image-planes", required_argument, 0, O_IMGPLANES},
         {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
     int reuse = 0, width = 512, height = 512, spp = 4, img_direct = 0;
-    const char *image = NULL, *camera = NULL;
+    const char *image = NULL, *camera = NULL, *planes = NULL;
     int c;
     double v = 0.0;
     optind = 1;
@@ -125,6 +128,7 @@ int cmd_radiosity(int argc, char **argv)
         case O_HEIGHT: bad = num("height", optarg, 1, 16384, &v); height = (int)v; break;
         case O_SPP: bad = num("spp", optarg, 1, 4096, &v); spp = (int)v; break;
         case O_IMGDIRECT: img_direct = 1; break;
+        case O_IMGPLANES: planes = optarg; break;
         case 'h': usage(stdout, &defaults); return 0;
         default:
             ct_log(CT_LOG_ERROR, "corrtex radiosity", "unknown or incomplete option '%s' (try --help)",
@@ -148,8 +152,8 @@ int cmd_radiosity(int argc, char **argv)
         return 2;
     }
     /* Fail on an unwritable output now, not after a long solve. */
-    const char *outs[2] = {out_path, image};
-    for (int i = 0; i < 2; i++) {
+    const char *outs[3] = {out_path, image, planes};
+    for (int i = 0; i < 3; i++) {
         if (outs[i] && fs_output_check(outs[i], &err) != CT_OK) {
             ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
             return 2;
@@ -161,7 +165,7 @@ int cmd_radiosity(int argc, char **argv)
         return 2;
     }
     int cam = 0;
-    if (image) {
+    if (image || planes) {
         cam = camera ? scene_find_camera(s, camera) : (s->ncams ? 0 : -1);
         if (cam < 0) {
             if (camera) ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s: no camera named '%s'", argv[optind], camera);
@@ -190,14 +194,19 @@ int cmd_radiosity(int argc, char **argv)
         /* A scene without light is bad input; running out of the cap is a resource failure. */
         return rc == CT_ENOMEM ? 1 : 2;
     }
-    if (image) {
+    for (int k = 0; k < 2 && !rc; k++) {
+        const char *path = k ? planes : image;
+        if (!path) continue;
         ct_image img;
         rc = img_alloc(&img, width, height, &err);
-        if (!rc) rc = rad_render_view(&m, &s->cams[cam].cam, spp, img_direct, p.threads, &img, &err);
+        if (!rc)
+            rc = rad_render_view(&m, &s->cams[cam].cam, spp,
+                                 k ? RAD_VIEW_PLANES : img_direct ? RAD_VIEW_DIRECT : RAD_VIEW_TOTAL, p.threads,
+                                 &img, &err);
         if (!rc) {
-            size_t n = strlen(image);
-            rc = n > 4 && strcmp(image + n - 4, ".png") == 0 ? img_write_png(image, &img, 0.0f, &err)
-                                                             : img_write_exr(image, &img, IMG_FLOAT, &err);
+            size_t n = strlen(path);
+            rc = !k && n > 4 && strcmp(path + n - 4, ".png") == 0 ? img_write_png(path, &img, 0.0f, &err)
+                                                                  : img_write_exr(path, &img, IMG_FLOAT, &err);
         }
         img_free(&img);
         if (rc) {
@@ -206,7 +215,7 @@ int cmd_radiosity(int argc, char **argv)
             scene_free(s);
             return 2;
         }
-        ct_info("radiosity", "%s: %d x %d, camera '%s', %d samples per pixel", image, width, height,
+        ct_info("radiosity", "%s: %d x %d, camera '%s', %d samples per pixel", path, width, height,
                 s->cams[cam].name, spp);
     }
     if (from_cache) {

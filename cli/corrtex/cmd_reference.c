@@ -30,6 +30,8 @@ typedef struct ref_args {
     trc_mode mode;
     int shadow_rays, branch, depth;   /* 0: the mode's default */
     int branch_depth;                 /* -1: the mode's default */
+    int indirect;                     /* -1: the default (trc_indirect) */
+    int gather_rays;                  /* 0: the default */
     uint64_t seed;
     float exposure;
     int png, half, raw_embree, bench_runs;
@@ -62,7 +64,8 @@ static void help(FILE *f)
         "  --mode MODE       path | drt | reuse-diffuse (required)\n"
         "                      path: unbiased path tracing with next-event estimation and MIS\n"
         "                      drt: distributed ray tracing; indirect diffuse light from the\n"
-        "                           radiosity mesh (--radmesh); without one it is path-traced\n"
+        "                           radiosity mesh (--radmesh, --indirect); without one it is\n"
+        "                           path-traced\n"
         "                      reuse-diffuse: the diffuse part from a radiosity mesh, only\n"
         "                           specular transport traced; needs --radmesh\n"
         "  --radmesh FILE    the interactive solution (a .ctmesh from corrtex radiosity): rays\n"
@@ -79,6 +82,11 @@ static void help(FILE *f)
         "                    costs about B * D rays, not B^D (default %d)\n"
         "  --depth D         drt: recursion depth (default %d); path: maximum bounces\n"
         "                    (default %d, Russian roulette after 3)\n"
+        "  --indirect I      drt with a radiosity mesh: its indirect diffuse light,\n"
+        "                      mesh: the mesh's indirect part read at the hit\n"
+        "                      gather: a final gather, G cosine rays reading the mesh where\n"
+        "                           they land, at the first diffuse hit (default %s)\n"
+        "  --gather-rays G   rays of --indirect gather per shading point (default %d)\n"
         "  --seed N          random seed (default %llu)\n"
         "  --tile N          tile edge in pixels (default 16)\n"
         "  --half            write half-float EXR (default: 32-bit float)\n"
@@ -93,7 +101,7 @@ static void help(FILE *f)
         "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
         "  --quiet, --verbose\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
-        (unsigned long long)p.seed);
+        trc_indirect_name(d.indirect), d.gather_rays, (unsigned long long)p.seed);
 }
 
 static int bad(const char *fmt, const char *a, const char *b)
@@ -126,7 +134,7 @@ static const struct { const char *name; long lo, hi; } int_opts[] = {
     {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
     {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
     {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024},
-    {"--bench-runs", 1, 20}};
+    {"--bench-runs", 1, 20}, {"--gather-rays", 1, 4096}};
 #define N_INT_OPTS (sizeof int_opts / sizeof int_opts[0])
 
 /* Index of integer option o, N_INT_OPTS when it is none. */
@@ -142,7 +150,7 @@ static size_t int_opt(const char *o)
 static bool takes_value(const char *o)
 {
     static const char *const str_opts[] = {"--camera", "--path", "-o", "--radmesh", "--mode", "--exposure",
-                                           "--stand-in-radiosity", "--seed", NULL};
+                                           "--stand-in-radiosity", "--seed", "--indirect", NULL};
     for (const char *const *s = str_opts; *s; s++)
         if (!strcmp(o, *s)) return true;
     return int_opt(o) < N_INT_OPTS;
@@ -156,6 +164,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
     a->mode = (trc_mode)-1;
     a->tile = 16;
     a->branch_depth = -1;
+    a->indirect = -1;
     a->seed = 1;
     a->raw_cap = 2000000;
     a->bench_runs = 2;
@@ -191,6 +200,10 @@ static int parse_args(int argc, char **argv, ref_args *a)
         else if (!strcmp(o, "--radmesh")) a->radmesh = v;
         else if (!strcmp(o, "--mode")) {
             if (trc_mode_parse(v, &a->mode, &err)) return bad("%s%s", err.msg, ""), -1;
+        } else if (!strcmp(o, "--indirect")) {
+            trc_indirect ind;
+            if (trc_indirect_parse(v, &ind, &err)) return bad("%s%s", err.msg, ""), -1;
+            a->indirect = (int)ind;
         } else if (!strcmp(o, "--exposure")) {
             char *end;
             a->exposure = strtof(v, &end);
@@ -211,7 +224,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
             if (parse_int(o, v, int_opts[k].lo, int_opts[k].hi, &n)) return -1;
             int *dst[] = {&a->width, &a->height, &a->spp, &a->threads, &a->frame, &a->frames,
                           &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth,
-                          &a->bench_runs};
+                          &a->bench_runs, &a->gather_rays};
             if (k == 10) a->raw_cap = n;
             else *dst[k] = (int)n;
         }
@@ -354,6 +367,8 @@ int cmd_reference(int argc, char **argv)
     if (a.shadow_rays) to.shadow_rays = a.shadow_rays;
     if (a.branch) to.branch = a.branch;
     if (a.branch_depth >= 0) to.branch_depth = a.branch_depth;
+    if (a.indirect >= 0) to.indirect = (trc_indirect)a.indirect;
+    if (a.gather_rays) to.gather_rays = a.gather_rays;
     if (a.depth) to.depth = a.depth;
     to.seed = a.seed;
     double tb = ct_now();

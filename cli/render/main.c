@@ -45,6 +45,7 @@ typedef struct opts {
     const char *rad_cache;      /* cache file; default in the cache directory */
     trc_mode mode;
     int shadow_rays, branch, depth;   /* -1: the mode's default */
+    int indirect, gather_rays;        /* -1: the default */
     uint64_t seed;
     int threads;
     unsigned idle_sleep_us;
@@ -83,6 +84,9 @@ static void usage(FILE *f)
             "  --shadow-rays K          light samples per shading point (default: the mode's, drt 4)\n"
             "  --branch B               rays per glossy lobe (default: the mode's, drt 4)\n"
             "  --depth D                bounces (default: the mode's, drt 5)\n"
+            "  --indirect I             drt's indirect light: mesh (read at the hit) | gather (final\n"
+            "                           gather of the mesh, docs/tracer.md) (default gather)\n"
+            "  --gather-rays G          rays of --indirect gather per shading point (default 4)\n"
             "  --seed S                 seed of every random stream (default 1)\n"
             "  --threads N              threads per tracer rank (default 1)\n"
             "  --idle-sleep-us U        longest sleep of an idle tracer between probes (default 1000; 0 spins)\n"
@@ -123,6 +127,11 @@ static int set_option(opts *o, const char *a, const char *v, ct_error *err)
     else if (!strcmp(name, "shadow-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->shadow_rays = (int)x; }
     else if (!strcmp(name, "branch")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->branch = (int)x; }
     else if (!strcmp(name, "depth")) { if (!(rc = num(name, v, 1, 1024, &x, err))) o->depth = (int)x; }
+    else if (!strcmp(name, "indirect")) {
+        trc_indirect ind = TRC_INDIRECT_GATHER;
+        if (!(rc = trc_indirect_parse(v, &ind, err))) o->indirect = (int)ind;
+    }
+    else if (!strcmp(name, "gather-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->gather_rays = (int)x; }
     else if (!strcmp(name, "seed")) { if (!(rc = num(name, v, 0, 1.8e19, &x, err))) o->seed = (uint64_t)x; }
     else if (!strcmp(name, "threads")) { if (!(rc = num(name, v, 1, 64, &x, err))) o->threads = (int)x; }
     else if (!strcmp(name, "idle-sleep-us")) { if (!(rc = num(name, v, 0, 1e6, &x, err))) o->idle_sleep_us = (unsigned)x; }
@@ -146,6 +155,7 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
     memset(o, 0, sizeof *o);
     o->mode = TRC_MODE_DRT;
     o->shadow_rays = o->branch = o->depth = -1;
+    o->indirect = o->gather_rays = -1;
     o->seed = 1;
     o->threads = 1;
     o->idle_sleep_us = 1000;
@@ -336,6 +346,8 @@ static int run_tracer(const opts *o, int rank, ct_error *err)
     if (o->shadow_rays > 0) to.shadow_rays = o->shadow_rays;
     if (o->branch > 0) to.branch = o->branch;
     if (o->depth > 0) to.depth = o->depth;
+    if (o->indirect >= 0) to.indirect = (trc_indirect)o->indirect;
+    if (o->gather_rays > 0) to.gather_rays = o->gather_rays;
     if (rc == 0) rc = trc_new(scene, &mesh, &to, &t, err);
     if (rc) ct_log(CT_LOG_ERROR, PROG, "tracer rank %d on %s: %s", rank, host, err->msg);
     int bad = rc ? 1 : 0;

@@ -58,6 +58,27 @@ grep -q "exceeds --max-rmse 0.04" <<<"$err" || fail "exit 1 without the limit in
 grep -q "rmse 0.05" <<<"$err" || fail "exit 1 without the rmse in the message"
 run_corrtex 0 compare "$ref" "$ref" --max-rmse 0
 
+echo "== --regions"
+run_corrtex 0 compare "$ref" "$ref" --regions 4 --flat "$ref" --flat-ratio 100 --region-table
+grep -qx 'regions 16' <<<"$out" || fail "16 blocks of 4 x 4 expected: $out"
+grep -qx 'region_worst 0' <<<"$out" || fail "region_worst of identical images is not 0"
+(( $(grep -c '^ [ 0-9.]*$' <<<"$out") == 4 )) || fail "--region-table did not print 4 rows"
+run_corrtex 0 compare "$test" "$ref" --regions 8 --json
+grep -q '"regions":4,' <<<"$out" || fail "JSON lacks regions 4: $out"
+worst=$(json_get region_worst)
+echo "metric: region_worst=$worst (compare-test vs compare-ref, 8 x 8 blocks)"
+run_corrtex 1 compare "$test" "$ref" --regions 8 --max-region-error 0
+grep -q "above --max-region-error 0" <<<"$err" || fail "exit 1 without the limit in the message"
+run_corrtex 0 compare "$test" "$ref" --regions 8 --max-region-error 1
+run_corrtex 2 compare "$ref" "$ref" --planes "$ref"
+expect_error "--planes, --flat, --max-region-error and --region-table need --regions"
+run_corrtex 2 compare "$ref" "$ref" --regions 17
+expect_error "region size 17 outside [1, 16]"
+run_corrtex 2 compare "$ref" "$ref" --regions 4 --planes "$data/compare-small.exr"
+expect_error "image sizes differ"
+run_corrtex 2 compare "$ref" "$ref" --regions 4 --flat-ratio 0.5
+expect_error "--flat-ratio"
+
 echo "== bad input"
 head -c 300 "$test" >"$tmp/truncated.exr"
 run_corrtex 2 compare "$tmp/truncated.exr" "$ref"

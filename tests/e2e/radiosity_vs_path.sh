@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The radiosity solution of a diffuse-only Cornell box (every material of
-# scenes/cornell replaced by a diffuse one) against a path-traced reference of
-# the same scene, 128 x 128, camera "front".
+# scenes/cornell replaced by a diffuse one, tests/data/radiosity/
+# cornell_diffuse.json) against a path-traced reference of the same scene,
+# 128 x 128, camera "front". (Region by region: radiosity_regions.sh.)
 #
 # Threshold, calibrated by the test itself: a second reference with another
 # seed measures the reference's noise, rmse(ref, ref2) = sqrt(2) * sigma. The
@@ -22,22 +23,13 @@ if ! "$BIN/corrtex" reference --help >/dev/null 2>&1; then
   exit 0
 fi
 [[ -f scenes/cornell/cornell.obj ]] || { echo "missing scenes/cornell meshes (run make scenes)"; exit 1; }
-cat > "$tmp/diffuse.json" <<EOT
-{ "name": "cornell_diffuse",
-  "meshes": [ { "file": "$PWD/scenes/cornell/cornell.obj", "name": "box" } ],
-  "materials": { "light": { "emission": [17, 12, 4] },
-                 "brushed_metal": { "diffuse": [0.5, 0.5, 0.5] },
-                 "mirror": { "diffuse": [0.6, 0.6, 0.6] },
-                 "glass": { "diffuse": [0.7, 0.7, 0.7] } },
-  "cameras": [ { "name": "front", "eye": [278, 273, -800], "target": [278, 273, 0],
-                 "up": [0, 1, 0], "fov": 39.3 } ] }
-EOT
+diffuse=tests/data/radiosity/cornell_diffuse.json
 size=(--width 128 --height 128)
-run "$BIN/corrtex" radiosity "$tmp/diffuse.json" -o "$tmp/d.ctmesh" --image "$tmp/rad.exr" --camera front \
+run "$BIN/corrtex" radiosity "$diffuse" -o "$tmp/d.ctmesh" --image "$tmp/rad.exr" --camera front \
   "${size[@]}" --spp 256 --quiet >/dev/null || { echo "FAIL: radiosity"; exit 1; }
-run "$BIN/corrtex" reference "$tmp/diffuse.json" --camera front "${size[@]}" --spp 256 --mode path --seed 1 \
+run "$BIN/corrtex" reference "$diffuse" --camera front "${size[@]}" --spp 256 --mode path --seed 1 \
   -o "$tmp/ref.exr" >/dev/null 2>&1 || { echo "FAIL: reference"; exit 1; }
-run "$BIN/corrtex" reference "$tmp/diffuse.json" --camera front "${size[@]}" --spp 256 --mode path --seed 2 \
+run "$BIN/corrtex" reference "$diffuse" --camera front "${size[@]}" --spp 256 --mode path --seed 2 \
   -o "$tmp/ref2.exr" >/dev/null 2>&1 || { echo "FAIL: second reference"; exit 1; }
 noise=$("$BIN/corrtex" compare "$tmp/ref2.exr" "$tmp/ref.exr" | awk '$1 == "rmse" { print $2 }')
 rad=$("$BIN/corrtex" compare "$tmp/rad.exr" "$tmp/ref.exr" | awk '$1 == "rmse" { print $2 }')

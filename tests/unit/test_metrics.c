@@ -189,3 +189,88 @@ Test(metrics, non_finite_is_an_error)
     img_free(&a);
     img_free(&b);
 }
+
+static img_regions regions_ok(const ct_image *a, const ct_image *ref, const ct_image *planes, const ct_image *flat,
+                              double flat_ratio, int block)
+{
+    img_regions r;
+    ct_error err;
+    cr_assert_eq(metrics_regions(a, ref, planes, 0, flat, flat_ratio, block, &r, &err), 0, "%s", err.msg);
+    return r;
+}
+
+Test(metrics, region_means_and_worst_block)
+{
+    /* 10 x 6 pixels in 4 x 4 blocks: 2 x 1 full blocks, the rest left out.
+     * The reference is grey 1 (mean of RGB); a is 1.0 in block (0, 0) and
+     * 1.5 on one pixel of block (1, 0) (mean (15 + 1.5) / 16 = 1.03125):
+     * worst 0.03125 at (1, 0), rms sqrt((0 + 0.03125^2) / 2). */
+    ct_image a = make(10, 6, 1, 1, 1), ref = make(10, 6, 0.5f, 1.0f, 1.5f);
+    img_set(&a, 5, 2, v3(1.5f, 1.5f, 1.5f));
+    img_set(&a, 9, 5, v3(100, 100, 100));   /* in no full block */
+    img_regions r = regions_ok(&a, &ref, NULL, NULL, 1.25, 4);
+    cr_assert_eq(r.nx, 2);
+    cr_assert_eq(r.ny, 1);
+    cr_assert_eq(r.counted, 2);
+    cr_assert_float_eq(r.ratio[0], 1.0f, 1e-6f);
+    cr_assert_float_eq(r.ratio[1], 1.03125f, 1e-6f);
+    cr_assert_float_eq(r.worst, 0.03125, 1e-9);
+    cr_assert_eq(r.worst_x, 1);
+    cr_assert_eq(r.worst_y, 0);
+    cr_assert_float_eq(r.rms, sqrt(0.03125 * 0.03125 / 2.0), 1e-9);
+    metrics_regions_free(&r);
+    img_free(&a);
+    img_free(&ref);
+}
+
+Test(metrics, region_masks_planes_flat_and_dark_reference)
+{
+    /* Four 2 x 2 blocks of a 4 x 4 image. Block (0, 0): on one plane, flat:
+     * counts. Block (1, 0): two plane values: out. Block (0, 1): flat varies
+     * by 0.3 against a reference mean of 1 (over 0.25): out. Block (1, 1):
+     * reference black: out. */
+    ct_image a = make(4, 4, 2, 2, 2), ref = make(4, 4, 1, 1, 1), planes = make(4, 4, 7, 3, 1),
+             flat = make(4, 4, 0.5f, 0.5f, 0.5f);
+    img_set(&planes, 3, 1, v3(7, 3, 2));
+    img_set(&flat, 1, 3, v3(0.8f, 0.8f, 0.8f));
+    for (int y = 2; y < 4; y++)
+        for (int x = 2; x < 4; x++) img_set(&ref, x, y, v3s(0.0f));
+    img_regions r = regions_ok(&a, &ref, &planes, &flat, 1.25, 2);
+    cr_assert_eq(r.counted, 1);
+    cr_assert_float_eq(r.ratio[0], 2.0f, 1e-6f);
+    for (int i = 1; i < 4; i++) cr_assert(isnan(r.ratio[i]), "block %d should not count", i);
+    cr_assert_float_eq(r.worst, 1.0, 1e-9);
+    metrics_regions_free(&r);
+    /* A looser flat ratio lets block (0, 1) count; a zero plane value never counts. */
+    img_set(&planes, 0, 0, v3s(0.0f));
+    r = regions_ok(&a, &ref, &planes, &flat, 1.35, 2);
+    cr_assert_eq(r.counted, 1);
+    cr_assert(isnan(r.ratio[0]));
+    cr_assert_float_eq(r.ratio[2], 2.0f, 1e-6f);
+    metrics_regions_free(&r);
+    /* Block (0, 1) covers x 0-1, y 2-3; a margin of 1 adds x 2 and y 1: a
+     * pixel of another plane at (2, 1) keeps it out. */
+    img_set(&planes, 2, 1, v3(7, 3, 2));
+    ct_error err;
+    cr_assert_eq(metrics_regions(&a, &ref, &planes, 1, &flat, 1.35, 2, &r, &err), 0, "%s", err.msg);
+    cr_assert_eq(r.counted, 0, "a plane edge one pixel from block (0, 1) must keep it out");
+    metrics_regions_free(&r);
+    img_free(&a);
+    img_free(&ref);
+    img_free(&planes);
+    img_free(&flat);
+}
+
+Test(metrics, region_size_and_mask_size_errors)
+{
+    ct_image a = make(4, 4, 1, 1, 1), ref = make(4, 4, 1, 1, 1), small = make(3, 4, 1, 1, 1);
+    img_regions r;
+    ct_error err;
+    cr_assert_eq(metrics_regions(&a, &ref, NULL, 0, NULL, 1.25, 5, &r, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "region size 5"), "%s", err.msg);
+    cr_assert_eq(metrics_regions(&a, &ref, &small, 0, NULL, 1.25, 2, &r, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "sizes differ"), "%s", err.msg);
+    img_free(&a);
+    img_free(&ref);
+    img_free(&small);
+}

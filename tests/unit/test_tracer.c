@@ -17,10 +17,12 @@
 
 #define CHECK(x) do { int rc_ = (x); cr_assert_eq(rc_, 0, "%s: %s", #x, err.msg); } while (0)
 
-static trc_tracer *make_tracer(const ct_scene *s, const ct_radmesh *rad, trc_mode mode, int k, int b, int d)
+static trc_tracer *make_tracer_ind(const ct_scene *s, const ct_radmesh *rad, trc_mode mode, int k, int b, int d,
+                                   trc_indirect ind)
 {
     trc_options o;
     trc_options_default(&o, mode);
+    o.indirect = ind;
     if (k) o.shadow_rays = k;
     if (b) o.branch = b;
     if (d) o.depth = d;
@@ -29,6 +31,14 @@ static trc_tracer *make_tracer(const ct_scene *s, const ct_radmesh *rad, trc_mod
     int rc = trc_new(s, rad, &o, &t, &err);
     cr_assert_eq(rc, 0, "trc_new: %s", err.msg);
     return t;
+}
+
+/* A tracer with the default indirect light. */
+static trc_tracer *make_tracer(const ct_scene *s, const ct_radmesh *rad, trc_mode mode, int k, int b, int d)
+{
+    trc_options o;
+    trc_options_default(&o, mode);
+    return make_tracer_ind(s, rad, mode, k, b, d, o.indirect);
 }
 
 /* Mean L_hq of n samples at image position (px, py) (request ids id0..) and,
@@ -309,7 +319,7 @@ Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
      * indirect part on the floor is rho * A = 0.5 * (0.2, 0.4, 0.6). */
     ct_radmesh rad;
     CHECK(rmesh_from_scene(s, v3(0.2f, 0.4f, 0.6f), &rad, &err));
-    trc_tracer *t = make_tracer(s, &rad, TRC_MODE_DRT, 4, 0, 0);
+    trc_tracer *t = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, TRC_INDIRECT_MESH);
     trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
     ct_sample last;
     vec3 l = mean_at(t, &v, 8, 8, 2000, 1, &last);
@@ -322,6 +332,84 @@ Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
     cr_expect(memcmp(&base, &last.l_base, sizeof base) == 0, "l_base is not the Gouraud value at the hit");
     trc_free(t);
     rmesh_free(&rad);
+    scene_free(s);
+}
+
+/* --- drt's final gather ----------------------------------------------------- */
+
+/* Inside a closed box of one reflectance rho whose stand-in radiosity is
+ * L_e + rho * A everywhere (the lamp reflects like the walls), every
+ * gather ray sees rho * A once the lamp's emission is taken off, so the
+ * gathered indirect light at any point is rho * (rho * A) for any number
+ * of gather rays; the direct light is the shadow rays', as with the mesh's
+ * indirect light (rho * A, read at the hit). The difference of the two modes
+ * is therefore rho * A * (rho - 1), exactly, sample by sample up to the
+ * direct light's noise, which both share (same seeds: the direct light is
+ * drawn first). */
+Test(tracer, drt_final_gather_reads_the_mesh_where_its_rays_land)
+{
+    ct_error err;
+    ct_scene *s = scene_new("gatherbox");
+    int wall = ts_diffuse(s, "wall", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.5f), v3(8, 8, 8), &err);
+    cr_assert(ts_box(s, "box", (uint32_t)wall, v3(0, 0, 0), v3(2, 2, 2), true, &err) >= 0);
+    cr_assert(ts_quad(s, "lamp", (uint32_t)lamp, v3(0.8f, 1.999f, 0.8f), v3(0.4f, 0, 0), v3(0, 0, 0.4f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    const vec3 A = v3(0.2f, 0.4f, 0.6f);
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, A, &rad, &err));
+    trc_view v = view_of(v3(1.0f, 1.2f, 0.3f), v3(1.0f, 0.2f, 1.8f), 70.0f, 16, 16);
+    for (int g = 1; g <= 16; g *= 4) {
+        trc_options o;
+        trc_options_default(&o, TRC_MODE_DRT);
+        o.shadow_rays = 4;
+        o.gather_rays = g;
+        o.indirect = TRC_INDIRECT_GATHER;
+        trc_tracer *tg;
+        CHECK(trc_new(s, &rad, &o, &tg, &err));
+        trc_tracer *tm = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, TRC_INDIRECT_MESH);
+        for (int y = 2; y < 16; y += 6)
+            for (int x = 2; x < 16; x += 6) {
+                ct_sample sg, sm;
+                vec3 lg = mean_at(tg, &v, x + 0.5f, y + 0.5f, 64, 7u, &sg);
+                vec3 lm = mean_at(tm, &v, x + 0.5f, y + 0.5f, 64, 7u, &sm);
+                cr_assert(sg.flags & CT_SAMPLE_HAS_BASE);
+                cr_assert_eq(memcmp(&sg.l_base, &sm.l_base, sizeof sg.l_base), 0, "L_base depends on the gather");
+                for (int k = 0; k < 3; k++) {
+                    double a = v3_get(A, k), want = 0.5 * a * (0.5 - 1.0);
+                    double got = (double)v3_get(lg, k) - v3_get(lm, k);
+                    cr_expect(fabs(got - want) < 1e-4 + 1e-3 * fabs(want),
+                              "G = %d, pixel (%d, %d), channel %d: gather - mesh = %g, want %g", g, x, y, k, got, want);
+                }
+            }
+        trc_free(tg);
+        trc_free(tm);
+    }
+    rmesh_free(&rad);
+    scene_free(s);
+}
+
+Test(tracer, drt_indirect_options_parse_and_validate)
+{
+    ct_error err;
+    trc_indirect ind;
+    cr_assert_eq(trc_indirect_parse("mesh", &ind, &err), 0);
+    cr_assert_eq(ind, TRC_INDIRECT_MESH);
+    cr_assert_eq(trc_indirect_parse("gather", &ind, &err), 0);
+    cr_assert_eq(ind, TRC_INDIRECT_GATHER);
+    cr_assert_eq(trc_indirect_parse("path", &ind, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "unknown indirect light 'path'"), "%s", err.msg);
+    cr_assert_str_eq(trc_indirect_name(TRC_INDIRECT_GATHER), "gather");
+    ct_scene *s = scene_new("one");
+    int m = ts_diffuse(s, "m", v3s(0.5f), v3s(1.0f), &err);
+    cr_assert(ts_quad(s, "q", (uint32_t)m, v3(0, 0, 0), v3(1, 0, 0), v3(0, 0, 1), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    trc_options o;
+    trc_options_default(&o, TRC_MODE_DRT);
+    o.gather_rays = 0;
+    trc_tracer *t;
+    cr_assert_eq(trc_new(s, NULL, &o, &t, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "gather rays 0"), "%s", err.msg);
     scene_free(s);
 }
 
