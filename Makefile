@@ -1,4 +1,4 @@
-# corrtex build. One static library per folder (DESIGN.md), three programs
+# corrtex build. One static library per folder (docs/architecture.md), three programs
 # linked from them, Criterion unit tests and end-to-end scripts.
 #   make                      release build of every program whose main exists
 #   make SANITIZE=address,undefined   the same under sanitizers (build/san)

@@ -26,7 +26,7 @@
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "common/vecmath.h"
-#include "proto/records.h"
+#include "common/records.h"
 
 /* Every tunable of the texture engine; ctex_options_default() fills the
  * defaults, ctex_options_parse() sets one from a command-line flag. */

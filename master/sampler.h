@@ -25,7 +25,7 @@
 #include "common/camera.h"
 #include "common/error.h"
 #include "common/vecmath.h"
-#include "proto/records.h"
+#include "common/records.h"
 
 typedef struct rq_engine rq_engine;
 

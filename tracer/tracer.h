@@ -22,7 +22,7 @@
 #include "common/error.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
-#include "proto/records.h"
+#include "common/records.h"
 
 typedef enum trc_mode {
     TRC_MODE_PATH  = 0,
