@@ -24,6 +24,7 @@
 
 #include "common/camera.h"
 #include "common/error.h"
+#include "common/optab.h"
 #include "common/vecmath.h"
 #include "common/records.h"
 
@@ -105,6 +106,9 @@ void rq_options_default(rq_options *o);
 /* Sets one option by its command-line name without "--" (e.g. "children",
  * "min-priority"); CT_EINVAL with a message naming it on a bad name or value. */
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err);
+
+/* The option table (common/optab.h): one row per option with its default. */
+const optab *rq_options_table(size_t *n);
 
 /* Whether name (without "--") is a sampler option. */
 bool rq_options_has(const char *name);

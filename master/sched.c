@@ -450,7 +450,7 @@ static int insert_samples(loop_state *s, ct_sample *smp, uint32_t n, ct_error *e
             else run[m++] = smp[i];
         }
         s->stale += (i1 - i0) - m - nr;
-        ctex_insert_batch(s->tex, run, m, info);
+        ctex_insert_par(s->tex, NULL, run, m, info);
         for (uint32_t j = 0; j < m; j++) {
             ct_sample *x = &run[j];
             count_sample(s, x, &info[j]);

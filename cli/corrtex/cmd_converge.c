@@ -384,7 +384,7 @@ static int run_phase(phase_ctx *p, const long *ck, int nck, const char *phase, c
             if (n < 0) return n;
             if (n == 0) break;   /* every pixel handed out */
             trace_par(p->t, &p->view, p->req, (size_t)n, p->smp, 0, p->threads, &p->st);
-            ctex_insert_batch(p->c, p->smp, (size_t)n, p->info);
+            ctex_insert_par(p->c, NULL, p->smp, (size_t)n, p->info);
             for (int i = 0; i < n; i++) {
                 const ct_sample *s = &p->smp[i];
                 int x = (int)floorf(s->px), y = (int)floorf(s->py);
@@ -445,7 +445,7 @@ static int replay_once(const ct_radmesh *mesh, const ct_scene *s, const ctex_opt
         if (cam2 && i < rec->phase_start && end > rec->phase_start) end = rec->phase_start;
         if (end > rec->n) end = rec->n;
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
-        ctex_insert_batch(c, rec->s + i, end - i, info);
+        ctex_insert_par(c, NULL, rec->s + i, end - i, info);
         ctex_events_clear(c);
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
         *cpu += (double)(b.tv_sec - a.tv_sec) + 1e-9 * (double)(b.tv_nsec - a.tv_nsec);

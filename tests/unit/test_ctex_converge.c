@@ -113,7 +113,7 @@ Test(ctex_converge, cornell_128, .timeout = 300)
             cr_assert_geq(n, 0, "%s", err.msg);
             if (n == 0) break;
             trc_trace(tr, &view, req, (size_t)n, smp, &st);
-            ctex_insert_batch(c, smp, (size_t)n, info);
+            ctex_insert_par(c, NULL, smp, (size_t)n, info);
             for (int i = 0; i < n; i++) {
                 int x = (int)smp[i].px, y = (int)smp[i].py;
                 cr_assert(x >= 0 && y >= 0 && x < W && y < H);
