@@ -22,6 +22,7 @@ static int whole(const optab *r, void *base, const char *v, ct_error *err)
         unsigned long long u = strtoull(v, &end, 10);
         if (strchr(v, '-') || errno || end == v || *end || (double)u < r->lo || (double)u > r->hi) goto bad;
         if (r->type == OPTAB_U64) *(uint64_t *)field(base, r) = (uint64_t)u;
+        else if (r->type == OPTAB_U32) *(uint32_t *)field(base, r) = (uint32_t)u;
         else if (r->type == OPTAB_SIZE) *(size_t *)field(base, r) = (size_t)u;
         else if (r->type == OPTAB_LONG) *(long *)field(base, r) = (long)u;
         else *(int *)field(base, r) = (int)u;
@@ -59,6 +60,7 @@ static int set_row(const optab *r, void *base, const char *v, ct_error *err)
     switch (r->type) {
     case OPTAB_INT:
     case OPTAB_LONG:
+    case OPTAB_U32:
     case OPTAB_U64:
     case OPTAB_SIZE:
         return whole(r, base, v, err);
@@ -95,6 +97,7 @@ int optab_defaults(const optab *t, size_t n, void *base, ct_error *err)
             switch (r->type) {
             case OPTAB_INT: case OPTAB_CHOICE: *(int *)field(base, r) = 0; break;
             case OPTAB_LONG: *(long *)field(base, r) = 0; break;
+            case OPTAB_U32: *(uint32_t *)field(base, r) = 0; break;
             case OPTAB_U64: *(uint64_t *)field(base, r) = 0; break;
             case OPTAB_SIZE: *(size_t *)field(base, r) = 0; break;
             case OPTAB_FLOAT: *(float *)field(base, r) = 0.0f; break;
@@ -127,7 +130,44 @@ int optab_set(const optab *t, size_t n, void *base, const char *name, const char
     return set_row(r, base, value, err);
 }
 
-void optab_usage(const optab *t, size_t n, FILE *f)
+/* The value of row r's field in base, as text. */
+static void field_text(const optab *r, const void *base, char *out, size_t cap)
+{
+    const void *f = (const char *)base + r->off;
+    switch (r->type) {
+    case OPTAB_INT: snprintf(out, cap, "%d", *(const int *)f); break;
+    case OPTAB_LONG: snprintf(out, cap, "%ld", *(const long *)f); break;
+    case OPTAB_U32: snprintf(out, cap, "%u", *(const uint32_t *)f); break;
+    case OPTAB_U64: snprintf(out, cap, "%llu", (unsigned long long)*(const uint64_t *)f); break;
+    case OPTAB_SIZE: snprintf(out, cap, "%zu", *(const size_t *)f); break;
+    case OPTAB_FLOAT: snprintf(out, cap, "%g", (double)*(const float *)f); break;
+    case OPTAB_DOUBLE: snprintf(out, cap, "%g", *(const double *)f); break;
+    case OPTAB_FLAG: snprintf(out, cap, "%s", *(const bool *)f ? "on" : "off"); break;
+    case OPTAB_STRING: snprintf(out, cap, "%s", *(const char *const *)f ? *(const char *const *)f : ""); break;
+    default: out[0] = 0; break;
+    }
+}
+
+/* Whether row r's numeric field in base lies in its range (a value outside
+ * it, such as 0 for "the mode's default", is no default to show). */
+static bool in_range(const optab *r, const void *base)
+{
+    const void *f = (const char *)base + r->off;
+    double v;
+    switch (r->type) {
+    case OPTAB_INT: v = *(const int *)f; break;
+    case OPTAB_LONG: v = (double)*(const long *)f; break;
+    case OPTAB_U32: v = *(const uint32_t *)f; break;
+    case OPTAB_U64: v = (double)*(const uint64_t *)f; break;
+    case OPTAB_SIZE: v = (double)*(const size_t *)f; break;
+    case OPTAB_FLOAT: v = *(const float *)f; break;
+    case OPTAB_DOUBLE: v = *(const double *)f; break;
+    default: return true;
+    }
+    return v >= r->lo && v <= r->hi;
+}
+
+void optab_usage(const optab *t, size_t n, const void *defaults, FILE *f)
 {
     for (size_t i = 0; i < n; i++) {
         const optab *r = &t[i];
@@ -136,8 +176,11 @@ void optab_usage(const optab *t, size_t n, FILE *f)
         snprintf(flag + k, sizeof flag - (size_t)k, "--%s%s%s", r->name, r->type == OPTAB_FLAG ? "" : " ",
                  r->type == OPTAB_FLAG ? "" : r->arg ? r->arg : "X");
         fprintf(f, "  %-28s %s", flag, r->help);
-        if (r->type == OPTAB_FLAG) fprintf(f, " (default %s)\n", r->def && strcmp(r->def, "0") ? "on" : "off");
-        else if (r->def) fprintf(f, " (default %s)\n", r->def);
+        char dv[64] = "";
+        if (r->type == OPTAB_FLAG && !defaults) snprintf(dv, sizeof dv, "%s", r->def && strcmp(r->def, "0") ? "on" : "off");
+        else if (r->def) snprintf(dv, sizeof dv, "%s", r->def);
+        else if (defaults && r->type != OPTAB_CHOICE && in_range(r, defaults)) field_text(r, defaults, dv, sizeof dv);
+        if (dv[0]) fprintf(f, " (default %s)\n", dv);
         else fputc('\n', f);
     }
 }

@@ -17,6 +17,7 @@
 typedef enum optab_type {
     OPTAB_INT = 1,   /* int: a whole number in [lo, hi] */
     OPTAB_LONG,      /* long: the same */
+    OPTAB_U32,       /* uint32_t: the same (lo >= 0) */
     OPTAB_U64,       /* uint64_t: the same (lo >= 0) */
     OPTAB_SIZE,      /* size_t: the same (lo >= 0) */
     OPTAB_FLOAT,     /* float: a finite number in [lo, hi] */
@@ -60,8 +61,11 @@ const optab *optab_find(const optab *t, size_t n, const char *name);
  * 'x' is not a number in [0.01, 64]"). */
 int optab_set(const optab *t, size_t n, void *base, const char *name, const char *value, ct_error *err);
 
-/* One "  --name ARG   help (default X)" line per row. */
-void optab_usage(const optab *t, size_t n, FILE *f);
+/* One "  --name ARG   help (default X)" line per row. A row without a
+ * default of its own (def NULL: the field's default is set in code, e.g. by
+ * an engine's *_default function) shows its value in `defaults` when that
+ * is given. */
+void optab_usage(const optab *t, size_t n, const void *defaults, FILE *f);
 
 /* Parses argv[1 .. argc) against the groups, in order: "--name VALUE" (or
  * "-x VALUE"), flags, and up to maxpos positional arguments into pos[]

@@ -85,7 +85,7 @@ int ctex_options_parse(ctex_options *o, const char *flag, const char *value, ct_
 
 void ctex_options_help(FILE *f)
 {
-    optab_usage(OPTS, OPTAB_COUNT(OPTS), f);
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
 }
 
 /* --- events ------------------------------------------------------------------------ */

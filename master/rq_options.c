@@ -87,7 +87,7 @@ int rq_options_set(rq_options *o, const char *name, const char *value, ct_error 
 
 void rq_options_usage(FILE *f)
 {
-    optab_usage(OPTS, OPTAB_COUNT(OPTS), f);
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
 }
 
 int rq_options_check(const rq_options *o, ct_error *err)

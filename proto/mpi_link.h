@@ -1,5 +1,5 @@
 /* mpi_link.h: the MPI transport between the master (rank 0) and the tracer
- * ranks: start-up and shutdown, blocking and non-blocking sends of encoded
+ * ranks: start-up and shutdown, non-blocking sends of encoded
  * byte buffers (proto/wire_mpi.h layouts) under a tag, probing and receiving
  * whole messages, and a chunked broadcast for large payloads (the radiosity
  * mesh). The only file of the project that includes <mpi.h>: proto owns every

@@ -55,24 +55,6 @@ static void fifo_free(fifo *f)
     free(f->items);
 }
 
-/* A batch traced on the pool in parts, a few per thread so that a thread
- * that finds harder samples does not hold the batch up. */
-typedef struct work {
-    const trc_tracer *t;
-    const trc_view *v;
-    const ct_request *req;
-    ct_sample *out;
-    size_t n, per;
-    trc_stats st[POOL_MAX_THREADS];
-} work;
-
-static void trace_part(void *ctx, int worker, size_t part)
-{
-    work *w = ctx;
-    size_t b = part * w->per, e = b + w->per < w->n ? b + w->per : w->n;
-    trc_trace(w->t, w->v, w->req + b, e - b, w->out + b, &w->st[worker]);
-}
-
 /* Interleaves the low 16 bits of x with zeros (a Morton code's half). */
 static uint32_t spread16(uint32_t x)
 {
@@ -145,26 +127,13 @@ static uint64_t trace_batch(ct_pool *pool, const trank_config *c, batch_order *o
     return rays;
 }
 
-/* Traces n requests on the pool; the records do not depend on the split
- * (each sample's randomness is its own, tracer.h). Returns the rays. */
+/* Traces n requests on the pool (trc_trace_par); returns the rays. */
 static uint64_t trace_threads(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req,
                               size_t n, ct_sample *out)
 {
-    int threads = pool_threads(pool);
-    work *w = calloc(1, sizeof *w);
-    trc_stats one = {0};
-    if (!w) {
-        trc_trace(c->tracer, v, req, n, out, &one);   /* (the counters' memory: on this thread alone) */
-        return trc_stats_rays(&one);
-    }
-    size_t parts = (size_t)threads * 4, per = (n + parts - 1) / parts;
-    if (per < 8) per = 8;
-    w->t = c->tracer; w->v = v; w->req = req; w->out = out; w->n = n; w->per = per;
-    pool_run(pool, (n + per - 1) / per, trace_part, w);
-    uint64_t rays = 0;
-    for (int i = 0; i < threads; i++) rays += trc_stats_rays(&w->st[i]);
-    free(w);
-    return rays;
+    trc_stats st = {0};
+    trc_trace_par(c->tracer, pool, v, req, n, out, false, &st);
+    return trc_stats_rays(&st);
 }
 
 int trank_run(const trank_config *c, trank_stats *st, ct_error *err)

@@ -8,7 +8,10 @@
 
 #include "common/optab.h"
 #include "master/ctex.h"
+#include "master/drive.h"
 #include "master/sampler.h"
+#include "master/sched.h"
+#include "master/session.h"
 
 typedef struct toy {
     int n;
@@ -147,6 +150,9 @@ Test(optab, every_engine_table_has_valid_defaults)
     } tables[] = {
         {"request queue", rq_options_table, sizeof(rq_options)},
         {"corrective textures", ctex_options_table, sizeof(ctex_options)},
+        {"session", sess_options_table, sizeof(sess_options)},
+        {"loop", drv_options_table, sizeof(drv_options)},
+        {"scheduling loop", sched_options_table, sizeof(sched_options)},
     };
     for (size_t k = 0; k < sizeof tables / sizeof tables[0]; k++) {
         size_t n = 0;
