@@ -53,6 +53,19 @@ struct tport {
     int lanes;
 };
 
+/* Answered batches waiting for poll, for ports that answer in process:
+ * push takes over a malloc'd sample array; pop hands it out until the
+ * next pop (which frees it). */
+typedef struct tport_fifo {
+    tport_reply *q;
+    size_t head, n, cap;
+    ct_sample *last;
+} tport_fifo;
+
+int tport_fifo_push(tport_fifo *f, int lane, uint64_t batch, ct_sample *s, uint32_t n, ct_error *err);
+int tport_fifo_pop(tport_fifo *f, tport_reply *out);
+void tport_fifo_free(tport_fifo *f);
+
 /* The MPI port of rank 0: lanes are ranks 1 .. ntracers (lane i is rank
  * i + 1), batches go out as WIRE_MPI_REQUESTS through proto/mpi_link.h and
  * come back as WIRE_MPI_SAMPLES, received by polled matched receives. */

@@ -1,25 +1,15 @@
-/* tport_local.c: the in-process tracer port (tport_local.h). Replies wait
- * in a FIFO; the one poll returned last is freed by the next poll. */
+/* tport_local.c: the in-process tracer port (tport_local.h). */
 #include "tracer/tport_local.h"
 
 #include <stdlib.h>
 #include <string.h>
-
-typedef struct reply {
-    int lane;
-    uint64_t batch;
-    ct_sample *s;
-    uint32_t n;
-} reply;
 
 typedef struct lport {
     tport base;
     const trc_tracer *t;
     ct_pool *pool;
     uint32_t epoch;      /* newest view */
-    reply *q;            /* FIFO */
-    size_t head, n, cap;
-    ct_sample *last;     /* the samples handed out by the last poll */
+    tport_fifo fifo;
     trc_stats st;
 } lport;
 
@@ -36,54 +26,31 @@ static int lport_submit(tport *p, int lane, uint64_t batch, const tport_view *v,
 {
     lport *l = (lport *)p;
     if (lane < 0 || lane >= p->lanes) return ct_fail(err, CT_EINVAL, "local tracer port: no lane %d", lane);
-    if (l->n == l->cap) {
-        size_t cap = l->cap ? 2 * l->cap : 16;
-        reply *q = malloc(cap * sizeof *q);
-        if (!q) return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory");
-        for (size_t i = 0; i < l->n; i++) q[i] = l->q[(l->head + i) % l->cap];
-        free(l->q);
-        l->q = q;
-        l->cap = cap;
-        l->head = 0;
-    }
-    reply rp = {lane, batch, NULL, 0};
+    ct_sample *s = NULL;
+    uint32_t ns = 0;
     if (v->epoch > l->epoch) l->epoch = v->epoch;
     if (v->epoch == l->epoch && n > 0) {
         /* as a tracer rank: a batch of an older epoch is answered empty */
-        rp.s = malloc((size_t)n * sizeof *rp.s);
-        if (!rp.s) return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory for %u samples", n);
+        if (!(s = malloc((size_t)n * sizeof *s)))
+            return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory for %u samples", n);
         trc_view tv = {.cam = v->cam, .width = (int)v->width, .height = (int)v->height};
-        trc_trace_par(l->t, l->pool, &tv, r, n, rp.s, false, &l->st);
-        rp.n = n;
+        trc_trace_par(l->t, l->pool, &tv, r, n, s, false, &l->st);
+        ns = n;
     }
-    l->q[(l->head + l->n) % l->cap] = rp;
-    l->n++;
-    return CT_OK;
+    return tport_fifo_push(&l->fifo, lane, batch, s, ns, err);
 }
 
 static int lport_poll(tport *p, tport_reply *out, ct_error *err)
 {
     (void)err;
-    lport *l = (lport *)p;
-    free(l->last);
-    l->last = NULL;
-    if (!l->n) return 0;
-    reply rp = l->q[l->head];
-    l->head = (l->head + 1) % l->cap;
-    l->n--;
-    l->last = rp.s;
-    *out = (tport_reply){.lane = rp.lane, .batch = rp.batch, .samples = rp.s, .n = rp.n};
-    return 1;
+    return tport_fifo_pop(&((lport *)p)->fifo, out);
 }
 
 static void lport_close(tport *p, double wait_s)
 {
     (void)wait_s;
-    lport *l = (lport *)p;
-    for (size_t i = 0; i < l->n; i++) free(l->q[(l->head + i) % l->cap].s);
-    free(l->q);
-    free(l->last);
-    free(l);
+    tport_fifo_free(&((lport *)p)->fifo);
+    free(p);
 }
 
 static const tport_ops LPORT_OPS = {lport_view, lport_submit, lport_poll, lport_close};
