@@ -73,6 +73,9 @@ void dsink_stats(dsink *k, const wire_stats *st);
 uint64_t dsink_points_dropped(const dsink *k);
 double dsink_take_encode_s(dsink *k);
 
+/* What dsync sent (updates, patches, texel bytes). */
+dsync_stats dsink_sync_stats(const dsink *k);
+
 /* The display's epoch of the current camera. */
 uint32_t dsink_epoch(const dsink *k);
 

@@ -172,15 +172,16 @@ static uint32_t shown_at(const sess *s, const ct_sample *x)
 {
     float fx = floorf(x->px), fy = floorf(x->py);
     if (!(fx >= 0.0f && fy >= 0.0f && fx < (float)s->w && fy < (float)s->h)) return RQ_NODE_UNKNOWN;
-    int px = (int)fx, py = (int)fy;
     uint32_t hit = (x->flags & CT_SAMPLE_HIT) ? x->node : RQ_NODE_NONE;
+    uint32_t own = s->shown[(size_t)fy * (size_t)s->w + (size_t)fx];
+    if (own == hit) return hit;   /* most samples: one look */
     int x0 = (int)floorf(x->px - 0.5f), y0 = (int)floorf(x->py - 0.5f);
     for (int j = y0; j <= y0 + 1; j++)
         for (int i = x0; i <= x0 + 1; i++) {
             int ci = i < 0 ? 0 : i >= s->w ? s->w - 1 : i, cj = j < 0 ? 0 : j >= s->h ? s->h - 1 : j;
             if (s->shown[(size_t)cj * (size_t)s->w + (size_t)ci] == hit) return hit;
         }
-    return s->shown[(size_t)py * (size_t)s->w + (size_t)px];
+    return own;
 }
 
 static void count(sess *s, const ct_sample *x, const ctex_insert_info *info)
