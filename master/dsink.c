@@ -239,11 +239,6 @@ double dsink_take_encode_s(dsink *k)
     return t;
 }
 
-uint32_t dsink_epoch(const dsink *k)
-{
-    return k->disp_epoch;
-}
-
 dsync_stats dsink_sync_stats(const dsink *k)
 {
     return dsync_get_stats(k->sync);

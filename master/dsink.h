@@ -76,7 +76,4 @@ double dsink_take_encode_s(dsink *k);
 /* What dsync sent (updates, patches, texel bytes). */
 dsync_stats dsink_sync_stats(const dsink *k);
 
-/* The display's epoch of the current camera. */
-uint32_t dsink_epoch(const dsink *k);
-
 #endif

@@ -73,11 +73,6 @@ void rq_options_default(rq_options *o)
     optab_defaults(OPTS, OPTAB_COUNT(OPTS), o, &err);   /* the table's defaults parse (test_sampler) */
 }
 
-bool rq_options_has(const char *name)
-{
-    return optab_find(OPTS, OPTAB_COUNT(OPTS), name) != NULL;
-}
-
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err)
 {
     int rc = optab_set(OPTS, OPTAB_COUNT(OPTS), o, name, value, err);

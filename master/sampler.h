@@ -110,9 +110,6 @@ int rq_options_set(rq_options *o, const char *name, const char *value, ct_error 
 /* The option table (common/optab.h): one row per option with its default. */
 const optab *rq_options_table(size_t *n);
 
-/* Whether name (without "--") is a sampler option. */
-bool rq_options_has(const char *name);
-
 /* Prints one "--name VALUE  help (default X)" line per option to f. */
 void rq_options_usage(FILE *f);
 

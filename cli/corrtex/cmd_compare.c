@@ -1,7 +1,6 @@
 /* corrtex compare A.exr B.exr: image error metrics of A against reference B
  * (docs/images.md defines them). Exit 0 ok, 1 when --max-rmse is exceeded,
  * 2 on bad input or usage. */
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,8 +9,23 @@
 #include "common/image.h"
 #include "common/log.h"
 #include "common/metrics.h"
+#include "common/optab.h"
 
 #define COMPONENT "corrtex compare"
+
+typedef struct compare_opts {
+    bool json;
+    double max_rmse;   /* < 0: no limit */
+} compare_opts;
+
+#define OF(f) offsetof(compare_opts, f)
+static const optab OPTS[] = {
+    {"json", 0, OPTAB_FLAG, OF(json), 0, 0, NULL, NULL,
+     "print one JSON object {rmse, rel_mse, psnr, ssim, width, height} (psnr is null when the images are "
+     "identical)", NULL},
+    {"max-rmse", 0, OPTAB_DOUBLE, OF(max_rmse), 0, 1e300, NULL, "X", "exit 1 when rmse > X (default: no limit)", NULL},
+};
+#undef OF
 
 static void usage(FILE *f)
 {
@@ -20,12 +34,10 @@ static void usage(FILE *f)
             "Compares image A against the reference B (same size, R G B channels).\n"
             "Metrics: rmse and rel_mse on linear RGB; psnr (dB) and ssim on sRGB values\n"
             "(exposure 0, clamped to [0,1]); see docs/images.md.\n\n"
-            "options:\n"
-            "  --json          print one JSON object {rmse, rel_mse, psnr, ssim, width, height}\n"
-            "                  (psnr is null when the images are identical)   default: off\n"
-            "  --max-rmse X    exit 1 when rmse > X (X >= 0)                  default: no limit\n"
-            "  -h, --help      this help\n"
-            "exit status: 0 ok, 1 rmse above --max-rmse, 2 bad input or usage\n");
+            "options:\n");
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
+    fprintf(f, "  -h, --help                   this help\n"
+               "exit status: 0 ok, 1 rmse above --max-rmse, 2 bad input or usage\n");
 }
 
 /* Prints a double for JSON: 17 significant digits, null when not finite. */
@@ -37,45 +49,27 @@ static void json_num(const char *key, double v, int last)
 
 int cmd_compare(int argc, char **argv)
 {
-    static const struct option opts[] = {
-        {"json", no_argument, NULL, 'j'},
-        {"max-rmse", required_argument, NULL, 'm'},
-        {"help", no_argument, NULL, 'h'},
-        {NULL, 0, NULL, 0}
-    };
-    int json = 0, have_max = 0;
-    double max_rmse = 0.0;
-    optind = 1;
-    opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
-        switch (c) {
-        case 'j': json = 1; break;
-        case 'm': {
-            char *end = NULL;
-            max_rmse = strtod(optarg, &end);
-            if (end == optarg || *end || !isfinite(max_rmse) || max_rmse < 0.0) {
-                ct_log(CT_LOG_ERROR, COMPONENT, "--max-rmse: '%s' is not a number >= 0", optarg);
-                return 2;
-            }
-            have_max = 1;
-            break;
-        }
-        case 'h': usage(stdout); return 0;
-        default:
-            ct_log(CT_LOG_ERROR, COMPONENT, "unknown or incomplete option '%s' (try --help)",
-                   argv[optind - 1]);
-            return 2;
-        }
+    compare_opts o;
+    ct_error err;
+    optab_defaults(OPTS, OPTAB_COUNT(OPTS), &o, &err);
+    o.max_rmse = -1.0;
+    optab_group g = {OPTS, OPTAB_COUNT(OPTS), &o};
+    const char *pos[2];
+    int npos = 0, prc = optab_parse(&g, 1, argc, argv, pos, 2, &npos, &err);
+    if (prc == 1) {
+        usage(stdout);
+        return 0;
     }
-    if (argc - optind != 2) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "expected two images A.exr B.exr, got %d (try --help)",
-               argc - optind);
+    if (prc) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
-    const char *pa = argv[optind], *pb = argv[optind + 1];
+    if (npos != 2) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "expected two images A.exr B.exr, got %d (try --help)", npos);
+        return 2;
+    }
+    const char *pa = pos[0], *pb = pos[1];
     ct_image a, b;
-    ct_error err;
     if (img_read_exr(pa, &a, &err)) {
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
@@ -95,7 +89,7 @@ int cmd_compare(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
-    if (json) {
+    if (o.json) {
         printf("{");
         json_num("rmse", m.rmse, 0);
         json_num("rel_mse", m.rel_mse, 0);
@@ -110,8 +104,8 @@ int cmd_compare(int argc, char **argv)
         printf("size %dx%d\n", w, h);
     }
     fflush(stdout);
-    if (have_max && m.rmse > max_rmse) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "%s: rmse %.6g exceeds --max-rmse %.6g", pa, m.rmse, max_rmse);
+    if (o.max_rmse >= 0.0 && m.rmse > o.max_rmse) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "%s: rmse %.6g exceeds --max-rmse %.6g", pa, m.rmse, o.max_rmse);
         return 1;
     }
     return 0;
