@@ -343,7 +343,6 @@ Test(ctex_engine, splat_ex_follows_the_texels_on_screen)
     tcx_release(&t);
 }
 
-/* Fills node's texture with samples on a grid over the plate/floor region. */
 Test(ctex_engine, diffuse_object_local_does_not_age)
 {
     tcx_scene t;
