@@ -75,17 +75,27 @@ static int consume(const char *addr, const ct_camera *cam, int w, int h)
         return 1;
     }
     wire_msg m = {.type = WIRE_SETTINGS};
-    if (chan_send(c, &m, &err)) return 1;
+    int rc = chan_send(c, &m, &err);
     m = (wire_msg){.type = WIRE_CAMERA};
     m.u.camera = (wire_camera){1, (uint32_t)w, (uint32_t)h, *cam};
-    if (chan_send(c, &m, &err) || chan_flush(c, 10000, &err)) return 1;
+    if (rc || chan_send(c, &m, &err) || chan_flush(c, 10000, &err)) {
+        fprintf(stderr, "bench_master display: %s\n", err.msg);
+        return 1;
+    }
     tex *t = calloc(1u << 16, sizeof *t);
     int status = 1;
     for (;;) {
-        int rc = chan_recv_wait(c, &m, 60000, &err);
-        if (rc < 0 || rc == WIRE_NEED_MORE) break;
+        rc = chan_recv_wait(c, &m, 60000, &err);
+        if (rc < 0 || rc == WIRE_NEED_MORE) {
+            fprintf(stderr, "bench_master display: %s\n", rc < 0 ? err.msg : "nothing for 60 s");
+            break;
+        }
         if (m.type == WIRE_BYE) {
             status = 0;
+            break;
+        }
+        if (m.type == WIRE_ERROR) {
+            fprintf(stderr, "bench_master display: the master says %s\n", m.u.error.text);
             break;
         }
         if (m.type == WIRE_TEX_ALLOC && m.u.tex_alloc.tex < (1u << 16)) {
@@ -107,7 +117,10 @@ static int consume(const char *addr, const ct_camera *cam, int w, int h)
         } else if (m.type == WIRE_SYNC) {
             wire_msg a = {.type = WIRE_ACK};
             a.u.ack.seq = m.u.sync.seq;
-            if (chan_send(c, &a, &err) || chan_flush(c, 10000, &err)) break;
+            if (chan_send(c, &a, &err) || chan_flush(c, 10000, &err)) {
+                fprintf(stderr, "bench_master display: %s\n", err.msg);
+                break;
+            }
         }
     }
     chan_free(c);
@@ -254,11 +267,19 @@ int main(int argc, char **argv)
         if (n != nrec)
             fprintf(stderr, "bench_master: inserted %llu of the %zu recorded samples\n", (unsigned long long)n, nrec);
     }
-    if (b.ds) dsrv_bye(b.ds, WIRE_BYE_DONE, 5000);
+    /* The display takes what is still queued before BYE (not timed). */
+    double t_drain = ct_now();
+    while (b.ds && dsrv_has_display(b.ds) && dsrv_queued(b.ds) > 0 && ct_now() - t_drain < 120.0) {
+        ct_error e;
+        if (dsrv_step(b.ds, 10, &e) || events(&b, &e)) break;
+    }
+    if (b.ds) dsrv_bye(b.ds, WIRE_BYE_DONE, 30000);
     if (child > 0) {
         int st = 0;
         waitpid(child, &st, 0);
-        if (!rc && !(WIFEXITED(st) && WEXITSTATUS(st) == 0)) rc = ct_fail(&err, CT_EIO, "the display failed");
+        if (!rc && !(WIFEXITED(st) && WEXITSTATUS(st) == 0))
+            rc = ct_fail(&err, CT_EIO, "the display failed (%s %d)", WIFEXITED(st) ? "exit status" : "signal",
+                         WIFEXITED(st) ? WEXITSTATUS(st) : WTERMSIG(st));
     }
     if (rc) fprintf(stderr, "bench_master: %s\n", err.msg);
     drv_free(b.d);
