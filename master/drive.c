@@ -190,7 +190,6 @@ static int receive(drv *d, ct_error *err)
                 l->pub.rate = l->pub.rate > 0 ? 0.7 * l->pub.rate + 0.3 * rate : rate;
             }
         }
-        l->pub.oldest_sent = l->pub.inflight ? l->sent_at[l->head] : 0.0;
         l->last_reply = now;
         l->pub.samples += r.n;
         any = 1;
@@ -225,7 +224,6 @@ static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, 
     int slot = (l->head + l->pub.inflight) % MAX_WINDOW;
     l->sent_at[slot] = ct_now();
     l->in_round[slot] = (unsigned char)round;
-    if (!l->pub.inflight) l->pub.oldest_sent = l->sent_at[slot];
     l->pub.inflight++;
     return 0;
 }

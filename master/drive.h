@@ -35,12 +35,11 @@ typedef struct drv_options {
 /* The option table: --window, --batch-min, --batch-max, --batch-ms, --round. */
 const optab *drv_options_table(size_t *n);
 
-/* Per lane, for stats and the watchdog. */
+/* Per lane, for stats and batch sizing. */
 typedef struct drv_lane {
     int inflight;               /* batches out, not answered */
     double rate;                /* samples/s, smoothed (batch sizing) */
     uint64_t samples;           /* samples returned since the start */
-    double oldest_sent;         /* when the oldest batch in flight went out */
 } drv_lane;
 
 typedef struct drv drv;

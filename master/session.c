@@ -127,7 +127,10 @@ int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error
     }
     ctex_set_clock(s->tex, ct_now_us());   /* stamps of the textures it makes */
     if ((rc = ctex_set_camera(s->tex, cam, width, height, err))) return rc;
+    double t1 = ct_now();
     if ((rc = shown_render(s->mesh, cam, width, height, s->pool, &s->sb, RQ_NODE_NONE, s->shown, err))) return rc;
+    ct_debug(COMPONENT, "view %dx%d: queue and textures %.1f ms, shown-node map %.1f ms (%u triangles, %d threads)",
+             width, height, 1e3 * (t1 - t0), 1e3 * (ct_now() - t1), s->mesh->ntris, pool_threads(s->pool));
     s->cam = *cam;
     s->w = width;
     s->h = height;

@@ -9,8 +9,9 @@
  * SESS_CHUNK: a chunk's samples are splatted on the threads, partitioned by
  * texture (ctex_insert_par), and then reported to the request queue one by
  * one in their order with the errors the splats measured; refinement
- * samples (docs/sampling.md) are reported first and write their pixel's
- * mean after. So the textures and the queue depend on the order of the
+ * samples (docs/sampling.md) are not splatted: after the others they are
+ * reported, and those the queue takes into their pixel's mean write it
+ * (ctex_refine_par). So the textures and the queue depend on the order of the
  * samples and never on the number of threads: lockstep rounds, inserted in
  * request-id order, give the same frames for any number of tracer ranks and
  * master threads. A sink (sink.h) hears of every inserted sample. Owns the

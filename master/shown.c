@@ -94,22 +94,23 @@ static void draw(const job *j, float *izp, uint32_t *trip, const vtx *a, const v
     if (area == 0.0f || !isfinite(area)) return;
     float inv = 1.0f / area;   /* its sign makes either winding count */
     int x0 = (int)fx0, x1 = (int)fx1, y0 = (int)fy0, y1 = (int)fy1;
+    /* Barycentric weights step linearly along a row: evaluated at the row's
+     * first centre, then incremented (the same steps whatever the task). */
+    float d0 = (c->sy - b->sy) * -inv, d1 = (a->sy - c->sy) * -inv, d2 = (b->sy - a->sy) * -inv;
+    float diz = d0 * a->iz + d1 * b->iz + d2 * c->iz;
     for (int y = y0; y <= y1; y++) {
-        float py = (float)y + 0.5f;
+        float py = (float)y + 0.5f, px = (float)x0 + 0.5f;
+        float w0 = edge(b->sx, b->sy, c->sx, c->sy, px, py) * inv;
+        float w1 = edge(c->sx, c->sy, a->sx, a->sy, px, py) * inv;
+        float w2 = edge(a->sx, a->sy, b->sx, b->sy, px, py) * inv;
+        float iz = w0 * a->iz + w1 * b->iz + w2 * c->iz;
         float *zr = izp + (size_t)y * (size_t)j->w;
         uint32_t *tr = trip + (size_t)y * (size_t)j->w;
-        for (int x = x0; x <= x1; x++) {
-            float px = (float)x + 0.5f;
-            float w0 = edge(b->sx, b->sy, c->sx, c->sy, px, py) * inv;
-            float w1 = edge(c->sx, c->sy, a->sx, a->sy, px, py) * inv;
-            float w2 = edge(a->sx, a->sy, b->sx, b->sy, px, py) * inv;
-            if (w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) continue;
-            float iz = w0 * a->iz + w1 * b->iz + w2 * c->iz;
-            if (iz > zr[x]) {
+        for (int x = x0; x <= x1; x++, w0 += d0, w1 += d1, w2 += d2, iz += diz)
+            if (w0 >= 0.0f && w1 >= 0.0f && w2 >= 0.0f && iz > zr[x]) {
                 zr[x] = iz;
                 tr[x] = t;
             }
-        }
     }
 }
 
