@@ -226,7 +226,9 @@ int main(int argc, char **argv)
     sess_config sc = {&mesh, scene ? scene->mats : NULL, scene ? scene->nmats : 0, &ro, &co, 1, {o.threads}};
     if (!rc) rc = sess_new(&sc, &b.s, &err);
     if (!rc) rc = tport_replay_new(rec, nrec, 1, &port, &err);
-    dsink_config kc = {b.ds, &mesh, scene, 10000, (size_t)64 << 20, -1};
+    /* a generous send timeout: on a loaded machine the display child may
+     * wait for a core */
+    dsink_config kc = {b.ds, &mesh, scene, 120000, (size_t)64 << 20, -1};
     if (!rc) rc = dsink_new(&kc, &b.dk, &err);
     drv_options dopt = {.window = 1, .batch_min = 1, .batch_max = 65536, .batch_ms = 20, .round = o.batch};
     sink k;
@@ -269,9 +271,9 @@ int main(int argc, char **argv)
     }
     /* The display takes what is still queued before BYE (not timed). */
     double t_drain = ct_now();
-    while (b.ds && dsrv_has_display(b.ds) && dsrv_queued(b.ds) > 0 && ct_now() - t_drain < 120.0) {
-        ct_error e;
-        if (dsrv_step(b.ds, 10, &e) || events(&b, &e)) break;
+    while (!rc && b.ds && dsrv_has_display(b.ds) && dsrv_queued(b.ds) > 0 && ct_now() - t_drain < 120.0) {
+        rc = dsrv_step(b.ds, 10, &err);
+        if (!rc) rc = events(&b, &err);
     }
     if (b.ds) dsrv_bye(b.ds, WIRE_BYE_DONE, 30000);
     if (child > 0) {
