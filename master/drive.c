@@ -23,7 +23,7 @@ struct drv {
     sink k;
     drv_options o;
     lane *lanes;
-    int rr;                /* free running: the lane served first next time */
+    int rr;                /* free running: the lane served first by the next call */
     uint64_t batch_id;
     bool lockstep;
     bool in_frame;
@@ -242,15 +242,20 @@ static uint32_t batch_size(const drv *d, const lane *l)
     return (uint32_t)b;
 }
 
-/* Free running: fill every lane's window, one batch per lane per pass. */
+/* Free running: fill every lane's window, one batch per lane per pass,
+ * each call starting from the next lane: when the queue runs short (every
+ * pixel handed out, refinement asking for a few pixels at a time), the
+ * lane served first gets what there is, and that must not always be the
+ * same lane. */
 static int feed_free(drv *d, ct_error *err)
 {
     if (!sess_has_view(d->s)) return 0;
-    int any = 0, T = d->p->lanes;
+    int any = 0, T = d->p->lanes, first = d->rr;
+    d->rr = (d->rr + 1) % T;
     for (int pass = 0; pass < d->o.window; pass++) {
         int gave = 0;
         for (int j = 0; j < T; j++) {
-            int i = (d->rr + j) % T;
+            int i = (first + pass + j) % T;
             lane *l = &d->lanes[i];
             if (l->pub.inflight >= d->o.window) continue;
             int k = next(d, batch_size(d, l), err);
@@ -260,7 +265,6 @@ static int feed_free(drv *d, ct_error *err)
             if (rc) return rc;
             any = gave = 1;
         }
-        d->rr = (d->rr + 1) % T;
         if (!gave) break;
     }
     return any;

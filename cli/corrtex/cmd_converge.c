@@ -236,7 +236,7 @@ static int phase(run *r, const ct_camera *cam, uint32_t epoch, const char *name,
     if ((rc = drv_set_view(r->d, cam, W, H, err)) < 0) return rc;
     if (epoch > 0) {
         ctex_stats cs = ctex_get_stats(sess_textures(r->s));
-        ct_info(COMPONENT, "camera change without updates: %.1f ms (aging, reassignment, reprojection); "
+        ct_info(COMPONENT, "camera change without updates: %.1f ms (aging, reassignment, reprojection, shown-node map); "
                 "%u textures, %u parked, %llu texels", 1e3 * (ct_now() - tc), cs.textures, cs.parked,
                 (unsigned long long)cs.texels);
     }
