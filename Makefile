@@ -1,4 +1,4 @@
-# corrtex build. One static library per folder (DESIGN.md), three programs
+# corrtex build. One static library per folder (docs/architecture.md), three programs
 # linked from them, Criterion unit tests and end-to-end scripts.
 #   make                      release build of every program whose main exists
 #   make SANITIZE=address,undefined   the same under sanitizers (build/san)
@@ -239,8 +239,9 @@ FUZZ_SECONDS ?= 20
 FUZZ_CC      ?= clang
 FUZZ_SRCS    := $(sort $(wildcard tests/fuzz/fuzz_*.c))
 FUZZ_BINS    := $(patsubst tests/fuzz/fuzz_%.c,build/fuzz/fuzz_%,$(FUZZ_SRCS))
-# The MPI link is not fuzzed (it decodes nothing) and needs the MPI headers.
-FUZZ_DEPS    := $(filter-out proto/mpi_link.c,$(call srcs_of,proto)) tests/support/proto_fixtures.c
+# The MPI link and the MPI tracer port are not fuzzed (they decode nothing
+# of their own) and need MPI.
+FUZZ_DEPS    := $(filter-out proto/mpi_link.c proto/tport_mpi.c,$(call srcs_of,proto)) tests/support/proto_fixtures.c
 
 build/fuzz/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_DEPS) $(wildcard proto/*.h tests/support/*.h) $(LIB_common)
 	@mkdir -p $(dir $@)

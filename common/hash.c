@@ -1,7 +1,6 @@
 #include "common/hash.h"
 #include "common/rng.h"
 
-#include <string.h>
 
 uint64_t ct_hash_bytes(uint64_t h, const void *data, size_t len)
 {
@@ -11,9 +10,4 @@ uint64_t ct_hash_bytes(uint64_t h, const void *data, size_t len)
         h *= 0x100000001b3ULL;
     }
     return ct_hash64(h ^ len);
-}
-
-uint64_t ct_hash_str(uint64_t h, const char *s)
-{
-    return ct_hash_bytes(h, s, strlen(s));
 }

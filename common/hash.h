@@ -11,7 +11,4 @@
 /* Continues hash h over len bytes. */
 uint64_t ct_hash_bytes(uint64_t h, const void *data, size_t len);
 
-/* Continues hash h over a NUL-terminated string (without the NUL). */
-uint64_t ct_hash_str(uint64_t h, const char *s);
-
 #endif

@@ -1,3 +1,6 @@
+/* disp_compositor.c: the display's multi-pass compositor
+ * (disp_compositor.h). Over 600 lines on purpose: the passes share the GL
+ * state they set up one after the other, which one file keeps in view. */
 #include "display/disp_compositor.h"
 
 #include <math.h>

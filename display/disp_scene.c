@@ -189,21 +189,7 @@ const disp_glass *disp_scene_glass(const disp_scene *s, uint32_t *n)
     return s->glass;
 }
 
-int disp_scene_set_radiance(disp_scene *s, const vec3 *rad, uint32_t nverts, ct_error *err)
-{
-    if (nverts != s->nverts)
-        return ct_fail(err, CT_EINVAL, "radiance for %u vertices, mesh has %u", nverts, s->nverts);
-    gl.BindBuffer(GL_ARRAY_BUFFER, s->vbo);
-    for (uint32_t v = 0; v < nverts; v++) {
-        float c[3] = {rad[v].x, rad[v].y, rad[v].z};
-        gl.BufferSubData(GL_ARRAY_BUFFER, (GLintptr)((6 * (size_t)v + 3) * sizeof(float)),
-                         sizeof c, c);
-    }
-    return gl_check("radiance upload", err);
-}
-
 uint32_t disp_scene_ntris(const disp_scene *s) { return s->ntris; }
-uint32_t disp_scene_nnodes(const disp_scene *s) { return s->nnodes; }
 bounds3 disp_scene_bounds(const disp_scene *s) { return s->bounds; }
 
 bounds3 disp_scene_node_bounds(const disp_scene *s, uint32_t n)

@@ -30,12 +30,8 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err);
 /* Deletes the GL objects. NULL is fine. */
 void disp_scene_free(disp_scene *s);
 
-/* Replaces the per-vertex radiance (same vertex count as at creation). */
-int disp_scene_set_radiance(disp_scene *s, const vec3 *rad, uint32_t nverts, ct_error *err);
-
 /* Counts. */
 uint32_t disp_scene_ntris(const disp_scene *s);
-uint32_t disp_scene_nnodes(const disp_scene *s);
 
 /* The glass runs, in drawing order (*n of them; NULL when none). */
 const disp_glass *disp_scene_glass(const disp_scene *s, uint32_t *n);

@@ -23,10 +23,12 @@
 #include "common/camera.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "common/optab.h"
+#include "common/pool.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "common/vecmath.h"
-#include "proto/records.h"
+#include "common/records.h"
 
 /* Every tunable of the texture engine; ctex_options_default() fills the
  * defaults, ctex_options_parse() sets one from a command-line flag. */
@@ -62,6 +64,9 @@ ctex_options ctex_options_default(void);
  * Returns 1 when the flag is a texture option, 0 when it is not, or a
  * negative CT_E* code for a bad value (err names the flag). */
 int ctex_options_parse(ctex_options *o, const char *flag, const char *value, ct_error *err);
+
+/* The option table (common/optab.h): one row per option with its default. */
+const optab *ctex_options_table(size_t *n);
 
 /* Prints one help line per option with its default. */
 void ctex_options_help(FILE *f);
@@ -150,10 +155,18 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
  * l_hq - l_base. Returns 1 when splatted, 0 when dropped (info->tex = -1). */
 int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
 
-/* Inserts n samples in order, as n ctex_insert calls, prefetching the
- * texels of the samples ahead (the loop is bound by memory latency).
- * Returns how many were splatted. */
-size_t ctex_insert_batch(ctex *c, const ct_sample *s, size_t n, ctex_insert_info *info);
+/* Inserts n samples (info[i] for s[i]) on the pool's threads: grouped by
+ * texture, each texture's samples in their order by one thread, so that no
+ * texel is shared; a resolution change (§3.6) a texture earns on the way is
+ * made after all of them, in texture order, and at most one per texture and
+ * call. The result does not depend on the number of threads (pool NULL: the
+ * caller's alone); with n = 1 it is ctex_insert's. Returns how many were
+ * splatted. */
+size_t ctex_insert_par(ctex *c, ct_pool *pool, const ct_sample *s, size_t n, ctex_insert_info *info);
+
+/* Refinement samples as ctex_refine, with their pixel means dl[i], grouped
+ * the same way. */
+size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl, size_t n, ctex_insert_info *info);
 
 /* A refinement sample (docs/sampling.md, "Refinement"): its texel takes dl,
  * the mean correction of its pixel's samples, instead of a splat; info as

@@ -1,6 +1,8 @@
 /* ctex_hier.c: builds the texture hierarchy (ctex_hier.h): modeling
  * hierarchy from the mesh's node table, BVH refinement by space and material
- * where a node has more than two children, and per-node geometry. */
+ * where a node has more than two children, and per-node geometry. Over 600
+ * lines on purpose: one recursive build over one builder state (items,
+ * keys, the node array); its steps call each other both ways. */
 #include "master/ctex_hier.h"
 
 #include <math.h>

@@ -1,5 +1,9 @@
 /* ctex_tex.c: texel storage, ring splatting, resizing and resampling of one
- * corrective texture (see ctex_tex.h and docs/textures.md). */
+ * corrective texture (see ctex_tex.h and docs/textures.md). Over 600 lines
+ * on purpose: the splat kernels, resize and resample share the texel layout
+ * and its inline helpers, and the hot loops are tuned together (docs/
+ * textures.md, "Insertion speed"); split, they would need a second header of
+ * internals for no reader's gain. */
 #include "master/ctex_tex.h"
 
 #include <stdlib.h>

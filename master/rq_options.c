@@ -1,153 +1,88 @@
-/* rq_options.c: the sampler's options table: defaults, parsing by name and
- * the --help lines, so every driver (corrtex converge, corrtex-render)
- * exposes the same options with the same defaults. */
-#include <errno.h>
+/* rq_options.c: the sampler's option table (common/optab.h): defaults,
+ * parsing by name and the --help lines from one row per option, so every
+ * driver (corrtex converge, corrtex-render) exposes the same options with the
+ * same defaults; rq_options_check for values set in code. */
 #include <math.h>
 #include <stddef.h>
-#include <stdlib.h>
 #include <string.h>
 
+#include "common/optab.h"
 #include "master/sampler.h"
+
+#define OF(f) offsetof(rq_options, f)
+static const optab OPTS[] = {
+    /* §3.7: N = 4 children per sample */
+    {"children", 0, OPTAB_INT, OF(children), 1, 64, "4", "N",
+     "children per returned sample, radius s/sqrt(N) (paper 3.7)", NULL},
+    /* half an 8-bit display step over a 1-pixel domain */
+    {"min-priority", 0, OPTAB_FLOAT, OF(min_priority), 0, 3e38, "0.001953125", "P",
+     "discard children whose priority |E|*s_c is below P", NULL},
+    /* below one pixel a domain is already at image resolution */
+    {"min-radius", 0, OPTAB_FLOAT, OF(min_radius), 1e-30, 3e38, "1", "PX",
+     "no children with a domain radius below PX pixels", NULL},
+    /* §3.7: n_sig (the paper gives no value) */
+    {"n-sig", 0, OPTAB_INT, OF(n_sig), 0, 10000000, "500", "N",
+     "most significant samples reprojected on a camera change (paper 3.7)", NULL},
+    /* 1,024 initial requests at 1024x1024 (§5: 1,000-4,000 per frame) */
+    {"seed-spacing", 0, OPTAB_FLOAT, OF(seed_spacing), 1, 3e38, "32", "PX",
+     "spacing of the initial jittered grid of requests", NULL},
+    {"global-batch", 0, OPTAB_INT, OF(global_batch), 1, 1000000, "64", "N",
+     "random global requests added when the queue runs dry", NULL},
+    {"global-tries", 0, OPTAB_INT, OF(global_tries), 1, 1000, "16", "N",
+     "random positions tried per global request before giving up", NULL},
+    /* §3.7: "if most pixels are covered" */
+    {"coverage-switch", 0, OPTAB_FLOAT, OF(coverage_switch), 0, 1, "0.9", "F",
+     "pixel coverage (0..1) at which the shuffled list of remaining pixels takes over", NULL},
+    {"error-norm", 0, OPTAB_CHOICE, OF(norm), 0, 0, "max", "max|lum|avg", "RGB norm of the sample error E", NULL},
+    /* §3.7: high priority, above every |E| * s */
+    {"prio-reproject", 0, OPTAB_FLOAT, OF(prio_reproject), 0, 3e38, "4e9", "P",
+     "priority of reprojected significant samples", NULL},
+    /* §3.7: high priority */
+    {"prio-seed", 0, OPTAB_FLOAT, OF(prio_seed), 0, 3e38, "2e9", "P",
+     "priority of initial, global and remaining-list requests", NULL},
+    {"prio-mismatch", 0, OPTAB_FLOAT, OF(prio_mismatch), 0, 3e38, "1e9", "P",
+     "priority of children of samples that hit another node than shown", NULL},
+    /* Fig. 4 starts a new view from the reprojected samples alone and adds
+     * global requests when the queue runs dry; while the camera moves it
+     * never does, and what comes into view is never sampled (docs/sampling.md). */
+    {"reseed", 0, OPTAB_INT, OF(reseed), 0, 1, "1", "0|1", "queue a fresh initial grid on every camera change too",
+     NULL},
+    {"max-queue", 0, OPTAB_LONG, OF(max_queue), 0, 9e18, "0", "N", "cap on queued requests (0 = one per pixel)",
+     NULL},
+    /* Past full coverage a still view goes on being sampled where a pixel's
+     * mean is least certain, until its standard error (luminance of the
+     * correction) is under half an 8-bit step of a mid-grey display value. */
+    {"refine-error", 0, OPTAB_FLOAT, OF(refine_error), 0, 3e38, "0.002", "E",
+     "after full coverage keep sampling pixels whose mean's standard error is over E (0: stop at one sample)",
+     NULL},
+    {"refine-max", 0, OPTAB_INT, OF(refine_max), 1, 65535, "256", "N",
+     "at most N samples per pixel when refining (1..65535)", NULL},
+};
+#undef OF
+
+const optab *rq_options_table(size_t *n)
+{
+    *n = OPTAB_COUNT(OPTS);
+    return OPTS;
+}
 
 void rq_options_default(rq_options *o)
 {
     memset(o, 0, sizeof *o);
-    o->children = 4;               /* §3.7: N = 4 children per sample */
-    o->min_priority = 1.0f / 512;  /* half an 8-bit display step over a 1-pixel domain */
-    o->min_radius = 1.0f;          /* below one pixel a domain is already at image resolution */
-    o->n_sig = 500;                /* §3.7: n_sig (the paper gives no value) */
-    o->seed_spacing = 32.0f;       /* 1,024 initial requests at 1024x1024 (§5: 1,000-4,000 per frame) */
-    o->global_batch = 64;
-    o->global_tries = 16;
-    o->coverage_switch = 0.9f;     /* §3.7: "if most pixels are covered" */
-    o->norm = RQ_NORM_MAX;
-    o->prio_reproject = 4e9f;      /* §3.7: high priority, above every |E| * s */
-    o->prio_seed = 2e9f;           /* §3.7: high priority */
-    o->prio_mismatch = 1e9f;
-    /* Fig. 4 starts a new view from the reprojected samples alone and adds
-     * global requests when the queue runs dry; while the camera moves it
-     * never does, and what comes into view is never sampled (docs/sampling.md). */
-    o->reseed = 1;
-    o->max_queue = 0;
-    /* Past full coverage a still view goes on being sampled where a pixel's
-     * mean is least certain, until its standard error (luminance of the
-     * correction) is under half an 8-bit step of a mid-grey display value. */
-    o->refine_error = 0.002f;
-    o->refine_max = 256;
-}
-
-enum { T_INT, T_FLOAT, T_LONG, T_NORM };
-
-typedef struct optdesc {
-    const char *name;
-    int type;
-    size_t off;
-    const char *arg;
-    const char *help;
-} optdesc;
-
-static const optdesc opts[] = {
-    {"children", T_INT, offsetof(rq_options, children), "N",
-     "children per returned sample, radius s/sqrt(N) (paper 3.7)"},
-    {"min-priority", T_FLOAT, offsetof(rq_options, min_priority), "P",
-     "discard children whose priority |E|*s_c is below P"},
-    {"min-radius", T_FLOAT, offsetof(rq_options, min_radius), "PX",
-     "no children with a domain radius below PX pixels"},
-    {"n-sig", T_INT, offsetof(rq_options, n_sig), "N",
-     "most significant samples reprojected on a camera change (paper 3.7)"},
-    {"seed-spacing", T_FLOAT, offsetof(rq_options, seed_spacing), "PX",
-     "spacing of the initial jittered grid of requests"},
-    {"global-batch", T_INT, offsetof(rq_options, global_batch), "N",
-     "random global requests added when the queue runs dry"},
-    {"global-tries", T_INT, offsetof(rq_options, global_tries), "N",
-     "random positions tried per global request before giving up"},
-    {"coverage-switch", T_FLOAT, offsetof(rq_options, coverage_switch), "F",
-     "pixel coverage (0..1) at which the shuffled list of remaining pixels takes over"},
-    {"error-norm", T_NORM, offsetof(rq_options, norm), "max|lum|avg",
-     "RGB norm of the sample error E"},
-    {"prio-reproject", T_FLOAT, offsetof(rq_options, prio_reproject), "P",
-     "priority of reprojected significant samples"},
-    {"prio-seed", T_FLOAT, offsetof(rq_options, prio_seed), "P",
-     "priority of initial, global and remaining-list requests"},
-    {"prio-mismatch", T_FLOAT, offsetof(rq_options, prio_mismatch), "P",
-     "priority of children of samples that hit another node than shown"},
-    {"reseed", T_INT, offsetof(rq_options, reseed), "0|1",
-     "queue a fresh initial grid on every camera change too"},
-    {"max-queue", T_LONG, offsetof(rq_options, max_queue), "N",
-     "cap on queued requests (0 = one per pixel)"},
-    {"refine-error", T_FLOAT, offsetof(rq_options, refine_error), "E",
-     "after full coverage keep sampling pixels whose mean's standard error is over E (0: stop at one sample)"},
-    {"refine-max", T_INT, offsetof(rq_options, refine_max), "N",
-     "at most N samples per pixel when refining (1..65535)"},
-};
-
-static const char *norm_names[] = {"max", "lum", "avg"};
-
-bool rq_options_has(const char *name)
-{
-    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++)
-        if (strcmp(opts[i].name, name) == 0) return true;
-    return false;
+    ct_error err;
+    optab_defaults(OPTS, OPTAB_COUNT(OPTS), o, &err);   /* the table's defaults parse (test_sampler) */
 }
 
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err)
 {
-    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) {
-        const optdesc *d = &opts[i];
-        if (strcmp(d->name, name) != 0) continue;
-        char *end = NULL;
-        void *field = (char *)o + d->off;
-        errno = 0;
-        switch (d->type) {
-        case T_INT: {
-            long v = strtol(value, &end, 10);
-            if (errno || end == value || *end || v < -2147483647L || v > 2147483647L) break;
-            *(int *)field = (int)v;
-            return 0;
-        }
-        case T_LONG: {
-            long v = strtol(value, &end, 10);
-            if (errno || end == value || *end) break;
-            *(long *)field = v;
-            return 0;
-        }
-        case T_FLOAT: {
-            float v = strtof(value, &end);
-            if (errno || end == value || *end || !isfinite(v)) break;
-            *(float *)field = v;
-            return 0;
-        }
-        case T_NORM:
-            for (int k = 0; k < 3; k++)
-                if (strcmp(value, norm_names[k]) == 0) {
-                    *(rq_norm *)field = (rq_norm)k;
-                    return 0;
-                }
-            break;
-        }
-        return ct_fail(err, CT_EINVAL, "sampler option --%s: bad value '%s' (expected %s)", name,
-                       value, d->arg);
-    }
-    return ct_fail(err, CT_EINVAL, "unknown sampler option --%s", name);
+    int rc = optab_set(OPTS, OPTAB_COUNT(OPTS), o, name, value, err);
+    if (rc == 0) return ct_fail(err, CT_EINVAL, "unknown sampler option --%s", name);
+    return rc < 0 ? rc : 0;
 }
 
 void rq_options_usage(FILE *f)
 {
-    rq_options def;
-    rq_options_default(&def);
-    for (size_t i = 0; i < sizeof opts / sizeof opts[0]; i++) {
-        const optdesc *d = &opts[i];
-        const void *field = (const char *)&def + d->off;
-        char flag[64], dv[32];
-        snprintf(flag, sizeof flag, "--%s %s", d->name, d->arg);
-        switch (d->type) {
-        case T_INT: snprintf(dv, sizeof dv, "%d", *(const int *)field); break;
-        case T_LONG: snprintf(dv, sizeof dv, "%ld", *(const long *)field); break;
-        case T_FLOAT: snprintf(dv, sizeof dv, "%g", (double)*(const float *)field); break;
-        default: snprintf(dv, sizeof dv, "%s", norm_names[*(const rq_norm *)field]); break;
-        }
-        fprintf(f, "  %-30s %s (default %s)\n", flag, d->help, dv);
-    }
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
 }
 
 int rq_options_check(const rq_options *o, ct_error *err)

@@ -24,8 +24,9 @@
 
 #include "common/camera.h"
 #include "common/error.h"
+#include "common/optab.h"
 #include "common/vecmath.h"
-#include "proto/records.h"
+#include "common/records.h"
 
 typedef struct rq_engine rq_engine;
 
@@ -106,8 +107,8 @@ void rq_options_default(rq_options *o);
  * "min-priority"); CT_EINVAL with a message naming it on a bad name or value. */
 int rq_options_set(rq_options *o, const char *name, const char *value, ct_error *err);
 
-/* Whether name (without "--") is a sampler option. */
-bool rq_options_has(const char *name);
+/* The option table (common/optab.h): one row per option with its default. */
+const optab *rq_options_table(size_t *n);
 
 /* Prints one "--name VALUE  help (default X)" line per option to f. */
 void rq_options_usage(FILE *f);

@@ -131,7 +131,6 @@ struct auth_hs {
     auth_token token;
     bool have_token;
     bool require_auth;
-    bool authed;
     char peer[128];
     char build_id[AUTH_BUILD_ID_LEN + 1];
     uint8_t mine[AUTH_HELLO_SIZE];
@@ -193,11 +192,6 @@ void auth_hs_free(auth_hs *hs)
 wire_buf *auth_hs_output(auth_hs *hs)
 {
     return &hs->out;
-}
-
-bool auth_hs_authenticated(const auth_hs *hs)
-{
-    return hs->authed;
 }
 
 /* Records a failure; queues an ERROR frame for the peer when tell_code != 0. */
@@ -310,7 +304,6 @@ static int check_auth(auth_hs *hs, ct_error *err)
         ct_fail(err, CT_EAUTH, "%s: authentication failed: the peer's proof does not match our token", hs->peer);
         return hs_fail(hs, CT_EAUTH, WIRE_ERR_AUTH, "authentication failed", err);
     }
-    hs->authed = true;
     hs->state = HS_DONE;
     return 0;
 }

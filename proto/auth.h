@@ -83,9 +83,6 @@ wire_buf *auth_hs_output(auth_hs *hs);
  * WIRE_NEED_MORE, or a negative error (sticky). */
 int auth_hs_input(auth_hs *hs, const uint8_t *data, size_t len, size_t *used, ct_error *err);
 
-/* Whether the AUTH exchange took place (after completion). */
-bool auth_hs_authenticated(const auth_hs *hs);
-
 /* Fills a 64-byte HELLO (for tests and tools). */
 void auth_hello_encode(uint8_t out[AUTH_HELLO_SIZE], auth_role role, uint8_t flags, const char *build_id,
                        const uint8_t nonce[AUTH_NONCE_SIZE]);

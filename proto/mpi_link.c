@@ -82,11 +82,6 @@ int mpil_init(int *argc, char ***argv, int *rank, int *size, ct_error *err)
     return 0;
 }
 
-int mpil_active(void)
-{
-    return L.active;
-}
-
 void mpil_host(char *out, size_t cap)
 {
     char name[MPI_MAX_PROCESSOR_NAME];
@@ -142,13 +137,6 @@ static int check_len(size_t len, ct_error *err)
 {
     if (len > MPIL_MAX_MESSAGE || len > INT_MAX)
         return ct_fail(err, CT_ERANGE, "MPI message of %zu bytes over the limit %zu", len, MPIL_MAX_MESSAGE);
-    return 0;
-}
-
-int mpil_send(int dest, int tag, const void *data, size_t len, ct_error *err)
-{
-    if (check_len(len, err) < 0) return CT_ERANGE;
-    MPI_CHECK(MPI_Send(data, (int)len, MPI_BYTE, dest, tag, MPI_COMM_WORLD), err);
     return 0;
 }
 
@@ -382,11 +370,5 @@ int mpil_allreduce_max(int *v, ct_error *err)
 {
     int in = *v;
     MPI_CHECK(MPI_Allreduce(&in, v, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD), err);
-    return 0;
-}
-
-int mpil_barrier(ct_error *err)
-{
-    MPI_CHECK(MPI_Barrier(MPI_COMM_WORLD), err);
     return 0;
 }

@@ -1,5 +1,5 @@
 /* mpi_link.h: the MPI transport between the master (rank 0) and the tracer
- * ranks: start-up and shutdown, blocking and non-blocking sends of encoded
+ * ranks: start-up and shutdown, non-blocking sends of encoded
  * byte buffers (proto/wire_mpi.h layouts) under a tag, probing and receiving
  * whole messages, and a chunked broadcast for large payloads (the radiosity
  * mesh). The only file of the project that includes <mpi.h>: proto owns every
@@ -39,9 +39,6 @@ typedef struct mpil_info {
  * errors return instead of aborting, and reports rank and size. */
 int mpil_init(int *argc, char ***argv, int *rank, int *size, ct_error *err);
 
-/* Whether mpil_init ran and mpil_finalize did not. */
-int mpil_active(void);
-
 /* This process' host name as MPI reports it. */
 void mpil_host(char *out, size_t cap);
 
@@ -51,9 +48,6 @@ int mpil_finalize(ct_error *err);
 /* Ends the whole job at once (every rank) with an exit code: for a master
  * that cannot go on and cannot reach the tracers in order. */
 void mpil_abort(int code);
-
-/* Sends len bytes to dest under tag and waits until the buffer is reusable. */
-int mpil_send(int dest, int tag, const void *data, size_t len, ct_error *err);
 
 /* Starts a send of buf's bytes and takes the buffer over (buf is zeroed); the
  * memory is released once the send completed (mpil_progress). */
@@ -103,8 +97,5 @@ int mpil_bcast_u64(int root, uint64_t *v, ct_error *err);
 /* Every rank passes its value; every rank gets the largest (a collective
  * status check: one failing rank lets all leave in order). */
 int mpil_allreduce_max(int *v, ct_error *err);
-
-/* Barrier across all ranks. */
-int mpil_barrier(ct_error *err);
 
 #endif

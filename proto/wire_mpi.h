@@ -14,7 +14,7 @@
 
 #include "common/camera.h"
 #include "common/error.h"
-#include "proto/records.h"
+#include "common/records.h"
 #include "proto/wire.h"
 
 #define WIRE_MPI_VERSION      1u

@@ -1,3 +1,6 @@
+/* lights.c: light sampling (lights.h). Over 600 lines on purpose: the
+ * emitter records, the grid of candidates, their vectorized weighing and
+ * the pdfs that MIS needs must agree exactly, so they stay in one file. */
 #include "tracer/lights.h"
 
 #include <math.h>

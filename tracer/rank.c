@@ -3,13 +3,13 @@
  * camera and control messages act immediately. */
 #include "tracer/rank.h"
 
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "common/log.h"
+#include "common/pool.h"
 #include "common/timer.h"
 #include "proto/mpi_link.h"
 #include "proto/wire_mpi.h"
@@ -56,22 +56,6 @@ static void fifo_free(fifo *f)
     free(f->items);
 }
 
-typedef struct work {
-    const trc_tracer *t;
-    const trc_view *v;
-    const ct_request *req;
-    ct_sample *out;
-    size_t n;
-    trc_stats st;
-} work;
-
-static void *trace_part(void *arg)
-{
-    work *w = arg;
-    if (w->n) trc_trace(w->t, w->v, w->req, w->n, w->out, &w->st);
-    return NULL;
-}
-
 /* Interleaves the low 16 bits of x with zeros (a Morton code's half). */
 static uint32_t spread16(uint32_t x)
 {
@@ -109,8 +93,8 @@ static void order_free(batch_order *o)
     free(o->out);
 }
 
-static uint64_t trace_threads(const trank_config *c, const trc_view *v, const ct_request *req, size_t n,
-                              ct_sample *out);
+static uint64_t trace_threads(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req,
+                              size_t n, ct_sample *out);
 
 /* Traces a batch in Morton order of its pixels and answers in request
  * order. The queue hands out requests spread over the whole image (highest
@@ -118,8 +102,8 @@ static uint64_t trace_threads(const trank_config *c, const trc_view *v, const ct
  * cache: table at 1024^2 traced 5 % more samples a second this way. The
  * records do not depend on the order (each sample's randomness is its own,
  * tracer.h). Without memory for the permutation the batch goes as it came. */
-static uint64_t trace_batch(const trank_config *c, batch_order *o, const trc_view *v, const ct_request *req,
-                            size_t n, ct_sample *out)
+static uint64_t trace_batch(ct_pool *pool, const trank_config *c, batch_order *o, const trc_view *v,
+                            const ct_request *req, size_t n, ct_sample *out)
 {
     if (n > o->cap) {
         keyed *k = realloc(o->k, n * sizeof *k);
@@ -128,7 +112,7 @@ static uint64_t trace_batch(const trank_config *c, batch_order *o, const trc_vie
         if (r) o->req = r;
         ct_sample *s = r ? realloc(o->out, n * sizeof *s) : NULL;
         if (s) o->out = s;
-        if (!s) return trace_threads(c, v, req, n, out);
+        if (!s) return trace_threads(pool, c, v, req, n, out);
         o->cap = n;
     }
     for (size_t i = 0; i < n; i++) {
@@ -139,36 +123,18 @@ static uint64_t trace_batch(const trank_config *c, batch_order *o, const trc_vie
     }
     qsort(o->k, n, sizeof *o->k, by_key);
     for (size_t i = 0; i < n; i++) o->req[i] = req[o->k[i].idx];
-    uint64_t rays = trace_threads(c, v, o->req, n, o->out);
+    uint64_t rays = trace_threads(pool, c, v, o->req, n, o->out);
     for (size_t i = 0; i < n; i++) out[o->k[i].idx] = o->out[i];
     return rays;
 }
 
-/* Traces n requests on up to `threads` threads; the records do not depend on
- * the split (each sample's randomness is its own, tracer.h). Returns the rays. */
-static uint64_t trace_threads(const trank_config *c, const trc_view *v, const ct_request *req, size_t n,
-                              ct_sample *out)
+/* Traces n requests on the pool (trc_trace_par); returns the rays. */
+static uint64_t trace_threads(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req,
+                              size_t n, ct_sample *out)
 {
-    int nt = c->threads < 1 ? 1 : c->threads;
-    if ((size_t)nt > n) nt = n ? (int)n : 1;
-    work w[64];
-    if (nt > 64) nt = 64;
-    pthread_t th[64];
-    int started[64] = {0};
-    size_t per = (n + (size_t)nt - 1) / (size_t)nt;
-    for (int i = 0; i < nt; i++) {
-        size_t b = (size_t)i * per, e = b + per > n ? n : b + per;
-        w[i] = (work){c->tracer, v, req + b, out + b, b < e ? e - b : 0, {0}};
-        if (i > 0) started[i] = pthread_create(&th[i], NULL, trace_part, &w[i]) == 0;
-    }
-    trace_part(&w[0]);
-    for (int i = 1; i < nt; i++) {
-        if (started[i]) pthread_join(th[i], NULL);
-        else trace_part(&w[i]);   /* no thread: do the part here */
-    }
-    uint64_t rays = 0;
-    for (int i = 0; i < nt; i++) rays += trc_stats_rays(&w[i].st);
-    return rays;
+    trc_stats st = {0};
+    trc_trace_par(c->tracer, pool, v, req, n, out, false, &st);
+    return trc_stats_rays(&st);
 }
 
 /* Leaving in order: a large sample message completes only when the master
@@ -217,7 +183,9 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
     uint32_t epoch = 0;
     char peer[32];
     snprintf(peer, sizeof peer, "master (rank 0)");
-    int rc = 0, shutdown = 0;
+    ct_pool *pool = NULL;
+    int rc = pool_new(c->threads < 1 ? 1 : c->threads, &pool, err), shutdown = 0;
+    if (rc) return rc;
 
     while (!shutdown && !(c->stop && *c->stop)) {
         /* 1. read everything that arrived */
@@ -280,7 +248,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         } else {
             trc_view v = {.cam = h.cam, .width = (int)h.width, .height = (int)h.height};
             double t0 = ct_now();
-            st->rays += trace_batch(c, &order, &v, reqs, count, samples);
+            st->rays += trace_batch(pool, c, &order, &v, reqs, count, samples);
             st->busy_s += ct_now() - t0;
             st->samples += count;
             nout = count;
@@ -292,6 +260,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
     }
     rc = farewell(c, shutdown, &msg, err);
 out:
+    pool_free(pool);
     fifo_free(&q);
     wire_buf_free(&msg);
     wire_buf_free(&reply);

@@ -1,13 +1,12 @@
 #include "tracer/render.h"
 
-#include <pthread.h>
 #include <stdbool.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "common/log.h"
+#include "common/pool.h"
 #include "common/rng.h"
 #include "common/timer.h"
 
@@ -30,15 +29,15 @@ typedef struct job {
     trc_view view;
     float *rgb;
     int tiles_x, ntiles;
-    atomic_int next;
     atomic_int done;
+    const char *progress;   /* progress line component of this pass, or NULL */
+    double t0;
 } job;
 
 /* Cache-line aligned (and so padded): each thread bumps its own ray
  * counters on every ray, which must not share a line with a neighbour's. */
 typedef struct worker {
     _Alignas(64) job *j;
-    pthread_t th;
     trc_stats st;
     trc_raylog log;
     ct_request *req;
@@ -98,24 +97,27 @@ static void render_tile(worker *w, int tile)
     w->st.log = NULL;
 }
 
-static void *run_worker(void *arg)
+/* A tile (pool task); the calling thread also prints the progress line
+ * (ct_progress limits how often it writes). */
+static void tile_task(void *ctx, int id, size_t tile)
 {
-    worker *w = arg;
+    worker *ws = ctx, *w = &ws[id];
     job *j = w->j;
-    for (;;) {
-        int tile = atomic_fetch_add(&j->next, 1);
-        if (tile >= j->ntiles) break;
-        render_tile(w, tile);
-        atomic_fetch_add(&j->done, 1);
+    render_tile(w, (int)tile);
+    int done = atomic_fetch_add(&j->done, 1) + 1;
+    if (id == 0 && j->progress && done < j->ntiles) {
+        double el = ct_now() - j->t0, f = (double)done / j->ntiles;
+        ct_progress(j->progress, f, 0, "%d/%d tiles, %.1f s, about %.0f s left", done, j->ntiles, el,
+                    f > 0 ? el / f - el : 0.0);
     }
-    return NULL;
 }
 
-static void *run_replay(void *arg)
+/* Replays worker `task`'s log (pool task). */
+static void replay_task(void *ctx, int id, size_t task)
 {
-    worker *w = arg;
+    (void)id;
+    worker *w = &((worker *)ctx)[task];
     w->hits = trc_replay(w->j->t, &w->log, w->replay_as_traced);
-    return NULL;
 }
 
 static void free_workers(worker *ws, int n)
@@ -128,58 +130,27 @@ static void free_workers(worker *ws, int n)
     free(ws);
 }
 
-static int start_all(worker *ws, int n, void *(*fn)(void *), ct_error *err)
-{
-    for (int i = 0; i < n; i++) {
-        int rc = pthread_create(&ws[i].th, NULL, fn, &ws[i]);
-        if (rc) {
-            for (int k = 0; k < i; k++) pthread_join(ws[k].th, NULL);
-            return ct_fail(err, CT_ESYS, "cannot start render thread %d of %d", i + 1, n);
-        }
-    }
-    return CT_OK;
-}
-
-/* Wall time of replaying every worker's log on its own thread. */
-static double replay(worker *ws, int n, int as_traced, ct_error *err, int *rc)
+/* Wall time of replaying every worker's log, one log per task. */
+static double replay(ct_pool *pool, worker *ws, int n, int as_traced)
 {
     for (int i = 0; i < n; i++) ws[i].replay_as_traced = as_traced;
     double t0 = ct_now();
-    *rc = start_all(ws, n, run_replay, err);
-    if (*rc) return 0.0;
-    for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
+    pool_run(pool, (size_t)n, replay_task, ws);
     return ct_now() - t0;
 }
 
-/* One pass over every tile on n threads (logging rays when log is set),
- * with the progress line when progress is given. */
-static int run_pass(job *j, worker *ws, int n, bool log, const char *progress, ct_error *err)
+/* One pass over every tile (logging rays when log is set), with the
+ * progress line when progress is given. */
+static void run_pass(ct_pool *pool, job *j, worker *ws, int n, bool log, const char *progress)
 {
-    atomic_store(&j->next, 0);
     atomic_store(&j->done, 0);
     for (int i = 0; i < n; i++) {
         memset(&ws[i].st, 0, sizeof ws[i].st);
         ws[i].use_log = log;
     }
-    double t0 = ct_now();
-    int rc = start_all(ws, n, run_worker, err);
-    if (rc) return rc;
-    if (progress) {
-        /* Short naps so a small render is not timed up to a nap too long;
-         * ct_progress itself limits how often a line is printed. */
-        const struct timespec nap = {0, 2 * 1000 * 1000};
-        for (;;) {
-            int done = atomic_load(&j->done);
-            double el = ct_now() - t0;
-            if (done >= j->ntiles) break;
-            double f = (double)done / j->ntiles;
-            ct_progress(progress, f, 0, "%d/%d tiles, %.1f s, about %.0f s left", done, j->ntiles, el,
-                        f > 0 ? el / f - el : 0.0);
-            nanosleep(&nap, NULL);
-        }
-    }
-    for (int i = 0; i < n; i++) pthread_join(ws[i].th, NULL);
-    return CT_OK;
+    j->progress = progress;
+    j->t0 = ct_now();
+    pool_run(pool, (size_t)j->ntiles, tile_task, ws);
 }
 
 int render_image(const trc_tracer *t, const ct_camera *cam, const render_options *o, float *rgb,
@@ -201,10 +172,15 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     j.rgb = rgb;
     j.tiles_x = (o->width + o->tile - 1) / o->tile;
     j.ntiles = j.tiles_x * ((o->height + o->tile - 1) / o->tile);
-    atomic_init(&j.next, 0);
     atomic_init(&j.done, 0);
+    ct_pool *pool = NULL;
+    int prc = pool_new(o->threads, &pool, err);
+    if (prc) return prc;
     worker *ws = aligned_alloc(_Alignof(worker), (size_t)o->threads * sizeof *ws);
-    if (!ws) return ct_fail(err, CT_ENOMEM, "out of memory");
+    if (!ws) {
+        pool_free(pool);
+        return ct_fail(err, CT_ENOMEM, "out of memory");
+    }
     memset(ws, 0, (size_t)o->threads * sizeof *ws);
     for (int i = 0; i < o->threads; i++) {
         ws[i].j = &j;
@@ -218,10 +194,12 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         }
         if (o->raylog_cap && !ws[i].log.rays) {
             free_workers(ws, o->threads);
+            pool_free(pool);
             return ct_fail(err, CT_ENOMEM, "out of memory for a ray log of %zu rays per thread", o->raylog_cap);
         }
         if (!ws[i].req || !ws[i].out) {
             free_workers(ws, o->threads);
+            pool_free(pool);
             return ct_fail(err, CT_ENOMEM, "out of memory for %d samples per pixel", o->spp);
         }
     }
@@ -233,34 +211,24 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
      * raw replays, the fastest of each counting: interleaved, so that a
      * burst of load from other processes on a shared machine falls on both
      * sides of the comparison rather than on one. */
-    int rc = CT_OK;
     if (o->raylog_cap) {
-        rc = run_pass(&j, ws, o->threads, true, NULL, err);
-        if (rc) {
-            free_workers(ws, o->threads);
-            return rc;
-        }
+        run_pass(pool, &j, ws, o->threads, true, NULL);
         for (int i = 0; i < o->threads; i++) {
             res->logged += ws[i].log.n;
             trc_raylog_sort(&ws[i].log);
         }
     }
     int runs = o->raylog_cap && o->bench_runs > 1 ? o->bench_runs : 1;
-    for (int run = 0; run < runs && !rc; run++) {
+    for (int run = 0; run < runs; run++) {
         double t0 = ct_now();
-        rc = run_pass(&j, ws, o->threads, false, run == 0 ? o->progress : NULL, err);
-        if (rc) break;
+        run_pass(pool, &j, ws, o->threads, false, run == 0 ? o->progress : NULL);
         double dt = ct_now() - t0;
         if (run == 0 || dt < res->seconds) res->seconds = dt;
         if (!res->logged) continue;
-        double ri = replay(ws, o->threads, 0, err, &rc);
-        double rt = rc ? 0.0 : replay(ws, o->threads, 1, err, &rc);
+        double ri = replay(pool, ws, o->threads, 0);
+        double rt = replay(pool, ws, o->threads, 1);
         if (run == 0 || ri < res->replay_isect_s) res->replay_isect_s = ri;
         if (run == 0 || rt < res->replay_traced_s) res->replay_traced_s = rt;
-    }
-    if (rc) {
-        free_workers(ws, o->threads);
-        return rc;
     }
     if (o->progress) ct_progress(o->progress, 1.0, 1, "%d tiles, %.2f s", j.ntiles, res->seconds);
     for (int i = 0; i < o->threads; i++) {
@@ -270,5 +238,6 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         res->stats.samples += ws[i].st.samples;
     }
     free_workers(ws, o->threads);
-    return rc;
+    pool_free(pool);
+    return CT_OK;
 }

@@ -1,6 +1,6 @@
 /* render.h: the offline reference renderer: every pixel of a view traced
  * with spp jittered requests through the per-sample API (tracer.h), on T
- * pthreads pulling square tiles from a shared counter, with a progress line.
+ * threads of the pool (common/pool.h) pulling square tiles, with a progress line.
  * Request ids are ((y * W + x) * spp + s + 1), the jitter comes from
  * rng_make(seed, id, epoch, TRC_DIM_PIXEL), so an image is bit-identical
  * for any thread count. Optionally logs (a random subset of) the rays it

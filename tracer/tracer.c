@@ -344,3 +344,52 @@ uint64_t trc_replay(const trc_tracer *t, const trc_raylog *log, int as_traced)
     fpu_leave(fpu);
     return hits;
 }
+
+typedef struct par_trace {
+    const trc_tracer *t;
+    const trc_view *v;
+    const ct_request *req;
+    ct_sample *out;
+    size_t n, per;
+    bool primary;
+    trc_stats st[POOL_MAX_THREADS];
+} par_trace;
+
+static void trace_part(void *ctx, int worker, size_t part)
+{
+    par_trace *j = ctx;
+    size_t b = part * j->per, e = b + j->per < j->n ? b + j->per : j->n;
+    trc_stats *st = &j->st[worker];
+    if (j->primary) trc_trace_primary(j->t, j->v, j->req + b, e - b, j->out + b, st);
+    else trc_trace(j->t, j->v, j->req + b, e - b, j->out + b, st);
+}
+
+void trc_trace_par(const trc_tracer *t, ct_pool *pool, const trc_view *v, const ct_request *req, size_t n,
+                   ct_sample *out, bool primary, trc_stats *st)
+{
+    if (n == 0) return;
+    int threads = pool_threads(pool);
+    par_trace *j = calloc(1, sizeof *j);
+    if (!j) {
+        /* (a few KiB of counters: without them, on this thread alone) */
+        trc_stats mine = {0};
+        if (primary) trc_trace_primary(t, v, req, n, out, &mine);
+        else trc_trace(t, v, req, n, out, &mine);
+        if (st) {
+            st->primary += mine.primary; st->secondary += mine.secondary;
+            st->shadow += mine.shadow; st->samples += mine.samples;
+        }
+        return;
+    }
+    size_t parts = (size_t)threads * 4;
+    j->t = t; j->v = v; j->req = req; j->out = out; j->n = n; j->primary = primary;
+    j->per = (n + parts - 1) / parts;
+    if (j->per < 8) j->per = 8;
+    pool_run(pool, (n + j->per - 1) / j->per, trace_part, j);
+    if (st)
+        for (int i = 0; i < threads; i++) {
+            st->primary += j->st[i].primary; st->secondary += j->st[i].secondary;
+            st->shadow += j->st[i].shadow; st->samples += j->st[i].samples;
+        }
+    free(j);
+}

@@ -21,9 +21,10 @@
 
 #include "common/camera.h"
 #include "common/error.h"
+#include "common/pool.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
-#include "proto/records.h"
+#include "common/records.h"
 
 typedef enum trc_mode {
     TRC_MODE_PATH  = 0,
@@ -135,6 +136,13 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
 /* Primary hits only: the records without L_hq (zero), with L_base. */
 void trc_trace_primary(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,
                        ct_sample *out, trc_stats *st);
+
+/* trc_trace (with `primary`: trc_trace_primary) of n requests on the pool's
+ * threads, a few parts per thread so that harder parts balance; the records
+ * do not depend on the split (each sample's randomness is its own). st (may
+ * be NULL) gets the rays of every part added. */
+void trc_trace_par(const trc_tracer *t, ct_pool *pool, const trc_view *v, const ct_request *req, size_t n,
+                   ct_sample *out, bool primary, trc_stats *st);
 
 /* Replays logged rays with raw Embree queries: every ray with rtcIntersect1
  * (as_traced 0) or shadow rays with rtcOccluded1 (as_traced 1). Returns the

@@ -1,24 +1,36 @@
 /* corrtex info SCENE [--json]: counts and bounds of a scene. */
 #include <cJSON.h>
-#include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli/corrtex/commands.h"
 #include "common/log.h"
+#include "common/optab.h"
 #include "common/scene.h"
 
 static const char *const KINDS[] = {"diffuse", "phong", "ward", "mirror", "dielectric", "emissive"};
 #define NKINDS ((int)(sizeof KINDS / sizeof KINDS[0]))
 
+typedef struct info_opts {
+    bool json, tree, quiet;
+} info_opts;
+
+#define OF(f) offsetof(info_opts, f)
+static const optab OPTS[] = {
+    {"json", 'j', OPTAB_FLAG, OF(json), 0, 0, NULL, NULL,
+     "machine-readable output (keys: nodes, primitives, triangles, materials, emitters, cameras, paths, bounds, ...)",
+     NULL},
+    {"tree", 't', OPTAB_FLAG, OF(tree), 0, 0, NULL, NULL, "also print the node hierarchy (plain output only)", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+};
+#undef OF
+
 static void usage(FILE *f)
 {
     fprintf(f, "usage: corrtex info SCENE.json [--json] [--tree] [--quiet]\n"
-               "  Loads a scene and prints its counts and bounds.\n"
-               "  --json   machine-readable output (keys: nodes, primitives, triangles, materials,\n"
-               "           emitters, cameras, paths, bounds, ...)\n"
-               "  --tree   also print the node hierarchy (plain output only)\n");
+               "  Loads a scene and prints its counts and bounds.\n");
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
 }
 
 static cJSON *vec_json(vec3 v)
@@ -40,28 +52,27 @@ static void print_tree(const ct_scene *s, uint32_t n, int depth)
 
 int cmd_info(int argc, char **argv)
 {
-    int json = 0, tree = 0;
-    static const struct option opts[] = {
-        {"json", no_argument, 0, 'j'}, {"tree", no_argument, 0, 't'},
-        {"quiet", no_argument, 0, 'q'}, {"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    int c;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, "jtqh", opts, NULL)) != -1) {
-        switch (c) {
-        case 'j': json = 1; break;
-        case 't': tree = 1; break;
-        case 'q': ct_log_set_level(CT_LOG_ERROR); break;
-        case 'h': usage(stdout); return 0;
-        default: usage(stderr); return 2;
-        }
+    info_opts opt;
+    ct_error err;
+    optab_defaults(OPTS, OPTAB_COUNT(OPTS), &opt, &err);
+    optab_group g = {OPTS, OPTAB_COUNT(OPTS), &opt};
+    const char *pos[1];
+    int npos = 0, prc = optab_parse(&g, 1, argc, argv, pos, 1, &npos, &err);
+    if (prc == 1) {
+        usage(stdout);
+        return 0;
     }
-    if (optind != argc - 1) {
-        ct_log(CT_LOG_ERROR, "corrtex info", "expected one scene file (got %d arguments)", argc - optind);
+    if (opt.quiet) ct_log_set_level(CT_LOG_ERROR);
+    if (prc) {
+        ct_log(CT_LOG_ERROR, "corrtex info", "%s", err.msg);
         return 2;
     }
-    ct_error err;
+    if (npos != 1) {
+        ct_log(CT_LOG_ERROR, "corrtex info", "expected one scene file (got %d arguments)", npos);
+        return 2;
+    }
     ct_scene *s;
-    if (scene_load(argv[optind], &s, &err) != CT_OK) {
+    if (scene_load(pos[0], &s, &err) != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex info", "%s", err.msg);
         return 2;
     }
@@ -74,7 +85,7 @@ int cmd_info(int argc, char **argv)
     uint32_t by_kind[4] = {0};
     for (uint32_t n = 0; n < s->nnodes; n++) by_kind[s->nodes[n].kind]++;
 
-    if (json) {
+    if (opt.json) {
         cJSON *o = cJSON_CreateObject();
         cJSON_AddStringToObject(o, "scene", s->name);
         cJSON_AddStringToObject(o, "file", s->source);
@@ -128,7 +139,7 @@ int cmd_info(int argc, char **argv)
             printf(" %s (%d keys, %.1f s)", s->paths[i].name, s->paths[i].nkeys, (double)campath_duration(&s->paths[i]));
         printf("\nbounds      [%g %g %g] .. [%g %g %g]\n", (double)s->bounds.lo.x, (double)s->bounds.lo.y,
                (double)s->bounds.lo.z, (double)s->bounds.hi.x, (double)s->bounds.hi.y, (double)s->bounds.hi.z);
-        if (tree) print_tree(s, 0, 0);
+        if (opt.tree) print_tree(s, 0, 0);
     }
     scene_free(s);
     return 0;

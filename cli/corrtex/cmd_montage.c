@@ -5,7 +5,6 @@
  * already reads and writes both formats, and a fresh machine then needs no
  * extra package for `make demo`. Exit 0 ok, 2 bad input or usage. */
 #include <ctype.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +14,7 @@
 #include "cli/corrtex/commands.h"
 #include "common/image.h"
 #include "common/log.h"
+#include "common/optab.h"
 
 #define COMPONENT "corrtex montage"
 
@@ -25,8 +25,21 @@ typedef struct montage_opts {
     int gap;           /* pixels between tiles and around the sheet */
     int max_tiles;     /* 0: every input; else this many, evenly spaced */
     float exposure;    /* applied to the whole sheet when writing the PNG */
-    int labels;
+    bool no_labels, quiet;
 } montage_opts;
+
+#define OF(f) offsetof(montage_opts, f)
+static const optab OPTS[] = {
+    {"output", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "FILE", "the sheet (PNG; required)", NULL},
+    {"columns", 0, OPTAB_INT, OF(columns), 0, 1000, "0", "C", "tiles per row (0: about square)", NULL},
+    {"tile", 0, OPTAB_INT, OF(tile), 16, 4096, "256", "W", "tile width in pixels", NULL},
+    {"gap", 0, OPTAB_INT, OF(gap), 0, 64, "4", "G", "pixels between tiles", NULL},
+    {"max-tiles", 0, OPTAB_INT, OF(max_tiles), 0, 100000, "0", "N", "use N inputs, evenly spaced (0: all)", NULL},
+    {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "stops applied when writing the PNG", NULL},
+    {"no-labels", 0, OPTAB_FLAG, OF(no_labels), 0, 0, NULL, NULL, "no frame numbers on the tiles", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+};
+#undef OF
 
 static void usage(FILE *f)
 {
@@ -35,17 +48,10 @@ static void usage(FILE *f)
             "A contact sheet: every IMAGE (.png or .exr, same aspect expected) scaled to one\n"
             "tile by area averaging in linear RGB, row by row, labelled with the last number\n"
             "in its file name (frame_00012.png -> 12).\n\n"
-            "options:\n"
-            "  -o, --output FILE   the sheet (PNG)                          required\n"
-            "  --columns C         tiles per row (0: about square)          default: 0\n"
-            "  --tile W            tile width in pixels (16..4096)          default: 256\n"
-            "  --gap G             pixels between tiles (0..64)             default: 4\n"
-            "  --max-tiles N       use N inputs, evenly spaced (0: all)     default: 0\n"
-            "  --exposure E        stops applied when writing the PNG      default: 0\n"
-            "  --no-labels         no frame numbers on the tiles           default: labels\n"
-            "  -q, --quiet         errors only\n"
-            "  -h, --help          this help\n"
-            "exit status: 0 ok, 2 bad input or usage\n");
+            "options:\n");
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
+    fprintf(f, "  -h, --help                   this help\n"
+               "exit status: 0 ok, 2 bad input or usage\n");
 }
 
 /* A 3x5 bitmap font for the digits 0-9: each row 3 bits, MSB left. */
@@ -125,13 +131,7 @@ static void place(ct_image *sheet, const ct_image *src, int x0, int y0, int tw, 
     }
 }
 
-/* An int option within [lo, hi]; logs and returns -1 when bad. */
-static int int_opt(const char *name, const char *s, long lo, long hi, int *out)
-{
-    return cli_int_opt(COMPONENT, name, s, lo, hi, out);
-}
-
-static int build(const montage_opts *o, char **files, int nfiles, ct_error *err)
+static int build(const montage_opts *o, const char *const *files, int nfiles, ct_error *err)
 {
     int n = nfiles;
     if (o->max_tiles > 0 && o->max_tiles < n) n = o->max_tiles;
@@ -180,7 +180,7 @@ static int build(const montage_opts *o, char **files, int nfiles, ct_error *err)
         place(&sheet, &img, x0, y0, tw, th);
         img_free(&img);
         long lab = label_of(files[idx]);
-        if (o->labels && lab >= 0) draw_label(&sheet, x0, y0, lab, lscale);
+        if (!o->no_labels && lab >= 0) draw_label(&sheet, x0, y0, lab, lscale);
         ct_progress(COMPONENT, (double)(k + 1) / n, 0, "tile %d/%d", k + 1, n);
     }
     if (!rc) ct_progress(COMPONENT, 1.0, 1, "tile %d/%d", n, n);
@@ -194,44 +194,20 @@ static int build(const montage_opts *o, char **files, int nfiles, ct_error *err)
 
 int cmd_montage(int argc, char **argv)
 {
-    static const struct option opts[] = {
-        {"output", required_argument, NULL, 'o'},  {"columns", required_argument, NULL, 'c'},
-        {"tile", required_argument, NULL, 't'},    {"gap", required_argument, NULL, 'g'},
-        {"max-tiles", required_argument, NULL, 'm'}, {"exposure", required_argument, NULL, 'e'},
-        {"no-labels", no_argument, NULL, 'n'},     {"quiet", no_argument, NULL, 'q'},
-        {"help", no_argument, NULL, 'h'},          {NULL, 0, NULL, 0}};
-    montage_opts o = {NULL, 0, 256, 4, 0, 0.0f, 1};
-    optind = 1;
-    opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
-        switch (c) {
-        case 'o': o.out = optarg; break;
-        case 'c': if (int_opt("--columns", optarg, 0, 1000, &o.columns)) return 2; break;
-        case 't': if (int_opt("--tile", optarg, 16, 4096, &o.tile)) return 2; break;
-        case 'g': if (int_opt("--gap", optarg, 0, 64, &o.gap)) return 2; break;
-        case 'm': if (int_opt("--max-tiles", optarg, 0, 100000, &o.max_tiles)) return 2; break;
-        case 'e': if (cli_float_opt(COMPONENT, "--exposure", optarg, -30, 30, &o.exposure)) return 2; break;
-        case 'n': o.labels = 0; break;
-        case 'q': ct_log_set_level(CT_LOG_ERROR); break;
-        case 'h': usage(stdout); return 0;
-        default:
-            ct_log(CT_LOG_ERROR, COMPONENT, "unknown or incomplete option '%s' (try --help)", argv[optind - 1]);
-            return 2;
-        }
-    }
-    if (!o.out) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "no output file: give -o SHEET.png (try --help)");
-        return 2;
-    }
-    if (optind >= argc) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "no input images (try --help)");
-        return 2;
-    }
+    montage_opts o;
     ct_error err;
-    if (build(&o, argv + optind, argc - optind, &err)) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
-        return 2;
-    }
-    return 0;
+    optab_defaults(OPTS, OPTAB_COUNT(OPTS), &o, &err);
+    optab_group g = {OPTS, OPTAB_COUNT(OPTS), &o};
+    const char **pos = calloc((size_t)argc + 1, sizeof *pos);
+    if (!pos) return 2;
+    int npos = 0, rc = optab_parse(&g, 1, argc, argv, pos, argc, &npos, &err);
+    if (o.quiet) ct_log_set_level(CT_LOG_ERROR);
+    if (rc == 1) usage(stdout);
+    else if (rc) ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
+    else if (!o.out) ct_log(CT_LOG_ERROR, COMPONENT, "no output file: give -o SHEET.png (try --help)");
+    else if (!npos) ct_log(CT_LOG_ERROR, COMPONENT, "no input images (try --help)");
+    else if (build(&o, pos, npos, &err)) ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
+    else rc = 1;
+    free(pos);
+    return rc == 1 ? 0 : 2;
 }

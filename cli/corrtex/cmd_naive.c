@@ -13,10 +13,7 @@
  * `corrtex reference --frames N` (frame k at path time k/(N-1) of the
  * duration), so DIR/frame_NNNNN.exr compares with a reference folder; with
  * --reference DIR the error per frame goes into DIR/frames.csv. */
-#include <getopt.h>
 #include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,6 +25,8 @@
 #include "common/image.h"
 #include "common/log.h"
 #include "common/metrics.h"
+#include "common/optab.h"
+#include "common/pool.h"
 #include "common/radmesh.h"
 #include "common/rng.h"
 #include "common/scene.h"
@@ -35,17 +34,51 @@
 #include "tracer/tracer.h"
 
 #define COMPONENT "corrtex naive"
-#define MAX_THREADS 64
+#define MAX_THREADS POOL_MAX_THREADS
 /* rng_make dimension of the pixel choice (the tracer uses 0 and 1). */
 #define DIM_PICK 7
 
 typedef struct naive_opts {
     const char *scene, *mesh, *path, *out, *ref;
     int frames, spp_frame, width, height, threads;
-    int hold, png;
+    bool hold, no_png, quiet;
     float exposure;
+    int mode, shadow_rays, branch, depth;
+    uint64_t seed;
     trc_options trc;
 } naive_opts;
+
+static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_PATH, TRC_MODE_REUSE};
+
+#define OF(f) offsetof(naive_opts, f)
+static const optab OPTS[] = {
+    {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE", "the radiosity cache (.ctmesh) the display draws (required)",
+     NULL},
+    {"path", 0, OPTAB_STRING, OF(path), 0, 0, NULL, "P", "camera path: a file, or a path name of the scene (required)",
+     NULL},
+    {"frames", 0, OPTAB_INT, OF(frames), 1, 100000, "100", "N", "frames spread evenly over the path", NULL},
+    /* §5: 1,000 to 4,000 samples per frame */
+    {"samples-per-frame", 0, OPTAB_INT, OF(spp_frame), 0, 1 << 24, "1000", "K", "high-quality samples per frame", NULL},
+    {"hold", 0, OPTAB_FLAG, OF(hold), 0, 0, NULL, NULL, "keep older samples in their pixels (stale)", NULL},
+    /* §5: 1024x1024 display */
+    {"width", 0, OPTAB_INT, OF(width), 1, 16384, "1024", "W", "image width", NULL},
+    {"height", 0, OPTAB_INT, OF(height), 1, 16384, "1024", "H", "image height", NULL},
+    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, "drt", "drt|path|reuse-diffuse", "tracer mode", MODES},
+    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 1024, NULL, "K",
+     "light samples per shading point (default: the mode's)", NULL},
+    {"branch", 0, OPTAB_INT, OF(branch), 1, 1024, NULL, "B", "rays per glossy lobe, drt and reuse-diffuse (default: the mode's)",
+     NULL},
+    {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D", "recursion depth (-1: the mode's)", NULL},
+    {"seed", 0, OPTAB_U64, OF(seed), 0, 9.2e18, "1", "S", "random seed (pixel choice and tracing)", NULL},
+    {"threads", 0, OPTAB_INT, OF(threads), 1, MAX_THREADS, "1", "T", "worker threads", NULL},
+    {"reference", 0, OPTAB_STRING, OF(ref), 0, 0, NULL, "DIR", "per-frame RMSE/PSNR/SSIM against DIR/frame_NNNNN.exr",
+     NULL},
+    {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "stops for the PNG frames", NULL},
+    {"no-png", 0, OPTAB_FLAG, OF(no_png), 0, 0, NULL, NULL, "EXR frames only", NULL},
+    {"output", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "DIR", "output folder (required)", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+};
+#undef OF
 
 static void usage(FILE *f)
 {
@@ -56,94 +89,23 @@ static void usage(FILE *f)
             "  --samples-per-frame K   radiosity plus K high-quality samples per frame, each\n"
             "                          filling only its own pixel (point display, no reprojection)\n"
             "Writes DIR/frame_NNNNN.exr (and .png) per frame and DIR/frames.csv.\n\n"
-            "options:\n"
-            "  --mesh FILE            the radiosity cache (.ctmesh) the display draws   required\n"
-            "  --path P               camera path: a file, or a path name of the scene  required\n"
-            "  --frames N             frames spread evenly over the path (1..100000)    default: 100\n"
-            "  --samples-per-frame K  high-quality samples per frame (0..16777216)      default: 1000\n"
-            "  --hold                 keep older samples in their pixels (stale)       default: off\n"
-            "  --width W, --height H  image size                                       default: 1024x1024\n"
-            "  --mode M               drt | path | reuse-diffuse                       default: drt\n"
-            "  --shadow-rays K        light samples per shading point                  default: mode's\n"
-            "  --branch B             rays per glossy lobe (drt, reuse-diffuse)        default: mode's\n"
-            "  --depth D              recursion depth                                  default: mode's\n"
-            "  --seed S               random seed (pixel choice and tracing)           default: 1\n"
-            "  --threads T            worker threads (1..64)                           default: 1\n"
-            "  --reference DIR        per-frame RMSE/PSNR/SSIM against DIR/frame_NNNNN.exr\n"
-            "  --exposure E           stops for the PNG frames                         default: 0\n"
-            "  --no-png               EXR frames only                                  default: both\n"
-            "  -o, --output DIR       output folder                                    required\n"
-            "  -q, --quiet            errors only\n"
-            "  -h, --help             this help\n"
-            "The last line on stdout is 'stats: key=value ...' (frames, samples, seconds,\n"
-            "samples_per_s, base_s, sample_s, and mean_rmse, mean_psnr with --reference).\n"
-            "exit status: 0 ok, 1 runtime failure, 2 bad input or usage\n");
-}
-
-/* ---- a parallel loop over [0, n) in chunks ------------------------------ */
-
-typedef struct pjob pjob;
-typedef void (*pjob_fn)(pjob *j, int tid, size_t begin, size_t end);
-
-struct pjob {
-    pjob_fn fn;
-    size_t n, chunk;
-    atomic_size_t next;
-    void *user;
-    trc_stats st[MAX_THREADS];
-    ct_request *req[MAX_THREADS];
-    ct_sample *smp[MAX_THREADS];
-};
-
-typedef struct pworker {
-    pjob *j;
-    int tid;
-    pthread_t th;
-} pworker;
-
-static void *pjob_worker(void *arg)
-{
-    pworker *w = arg;
-    pjob *j = w->j;
-    for (;;) {
-        size_t b = atomic_fetch_add(&j->next, j->chunk);
-        if (b >= j->n) break;
-        size_t e = b + j->chunk < j->n ? b + j->chunk : j->n;
-        j->fn(j, w->tid, b, e);
-    }
-    return NULL;
-}
-
-/* Runs fn over [0, n) on `threads` threads (the caller's thread included). */
-static int pjob_run(pjob *j, int threads, size_t n, size_t chunk, pjob_fn fn, ct_error *err)
-{
-    j->fn = fn;
-    j->n = n;
-    j->chunk = chunk ? chunk : 1;
-    atomic_store(&j->next, 0);
-    pworker w[MAX_THREADS];
-    int started = 0, rc = CT_OK;
-    for (int i = 1; i < threads; i++) {
-        w[i].j = j;
-        w[i].tid = i;
-        if (pthread_create(&w[i].th, NULL, pjob_worker, &w[i])) {
-            rc = ct_fail(err, CT_ESYS, "cannot start worker thread %d of %d", i + 1, threads);
-            break;
-        }
-        started = i;
-    }
-    w[0].j = j;
-    w[0].tid = 0;
-    pjob_worker(&w[0]);
-    for (int i = 1; i <= started; i++) pthread_join(w[i].th, NULL);
-    return rc;
+            "options:\n");
+    optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
+    fprintf(f, "  -h, --help                   this help\n"
+               "The last line on stdout is 'stats: key=value ...' (frames, samples, seconds,\n"
+               "samples_per_s, base_s, sample_s, and mean_rmse, mean_psnr with --reference).\n"
+               "exit status: 0 ok, 1 runtime failure, 2 bad input or usage\n");
 }
 
 /* ---- the run ------------------------------------------------------------ */
 
+/* Requests traced at once: bands of image rows, chunks of picked pixels. */
+#define CHUNK 65536
+
 typedef struct naive_run {
     const naive_opts *o;
     const trc_tracer *trc;
+    ct_pool *pool;
     trc_view view;
     uint32_t frame;
     ct_image img;           /* the frame being built */
@@ -153,54 +115,43 @@ typedef struct naive_run {
     size_t npicks;
     float *held;            /* --hold: last sample value per pixel */
     uint8_t *held_mask;
+    ct_request *req;        /* CHUNK of each */
+    ct_sample *smp;
 } naive_run;
 
-/* Radiosity alone: L_base at every pixel centre, one image row per item. */
-static void base_rows(pjob *j, int tid, size_t begin, size_t end)
+/* A request at pixel p's centre. */
+static ct_request pixel_request(const naive_run *r, uint32_t p)
 {
-    naive_run *r = j->user;
-    int w = r->o->width;
-    for (size_t y = begin; y < end; y++) {
-        for (int x = 0; x < w; x++) {
-            ct_request *q = &j->req[tid][x];
-            memset(q, 0, sizeof *q);
-            q->id = ((uint64_t)r->frame * r->npx + y * (uint64_t)w + (uint64_t)x) + 1;
-            q->epoch = r->frame;
-            q->px = (float)x + 0.5f;
-            q->py = (float)y + 0.5f;
-            q->radius = 0.5f;
-        }
-        trc_trace_primary(r->trc, &r->view, j->req[tid], (size_t)w, j->smp[tid], &j->st[tid]);
-        for (int x = 0; x < w; x++) img_set(&r->img, x, (int)y, j->smp[tid][x].l_base);
+    uint32_t w = (uint32_t)r->o->width;
+    return (ct_request){.id = (uint64_t)r->frame * r->npx + p + 1, .epoch = r->frame,
+                        .px = (float)(p % w) + 0.5f, .py = (float)(p / w) + 0.5f, .radius = 0.5f};
+}
+
+/* Radiosity alone: L_base at every pixel centre. */
+static void base_pass(naive_run *r)
+{
+    for (size_t a = 0; a < r->npx; a += CHUNK) {
+        size_t n = r->npx - a < CHUNK ? r->npx - a : CHUNK;
+        for (size_t i = 0; i < n; i++) r->req[i] = pixel_request(r, (uint32_t)(a + i));
+        trc_trace_par(r->trc, r->pool, &r->view, r->req, n, r->smp, true, NULL);
+        for (size_t i = 0; i < n; i++) memcpy(r->img.px + 3 * (a + i), &r->smp[i].l_base, 3 * sizeof(float));
     }
 }
 
 /* K high-quality samples, each at its pixel's centre, written to that pixel. */
-static void sample_picks(pjob *j, int tid, size_t begin, size_t end)
+static void sample_pass(naive_run *r)
 {
-    naive_run *r = j->user;
-    int w = r->o->width;
-    size_t n = end - begin;
-    for (size_t i = 0; i < n; i++) {
-        uint32_t p = r->picks[begin + i];
-        ct_request *q = &j->req[tid][i];
-        memset(q, 0, sizeof *q);
-        q->id = ((uint64_t)r->frame * r->npx + p) + 1;
-        q->epoch = r->frame;
-        q->px = (float)(p % (uint32_t)w) + 0.5f;
-        q->py = (float)(p / (uint32_t)w) + 0.5f;
-        q->radius = 0.5f;
-    }
-    trc_trace(r->trc, &r->view, j->req[tid], n, j->smp[tid], &j->st[tid]);
-    for (size_t i = 0; i < n; i++) {
-        uint32_t p = r->picks[begin + i];
-        vec3 l = j->smp[tid][i].l_hq;
-        img_set(&r->img, (int)(p % (uint32_t)w), (int)(p / (uint32_t)w), l);
-        if (r->held) {
-            r->held[3 * (size_t)p] = l.x;
-            r->held[3 * (size_t)p + 1] = l.y;
-            r->held[3 * (size_t)p + 2] = l.z;
-            r->held_mask[p] = 1;
+    for (size_t a = 0; a < r->npicks; a += CHUNK) {
+        size_t n = r->npicks - a < CHUNK ? r->npicks - a : CHUNK;
+        for (size_t i = 0; i < n; i++) r->req[i] = pixel_request(r, r->picks[a + i]);
+        trc_trace_par(r->trc, r->pool, &r->view, r->req, n, r->smp, false, NULL);
+        for (size_t i = 0; i < n; i++) {
+            uint32_t p = r->picks[a + i];
+            memcpy(r->img.px + 3 * (size_t)p, &r->smp[i].l_hq, 3 * sizeof(float));
+            if (r->held) {
+                memcpy(r->held + 3 * (size_t)p, &r->smp[i].l_hq, 3 * sizeof(float));
+                r->held_mask[p] = 1;
+            }
         }
     }
 }
@@ -246,11 +197,13 @@ static int run(const naive_opts *o, ct_error *err)
     trc_tracer *trc = NULL;
     naive_run r;
     memset(&r, 0, sizeof r);
-    pjob *job = calloc(1, sizeof *job);
     char *csv = NULL;
     size_t csv_len = 0, csv_cap = 0;
     int have_path = 0;
-    int rc = job ? CT_OK : ct_fail(err, CT_ENOMEM, "out of memory");
+    r.req = malloc(CHUNK * sizeof *r.req);
+    r.smp = malloc(CHUNK * sizeof *r.smp);
+    int rc = r.req && r.smp ? CT_OK : ct_fail(err, CT_ENOMEM, "out of memory");
+    if (!rc) rc = pool_new(o->threads, &r.pool, err);
     if (!rc) rc = scene_load(o->scene, &scene, err);
     if (!rc) rc = rmesh_load(o->mesh, 0, &mesh, err);
     if (!rc) {
@@ -288,14 +241,6 @@ static int run(const naive_opts *o, ct_error *err)
             if (!r.held || !r.held_mask) rc = ct_fail(err, CT_ENOMEM, "out of memory for --hold");
         }
     }
-    /* Per-thread buffers: a row for the radiosity pass, a chunk of samples. */
-    size_t chunk = 256, per = (size_t)o->width > chunk ? (size_t)o->width : chunk;
-    for (int t = 0; !rc && t < o->threads; t++) {
-        job->req[t] = malloc(per * sizeof(ct_request));
-        job->smp[t] = malloc(per * sizeof(ct_sample));
-        if (!job->req[t] || !job->smp[t]) rc = ct_fail(err, CT_ENOMEM, "out of memory for thread buffers");
-    }
-    job->user = &r;
     r.view.width = o->width;
     r.view.height = o->height;
     double base_s = 0, sample_s = 0, sum_rmse = 0, sum_psnr = 0, t_all = ct_now();
@@ -306,16 +251,14 @@ static int run(const naive_opts *o, ct_error *err)
         r.frame = (uint32_t)k;
         r.view.cam = campath_frame(&path, k, o->frames);
         double t0 = ct_now();
-        rc = pjob_run(job, o->threads, (size_t)o->height, 4, base_rows, err);
-        if (rc) break;
+        base_pass(&r);
         if (r.held)
             for (size_t p = 0; p < r.npx; p++)
                 if (r.held_mask[p]) memcpy(r.img.px + 3 * p, r.held + 3 * p, 3 * sizeof(float));
         double t1 = ct_now();
         if (o->spp_frame > 0) {
             choose_pixels(&r, (size_t)o->spp_frame);
-            rc = pjob_run(job, o->threads, r.npicks, chunk, sample_picks, err);
-            if (rc) break;
+            sample_pass(&r);
             samples += r.npicks;
         }
         double t2 = ct_now();
@@ -325,7 +268,7 @@ static int run(const naive_opts *o, ct_error *err)
         snprintf(name, sizeof name, "frame_%05d.exr", k);
         fs_join(o->out, name, file, sizeof file);
         rc = img_write_exr(file, &r.img, IMG_HALF, err);
-        if (!rc && o->png) {
+        if (!rc && !o->no_png) {
             snprintf(name, sizeof name, "frame_%05d.png", k);
             fs_join(o->out, name, file, sizeof file);
             rc = img_write_png(file, &r.img, o->exposure, err);
@@ -384,11 +327,9 @@ static int run(const naive_opts *o, ct_error *err)
         fflush(stdout);
     }
     free(csv);
-    for (int t = 0; job && t < o->threads; t++) {
-        free(job->req[t]);
-        free(job->smp[t]);
-    }
-    free(job);
+    free(r.req);
+    free(r.smp);
+    pool_free(r.pool);
     free(r.perm);
     free(r.held);
     free(r.held_mask);
@@ -400,98 +341,41 @@ static int run(const naive_opts *o, ct_error *err)
     return rc;
 }
 
-/* An int option within [lo, hi]; logs and returns -1 when bad. */
-static int int_opt(const char *name, const char *s, long lo, long hi, int *out)
-{
-    return cli_int_opt(COMPONENT, name, s, lo, hi, out);
-}
-
 int cmd_naive(int argc, char **argv)
 {
-    enum { O_MESH = 256, O_PATH, O_FRAMES, O_SPF, O_HOLD, O_W, O_H, O_MODE, O_K, O_B, O_D, O_SEED, O_THREADS,
-           O_REF, O_EXP, O_NOPNG };
-    static const struct option opts[] = {
-        {"mesh", required_argument, NULL, O_MESH},       {"path", required_argument, NULL, O_PATH},
-        {"frames", required_argument, NULL, O_FRAMES},   {"samples-per-frame", required_argument, NULL, O_SPF},
-        {"hold", no_argument, NULL, O_HOLD},             {"width", required_argument, NULL, O_W},
-        {"height", required_argument, NULL, O_H},        {"mode", required_argument, NULL, O_MODE},
-        {"shadow-rays", required_argument, NULL, O_K},   {"branch", required_argument, NULL, O_B},
-        {"depth", required_argument, NULL, O_D},         {"seed", required_argument, NULL, O_SEED},
-        {"threads", required_argument, NULL, O_THREADS}, {"reference", required_argument, NULL, O_REF},
-        {"exposure", required_argument, NULL, O_EXP},    {"no-png", no_argument, NULL, O_NOPNG},
-        {"output", required_argument, NULL, 'o'},        {"quiet", no_argument, NULL, 'q'},
-        {"help", no_argument, NULL, 'h'},                {NULL, 0, NULL, 0}};
     naive_opts o;
     memset(&o, 0, sizeof o);
-    o.frames = 100;
-    o.spp_frame = 1000;   /* §5: 1,000 to 4,000 samples per frame */
-    o.width = o.height = 1024;   /* §5: 1024x1024 display */
-    o.threads = 1;
-    o.png = 1;
-    trc_options_default(&o.trc, TRC_MODE_DRT);
-    int k = -1, b = -1, d = -1;
-    long long seed = -1;
     ct_error err;
-    optind = 1;
-    opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
-        switch (c) {
-        case O_MESH: o.mesh = optarg; break;
-        case O_PATH: o.path = optarg; break;
-        case O_FRAMES: if (int_opt("--frames", optarg, 1, 100000, &o.frames)) return 2; break;
-        case O_SPF: if (int_opt("--samples-per-frame", optarg, 0, 1 << 24, &o.spp_frame)) return 2; break;
-        case O_HOLD: o.hold = 1; break;
-        case O_W: if (int_opt("--width", optarg, 1, 16384, &o.width)) return 2; break;
-        case O_H: if (int_opt("--height", optarg, 1, 16384, &o.height)) return 2; break;
-        case O_MODE: {
-            trc_mode m;
-            if (trc_mode_parse(optarg, &m, &err)) {
-                ct_log(CT_LOG_ERROR, COMPONENT, "--mode: %s", err.msg);
-                return 2;
-            }
-            trc_options_default(&o.trc, m);
-            break;
-        }
-        case O_K: if (int_opt("--shadow-rays", optarg, 1, 1024, &k)) return 2; break;
-        case O_B: if (int_opt("--branch", optarg, 1, 1024, &b)) return 2; break;
-        case O_D: if (int_opt("--depth", optarg, 0, 1024, &d)) return 2; break;
-        case O_SEED: {
-            char *end = NULL;
-            seed = strtoll(optarg, &end, 10);
-            if (end == optarg || *end || seed < 0) {
-                ct_log(CT_LOG_ERROR, COMPONENT, "--seed: '%s' is not an integer >= 0", optarg);
-                return 2;
-            }
-            break;
-        }
-        case O_THREADS: if (int_opt("--threads", optarg, 1, MAX_THREADS, &o.threads)) return 2; break;
-        case O_REF: o.ref = optarg; break;
-        case O_EXP: if (cli_float_opt(COMPONENT, "--exposure", optarg, -30, 30, &o.exposure)) return 2; break;
-        case O_NOPNG: o.png = 0; break;
-        case 'o': o.out = optarg; break;
-        case 'q': ct_log_set_level(CT_LOG_ERROR); break;
-        case 'h': usage(stdout); return 0;
-        default:
-            ct_log(CT_LOG_ERROR, COMPONENT, "unknown or incomplete option '%s' (try --help)", argv[optind - 1]);
-            return 2;
-        }
+    optab_defaults(OPTS, OPTAB_COUNT(OPTS), &o, &err);
+    optab_group g = {OPTS, OPTAB_COUNT(OPTS), &o};
+    const char *pos[1];
+    int npos = 0;
+    int rc = optab_parse(&g, 1, argc, argv, pos, 1, &npos, &err);
+    if (rc == 1) {
+        usage(stdout);
+        return 0;
     }
-    if (k > 0) o.trc.shadow_rays = k;
-    if (b > 0) o.trc.branch = b;
-    if (d >= 0) o.trc.depth = d;
-    if (seed >= 0) o.trc.seed = (uint64_t)seed;
-    if (argc - optind != 1) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "expected one scene file, got %d (try --help)", argc - optind);
+    if (o.quiet) ct_log_set_level(CT_LOG_ERROR);
+    if (rc) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
-    o.scene = argv[optind];
+    trc_options_default(&o.trc, (trc_mode)o.mode);
+    if (o.shadow_rays > 0) o.trc.shadow_rays = o.shadow_rays;
+    if (o.branch > 0) o.trc.branch = o.branch;
+    if (o.depth >= 0) o.trc.depth = o.depth;
+    o.trc.seed = o.seed;
+    if (npos != 1) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "expected one scene file, got %d (try --help)", npos);
+        return 2;
+    }
+    o.scene = pos[0];
     const char *missing = !o.mesh ? "--mesh FILE.ctmesh" : !o.path ? "--path P" : !o.out ? "-o DIR" : NULL;
     if (missing) {
         ct_log(CT_LOG_ERROR, COMPONENT, "missing %s (try --help)", missing);
         return 2;
     }
-    int rc = run(&o, &err);
+    rc = run(&o, &err);
     if (rc) {
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return (rc == CT_ENOMEM || rc == CT_ESYS) ? 1 : 2;

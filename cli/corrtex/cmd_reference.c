@@ -1,7 +1,6 @@
 /* corrtex reference: the offline high-quality renderer (tracer/render.h):
  * one image of a scene camera or of a camera path frame, or every frame of
  * a path into a folder, written as EXR (and an optional PNG preview). */
-#include <errno.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -14,6 +13,7 @@
 #include "common/fsutil.h"
 #include "common/image.h"
 #include "common/log.h"
+#include "common/optab.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "common/timer.h"
@@ -26,18 +26,56 @@ typedef struct ref_args {
     const char *scene, *camera, *path, *out;
     const char *radmesh;    /* .ctmesh interactive solution, or NULL */
     int frame, frames;      /* -1: not given */
-    int width, height, spp, threads, tile;
-    trc_mode mode;
-    int shadow_rays, branch, depth;   /* 0: the mode's default */
+    int width, height, spp, threads, tile;   /* width, height, spp 0: not given */
+    int mode;               /* trc_mode; -1: not given */
+    int shadow_rays, branch, depth;   /* 0 (depth -1): the mode's default */
     int branch_depth;                 /* -1: the mode's default */
-    int indirect;                     /* -1: the default (trc_indirect) */
-    int gather_rays;                  /* 0: the default */
+    int indirect;                     /* trc_indirect */
+    int gather_rays;
     uint64_t seed;
     float exposure;
-    int png, half, raw_embree, bench_runs;
+    bool png, half, raw_embree, quiet, verbose;
+    int bench_runs;
     float stand_in;         /* < 0: no stand-in radiosity */
     long raw_cap;
 } ref_args;
+
+static const int MODES[] = {TRC_MODE_PATH, TRC_MODE_DRT, TRC_MODE_REUSE};
+static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
+
+/* Rows without a default are set in parse_args (-1: not given). */
+#define OF(f) offsetof(ref_args, f)
+static const optab OPTS[] = {
+    {"camera", 0, OPTAB_STRING, OF(camera), 0, 0, NULL, "NAME", "", NULL},
+    {"path", 0, OPTAB_STRING, OF(path), 0, 0, NULL, "PATH", "", NULL},
+    {"frames", 0, OPTAB_INT, OF(frames), 1, 1000000, NULL, "N", "", NULL},
+    {"frame", 0, OPTAB_INT, OF(frame), 0, 1000000, NULL, "K", "", NULL},
+    {"width", 0, OPTAB_INT, OF(width), 1, 65536, NULL, "W", "", NULL},
+    {"height", 0, OPTAB_INT, OF(height), 1, 65536, NULL, "H", "", NULL},
+    {"spp", 0, OPTAB_INT, OF(spp), 1, 1 << 20, NULL, "S", "", NULL},
+    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, NULL, "path|drt|reuse-diffuse", "", MODES},
+    {"radmesh", 0, OPTAB_STRING, OF(radmesh), 0, 0, NULL, "FILE", "", NULL},
+    {"stand-in-radiosity", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, NULL, "A", "", NULL},
+    {"threads", 0, OPTAB_INT, OF(threads), 1, 256, NULL, "T", "", NULL},
+    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 4096, NULL, "K", "", NULL},
+    {"branch", 0, OPTAB_INT, OF(branch), 1, 4096, NULL, "B", "", NULL},
+    {"branch-depth", 0, OPTAB_INT, OF(branch_depth), 0, 1024, NULL, "L", "", NULL},
+    {"depth", 0, OPTAB_INT, OF(depth), 0, 1024, NULL, "D", "", NULL},
+    {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather", "", INDIRECT},
+    {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "", NULL},
+    {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "N", "", NULL},
+    {"tile", 0, OPTAB_INT, OF(tile), 1, 4096, "16", "N", "", NULL},
+    {"half", 0, OPTAB_FLAG, OF(half), 0, 0, NULL, NULL, "", NULL},
+    {"png", 0, OPTAB_FLAG, OF(png), 0, 0, NULL, NULL, "", NULL},
+    {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "", NULL},
+    {"raw-embree", 0, OPTAB_FLAG, OF(raw_embree), 0, 0, NULL, NULL, "", NULL},
+    {"raw-cap", 0, OPTAB_LONG, OF(raw_cap), 1, 100000000, "2000000", "N", "", NULL},
+    {"bench-runs", 0, OPTAB_INT, OF(bench_runs), 1, 20, "2", "R", "", NULL},
+    {"out", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "OUT", "", NULL},
+    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "", NULL},
+    {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "", NULL},
+};
+#undef OF
 
 static void help(FILE *f)
 {
@@ -112,127 +150,34 @@ static int bad(const char *fmt, const char *a, const char *b)
     return 2;
 }
 
-/* Parses a whole decimal integer in [lo, hi]. */
-static int parse_int(const char *opt, const char *s, long lo, long hi, long *out)
-{
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end || v < lo || v > hi) {
-        char range[64];
-        snprintf(range, sizeof range, "%ld..%ld", lo, hi);
-        ct_log(CT_LOG_ERROR, CMD, "%s: '%s' is not an integer in %s", opt, s, range);
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
-/* The integer options, their ranges and (parse_args) their fields. */
-static const struct { const char *name; long lo, hi; } int_opts[] = {
-    {"--width", 1, 65536}, {"--height", 1, 65536}, {"--spp", 1, 1 << 20},
-    {"--threads", 1, 256}, {"--frame", 0, 1000000}, {"--frames", 1, 1000000},
-    {"--shadow-rays", 1, 4096}, {"--branch", 1, 4096}, {"--depth", 0, 1024},
-    {"--tile", 1, 4096}, {"--raw-cap", 1, 100000000}, {"--branch-depth", 0, 1024},
-    {"--bench-runs", 1, 20}, {"--gather-rays", 1, 4096}};
-#define N_INT_OPTS (sizeof int_opts / sizeof int_opts[0])
-
-/* Index of integer option o, N_INT_OPTS when it is none. */
-static size_t int_opt(const char *o)
-{
-    size_t k = 0;
-    while (k < N_INT_OPTS && strcmp(o, int_opts[k].name)) k++;
-    return k;
-}
-
-/* Whether o takes a value (an option given last without one is then
- * missing its value rather than unknown). */
-static bool takes_value(const char *o)
-{
-    static const char *const str_opts[] = {"--camera", "--path", "-o", "--radmesh", "--mode", "--exposure",
-                                           "--stand-in-radiosity", "--seed", "--indirect", NULL};
-    for (const char *const *s = str_opts; *s; s++)
-        if (!strcmp(o, *s)) return true;
-    return int_opt(o) < N_INT_OPTS;
-}
-
+/* The table (OPTS) parses and range-checks every value; --help keeps its
+ * hand-written text, which explains how the options work together. */
 static int parse_args(int argc, char **argv, ref_args *a)
 {
     memset(a, 0, sizeof *a);
+    ct_error err;
+    optab_defaults(OPTS, OPTAB_COUNT(OPTS), a, &err);
     a->frame = a->frames = -1;
-    a->width = a->height = a->spp = -1;
-    a->mode = (trc_mode)-1;
-    a->tile = 16;
+    a->mode = -1;
     a->branch_depth = -1;
-    a->indirect = -1;
-    a->seed = 1;
-    a->raw_cap = 2000000;
-    a->bench_runs = 2;
     a->stand_in = -1.0f;
     long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
     a->threads = ncpu > 0 ? (int)(ncpu < 256 ? ncpu : 256) : 1;
-    for (int i = 1; i < argc; i++) {
-        const char *o = argv[i];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            help(stdout);
-            return 1;
-        }
-        if (!strcmp(o, "--quiet")) { ct_log_set_level(CT_LOG_WARN); continue; }
-        if (!strcmp(o, "--verbose")) { ct_log_set_level(CT_LOG_DEBUG); continue; }
-        if (!strcmp(o, "--half")) { a->half = 1; continue; }
-        if (!strcmp(o, "--png")) { a->png = 1; continue; }
-        if (!strcmp(o, "--raw-embree")) { a->raw_embree = 1; continue; }
-        if (o[0] != '-') {
-            if (a->scene) return bad("unexpected argument '%s' (the scene is '%s')", o, a->scene), -1;
-            a->scene = o;
-            continue;
-        }
-        if (i + 1 >= argc) {
-            if (takes_value(o)) return bad("option %s needs a value%s", o, ""), -1;
-            return bad("unknown option '%s' (try --help)%s", o, ""), -1;
-        }
-        const char *v = argv[++i];
-        long n;
-        ct_error err;
-        if (!strcmp(o, "--camera")) a->camera = v;
-        else if (!strcmp(o, "--path")) a->path = v;
-        else if (!strcmp(o, "-o")) a->out = v;
-        else if (!strcmp(o, "--radmesh")) a->radmesh = v;
-        else if (!strcmp(o, "--mode")) {
-            if (trc_mode_parse(v, &a->mode, &err)) return bad("%s%s", err.msg, ""), -1;
-        } else if (!strcmp(o, "--indirect")) {
-            trc_indirect ind;
-            if (trc_indirect_parse(v, &ind, &err)) return bad("%s%s", err.msg, ""), -1;
-            a->indirect = (int)ind;
-        } else if (!strcmp(o, "--exposure")) {
-            char *end;
-            a->exposure = strtof(v, &end);
-            if (end == v || *end || !isfinite(a->exposure)) return bad("--exposure: '%s' is not a number%s", v, ""), -1;
-        } else if (!strcmp(o, "--stand-in-radiosity")) {
-            char *end;
-            a->stand_in = strtof(v, &end);
-            if (end == v || *end || !isfinite(a->stand_in) || a->stand_in < 0.0f)
-                return bad("--stand-in-radiosity: '%s' is not a number >= 0%s", v, ""), -1;
-        } else if (!strcmp(o, "--seed")) {
-            char *end;
-            errno = 0;
-            a->seed = strtoull(v, &end, 10);
-            if (errno || end == v || *end || v[0] == '-') return bad("--seed: '%s' is not an unsigned integer%s", v, ""), -1;
-        } else {
-            size_t k = int_opt(o);
-            if (k == N_INT_OPTS) return bad("unknown option '%s' (try --help)%s", o, ""), -1;
-            if (parse_int(o, v, int_opts[k].lo, int_opts[k].hi, &n)) return -1;
-            int *dst[] = {&a->width, &a->height, &a->spp, &a->threads, &a->frame, &a->frames,
-                          &a->shadow_rays, &a->branch, &a->depth, &a->tile, NULL, &a->branch_depth,
-                          &a->bench_runs, &a->gather_rays};
-            if (k == 10) a->raw_cap = n;
-            else *dst[k] = (int)n;
-        }
+    optab_group g = {OPTS, OPTAB_COUNT(OPTS), a};
+    const char *pos[1];
+    int npos = 0, rc = optab_parse(&g, 1, argc, argv, pos, 1, &npos, &err);
+    if (rc == 1) {
+        help(stdout);
+        return 1;
     }
+    if (a->quiet) ct_log_set_level(CT_LOG_WARN);
+    if (a->verbose) ct_log_set_level(CT_LOG_DEBUG);
+    if (rc) return bad("%s%s", err.msg, ""), -1;
+    a->scene = npos ? pos[0] : NULL;
     if (!a->scene) return bad("missing SCENE (try --help)%s%s", "", ""), -1;
-    if (a->width < 0 || a->height < 0) return bad("missing --width or --height%s%s", "", ""), -1;
-    if (a->spp < 0) return bad("missing --spp%s%s", "", ""), -1;
-    if ((int)a->mode < 0) return bad("missing --mode (path, drt, reuse-diffuse)%s%s", "", ""), -1;
+    if (!a->width || !a->height) return bad("missing --width or --height%s%s", "", ""), -1;
+    if (!a->spp) return bad("missing --spp%s%s", "", ""), -1;
+    if (a->mode < 0) return bad("missing --mode (path, drt, reuse-diffuse)%s%s", "", ""), -1;
     if (!a->out) return bad("missing -o OUT%s%s", "", ""), -1;
     if (a->camera && a->path) return bad("--camera and --path exclude each other%s%s", "", ""), -1;
     if (!a->path && (a->frame >= 0 || a->frames >= 0)) return bad("--frame/--frames need --path%s%s", "", ""), -1;
@@ -277,7 +222,7 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
     uint64_t rays = trc_stats_rays(&r->stats);
     double s = r->seconds > 0 ? r->seconds : 1e-9;
     printf("reference: %dx%d, %d spp, mode %s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
-           a->width, a->height, a->spp, trc_mode_name(a->mode), a->threads, a->threads == 1 ? "" : "s",
+           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->mode), a->threads, a->threads == 1 ? "" : "s",
            nimages, nimages == 1 ? "" : "s", r->seconds, total_s);
     printf("reference: %llu samples, %.0f samples/s; %llu rays (%llu primary, %llu secondary, "
            "%llu shadow), %.0f rays/s\n",
@@ -295,7 +240,7 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
     printf("stats: mode=%s threads=%d width=%d height=%d spp=%d seconds=%.6f samples=%llu rays=%llu "
            "samples_per_s=%.1f rays_per_s=%.1f logged=%llu raw_isect_rays_per_s=%.1f "
            "raw_traced_rays_per_s=%.1f\n",
-           trc_mode_name(a->mode), a->threads, a->width, a->height, a->spp, r->seconds,
+           trc_mode_name((trc_mode)a->mode), a->threads, a->width, a->height, a->spp, r->seconds,
            (unsigned long long)r->stats.samples, (unsigned long long)rays, (double)r->stats.samples / s,
            (double)rays / s, (unsigned long long)r->logged,
            r->logged ? (double)r->logged / r->replay_isect_s : 0.0,
@@ -363,12 +308,12 @@ int cmd_reference(int argc, char **argv)
     }
 
     trc_options to;
-    trc_options_default(&to, a.mode);
+    trc_options_default(&to, (trc_mode)a.mode);
     if (a.shadow_rays) to.shadow_rays = a.shadow_rays;
     if (a.branch) to.branch = a.branch;
     if (a.branch_depth >= 0) to.branch_depth = a.branch_depth;
-    if (a.indirect >= 0) to.indirect = (trc_indirect)a.indirect;
-    if (a.gather_rays) to.gather_rays = a.gather_rays;
+    to.indirect = (trc_indirect)a.indirect;
+    to.gather_rays = a.gather_rays;
     if (a.depth) to.depth = a.depth;
     to.seed = a.seed;
     double tb = ct_now();

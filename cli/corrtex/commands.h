@@ -37,12 +37,5 @@ int cmd_naive(int argc, char **argv);
 /* corrtex montage -o SHEET.png IMAGE... (cmd_montage.c). */
 int cmd_montage(int argc, char **argv);
 
-/* Parses option `name`'s value s as a whole decimal integer in [lo, hi] into
- * *out; otherwise logs one error line under component and returns -1
- * (cli_opts.c). */
-int cli_int_opt(const char *component, const char *name, const char *s, long lo, long hi, int *out);
-
-/* The same for a finite number in [lo, hi] (cli_opts.c). */
-int cli_float_opt(const char *component, const char *name, const char *s, double lo, double hi, float *out);
 
 #endif

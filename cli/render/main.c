@@ -3,7 +3,6 @@
  * loop (tracer/rank.h). Thin main: options, MPI start-up, the interactive
  * solution (radiosity cache or solve) and its broadcast, then the loops.
  * docs/distributed.md is the user guide. */
-#include <errno.h>
 #include <inttypes.h>
 #include <signal.h>
 #include <stdio.h>
@@ -13,6 +12,7 @@
 #include <unistd.h>
 
 #include "common/log.h"
+#include "common/optab.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "master/ctex.h"
@@ -21,6 +21,7 @@
 #include "master/sched.h"
 #include "proto/auth.h"
 #include "proto/mpi_link.h"
+#include "proto/tport.h"
 #include "proto/wire.h"
 #include "proto/xport.h"
 #include "tracer/radiosity.h"
@@ -43,155 +44,139 @@ typedef struct opts {
     const char *token_file;
     const char *mesh;           /* use this .ctmesh as it is */
     const char *rad_cache;      /* cache file; default in the cache directory */
-    trc_mode mode;
-    int shadow_rays, branch, depth;   /* -1: the mode's default */
-    int indirect, gather_rays;        /* -1: the default */
+    int mode;                   /* trc_mode */
+    int shadow_rays, branch, depth;   /* 0: the mode's default */
+    int indirect, gather_rays;        /* trc_indirect; G */
     uint64_t seed;
     int threads;
-    unsigned idle_sleep_us;
+    int idle_sleep_us;
+    bool quiet, verbose;
     rad_params rad;
     rq_options rq;
     ctex_options ctex;
     sched_options sched;
+    drv_options drive;
+    sess_options session;
 } opts;
+
+static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
+static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
+
+#define OF(f) offsetof(opts, f)
+static const optab SOCKET_OPTS[] = {
+    {"listen", 0, OPTAB_STRING, OF(listen), 0, 0, NULL, "ADDR",
+     "unix:PATH or tcp:HOST:PORT (default unix:$XDG_RUNTIME_DIR/corrtex-PID.sock, or under /tmp; TCP needs a token)",
+     NULL},
+    {"token-file", 0, OPTAB_STRING, OF(token_file), 0, 0, NULL, "FILE",
+     "shared token (else $" AUTH_TOKEN_ENV "); required on TCP, checked on UNIX when given", NULL},
+};
+static const optab MESH_OPTS[] = {
+    {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE.ctmesh", "use this radiosity mesh as it is (no cache check)",
+     NULL},
+    {"rad-cache", 0, OPTAB_STRING, OF(rad_cache), 0, 0, NULL, "FILE",
+     "radiosity cache file (default $XDG_CACHE_HOME/corrtex/HASH.ctmesh, else ~/.cache/corrtex; recomputed when "
+     "the scene or parameters change)", NULL},
+    {"rad-error", 0, OPTAB_DOUBLE, OF(rad.error), 1e-15, 1.0, NULL, "E", "link error threshold", NULL},
+    {"rad-min-area", 0, OPTAB_DOUBLE, OF(rad.min_area), 1e-15, 1.0, NULL, "A",
+     "smallest element, fraction of the surface", NULL},
+    {"rad-max-triangles", 0, OPTAB_U32, OF(rad.max_triangles), 1, 4e9, NULL, "N", "output mesh size target", NULL},
+    {"rad-threads", 0, OPTAB_INT, OF(rad.threads), 1, 256, NULL, "N", "solver threads", NULL},
+};
+static const optab TRACER_OPTS[] = {
+    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, "drt", "drt|reuse-diffuse|path", "tracer mode", MODES},
+    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 4096, NULL, "K",
+     "light samples per shading point (default: the mode's, drt 4)", NULL},
+    {"branch", 0, OPTAB_INT, OF(branch), 1, 4096, NULL, "B", "rays per glossy lobe (default: the mode's, drt 4)", NULL},
+    {"depth", 0, OPTAB_INT, OF(depth), 1, 1024, NULL, "D", "bounces (default: the mode's, drt 5)", NULL},
+    {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",
+     "drt's indirect light: the mesh read at the hit, or a final gather of the mesh (docs/tracer.md)", INDIRECT},
+    {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "rays of --indirect gather per shading point",
+     NULL},
+    {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "S", "seed of every random stream", NULL},
+    {"threads", 0, OPTAB_INT, OF(threads), 1, 64, "1", "N", "threads per tracer rank", NULL},
+    {"idle-sleep-us", 0, OPTAB_INT, OF(idle_sleep_us), 0, 1000000, "1000", "U",
+     "longest sleep of an idle tracer between probes (0 spins)", NULL},
+};
+static const optab LOG_OPTS[] = {
+    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+    {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
+};
+#undef OF
+
+/* The option groups, in --help order. */
+enum { NGROUPS = 10 };
+static void groups(opts *o, optab_group *g)
+{
+    size_t n;
+    const optab *t;
+    int k = 0;
+    g[k++] = (optab_group){SOCKET_OPTS, OPTAB_COUNT(SOCKET_OPTS), o};
+    t = sched_options_table(&n);
+    g[k++] = (optab_group){t, n, &o->sched};
+    g[k++] = (optab_group){MESH_OPTS, OPTAB_COUNT(MESH_OPTS), o};
+    g[k++] = (optab_group){TRACER_OPTS, OPTAB_COUNT(TRACER_OPTS), o};
+    t = drv_options_table(&n);
+    g[k++] = (optab_group){t, n, &o->drive};
+    t = sess_options_table(&n);
+    g[k++] = (optab_group){t, n, &o->session};
+    t = rq_options_table(&n);
+    g[k++] = (optab_group){t, n, &o->rq};
+    t = ctex_options_table(&n);
+    g[k++] = (optab_group){t, n, &o->ctex};
+    g[k++] = (optab_group){LOG_OPTS, OPTAB_COUNT(LOG_OPTS), o};
+    g[k++] = (optab_group){NULL, 0, NULL};
+}
+
+static const char *const GROUP_TITLES[NGROUPS] = {
+    "display socket", NULL, "interactive solution", "tracers", "scheduling loop", NULL,
+    "request queue (docs/sampling.md)", "corrective textures (docs/textures.md)", "log", NULL};
+
+/* Every option's default. */
+static void defaults(opts *o)
+{
+    memset(o, 0, sizeof *o);
+    optab_group g[NGROUPS];
+    groups(o, g);
+    ct_error e;
+    for (int k = 0; g[k].rows; k++) optab_defaults(g[k].rows, g[k].n, g[k].base, &e);
+    rad_params_default(&o->rad);   /* the solver's own defaults (rows without one) */
+}
 
 static void usage(FILE *f)
 {
-    rad_params rd;
-    rad_params_default(&rd);
-    fprintf(f,
-            "usage: mpirun -np 1+T " PROG " SCENE.json [options]\n"
-            "  Rank 0 is the master (request queue, corrective textures, display server),\n"
-            "  ranks 1..T trace samples. A display connects with corrtex-display --connect ADDR.\n"
-            "\n"
-            "display socket:\n"
-            "  --listen ADDR            unix:PATH or tcp:HOST:PORT (default unix:$XDG_RUNTIME_DIR/corrtex-PID.sock,\n"
-            "                           or under /tmp; TCP needs a token)\n"
-            "  --token-file FILE        shared token (else $%s); required on TCP, checked on UNIX when given\n"
-            "  --exit-when-display-leaves  end the job when the display disconnects (batch runs)\n"
-            "\n"
-            "interactive solution:\n"
-            "  --mesh FILE.ctmesh       use this radiosity mesh as it is (no cache check)\n"
-            "  --rad-cache FILE         radiosity cache file (default $XDG_CACHE_HOME/corrtex/HASH.ctmesh,\n"
-            "                           else ~/.cache/corrtex; recomputed when the scene or parameters change)\n"
-            "  --rad-error E            link error threshold (default %g)\n"
-            "  --rad-min-area A         smallest element, fraction of the surface (default %g)\n"
-            "  --rad-max-triangles N    output mesh size target (default %u)\n"
-            "  --rad-threads N          solver threads (default %d)\n"
-            "\n"
-            "tracers:\n"
-            "  --mode M                 drt | reuse-diffuse | path (default drt)\n"
-            "  --shadow-rays K          light samples per shading point (default: the mode's, drt 4)\n"
-            "  --branch B               rays per glossy lobe (default: the mode's, drt 4)\n"
-            "  --depth D                bounces (default: the mode's, drt 5)\n"
-            "  --indirect I             drt's indirect light: mesh (read at the hit) | gather (final\n"
-            "                           gather of the mesh, docs/tracer.md) (default gather)\n"
-            "  --gather-rays G          rays of --indirect gather per shading point (default 4)\n"
-            "  --seed S                 seed of every random stream (default 1)\n"
-            "  --threads N              threads per tracer rank (default 1)\n"
-            "  --idle-sleep-us U        longest sleep of an idle tracer between probes (default 1000; 0 spins)\n"
-            "\n"
-            "scheduling loop:\n",
-            AUTH_TOKEN_ENV, rd.error, rd.min_area, rd.max_triangles, rd.threads);
-    sched_options_usage(f);
-    fprintf(f, "\nrequest queue (docs/sampling.md):\n");
-    rq_options_usage(f);
-    fprintf(f, "\ncorrective textures (docs/textures.md):\n");
-    ctex_options_help(f);
-    fprintf(f, "\n  --quiet, --verbose       log level\n  --help                   this text\n");
-}
-
-static int num(const char *name, const char *v, double lo, double hi, double *out, ct_error *err)
-{
-    char *end;
-    errno = 0;
-    double x = strtod(v, &end);
-    if (errno || end == v || *end || !(x >= lo && x <= hi))
-        return ct_fail(err, CT_EINVAL, "--%s: '%s' is not a number in [%g, %g]", name, v, lo, hi);
-    *out = x;
-    return 0;
-}
-
-/* Sets option a ("--name") to v: 0, 1 when there is no such option, or
- * negative for a bad value (err filled). */
-static int set_option(opts *o, const char *a, const char *v, ct_error *err)
-{
-    const char *name = a + 2;
-    double x;
-    int rc = 0;
-    if (!strcmp(name, "listen")) o->listen = v;
-    else if (!strcmp(name, "token-file")) o->token_file = v;
-    else if (!strcmp(name, "mesh")) o->mesh = v;
-    else if (!strcmp(name, "rad-cache")) o->rad_cache = v;
-    else if (!strcmp(name, "mode")) rc = trc_mode_parse(v, &o->mode, err);
-    else if (!strcmp(name, "shadow-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->shadow_rays = (int)x; }
-    else if (!strcmp(name, "branch")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->branch = (int)x; }
-    else if (!strcmp(name, "depth")) { if (!(rc = num(name, v, 1, 1024, &x, err))) o->depth = (int)x; }
-    else if (!strcmp(name, "indirect")) {
-        trc_indirect ind = TRC_INDIRECT_GATHER;
-        if (!(rc = trc_indirect_parse(v, &ind, err))) o->indirect = (int)ind;
+    opts d;
+    defaults(&d);
+    fprintf(f, "usage: mpirun -np 1+T " PROG " SCENE.json [options]\n"
+               "  Rank 0 is the master (request queue, corrective textures, display server),\n"
+               "  ranks 1..T trace samples. A display connects with corrtex-display --connect ADDR.\n");
+    optab_group g[NGROUPS];
+    groups(&d, g);
+    for (int k = 0; g[k].rows; k++) {
+        if (GROUP_TITLES[k]) fprintf(f, "\n%s:\n", GROUP_TITLES[k]);
+        optab_usage(g[k].rows, g[k].n, g[k].base, f);
     }
-    else if (!strcmp(name, "gather-rays")) { if (!(rc = num(name, v, 1, 4096, &x, err))) o->gather_rays = (int)x; }
-    else if (!strcmp(name, "seed")) { if (!(rc = num(name, v, 0, 1.8e19, &x, err))) o->seed = (uint64_t)x; }
-    else if (!strcmp(name, "threads")) { if (!(rc = num(name, v, 1, 64, &x, err))) o->threads = (int)x; }
-    else if (!strcmp(name, "idle-sleep-us")) { if (!(rc = num(name, v, 0, 1e6, &x, err))) o->idle_sleep_us = (unsigned)x; }
-    else if (!strcmp(name, "rad-error")) rc = num(name, v, 1e-15, 1.0, &o->rad.error, err);
-    else if (!strcmp(name, "rad-min-area")) rc = num(name, v, 1e-15, 1.0, &o->rad.min_area, err);
-    else if (!strcmp(name, "rad-max-triangles")) { if (!(rc = num(name, v, 1, 4e9, &x, err))) o->rad.max_triangles = (uint32_t)x; }
-    else if (!strcmp(name, "rad-threads")) { if (!(rc = num(name, v, 1, 256, &x, err))) o->rad.threads = (int)x; }
-    else {
-        /* The engines' own options: the loop's, the textures', the queue's. */
-        rc = sched_options_set(&o->sched, name, v, err);
-        if (rc == 0) rc = ctex_options_parse(&o->ctex, a, v, err);
-        if (rc == 0) return rq_options_has(name) ? rq_options_set(&o->rq, name, v, err) : 1;
-        if (rc > 0) rc = 0;
-    }
-    return rc;
+    fprintf(f, "  --help                       this text\n");
 }
 
 /* Parses argv into o; 1 for --help, 0 ok, negative with err filled. */
 static int parse(int argc, char **argv, opts *o, ct_error *err)
 {
-    memset(o, 0, sizeof *o);
-    o->mode = TRC_MODE_DRT;
-    o->shadow_rays = o->branch = o->depth = -1;
-    o->indirect = o->gather_rays = -1;
-    o->seed = 1;
-    o->threads = 1;
-    o->idle_sleep_us = 1000;
-    rad_params_default(&o->rad);
-    rq_options_default(&o->rq);
-    o->ctex = ctex_options_default();
-    sched_options_default(&o->sched);
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) return 1;
-        if (strcmp(a, "--quiet") == 0) { ct_log_set_level(CT_LOG_ERROR); continue; }
-        if (strcmp(a, "--verbose") == 0) { ct_log_set_level(CT_LOG_DEBUG); continue; }
-        if (strcmp(a, "--exit-when-display-leaves") == 0) { o->sched.exit_when_display_leaves = true; continue; }
-        if (strncmp(a, "--", 2) != 0) {
-            if (o->scene) return ct_fail(err, CT_EINVAL, "more than one scene file ('%s' and '%s')", o->scene, a);
-            o->scene = a;
-            continue;
-        }
-        if (i + 1 >= argc) {
-            /* Given last: a dry run on a copy tells a missing value from an
-             * option that does not exist. */
-            opts scratch = *o;
-            ct_error e;
-            return ct_fail(err, CT_EINVAL, set_option(&scratch, a, "", &e) == 1 ? "unknown option '%s' (try --help)"
-                                                                                 : "%s needs a value (try --help)", a);
-        }
-        int rc = set_option(o, a, argv[++i], err);
-        if (rc == 1) return ct_fail(err, CT_EINVAL, "unknown option '%s' (try --help)", a);
-        if (rc < 0) return rc;
-    }
-    if (!o->scene) return ct_fail(err, CT_EINVAL, "no scene file given (try --help)");
-    int rc = rq_options_check(&o->rq, err);
+    defaults(o);
+    optab_group g[NGROUPS];
+    groups(o, g);
+    const char *pos[1];
+    int npos = 0;
+    int rc = optab_parse(g, NGROUPS - 1, argc, argv, pos, 1, &npos, err);
+    if (rc) return rc;
+    if (o->quiet) ct_log_set_level(CT_LOG_ERROR);
+    if (o->verbose) ct_log_set_level(CT_LOG_DEBUG);
+    if (!npos) return ct_fail(err, CT_EINVAL, "no scene file given (try --help)");
+    o->scene = pos[0];
+    rc = rq_options_check(&o->rq, err);
     if (rc == 0) rc = rad_params_check(&o->rad, err);
-    if (rc == 0 && o->sched.batch_min > o->sched.batch_max)
-        rc = ct_fail(err, CT_EINVAL, "--batch-min %d is larger than --batch-max %d", o->sched.batch_min,
-                     o->sched.batch_max);
+    if (rc == 0 && o->drive.batch_min > o->drive.batch_max)
+        rc = ct_fail(err, CT_EINVAL, "--batch-min %d is larger than --batch-max %d", o->drive.batch_min,
+                     o->drive.batch_max);
     return rc;
 }
 
@@ -295,14 +280,18 @@ static int run_master(const opts *o, int ntracers, ct_error *err)
         rc = mpil_allreduce_max(&tstatus, err);
         if (rc == 0 && tstatus) rc = ct_fail(err, CT_EINVAL, "a tracer rank could not start (see its log line)");
     }
+    tport *port = NULL;
+    if (rc == 0 && status == 0) rc = tport_mpi_new(ntracers, &port, err);
     if (rc == 0 && status == 0) {
         sched_config c = {.scene = scene,
                           .mesh = &mesh,
-                          .ntracers = ntracers,
+                          .port = port,
                           .rq = &o->rq,
                           .ctex = &o->ctex,
                           .seed = o->seed,
                           .opt = o->sched,
+                          .drive = o->drive,
+                          .session = o->session,
                           .listen = listen,
                           .token = have_token ? &token : NULL,
                           .stop = &g_stop_int};
@@ -341,20 +330,20 @@ static int run_tracer(const opts *o, int rank, ct_error *err)
     if (rc == 0) rc = wire_scene_parse(payload.data, payload.len, peer, &mesh, err);
     wire_buf_free(&payload);
     trc_options to;
-    trc_options_default(&to, o->mode);
+    trc_options_default(&to, (trc_mode)o->mode);
     to.seed = o->seed;
     if (o->shadow_rays > 0) to.shadow_rays = o->shadow_rays;
     if (o->branch > 0) to.branch = o->branch;
     if (o->depth > 0) to.depth = o->depth;
-    if (o->indirect >= 0) to.indirect = (trc_indirect)o->indirect;
-    if (o->gather_rays > 0) to.gather_rays = o->gather_rays;
+    to.indirect = (trc_indirect)o->indirect;
+    to.gather_rays = o->gather_rays;
     if (rc == 0) rc = trc_new(scene, &mesh, &to, &t, err);
     if (rc) ct_log(CT_LOG_ERROR, PROG, "tracer rank %d on %s: %s", rank, host, err->msg);
     int bad = rc ? 1 : 0;
     ct_error e;
     if (mpil_allreduce_max(&bad, &e) == 0 && bad == 0) {
-        ct_debug(PROG, "tracer rank %d on %s ready (%s)", rank, host, trc_mode_name(o->mode));
-        trank_config tc = {.tracer = t, .rank = rank, .threads = o->threads, .idle_sleep_us = o->idle_sleep_us,
+        ct_debug(PROG, "tracer rank %d on %s ready (%s)", rank, host, trc_mode_name((trc_mode)o->mode));
+        trank_config tc = {.tracer = t, .rank = rank, .threads = o->threads, .idle_sleep_us = (unsigned)o->idle_sleep_us,
                            .stop = &g_stop_int};
         trank_stats st;
         rc = trank_run(&tc, &st, err);

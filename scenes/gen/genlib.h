@@ -1,7 +1,8 @@
 /* genlib.h: the small OBJ writer and shape library shared by the scene
  * generators (scenes/gen/NAME.c). Header-only with `static inline` functions so
  * every generator stays one standalone C file that needs only libc and libm
- * (the Makefile compiles scenes/gen/NAME.c alone).
+ * (the Makefile compiles scenes/gen/NAME.c alone): that is also why it is
+ * over 600 lines.
  *
  * Conventions: y is up; shapes are built in local coordinates and placed by
  * the current transform (gen_push/gen_pop). Every polygon is written with

@@ -1,4 +1,6 @@
-/* office: writes the office floor of scenes/office/: a corridor with
+/* (Over 600 lines on purpose: a generator is one standalone C file, see
+ * genlib.h.)
+ * office: writes the office floor of scenes/office/: a corridor with
  * OFFICES_PER_SIDE offices on each side, one OBJ file per room sharing
  * office.mtl, so the scene hierarchy is scene -> room file -> furniture
  * object -> material part. Every office has two desks (brushed-metal legs,

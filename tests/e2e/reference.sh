@@ -68,7 +68,7 @@ check() { # expected-substring, then the arguments after "reference"
   grep -q -- "$want" "$tmp/e" || die "message lacks '$want'"
 }
 common=(--width 8 --height 8 --spp 1 -o "$tmp/x.exr")
-check "unknown mode 'whitted'" "$SCENE" "${common[@]}" --mode whitted
+check "--mode: 'whitted' is not one of" "$SCENE" "${common[@]}" --mode whitted
 check "camera 'nope'" "$SCENE" "${common[@]}" --mode path --camera nope
 check "--width: '0'" "$SCENE" --width 0 --height 8 --spp 1 --mode path -o "$tmp/x.exr"
 check "--height: 'abc'" "$SCENE" --width 8 --height abc --spp 1 --mode path -o "$tmp/x.exr"

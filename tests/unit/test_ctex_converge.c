@@ -1,7 +1,8 @@
 /* Convergence of the corrective textures on cornell at 128x128: the tracer
- * (tracer/tracer.h) traces the requests of the adaptive queue
- * (master/sampler.h), the texture engine (master/ctex.h) splats them, and the
- * software compositor draws what the display would show. Checks that the
+ * (tracer/tracer.h) traces the requests of the adaptive queue through the
+ * master's session and loop (master/session.h, master/drive.h, over the
+ * in-process tracer port), the textures splat them, and the software
+ * compositor draws what the display would show. Checks that the
  * error against a reference falls as samples grow and that at 100 % coverage
  * the composite equals the high-quality values of the same samples within a
  * stated tolerance. The interactive solution is the radiosity stand-in
@@ -17,7 +18,9 @@
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "master/ctex.h"
-#include "master/sampler.h"
+#include "master/drive.h"
+#include "master/session.h"
+#include "tracer/tport_local.h"
 #include "tracer/tracer.h"
 
 #define W 128
@@ -41,6 +44,26 @@ static double rmse_srgb(const ct_image *a, const ct_image *b, const uint8_t *mas
         (*n)++;
     }
     return *n ? sqrt(se / (3.0 * (double)*n)) : 0.0;
+}
+
+/* What the sink sees of the inserted samples: the pixels they cover, their
+ * high-quality values, whether they hit the node the pixel centre shows. */
+typedef struct seen {
+    float *hq;
+    const uint32_t *shown;
+    uint8_t covered[W * H], same[W * H];
+} seen;
+
+static void on_samples(void *user, const ct_sample *smp, uint32_t n)
+{
+    seen *sn = user;
+    for (uint32_t i = 0; i < n; i++) {
+        int x = (int)smp[i].px, y = (int)smp[i].py;
+        cr_assert(x >= 0 && y >= 0 && x < W && y < H);
+        sn->covered[y * W + x] = 1;
+        sn->same[y * W + x] = (smp[i].flags & CT_SAMPLE_HIT) && smp[i].node == sn->shown[y * W + x];
+        memcpy(sn->hq + 3 * (y * W + x), &smp[i].l_hq, 3 * sizeof(float));
+    }
 }
 
 Test(ctex_converge, cornell_128, .timeout = 300)
@@ -92,39 +115,35 @@ Test(ctex_converge, cornell_128, .timeout = 300)
         shown[i] = hit ? smp[i].node : RQ_NODE_NONE;
     }
 
-    ctex *c = NULL;
+    /* The master's session and loop over the in-process tracer port, one
+     * lockstep frame per checkpoint, as corrtex converge runs them. */
     ctex_options co = ctex_options_default();
-    cr_assert_eq(ctex_new(&m, s->mats, s->nmats, &co, &c, &err), 0, "%s", err.msg);
-    cr_assert_eq(ctex_set_camera(c, &cam, W, H, &err), 0);
-    rq_engine *q = NULL;
-    cr_assert_eq(rq_new(&q, W, H, &cam, NULL, 1, &err), 0, "%s", err.msg);
+    rq_options ro;
+    rq_options_default(&ro);
+    ro.refine_error = 0.0f;   /* as corrtex converge: one sample per pixel at most */
+    sess_config sc = {&m, s->mats, s->nmats, &ro, &co, 1, {1}};
+    sess *ss = NULL;
+    cr_assert_eq(sess_new(&sc, &ss, &err), 0, "%s", err.msg);
+    tport *port = NULL;
+    cr_assert_eq(tport_local_new(tr, NULL, 1, &port, &err), 0, "%s", err.msg);
+    static seen sn;
+    sn.hq = hq.px;
+    sn.shown = shown;
+    sink snk = {&sn, on_samples, NULL};
+    drv_options dopt = {.window = 1, .batch_min = 1, .batch_max = 256, .batch_ms = 1, .round = 256};
+    drv *d = NULL;
+    cr_assert_eq(drv_new(ss, port, &snk, &dopt, &d, &err), 0, "%s", err.msg);
+    drv_set_lockstep(d, true);
+    cr_assert_eq(drv_set_view(d, &cam, W, H, &err), 1, "%s", err.msg);
+    ctex *c = sess_textures(ss);
 
-    static uint8_t covered[W * H], same[W * H];
     const long ck[] = {0, 160, 1640, 16384, -1};   /* 0, 1 %, 10 %, 100 % of the pixels, then until the queue is dry */
     double rmse[5], psnr[5];
     long done = 0;
-    ctex_insert_info info[256];
     for (int k = 0; k < 5; k++) {
-        for (;;) {
-            long want = 256;
-            if (ck[k] >= 0 && ck[k] - done < want) want = ck[k] - done;
-            if (want <= 0) break;
-            int n = rq_next_batch(q, req, (int)want, &err);
-            cr_assert_geq(n, 0, "%s", err.msg);
-            if (n == 0) break;
-            trc_trace(tr, &view, req, (size_t)n, smp, &st);
-            ctex_insert_batch(c, smp, (size_t)n, info);
-            for (int i = 0; i < n; i++) {
-                int x = (int)smp[i].px, y = (int)smp[i].py;
-                cr_assert(x >= 0 && y >= 0 && x < W && y < H);
-                covered[y * W + x] = 1;
-                same[y * W + x] = (smp[i].flags & CT_SAMPLE_HIT) && smp[i].node == shown[y * W + x];
-                img_set(&hq, x, y, smp[i].l_hq);
-                cr_assert_geq(rq_report(q, &smp[i], info[i].error, shown[y * W + x], &err), 0, "%s", err.msg);
-            }
-            done += n;
-            if (n < want) break;
-        }
+        drv_begin_frame(d, ck[k] < 0 ? UINT32_MAX : (uint32_t)(ck[k] - done));
+        while (drv_in_frame(d)) cr_assert_geq(drv_step(d, &err), 0, "%s", err.msg);
+        done = (long)sess_get_counters(ss).inserted;
         cr_assert_eq(ctex_composite(c, hits, W, H, &comp, &err), 0);
         img_metrics mt;
         cr_assert_eq(metrics_compare(&comp, &ref, &mt, &err), 0);
@@ -148,11 +167,11 @@ Test(ctex_converge, cornell_128, .timeout = 300)
      * (another node at the sample than at the centre: about 8 % at 128x128)
      * are left out. */
     rq_stats qs;
-    rq_stats_get(q, &qs);
+    sess_queue_stats(ss, &qs);
     cr_assert_float_eq(qs.coverage, 1.0, 1e-9);
-    for (int i = 0; i < W * H; i++) cr_assert(covered[i], "pixel %d not sampled", i);
+    for (int i = 0; i < W * H; i++) cr_assert(sn.covered[i], "pixel %d not sampled", i);
     size_t nsame, nall;
-    double e_same = rmse_srgb(&comp, &hq, same, &nsame);
+    double e_same = rmse_srgb(&comp, &hq, sn.same, &nsame);
     double e_all = rmse_srgb(&comp, &hq, NULL, &nall);
     cr_log_info("composite vs samples (sRGB): rmse %.4f over %zu same-node pixels, %.4f over all %zu",
                 e_same, nsame, e_all, nall);
@@ -160,12 +179,13 @@ Test(ctex_converge, cornell_128, .timeout = 300)
     cr_assert_lt(e_same, 0.05, "composite vs the samples' L_hq: sRGB rmse %.4f", e_same);
     /* and the corrections did the work: the interactive image alone is far off */
     for (int i = 0; i < W * H; i++) img_set(&comp, i % W, i / W, hits[i].l_base);
-    double e_base = rmse_srgb(&comp, &hq, same, &nsame);
+    double e_base = rmse_srgb(&comp, &hq, sn.same, &nsame);
     cr_log_info("radiosity stand-in vs samples (sRGB): rmse %.4f", e_base);
     cr_assert_gt(e_base, 3.0 * e_same);
 
-    rq_free(q);
-    ctex_free(c);
+    drv_free(d);
+    port->ops->close(port, 0);
+    sess_free(ss);
     img_free(&ref);
     img_free(&comp);
     img_free(&hq);

@@ -1,143 +1,28 @@
 /* Engine tests of the corrective textures (master/ctex.h): the texture
  * hierarchy, per-view assignment with frustum culling (§3.3), projections
- * (§3.2), aging (§3.5), resampling on split/merge, events and the
- * compositor, on small scenes built in code. */
+ * (§3.2), insertion, aging (§3.5), mixing and resampling on split/merge, on
+ * small scenes built in code (tests/support/ctex_scenes.h). */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "common/half.h"
+#include "common/pool.h"
 #include "common/radmesh.h"
 #include "common/rng.h"
 #include "common/scene.h"
 #include "master/ctex.h"
-#include "master/ctex_tex.h"
 #include "master/ctex_hier.h"
+#include "master/ctex_tex.h"
+#include "tests/support/ctex_scenes.h"
 
 static ct_error err;
 
-/* Adds the quad p[0..3] with normal n to the open part. */
-static void add_quad(ct_scene *s, const vec3 p[4], vec3 n)
-{
-    uint32_t idx[4];
-    for (int i = 0; i < 4; i++) idx[i] = (uint32_t)scene_add_vertex(s, p[i], n, &err);
-    cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0, "%s", err.msg);
-}
-
-static void quad_part(ct_scene *s, const char *name, uint32_t mat, vec3 a, vec3 b, vec3 c, vec3 d)
-{
-    cr_assert_geq(scene_begin_node(s, name, SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
-    vec3 p[4] = {a, b, c, d};
-    add_quad(s, p, v3_norm(v3_cross(v3_sub(b, a), v3_sub(c, a))));
-    cr_assert_eq(scene_end_node(s, &err), 0);
-}
-
-/* A scene with one grey material whose one part `part` is left open for
- * add_quad; one_part_end closes and finalizes it. */
-static ct_scene *one_part_begin(const char *name, const char *part)
-{
-    ct_scene *s = scene_new(name);
-    cr_assert_not_null(s);
-    scene_material w = scene_material_default("w");
-    w.diffuse = v3s(0.5f);
-    scene_add_material(s, &w, &err);
-    cr_assert_geq(scene_begin_node(s, part, SCENE_NODE_PART, 0, &err), 0);
-    return s;
-}
-
-static void one_part_end(ct_scene *s)
-{
-    cr_assert_eq(scene_end_node(s, &err), 0);
-    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
-}
-
-/* A closed box as one part (not flat). */
-static void box_part(ct_scene *s, const char *name, uint32_t mat, vec3 lo, vec3 hi)
-{
-    cr_assert_geq(scene_begin_node(s, name, SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
-    static const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-    for (int f = 0; f < 6; f++) {
-        uint32_t idx[4];
-        for (int k = 0; k < 4; k++) {
-            bounds3 b = {lo, hi};
-            idx[k] = (uint32_t)scene_add_vertex(s, b3_corner(b, faces[f][k]), v3(0, 1, 0), &err);
-        }
-        cr_assert_eq(scene_add_polygon(s, idx, 4, &err), 0);
-    }
-    cr_assert_eq(scene_end_node(s, &err), 0);
-}
-
-/* Three groups of objects on a floor, spread along x:
- *   floor (flat, diffuse); group g<i> = box + flat top plate, i = 0..2;
- *   a glossy flat panel; a box far behind the default camera. */
-typedef struct tscene {
-    ct_scene *s;
-    ct_radmesh m;
-    int floor, panel, behind, box[3], plate[3];
-} tscene;
-
-static void build(tscene *t)
-{
-    memset(t, 0, sizeof *t);
-    t->s = scene_new("test");
-    cr_assert_not_null(t->s);
-    scene_material dif = scene_material_default("white");
-    dif.diffuse = v3(0.7f, 0.7f, 0.7f);
-    scene_material red = scene_material_default("red");
-    red.diffuse = v3(0.7f, 0.1f, 0.1f);
-    scene_material gl = scene_material_default("glossy");
-    gl.diffuse = v3(0.1f, 0.1f, 0.1f);
-    gl.glossy = SCENE_GLOSSY_PHONG;
-    gl.specular = v3(0.8f, 0.8f, 0.8f);
-    gl.phong_exp = 200.0f;
-    uint32_t mw = (uint32_t)scene_add_material(t->s, &dif, &err);
-    uint32_t mr = (uint32_t)scene_add_material(t->s, &red, &err);
-    uint32_t mg = (uint32_t)scene_add_material(t->s, &gl, &err);
-    t->floor = (int)t->s->nnodes;
-    quad_part(t->s, "floor", mw, v3(-10, 0, -10), v3(-10, 0, 10), v3(10, 0, 10), v3(10, 0, -10));
-    for (int i = 0; i < 3; i++) {
-        char name[16];
-        snprintf(name, sizeof name, "g%d", i);
-        cr_assert_geq(scene_begin_node(t->s, name, SCENE_NODE_GROUP, UINT32_MAX, &err), 0);
-        float x = -4.0f + 4.0f * (float)i;
-        t->box[i] = (int)t->s->nnodes;
-        box_part(t->s, "box", mr, v3(x - 0.5f, 0, -0.5f), v3(x + 0.5f, 1, 0.5f));
-        t->plate[i] = (int)t->s->nnodes;
-        quad_part(t->s, "plate", mw, v3(x - 0.6f, 1.01f, -0.6f), v3(x - 0.6f, 1.01f, 0.6f),
-                  v3(x + 0.6f, 1.01f, 0.6f), v3(x + 0.6f, 1.01f, -0.6f));
-        cr_assert_eq(scene_end_node(t->s, &err), 0);
-    }
-    t->panel = (int)t->s->nnodes;
-    quad_part(t->s, "panel", mg, v3(-3, 0.5f, -5), v3(-3, 3, -5), v3(3, 3, -5), v3(3, 0.5f, -5));
-    t->behind = (int)t->s->nnodes;
-    box_part(t->s, "behind", mr, v3(-1, 0, 30), v3(1, 2, 32));
-    cr_assert_eq(scene_finalize(t->s, &err), 0, "%s", err.msg);
-    cr_assert_eq(rmesh_from_scene(t->s, v3s(0.5f), &t->m, &err), 0);
-}
-
-static void release(tscene *t)
-{
-    rmesh_free(&t->m);
-    scene_free(t->s);
-}
-
-static ctex *engine(tscene *t, ctex_options o)
-{
-    ctex *c = NULL;
-    cr_assert_eq(ctex_new(&t->m, t->s->mats, t->s->nmats, &o, &c, &err), 0, "%s", err.msg);
-    return c;
-}
-
-static ct_camera front_cam(void)
-{
-    return cam_look_at(v3(0, 4, 14), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
-}
-
 Test(ctex_engine, hierarchy_groups_parts)
 {
-    tscene t;
-    build(&t);
+    tcx_scene t;
+    tcx_build(&t);
     ctex_hier h;
     cr_assert_eq(ctex_hier_build(&t.m, t.s->mats, t.s->nmats, 10.0f, 0.01f, 1.0f, 0, &h, &err), 0, "%s", err.msg);
     /* leaves = parts: floor, 3 x (box, plate), panel, behind */
@@ -173,7 +58,7 @@ Test(ctex_engine, hierarchy_groups_parts)
     /* a group of a box and its plate is not flat (two normals, not coplanar) */
     cr_assert(!h.nodes[0].flat);
     ctex_hier_free(&h);
-    release(&t);
+    tcx_release(&t);
 }
 
 Test(ctex_engine, bvh_groups_by_material)
@@ -190,7 +75,7 @@ Test(ctex_engine, bvh_groups_by_material)
         char name[8];
         snprintf(name, sizeof name, "t%d", i);
         float x = (float)i * 1.1f;
-        quad_part(s, name, i % 2 ? mb : ma, v3(x, 0, 0), v3(x, 0, 1), v3(x + 1, 0, 1), v3(x + 1, 0, 0));
+        tcx_quad_part(s, name, i % 2 ? mb : ma, v3(x, 0, 0), v3(x, 0, 1), v3(x + 1, 0, 1), v3(x + 1, 0, 0));
     }
     cr_assert_eq(scene_finalize(s, &err), 0);
     ct_radmesh m;
@@ -213,25 +98,6 @@ Test(ctex_engine, bvh_groups_by_material)
     scene_free(s);
 }
 
-/* The test scene with an engine of options o under the front camera at
- * w x h pixels. */
-static ctex *front_engine(tscene *t, ctex_options o, int w, int h)
-{
-    build(t);
-    ctex *c = engine(t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, w, h, &err), 0, "%s", err.msg);
-    return c;
-}
-
-/* front_engine with leaf textures (eps = 0). */
-static ctex *leaf_engine(tscene *t, int w, int h)
-{
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    return front_engine(t, o, w, h);
-}
-
 /* Number of active textures and whether every one sits on a leaf. */
 static uint32_t count_textures(ctex *c, int *all_leaves, uint32_t *parts_covered)
 {
@@ -251,8 +117,8 @@ static uint32_t count_textures(ctex *c, int *all_leaves, uint32_t *parts_covered
 
 Test(ctex_engine, eps_zero_gives_leaf_textures)
 {
-    tscene t;
-    ctex *c = leaf_engine(&t, 64, 64);
+    tcx_scene t;
+    ctex *c = tcx_leaf_engine(&t, 64, 64);
     int leaves;
     uint32_t covered;
     uint32_t n = count_textures(c, &leaves, &covered);
@@ -261,17 +127,17 @@ Test(ctex_engine, eps_zero_gives_leaf_textures)
     cr_assert_eq(ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f)), -1, "frustum culling");
     cr_assert_geq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), 0);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 Test(ctex_engine, eps_huge_gives_one_per_top_node)
 {
-    tscene t;
-    build(&t);
+    tcx_scene t;
+    tcx_build(&t);
     ctex_options o = ctex_options_default();
     o.eps = 1e9f;
     o.max_proj = 0.0f;
-    ctex *c = engine(&t, o);
+    ctex *c = tcx_engine(&t, o);
     /* from far away and above, nothing reaches the eye plane */
     ct_camera cam = cam_look_at(v3(0, 60, 60), v3(0, 0, 0), v3(0, 1, 0), 60.0f);
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
@@ -289,42 +155,42 @@ Test(ctex_engine, eps_huge_gives_one_per_top_node)
     /* with a camera close to the objects the parallax test splits even
      * ε = 1e9 nodes that reach the eye plane: every part still textured once */
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 Test(ctex_engine, default_eps_between)
 {
-    tscene t;
-    ctex *c = front_engine(&t, ctex_options_default(), 128, 128);
+    tcx_scene t;
+    ctex *c = tcx_front_engine(&t, ctex_options_default(), 128, 128);
     int leaves;
     uint32_t covered;
     uint32_t n = count_textures(c, &leaves, &covered);
     cr_assert_eq(covered, 8, "each visible part covered exactly once (%u)", covered);
     cr_assert(n >= 1 && n <= 8);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 Test(ctex_engine, frustum_culling_looking_away)
 {
-    tscene t;
-    build(&t);
-    ctex *c = engine(&t, ctex_options_default());
+    tcx_scene t;
+    tcx_build(&t);
+    ctex *c = tcx_engine(&t, ctex_options_default());
     ct_camera cam = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 40.0f);
     cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
     cr_assert_geq(ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f)), 0, "the box in front now has a texture");
     cr_assert_eq(ctex_owner(c, (uint32_t)t.panel, UINT32_MAX, v3s(0.0f)), -1);
     cr_assert_eq(ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f)), -1);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 Test(ctex_engine, camera_local_maps_bounding_rect_to_unit_square)
 {
-    tscene t;
+    tcx_scene t;
     const int W = 96, H = 64;
-    ctex *c = leaf_engine(&t, W, H);
-    ct_camera cam = front_cam();
+    ctex *c = tcx_leaf_engine(&t, W, H);
+    ct_camera cam = tcx_front_cam();
     int32_t id = ctex_owner(c, (uint32_t)t.box[1], UINT32_MAX, v3s(0.0f));
     cr_assert_geq(id, 0);
     ctex_proj_kind kind;
@@ -352,13 +218,13 @@ Test(ctex_engine, camera_local_maps_bounding_rect_to_unit_square)
     vec4 top = m4_point4(&m, v3(0, 1, 0.5f)), bot = m4_point4(&m, v3(0, 0, 0.5f));
     cr_assert_lt(top.y / top.w, bot.y / bot.w);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 Test(ctex_engine, object_local_projection_along_normal)
 {
-    tscene t;
-    ctex *c = leaf_engine(&t, 64, 64);
+    tcx_scene t;
+    ctex *c = tcx_leaf_engine(&t, 64, 64);
     int32_t id = ctex_owner(c, (uint32_t)t.plate[0], UINT32_MAX, v3s(0.0f));
     ctex_proj_kind kind;
     mat4 m;
@@ -380,27 +246,16 @@ Test(ctex_engine, object_local_projection_along_normal)
     cr_assert_float_eq(a.x, b.x, 1e-5);
     cr_assert_float_eq(a.y, b.y, 1e-5);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
-static ct_sample mk_sample(uint32_t node, vec3 hit, vec3 hq, vec3 base)
-{
-    ct_sample s;
-    memset(&s, 0, sizeof s);
-    s.flags = CT_SAMPLE_HIT | CT_SAMPLE_HAS_BASE;
-    s.node = node;
-    s.hit = hit;
-    s.l_hq = hq;
-    s.l_base = base;
-    return s;
-}
 
 Test(ctex_engine, insert_reads_correction_and_error)
 {
-    tscene t;
-    ctex *c = leaf_engine(&t, 64, 64);
+    tcx_scene t;
+    ctex *c = tcx_leaf_engine(&t, 64, 64);
     ctex_insert_info info;
-    ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 2), v3(0.8f, 0.6f, 0.4f), v3(0.5f, 0.5f, 0.5f));
+    ct_sample s = tcx_sample((uint32_t)t.floor, v3(1, 0, 2), v3(0.8f, 0.6f, 0.4f), v3(0.5f, 0.5f, 0.5f));
     cr_assert_eq(ctex_insert(c, &s, &info), 1);
     cr_assert_float_eq(info.correction.x, 0.0f, 1e-7, "empty texture: no correction yet");
     cr_assert_float_eq(info.error.x, 0.3f, 1e-6);
@@ -417,25 +272,25 @@ Test(ctex_engine, insert_reads_correction_and_error)
     /* a miss and a culled node are dropped */
     s.flags = 0;
     cr_assert_eq(ctex_insert(c, &s, &info), 0);
-    s = mk_sample((uint32_t)t.behind, v3(0, 1, 30), v3s(1), v3s(0));
+    s = tcx_sample((uint32_t)t.behind, v3(0, 1, 30), v3s(1), v3s(0));
     cr_assert_eq(ctex_insert(c, &s, &info), 0);
     cr_assert_eq(info.tex, -1);
     /* a dropped sample's error is its whole ΔL (the request queue uses it) */
     cr_assert_float_eq(info.error.x, 1.0f, 1e-7);
     cr_assert_float_eq(info.correction.x, 0.0f, 1e-7);
-    s = mk_sample(9999, v3(0, 0, 0), v3s(1), v3s(0));
+    s = tcx_sample(9999, v3(0, 0, 0), v3s(1), v3s(0));
     cr_assert_eq(ctex_insert(c, &s, &info), 0);
     ctex_stats st = ctex_get_stats(c);
     cr_assert_eq(st.inserted, 2);
     cr_assert_eq(st.dropped, 3);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 /* Pixels between the images of p and p + d under the front camera. */
 static double px_dist(vec3 p, vec3 d, int w, int h)
 {
-    ct_camera cam = front_cam();
+    ct_camera cam = tcx_front_cam();
     float ax, ay, bx, by, z;
     cr_assert(cam_project(&cam, w, h, p, &ax, &ay, &z));
     cr_assert(cam_project(&cam, w, h, v3_add(p, d), &bx, &by, &z));
@@ -449,11 +304,11 @@ static double px_dist(vec3 p, vec3 d, int w, int h)
  * A camera-local texture's texels are (x1 - x0) / w by (y1 - y0) / h pixels. */
 Test(ctex_engine, splat_ex_follows_the_texels_on_screen)
 {
-    tscene t;
+    tcx_scene t;
     const int W = 256, H = 256;
-    ctex *c = leaf_engine(&t, W, H);
+    ctex *c = tcx_leaf_engine(&t, W, H);
     ctex_insert_info info;
-    ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 6), v3s(1.0f), v3s(0.0f));
+    ct_sample s = tcx_sample((uint32_t)t.floor, v3(1, 0, 6), v3s(1.0f), v3s(0.0f));
     cr_assert_eq(ctex_insert(c, &s, &info), 1);
     int tw, th;
     ctex_proj_kind kind;
@@ -480,33 +335,21 @@ Test(ctex_engine, splat_ex_follows_the_texels_on_screen)
     }
     cr_assert_eq(ctex_splat_ex(c, 9999, v3s(0.0f)), 1.0f, "not a texture");
     /* the glossy panel faces the camera: camera-local or not, near 1 */
-    ct_sample sp = mk_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
+    ct_sample sp = tcx_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
     cr_assert_eq(ctex_insert(c, &sp, &info), 1);
     float e = ctex_splat_ex(c, (uint32_t)info.tex, v3(0, 1, -5));
     cr_assert_eq(ctex_aniso_ex(e), 1.0f, "a facing panel splats square rings (ex %g)", (double)e);
     ctex_free(c);
-    release(&t);
-}
-
-/* Fills node's texture with samples on a grid over the plate/floor region. */
-static void fill_floor(ctex *c, uint32_t node, float val, float y)
-{
-    ctex_insert_info info;
-    for (int i = 0; i < 40; i++)
-        for (int j = 0; j < 40; j++) {
-            vec3 p = v3(-9.75f + 0.5f * (float)i, y, -9.75f + 0.5f * (float)j);
-            ct_sample s = mk_sample(node, p, v3s(val), v3s(0.0f));
-            ctex_insert(c, &s, &info);
-        }
+    tcx_release(&t);
 }
 
 Test(ctex_engine, diffuse_object_local_does_not_age)
 {
-    tscene t;
-    ctex *c = leaf_engine(&t, 64, 64);
-    fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
+    tcx_scene t;
+    ctex *c = tcx_leaf_engine(&t, 64, 64);
+    tcx_fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
     int32_t id = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
-    ct_sample sp = mk_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
+    ct_sample sp = tcx_sample((uint32_t)t.panel, v3(0, 1, -5), v3s(1.0f), v3s(0.0f));
     ctex_insert_info info;
     cr_assert_eq(ctex_insert(c, &sp, &info), 1);
     int32_t pid = info.tex;
@@ -526,7 +369,7 @@ Test(ctex_engine, diffuse_object_local_does_not_age)
     vec3 after = ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(2, 0, 3));
     cr_assert_eq(after.x, before.x, "and keeps its contents");
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 /* RMS deviation from `mean` of node's correction at a 24 x 24 grid of
@@ -548,25 +391,25 @@ static double rms_dev(ctex *c, uint32_t node, vec3 o, vec3 du, vec3 dv, float me
  * returns the RMS deviation of the floor's and the panel's corrections. */
 static void noisy_field(float mix, int n, double *floor_dev, double *panel_dev)
 {
-    tscene t;
+    tcx_scene t;
     ctex_options o = ctex_options_default();
     o.eps = 0.0f;
     o.mix = mix;
-    ctex *c = front_engine(&t, o, 64, 64);
+    ctex *c = tcx_front_engine(&t, o, 64, 64);
     ct_rng r = rng_make(42, 0, 0, 0);
     ctex_insert_info info;
     for (int i = 0; i < n; i++) {
         float u = rng_float(&r), v = rng_float(&r), e = 0.6f * (rng_float(&r) - 0.5f);
-        ct_sample s = mk_sample((uint32_t)t.floor, v3(-4.0f + 8.0f * u, 0.0f, -4.0f + 8.0f * v), v3s(0.5f + e),
+        ct_sample s = tcx_sample((uint32_t)t.floor, v3(-4.0f + 8.0f * u, 0.0f, -4.0f + 8.0f * v), v3s(0.5f + e),
                                 v3s(0.0f));
         cr_assert_eq(ctex_insert(c, &s, &info), 1);
-        s = mk_sample((uint32_t)t.panel, v3(-2.5f + 5.0f * u, 0.7f + 2.1f * v, -5.0f), v3s(0.5f + e), v3s(0.0f));
+        s = tcx_sample((uint32_t)t.panel, v3(-2.5f + 5.0f * u, 0.7f + 2.1f * v, -5.0f), v3s(0.5f + e), v3s(0.0f));
         cr_assert_eq(ctex_insert(c, &s, &info), 1);
     }
     *floor_dev = rms_dev(c, (uint32_t)t.floor, v3(-3.5f, 0.0f, -3.5f), v3(7.0f, 0, 0), v3(0, 0, 7.0f), 0.5f);
     *panel_dev = rms_dev(c, (uint32_t)t.panel, v3(-2.2f, 0.9f, -5.0f), v3(4.4f, 0, 0), v3(0, 1.7f, 0), 0.5f);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
 /* Mixing averages the noise of neighbouring samples out on a diffuse
@@ -588,10 +431,10 @@ Test(ctex_engine, mixing_averages_noise_on_diffuse_surfaces)
 
 Test(ctex_engine, split_and_merge_resample_contents)
 {
-    tscene t;
-    build(&t);
+    tcx_scene t;
+    tcx_build(&t);
     ctex_options o = ctex_options_default();
-    ctex *c = engine(&t, o);
+    ctex *c = tcx_engine(&t, o);
     /* far away: the group g1 (box + plate) shares one texture */
     ct_camera far = cam_look_at(v3(0, 30, 60), v3(0, 0.5f, 0), v3(0, 1, 0), 20.0f);
     cr_assert_eq(ctex_set_camera(c, &far, 64, 64, &err), 0);
@@ -601,7 +444,7 @@ Test(ctex_engine, split_and_merge_resample_contents)
     ctex_insert_info info;
     for (int i = 0; i < 200; i++) {
         float x = -0.6f + 1.2f * (float)(i % 20) / 19.0f, z = -0.6f + 1.2f * (float)(i / 20) / 9.0f;
-        ct_sample s = mk_sample((uint32_t)t.plate[1], v3(x, 1.01f, z), v3s(0.75f), v3s(0.25f));
+        ct_sample s = tcx_sample((uint32_t)t.plate[1], v3(x, 1.01f, z), v3s(0.75f), v3s(0.25f));
         ctex_insert(c, &s, &info);
     }
     vec3 l0 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
@@ -621,565 +464,6 @@ Test(ctex_engine, split_and_merge_resample_contents)
     vec3 l2 = ctex_lookup(c, (uint32_t)t.plate[1], UINT32_MAX, v3(0.1f, 1.01f, 0.1f));
     cr_assert_float_eq(l2.x, 0.5f, 1e-3, "merged texture resampled (%g)", (double)l2.x);
     ctex_free(c);
-    release(&t);
+    tcx_release(&t);
 }
 
-Test(ctex_engine, events_alloc_proj_free_and_unsent_tiles)
-{
-    tscene t;
-    ctex *c = leaf_engine(&t, 64, 64);
-    ct_camera cam = front_cam();
-    size_t n;
-    const ctex_event *ev = ctex_events(c, &n);
-    int alloc = 0, proj = 0;
-    for (size_t i = 0; i < n; i++) {
-        alloc += ev[i].kind == CTEX_EV_ALLOC;
-        proj += ev[i].kind == CTEX_EV_PROJ;
-        if (ev[i].kind == CTEX_EV_ALLOC) cr_assert(ev[i].w >= 4 && ev[i].h >= 4);
-    }
-    cr_assert_eq(alloc, 8);
-    cr_assert_eq(proj, 8);
-    ctex_events_clear(c);
-    /* new textures are unsent as a whole; the display server sends them */
-    for (uint32_t id = 0; id < ctex_slot_count(c); id++) {
-        struct ctex_tex *vt = ctex_visible_texture(c, id);
-        if (!vt) continue;
-        int x0, y0, x1, y1;
-        cr_assert(ctex_dirty_bounds(&vt->d, vt->w, vt->h, &x0, &y0, &x1, &y1));
-        cr_assert(x0 == 0 && y0 == 0 && x1 == vt->w && y1 == vt->h, "texture %u wholly unsent", id);
-        ctex_dirty_clear_all(&vt->d);
-    }
-    ctex_set_clock(c, 4242);
-    ctex_insert_info info;
-    ct_sample s = mk_sample((uint32_t)t.floor, v3(1, 0, 2), v3s(1.0f), v3s(0.5f));
-    ctex_insert(c, &s, &info);
-    ctex_insert(c, &s, &info);
-    ctex_events(c, &n);
-    cr_assert_eq(n, 0, "texels are not events");
-    for (uint32_t id = 0; id < ctex_slot_count(c); id++) {
-        struct ctex_tex *vt = ctex_visible_texture(c, id);
-        if (!vt) continue;
-        int x0, y0, x1, y1;
-        bool any = ctex_dirty_bounds(&vt->d, vt->w, vt->h, &x0, &y0, &x1, &y1);
-        cr_assert_eq(any, id == (uint32_t)info.tex, "only the sample's texture has unsent texels (%u)", id);
-        if (!any) continue;
-        /* the unsent tiles hold the splat, stamped with the clock, counting both samples */
-        float u, v;
-        cr_assert(ctex_tex_project(vt, s.hit, &u, &v));
-        int ci = (int)(u * (float)vt->w), cj = (int)(v * (float)vt->h);
-        cr_assert(ci >= x0 && ci < x1 && cj >= y0 && cj < y1);
-        cr_assert_eq(vt->d.row_t[cj >> CTEX_TILE_SHIFT], 4242u);
-        cr_assert_eq(vt->d.row_n[cj >> CTEX_TILE_SHIFT], 2u);
-        float buf[3 * 64 * 64];
-        cr_assert_eq(ctex_read_patch(c, id, x0, y0, x1 - x0, y1 - y0, buf, &err), 0);
-        cr_assert_lt(ctex_read_patch(c, id, 0, 0, 9999, 1, buf, &err), 0);
-    }
-    cr_assert_eq(ctex_visible_texture(c, 9999), NULL);
-    /* looking away frees (parks) the floor's texture for the display */
-    ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
-    cr_assert_eq(ctex_set_camera(c, &away, 64, 64, &err), 0);
-    ev = ctex_events(c, &n);
-    int freed = 0;
-    for (size_t i = 0; i < n; i++) freed += ev[i].kind == CTEX_EV_FREE && ev[i].tex == (uint32_t)info.tex;
-    cr_assert_eq(freed, 1);
-    cr_assert_eq(ctex_get_stats(c).parked, 8, "parked %u", ctex_get_stats(c).parked);
-    /* coming back reuses the parked texture with its contents */
-    ctex_events_clear(c);
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), info.tex);
-    cr_assert_float_eq(ctex_lookup(c, (uint32_t)t.floor, UINT32_MAX, v3(1, 0, 2)).x, 0.5f, 1e-6);
-    ctex_free(c);
-    release(&t);
-}
-
-Test(ctex_engine, memory_cap_evicts_invisible_first)
-{
-    tscene t;
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    o.mem_mb = 0.05;   /* ~3,300 texels */
-    o.tex_init = 8;
-    ctex *c = front_engine(&t, o, 256, 256);
-    int32_t fl = ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f));
-    ct_camera away = cam_look_at(v3(0, 1, 20), v3(0, 1, 40), v3(0, 1, 0), 30.0f);
-    cr_assert_eq(ctex_set_camera(c, &away, 256, 256, &err), 0);
-    cr_assert_gt(ctex_get_stats(c).parked, 0);
-    /* the visible box grows by dense samples until the cap bites */
-    int32_t id = ctex_owner(c, (uint32_t)t.behind, UINT32_MAX, v3s(0.0f));
-    cr_assert_geq(id, 0);
-    ctex_insert_info info;
-    for (int k = 0; k < 20000; k++) {
-        float x = -1.0f + 2.0f * (float)(k % 141) / 140.0f, y = 2.0f * (float)((k / 141) % 141) / 140.0f;
-        ct_sample s = mk_sample((uint32_t)t.behind, v3(x, y, 30), v3s((float)(k % 7)), v3s(0.0f));
-        ctex_insert(c, &s, &info);
-    }
-    ctex_stats st = ctex_get_stats(c);
-    cr_assert_leq(st.bytes, (size_t)(0.05 * 1048576.0), "bytes %zu over the cap", st.bytes);
-    cr_assert_gt(st.evictions, 0, "parked textures were evicted");
-    uint32_t hn;
-    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, &hn, NULL, NULL, NULL, NULL, NULL), 1, "visible texture kept");
-    (void)fl;
-    ctex_free(c);
-    release(&t);
-}
-
-Test(ctex_engine, compositor_adds_bilinear_correction)
-{
-    tscene t;
-    ctex *c = leaf_engine(&t, 8, 8);
-    fill_floor(c, (uint32_t)t.floor, 0.25f, 0.0f);
-    ctex_hit hits[64];
-    for (int i = 0; i < 64; i++) {
-        hits[i].node = i % 2 ? UINT32_MAX : (uint32_t)t.floor;
-        hits[i].tri = UINT32_MAX;
-        hits[i].p = v3(0.1f * (float)i - 3.0f, 0.0f, 1.0f);
-        hits[i].l_base = v3s(0.1f);
-    }
-    /* (built by hand: the compositor only needs the pixel array) */
-    ct_image img = {8, 8, calloc(8 * 8 * 3, sizeof(float))};
-    cr_assert_eq(ctex_composite(c, hits, 8, 8, &img, &err), 0);
-    for (int i = 0; i < 64; i++) {
-        vec3 v = img_get(&img, i % 8, i / 8);
-        float expect = i % 2 ? 0.1f : 0.35f;
-        cr_assert_float_eq(v.x, expect, 1e-5, "pixel %d: %g", i, (double)v.x);
-    }
-    ct_image bad = {4, 4, calloc(4 * 4 * 3, sizeof(float))};
-    cr_assert_lt(ctex_composite(c, hits, 8, 8, &bad, &err), 0);
-    free(bad.px);
-    free(img.px);
-    ctex_free(c);
-    release(&t);
-}
-
-Test(ctex_engine, options_parse_and_reject)
-{
-    ctex_options o = ctex_options_default();
-    cr_assert_float_eq(o.eps, 0.3f, 1e-7);
-    cr_assert_eq(ctex_options_parse(&o, "--eps", "0.5", &err), 1);
-    cr_assert_float_eq(o.eps, 0.5f, 1e-7);
-    cr_assert_eq(ctex_options_parse(&o, "--tex-min", "8", &err), 1);
-    cr_assert_eq(o.tex_min, 8);
-    cr_assert_eq(ctex_options_parse(&o, "--width", "8", &err), 0);
-    cr_assert_lt(ctex_options_parse(&o, "--eps", "abc", &err), 0);
-    cr_assert_lt(ctex_options_parse(&o, "--tex-min", "2.5", &err), 0);
-    cr_assert_lt(ctex_options_parse(&o, "--flat-deg", "-1", &err), 0);
-    cr_assert_lt(ctex_options_parse(&o, "--eps", NULL, &err), 0);
-    /* mix 0 would freeze every texel at its first sample */
-    cr_assert_lt(ctex_options_parse(&o, "--mix", "0", &err), 0);
-    cr_assert_lt(ctex_options_parse(&o, "--mix", "1.5", &err), 0);
-    cr_assert_eq(ctex_options_parse(&o, "--mix", "1", &err), 1);
-    cr_assert_float_eq(o.mix, 1.0f, 1e-7);
-    /* --splat-aniso is a switch */
-    cr_assert_eq(o.splat_aniso, 1);
-    cr_assert_lt(ctex_options_parse(&o, "--splat-aniso", "2", &err), 0);
-    cr_assert(strstr(err.msg, "--splat-aniso") != NULL, "the error names the option: %s", err.msg);
-    cr_assert_lt(ctex_options_parse(&o, "--splat-aniso", "0.5", &err), 0);
-    cr_assert_eq(ctex_options_parse(&o, "--splat-aniso", "0", &err), 1);
-    cr_assert_eq(o.splat_aniso, 0);
-}
-
-Test(ctex_engine, bad_mesh_is_rejected)
-{
-    tscene t;
-    build(&t);
-    t.m.tri_node[0] = 12345;
-    ctex *c = NULL;
-    cr_assert_eq(ctex_new(&t.m, t.s->mats, t.s->nmats, NULL, &c, &err), CT_EPARSE);
-    cr_assert_null(c);
-    release(&t);
-}
-
-Test(ctex_engine, exported_node_table_for_the_display)
-{
-    tscene t;
-    build(&t);
-    ctex *c = engine(&t, ctex_options_default());
-    uint32_t n = ctex_get_stats(c).hier_nodes;
-    rmesh_node *nodes = calloc(n, sizeof *nodes);
-    ctex_export_nodes(c, nodes);
-    cr_assert_eq(nodes[0].parent, -1);
-    cr_assert_eq(nodes[0].node_end, n);
-    for (uint32_t i = 1; i < n; i++) {
-        cr_assert(nodes[i].parent >= 0 && (uint32_t)nodes[i].parent < i, "pre-order parent of %u", i);
-        cr_assert(nodes[i].node_end > i && nodes[i].node_end <= nodes[nodes[i].parent].node_end);
-    }
-    /* every part maps to a leaf whose exported name is the part's, and a
-     * node's subtree holds exactly the parts ctex_node_parts lists */
-    for (uint32_t p = 0; p < t.s->nnodes; p++) {
-        uint32_t h = ctex_hnode_of_part(c, p);
-        if (t.s->nodes[p].kind != SCENE_NODE_PART) {
-            cr_assert_eq(h, UINT32_MAX);
-            continue;
-        }
-        cr_assert_lt(h, n);
-        cr_assert_eq(nodes[h].node_end, h + 1, "leaf");
-        cr_assert_str_eq(nodes[h].name, t.s->nodes[p].name);
-    }
-    for (uint32_t h = 0; h < n; h++) {
-        uint32_t np;
-        const uint32_t *parts = ctex_node_parts(c, h, &np);
-        uint32_t inside = 0;
-        for (uint32_t p = 0; p < t.s->nnodes; p++) {
-            uint32_t l = ctex_hnode_of_part(c, p);
-            if (l != UINT32_MAX && l >= h && l < nodes[h].node_end) inside++;
-        }
-        cr_assert_eq(inside, np, "node %u", h);
-        for (uint32_t k = 0; k < np; k++) {
-            uint32_t l = ctex_hnode_of_part(c, parts[k]);
-            cr_assert(l >= h && l < nodes[h].node_end);
-        }
-    }
-    cr_assert_eq(ctex_hnode_of_part(c, 99999), UINT32_MAX);
-    free(nodes);
-    ctex_free(c);
-    release(&t);
-}
-
-/* One part: a floor of n x n quads and a back wall of n x n quads meeting
- * at a corner (an L), one material. */
-static ct_scene *l_scene(int n)
-{
-    ct_scene *s = one_part_begin("L", "L");
-    for (int side = 0; side < 2; side++)
-        for (int j = 0; j < n; j++)
-            for (int i = 0; i < n; i++) {
-                float x0 = -5.0f + 10.0f * (float)i / (float)n, x1 = -5.0f + 10.0f * (float)(i + 1) / (float)n;
-                float a0 = 10.0f * (float)j / (float)n, a1 = 10.0f * (float)(j + 1) / (float)n;
-                vec3 p[4];
-                if (side == 0) { p[0] = v3(x0, 0, a0 - 10); p[1] = v3(x0, 0, a1 - 10); p[2] = v3(x1, 0, a1 - 10); p[3] = v3(x1, 0, a0 - 10); }
-                else { p[0] = v3(x0, a0, -10); p[1] = v3(x1, a0, -10); p[2] = v3(x1, a1, -10); p[3] = v3(x0, a1, -10); }
-                add_quad(s, p, side == 0 ? v3(0, 1, 0) : v3(0, 0, 1));
-            }
-    one_part_end(s);
-    return s;
-}
-
-/* The engine over l_scene's mesh with clusters of at most 512 triangles and
- * a texture per visible leaf (ε = 0), the camera looking at the corner. */
-static ctex *l_engine(const ct_scene *s, const ct_radmesh *m)
-{
-    ctex_options o = ctex_options_default();
-    o.cluster_tris = 512;
-    o.eps = 0.0f;
-    ctex *c = NULL;
-    cr_assert_eq(ctex_new(m, s->mats, s->nmats, &o, &c, &err), 0);
-    ct_camera cam = cam_look_at(v3(0, 6, 12), v3(0, 2, -5), v3(0, 1, 0), 70.0f);
-    cr_assert_eq(ctex_set_camera(c, &cam, 64, 64, &err), 0);
-    return c;
-}
-
-Test(ctex_engine, large_parts_split_into_flat_clusters)
-{
-    ct_scene *s = l_scene(32);   /* 2 x 2048 triangles */
-    ct_radmesh m;
-    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
-    ctex_hier h;
-    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
-    cr_assert_eq(h.nleaves, 2, "4096 triangles: split by normal into floor and wall, flat halves stay whole");
-    uint32_t part = 1;
-    cr_assert_eq(h.part_leaf[part], -2);
-    for (uint32_t l = 0; l < h.nleaves; l++) {
-        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
-        cr_assert_eq(n->tri_end - n->tri_begin, 2048u);
-        cr_assert(n->flat, "cluster %u is flat (the normal split separated floor and wall)", l);
-        cr_assert_eq(h.leaf_part[l], part);
-        for (uint32_t i = n->tri_begin; i < n->tri_end; i++) cr_assert_eq(h.tri_leaf[h.tris[i]], l);
-    }
-    /* the part's node has both, the first split is by normal: each half flat */
-    const ctex_hnode *pn = &h.nodes[h.part_hnode[part]];
-    cr_assert(!pn->flat);
-    for (uint32_t c = h.part_hnode[part] + 1; c < pn->end; c = h.nodes[c].end) cr_assert(h.nodes[c].flat);
-    ctex_hier_free(&h);
-
-    /* through the engine: a sample goes into its triangle's cluster, the
-     * lookup without a triangle finds the same texture by position */
-    ctex *c = l_engine(s, &m);
-    cr_assert_eq(ctex_get_stats(c).textures, 2, "one texture per visible cluster (ε = 0)");
-    uint32_t tri = 100;   /* a floor triangle */
-    const uint32_t *v = m.tris + 3 * tri;
-    vec3 p = v3_scale(v3_add(m.pos[v[0]], v3_add(m.pos[v[1]], m.pos[v[2]])), 1.0f / 3.0f);
-    ct_sample smp;
-    memset(&smp, 0, sizeof smp);
-    smp.flags = CT_SAMPLE_HIT;
-    smp.node = part;
-    smp.tri = tri;
-    smp.hit = p;
-    smp.l_hq = v3s(1.0f);
-    ctex_insert_info info;
-    cr_assert_eq(ctex_insert(c, &smp, &info), 1);
-    cr_assert_eq(info.tex, ctex_owner(c, part, tri, p));
-    cr_assert_eq(ctex_owner(c, part, UINT32_MAX, p), info.tex, "bounds fallback");
-    cr_assert_float_eq(ctex_lookup(c, part, tri, p).x, 1.0f, 1e-6);
-    uint32_t hl = ctex_hnode_of_tri(c, tri);
-    uint32_t hn;
-    cr_assert_eq(ctex_texture_info(c, (uint32_t)info.tex, &hn, NULL, NULL, NULL, NULL, NULL), 1);
-    cr_assert_eq(hn, hl);
-    rmesh_node *nodes = calloc(ctex_get_stats(c).hier_nodes, sizeof *nodes);
-    ctex_export_nodes(c, nodes);
-    cr_assert_str_eq(nodes[ctex_hnode_of_part(c, part)].name, "L");
-    cr_assert(strncmp(nodes[hl].name, "cluster:", 8) == 0, "%s", nodes[hl].name);
-    free(nodes);
-    ctex_free(c);
-    rmesh_free(&m);
-    scene_free(s);
-}
-
-/* What the display draws a texture on (ctex_display_mesh): the node table is
- * the hierarchy and each triangle's node its leaf, so the subtree of a
- * texture's node holds exactly the triangles whose samples go into that
- * texture. A part split into clusters has one texture per cluster; drawn on
- * the whole part (the part's node table), a flat cluster's parallel
- * projection smeared its texels across the part's other faces as stripes. */
-Test(ctex_engine, display_mesh_draws_each_texture_on_its_own_triangles)
-{
-    ct_scene *s = l_scene(32);   /* one part, floor + wall: two flat clusters */
-    ct_radmesh m;
-    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
-    ctex *c = l_engine(s, &m);
-    cr_assert_eq(ctex_get_stats(c).textures, 2);
-    ct_radmesh d;
-    cr_assert_eq(ctex_display_mesh(c, &m, &d, &err), 0, "%s", err.msg);
-    cr_assert_eq(d.nnodes, ctex_get_stats(c).hier_nodes);
-    cr_assert_eq(d.ntris, m.ntris);
-    cr_assert(d.pos == m.pos && d.tris == m.tris && d.tri_mat == m.tri_mat, "geometry shared, not copied");
-    for (uint32_t i = 1; i < d.nnodes; i++)
-        cr_assert(d.nodes[i].parent >= 0 && (uint32_t)d.nodes[i].parent < i && d.nodes[i].node_end > i);
-    uint32_t part = m.tri_node[0];
-    int seen = 0;
-    for (uint32_t tex = 0; tex < 16; tex++) {
-        uint32_t hn;
-        if (ctex_texture_info(c, tex, &hn, NULL, NULL, NULL, NULL, NULL) != 1) continue;
-        seen++;
-        uint32_t end = d.nodes[hn].node_end, drawn = 0;
-        for (uint32_t t = 0; t < m.ntris; t++) {
-            const uint32_t *v = m.tris + 3 * (size_t)t;
-            vec3 p = v3_scale(v3_add(m.pos[v[0]], v3_add(m.pos[v[1]], m.pos[v[2]])), 1.0f / 3.0f);
-            bool in_subtree = d.tri_node[t] >= hn && d.tri_node[t] < end;
-            bool owned = ctex_owner(c, part, t, p) == (int32_t)tex;
-            cr_assert_eq(in_subtree, owned, "texture %u, triangle %u: drawn %d, its samples go there %d", tex, t,
-                         in_subtree, owned);
-            drawn += in_subtree;
-        }
-        cr_assert_eq(drawn, 2048u, "texture %u is drawn on its cluster only", tex);
-    }
-    cr_assert_eq(seen, 2);
-    ctex_display_mesh_free(&d);
-    cr_assert_null(d.nodes);
-    /* a mesh that is not the engine's */
-    ct_radmesh other = m;
-    other.ntris = m.ntris - 1;
-    cr_assert_eq(ctex_display_mesh(c, &other, &d, &err), CT_EINVAL);
-    ctex_free(c);
-    rmesh_free(&m);
-    scene_free(s);
-}
-
-/* Fills the box part's camera-local texture with samples whose value is
- * their x coordinate, on the faces seen from the front. */
-static void fill_box(ctex *c, uint32_t node, float x0)
-{
-    ctex_insert_info info;
-    for (int i = 0; i <= 40; i++)
-        for (int j = 0; j <= 40; j++) {
-            vec3 p = v3(x0 - 0.5f + (float)i / 40.0f, (float)j / 40.0f, 0.5f);   /* front face z = 0.5 */
-            ct_sample s = mk_sample(node, p, v3s(p.x - x0 + 0.5f), v3s(0.0f));
-            ctex_insert(c, &s, &info);
-        }
-}
-
-Test(ctex_engine, camera_local_rotation_keeps_contents_and_does_not_age)
-{
-    tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.eps = 0.0f;
-    ctex *c = engine(&t, o);
-    ct_camera cam = cam_look_at(v3(0, 1.5f, 6), v3(0, 0.5f, 0), v3(0, 1, 0), 40.0f);
-    cr_assert_eq(ctex_set_camera(c, &cam, 128, 128, &err), 0);
-    uint32_t box = (uint32_t)t.box[1];
-    int32_t id = ctex_owner(c, box, UINT32_MAX, v3(0, 0.5f, 0.5f));
-    ctex_proj_kind kind;
-    float v0;
-    cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, NULL, &v0), 1);
-    cr_assert_eq(kind, CTEX_PROJ_CAMERA);
-    fill_box(c, box, 0.0f);
-    vec3 pts[3] = {v3(-0.3f, 0.5f, 0.5f), v3(0.0f, 0.2f, 0.5f), v3(0.3f, 0.8f, 0.5f)};
-    float before[3];
-    for (int k = 0; k < 3; k++) before[k] = ctex_lookup(c, box, UINT32_MAX, pts[k]).x;
-    /* turn the camera a little about its eye: the box moves on screen, the
-     * reprojected texture stays on it */
-    ct_camera turned = cam_look_at(cam.eye, v3(0.4f, 0.7f, 0), v3(0, 1, 0), 40.0f);
-    cr_assert_eq(ctex_set_camera(c, &turned, 128, 128, &err), 0);
-    cr_assert_eq(ctex_owner(c, box, UINT32_MAX, pts[0]), id);
-    float v1;
-    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v1);
-    cr_assert_float_eq(v1, v0, 1e-6, "a rotation about the eye does not age (%g -> %g)", (double)v0, (double)v1);
-    for (int k = 0; k < 3; k++) {
-        float after = ctex_lookup(c, box, UINT32_MAX, pts[k]).x;
-        cr_assert_float_eq(after, before[k], 0.06, "point %d: %g -> %g", k, (double)before[k], (double)after);
-    }
-    /* a translation ages a camera-local texture (texture flow, §3.5) */
-    ct_camera moved = cam_look_at(v3(1.0f, 1.5f, 6), v3(0.4f, 0.7f, 0), v3(0, 1, 0), 40.0f);
-    cr_assert_eq(ctex_set_camera(c, &moved, 128, 128, &err), 0);
-    float v2;
-    ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, NULL, &v2);
-    cr_assert_gt(v2, v1 + 0.01f, "moving the eye ages the camera-local texture (%g -> %g)", (double)v1, (double)v2);
-    ctex_free(c);
-    release(&t);
-}
-
-Test(ctex_engine, non_flat_large_parts_split_by_space)
-{
-    /* a corrugated sheet: strips tilted +-20 degrees, one part of 4096
-     * triangles; the normal split gives two sets of parallel, not coplanar
-     * strips, which split by space down to clusters of at most 512 */
-    ct_scene *s = one_part_begin("corrugated", "sheet");
-    const int nx = 64, nz = 32;
-    for (int i = 0; i < nx; i++)
-        for (int j = 0; j < nz; j++) {
-            float x0 = (float)i * 0.2f, x1 = x0 + 0.2f, z0 = (float)j * 0.2f, z1 = z0 + 0.2f;
-            float y0 = (i % 2) ? 0.0728f : 0.0f, y1 = (i % 2) ? 0.0f : 0.0728f;   /* tan(20°) * 0.2 */
-            vec3 p[4] = {v3(x0, y0, z0), v3(x0, y0, z1), v3(x1, y1, z1), v3(x1, y1, z0)};
-            add_quad(s, p, v3(0, 1, 0));
-        }
-    one_part_end(s);
-    ct_radmesh m;
-    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
-    ctex_hier h;
-    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 512, &h, &err), 0, "%s", err.msg);
-    cr_assert_geq(h.nleaves, 8u);
-    uint32_t total = 0;
-    for (uint32_t l = 0; l < h.nleaves; l++) {
-        const ctex_hnode *n = &h.nodes[h.leaf_node[l]];
-        cr_assert_leq(n->tri_end - n->tri_begin, 512u);
-        total += n->tri_end - n->tri_begin;
-        /* each cluster holds strips of one tilt only */
-        cr_assert_lt(n->spread_deg, 1.0f, "cluster %u mixes tilts (spread %g)", l, (double)n->spread_deg);
-    }
-    cr_assert_eq(total, 4096u);
-    ctex_hier_free(&h);
-    rmesh_free(&m);
-    scene_free(s);
-}
-
-/* One part shaped like a room: four walls of n x n quads facing inwards
- * (+x, -x, +z, -z), their vertices off their planes by up to 1e-4 (as a
- * radiosity mesh's subdivision leaves them, so the perpendicular normal
- * components are tiny and of either sign), and a door reveal: two small
- * quads facing +z 0.2 in front of the -z wall. */
-static ct_scene *room_scene(int n)
-{
-    ct_scene *s = one_part_begin("room", "walls");
-    for (int w = 0; w < 4; w++)
-        for (int j = 0; j < n; j++)
-            for (int i = 0; i < n; i++) {
-                vec3 p[4];
-                for (int c = 0; c < 4; c++) {
-                    int ii = i + (c == 1 || c == 2), jj = j + (c >= 2);
-                    float a = -5.0f + 10.0f * (float)ii / (float)n, y = 3.0f * (float)jj / (float)n;
-                    float off = 1e-4f * (float)(((ii * 7 + jj * 13 + w) % 5) - 2) / 2.0f;
-                    /* corners ordered so that each wall faces the room's inside */
-                    switch (w) {
-                    case 0: p[c] = v3(-5.0f + off, y, -a); break;   /* faces +x */
-                    case 1: p[c] = v3(5.0f + off, y, a); break;     /* faces -x */
-                    case 2: p[c] = v3(a, y, -5.0f + off); break;    /* faces +z */
-                    default: p[c] = v3(-a, y, 5.0f + off); break;   /* faces -z */
-                    }
-                }
-                vec3 nn = v3_norm(v3_cross(v3_sub(p[1], p[0]), v3_sub(p[2], p[0])));
-                add_quad(s, p, nn);
-            }
-    for (int r = 0; r < 2; r++) {
-        float x0 = (float)r * 2.0f, x1 = x0 + 0.5f;
-        vec3 p[4] = {v3(x0, 0.0f, -4.8f), v3(x1, 0.0f, -4.8f), v3(x1, 2.0f, -4.8f), v3(x0, 2.0f, -4.8f)};
-        add_quad(s, p, v3(0, 0, 1));
-    }
-    one_part_end(s);
-    return s;
-}
-
-Test(ctex_engine, clusters_keep_each_face_whole)
-{
-    const int n = 16;   /* 512 triangles a wall */
-    ct_scene *s = room_scene(n);
-    ct_radmesh m;
-    cr_assert_eq(rmesh_from_scene(s, v3s(0.5f), &m, &err), 0);
-    ctex_hier h;
-    cr_assert_eq(ctex_hier_build(&m, s->mats, s->nmats, 10.0f, 0.01f, 1.0f, 256, &h, &err), 0, "%s", err.msg);
-    /* each leaf: one face (normal and plane), flat, never split whatever
-     * the cluster size: the four walls and the two reveal quads in their
-     * own plane */
-    cr_assert_eq(h.nleaves, 5u, "four walls and the reveals: %u leaves", h.nleaves);
-    uint32_t total = 0;
-    for (uint32_t l = 0; l < h.nleaves; l++) {
-        const ctex_hnode *nd = &h.nodes[h.leaf_node[l]];
-        uint32_t cnt = nd->tri_end - nd->tri_begin;
-        total += cnt;
-        cr_assert(nd->flat, "cluster %u (%u triangles) is flat", l, cnt);
-        cr_assert(cnt == 2u * n * n || cnt == 4u, "cluster %u has %u triangles: a whole wall or the reveals", l, cnt);
-        vec3 n0 = v3s(0.0f);
-        for (uint32_t i = nd->tri_begin; i < nd->tri_end; i++) {
-            const uint32_t *v = m.tris + 3 * h.tris[i];
-            vec3 nn = v3_norm(v3_cross(v3_sub(m.pos[v[1]], m.pos[v[0]]), v3_sub(m.pos[v[2]], m.pos[v[0]])));
-            if (i == nd->tri_begin) n0 = nn;
-            cr_assert_gt(v3_dot(nn, n0), 0.99f, "cluster %u mixes faces", l);
-        }
-    }
-    cr_assert_eq(total, 4u * 2u * n * n + 4u);
-    ctex_hier_free(&h);
-    rmesh_free(&m);
-    scene_free(s);
-}
-
-/* ctex_insert_batch (with its prefetching) inserts exactly like ctex_insert
- * one sample at a time: the same infos and the same texels, through enough
- * samples to make textures grow. */
-Test(ctex_engine, batch_insert_equals_single_inserts)
-{
-    tscene t;
-    build(&t);
-    ctex_options o = ctex_options_default();
-    o.splat_window = 16;
-    ctex *a = engine(&t, o), *b = engine(&t, o);
-    ct_camera cam = front_cam();
-    cr_assert_eq(ctex_set_camera(a, &cam, 96, 96, &err), 0);
-    cr_assert_eq(ctex_set_camera(b, &cam, 96, 96, &err), 0);
-    enum { N = 4096, B = 64 };
-    ct_sample *s = malloc(N * sizeof *s);
-    ctex_insert_info *ia = malloc(N * sizeof *ia), *ib = malloc(N * sizeof *ib);
-    ct_rng r = rng_make(77, 0, 0, 0);
-    for (int i = 0; i < N; i++) {
-        vec3 p = v3(-8.0f + 16.0f * rng_float(&r), 0.0f, -8.0f + 16.0f * rng_float(&r));
-        uint32_t node = (uint32_t)t.floor;
-        if (i % 5 == 0) {   /* some on the plates */
-            int g = (int)rng_below(&r, 3);
-            p = v3(-4.0f + 4.0f * (float)g - 0.5f + rng_float(&r), 1.01f, -0.5f + rng_float(&r));
-            node = (uint32_t)t.plate[g];
-        }
-        s[i] = mk_sample(node, p, v3(rng_float(&r), rng_float(&r), rng_float(&r)), v3s(0.3f));
-    }
-    for (int i = 0; i < N; i += B) ctex_insert_batch(a, s + i, B, ia + i);
-    for (int i = 0; i < N; i++) ctex_insert(b, &s[i], &ib[i]);
-    for (int i = 0; i < N; i++)
-        cr_assert_eq(memcmp(&ia[i], &ib[i], sizeof ia[i]), 0, "sample %d: infos differ", i);
-    ctex_stats sa = ctex_get_stats(a), sb = ctex_get_stats(b);
-    cr_assert_eq(sa.texels, sb.texels);
-    cr_assert_gt(sa.resizes, 0, "the textures should have grown");
-    for (uint32_t tex = 0; tex < 64; tex++) {
-        int wa, ha, wb, hb;
-        int live = ctex_texture_info(a, tex, NULL, &wa, &ha, NULL, NULL, NULL);
-        cr_assert_eq(ctex_texture_info(b, tex, NULL, &wb, &hb, NULL, NULL, NULL), live);
-        if (live < 0) continue;
-        cr_assert(wa == wb && ha == hb);
-        float *pa = malloc((size_t)wa * (size_t)ha * 3 * sizeof *pa), *pb = malloc((size_t)wa * (size_t)ha * 3 * sizeof *pb);
-        cr_assert_eq(ctex_read_patch(a, tex, 0, 0, wa, ha, pa, &err), 0);
-        cr_assert_eq(ctex_read_patch(b, tex, 0, 0, wb, hb, pb, &err), 0);
-        cr_assert_eq(memcmp(pa, pb, (size_t)wa * (size_t)ha * 3 * sizeof *pa), 0, "texture %u differs", tex);
-        free(pa);
-        free(pb);
-    }
-    free(s); free(ia); free(ib);
-    ctex_free(a);
-    ctex_free(b);
-    release(&t);
-}

@@ -1,6 +1,7 @@
 /* Texel-level tests of the corrective textures (master/ctex_tex.h):
  * the discrete Voronoi property of ring splatting (§3.4, Fig. 3), aging
- * (§3.5) and resolution changes (§3.6). */
+ * (§3.5) and resolution changes (§3.6). Over 600 lines: one module's
+ * tests, most of them exhaustive checks against a brute-force reference. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdlib.h>

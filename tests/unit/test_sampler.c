@@ -1,4 +1,5 @@
-/* Unit tests of the adaptive sample acquisition (master/sampler.h, §3.7):
+/* (Over 600 lines: one module's tests over one synthetic tracer.)
+ * Unit tests of the adaptive sample acquisition (master/sampler.h, §3.7):
  * priorities, children formulas, discarding, coverage of a still camera,
  * concentration on large errors, reprojection, epochs and determinism. The
  * "tracer" here is a plane z = -10 seen by a pinhole camera and a synthetic

@@ -1,4 +1,5 @@
-/* test_wire.c: the display-socket messages, the incremental decoder, the
+/* (Over 600 lines: the tables of broken byte strings of every message.)
+ * test_wire.c: the display-socket messages, the incremental decoder, the
  * SCENE payload, the handshake/HMAC state machine, half floats, the MPI
  * layouts and token files: round trips (encode -> decode -> encode gives the
  * same bytes) and tables of broken byte strings with the exact error each

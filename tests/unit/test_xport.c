@@ -1,4 +1,5 @@
-/* test_xport.c: the transports (UNIX, TCP over 127.0.0.1 and ::1) with the
+/* (Over 600 lines: one layer's tests over shared socket fixtures.)
+ * test_xport.c: the transports (UNIX, TCP over 127.0.0.1 and ::1) with the
  * handshake and framing on top (chan.h): every message through 1-byte reads
  * and writes, authentication over TCP, a peer that disconnects mid-message,
  * a non-corrtex peer, address parsing errors, and the patch-merging send

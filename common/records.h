@@ -2,8 +2,8 @@
  * a sample request and the sample record a tracer returns. Their wire
  * encodings (explicit little-endian, field by field) are in proto/; these
  * structs are never memcpy'd onto a wire. */
-#ifndef CT_PROTO_RECORDS_H
-#define CT_PROTO_RECORDS_H
+#ifndef CT_COMMON_RECORDS_H
+#define CT_COMMON_RECORDS_H
 
 #include <stdint.h>
 

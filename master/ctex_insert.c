@@ -1,0 +1,391 @@
+/* ctex_insert.c: sample insertion (§3.4) with the §3.6 resolution changes
+ * it triggers, one sample at a time (ctex_insert) or partitioned by texture
+ * over the thread pool (ctex_insert_par), and the refinement writes. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/log.h"
+#include "master/ctex_internal.h"
+
+/* --- samples ----------------------------------------------------------------------- */
+
+/* Resizes slot id to nw x nh (after the memory cap allowed growth). */
+static void resize(ctex *c, uint32_t id, int nw, int nh)
+{
+    ctex_tex *t = &c->slots[id].t;
+    size_t ob = ctex_tex_bytes(t->w, t->h);
+    int dir = nw > t->w || nh > t->h ? 1 : -1;
+    ct_debug("ctex", "texture %u: %dx%d -> %dx%d (mean splat radius %.2f over %u samples)", id, t->w, t->h, nw, nh,
+             (double)t->mean_r, t->since_resize);
+    if (ctex_tex_resize(t, nw, nh, NULL)) return;   /* out of memory: keep the old size */
+    c->bytes = c->bytes - ob + ctex_tex_bytes(nw, nh);
+    t->last_resize = dir;
+    t->mean_r = 0.0f;
+    t->since_resize = 0;
+    c->st.resizes++;
+    ctex_ev_alloc(c, id);
+}
+
+/* §3.6: the running mean of splat radii decides halving or doubling. With
+ * `defer` (a parallel insertion) the change is only noted, once per call,
+ * and made after every texture's samples (apply_resizes): growth takes
+ * memory that other textures compete for. */
+static void adapt_resolution(ctex *c, uint32_t id, int r, int defer)
+{
+    slot *s = &c->slots[id];
+    ctex_tex *t = &s->t;
+    uint32_t n = t->since_resize;
+    uint32_t win = (uint32_t)c->o.splat_window;
+    /* A sample flooding an empty region has a huge radius; clamping it keeps
+     * single outliers from halving a texture that is dense elsewhere. */
+    float rc = fminf((float)r, 2.0f * c->o.splat_hi);
+    t->mean_r += (rc - t->mean_r) / (float)(n < win ? n + 1 : win);
+    t->since_resize = n + 1;
+    if (t->since_resize < win || s->pend_w) return;
+    /* hysteresis: reversing the last change needs four windows of evidence */
+    int nw = t->w, nh = t->h;
+    if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
+        if (t->last_resize > 0 && t->since_resize < 4 * win) return;
+        nw = (t->w + 1) / 2; nh = (t->h + 1) / 2;
+        if (nw < c->o.tex_min) nw = t->w < c->o.tex_min ? t->w : c->o.tex_min;
+        if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
+    } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
+        if (t->last_resize < 0 && t->since_resize < 4 * win) return;
+        /* exact doublings only: an axis that would pass its bound stays */
+        nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;
+        nh = 2 * t->h <= s->max_h ? 2 * t->h : t->h;
+        if (!defer && !ctex_make_room(c, ctex_tex_bytes(nw, nh) - ctex_tex_bytes(t->w, t->h)))
+            return;   /* the memory cap denies growth */
+    } else {
+        return;
+    }
+    if (nw == t->w && nh == t->h) return;
+    if (defer) {
+        s->pend_w = nw;
+        s->pend_h = nh;
+        return;
+    }
+    resize(c, id, nw, nh);
+}
+
+/* The resolution changes noted by a parallel insertion, in slot order. */
+static void apply_resizes(ctex *c)
+{
+    for (uint32_t id = 0; id < c->nslots; id++) {
+        slot *s = &c->slots[id];
+        int nw = s->pend_w, nh = s->pend_h;
+        if (!nw) continue;
+        s->pend_w = s->pend_h = 0;
+        const ctex_tex *t = &s->t;
+        if (!s->live || (nw == t->w && nh == t->h)) continue;
+        if ((nw > t->w || nh > t->h) && !ctex_make_room(c, ctex_tex_bytes(nw, nh) - ctex_tex_bytes(t->w, t->h)))
+            continue;   /* the memory cap denies growth */
+        resize(c, id, nw, nh);
+    }
+}
+
+/* ex of a sample's splat as the prefetch stage found it, for the texture
+ * (slot and size) it was computed on. */
+typedef struct {
+    int32_t id;
+    int w, h;
+    float ex;
+} ex_hint;
+
+/* The texture a sample goes to (-1: none), and info as for a dropped one. */
+static int32_t owner(const ctex *c, const ct_sample *s, ctex_insert_info *info)
+{
+    info->tex = -1;
+    info->radius = 0;
+    info->correction = v3s(0.0f);
+    info->error = v3_sub(s->l_hq, s->l_base);
+    if (!(s->flags & CT_SAMPLE_HIT) || !v3_finite(s->l_hq) || !v3_finite(s->l_base) || !v3_finite(s->hit))
+        return -1;
+    return ctex_owner_of(c, s->node, s->tri, s->hit);
+}
+
+/* The texel of a sample on texture id, with what is displayed there now and
+ * the error against it (§3.7); -1 when it lies off the texture. */
+static int32_t locate_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *info, int *pci, int *pcj)
+{
+    float u, v;
+    if (!ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) return -1;
+    ctex_tex *t = &c->slots[id].t;
+    float fx = u * (float)t->w, fy = v * (float)t->h;
+    /* a hit more than a texel off the texture belongs to no texel */
+    if (!(fx > -1.0f && fy > -1.0f && fx < (float)t->w + 1.0f && fy < (float)t->h + 1.0f)) return -1;
+    int ci = (int)fx, cj = (int)fy;
+    if (fx < 0.0f) ci = 0;
+    if (fy < 0.0f) cj = 0;
+    if (ci >= t->w) ci = t->w - 1;
+    if (cj >= t->h) cj = t->h - 1;
+    vec3 corr = ctex_tex_sample(t, u, v);
+    info->correction = corr;
+    /* §3.7: E = L - (L' + ΔL) against what is displayed now */
+    info->error = v3_sub(s->l_hq, v3_add(s->l_base, corr));
+    info->tex = id;
+    *pci = ci;
+    *pcj = cj;
+    return id;
+}
+
+/* Splats sample s into texture id (its owner); 1 when splatted, 0 when it
+ * lies off the texture. ex comes from hint when that was computed on the
+ * same texture at the same size (bit for bit what splat_ex gives here). */
+static int insert_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *info, const ex_hint *hint, int defer)
+{
+    int ci, cj;
+    if (locate_at(c, s, id, info, &ci, &cj) < 0) return 0;
+    ctex_tex *t = &c->slots[id].t;
+    vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius);
+    float ex = 1.0f;
+    if (c->o.splat_aniso)
+        ex = hint && hint->id == id && hint->w == t->w && hint->h == t->h ? hint->ex : ctex_splat_ex_at(c, t, s->hit);
+    int r = ex == 1.0f ? ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max)
+                       : ctex_tex_splat_aniso(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex);
+    info->radius = r;
+    adapt_resolution(c, (uint32_t)id, r, defer);
+    return 1;
+}
+
+/* Texture position (in texels) of the point the ray through image position
+ * (x, y) meets on texture t: a camera-local texture maps rays to positions,
+ * an object-local one its plane through the hit p (normal t->n). */
+static bool texel_of_ray(const ctex *c, const ctex_tex *t, vec3 p, float x, float y, float *tx, float *ty)
+{
+    vec3 d = cam_ray_dir(&c->cam, c->W, c->H, x, y);
+    vec3 q = v3_add(c->cam.eye, d);
+    if (t->kind == CTEX_PROJ_OBJECT) {
+        float dn = v3_dot(d, t->n);
+        if (!(fabsf(dn) > 1e-6f)) return false;
+        q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), t->n) / dn);
+    }
+    float u, v;
+    if (!ctex_tex_project(t, q, &u, &v)) return false;
+    *tx = u * (float)t->w;
+    *ty = v * (float)t->h;
+    return isfinite(*tx) && isfinite(*ty);
+}
+
+/* Writes refinement sample s's pixel mean dl on texture id. */
+static int refine_at(ctex *c, const ct_sample *s, int32_t id, vec3 dl, ctex_insert_info *info)
+{
+    int ci, cj;
+    if (locate_at(c, s, id, info, &ci, &cj) < 0 || !v3_finite(dl)) return 0;
+    ctex_tex *t = &c->slots[id].t;
+    /* The texels the display reads for this pixel: those whose centres lie
+     * in the pixel's footprint on the texture (its corners' rays), within 4
+     * texels of the hit's; at least the hit's own. */
+    float fx = floorf(s->px), fy = floorf(s->py);
+    float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
+    bool ok = c->have_cam;
+    for (int k = 0; k < 4 && ok; k++) {
+        float tx, ty;
+        ok = texel_of_ray(c, t, s->hit, fx + (float)(k & 1), fy + (float)(k >> 1), &tx, &ty);
+        if (!ok) break;
+        x0 = fminf(x0, tx); x1 = fmaxf(x1, tx);
+        y0 = fminf(y0, ty); y1 = fmaxf(y1, ty);
+    }
+    int a = ci, b = ci, e = cj, f = cj;
+    if (ok) {
+        a = (int)ceilf(x0 - 0.5f); b = (int)floorf(x1 - 0.5f);
+        e = (int)ceilf(y0 - 0.5f); f = (int)floorf(y1 - 0.5f);
+        a = a < ci - 4 ? ci - 4 : (a > ci ? ci : a);
+        b = b > ci + 4 ? ci + 4 : (b < ci ? ci : b);
+        e = e < cj - 4 ? cj - 4 : (e > cj ? cj : e);
+        f = f > cj + 4 ? cj + 4 : (f < cj ? cj : f);
+    }
+    ctex_tex_refine(t, a < 0 ? 0 : a, e < 0 ? 0 : e, b >= t->w ? t->w - 1 : b, f >= t->h ? t->h - 1 : f, cj, dl);
+    return 1;
+}
+
+int ctex_refine(ctex *c, const ct_sample *s, vec3 dl, ctex_insert_info *info)
+{
+    int32_t id = owner(c, s, info);
+    int ok = id >= 0 && refine_at(c, s, id, dl, info);
+    if (ok) c->st.inserted++;
+    else c->st.dropped++;
+    return ok;
+}
+
+int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info)
+{
+    int32_t id = owner(c, s, info);
+    int ok = id >= 0 && insert_at(c, s, id, info, NULL, 0);
+    if (ok) c->st.inserted++;
+    else c->st.dropped++;
+    return ok;
+}
+
+/* Prefetches the texel rows a sample will read and splat first: the
+ * rectangle of its splat's first two rings (anisotropic rings reach up to
+ * 8 rows out, and a rectangle's rows are its cache misses), whose ex it
+ * leaves in *hint so that the insertion need not compute it again. Always
+ * inlined: a separate function whose only effect is __builtin_prefetch
+ * counts as pure for GCC, which then drops the calls (their result is
+ * unused) and with them the prefetches. */
+static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c, const ct_sample *s, int32_t id,
+                                                                  ex_hint *hint)
+{
+    hint->id = -1;
+    float u, v;
+    if (id < 0 || !ctex_tex_project(&c->slots[id].t, s->hit, &u, &v)) return;
+    const ctex_tex *t = &c->slots[id].t;
+    int ci = (int)(u * (float)t->w), cj = (int)(v * (float)t->h);
+    if (ci < 0 || cj < 0 || ci >= t->w || cj >= t->h) return;
+    int xk = 2, yk = 2;
+    if (c->o.splat_aniso) {
+        *hint = (ex_hint){id, t->w, t->h, ctex_splat_ex_at(c, t, s->hit)};
+        if (hint->ex != 1.0f) ctex_aniso_ring(hint->ex, 2, &xk, &yk);
+    }
+    int y0 = cj - yk < 0 ? 0 : cj - yk, y1 = cj + yk >= t->h ? t->h - 1 : cj + yk;
+    int x0 = ci - xk < 0 ? 0 : ci - xk, x1 = ci + xk >= t->w ? t->w - 1 : ci + xk;
+    for (int j = y0; j <= y1; j++) {
+        const ctex_texel *row = ctex_tex_at(t, 0, j);
+        __builtin_prefetch(row + x0, 1, 1);
+        __builtin_prefetch(row + x1, 1, 1);
+    }
+}
+
+/* --- parallel insertion -------------------------------------------------------- */
+
+enum { OWNER_TASK = 512 };   /* samples per task of the first pass */
+
+typedef struct par_job {
+    ctex *c;
+    const ct_sample *s;
+    const vec3 *dl;            /* refinement: the pixel means; NULL: splats */
+    ctex_insert_info *info;
+    size_t n;
+} par_job;
+
+/* First pass: each sample's texture (ctex_owner_of reads only the view's
+ * assignment, which no insertion changes). */
+static void owner_task(void *ctx, int worker, size_t task)
+{
+    (void)worker;
+    par_job *j = ctx;
+    size_t a = task * OWNER_TASK, e = a + OWNER_TASK < j->n ? a + OWNER_TASK : j->n;
+    for (size_t i = a; i < e; i++) {
+        /* the leaf entry the owner depends on, a few samples ahead */
+        if (i + 8 < e && j->s[i + 8].tri < j->c->h.ntris) __builtin_prefetch(&j->c->h.tri_leaf[j->s[i + 8].tri], 0, 1);
+        j->c->par_own[i] = owner(j->c, &j->s[i], &j->info[i]);
+    }
+}
+
+/* Second pass: one texture's samples, in their order, by one thread; the
+ * texel rows of the samples four ahead are prefetched (the loop is bound by
+ * memory latency). */
+static void group_task(void *ctx, int worker, size_t task)
+{
+    (void)worker;
+    enum { AHEAD = 4 };
+    par_job *j = ctx;
+    ctex *c = j->c;
+    uint32_t id = c->par_groups[task];
+    const uint32_t *ix = c->par_order + c->par_first[id];
+    uint32_t n = c->par_count[id], done = 0;
+    ex_hint hint[2 * AHEAD];   /* sample k's in hint[k % (2 AHEAD)] */
+    for (uint32_t k = 0; k < n && k < AHEAD; k++) prefetch_sample(c, &j->s[ix[k]], (int32_t)id, &hint[k % (2 * AHEAD)]);
+    for (uint32_t k = 0; k < n; k++) {
+        uint32_t i = ix[k];
+        if (k + AHEAD < n) prefetch_sample(c, &j->s[ix[k + AHEAD]], (int32_t)id, &hint[(k + AHEAD) % (2 * AHEAD)]);
+        if (j->dl) done += (uint32_t)refine_at(c, &j->s[i], (int32_t)id, j->dl[i], &j->info[i]);
+        else done += (uint32_t)insert_at(c, &j->s[i], (int32_t)id, &j->info[i], &hint[k % (2 * AHEAD)], 1);
+    }
+    c->par_done[id] = done;
+}
+
+/* Grows the per-call scratch to n samples and the slots. */
+static int par_scratch(ctex *c, size_t n)
+{
+    if (n > c->par_cap) {
+        size_t cap = n < 1024 ? 1024 : n;
+        int32_t *own = realloc(c->par_own, cap * sizeof *own);
+        if (own) c->par_own = own;
+        uint32_t *ord = realloc(c->par_order, cap * sizeof *ord);
+        if (ord) c->par_order = ord;
+        if (!own || !ord) return CT_ENOMEM;
+        c->par_cap = cap;
+    }
+    if (c->nslots > c->par_slots) {
+        uint32_t ns = c->cap_slots;
+        uint32_t *f = realloc(c->par_first, ns * sizeof *f);
+        if (f) c->par_first = f;
+        uint32_t *k = realloc(c->par_count, ns * sizeof *k);
+        if (k) c->par_count = k;
+        uint32_t *g = realloc(c->par_groups, ns * sizeof *g);
+        if (g) c->par_groups = g;
+        uint32_t *d = realloc(c->par_done, ns * sizeof *d);
+        if (d) c->par_done = d;
+        uint64_t *y = realloc(c->par_keys, ns * sizeof *y);
+        if (y) c->par_keys = y;
+        if (!f || !k || !g || !d || !y) return CT_ENOMEM;
+        c->par_slots = ns;
+    }
+    return CT_OK;
+}
+
+static int by_key(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl, size_t n, ctex_insert_info *info)
+{
+    if (n == 0) return 0;
+    if (par_scratch(c, n)) {
+        /* without scratch memory: one sample at a time (resolution changes
+         * then come at once, as with ctex_insert) */
+        size_t done = 0;
+        for (size_t i = 0; i < n; i++) done += (size_t)(dl ? ctex_refine(c, &s[i], dl[i], &info[i]) : ctex_insert(c, &s[i], &info[i]));
+        return done;
+    }
+    par_job j = {c, s, dl, info, n};
+    pool_run(pool, (n + OWNER_TASK - 1) / OWNER_TASK, owner_task, &j);
+    /* group the samples by texture (a counting sort keeps their order) */
+    memset(c->par_count, 0, c->nslots * sizeof *c->par_count);
+    size_t dropped = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (c->par_own[i] >= 0) c->par_count[c->par_own[i]]++;
+        else dropped++;
+    }
+    uint32_t ngroups = 0, at = 0;
+    for (uint32_t id = 0; id < c->nslots; id++) {
+        c->par_first[id] = at;
+        at += c->par_count[id];
+        if (c->par_count[id]) c->par_groups[ngroups++] = id;
+    }
+    for (size_t i = 0; i < n; i++)
+        if (c->par_own[i] >= 0) c->par_order[c->par_first[c->par_own[i]]++] = (uint32_t)i;
+    for (uint32_t id = 0; id < c->nslots; id++) c->par_first[id] -= c->par_count[id];
+    if (pool_threads(pool) > 1 && ngroups > 1) {
+        /* larger groups first, so that the longest tasks start early */
+        for (uint32_t g = 0; g < ngroups; g++)
+            c->par_keys[g] = (uint64_t)(UINT32_MAX - c->par_count[c->par_groups[g]]) << 32 | c->par_groups[g];
+        qsort(c->par_keys, ngroups, sizeof *c->par_keys, by_key);
+        for (uint32_t g = 0; g < ngroups; g++) c->par_groups[g] = (uint32_t)c->par_keys[g];
+    }
+    pool_run(pool, ngroups, group_task, &j);
+    size_t done = 0;
+    for (uint32_t g = 0; g < ngroups; g++) {
+        uint32_t id = c->par_groups[g];
+        done += c->par_done[id];
+        dropped += c->par_count[id] - c->par_done[id];
+    }
+    c->st.inserted += done;
+    c->st.dropped += dropped;
+    if (!dl) apply_resizes(c);
+    return done;
+}
+
+size_t ctex_insert_par(ctex *c, ct_pool *pool, const ct_sample *s, size_t n, ctex_insert_info *info)
+{
+    return run_par(c, pool, s, NULL, n, info);
+}
+
+size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl, size_t n, ctex_insert_info *info)
+{
+    return run_par(c, pool, s, dl, n, info);
+}

@@ -1,0 +1,307 @@
+/* drive.c: the master's sample loop (drive.h). */
+#include "master/drive.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/timer.h"
+#include "proto/wire_mpi.h"
+
+#define MAX_WINDOW 64
+
+typedef struct lane {
+    drv_lane pub;
+    double sent_at[MAX_WINDOW];           /* send times of the batches in flight (FIFO) */
+    unsigned char in_round[MAX_WINDOW];   /* whether each of them belongs to a lockstep round */
+    int head;
+    double last_reply;
+} lane;
+
+struct drv {
+    sess *s;
+    tport *p;
+    sink k;
+    drv_options o;
+    lane *lanes;
+    int rr;                /* free running: the lane served first by the next call */
+    uint64_t batch_id;
+    bool lockstep;
+    bool in_frame;
+    uint32_t frame_left, frame_samples;
+    int round_out;         /* batches of the current round not yet back */
+    ct_sample *round_buf;
+    uint32_t round_n, round_cap;
+    ct_request *reqs;
+    uint32_t reqs_cap;
+};
+
+#define OF(f) offsetof(drv_options, f)
+static const optab OPTS[] = {
+    {"window", 0, OPTAB_INT, OF(window), 1, MAX_WINDOW, "3", "N", "request batches in flight per tracer", NULL},
+    {"batch-min", 0, OPTAB_INT, OF(batch_min), 1, WIRE_MPI_MAX_BATCH, "16", "N",
+     "smallest free-running batch (requests)", NULL},
+    {"batch-max", 0, OPTAB_INT, OF(batch_max), 1, WIRE_MPI_MAX_BATCH, "4096", "N",
+     "largest free-running batch (requests)", NULL},
+    {"batch-ms", 0, OPTAB_DOUBLE, OF(batch_ms), 0.1, 10000, "20", "X",
+     "target tracing time of one free-running batch (ms)", NULL},
+    {"round", 0, OPTAB_INT, OF(round), 1, WIRE_MPI_MAX_BATCH, "256", "N",
+     "lockstep: requests per round, inserted in id order", NULL},
+};
+#undef OF
+
+const optab *drv_options_table(size_t *n)
+{
+    *n = OPTAB_COUNT(OPTS);
+    return OPTS;
+}
+
+static int grow(void **p, uint32_t *cap, uint32_t need, size_t elem, ct_error *err)
+{
+    if (need <= *cap) return 0;
+    uint32_t n = *cap ? *cap : 256;
+    while (n < need) n *= 2;
+    void *q = realloc(*p, (size_t)n * elem);
+    if (!q) return ct_fail(err, CT_ENOMEM, "master: out of memory for %u records", n);
+    *p = q;
+    *cap = n;
+    return 0;
+}
+
+int drv_new(sess *s, tport *p, const sink *k, const drv_options *o, drv **out, ct_error *err)
+{
+    *out = NULL;
+    if (o->batch_min > o->batch_max)
+        return ct_fail(err, CT_EINVAL, "--batch-min %d is larger than --batch-max %d", o->batch_min, o->batch_max);
+    drv *d = calloc(1, sizeof *d);
+    if (!d || !(d->lanes = calloc((size_t)p->lanes, sizeof *d->lanes))) {
+        free(d);
+        return ct_fail(err, CT_ENOMEM, "master: out of memory");
+    }
+    d->s = s;
+    d->p = p;
+    if (k) d->k = *k;
+    d->o = *o;
+    if (d->o.window > MAX_WINDOW) d->o.window = MAX_WINDOW;
+    *out = d;
+    return CT_OK;
+}
+
+void drv_free(drv *d)
+{
+    if (!d) return;
+    free(d->lanes);
+    free(d->round_buf);
+    free(d->reqs);
+    free(d);
+}
+
+int drv_set_view(drv *d, const ct_camera *cam, int width, int height, ct_error *err)
+{
+    int rc = sess_set_view(d->s, cam, width, height, err);
+    if (rc <= 0) return rc;
+    /* Every lane hears of it: queued batches of older epochs are answered empty. */
+    tport_view v = {sess_epoch(d->s), (uint32_t)width, (uint32_t)height, *cam};
+    if (d->p->ops->view(d->p, &v, err)) return CT_EIO;
+    return 1;
+}
+
+void drv_begin_frame(drv *d, uint32_t k)
+{
+    d->lockstep = true;
+    d->in_frame = true;
+    d->frame_left = k;
+    d->frame_samples = 0;
+}
+
+void drv_cut_frame(drv *d)
+{
+    d->frame_left = 0;
+}
+
+bool drv_in_frame(const drv *d)
+{
+    return d->in_frame;
+}
+
+void drv_set_lockstep(drv *d, bool on)
+{
+    d->lockstep = on;
+}
+
+int drv_inflight(const drv *d)
+{
+    int n = 0;
+    for (int i = 0; i < d->p->lanes; i++) n += d->lanes[i].pub.inflight;
+    return n;
+}
+
+const drv_lane *drv_lane_get(const drv *d, int i)
+{
+    return &d->lanes[i].pub;
+}
+
+int drv_check(const drv *d, double now, double timeout_s, ct_error *err)
+{
+    for (int i = 0; i < d->p->lanes; i++) {
+        const lane *l = &d->lanes[i];
+        if (l->pub.inflight > 0 && now - l->sent_at[l->head] > timeout_s)
+            return ct_fail(err, CT_EIO, "tracer rank %d has not answered for %.0f s (%d batches outstanding)", i + 1,
+                           now - l->sent_at[l->head], l->pub.inflight);
+    }
+    return 0;
+}
+
+/* Inserts samples, counting those of the frame in progress. */
+static int insert(drv *d, const ct_sample *smp, uint32_t n, ct_error *err)
+{
+    sess_counters before = sess_get_counters(d->s);
+    int rc = sess_insert(d->s, smp, n, &d->k, err);
+    if (d->in_frame) d->frame_samples += (uint32_t)(sess_get_counters(d->s).inserted - before.inserted);
+    return rc;
+}
+
+static int by_id(const void *a, const void *b)
+{
+    uint64_t x = ((const ct_sample *)a)->request_id, y = ((const ct_sample *)b)->request_id;
+    return x < y ? -1 : x > y;
+}
+
+/* Takes every answered batch; 1 when any was. */
+static int receive(drv *d, ct_error *err)
+{
+    int any = 0;
+    tport_reply r;
+    int got;
+    while ((got = d->p->ops->poll(d->p, &r, err)) > 0) {
+        lane *l = &d->lanes[r.lane];
+        double now = ct_now();
+        /* A lane answers its batches in order: the oldest one is this. */
+        int was_round = l->pub.inflight > 0 && l->in_round[l->head];
+        if (l->pub.inflight > 0) {
+            /* The batch was traced from when it was sent or when the
+             * previous answer left the tracer, whichever is later. */
+            double start = l->sent_at[l->head];
+            if (l->last_reply > start) start = l->last_reply;
+            double dt = now - start;
+            l->head = (l->head + 1) % MAX_WINDOW;
+            l->pub.inflight--;
+            if (r.n > 0 && dt > 1e-6) {
+                double rate = r.n / dt;
+                l->pub.rate = l->pub.rate > 0 ? 0.7 * l->pub.rate + 0.3 * rate : rate;
+            }
+        }
+        l->last_reply = now;
+        l->pub.samples += r.n;
+        any = 1;
+        int rc;
+        if (was_round) {
+            if ((rc = grow((void **)&d->round_buf, &d->round_cap, d->round_n + r.n, sizeof *d->round_buf, err)))
+                return rc;
+            memcpy(d->round_buf + d->round_n, r.samples, r.n * sizeof *r.samples);
+            d->round_n += r.n;
+            if (--d->round_out == 0) {
+                qsort(d->round_buf, d->round_n, sizeof *d->round_buf, by_id);
+                rc = insert(d, d->round_buf, d->round_n, err);
+                d->round_n = 0;
+                if (rc) return rc;
+            }
+        } else if ((rc = insert(d, r.samples, r.n, err))) {
+            return rc;
+        }
+    }
+    return got < 0 ? got : any;
+}
+
+static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, ct_error *err)
+{
+    ct_camera cam;
+    int w, h;
+    sess_view(d->s, &cam, &w, &h);
+    tport_view v = {sess_epoch(d->s), (uint32_t)w, (uint32_t)h, cam};
+    int rc = d->p->ops->submit(d->p, i, ++d->batch_id, &v, reqs, n, err);
+    if (rc) return rc;
+    lane *l = &d->lanes[i];
+    int slot = (l->head + l->pub.inflight) % MAX_WINDOW;
+    l->sent_at[slot] = ct_now();
+    l->in_round[slot] = (unsigned char)round;
+    l->pub.inflight++;
+    return 0;
+}
+
+static int next(drv *d, uint32_t n, ct_error *err)
+{
+    int rc = grow((void **)&d->reqs, &d->reqs_cap, n, sizeof *d->reqs, err);
+    return rc ? rc : sess_next(d->s, d->reqs, n, err);
+}
+
+static uint32_t batch_size(const drv *d, const lane *l)
+{
+    double b = l->pub.rate > 0 ? l->pub.rate * d->o.batch_ms / 1000.0 : d->o.batch_min;
+    if (b < d->o.batch_min) b = d->o.batch_min;
+    if (b > d->o.batch_max) b = d->o.batch_max;
+    return (uint32_t)b;
+}
+
+/* Free running: fill every lane's window, one batch per lane per pass,
+ * each call starting from the next lane: when the queue runs short (every
+ * pixel handed out, refinement asking for a few pixels at a time), the
+ * lane served first gets what there is, and that must not always be the
+ * same lane. */
+static int feed_free(drv *d, ct_error *err)
+{
+    if (!sess_has_view(d->s)) return 0;
+    int any = 0, T = d->p->lanes, first = d->rr;
+    d->rr = (d->rr + 1) % T;
+    for (int pass = 0; pass < d->o.window; pass++) {
+        int gave = 0;
+        for (int j = 0; j < T; j++) {
+            int i = (first + pass + j) % T;
+            lane *l = &d->lanes[i];
+            if (l->pub.inflight >= d->o.window) continue;
+            int k = next(d, batch_size(d, l), err);
+            if (k < 0) return k;
+            if (k == 0) return any;   /* every pixel of this view is handed out */
+            int rc = submit(d, i, d->reqs, (uint32_t)k, 0, err);
+            if (rc) return rc;
+            any = gave = 1;
+        }
+        if (!gave) break;
+    }
+    return any;
+}
+
+/* Lockstep: the next round of the frame, or its end. */
+static int feed_frame(drv *d, ct_error *err)
+{
+    if (!d->in_frame || d->round_out > 0) return 0;
+    uint32_t n = d->frame_left < (uint32_t)d->o.round ? d->frame_left : (uint32_t)d->o.round;
+    int k = n ? next(d, n, err) : 0;
+    if (k < 0) return k;
+    if (k == 0) {
+        d->in_frame = false;
+        sink_frame f = {d->frame_samples, d->frame_left > 0};
+        int rc = d->k.frame ? d->k.frame(d->k.user, d->s, &f, err) : 0;
+        return rc ? rc : 1;
+    }
+    if (d->frame_left != UINT32_MAX) d->frame_left -= (uint32_t)k;
+    /* One part per lane; the split does not change the result. */
+    uint32_t T = (uint32_t)d->p->lanes, per = ((uint32_t)k + T - 1) / T;
+    for (uint32_t i = 0; i < T; i++) {
+        uint32_t b = i * per;
+        if (b >= (uint32_t)k) break;
+        uint32_t e = b + per > (uint32_t)k ? (uint32_t)k : b + per;
+        int rc = submit(d, (int)i, d->reqs + b, e - b, 1, err);
+        if (rc) return rc;
+        d->round_out++;
+    }
+    return 1;
+}
+
+int drv_step(drv *d, ct_error *err)
+{
+    int got = receive(d, err);
+    if (got < 0) return got;
+    int fed = d->lockstep ? feed_frame(d, err) : feed_free(d, err);
+    if (fed < 0) return fed;
+    return got || fed;
+}

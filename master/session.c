@@ -1,0 +1,284 @@
+/* session.c: the master's engine (session.h). */
+#include "master/session.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/log.h"
+#include "common/timer.h"
+#include "master/shown.h"
+
+#define COMPONENT "master"
+
+struct sess {
+    rq_options rq_opt;
+    ctex_options ctex_opt;
+    uint64_t seed;
+    const ct_radmesh *mesh;
+    ct_pool *pool;
+    ctex *tex;
+    rq_engine *rq;
+    bool have_view;
+    ct_camera cam;
+    int w, h;
+    uint32_t epoch;        /* internal: what the tracers see */
+    uint32_t rq_epoch;     /* the request queue's own (it starts over with the image size) */
+    uint32_t *shown;
+    size_t shown_cap;
+    shown_buf *sb;
+    sess_counters n;
+    /* one chunk: its splatted and refinement samples */
+    ct_sample *splat, *refine, *write;   /* write: the refinement samples that write their pixel's mean */
+    vec3 *means;
+    ctex_insert_info *info;
+};
+
+#define OF(f) offsetof(sess_options, f)
+static const optab OPTS[] = {
+    {"master-threads", 0, OPTAB_INT, OF(threads), 0, POOL_MAX_THREADS, "0", "N",
+     "threads of the master inserting samples; 0: the cores it may use", NULL},
+};
+#undef OF
+
+const optab *sess_options_table(size_t *n)
+{
+    *n = OPTAB_COUNT(OPTS);
+    return OPTS;
+}
+
+int sess_new(const sess_config *c, sess **out, ct_error *err)
+{
+    *out = NULL;
+    sess *s = calloc(1, sizeof *s);
+    if (!s) return ct_fail(err, CT_ENOMEM, "master: out of memory");
+    if (c->rq) s->rq_opt = *c->rq;
+    else rq_options_default(&s->rq_opt);
+    s->ctex_opt = c->ctex ? *c->ctex : ctex_options_default();
+    s->seed = c->seed;
+    s->mesh = c->mesh;
+    s->n.all_positive = true;
+    int threads = c->opt.threads > 0 ? c->opt.threads : pool_cpus();
+    if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
+    s->splat = malloc(SESS_CHUNK * sizeof *s->splat);
+    s->refine = malloc(SESS_CHUNK * sizeof *s->refine);
+    s->write = malloc(SESS_CHUNK * sizeof *s->write);
+    s->means = malloc(SESS_CHUNK * sizeof *s->means);
+    s->info = malloc(SESS_CHUNK * sizeof *s->info);
+    int rc = s->splat && s->refine && s->write && s->means && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
+    if (!rc) rc = pool_new(threads, &s->pool, err);
+    if (!rc) rc = ctex_new(c->mesh, c->mats, c->nmats, &s->ctex_opt, &s->tex, err);
+    if (rc) {
+        sess_free(s);
+        return rc;
+    }
+    *out = s;
+    return CT_OK;
+}
+
+void sess_free(sess *s)
+{
+    if (!s) return;
+    rq_free(s->rq);
+    ctex_free(s->tex);
+    pool_free(s->pool);
+    shown_buf_free(s->sb);
+    free(s->shown);
+    free(s->splat);
+    free(s->refine);
+    free(s->write);
+    free(s->means);
+    free(s->info);
+    free(s);
+}
+
+int sess_threads(const sess *s)
+{
+    return pool_threads(s->pool);
+}
+
+bool sess_same_view(const sess *s, const ct_camera *cam, int width, int height)
+{
+    return s->have_view && width == s->w && height == s->h && memcmp(cam, &s->cam, sizeof *cam) == 0;
+}
+
+int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error *err)
+{
+    if (sess_same_view(s, cam, width, height)) return 0;
+    double t0 = ct_now();
+    int rc;
+    if (!s->rq || width != s->w || height != s->h) {
+        rq_free(s->rq);
+        s->rq = NULL;
+        s->have_view = false;   /* nothing is handed out until a camera is accepted */
+        if ((rc = rq_new(&s->rq, width, height, cam, &s->rq_opt, s->seed, err))) return rc;
+        s->rq_epoch = 0;
+    } else {
+        if ((rc = rq_set_camera(s->rq, cam, s->rq_epoch + 1, err))) return rc;
+        s->rq_epoch++;
+    }
+    s->have_view = false;
+    size_t npx = (size_t)width * (size_t)height;
+    if (npx > s->shown_cap) {
+        free(s->shown);
+        s->shown = malloc(npx * sizeof *s->shown);
+        s->shown_cap = s->shown ? npx : 0;
+        if (!s->shown) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d shown-node map", width, height);
+    }
+    ctex_set_clock(s->tex, ct_now_us());   /* stamps of the textures it makes */
+    if ((rc = ctex_set_camera(s->tex, cam, width, height, err))) return rc;
+    double t1 = ct_now();
+    if ((rc = shown_render(s->mesh, cam, width, height, s->pool, &s->sb, RQ_NODE_NONE, s->shown, err))) return rc;
+    ct_debug(COMPONENT, "view %dx%d: queue and textures %.1f ms, shown-node map %.1f ms (%u triangles, %d threads)",
+             width, height, 1e3 * (t1 - t0), 1e3 * (ct_now() - t1), s->mesh->ntris, pool_threads(s->pool));
+    s->cam = *cam;
+    s->w = width;
+    s->h = height;
+    s->have_view = true;
+    s->epoch++;
+    s->n.t_texture += ct_now() - t0;
+    return 1;
+}
+
+bool sess_has_view(const sess *s)
+{
+    return s->have_view;
+}
+
+void sess_view(const sess *s, ct_camera *cam, int *width, int *height)
+{
+    if (cam) *cam = s->cam;
+    if (width) *width = s->w;
+    if (height) *height = s->h;
+}
+
+uint32_t sess_epoch(const sess *s)
+{
+    return s->epoch;
+}
+
+int sess_next(sess *s, ct_request *out, uint32_t n, ct_error *err)
+{
+    if (!s->have_view || n == 0) return 0;
+    int k = rq_next_batch(s->rq, out, n > INT32_MAX ? INT32_MAX : (int)n, err);
+    for (int i = 0; i < k; i++) out[i].epoch = s->epoch;
+    return k;
+}
+
+/* The node the interactive image shows where sample x lies, for §3.7's
+ * check. The map holds pixel centres; a sample between four centres is
+ * taken to show what any of them shows, since an edge between two parts
+ * may pass anywhere between two centres: otherwise every sample beside a
+ * silhouette would count as a disagreement about visibility. The sample's
+ * own node when one of the four shows it, else the one at its pixel. */
+static uint32_t shown_at(const sess *s, const ct_sample *x)
+{
+    float fx = floorf(x->px), fy = floorf(x->py);
+    if (!(fx >= 0.0f && fy >= 0.0f && fx < (float)s->w && fy < (float)s->h)) return RQ_NODE_UNKNOWN;
+    uint32_t hit = (x->flags & CT_SAMPLE_HIT) ? x->node : RQ_NODE_NONE;
+    uint32_t own = s->shown[(size_t)fy * (size_t)s->w + (size_t)fx];
+    if (own == hit) return hit;   /* most samples: one look */
+    int x0 = (int)floorf(x->px - 0.5f), y0 = (int)floorf(x->py - 0.5f);
+    for (int j = y0; j <= y0 + 1; j++)
+        for (int i = x0; i <= x0 + 1; i++) {
+            int ci = i < 0 ? 0 : i >= s->w ? s->w - 1 : i, cj = j < 0 ? 0 : j >= s->h ? s->h - 1 : j;
+            if (s->shown[(size_t)cj * (size_t)s->w + (size_t)ci] == hit) return hit;
+        }
+    return own;
+}
+
+static void count(sess *s, const ct_sample *x, const ctex_insert_info *info)
+{
+    s->n.inserted++;
+    if (info->tex < 0) s->n.no_texture++;
+    vec3 c = info->correction, d = v3_sub(x->l_hq, x->l_base);
+    if (c.x < 0 || c.y < 0 || c.z < 0 || d.x < 0 || d.y < 0 || d.z < 0) s->n.all_positive = false;
+}
+
+static void rejected(sess *s, const ct_sample *x, ct_error *err)
+{
+    ct_warn(COMPONENT, "sample %llu rejected by the request queue: %s", (unsigned long long)x->request_id, err->msg);
+    ct_error_clear(err);
+    s->n.rejected++;
+}
+
+/* One chunk (at most SESS_CHUNK samples). */
+static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+{
+    uint32_t m = 0, nr = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        if (smp[i].epoch != s->epoch) s->n.stale++;
+        else if (rq_refines(s->rq, smp[i].request_id)) s->refine[nr++] = smp[i];
+        else s->splat[m++] = smp[i];
+    }
+    ctex_insert_par(s->tex, s->pool, s->splat, m, s->info);
+    for (uint32_t j = 0; j < m; j++) {
+        ct_sample *x = &s->splat[j];
+        count(s, x, &s->info[j]);
+        x->epoch = s->rq_epoch;
+        if (rq_report(s->rq, x, s->info[j].error, shown_at(s, x), err) < 0) rejected(s, x, err);
+    }
+    /* Refinement samples are not splatted: their pixel's mean goes into
+     * their texel once the queue has them. */
+    uint32_t kept = 0, nw = 0;
+    for (uint32_t j = 0; j < nr; j++) {
+        ct_sample *x = &s->refine[j];
+        x->epoch = s->rq_epoch;
+        int rc = rq_report(s->rq, x, v3s(0.0f), shown_at(s, x), err);
+        if (rc < 0) {
+            rejected(s, x, err);
+            continue;
+        }
+        s->refine[kept++] = *x;
+        /* a sample on another node than its pixel's first is counted, not
+         * written (rq_refine.h) */
+        if (rc & RQ_REPORT_REFINE) {
+            s->write[nw] = *x;
+            s->means[nw++] = rq_pixel_mean(s->rq, x->px, x->py);
+        }
+    }
+    ctex_refine_par(s->tex, s->pool, s->write, s->means, nw, s->info);
+    const ctex_insert_info unwritten = {.tex = -1};
+    for (uint32_t j = 0, w = 0; j < kept; j++) {
+        bool written = w < nw && s->write[w].request_id == s->refine[j].request_id;
+        count(s, &s->refine[j], written ? &s->info[w++] : &unwritten);
+    }
+    if (k && k->samples) {
+        if (m) k->samples(k->user, s->splat, m);
+        if (kept) k->samples(k->user, s->refine, kept);
+    }
+}
+
+int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+{
+    if (!s->have_view) {
+        s->n.stale += n;
+        return CT_OK;
+    }
+    double t0 = ct_now();
+    ctex_set_clock(s->tex, ct_now_us());
+    for (uint32_t i = 0; i < n; i += SESS_CHUNK) insert_chunk(s, smp + i, n - i < SESS_CHUNK ? n - i : SESS_CHUNK, k, err);
+    s->n.t_texture += ct_now() - t0;
+    return CT_OK;
+}
+
+ctex *sess_textures(sess *s)
+{
+    return s->tex;
+}
+
+void sess_queue_stats(const sess *s, rq_stats *st)
+{
+    if (s->rq) rq_stats_get(s->rq, st);
+    else memset(st, 0, sizeof *st);
+}
+
+sess_counters sess_get_counters(const sess *s)
+{
+    return s->n;
+}
+
+const uint32_t *sess_shown(const sess *s)
+{
+    return s->have_view ? s->shown : NULL;
+}

@@ -1,0 +1,109 @@
+/* session.h: the master's engine as one object, the same in corrtex-render
+ * and in corrtex converge: the request queue (sampler.h), the texture
+ * hierarchy and corrective textures (ctex.h), the epochs of the current
+ * view, its shown-node map (shown.h: which part the interactive image shows
+ * at each pixel, so that §3.7's node-mismatch check runs wherever the
+ * session runs) and the master's threads (common/pool.h).
+ *
+ * Samples go in through sess_insert in the order given, in chunks of
+ * SESS_CHUNK: a chunk's samples are splatted on the threads, partitioned by
+ * texture (ctex_insert_par), and then reported to the request queue one by
+ * one in their order with the errors the splats measured; refinement
+ * samples (docs/sampling.md) are not splatted: after the others they are
+ * reported, and those the queue takes into their pixel's mean write it
+ * (ctex_refine_par). So the textures and the queue depend on the order of the
+ * samples and never on the number of threads: lockstep rounds, inserted in
+ * request-id order, give the same frames for any number of tracer ranks and
+ * master threads. A sink (sink.h) hears of every inserted sample. Owns the
+ * sess_ prefix. */
+#ifndef CT_MASTER_SESSION_H
+#define CT_MASTER_SESSION_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "common/camera.h"
+#include "common/error.h"
+#include "common/optab.h"
+#include "common/pool.h"
+#include "common/radmesh.h"
+#include "common/records.h"
+#include "common/scene.h"
+#include "master/ctex.h"
+#include "master/sampler.h"
+#include "master/sink.h"
+
+/* Samples splatted together (the unit of the deferred resolution changes,
+ * ctex_insert_par): fixed, so that results do not depend on how samples
+ * arrive. */
+#define SESS_CHUNK 1024u
+
+typedef struct sess_options {
+    int threads;   /* master threads inserting samples; 0: the cores this process may use */
+} sess_options;
+
+/* The option table (--master-threads). */
+const optab *sess_options_table(size_t *n);
+
+typedef struct sess_config {
+    const ct_radmesh *mesh;          /* the interactive solution (kept by the caller) */
+    const scene_material *mats;      /* the scene's materials */
+    uint32_t nmats;
+    const rq_options *rq;
+    const ctex_options *ctex;
+    uint64_t seed;
+    sess_options opt;
+} sess_config;
+
+/* Counters since the start. */
+typedef struct sess_counters {
+    uint64_t inserted;     /* samples inserted (splatted or not) */
+    uint64_t no_texture;   /* ... of them without a texture (a miss, culled, off its texture) */
+    uint64_t stale;        /* samples of an older view, ignored */
+    uint64_t rejected;     /* samples the request queue refused (logged) */
+    bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */
+    double t_texture;      /* seconds in insertion and view changes */
+} sess_counters;
+
+typedef struct sess sess;
+
+int sess_new(const sess_config *c, sess **out, ct_error *err);
+void sess_free(sess *s);
+
+/* The master's threads. */
+int sess_threads(const sess *s);
+
+/* Sets the view: 1 when it starts a new epoch (the request queue starts
+ * over or reprojects, the textures are aged and reassigned, the shown-node
+ * map is drawn), 0 when it is the current view, negative for a camera or
+ * image the engines refuse (then there is no view until the next one). */
+int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error *err);
+
+bool sess_has_view(const sess *s);
+bool sess_same_view(const sess *s, const ct_camera *cam, int width, int height);
+void sess_view(const sess *s, ct_camera *cam, int *width, int *height);
+
+/* The epoch of the current view: what requests carry to the tracers. */
+uint32_t sess_epoch(const sess *s);
+
+/* Pops up to n requests of the current view, stamped with its epoch;
+ * fewer only when every pixel has been handed out (0 without a view). */
+int sess_next(sess *s, ct_request *out, uint32_t n, ct_error *err);
+
+/* Inserts n samples in this order (see above); samples of an older epoch
+ * are counted and ignored. sink (may be NULL) gets the inserted ones. */
+int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err);
+
+/* The corrective textures (for a sink that sends or draws them). */
+ctex *sess_textures(sess *s);
+
+/* The request queue's counters (zero without a view). */
+void sess_queue_stats(const sess *s, rq_stats *st);
+
+sess_counters sess_get_counters(const sess *s);
+
+/* The shown-node map of the current view (width x height, RQ_NODE_NONE for
+ * background), NULL without a view. */
+const uint32_t *sess_shown(const sess *s);
+
+#endif

@@ -1,0 +1,362 @@
+/* The master's session and loop in one process (master/session.h,
+ * master/drive.h) over the in-process tracer port (tracer/tport_local.h,
+ * the real tracer) with a sink that records: the shown-node map is the
+ * interactive image's item buffer; a live run (lockstep frames, two lanes,
+ * two master threads) and an offline one (checkpoints, one lane, one
+ * thread) of the same requests give the same textures; samples that hit
+ * another node than the one shown get mismatch children. Cornell at 64x64
+ * with the radiosity stand-in. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/pool.h"
+#include "common/radmesh.h"
+#include "common/scene.h"
+#include "master/drive.h"
+#include "master/session.h"
+#include "master/sink.h"
+#include "tracer/tport_local.h"
+#include "tracer/tracer.h"
+
+#define W 64
+#define H 64
+#define SCENE "scenes/cornell/cornell.json"
+
+static ct_error err;
+static ct_scene *scene;
+static ct_radmesh mesh;
+static trc_tracer *tracer;
+static ct_camera cam;
+
+static void setup(void)
+{
+    cr_assert_eq(scene_load(SCENE, &scene, &err), 0, "%s", err.msg);
+    cr_assert_eq(rmesh_from_scene(scene, v3s(0.3f), &mesh, &err), 0, "%s", err.msg);
+    trc_options to;
+    trc_options_default(&to, TRC_MODE_DRT);
+    to.shadow_rays = 1;
+    to.branch = 1;
+    to.depth = 2;
+    cr_assert_eq(trc_new(scene, &mesh, &to, &tracer, &err), 0, "%s", err.msg);
+    int ci = scene_find_camera(scene, "front");
+    cr_assert_geq(ci, 0);
+    cam = scene->cams[ci].cam;
+}
+
+static void teardown(void)
+{
+    trc_free(tracer);
+    rmesh_free(&mesh);
+    scene_free(scene);
+}
+
+TestSuite(session, .init = setup, .fini = teardown, .timeout = 120);
+
+static sess *new_session(const ct_radmesh *m, int threads)
+{
+    rq_options ro;
+    rq_options_default(&ro);
+    ctex_options co = ctex_options_default();
+    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, {threads}};
+    sess *s = NULL;
+    cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
+    cr_assert_eq(sess_threads(s), threads);
+    return s;
+}
+
+/* The primary hit's part at every pixel centre, traced. */
+static void traced_nodes(uint32_t *out)
+{
+    ct_request *req = calloc(W * H, sizeof *req);
+    ct_sample *smp = calloc(W * H, sizeof *smp);
+    for (int i = 0; i < W * H; i++)
+        req[i] = (ct_request){.id = (uint64_t)i + 1, .px = (float)(i % W) + 0.5f, .py = (float)(i / W) + 0.5f};
+    trc_view v = {cam, W, H};
+    trc_trace_par(tracer, NULL, &v, req, W * H, smp, true, NULL);
+    for (int i = 0; i < W * H; i++) out[i] = (smp[i].flags & CT_SAMPLE_HIT) ? smp[i].node : RQ_NODE_NONE;
+    free(req);
+    free(smp);
+}
+
+Test(session, shown_map_is_the_item_buffer)
+{
+    static uint32_t traced[W * H];
+    traced_nodes(traced);
+    for (int threads = 1; threads <= 3; threads++) {
+        sess *s = new_session(&mesh, threads);
+        cr_assert_null(sess_shown(s));
+        cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
+        const uint32_t *shown = sess_shown(s);
+        cr_assert_not_null(shown);
+        int same = 0;
+        for (int i = 0; i < W * H; i++) same += shown[i] == traced[i];
+        /* only pixel centres on an edge between parts may differ */
+        cr_assert_geq(same, W * H * 98 / 100, "%d threads: %d of %d pixels agree with the traced hits", threads, same,
+                      W * H);
+        sess_free(s);
+    }
+}
+
+/* --- a sink that records ------------------------------------------------------ */
+
+typedef struct recording {
+    ct_sample *s;
+    size_t n, cap;
+    int frames;
+    uint32_t frame_samples;
+} recording;
+
+static void rec_samples(void *user, const ct_sample *s, uint32_t n)
+{
+    recording *r = user;
+    if (r->n + n > r->cap) {
+        r->cap = (r->n + n) * 2;
+        r->s = realloc(r->s, r->cap * sizeof *r->s);
+        cr_assert(r->s);
+    }
+    memcpy(r->s + r->n, s, n * sizeof *s);
+    r->n += n;
+}
+
+static int rec_frame(void *user, sess *s, const sink_frame *f, ct_error *e)
+{
+    (void)s;
+    (void)e;
+    recording *r = user;
+    r->frames++;
+    r->frame_samples += f->samples;
+    return 0;
+}
+
+/* A session driven over the in-process port: `lanes` tracers, `threads`
+ * master threads, rounds of 256; frames of k[i] samples. */
+typedef struct run {
+    sess *s;
+    ct_pool *pool;
+    tport *port;
+    drv *d;
+    recording rec;
+} run;
+
+/* The in-process port, but answers that are ready come back last lane
+ * first (each lane's own in order), as MPI ranks may answer in any order. */
+typedef struct rev_port {
+    tport base;
+    tport *inner;
+    tport_fifo ready;
+} rev_port;
+
+static int rev_view(tport *p, const tport_view *v, ct_error *e)
+{
+    tport *in = ((rev_port *)p)->inner;
+    return in->ops->view(in, v, e);
+}
+
+static int rev_submit(tport *p, int lane, uint64_t batch, const tport_view *v, const ct_request *r, uint32_t n,
+                      ct_error *e)
+{
+    tport *in = ((rev_port *)p)->inner;
+    return in->ops->submit(in, lane, batch, v, r, n, e);
+}
+
+static int rev_poll(tport *p, tport_reply *out, ct_error *e)
+{
+    rev_port *r = (rev_port *)p;
+    if (!r->ready.n) {
+        tport_reply got[64];
+        int n = 0;
+        while (n < 64 && r->inner->ops->poll(r->inner, &got[n], e) > 0) {
+            ct_sample *copy = malloc((got[n].n ? got[n].n : 1) * sizeof *copy);
+            memcpy(copy, got[n].samples, got[n].n * sizeof *copy);
+            got[n].samples = copy;
+            n++;
+        }
+        for (int lane = p->lanes - 1; lane >= 0; lane--)
+            for (int i = 0; i < n; i++)
+                if (got[i].lane == lane)
+                    tport_fifo_push(&r->ready, lane, got[i].batch, (ct_sample *)got[i].samples, got[i].n, e);
+    }
+    return tport_fifo_pop(&r->ready, out);
+}
+
+static void rev_close(tport *p, double wait_s)
+{
+    rev_port *r = (rev_port *)p;
+    r->inner->ops->close(r->inner, wait_s);
+    tport_fifo_free(&r->ready);
+    free(r);
+}
+
+static const tport_ops REV_OPS = {rev_view, rev_submit, rev_poll, rev_close};
+
+static void start(run *r, const ct_radmesh *m, int lanes, int threads)
+{
+    memset(r, 0, sizeof *r);
+    r->s = new_session(m, threads);
+    cr_assert_eq(pool_new(2, &r->pool, &err), 0, "%s", err.msg);
+    cr_assert_eq(tport_local_new(tracer, r->pool, lanes, &r->port, &err), 0, "%s", err.msg);
+    if (lanes > 1) {
+        rev_port *rp = calloc(1, sizeof *rp);
+        rp->base = (tport){&REV_OPS, lanes};
+        rp->inner = r->port;
+        r->port = &rp->base;
+    }
+    drv_options o = {.window = 3, .batch_min = 16, .batch_max = 4096, .batch_ms = 20, .round = 256};
+    sink k = {&r->rec, rec_samples, rec_frame};
+    cr_assert_eq(drv_new(r->s, r->port, &k, &o, &r->d, &err), 0, "%s", err.msg);
+    drv_set_lockstep(r->d, true);
+    cr_assert_eq(drv_set_view(r->d, &cam, W, H, &err), 1, "%s", err.msg);
+}
+
+static void frame(run *r, uint32_t k)
+{
+    drv_begin_frame(r->d, k);
+    while (drv_in_frame(r->d)) cr_assert_geq(drv_step(r->d, &err), 0, "%s", err.msg);
+}
+
+static void stop(run *r)
+{
+    drv_free(r->d);
+    r->port->ops->close(r->port, 0);
+    pool_free(r->pool);
+    sess_free(r->s);
+    free(r->rec.s);
+}
+
+/* Every live texture of a and b: same node, size and texels. */
+static void same_textures(sess *a, sess *b, const char *what)
+{
+    ctex *ta = sess_textures(a), *tb = sess_textures(b);
+    ctex_stats sa = ctex_get_stats(ta), sb = ctex_get_stats(tb);
+    cr_assert_eq(sa.textures, sb.textures, "%s: %u and %u textures", what, sa.textures, sb.textures);
+    cr_assert_eq(sa.texels, sb.texels, "%s", what);
+    cr_assert_eq(ctex_slot_count(ta), ctex_slot_count(tb), "%s", what);
+    for (uint32_t id = 0; id < ctex_slot_count(ta); id++) {
+        uint32_t na, nb;
+        int wa, ha, wb, hb;
+        int la = ctex_texture_info(ta, id, &na, &wa, &ha, NULL, NULL, NULL);
+        cr_assert_eq(ctex_texture_info(tb, id, &nb, &wb, &hb, NULL, NULL, NULL), la, "%s: texture %u", what, id);
+        if (la < 0) continue;
+        cr_assert(na == nb && wa == wb && ha == hb, "%s: texture %u differs in node or size", what, id);
+        size_t n = (size_t)wa * (size_t)ha * 3;
+        float *pa = malloc(n * sizeof *pa), *pb = malloc(n * sizeof *pb);
+        cr_assert_eq(ctex_read_patch(ta, id, 0, 0, wa, ha, pa, &err), 0);
+        cr_assert_eq(ctex_read_patch(tb, id, 0, 0, wb, hb, pb, &err), 0);
+        cr_assert_eq(memcmp(pa, pb, n * sizeof *pa), 0, "%s: texels of texture %u differ", what, id);
+        free(pa);
+        free(pb);
+    }
+}
+
+/* A live run (lockstep frames as a display asks for them, 2 tracer lanes
+ * answering last lane first, 2 master threads) and an offline one (converge's checkpoints at the same
+ * counts, 1 lane, 1 thread) insert the same samples and end with the same
+ * textures; so does a mix of the two. */
+Test(session, live_and_offline_give_the_same_textures)
+{
+    static const uint32_t K[] = {700, 700, 700, 700};
+    run live, off, mix;
+    start(&live, &mesh, 2, 2);
+    start(&off, &mesh, 1, 1);
+    start(&mix, &mesh, 1, 2);
+    for (int i = 0; i < 4; i++) {
+        frame(&live, K[i]);
+        frame(&off, K[i]);
+        frame(&mix, K[i]);
+        same_textures(live.s, off.s, "live against offline");
+        same_textures(mix.s, off.s, "1 lane, 2 threads against offline");
+    }
+    cr_assert_eq(live.rec.frames, 4);
+    cr_assert_eq(live.rec.frame_samples, 2800u, "frames of exactly K samples");
+    cr_assert_eq(live.rec.n, off.rec.n);
+    for (size_t i = 0; i < live.rec.n; i++)
+        cr_assert_eq(live.rec.s[i].request_id, off.rec.s[i].request_id, "sample %zu went in out of turn", i);
+    cr_assert_eq(memcmp(live.rec.s, off.rec.s, live.rec.n * sizeof *live.rec.s), 0, "the samples differ");
+    rq_stats a, b;
+    sess_queue_stats(live.s, &a);
+    sess_queue_stats(off.s, &b);
+    cr_assert_eq(a.queued, b.queued);
+    cr_assert_eq(a.children, b.children);
+    stop(&live);
+    stop(&off);
+    stop(&mix);
+}
+
+/* The mesh without one part: the interactive image shows the wall behind
+ * the tall block where the tracer hits the block. */
+static uint32_t cut_part(const char *name, ct_radmesh *out)
+{
+    uint32_t group = UINT32_MAX, part = UINT32_MAX;
+    for (uint32_t i = 0; i < mesh.nnodes; i++)
+        if (strcmp(mesh.nodes[i].name, name) == 0) group = i;
+    cr_assert_neq(group, UINT32_MAX, "cornell has no node '%s'", name);
+    /* the group's part: the node whose triangles these are */
+    for (uint32_t t = 0; t < mesh.ntris && part == UINT32_MAX; t++) {
+        uint32_t n = mesh.tri_node[t];
+        if (n == group || (n > group && n < mesh.nodes[group].node_end)) part = n;
+    }
+    cr_assert_neq(part, UINT32_MAX, "'%s' has no triangles", name);
+    uint32_t keep = 0;
+    for (uint32_t t = 0; t < mesh.ntris; t++) keep += mesh.tri_node[t] != part;
+    cr_assert_lt(keep, mesh.ntris);
+    *out = mesh;
+    out->tris = malloc(3 * (size_t)keep * sizeof *out->tris);
+    out->tri_node = malloc(keep * sizeof *out->tri_node);
+    out->tri_mat = malloc(keep * sizeof *out->tri_mat);
+    out->ntris = 0;
+    for (uint32_t t = 0; t < mesh.ntris; t++) {
+        if (mesh.tri_node[t] == part) continue;
+        memcpy(out->tris + 3 * (size_t)out->ntris, mesh.tris + 3 * (size_t)t, 3 * sizeof *out->tris);
+        out->tri_node[out->ntris] = mesh.tri_node[t];
+        out->tri_mat[out->ntris++] = mesh.tri_mat[t];
+    }
+    return part;
+}
+
+Test(session, mismatch_children_where_another_node_is_shown)
+{
+    ct_radmesh cut;
+    uint32_t part = cut_part("tall_block", &cut);
+    static uint32_t traced[W * H];
+    traced_nodes(traced);
+    run whole, r;
+    start(&whole, &mesh, 1, 2);
+    start(&r, &cut, 1, 2);
+    const uint32_t *shown = sess_shown(r.s);
+    int region = 0;
+    for (int i = 0; i < W * H; i++) region += traced[i] == part;
+    cr_assert_gt(region, 50, "the tall block covers %d pixels", region);
+    for (int i = 0; i < W * H; i++) cr_assert(traced[i] != part || shown[i] != part, "the cut mesh still shows it");
+    /* a frame short enough that mismatch children are still waiting */
+    frame(&whole, 400);
+    frame(&r, 400);
+    rq_stats ws, rs;
+    sess_queue_stats(whole.s, &ws);
+    sess_queue_stats(r.s, &rs);
+    cr_assert_eq(ws.mismatches, 0, "the same mesh on both sides: %llu false mismatches",
+                 (unsigned long long)ws.mismatches);
+    cr_assert_gt(rs.mismatches, 10, "only %llu mismatches", (unsigned long long)rs.mismatches);
+    /* The queue's mismatch children: parents on the block, priority prio-mismatch. */
+    ct_request *q = malloc(W * H * sizeof *q);
+    int n = sess_next(r.s, q, W * H, &err), children = 0;
+    cr_assert_geq(n, 0);
+    for (int i = 0; i < n; i++) {
+        if (q[i].priority != 1e9f) continue;
+        children++;
+        const ct_sample *p = NULL;
+        for (size_t j = 0; j < r.rec.n && !p; j++)
+            if (r.rec.s[j].request_id == q[i].parent) p = &r.rec.s[j];
+        cr_assert_not_null(p, "child %llu of an unknown sample", (unsigned long long)q[i].id);
+        cr_assert(p->flags & CT_SAMPLE_HIT);
+        cr_assert_eq(p->node, part, "a mismatch child of a sample on node %u, not on the block", p->node);
+    }
+    cr_assert_gt(children, 0, "no mismatch children queued");
+    free(q);
+    stop(&whole);
+    stop(&r);
+    free(cut.tris);
+    free(cut.tri_node);
+    free(cut.tri_mat);
+}

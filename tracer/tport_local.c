@@ -1,0 +1,75 @@
+/* tport_local.c: the in-process tracer port (tport_local.h). */
+#include "tracer/tport_local.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct lport {
+    tport base;
+    const trc_tracer *t;
+    ct_pool *pool;
+    uint32_t epoch;      /* newest view */
+    tport_fifo fifo;
+    trc_stats st;
+} lport;
+
+static int lport_view(tport *p, const tport_view *v, ct_error *err)
+{
+    (void)err;
+    lport *l = (lport *)p;
+    if (v->epoch > l->epoch) l->epoch = v->epoch;
+    return CT_OK;
+}
+
+static int lport_submit(tport *p, int lane, uint64_t batch, const tport_view *v, const ct_request *r, uint32_t n,
+                        ct_error *err)
+{
+    lport *l = (lport *)p;
+    if (lane < 0 || lane >= p->lanes) return ct_fail(err, CT_EINVAL, "local tracer port: no lane %d", lane);
+    ct_sample *s = NULL;
+    uint32_t ns = 0;
+    if (v->epoch > l->epoch) l->epoch = v->epoch;
+    if (v->epoch == l->epoch && n > 0) {
+        /* as a tracer rank: a batch of an older epoch is answered empty */
+        if (!(s = malloc((size_t)n * sizeof *s)))
+            return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory for %u samples", n);
+        trc_view tv = {.cam = v->cam, .width = (int)v->width, .height = (int)v->height};
+        trc_trace_par(l->t, l->pool, &tv, r, n, s, false, &l->st);
+        ns = n;
+    }
+    return tport_fifo_push(&l->fifo, lane, batch, s, ns, err);
+}
+
+static int lport_poll(tport *p, tport_reply *out, ct_error *err)
+{
+    (void)err;
+    return tport_fifo_pop(&((lport *)p)->fifo, out);
+}
+
+static void lport_close(tport *p, double wait_s)
+{
+    (void)wait_s;
+    tport_fifo_free(&((lport *)p)->fifo);
+    free(p);
+}
+
+static const tport_ops LPORT_OPS = {lport_view, lport_submit, lport_poll, lport_close};
+
+int tport_local_new(const trc_tracer *t, ct_pool *pool, int lanes, tport **out, ct_error *err)
+{
+    *out = NULL;
+    if (lanes < 1) return ct_fail(err, CT_EINVAL, "local tracer port: %d lanes", lanes);
+    lport *l = calloc(1, sizeof *l);
+    if (!l) return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory");
+    l->base.ops = &LPORT_OPS;
+    l->base.lanes = lanes;
+    l->t = t;
+    l->pool = pool;
+    *out = &l->base;
+    return CT_OK;
+}
+
+trc_stats tport_local_stats(const tport *p)
+{
+    return ((const lport *)p)->st;
+}
