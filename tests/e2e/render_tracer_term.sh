@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# A tracer rank that is sent SIGTERM alone (not by mpirun, which signals
+# every rank at once) leaves in order: it sends its last samples and BYE
+# (docs/protocol.md, "Leaving in order"); the master, whose own signal does
+# not follow, ends the job within a second or two naming the rank, tells
+# the display, and every rank finalizes (no drain timeout, no abort).
+# Checks: the job ends in under 5 s with a non-zero status, the master names
+# rank 1, the display shows the master's message and exits 3, no process is
+# left.
+source "$(dirname "$0")/lib/mpi.sh"
+need_programs
+cornell_args
+master_start job 3 "${CORNELL[@]}" --listen "unix:$tmp/r.sock"
+master_wait_listen job || finish
+display_start display --connect "$ADDR" "${HEADLESS[@]}" --path "$root/scenes/cornell/walk.path" --seconds 30
+for ((i = 0; i < 100; i++)); do grep -q 'display .* connected' "$tmp/job.log" && break; sleep 0.1; done
+grep -q 'display .* connected' "$tmp/job.log" || fail "the display did not connect"
+sleep 0.5
+victim=$(rank_pid job 1)
+[[ -n $victim ]] || { fail "tracer rank 1 not found"; finish; }
+echo "+ kill -TERM $victim   (tracer rank 1 alone)"
+t0=$EPOCHREALTIME
+kill -TERM "$victim"
+master_wait job 15 || fail "the job did not end within 15 s"
+secs=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
+echo "metric: job ended ${secs} s after SIGTERM to tracer rank 1"
+awk -v s="$secs" 'BEGIN { exit !(s < 5) }' || fail "the job took ${secs} s to end (limit 5 s)"
+((MASTER_RC != 0)) || fail "mpirun exit status 0 after a tracer left"
+for ((i = 0; i < 50; i++)); do kill -0 "$DISPLAY_PID" 2>/dev/null || break; sleep 0.1; done
+if kill -0 "$DISPLAY_PID" 2>/dev/null; then fail "the display is still running"; kill -9 "$DISPLAY_PID"; fi
+wait "$DISPLAY_PID"; drc=$?
+master_log job | grep -v progress | tail -n 8
+sed 's/^/  display: /' "$tmp/display.log" | tail -n 3
+grep -q 'tracer rank 1 left the job (it got a signal)' "$tmp/job.log" || fail "the master did not name the rank that left"
+grep -q 'tracer rank 1 left the job' "$tmp/display.log" || fail "the display did not show the master's message"
+((drc == 3)) || fail "display exit status $drc, expected 3"
+left=$(pgrep -f "$tmp/r.sock" | wc -l)
+((left == 0)) || fail "$left processes of the job are left"
+finish
