@@ -9,15 +9,8 @@
 # left.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
-cornell_args
-master_start job 3 "${CORNELL[@]}" --listen "unix:$tmp/r.sock"
-master_wait_listen job || finish
-display_start display --connect "$ADDR" "${HEADLESS[@]}" --path "$root/scenes/cornell/walk.path" --seconds 30
-for ((i = 0; i < 100; i++)); do grep -q 'display .* connected' "$tmp/job.log" && break; sleep 0.1; done
-grep -q 'display .* connected' "$tmp/job.log" || fail "the display did not connect"
-sleep 0.5
-victim=$(rank_pid job 1)
-[[ -n $victim ]] || { fail "tracer rank 1 not found"; finish; }
+job_with_walker 3
+victim=$VICTIM
 echo "+ kill -TERM $victim   (tracer rank 1 alone)"
 t0=$EPOCHREALTIME
 kill -TERM "$victim"
@@ -26,9 +19,8 @@ secs=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
 echo "metric: job ended ${secs} s after SIGTERM to tracer rank 1"
 awk -v s="$secs" 'BEGIN { exit !(s < 5) }' || fail "the job took ${secs} s to end (limit 5 s)"
 ((MASTER_RC != 0)) || fail "mpirun exit status 0 after a tracer left"
-for ((i = 0; i < 50; i++)); do kill -0 "$DISPLAY_PID" 2>/dev/null || break; sleep 0.1; done
-if kill -0 "$DISPLAY_PID" 2>/dev/null; then fail "the display is still running"; kill -9 "$DISPLAY_PID"; fi
-wait "$DISPLAY_PID"; drc=$?
+display_gone
+drc=$DISPLAY_RC
 master_log job | grep -v progress | tail -n 8
 sed 's/^/  display: /' "$tmp/display.log" | tail -n 3
 grep -q 'tracer rank 1 left the job (it got a signal)' "$tmp/job.log" || fail "the master did not name the rank that left"

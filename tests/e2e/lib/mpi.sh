@@ -10,6 +10,8 @@
 #   master_term NAME                         SIGTERM to rank 0; the job must end with status 0
 #   display_run NAME ARGS...                 corrtex-display ARGS (foreground, logged)
 #   cornell_args                             scene + a small radiosity mesh in $tmp
+#   job_with_walker NP                       job + a walking display connected; VICTIM = rank 1's pid
+#   display_gone                             waits for the display to exit; DISPLAY_RC
 #   same_frames A B WHAT                     counts identical frames 0..4 of $tmp/A and $tmp/B into same
 set -u
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)
@@ -151,6 +153,29 @@ display_start() {
   log_cmd "$display" "$@"
   "$display" "$@" >"$tmp/$name.log" 2>&1 &
   DISPLAY_PID=$!
+}
+
+# job_with_walker NP: job "job" (mpirun -np NP, the Cornell box) with a
+# free-running display "display" walking its path (30 s at most), connected;
+# VICTIM is tracer rank 1's pid. The start of the tests that hurt a tracer.
+job_with_walker() {
+  cornell_args
+  master_start job "$1" "${CORNELL[@]}" --listen "unix:$tmp/r.sock"
+  master_wait_listen job || finish
+  display_start display --connect "$ADDR" "${HEADLESS[@]}" --path "$root/scenes/cornell/walk.path" --seconds 30
+  for ((i = 0; i < 100; i++)); do grep -q 'display .* connected' "$tmp/job.log" && break; sleep 0.1; done
+  grep -q 'display .* connected' "$tmp/job.log" || fail "the display did not connect"
+  sleep 0.5
+  VICTIM=$(rank_pid job 1)
+  [[ -n $VICTIM ]] || { fail "tracer rank 1 not found"; finish; }
+}
+
+# display_gone: waits up to 5 s for the display to exit (killing it if it
+# does not, a failure); DISPLAY_RC.
+display_gone() {
+  for ((i = 0; i < 50; i++)); do kill -0 "$DISPLAY_PID" 2>/dev/null || break; sleep 0.1; done
+  if kill -0 "$DISPLAY_PID" 2>/dev/null; then fail "the display is still running"; kill -9 "$DISPLAY_PID"; fi
+  wait "$DISPLAY_PID"; DISPLAY_RC=$?
 }
 
 # The scene and a small radiosity mesh (cached in $tmp: the first job solves
