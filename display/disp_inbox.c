@@ -13,6 +13,10 @@
  * arrive as runs of them, so uploads follow the same runs. */
 #define TS_SHIFT 3
 #define TS (1 << TS_SHIFT)
+/* Bytes per texel in the upload buffer: RGBA halves, the textures' own
+ * format, so the driver copies instead of converting (llvmpipe converts RGB
+ * to RGBA16F through floats, texel by texel). The inbox's copy stays RGB. */
+#define UP_BPT 8
 #define MAX_FRAMES 64
 
 typedef struct ib_tex {
@@ -290,7 +294,7 @@ int disp_inbox_tex_patch(disp_inbox *b, uint32_t id, int x, int y, int w, int h,
         t->dirty = true;
         t->negative |= neg;
         t->nonzero |= nz;
-        b->dirty_bytes += (size_t)(e - a + 1) * TS * 6 * (size_t)(((y + h - 1) >> TS_SHIFT) - (y >> TS_SHIFT) + 1) * TS;
+        b->dirty_bytes += (size_t)(e - a + 1) * TS * UP_BPT * (size_t)(((y + h - 1) >> TS_SHIFT) - (y >> TS_SHIFT) + 1) * TS;
         b->texels_in += (uint64_t)w * (uint64_t)h;
         b->patches_in++;
         if (samples && grow((void **)&b->stamps, &b->cap_stamps, b->nstamps + 1, sizeof *b->stamps))
@@ -442,6 +446,16 @@ static bool collect_ops(disp_inbox *b)
 
 /* Under the lock: copies marked runs into dst (cap bytes), making the
  * upload list; what does not fit stays marked. */
+/* n RGB half texels to RGBA (alpha 0, as a cleared texture has) at dst,
+ * which may be unaligned mapped memory: one 8-byte store per texel. */
+static void rgb_to_rgba(uint8_t *dst, const uint16_t *src, int n)
+{
+    for (int i = 0; i < n; i++) {
+        uint64_t v = (uint64_t)src[3 * i] | (uint64_t)src[3 * i + 1] << 16 | (uint64_t)src[3 * i + 2] << 32;
+        memcpy(dst + (size_t)i * UP_BPT, &v, sizeof v);
+    }
+}
+
 static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
 {
     size_t off = 0;
@@ -457,15 +471,15 @@ static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
                 int x = a << TS_SHIFT, y = ty << TS_SHIFT, w = len << TS_SHIFT, h = TS;
                 if (x + w > t->w) w = t->w - x;
                 if (y + h > t->h) h = t->h - y;
-                size_t bytes = (size_t)w * (size_t)h * 6;
+                size_t bytes = (size_t)w * (size_t)h * UP_BPT;
                 if (off + bytes > cap ||
                     !grow((void **)&b->ups, &b->cap_ups, b->nups + 1, sizeof *b->ups)) {
                     left = true;
                     break;
                 }
                 for (int j = 0; j < h; j++)
-                    memcpy(dst + off + (size_t)j * (size_t)w * 6, t->tx + 3 * ((size_t)(y + j) * (size_t)t->w + (size_t)x),
-                           (size_t)w * 6);
+                    rgb_to_rgba(dst + off + (size_t)j * (size_t)w * UP_BPT,
+                                t->tx + 3 * ((size_t)(y + j) * (size_t)t->w + (size_t)x), w);
                 b->ups[b->nups++] = (upload){t->id, x, y, w, h, off, t->negative, t->nonzero};
                 off += bytes;
                 bitrow_clear(row, a, len);
@@ -482,7 +496,7 @@ static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
         const ib_tex *t = &b->tex[i];
         if (!t->live || !t->dirty) continue;
         for (size_t k = 0; k < (size_t)t->th * (size_t)t->words; k++)
-            rest += (size_t)__builtin_popcountll(t->bits[k]) * TS * TS * 6;
+            rest += (size_t)__builtin_popcountll(t->bits[k]) * TS * TS * UP_BPT;
     }
     b->dirty_bytes = rest;
 }

@@ -24,8 +24,9 @@
 #include "display/disp_session.h"
 #include "display/disp_textures.h"
 
-/* Texels one frame uploads at most (bytes of half RGB): a larger backlog
- * (a reconnect's whole state) is spread over the next frames. */
+/* Texels one frame uploads at most (bytes of the upload buffer, RGBA
+ * halves): a larger backlog (a reconnect's whole state) is spread over the
+ * next frames. */
 #define DISP_INBOX_FRAME_BYTES (96u << 20)
 /* Texels the inbox keeps in all (a bound against a hostile master). */
 #define DISP_INBOX_MAX_BYTES (3ull << 30)

@@ -119,7 +119,7 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
 }
 
 static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, const void *rgb,
-                 GLenum type, bool negative, bool nonzero, ct_error *err)
+                 GLenum format, GLenum type, bool negative, bool nonzero, ct_error *err)
 {
     disp_texture *d = find(t, id);
     if (!d) return ct_fail(err, CT_EPROTO, "patch for unknown texture %u", id);
@@ -128,7 +128,7 @@ static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, cons
                        h, x, y, d->width, d->height);
     gl.BindTexture(GL_TEXTURE_2D, d->gl_tex);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    gl.TexSubImage2D(GL_TEXTURE_2D, 0, x, y, w, h, GL_RGB, type, rgb);
+    gl.TexSubImage2D(GL_TEXTURE_2D, 0, x, y, w, h, format, type, rgb);
     d->negative = d->negative || negative;
     d->nonzero = d->nonzero || nonzero;
     return gl_check("texture patch", err);
@@ -144,13 +144,13 @@ int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w,
         nz = nz || (rgb[i] & 0x7fffu);
         neg = (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
     }
-    return patch(t, id, x, y, w, h, rgb, GL_HALF_FLOAT, neg, nz, err);
+    return patch(t, id, x, y, w, h, rgb, GL_RGB, GL_HALF_FLOAT, neg, nz, err);
 }
 
 int disp_textures_patch_pbo(disp_textures *t, uint32_t id, int x, int y, int w, int h, size_t off,
                             bool negative, bool nonzero, ct_error *err)
 {
-    return patch(t, id, x, y, w, h, (const void *)(uintptr_t)off, GL_HALF_FLOAT, negative, nonzero, err);
+    return patch(t, id, x, y, w, h, (const void *)(uintptr_t)off, GL_RGBA, GL_HALF_FLOAT, negative, nonzero, err);
 }
 
 int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w, int h,
@@ -162,7 +162,7 @@ int disp_textures_patch_float(disp_textures *t, uint32_t id, int x, int y, int w
         nz = nz || rgb[i] != 0.0f;   /* NaN counts as non-zero */
         neg = rgb[i] < 0.0f;
     }
-    return patch(t, id, x, y, w, h, rgb, GL_FLOAT, neg, nz, err);
+    return patch(t, id, x, y, w, h, rgb, GL_RGB, GL_FLOAT, neg, nz, err);
 }
 
 int disp_textures_release(disp_textures *t, uint32_t id, ct_error *err)

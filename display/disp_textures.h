@@ -62,7 +62,9 @@ int disp_textures_patch_half(disp_textures *t, uint32_t id, int x, int y, int w,
                              const uint16_t *rgb, ct_error *err);
 
 /* The same from the pixel unpack buffer bound now, at byte offset `off`
- * (w*h*3 halves); negative / nonzero: what the caller knows of them. */
+ * (w*h RGBA texels of 4 halves: the textures' own format, so the driver
+ * copies rather than converts; alpha unused); negative / nonzero: what the
+ * caller knows of them. */
 int disp_textures_patch_pbo(disp_textures *t, uint32_t id, int x, int y, int w, int h, size_t off,
                             bool negative, bool nonzero, ct_error *err);
 
