@@ -9,6 +9,12 @@ double ct_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+void ct_sleep_us(unsigned us)
+{
+    struct timespec ts = {.tv_sec = us / 1000000u, .tv_nsec = (long)(us % 1000000u) * 1000L};
+    nanosleep(&ts, NULL);
+}
+
 uint64_t ct_now_us(void)
 {
     struct timespec ts;

@@ -11,4 +11,7 @@ double ct_now(void);
  * process of a host, so stamps of one program can be read by another). */
 uint64_t ct_now_us(void);
 
+/* Sleeps us microseconds (a poll loop's nap). */
+void ct_sleep_us(unsigned us);
+
 #endif

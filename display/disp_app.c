@@ -324,8 +324,7 @@ static int connection_step(app *a, const ct_camera *cam, const ct_camera *next, 
     if (!disp_session_scene_of(a->session)) {
         if (a->client) snprintf(a->status, sizeof a->status, "waiting for the scene from %s", o->connect);
         set_title(a, ct_now(), false);
-        struct timespec ts = {0, 5 * 1000 * 1000};
-        nanosleep(&ts, NULL);
+        ct_sleep_us(5000);
         return STEP_WAIT;
     }
     if (!strncmp(a->status, "waiting", 7)) a->status[0] = '\0';
@@ -335,8 +334,7 @@ static int connection_step(app *a, const ct_camera *cam, const ct_camera *next, 
         st = service(a, err);
         if (st) return st == 1 ? STEP_END : STEP_LOST;
         if (!a->client) break;
-        struct timespec ts = {0, 1000 * 1000};
-        nanosleep(&ts, NULL);
+        ct_sleep_us(1000);
         if (take_inbox(a, err)) return STEP_ERROR;
         gl_backend_poll(a->backend, in);
         if (!handle_keys(a, in)) return STEP_QUIT;
@@ -480,8 +478,7 @@ static int run(app *a, ct_error *err)
                     a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
                     in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);
         if (!draw) {
-            struct timespec ts = {0, 2 * 1000 * 1000};
-            nanosleep(&ts, NULL);
+            ct_sleep_us(2000);
             a->t_idle += ct_now() - now;
             continue;
         }

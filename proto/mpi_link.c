@@ -167,12 +167,6 @@ int mpil_progress(ct_error *err)
     return (int)L.n;
 }
 
-static void sleep_us(unsigned us)
-{
-    struct timespec ts = {.tv_sec = us / 1000000u, .tv_nsec = (long)(us % 1000000u) * 1000L};
-    nanosleep(&ts, NULL);
-}
-
 int mpil_drain(double timeout_s, ct_error *err)
 {
     double end = ct_now() + timeout_s;
@@ -182,7 +176,7 @@ int mpil_drain(double timeout_s, ct_error *err)
         if (ct_now() > end)
             return ct_fail(err, CT_EIO, "%d MPI sends still pending after %.1f s (a peer stopped receiving)",
                            left, timeout_s);
-        sleep_us(200);
+        ct_sleep_us(200);
     }
 }
 
@@ -239,7 +233,7 @@ int mpil_wait(int source, int tag, unsigned sleep_time_us, double timeout_s, mpi
          * (MPI's blocking probe spins, which hurts oversubscribed runs);
          * the nap grows while nothing comes, so a busy link stays fast. */
         if (nap) {
-            sleep_us(nap);
+            ct_sleep_us(nap);
             nap = nap * 2 > sleep_time_us ? sleep_time_us : nap * 2;
         }
     }
@@ -312,6 +306,18 @@ int mpil_poll_recv(int source, int tag, mpil_info *info, wire_buf *out, ct_error
     return 0;
 }
 
+int mpil_recv_wait(int source, int tag, double timeout_s, mpil_info *info, wire_buf *out, ct_error *err)
+{
+    double end = ct_now() + timeout_s;
+    for (;;) {
+        int got = mpil_poll_recv(source, tag, info, out, err);
+        if (got) return got;
+        if (mpil_progress(err) < 0) return CT_EIO;
+        if (ct_now() >= end) return 0;
+        ct_sleep_us(200);
+    }
+}
+
 /* At the end, receives still in flight (a tracer was sending when the loop
  * stopped) get the time the senders' own drain needs; what is left then
  * (a stopped sender) is left to MPI, its buffer still reachable from L. */
@@ -327,7 +333,7 @@ static void finish_recvs(void)
             else L.recvs[j++] = *r;
         }
         L.nr = j;
-        if (L.nr) sleep_us(200);
+        if (L.nr) ct_sleep_us(200);
     }
     wire_buf_free(&L.spare);
     for (size_t i = 0; i < L.nr; i++)

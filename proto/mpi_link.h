@@ -87,6 +87,11 @@ int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err);
  * come through; each sender's arrive in the order it sent them. */
 int mpil_poll_recv(int source, int tag, mpil_info *info, wire_buf *out, ct_error *err);
 
+/* mpil_poll_recv until a message has come (1) or timeout_s has passed (0),
+ * completing sends and napping 200 us between looks: never blocks on a
+ * sender that stopped. */
+int mpil_recv_wait(int source, int tag, double timeout_s, mpil_info *info, wire_buf *out, ct_error *err);
+
 /* Broadcasts buf from root to every rank, MPIL_BCAST_CHUNK bytes at a time:
  * on root buf holds the bytes, elsewhere it receives them (length included). */
 int mpil_bcast(int root, wire_buf *buf, ct_error *err);

@@ -4,7 +4,6 @@
  * middle of a large message never holds the master. */
 #include <stdio.h>
 #include <stdlib.h>
-#include <time.h>
 
 #include "common/log.h"
 #include "common/timer.h"
@@ -18,6 +17,7 @@ typedef struct mport {
     ct_sample *samples;
     uint32_t cap;
     double *left_at;    /* per lane: when it said BYE (0: still working) */
+    int nleft;          /* lanes that said BYE */
 } mport;
 
 static int mport_view(tport *p, const tport_view *v, ct_error *err)
@@ -58,10 +58,13 @@ static int mport_poll(tport *p, tport_reply *out, ct_error *err)
         /* A tracer left on a signal: mpirun signals every rank at once, so
          * a master whose own signal has not come within a second (its loop
          * stops before polling again) lost a tracer. */
-        if (m->left_at[info.source - 1] == 0) m->left_at[info.source - 1] = now;
+        if (m->left_at[info.source - 1] == 0) {
+            m->left_at[info.source - 1] = now;
+            m->nleft++;
+        }
         got = 0;
     }
-    for (int i = 0; i < p->lanes; i++)
+    for (int i = 0; i < p->lanes && m->nleft; i++)
         if (m->left_at[i] > 0 && now - m->left_at[i] > 1.0)
             return ct_fail(err, CT_EIO, "tracer rank %d left the job (it got a signal)", i + 1);
     if (!got) return 0;
@@ -100,23 +103,16 @@ static void mport_close(tport *p, double wait_s)
         if (wire_mpi_encode_control(&ctl, &m->out, &e) == 0) mpil_isend(r, MPIL_TAG_CONTROL, &m->out, &e);
     }
     double end = ct_now() + wait_s;
-    int left = 0;
-    for (int i = 0; i < p->lanes; i++) left += m->left_at[i] == 0;
-    while (left > 0 && ct_now() < end) {
+    int left = p->lanes - m->nleft;
+    while (left > 0) {
         mpil_info info;
-        int got = mpil_poll_recv(MPIL_ANY, MPIL_ANY, &info, &m->in, &e);
-        if (got < 0) break;
-        if (got) {
-            if (info.tag == MPIL_TAG_BYE && info.source >= 1 && info.source <= p->lanes &&
-                m->left_at[info.source - 1] == 0) {
-                m->left_at[info.source - 1] = ct_now();
-                left--;
-            }
-            continue;
+        double rest = end - ct_now();
+        if (rest <= 0 || mpil_recv_wait(MPIL_ANY, MPIL_ANY, rest, &info, &m->in, &e) <= 0) break;
+        if (info.tag == MPIL_TAG_BYE && info.source >= 1 && info.source <= p->lanes &&
+            m->left_at[info.source - 1] == 0) {
+            m->left_at[info.source - 1] = ct_now();
+            left--;
         }
-        if (mpil_progress(&e) < 0) break;
-        struct timespec ts = {.tv_sec = 0, .tv_nsec = 200000L};
-        nanosleep(&ts, NULL);
     }
     if (left > 0)
         ct_debug("master", "%d tracer rank%s did not say BYE within %.1f s", left, left == 1 ? "" : "s", wait_s);

@@ -6,7 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "common/log.h"
 #include "common/pool.h"
@@ -151,15 +150,12 @@ static int farewell(const trank_config *c, int shutdown, wire_buf *msg, ct_error
     char peer[32];
     snprintf(peer, sizeof peer, "master (rank 0)");
     double end = ct_now() + 3.0;
-    while (!shutdown && ct_now() < end) {
+    while (!shutdown) {
         mpil_info info;
-        int got = mpil_poll_recv(0, MPIL_ANY, &info, msg, err);
+        double left = end - ct_now();
+        int got = left > 0 ? mpil_recv_wait(0, MPIL_ANY, left, &info, msg, err) : 0;
         if (got < 0) return got;
-        if (!got) {
-            struct timespec ts = {.tv_sec = 0, .tv_nsec = 200000L};
-            nanosleep(&ts, NULL);
-            continue;
-        }
+        if (!got) break;
         unsigned kind = 0;
         uint32_t count = 0;
         if (wire_mpi_peek(msg->data, msg->len, peer, &kind, &count, err) < 0 || kind != WIRE_MPI_CONTROL) continue;
