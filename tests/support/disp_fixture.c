@@ -460,3 +460,17 @@ vec3 fx_bilinear(const float *rgb, int w, int h, float s, float t)
     return v3_lerp(a, b, fv);
 }
 
+
+int fx_render_session(disp_session *s, int width, int height, uint8_t *out, ct_error *err)
+{
+    disp_compositor *c = NULL;
+    int rc = disp_compositor_new(width, height, 0, &c, err);
+    if (rc) return rc;
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
+    rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, err);
+    if (!rc) rc = disp_compositor_present(c, &o, false, width, height, err);
+    if (!rc) disp_compositor_read_display(c, out);
+    disp_compositor_free(c);
+    return rc;
+}

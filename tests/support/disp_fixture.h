@@ -74,6 +74,11 @@ void fx_frame_free(fx_frame *f);
 pid_t fx_xvfb_start(char *msg, size_t msgcap);
 void fx_xvfb_stop(pid_t pid);
 
+/* Renders session s in this process's current GL context from
+ * fx_box_camera(), one pass, full view, into out (width x height display
+ * bytes, RGB): how the tests compare a session's state with another's. */
+int fx_render_session(disp_session *s, int width, int height, uint8_t *out, ct_error *err);
+
 /* Max and mean absolute difference over n floats. */
 void fx_diff(const float *a, const float *b, size_t n, double *max, double *mean);
 

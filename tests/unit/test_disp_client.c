@@ -28,14 +28,7 @@
 static void render(disp_session *s, uint8_t *out)
 {
     ct_error err;
-    disp_compositor *c = NULL;
-    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
-    ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
-    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
-    disp_compositor_read_display(c, out);
-    disp_compositor_free(c);
+    cr_assert_eq(fx_render_session(s, W, H, out, &err), 0, "%s", err.msg);
 }
 
 /* The same state applied directly. */

@@ -32,15 +32,37 @@ static gl_backend *gl_open(void)
 static void render(disp_session *s, uint8_t *out)
 {
     ct_error err;
-    disp_compositor *c = NULL;
-    cr_assert_eq(disp_compositor_new(W, H, 0, &c, &err), 0, "%s", err.msg);
-    ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
-    cr_assert_eq(disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, &err), 0,
-                 "%s", err.msg);
-    cr_assert_eq(disp_compositor_present(c, &o, false, W, H, &err), 0);
-    disp_compositor_read_display(c, out);
-    disp_compositor_free(c);
+    cr_assert_eq(fx_render_session(s, W, H, out, &err), 0, "%s", err.msg);
+}
+
+/* What the hand-over tests share: a GL context, the box scene (handed to
+ * the inbox by the test, which owns it until then), an inbox and the
+ * render thread's session. */
+typedef struct rig {
+    gl_backend *b;
+    ct_radmesh mesh;
+    fx_box_nodes nd;
+    disp_inbox *in;
+    disp_session *s;
+} rig;
+
+static void rig_open(rig *r)
+{
+    ct_error err;
+    r->b = gl_open();
+    cr_assert_eq(fx_box_mesh(4, &r->mesh, &r->nd, &err), 0, "%s", err.msg);
+    r->in = NULL;
+    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &r->in, &err), 0, "%s", err.msg);
+    r->s = NULL;
+    cr_assert_eq(disp_session_new(&r->s, &err), 0, "%s", err.msg);
+}
+
+static void rig_close(rig *r)
+{
+    disp_session_free(r->s);
+    disp_inbox_release_gl(r->in);
+    disp_inbox_free(r->in);
+    gl_backend_close(r->b);
 }
 
 /* The back wall's projection (x, y in [-1, 1] -> [0, 1]). */
@@ -64,15 +86,13 @@ static void fill(uint16_t *h, int n, float base, float step)
 Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
 {
     ct_error err;
-    gl_backend *b = gl_open();
-    ct_radmesh mesh, copy;
-    fx_box_nodes nd;
-    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
+    rig r;
+    rig_open(&r);
+    disp_inbox *in = r.in;
+    disp_session *s = r.s;
+    fx_box_nodes nd = r.nd;
+    ct_radmesh copy;
     cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
-    disp_inbox *in = NULL;
-    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
-    disp_session *s = NULL;
-    cr_assert_eq(disp_session_new(&s, &err), 0);
     /* The connection thread's side: scene, texture, three patches. */
     disp_inbox_scene(in, &copy);
     cr_assert_eq(disp_inbox_tex_alloc(in, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
@@ -103,7 +123,7 @@ Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
     memcpy(want + 3 * 10 * 16, d, sizeof d);
     disp_session *direct = NULL;
     cr_assert_eq(disp_session_new(&direct, &err), 0);
-    cr_assert_eq(disp_session_scene(direct, &mesh, &err), 0);
+    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
     cr_assert_eq(disp_session_tex_alloc(direct, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
     cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
     cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 16, 12, want, &err), 0);
@@ -116,27 +136,21 @@ Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
     cr_expect_eq(disp_session_counters(s).patches, 2u);
     cr_expect_eq(took.nstamps, 0u);
     disp_session_free(direct);
-    disp_session_free(s);
-    disp_inbox_release_gl(in);
-    disp_inbox_free(in);
-    rmesh_free(&mesh);
-    gl_backend_close(b);
+    rmesh_free(&r.mesh);
+    rig_close(&r);
 }
 
 Test(disp_inbox, a_frame_is_ready_once_its_texels_are_on_the_textures)
 {
     ct_error err;
-    gl_backend *b = gl_open();
-    ct_radmesh mesh;
-    fx_box_nodes nd;
-    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
-    disp_inbox *in = NULL;
-    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
-    disp_session *s = NULL;
-    cr_assert_eq(disp_session_new(&s, &err), 0);
+    rig r;
+    rig_open(&r);
+    disp_inbox *in = r.in;
+    disp_session *s = r.s;
+    fx_box_nodes nd = r.nd;
     disp_inbox_connection(in);
     disp_inbox_new_epoch(in, 1);
-    disp_inbox_scene(in, &mesh);
+    disp_inbox_scene(in, &r.mesh);
     cr_assert_eq(disp_inbox_tex_alloc(in, 2, nd.floor, 8, 8, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
     disp_inbox_took took;
     cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);   /* the scene and the texture are drawn */
@@ -161,24 +175,18 @@ Test(disp_inbox, a_frame_is_ready_once_its_texels_are_on_the_textures)
     cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
     cr_expect(disp_session_all_positive(s));
     cr_expect_eq(disp_session_counters(s).frames, 3u);
-    disp_session_free(s);
-    disp_inbox_release_gl(in);
-    disp_inbox_free(in);
-    gl_backend_close(b);
+    rig_close(&r);
 }
 
 Test(disp_inbox, freed_and_allocated_again_between_frames_starts_from_zero)
 {
     ct_error err;
-    gl_backend *b = gl_open();
-    ct_radmesh mesh;
-    fx_box_nodes nd;
-    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
-    disp_inbox *in = NULL;
-    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
-    disp_session *s = NULL;
-    cr_assert_eq(disp_session_new(&s, &err), 0);
-    disp_inbox_scene(in, &mesh);
+    rig r;
+    rig_open(&r);
+    disp_inbox *in = r.in;
+    disp_session *s = r.s;
+    fx_box_nodes nd = r.nd;
+    disp_inbox_scene(in, &r.mesh);
     cr_assert_eq(disp_inbox_tex_alloc(in, 9, nd.back, 8, 8, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
     static uint16_t t[16 * 16 * 3];
     fill(t, 16 * 16 * 3, 0.7f, 0.0f);
@@ -202,10 +210,7 @@ Test(disp_inbox, freed_and_allocated_again_between_frames_starts_from_zero)
     cr_expect_not(x->nonzero, "a new allocation corrects nothing yet");
     cr_expect_null(disp_textures_find(disp_session_textures(s), 11));
     cr_expect_eq(disp_textures_count(disp_session_textures(s)), 1u);
-    disp_session_free(s);
-    disp_inbox_release_gl(in);
-    disp_inbox_free(in);
-    gl_backend_close(b);
+    rig_close(&r);
 }
 
 Test(disp_inbox, messages_that_do_not_fit_are_refused)
@@ -291,34 +296,28 @@ static void *resize_loop(void *arg)
 Test(disp_inbox, resizes_racing_frames_upload_into_the_texture_they_were_made_for)
 {
     ct_error err;
-    gl_backend *b = gl_open();
-    ct_radmesh mesh;
-    fx_box_nodes nd;
-    cr_assert_eq(fx_box_mesh(4, &mesh, &nd, &err), 0);
-    disp_inbox *in = NULL;
-    cr_assert_eq(disp_inbox_new(DISP_TEX_MAX_SIZE, &in, &err), 0);
-    disp_session *s = NULL;
-    cr_assert_eq(disp_session_new(&s, &err), 0);
-    disp_inbox_scene(in, &mesh);
-    resizer r = {.in = in, .node = nd.back, .rounds = 20000};
-    atomic_init(&r.done, false);
+    rig r;
+    rig_open(&r);
+    disp_inbox *in = r.in;
+    disp_session *s = r.s;
+    fx_box_nodes nd = r.nd;
+    disp_inbox_scene(in, &r.mesh);
+    resizer rz = {.in = in, .node = nd.back, .rounds = 20000};
+    atomic_init(&rz.done, false);
     pthread_t th;
-    cr_assert_eq(pthread_create(&th, NULL, resize_loop, &r), 0);
+    cr_assert_eq(pthread_create(&th, NULL, resize_loop, &rz), 0);
     int frames = 0, rc = 0;
     uint64_t texels = 0;
-    while (!rc && !atomic_load(&r.done)) {
+    while (!rc && !atomic_load(&rz.done)) {
         disp_inbox_took took;
         rc = disp_inbox_apply(in, s, &took, &err);
         texels += took.texels;
         frames++;
     }
     pthread_join(th, NULL);
-    cr_assert_eq(r.rc, 0, "%s", r.err.msg);
+    cr_assert_eq(rz.rc, 0, "%s", rz.err.msg);
     printf("metric: %d frames taken while 20000 resizes raced them, %llu texels uploaded\n", frames,
            (unsigned long long)texels);
     cr_expect_eq(rc, 0, "frame %d: %s", frames, err.msg);
-    disp_inbox_release_gl(in);
-    disp_inbox_free(in);
-    disp_session_free(s);
-    gl_backend_close(b);
+    rig_close(&r);
 }
