@@ -67,6 +67,7 @@ check 2 "\-\-error: 'abc'" "$scene" -o "$tmp/x.ctmesh" --error abc
 check 2 "\-\-threads" "$scene" -o "$tmp/x.ctmesh" --threads 0
 check 2 "unknown option '--bogus'" "$scene" -o "$tmp/x.ctmesh" --bogus
 check 2 "cannot create" "$scene" -o "$tmp/no/such/dir/x.ctmesh" --error 1e-2
+check 2 "cannot create" "$scene" -o "$tmp/x.ctmesh" --image-planes "$tmp/no/such/dir/p.exr" --error 1e-2
 check 2 "no camera named 'nope'" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/x.png" --camera nope
 check 1 "memory cap of 16 MB" "$scene" -o "$tmp/x.ctmesh" --error 1e-9 --min-area 1e-12 --memory-cap 16
 [[ -e $tmp/x.ctmesh ]] && { echo "FAIL: a failed run left an output"; fail=1; }

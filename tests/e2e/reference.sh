@@ -76,6 +76,8 @@ check "--spp: '-3'" "$SCENE" --width 8 --height 8 --spp -3 --mode path -o "$tmp/
 check "missing --mode" "$SCENE" "${common[@]}"
 check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
+check "--indirect: 'photons' is not one of mesh|gather" "$SCENE" "${common[@]}" --mode drt --indirect photons
+check "--gather-rays: '0'" "$SCENE" "${common[@]}" --mode drt --gather-rays 0
 # Given last, an unknown option is unknown, a known one lacks its value.
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus
 check "option --spp needs a value" "$SCENE" --width 8 --height 8 --mode path -o "$tmp/x.exr" --spp

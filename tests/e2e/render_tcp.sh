@@ -21,6 +21,11 @@ master_start lastopt 2 "${CORNELL[@]}" --bogus
 master_wait lastopt 30 || fail "the job with an unknown option did not end"
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC with an unknown option, expected 2"
 grep -q "unknown option '--bogus'" "$tmp/lastopt.log" || { fail "unknown option not named"; master_log lastopt; }
+# A bad value of the tracer's options: one line naming it, before any work.
+master_start badind 2 "${CORNELL[@]}" --indirect photons
+master_wait badind 30 || fail "the job with a bad --indirect did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --indirect photons, expected 2"
+grep -q -- "--indirect: 'photons' is not one of mesh|gather" "$tmp/badind.log" || { fail "bad --indirect not named"; master_log badind; }
 
 master_start job 3 "${CORNELL[@]}" --listen tcp:127.0.0.1:0 --token-file "$tmp/token" --exit-when-display-leaves
 master_wait_listen job || finish
