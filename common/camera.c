@@ -110,3 +110,10 @@ ct_camera cam_lerp(const ct_camera *a, const ct_camera *b, float t)
     c.fov_y = a->fov_y + (b->fov_y - a->fov_y) * t;
     return c;
 }
+
+bool cam_same(const ct_camera *a, const ct_camera *b)
+{
+    return a->eye.x == b->eye.x && a->eye.y == b->eye.y && a->eye.z == b->eye.z && a->orient.w == b->orient.w &&
+           a->orient.x == b->orient.x && a->orient.y == b->orient.y && a->orient.z == b->orient.z &&
+           a->fov_y == b->fov_y;
+}

@@ -21,6 +21,10 @@ typedef struct ct_camera {
  * field of view in degrees. */
 ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg);
 
+/* Whether a and b are the same camera, value for value (NaNs never are).
+ * A drawn or sampled view is reused only for the very same camera. */
+bool cam_same(const ct_camera *a, const ct_camera *b);
+
 /* Whether c can be traced: every value finite, a field of view in (0, pi),
  * the eye within +-CT_COORD_MAX and a unit orientation (within 1e-3; a zero
  * or huge quaternion makes the rays NaN or infinite). When not, why gets

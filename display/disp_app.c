@@ -268,11 +268,6 @@ static void count_lag(app *a)
     }
 }
 
-static bool same_camera(const ct_camera *x, const ct_camera *y)
-{
-    return memcmp(x, y, sizeof *x) == 0;
-}
-
 /* What the connection says about the frame about to be drawn. */
 enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4, STEP_ERROR = 5 };
 
@@ -318,7 +313,7 @@ static int connection_step(app *a, const ct_camera *cam, const ct_camera *next, 
     /* In lockstep every CAMERA asks for one frame, so a still camera sends
      * its (unchanged) camera again once the previous frame was drawn. */
     bool ask_frame = o->samples_per_frame > 0 && a->frame_taken;
-    if (cam && a->client && (!a->cam_sent || ask_frame || !same_camera(cam, &a->last_cam)) &&
+    if (cam && a->client && (!a->cam_sent || ask_frame || !cam_same(cam, &a->last_cam)) &&
         send_camera(a, cam, err) == STEP_LOST)
         return STEP_LOST;
     if (!disp_session_scene_of(a->session)) {
@@ -473,7 +468,7 @@ static int run(app *a, ct_error *err)
         uint64_t gen = disp_session_image_gen(a->session);
         bool capture_due = a->capture && (k == 0 || last || (o->out_every > 0 && now - t_captured >= o->out_every));
         bool draw = o->continuous || nframes > 0 || o->samples_per_frame > 0 || k == 0 || last || capture_due ||
-                    gen != drawn_gen || !same_camera(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
+                    gen != drawn_gen || !cam_same(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
                     a->ropts.view != drawn_opts.view || a->ropts.exposure != drawn_opts.exposure ||
                     a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
                     in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);
@@ -572,6 +567,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     memset(&a, 0, sizeof a);
     a.o = o;
     a.ropts.passes = o->passes;
+    a.ropts.full_redraw = o->full_redraw;
     a.ropts.view = o->view;
     a.ropts.exposure = o->exposure;
     int status = DISP_EXIT_ERROR;

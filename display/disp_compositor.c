@@ -21,6 +21,10 @@ struct disp_compositor {
     int width, height;
     gl_target hdr;       /* linear float image + depth */
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
+    gl_target base;      /* radiosity + glass of base_cam, no corrections (made on first use) */
+    bool base_ok;        /* base holds base_cam's view of scene base_scene */
+    ct_camera base_cam, last_cam;
+    uint64_t base_scene, last_scene;   /* disp_scene_serial; 0: none */
     mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
     mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
     GLuint tonemap, points_world, flat_screen;
@@ -136,6 +140,7 @@ void disp_compositor_free(disp_compositor *c)
     if (!c) return;
     gl_target_free(&c->hdr);
     gl_target_free(&c->ldr);
+    gl_target_free(&c->base);
     for (int p = 0; p < GL_PASS_COUNT; p++)
         if (c->mesh[p].id) gl.DeleteProgram(c->mesh[p].id);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++)
@@ -478,15 +483,16 @@ static void uncorrect_behind_glass(disp_compositor *c, const disp_scene *s, size
  * by the one-pass programs with the radiosity scaled to zero, up to 4
  * textures a draw (the float target holds negative sums, so the add and
  * reverse-subtract of passes 2/3 need not be split); the depth test keeps
- * them off what lies behind the nearest glass. */
-static void late_corrections(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+ * them off what lies behind the nearest glass. With `all`, every
+ * segment's corrections: the one-pass mode over a kept base. */
+static void late_corrections(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp, bool all,
                              disp_render_stats *st)
 {
     bool any = false;
     for (size_t k = 0; k < nseg; k++) {
         const segment *g = &c->segs[k];
         const disp_texture **gt = c->seg_tex + g->first;
-        for (uint32_t i = g->glass ? 0 : GL_ONE_PASS_MAX_TEX; i < g->m; i += GL_ONE_PASS_MAX_TEX) {
+        for (uint32_t i = g->glass || all ? 0 : GL_ONE_PASS_MAX_TEX; i < g->m; i += GL_ONE_PASS_MAX_TEX) {
             if (!any) {
                 gl.Enable(GL_BLEND);
                 gl.BlendEquation(GL_FUNC_ADD);
@@ -603,11 +609,67 @@ static void draw_samples(disp_compositor *c, const ct_camera *cam, const mat4 *m
     gl.DepthFunc(depth_less());
 }
 
+static void clear_target(const gl_target *t)
+{
+    gl_target_bind(t, 0, 0);
+    gl.ClearColor(0, 0, 0, 1);
+    gl.ClearDepth(gl.reversed_z ? 0.0 : 1.0);
+    gl.Enable(GL_DEPTH_TEST);
+    gl.DepthFunc(depth_less());
+    gl.DepthMask(GL_TRUE);
+    gl.Disable(GL_BLEND);
+    gl.Disable(GL_CULL_FACE);
+    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+}
+
+/* Pass 1 of the 3-pass mode: the opaque segments' radiosity, then the glass
+ * (multiplied over what it covers, and its depth). */
+static void radiosity_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+                           const ct_camera *cam, float rad_scale, disp_render_stats *st)
+{
+    use_mesh(&c->mesh[GL_PASS_RAD], mvp, rad_scale);
+    for (size_t k = 0; k < nseg; k++) {
+        if (c->segs[k].glass) continue;
+        disp_scene_draw(s, c->segs[k].b, c->segs[k].e);
+        st->draws++;
+    }
+    glass_passes(c, s, mvp, cam, rad_scale > 0.0f, st);
+}
+
+/* Puts the radiosity and glass of cam into the float target from the kept
+ * base, drawing the base first when it holds another view. Radiosity and
+ * glass do not change with the texels, and they are most of a frame's cost
+ * on a CPU rasteriser; the corrections then go over the copy with the
+ * depth the base left (so they land where pass 1's surfaces are, as in
+ * passes 2 and 3). */
+static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+                            const ct_camera *cam, disp_render_stats *st, ct_error *err)
+{
+    uint64_t serial = disp_scene_serial(s);
+    if (!c->base_ok || c->base_scene != serial || !cam_same(&c->base_cam, cam)) {
+        if (!c->base.fbo) {
+            int rc = gl_target_init(&c->base, c->width, c->height, c->hdr.format, true, err);
+            if (rc) return rc;
+        }
+        clear_target(&c->base);
+        disp_scene_bind(s);
+        radiosity_pass(c, s, nseg, mvp, cam, 1.0f, st);
+        c->base_ok = true;
+        c->base_cam = *cam;
+        c->base_scene = serial;
+    } else {
+        st->base_reused = true;
+    }
+    gl_target_copy(&c->base, &c->hdr);
+    disp_scene_bind(s);
+    return CT_OK;
+}
+
 int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_textures *t,
                            const ct_camera *cam, const disp_render_opts *o,
                            disp_render_stats *stats, ct_error *err)
 {
-    disp_render_stats st = {0, 0, false};
+    disp_render_stats st = {0, 0, false, false};
     if (o->passes != 1 && o->passes != 3)
         return ct_fail(err, CT_EINVAL, "passes must be 1 or 3, not %d", o->passes);
     float zn, zf;
@@ -632,16 +694,19 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
         if (drawable(x, disp_scene_ntris(s)) && (x->nonzero || o->view == DISP_VIEW_ASSIGNMENT)) tex[n++] = x;
     }
 
-    gl_target_bind(&c->hdr, 0, 0);
-    gl.ClearColor(0, 0, 0, 1);
-    gl.ClearDepth(gl.reversed_z ? 0.0 : 1.0);
-    gl.Enable(GL_DEPTH_TEST);
-    gl.DepthFunc(depth_less());
-    gl.DepthMask(GL_TRUE);
-    gl.Disable(GL_BLEND);
-    gl.Disable(GL_CULL_FACE);
-    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
-    disp_scene_bind(s);
+    /* The second frame in a row of the same camera and scene starts from
+     * the kept base: a still view under streamed texels redraws only its
+     * corrections. The first draws everything at once (a moving camera
+     * never draws a base it would not use). */
+    uint64_t serial = disp_scene_serial(s);
+    bool again = c->last_scene == serial && cam_same(&c->last_cam, cam);
+    c->last_scene = serial;
+    c->last_cam = *cam;
+    bool reuse = again && !o->full_redraw && o->view == DISP_VIEW_FULL;
+    if (!reuse) {
+        clear_target(&c->hdr);
+        disp_scene_bind(s);
+    }
 
     bool corrections = o->view == DISP_VIEW_FULL || o->view == DISP_VIEW_CORRECTIONS ||
                        o->view == DISP_VIEW_SAMPLES;
@@ -650,21 +715,19 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
      * (and the two modes) differ only by what they add. */
     size_t nseg = 0;
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
-    if (!rc && corrections && o->passes == 1) {
+    if (!rc && reuse) {
+        rc = base_into_target(c, s, nseg, &mvp.m[0][0], cam, &st, err);
+        if (!rc && o->passes == 1) late_corrections(c, s, nseg, &mvp.m[0][0], true, &st);
+        else if (!rc) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
+    } else if (!rc && corrections && o->passes == 1) {
         one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
         if (n) uncorrect_behind_glass(c, s, nseg, &mvp, rad_scale, &st);
         glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
-        late_corrections(c, s, nseg, &mvp.m[0][0], &st);
+        late_corrections(c, s, nseg, &mvp.m[0][0], false, &st);
     } else if (!rc) {
         /* Pass 1 (glass after the opaque surfaces), then (with corrections)
          * passes 2 and 3. */
-        use_mesh(&c->mesh[GL_PASS_RAD], &mvp.m[0][0], rad_scale);
-        for (size_t k = 0; k < nseg; k++) {
-            if (c->segs[k].glass) continue;
-            disp_scene_draw(s, c->segs[k].b, c->segs[k].e);
-            st.draws++;
-        }
-        glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
+        radiosity_pass(c, s, nseg, &mvp.m[0][0], cam, rad_scale, &st);
         if (corrections) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
     }
     if (!rc && o->view == DISP_VIEW_ASSIGNMENT && n) {

@@ -4,6 +4,9 @@
  * 2 adds the positive part of its correction and pass 3 subtracts the
  * negative part with GL_FUNC_REVERSE_SUBTRACT (§4.3; skipped when all
  * corrections are positive), or all of it in one shader pass (--passes 1).
+ * A camera drawn again (streamed texels under a still view) starts from a
+ * copy of its radiosity and glass kept from its first repeat (the base),
+ * so only the corrections are drawn anew (docs/display.md, "Still views").
  * Then exposure and sRGB tone mapping to the window or to an 8-bit target,
  * plus the debug views (radiosity only, corrections only, texture
  * assignment as in the paper's Fig. 5, sample positions as in Fig. 7). */
@@ -42,6 +45,7 @@ typedef struct disp_render_opts {
     disp_view view;
     float exposure;       /* stops: displayed = linear * 2^exposure */
     bool all_positive;    /* the master says no correction is negative: no pass 3 */
+    bool full_redraw;     /* draw the radiosity anew even when the camera did not move */
 } disp_render_opts;
 
 /* What the last render drew. */
@@ -49,6 +53,7 @@ typedef struct disp_render_stats {
     uint32_t draws;           /* glDrawElements calls */
     uint32_t textures_drawn;  /* textures with a projection that were applied */
     bool pass3;               /* the subtractive pass ran */
+    bool base_reused;         /* radiosity and glass came from the kept base */
 } disp_render_stats;
 
 typedef struct disp_compositor disp_compositor;

@@ -14,6 +14,7 @@ struct disp_scene {
     bounds3 bounds;
     disp_glass *glass;      /* runs of see-through triangles, in order */
     uint32_t nglass;
+    uint64_t serial;        /* disp_scene_serial */
 };
 
 static int validate(const ct_radmesh *m, ct_error *err)
@@ -69,7 +70,10 @@ int disp_scene_new(const ct_radmesh *m, disp_scene **out, ct_error *err)
     *out = NULL;
     int rc = validate(m, err);
     if (rc) return rc;
+    /* GL contexts are made and used on one thread: no atomics needed. */
+    static uint64_t serials;
     disp_scene *s = calloc(1, sizeof *s);
+    if (s) s->serial = ++serials;
     float *verts = malloc((size_t)m->nverts * 6 * sizeof *verts);
     uint32_t *idx = malloc((size_t)m->ntris * 3 * sizeof *idx);
     if (s) {
@@ -190,6 +194,7 @@ const disp_glass *disp_scene_glass(const disp_scene *s, uint32_t *n)
 }
 
 uint32_t disp_scene_ntris(const disp_scene *s) { return s->ntris; }
+uint64_t disp_scene_serial(const disp_scene *s) { return s->serial; }
 bounds3 disp_scene_bounds(const disp_scene *s) { return s->bounds; }
 
 bounds3 disp_scene_node_bounds(const disp_scene *s, uint32_t n)

@@ -33,6 +33,10 @@ void disp_scene_free(disp_scene *s);
 /* Counts. */
 uint32_t disp_scene_ntris(const disp_scene *s);
 
+/* A number no other scene of this process had: what was drawn of a scene
+ * is known to be of this one even when a new scene reuses its address. */
+uint64_t disp_scene_serial(const disp_scene *s);
+
 /* The glass runs, in drawing order (*n of them; NULL when none). */
 const disp_glass *disp_scene_glass(const disp_scene *s, uint32_t *n);
 

@@ -84,6 +84,7 @@
     X(PFNGLDELETETEXTURESPROC, DeleteTextures)                                    \
     X(PFNGLGENFRAMEBUFFERSPROC, GenFramebuffers)                                  \
     X(PFNGLBINDFRAMEBUFFERPROC, BindFramebuffer)                                  \
+    X(PFNGLBLITFRAMEBUFFERPROC, BlitFramebuffer)                                  \
     X(PFNGLFRAMEBUFFERTEXTURE2DPROC, FramebufferTexture2D)                        \
     X(PFNGLFRAMEBUFFERRENDERBUFFERPROC, FramebufferRenderbuffer)                  \
     X(PFNGLCHECKFRAMEBUFFERSTATUSPROC, CheckFramebufferStatus)                    \

@@ -23,6 +23,10 @@ int gl_target_init(gl_target *t, int width, int height, GLenum format, bool dept
 /* Deletes the GL objects and zeroes t. */
 void gl_target_free(gl_target *t);
 
+/* Copies src's colour, depth and stencil into dst (same size and formats)
+ * and leaves dst bound for drawing. */
+void gl_target_copy(const gl_target *src, const gl_target *dst);
+
 /* Binds t for drawing (or the default framebuffer when t is NULL) and sets
  * the viewport to its size (w, h for the default framebuffer). */
 void gl_target_bind(const gl_target *t, int w, int h);

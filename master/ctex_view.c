@@ -265,20 +265,13 @@ static float tex_rate_now(ctex *c, const slot *s)
     return (float)s->t.w / fmaxf(pxw, 1.0f);
 }
 
-static int same_camera(const ct_camera *a, const ct_camera *b)
-{
-    return a->eye.x == b->eye.x && a->eye.y == b->eye.y && a->eye.z == b->eye.z &&
-           a->orient.w == b->orient.w && a->orient.x == b->orient.x && a->orient.y == b->orient.y &&
-           a->orient.z == b->orient.z && a->fov_y == b->fov_y;
-}
-
 /* Recomputes the projection of a camera-local texture for the current view
  * and carries its contents over (reprojection through its mid-depth plane). */
 static int reproject(ctex *c, uint32_t id, ct_error *err)
 {
     slot *s = &c->slots[id];
     if (s->t.kind == CTEX_PROJ_CAMERA && s->t.cam_w == c->W && s->t.cam_h == c->H &&
-        same_camera(&s->t.cam, &c->cam))
+        cam_same(&s->t.cam, &c->cam))
         return CT_OK;   /* same view: same projection */
     ctex_tex old = s->t;
     ctex_tex *t = &s->t;

@@ -68,6 +68,8 @@ static void usage(FILE *f, const disp_app_opts *d)
             "  --hold S              real-time path: stay at its last camera S seconds after it ends (0)\n"
             "  --continuous          draw every frame, also when nothing changed (frame-rate\n"
             "                        measurements; by default a still, unchanged view is not redrawn)\n"
+            "  --full-redraw         draw a still camera's radiosity every frame (by default it is\n"
+            "                        kept from the second frame on and only corrections are redrawn)\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
@@ -226,6 +228,7 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--reference")) { NEED(); o.ref_dir = v; }
         else if (!strcmp(a, "--no-images")) o.no_images = true;
         else if (!strcmp(a, "--continuous")) o.continuous = true;
+        else if (!strcmp(a, "--full-redraw")) o.full_redraw = true;
         else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
             NEED();
             float x;

@@ -260,7 +260,7 @@ static int read_all(int fd, void *p, size_t n)
 }
 
 static void child(int fd, gl_backend_kind kind, int width, int height, const ct_camera *cam,
-                  const disp_render_opts *o, fx_setup_fn setup, void *ctx)
+                  const disp_render_opts *o, int frames, fx_setup_fn setup, void *ctx)
 {
     child_head h;
     memset(&h, 0, sizeof h);
@@ -277,7 +277,8 @@ static void child(int fd, gl_backend_kind kind, int width, int height, const ct_
     if (!rc) rc = disp_session_new(&s, &err);
     if (!rc && setup) rc = setup(s, ctx, &err);
     if (!rc) rc = disp_compositor_new(width, height, 0, &c, &err);
-    if (!rc) rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), cam, o, NULL, &err);
+    for (int k = 0; k < frames && !rc; k++)
+        rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), cam, o, NULL, &err);
     bool win = b && gl_backend_is_window(b);
     if (!rc) rc = disp_compositor_present(c, o, win, width, height, &err);
     if (!rc) {
@@ -304,6 +305,13 @@ int fx_render(gl_backend_kind kind, int width, int height, const ct_camera *cam,
               const disp_render_opts *o, fx_setup_fn setup, void *ctx, fx_frame *out, char *msg,
               size_t msgcap)
 {
+    return fx_render_frames(kind, width, height, cam, o, 1, setup, ctx, out, msg, msgcap);
+}
+
+int fx_render_frames(gl_backend_kind kind, int width, int height, const ct_camera *cam,
+                     const disp_render_opts *o, int frames, fx_setup_fn setup, void *ctx, fx_frame *out,
+                     char *msg, size_t msgcap)
+{
     memset(out, 0, sizeof *out);
     int fds[2];
     if (pipe(fds)) {
@@ -318,7 +326,7 @@ int fx_render(gl_backend_kind kind, int width, int height, const ct_camera *cam,
     }
     if (pid == 0) {
         close(fds[0]);
-        child(fds[1], kind, width, height, cam, o, setup, ctx);
+        child(fds[1], kind, width, height, cam, o, frames, setup, ctx);
         _exit(0);
     }
     close(fds[1]);
@@ -467,7 +475,7 @@ int fx_render_session(disp_session *s, int width, int height, uint8_t *out, ct_e
     int rc = disp_compositor_new(width, height, 0, &c, err);
     if (rc) return rc;
     ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false};
     rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, err);
     if (!rc) rc = disp_compositor_present(c, &o, false, width, height, err);
     if (!rc) disp_compositor_read_display(c, out);

@@ -67,6 +67,12 @@ typedef struct fx_frame {
 int fx_render(gl_backend_kind kind, int width, int height, const ct_camera *cam,
               const disp_render_opts *o, fx_setup_fn setup, void *ctx, fx_frame *out, char *msg,
               size_t msgcap);
+
+/* fx_render drawing `frames` frames of the same camera and returning the
+ * last: from the second on, the compositor starts from its kept base. */
+int fx_render_frames(gl_backend_kind kind, int width, int height, const ct_camera *cam,
+                     const disp_render_opts *o, int frames, fx_setup_fn setup, void *ctx, fx_frame *out,
+                     char *msg, size_t msgcap);
 void fx_frame_free(fx_frame *f);
 
 /* Starts Xvfb on a free display number and points $DISPLAY at it; returns
