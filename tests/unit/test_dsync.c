@@ -277,6 +277,10 @@ Test(dsync, texels_changed_between_updates_go_out_once)
     setup(&r, &o);
     settle(&r);
     ct_error err;
+    /* First the textures find their resolution (a resize sends a texture
+     * whole, which would hide what is measured below). */
+    for (int i = 0; i < 30; i++) insert(&r, 300, 5);
+    settle(&r);
     /* The same 300 points, 30 times over, between two updates: every
      * change lands on the same tiles. */
     uint64_t b0 = r.cp.texel_bytes;
@@ -294,7 +298,7 @@ Test(dsync, texels_changed_between_updates_go_out_once)
     printf("metric: texel bytes for 30 rounds of the same 300 samples: %llu in one update, %llu in 30\n",
            (unsigned long long)once, (unsigned long long)each);
     cr_assert_gt(once, 0u);
-    cr_assert_gt(each, 10 * once, "newest wins: one update sends the texels once");
+    cr_assert_gt(each, 20 * once, "newest wins: one update sends the texels once");
     (void)err;
     teardown(&r);
 }
