@@ -66,16 +66,6 @@ const char *trc_mode_name(trc_mode m)
     return "?";
 }
 
-int trc_mode_parse(const char *name, trc_mode *out, ct_error *err)
-{
-    for (int m = TRC_MODE_PATH; m <= TRC_MODE_REUSE; m++)
-        if (strcmp(name, trc_mode_name((trc_mode)m)) == 0) {
-            *out = (trc_mode)m;
-            return CT_OK;
-        }
-    return ct_fail(err, CT_EINVAL, "unknown mode '%s' (path, drt, reuse-diffuse)", name);
-}
-
 const char *trc_indirect_name(trc_indirect i)
 {
     switch (i) {
@@ -83,16 +73,6 @@ const char *trc_indirect_name(trc_indirect i)
     case TRC_INDIRECT_GATHER: return "gather";
     }
     return "?";
-}
-
-int trc_indirect_parse(const char *name, trc_indirect *out, ct_error *err)
-{
-    for (int i = TRC_INDIRECT_MESH; i <= TRC_INDIRECT_GATHER; i++)
-        if (strcmp(name, trc_indirect_name((trc_indirect)i)) == 0) {
-            *out = (trc_indirect)i;
-            return CT_OK;
-        }
-    return ct_fail(err, CT_EINVAL, "unknown indirect light '%s' (mesh, gather)", name);
 }
 
 int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, trc_tracer **out,

@@ -65,14 +65,8 @@ void trc_options_default(trc_options *o, trc_mode mode);
 /* "path", "drt", "reuse-diffuse". */
 const char *trc_mode_name(trc_mode m);
 
-/* Parses a mode name; CT_EINVAL for an unknown one. */
-int trc_mode_parse(const char *name, trc_mode *out, ct_error *err);
-
 /* "mesh", "gather". */
 const char *trc_indirect_name(trc_indirect i);
-
-/* Parses an --indirect value; CT_EINVAL for an unknown one. */
-int trc_indirect_parse(const char *name, trc_indirect *out, ct_error *err);
 
 /* A recorded ray (benchmark replay of the very rays a run traced). */
 typedef struct trc_ray {

@@ -34,6 +34,7 @@
 #include "tracer/radiosity.h"
 #include "tracer/tport_local.h"
 #include "tracer/tracer.h"
+#include "tracer/trc_cli.h"
 
 #define COMPONENT "corrtex converge"
 #define MAX_CHECKPOINTS 64
@@ -41,21 +42,17 @@
 
 typedef struct conv_opts {
     const char *camera, *samples, *samples_after, *move_to, *out, *reference, *reference_after, *mesh, *record;
-    int mode, width, height, batch, threads, insert_runs, shadow_rays, branch, depth;
-    int indirect, gather_rays;
+    int width, height, batch, threads, insert_runs;
+    trc_cli trc;   /* the tracer's options */
     uint64_t seed;
     float exposure, stand_in;
     bool time_insert, quiet, verbose;
 } conv_opts;
 
-static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
-static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
-
 #define OF(f) offsetof(conv_opts, f)
 static const optab OPTS[] = {
     {"camera", 0, OPTAB_STRING, OF(camera), 0, 0, NULL, "NAME", "scene camera (default: the first)", NULL},
     {"samples", 0, OPTAB_STRING, OF(samples), 0, 0, NULL, "LIST", "checkpoints, increasing (required)", NULL},
-    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, "drt", "drt|reuse-diffuse|path", "tracer mode", MODES},
     {"width", 0, OPTAB_INT, OF(width), 1, 16384, "512", "W", "image width", NULL},
     {"height", 0, OPTAB_INT, OF(height), 1, 16384, "512", "H", "image height", NULL},
     {"reference", 0, OPTAB_STRING, OF(reference), 0, 0, NULL, "REF.exr", "reference for RMSE/PSNR/SSIM", NULL},
@@ -75,13 +72,6 @@ static const optab OPTS[] = {
     {"batch", 0, OPTAB_INT, OF(batch), 1, 65536, "256", "B", "requests per batch (a lockstep round)", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, POOL_MAX_THREADS, "2", "T", "tracing threads", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 2147483647, "1", "S", "seed of the queue and the tracer", NULL},
-    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 65536, NULL, "K", "tracer option (default: the mode's)", NULL},
-    {"branch", 0, OPTAB_INT, OF(branch), 1, 65536, NULL, "B", "tracer option (default: the mode's)", NULL},
-    {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D", "tracer option (-1: the mode's)", NULL},
-    {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",
-     "drt's indirect light: the mesh at the hit, or a final gather of it (docs/tracer.md)", INDIRECT},
-    {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "rays of --indirect gather per shading point",
-     NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "PNG exposure (stops)", NULL},
     {"record", 0, OPTAB_STRING, OF(record), 0, 0, NULL, "FILE",
      "write every sample to FILE (proto/srec.h), for scripts/bench-master --part saturation", NULL},
@@ -107,7 +97,10 @@ static void usage(FILE *f)
             "options:\n");
     optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
     size_t n;
-    const optab *t = sess_options_table(&n);
+    const optab *t = trc_cli_table(&n);
+    fprintf(f, "tracer options (docs/tracer.md):\n");
+    optab_usage(t, n, NULL, f);
+    t = sess_options_table(&n);
     optab_usage(t, n, NULL, f);
     fprintf(f, "request queue options (docs/sampling.md; here --refine-error defaults to 0:\n"
                "the figures count samples up to one per pixel):\n");
@@ -397,15 +390,17 @@ int cmd_converge(int argc, char **argv)
     ro.refine_error = 0.0f;
     sess_options so;
     drv_options dopt;
-    size_t nrq, nct, nss, ndr;
+    size_t nrq, nct, nss, ndr, ntr;
     const optab *trq = rq_options_table(&nrq), *tct = ctex_options_table(&nct), *tss = sess_options_table(&nss),
-                *tdr = drv_options_table(&ndr);
+                *tdr = drv_options_table(&ndr), *ttr = trc_cli_table(&ntr);
     optab_defaults(tss, nss, &so, &err);
     optab_defaults(tdr, ndr, &dopt, &err);
-    optab_group g[] = {{OPTS, OPTAB_COUNT(OPTS), &o}, {tss, nss, &so}, {trq, nrq, &ro}, {tct, nct, &co}};
+    optab_defaults(ttr, ntr, &o.trc, &err);
+    optab_group g[] = {{OPTS, OPTAB_COUNT(OPTS), &o}, {ttr, ntr, &o.trc}, {tss, nss, &so}, {trq, nrq, &ro},
+                       {tct, nct, &co}};
     const char *pos[1];
     int npos = 0;
-    int prc = optab_parse(g, 4, argc, argv, pos, 1, &npos, &err);
+    int prc = optab_parse(g, 5, argc, argv, pos, 1, &npos, &err);
     if (prc == 1) {
         usage(stdout);
         return 0;
@@ -460,13 +455,8 @@ int cmd_converge(int argc, char **argv)
     }
     if ((rc = load_mesh(scene, o.stand_in, o.mesh, &mesh, &err))) goto fail;
     trc_options to;
-    trc_options_default(&to, (trc_mode)o.mode);
+    trc_cli_apply(&o.trc, &to);
     to.seed = o.seed;
-    if (o.shadow_rays > 0) to.shadow_rays = o.shadow_rays;
-    if (o.branch > 0) to.branch = o.branch;
-    if (o.depth >= 0) to.depth = o.depth;
-    to.indirect = (trc_indirect)o.indirect;
-    to.gather_rays = o.gather_rays;
     if ((rc = trc_new(scene, &mesh, &to, &tr, &err)) || (rc = pool_new(o.threads, &pool, &err)) ||
         (rc = tport_local_new(tr, pool, 1, &port, &err)))
         goto fail;

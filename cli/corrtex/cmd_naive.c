@@ -32,6 +32,7 @@
 #include "common/scene.h"
 #include "common/timer.h"
 #include "tracer/tracer.h"
+#include "tracer/trc_cli.h"
 
 #define COMPONENT "corrtex naive"
 #define MAX_THREADS POOL_MAX_THREADS
@@ -43,12 +44,10 @@ typedef struct naive_opts {
     int frames, spp_frame, width, height, threads;
     bool hold, no_png, quiet;
     float exposure;
-    int mode, shadow_rays, branch, depth;
+    trc_cli cli;       /* the tracer's options as given */
     uint64_t seed;
     trc_options trc;
 } naive_opts;
-
-static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_PATH, TRC_MODE_REUSE};
 
 #define OF(f) offsetof(naive_opts, f)
 static const optab OPTS[] = {
@@ -63,12 +62,6 @@ static const optab OPTS[] = {
     /* §5: 1024x1024 display */
     {"width", 0, OPTAB_INT, OF(width), 1, 16384, "1024", "W", "image width", NULL},
     {"height", 0, OPTAB_INT, OF(height), 1, 16384, "1024", "H", "image height", NULL},
-    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, "drt", "drt|path|reuse-diffuse", "tracer mode", MODES},
-    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 1024, NULL, "K",
-     "light samples per shading point (default: the mode's)", NULL},
-    {"branch", 0, OPTAB_INT, OF(branch), 1, 1024, NULL, "B", "rays per glossy lobe, drt and reuse-diffuse (default: the mode's)",
-     NULL},
-    {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D", "recursion depth (-1: the mode's)", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 9.2e18, "1", "S", "random seed (pixel choice and tracing)", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, MAX_THREADS, "1", "T", "worker threads", NULL},
     {"reference", 0, OPTAB_STRING, OF(ref), 0, 0, NULL, "DIR", "per-frame RMSE/PSNR/SSIM against DIR/frame_NNNNN.exr",
@@ -91,6 +84,9 @@ static void usage(FILE *f)
             "Writes DIR/frame_NNNNN.exr (and .png) per frame and DIR/frames.csv.\n\n"
             "options:\n");
     optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
+    size_t n;
+    const optab *t = trc_cli_table(&n);
+    optab_usage(t, n, NULL, f);
     fprintf(f, "  -h, --help                   this help\n"
                "The last line on stdout is 'stats: key=value ...' (frames, samples, seconds,\n"
                "samples_per_s, base_s, sample_s, and mean_rmse, mean_psnr with --reference).\n"
@@ -347,10 +343,13 @@ int cmd_naive(int argc, char **argv)
     memset(&o, 0, sizeof o);
     ct_error err;
     optab_defaults(OPTS, OPTAB_COUNT(OPTS), &o, &err);
-    optab_group g = {OPTS, OPTAB_COUNT(OPTS), &o};
+    size_t ntr;
+    const optab *ttr = trc_cli_table(&ntr);
+    optab_defaults(ttr, ntr, &o.cli, &err);
+    optab_group g[2] = {{OPTS, OPTAB_COUNT(OPTS), &o}, {ttr, ntr, &o.cli}};
     const char *pos[1];
     int npos = 0;
-    int rc = optab_parse(&g, 1, argc, argv, pos, 1, &npos, &err);
+    int rc = optab_parse(g, 2, argc, argv, pos, 1, &npos, &err);
     if (rc == 1) {
         usage(stdout);
         return 0;
@@ -360,10 +359,7 @@ int cmd_naive(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
-    trc_options_default(&o.trc, (trc_mode)o.mode);
-    if (o.shadow_rays > 0) o.trc.shadow_rays = o.shadow_rays;
-    if (o.branch > 0) o.trc.branch = o.branch;
-    if (o.depth >= 0) o.trc.depth = o.depth;
+    trc_cli_apply(&o.cli, &o.trc);
     o.trc.seed = o.seed;
     if (npos != 1) {
         ct_log(CT_LOG_ERROR, COMPONENT, "expected one scene file, got %d (try --help)", npos);

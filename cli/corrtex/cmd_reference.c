@@ -19,6 +19,7 @@
 #include "common/timer.h"
 #include "tracer/render.h"
 #include "tracer/tracer.h"
+#include "tracer/trc_cli.h"
 
 #define CMD "corrtex reference"
 
@@ -27,11 +28,7 @@ typedef struct ref_args {
     const char *radmesh;    /* .ctmesh interactive solution, or NULL */
     int frame, frames;      /* -1: not given */
     int width, height, spp, threads, tile;   /* width, height, spp 0: not given */
-    int mode;               /* trc_mode; -1: not given */
-    int shadow_rays, branch, depth;   /* 0 (depth -1): the mode's default */
-    int branch_depth;                 /* -1: the mode's default */
-    int indirect;                     /* trc_indirect */
-    int gather_rays;
+    trc_cli trc;            /* the tracer's options; mode -1: not given */
     uint64_t seed;
     float exposure;
     bool png, half, raw_embree, quiet, verbose;
@@ -39,9 +36,6 @@ typedef struct ref_args {
     float stand_in;         /* < 0: no stand-in radiosity */
     long raw_cap;
 } ref_args;
-
-static const int MODES[] = {TRC_MODE_PATH, TRC_MODE_DRT, TRC_MODE_REUSE};
-static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
 
 /* Rows without a default are set in parse_args (-1: not given). */
 #define OF(f) offsetof(ref_args, f)
@@ -53,16 +47,9 @@ static const optab OPTS[] = {
     {"width", 0, OPTAB_INT, OF(width), 1, 65536, NULL, "W", "", NULL},
     {"height", 0, OPTAB_INT, OF(height), 1, 65536, NULL, "H", "", NULL},
     {"spp", 0, OPTAB_INT, OF(spp), 1, 1 << 20, NULL, "S", "", NULL},
-    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, NULL, "path|drt|reuse-diffuse", "", MODES},
     {"radmesh", 0, OPTAB_STRING, OF(radmesh), 0, 0, NULL, "FILE", "", NULL},
     {"stand-in-radiosity", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, NULL, "A", "", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, 256, NULL, "T", "", NULL},
-    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 4096, NULL, "K", "", NULL},
-    {"branch", 0, OPTAB_INT, OF(branch), 1, 4096, NULL, "B", "", NULL},
-    {"branch-depth", 0, OPTAB_INT, OF(branch_depth), 0, 1024, NULL, "L", "", NULL},
-    {"depth", 0, OPTAB_INT, OF(depth), 0, 1024, NULL, "D", "", NULL},
-    {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather", "", INDIRECT},
-    {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "N", "", NULL},
     {"tile", 0, OPTAB_INT, OF(tile), 1, 4096, "16", "N", "", NULL},
     {"half", 0, OPTAB_FLAG, OF(half), 0, 0, NULL, NULL, "", NULL},
@@ -119,7 +106,7 @@ static void help(FILE *f)
         "                    branches; deeper levels trace one ray per event, so a sample\n"
         "                    costs about B * D rays, not B^D (default %d)\n"
         "  --depth D         drt: recursion depth (default %d); path: maximum bounces\n"
-        "                    (default %d, Russian roulette after 3)\n"
+        "                    (default %d, Russian roulette after 3); -1: the mode's\n"
         "  --indirect I      drt with a radiosity mesh: its indirect diffuse light,\n"
         "                      mesh: the mesh's indirect part read at the hit\n"
         "                      gather: a final gather, G cosine rays reading the mesh where\n"
@@ -158,14 +145,16 @@ static int parse_args(int argc, char **argv, ref_args *a)
     ct_error err;
     optab_defaults(OPTS, OPTAB_COUNT(OPTS), a, &err);
     a->frame = a->frames = -1;
-    a->mode = -1;
-    a->branch_depth = -1;
+    size_t ntrc;
+    const optab *trc = trc_cli_table(&ntrc);
+    optab_defaults(trc, ntrc, &a->trc, &err);
+    a->trc.mode = -1;
     a->stand_in = -1.0f;
     long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
     a->threads = ncpu > 0 ? (int)(ncpu < 256 ? ncpu : 256) : 1;
-    optab_group g = {OPTS, OPTAB_COUNT(OPTS), a};
+    optab_group g[2] = {{OPTS, OPTAB_COUNT(OPTS), a}, {trc, ntrc, &a->trc}};
     const char *pos[1];
-    int npos = 0, rc = optab_parse(&g, 1, argc, argv, pos, 1, &npos, &err);
+    int npos = 0, rc = optab_parse(g, 2, argc, argv, pos, 1, &npos, &err);
     if (rc == 1) {
         help(stdout);
         return 1;
@@ -177,7 +166,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
     if (!a->scene) return bad("missing SCENE (try --help)%s%s", "", ""), -1;
     if (!a->width || !a->height) return bad("missing --width or --height%s%s", "", ""), -1;
     if (!a->spp) return bad("missing --spp%s%s", "", ""), -1;
-    if (a->mode < 0) return bad("missing --mode (path, drt, reuse-diffuse)%s%s", "", ""), -1;
+    if (a->trc.mode < 0) return bad("missing --mode (path, drt, reuse-diffuse)%s%s", "", ""), -1;
     if (!a->out) return bad("missing -o OUT%s%s", "", ""), -1;
     if (a->camera && a->path) return bad("--camera and --path exclude each other%s%s", "", ""), -1;
     if (!a->path && (a->frame >= 0 || a->frames >= 0)) return bad("--frame/--frames need --path%s%s", "", ""), -1;
@@ -190,7 +179,7 @@ static int parse_args(int argc, char **argv, ref_args *a)
     }
     if (a->radmesh && a->stand_in >= 0.0f)
         return bad("give --radmesh or --stand-in-radiosity, not both%s%s", "", ""), -1;
-    if (a->mode == TRC_MODE_REUSE && a->stand_in < 0.0f && !a->radmesh)
+    if (a->trc.mode == TRC_MODE_REUSE && a->stand_in < 0.0f && !a->radmesh)
         return bad("mode reuse-diffuse needs a radiosity mesh: give --radmesh FILE.ctmesh%s%s", "", ""), -1;
     return 0;
 }
@@ -222,7 +211,7 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
     uint64_t rays = trc_stats_rays(&r->stats);
     double s = r->seconds > 0 ? r->seconds : 1e-9;
     printf("reference: %dx%d, %d spp, mode %s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
-           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->mode), a->threads, a->threads == 1 ? "" : "s",
+           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->trc.mode), a->threads, a->threads == 1 ? "" : "s",
            nimages, nimages == 1 ? "" : "s", r->seconds, total_s);
     printf("reference: %llu samples, %.0f samples/s; %llu rays (%llu primary, %llu secondary, "
            "%llu shadow), %.0f rays/s\n",
@@ -240,7 +229,7 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
     printf("stats: mode=%s threads=%d width=%d height=%d spp=%d seconds=%.6f samples=%llu rays=%llu "
            "samples_per_s=%.1f rays_per_s=%.1f logged=%llu raw_isect_rays_per_s=%.1f "
            "raw_traced_rays_per_s=%.1f\n",
-           trc_mode_name((trc_mode)a->mode), a->threads, a->width, a->height, a->spp, r->seconds,
+           trc_mode_name((trc_mode)a->trc.mode), a->threads, a->width, a->height, a->spp, r->seconds,
            (unsigned long long)r->stats.samples, (unsigned long long)rays, (double)r->stats.samples / s,
            (double)rays / s, (unsigned long long)r->logged,
            r->logged ? (double)r->logged / r->replay_isect_s : 0.0,
@@ -308,13 +297,7 @@ int cmd_reference(int argc, char **argv)
     }
 
     trc_options to;
-    trc_options_default(&to, (trc_mode)a.mode);
-    if (a.shadow_rays) to.shadow_rays = a.shadow_rays;
-    if (a.branch) to.branch = a.branch;
-    if (a.branch_depth >= 0) to.branch_depth = a.branch_depth;
-    to.indirect = (trc_indirect)a.indirect;
-    to.gather_rays = a.gather_rays;
-    if (a.depth) to.depth = a.depth;
+    trc_cli_apply(&a.trc, &to);
     to.seed = a.seed;
     double tb = ct_now();
     if (a.radmesh) {

@@ -27,6 +27,7 @@
 #include "tracer/radiosity.h"
 #include "tracer/rank.h"
 #include "tracer/tracer.h"
+#include "tracer/trc_cli.h"
 
 #define PROG "corrtex-render"
 
@@ -44,9 +45,7 @@ typedef struct opts {
     const char *token_file;
     const char *mesh;           /* use this .ctmesh as it is */
     const char *rad_cache;      /* cache file; default in the cache directory */
-    int mode;                   /* trc_mode */
-    int shadow_rays, branch, depth;   /* 0: the mode's default */
-    int indirect, gather_rays;        /* trc_indirect; G */
+    trc_cli trc;                /* the tracer's mode and options */
     uint64_t seed;
     int threads;
     int idle_sleep_us;
@@ -58,9 +57,6 @@ typedef struct opts {
     drv_options drive;
     sess_options session;
 } opts;
-
-static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
-static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
 
 #define OF(f) offsetof(opts, f)
 static const optab SOCKET_OPTS[] = {
@@ -83,15 +79,6 @@ static const optab MESH_OPTS[] = {
     {"rad-threads", 0, OPTAB_INT, OF(rad.threads), 1, 256, NULL, "N", "solver threads", NULL},
 };
 static const optab TRACER_OPTS[] = {
-    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, "drt", "drt|reuse-diffuse|path", "tracer mode", MODES},
-    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 4096, NULL, "K",
-     "light samples per shading point (default: the mode's, drt 4)", NULL},
-    {"branch", 0, OPTAB_INT, OF(branch), 1, 4096, NULL, "B", "rays per glossy lobe (default: the mode's, drt 4)", NULL},
-    {"depth", 0, OPTAB_INT, OF(depth), 1, 1024, NULL, "D", "bounces (default: the mode's, drt 5)", NULL},
-    {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",
-     "drt's indirect light: the mesh read at the hit, or a final gather of the mesh (docs/tracer.md)", INDIRECT},
-    {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "rays of --indirect gather per shading point",
-     NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "S", "seed of every random stream", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, 64, "1", "N", "threads per tracer rank", NULL},
     {"idle-sleep-us", 0, OPTAB_INT, OF(idle_sleep_us), 0, 1000000, "1000", "U",
@@ -104,7 +91,7 @@ static const optab LOG_OPTS[] = {
 #undef OF
 
 /* The option groups, in --help order. */
-enum { NGROUPS = 10 };
+enum { NGROUPS = 11 };
 static void groups(opts *o, optab_group *g)
 {
     size_t n;
@@ -114,6 +101,8 @@ static void groups(opts *o, optab_group *g)
     t = sched_options_table(&n);
     g[k++] = (optab_group){t, n, &o->sched};
     g[k++] = (optab_group){MESH_OPTS, OPTAB_COUNT(MESH_OPTS), o};
+    t = trc_cli_table(&n);
+    g[k++] = (optab_group){t, n, &o->trc};
     g[k++] = (optab_group){TRACER_OPTS, OPTAB_COUNT(TRACER_OPTS), o};
     t = drv_options_table(&n);
     g[k++] = (optab_group){t, n, &o->drive};
@@ -128,7 +117,7 @@ static void groups(opts *o, optab_group *g)
 }
 
 static const char *const GROUP_TITLES[NGROUPS] = {
-    "display socket", NULL, "interactive solution", "tracers", "scheduling loop", NULL,
+    "display socket", NULL, "interactive solution", "tracers", NULL, "scheduling loop", NULL,
     "request queue (docs/sampling.md)", "corrective textures (docs/textures.md)", "log", NULL};
 
 /* Every option's default. */
@@ -330,19 +319,14 @@ static int run_tracer(const opts *o, int rank, ct_error *err)
     if (rc == 0) rc = wire_scene_parse(payload.data, payload.len, peer, &mesh, err);
     wire_buf_free(&payload);
     trc_options to;
-    trc_options_default(&to, (trc_mode)o->mode);
+    trc_cli_apply(&o->trc, &to);
     to.seed = o->seed;
-    if (o->shadow_rays > 0) to.shadow_rays = o->shadow_rays;
-    if (o->branch > 0) to.branch = o->branch;
-    if (o->depth > 0) to.depth = o->depth;
-    to.indirect = (trc_indirect)o->indirect;
-    to.gather_rays = o->gather_rays;
     if (rc == 0) rc = trc_new(scene, &mesh, &to, &t, err);
     if (rc) ct_log(CT_LOG_ERROR, PROG, "tracer rank %d on %s: %s", rank, host, err->msg);
     int bad = rc ? 1 : 0;
     ct_error e;
     if (mpil_allreduce_max(&bad, &e) == 0 && bad == 0) {
-        ct_debug(PROG, "tracer rank %d on %s ready (%s)", rank, host, trc_mode_name((trc_mode)o->mode));
+        ct_debug(PROG, "tracer rank %d on %s ready (%s)", rank, host, trc_mode_name((trc_mode)o->trc.mode));
         trank_config tc = {.tracer = t, .rank = rank, .threads = o->threads, .idle_sleep_us = (unsigned)o->idle_sleep_us,
                            .stop = &g_stop_int};
         trank_stats st;

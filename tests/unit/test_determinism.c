@@ -289,11 +289,6 @@ Test(tracer_api, rejects_bad_options, .init = setup, .fini = teardown)
     cr_expect_eq(trc_new(room, &other, &o, &t, &err), CT_ESTALE);
     cr_expect(strstr(err.msg, "elsewhere") != NULL, "%s", err.msg);
     rmesh_free(&other);
-    trc_mode m;
-    cr_expect_eq(trc_mode_parse("whitted", &m, &err), CT_EINVAL);
-    cr_expect(strstr(err.msg, "whitted") != NULL);
-    cr_expect_eq(trc_mode_parse("reuse-diffuse", &m, &err), 0);
-    cr_expect_eq(m, TRC_MODE_REUSE);
 }
 
 Test(determinism, capped_ray_log_is_a_spread_subset_in_traced_order, .init = setup, .fini = teardown)

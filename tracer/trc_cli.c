@@ -1,0 +1,42 @@
+/* trc_cli.c: the tracer's command-line options (trc_cli.h). */
+#include "tracer/trc_cli.h"
+
+static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
+static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
+
+#define OF(f) offsetof(trc_cli, f)
+static const optab ROWS[] = {
+    {"mode", 0, OPTAB_CHOICE, OF(mode), 0, 0, "drt", "drt|reuse-diffuse|path",
+     "tracer mode: distributed ray tracing, drt with the diffuse light of the radiosity mesh, or path tracing "
+     "(docs/tracer.md)", MODES},
+    {"shadow-rays", 0, OPTAB_INT, OF(shadow_rays), 1, 4096, NULL, "K",
+     "light samples per shading point (default: the mode's, path 1, drt 4)", NULL},
+    {"branch", 0, OPTAB_INT, OF(branch), 1, 4096, NULL, "B", "drt: rays per glossy lobe (default: the mode's, 4)",
+     NULL},
+    {"branch-depth", 0, OPTAB_INT, OF(branch_depth), -1, 1024, "-1", "L",
+     "drt: levels that split into B glossy rays and both Fresnel branches (-1: the mode's, 1)", NULL},
+    {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D",
+     "drt: recursion depth; path: maximum bounces (-1: the mode's, drt 5, path 64)", NULL},
+    {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",
+     "drt's indirect light: the mesh read at the hit, or a final gather of the mesh (docs/tracer.md)", INDIRECT},
+    {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "rays of --indirect gather per shading point",
+     NULL},
+};
+#undef OF
+
+const optab *trc_cli_table(size_t *n)
+{
+    *n = OPTAB_COUNT(ROWS);
+    return ROWS;
+}
+
+void trc_cli_apply(const trc_cli *c, trc_options *o)
+{
+    trc_options_default(o, (trc_mode)c->mode);
+    if (c->shadow_rays > 0) o->shadow_rays = c->shadow_rays;
+    if (c->branch > 0) o->branch = c->branch;
+    if (c->branch_depth >= 0) o->branch_depth = c->branch_depth;
+    if (c->depth >= 0) o->depth = c->depth;
+    o->indirect = (trc_indirect)c->indirect;
+    o->gather_rays = c->gather_rays;
+}
