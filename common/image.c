@@ -411,6 +411,13 @@ float img_tonemap(float linear, float exposure)
     return v <= 0.0031308f ? 12.92f * v : 1.055f * powf(v, 1.0f / 2.4f) - 0.055f;
 }
 
+float img_tonemap_slope(float linear)
+{
+    float v = linear < 1.0f ? linear : 1.0f;   /* NaN too */
+    if (!(v > 0.0031308f)) return 12.92f;
+    return (1.055f / 2.4f) * powf(v, 1.0f / 2.4f - 1.0f);
+}
+
 /* Inverse of the sRGB OETF on [0, 1]. */
 static float srgb_to_linear(float s)
 {

@@ -46,6 +46,11 @@ int img_write_exr(const char *path, const ct_image *img, img_pixel_type type, ct
 /* sRGB-encoded display value in [0, 1] of a linear value times 2^exposure. */
 float img_tonemap(float linear, float exposure);
 
+/* The slope of img_tonemap at exposure 0, d(display) / d(linear), at
+ * `linear` taken into [0, 1] (12.92 at and below 0.0031308, 0.44 at 1 and
+ * above): how much a linear error moves what a viewer sees there. */
+float img_tonemap_slope(float linear);
+
 /* Writes an 8-bit sRGB PNG of img scaled by 2^exposure, atomically. */
 int img_write_png(const char *path, const ct_image *img, float exposure, ct_error *err);
 

@@ -408,7 +408,8 @@ int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_
     int in_mean = 0;
     if (e->ref.px && hit && v3_finite(s->l_hq) && v3_finite(s->l_base)) {
         int64_t p = pixel_of(e, req.px, req.py);
-        in_mean = p >= 0 ? rq_refine_add(&e->ref, (uint32_t)p, s->node, v3_sub(s->l_hq, s->l_base), en, err) : 0;
+        in_mean = p >= 0 ? rq_refine_add(&e->ref, (uint32_t)p, s->node, v3_sub(s->l_hq, s->l_base),
+                                                 v3_luminance(s->l_base), en, err) : 0;
         if (in_mean < 0) return in_mean;
     }
     if (refine) {

@@ -50,10 +50,11 @@ static const optab OPTS[] = {
     {"max-queue", 0, OPTAB_LONG, OF(max_queue), 0, 9e18, "0", "N", "cap on queued requests (0 = one per pixel)",
      NULL},
     /* Past full coverage a still view goes on being sampled where a pixel's
-     * mean is least certain, until its standard error (luminance of the
-     * correction) is under half an 8-bit step of a mid-grey display value. */
+     * mean is least certain, until its standard error, as displayed (sRGB at
+     * exposure 0), is under half an 8-bit step. */
     {"refine-error", 0, OPTAB_FLOAT, OF(refine_error), 0, 3e38, "0.002", "E",
-     "after full coverage keep sampling pixels whose mean's standard error is over E (0: stop at one sample)",
+     "after full coverage keep sampling pixels whose mean's standard error as displayed (sRGB, exposure 0) is over "
+     "E (0: stop at one sample)",
      NULL},
     {"refine-max", 0, OPTAB_INT, OF(refine_max), 1, 65535, "256", "N",
      "at most N samples per pixel when refining (1..65535)", NULL},

@@ -1,6 +1,8 @@
 /* rq_refine.c: refinement past full coverage (rq_refine.h). */
 #include "master/rq_refine.h"
 
+#include "common/image.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -52,8 +54,13 @@ float rq_refine_priority(const rq_refine *r, uint32_t p)
     const rq_pixel *x = &r->px[p];
     if (x->tag != r->tag || x->n == 0) return 0.0f;
     float se = x->n > 1 ? sqrtf(x->m2 / (float)(x->n - 1) / (float)x->n) : 0.0f;
-    if (x->n < MIN_TRUSTED && x->first_err / sqrtf((float)x->n) > se) return x->first_err / sqrtf((float)x->n);
-    return se;
+    if (x->n < MIN_TRUSTED && x->first_err / sqrtf((float)x->n) > se) se = x->first_err / sqrtf((float)x->n);
+    /* A linear threshold let dark pixels keep one sample's noise: on the
+     * diffuse Cornell box the short box's front face (linear 0.02-0.05)
+     * ended 20 % off the path-traced truth in 4 x 4 blocks while the bright
+     * walls converged to 1-2 %. */
+    float shown = x->base + v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2]));
+    return se * img_tonemap_slope(shown);
 }
 
 static float lum_of(const rq_pixel *x)
@@ -136,7 +143,8 @@ static int queue(rq_refine *r, uint32_t p, ct_error *err)
 
 /* --- samples -------------------------------------------------------------------- */
 
-int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float err_norm, ct_error *err)
+int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float base_lum, float err_norm,
+                  ct_error *err)
 {
     if (!r->px || p >= r->npx) return 0;
     rq_pixel *x = &r->px[p];
@@ -144,6 +152,7 @@ int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float err_no
         memset(x, 0, sizeof *x);
         x->tag = r->tag;
         x->node = node;
+        x->base = base_lum;
     }
     if (x->n == UINT16_MAX) return 0;
     if (node != x->node) {

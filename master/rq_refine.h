@@ -28,6 +28,7 @@ typedef struct rq_pixel {
     float mean[3];      /* running mean of dL */
     float m2;           /* sum of squared deviations of dL's luminance */
     float first_err;    /* its prior: |E| of its first sample, or the neighbours' contrast */
+    float base;         /* luminance of L_base at its first sample: displayed = base + lum(mean) */
     uint32_t node;      /* the node its first sample hit */
     uint16_t n;         /* samples, 0 .. the option's maximum */
     uint16_t tag;       /* the refine epoch it belongs to */
@@ -61,13 +62,14 @@ void rq_refine_free(rq_refine *r);
 /* A new view: every pixel's samples are forgotten. */
 void rq_refine_epoch(rq_refine *r);
 
-/* A sample of pixel p that hit `node`: its correction dL and its error
- * norm |E|. A sample on another node than the pixel's first one (a
+/* A sample of pixel p that hit `node`: its correction dL, the luminance of
+ * its L_base and its error norm |E|. A sample on another node than the pixel's first one (a
  * silhouette) counts towards n but not into the mean: the mean is written
  * into that node's texture. While refining, the pixel is queued again with
  * its new priority. Returns 1 when the sample entered the mean, 0 when not,
  * negative on failure. */
-int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float err_norm, ct_error *err);
+int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float base_lum, float err_norm,
+                  ct_error *err);
 
 /* Starts refining: every pixel with a sample is queued. */
 int rq_refine_start(rq_refine *r, ct_error *err);
@@ -79,7 +81,10 @@ bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio);
 /* The mean dL of pixel p (zero without samples). */
 vec3 rq_refine_mean(const rq_refine *r, uint32_t p);
 
-/* The priority pixel p's next sample would have. */
+/* The priority pixel p's next sample would have: the uncertainty of its
+ * mean as a viewer sees it, in display units at exposure 0 (linear
+ * luminance times img_tonemap_slope of the displayed luminance), so a dark
+ * pixel's noise counts as much as it shows. */
 float rq_refine_priority(const rq_refine *r, uint32_t p);
 
 #endif

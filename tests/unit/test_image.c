@@ -712,3 +712,23 @@ Test(image, exr_reads_every_core_compression)
         img_free(&img);
     }
 }
+
+/* The slope of the display curve: the derivative of img_tonemap (a finite
+ * difference) inside [0, 1], the linear segment's 12.92 below 0.0031308
+ * and at or below 0, the slope at 1 above 1. */
+Test(image, tonemap_slope)
+{
+    const float xs[] = {0.01f, 0.05f, 0.18f, 0.5f, 0.9f};
+    for (size_t i = 0; i < sizeof xs / sizeof xs[0]; i++) {
+        float x = xs[i], h = 1e-3f * x;
+        float fd = (img_tonemap(x + h, 0.0f) - img_tonemap(x - h, 0.0f)) / (2.0f * h);
+        cr_expect_float_eq(img_tonemap_slope(x), fd, 2e-3f * fd, "slope at %g: %g vs %g", (double)x,
+                           (double)img_tonemap_slope(x), (double)fd);
+    }
+    cr_expect_eq(img_tonemap_slope(0.001f), 12.92f);
+    cr_expect_eq(img_tonemap_slope(0.0f), 12.92f);
+    cr_expect_eq(img_tonemap_slope(-3.0f), 12.92f);
+    cr_expect_eq(img_tonemap_slope(NAN), img_tonemap_slope(1.0f));
+    cr_expect_eq(img_tonemap_slope(5.0f), img_tonemap_slope(1.0f));
+    cr_expect_float_eq(img_tonemap_slope(1.0f), 1.055f / 2.4f, 1e-6f);
+}

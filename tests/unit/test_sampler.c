@@ -9,7 +9,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/image.h"
 #include "common/rng.h"
+#include "master/rq_refine.h"
 #include "master/sampler.h"
 
 #define PLANE_Z (-10.0f)
@@ -919,4 +921,32 @@ Test(sampler, refinement_options)
     o.refine_error = -1.0f;
     cr_assert_eq(rq_options_check(&o, &err), CT_EINVAL);
     cr_assert_eq(rq_options_set(&o, "refine-error", "inf", &err), CT_EINVAL);
+}
+
+/* Refinement weighs a pixel's uncertainty as it is displayed: the same
+ * noise on a dark pixel (what a viewer sees there moves 12.92 times the
+ * linear value at the darkest, 0.44 times at white) gets the higher
+ * priority, so a dark surface does not keep one sample's noise. */
+Test(sampler, refinement_priority_is_the_uncertainty_as_displayed)
+{
+    rq_refine r;
+    ct_error err;
+    cr_assert_eq(rq_refine_init(&r, 2, 1, 0.002f, 256, &err), 0, "%s", err.msg);
+    const float noise[] = {0.010f, -0.008f, 0.012f, -0.011f, 0.004f, -0.007f};
+    for (int i = 0; i < 6; i++) {
+        vec3 dl = v3s(noise[i]);
+        cr_assert_eq(rq_refine_add(&r, 0, 1, dl, 0.5f, 0.01f, &err), 1);   /* bright: displayed ~0.5 */
+        cr_assert_eq(rq_refine_add(&r, 1, 1, dl, 0.02f, 0.01f, &err), 1);  /* dark: displayed ~0.02 */
+    }
+    float bright = rq_refine_priority(&r, 0), dark = rq_refine_priority(&r, 1);
+    float want = img_tonemap_slope(0.02f) / img_tonemap_slope(0.5f);
+    printf("metric: refinement priority, same noise: bright %.5f, dark %.5f (ratio %.2f, display slopes %.2f)\n",
+           (double)bright, (double)dark, (double)(dark / bright), (double)want);
+    cr_assert_gt(bright, 0.0f);
+    cr_expect_float_eq(dark / bright, want, 0.05f * want, "dark/bright %g, want %g", (double)(dark / bright),
+                       (double)want);
+    /* the bright pixel is certain enough as displayed, the dark one is not */
+    cr_expect_lt(bright, 0.002f * 3.0f);
+    cr_expect_gt(dark, 0.002f);
+    rq_refine_free(&r);
 }
