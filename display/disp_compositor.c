@@ -609,16 +609,25 @@ static void draw_samples(disp_compositor *c, const ct_camera *cam, const mat4 *m
     gl.DepthFunc(depth_less());
 }
 
-static void clear_target(const gl_target *t)
+/* The state every frame's passes start from (whatever the last frame or
+ * the tone mapping left). */
+static void frame_state(void)
 {
-    gl_target_bind(t, 0, 0);
-    gl.ClearColor(0, 0, 0, 1);
-    gl.ClearDepth(gl.reversed_z ? 0.0 : 1.0);
     gl.Enable(GL_DEPTH_TEST);
     gl.DepthFunc(depth_less());
     gl.DepthMask(GL_TRUE);
     gl.Disable(GL_BLEND);
     gl.Disable(GL_CULL_FACE);
+    gl.Disable(GL_STENCIL_TEST);
+    gl.Disable(GL_SCISSOR_TEST);
+}
+
+static void clear_target(const gl_target *t)
+{
+    gl_target_bind(t, 0, 0);
+    gl.ClearColor(0, 0, 0, 1);
+    gl.ClearDepth(gl.reversed_z ? 0.0 : 1.0);
+    frame_state();
     gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
 }
 
@@ -661,6 +670,7 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
         st->base_reused = true;
     }
     gl_target_copy(&c->base, &c->hdr);
+    frame_state();
     disp_scene_bind(s);
     return CT_OK;
 }
