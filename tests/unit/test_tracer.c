@@ -389,6 +389,51 @@ Test(tracer, drt_final_gather_reads_the_mesh_where_its_rays_land)
     scene_free(s);
 }
 
+/* The radiosity solution has no specular transport (a mirror is black in
+ * it), so the gather follows a mirror it hits and reads the mesh where the
+ * reflected ray lands. A floor (rho 0.5) under a mirror ceiling of
+ * reflectance R that fills its whole hemisphere, no light, a stand-in mesh
+ * of radiance 0.5 A on the floor: every gather ray goes up, is reflected
+ * down and reads 0.5 A, so the floor's indirect light is 0.5 * R * 0.5 A;
+ * with the ceiling a black diffuse surface instead, nothing. */
+static vec3 floor_under_ceiling(bool mirror)
+{
+    ct_error err;
+    ct_scene *s = scene_new("mirrorceiling");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    scene_material mm = scene_material_default("ceiling");
+    mm.diffuse = v3s(0.0f);
+    if (mirror) mm.mirror = v3(0.8f, 0.6f, 0.4f);
+    int ceil_m = scene_add_material(s, &mm, &err);
+    cr_assert(floor_m >= 0 && ceil_m >= 0);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-200, 0, -200), v3(0, 0, 400), v3(400, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "ceiling", (uint32_t)ceil_m, v3(-200, 1, -200), v3(400, 0, 0), v3(0, 0, 400), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3(0.2f, 0.4f, 0.6f), &rad, &err));
+    trc_tracer *t = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, TRC_INDIRECT_GATHER);
+    trc_view v = view_of(v3(0, 0.5f, 0), v3(0.3f, 0, 0.2f), 40.0f, 9, 9);
+    vec3 l = mean_at(t, &v, 4.5f, 4.5f, 64, 3u, NULL);
+    trc_free(t);
+    rmesh_free(&rad);
+    scene_free(s);
+    return l;
+}
+
+Test(tracer, drt_final_gather_follows_mirrors)
+{
+    vec3 with = floor_under_ceiling(true), without = floor_under_ceiling(false);
+    const float A[3] = {0.2f, 0.4f, 0.6f}, R[3] = {0.8f, 0.6f, 0.4f};
+    for (int k = 0; k < 3; k++) {
+        double want = 0.5 * R[k] * 0.5 * A[k];
+        printf("metric: gather under a mirror, channel %d: %g (want %g), under a black ceiling %g\n", k,
+               (double)v3_get(with, k), want, (double)v3_get(without, k));
+        cr_expect(fabs(v3_get(with, k) - want) < 1e-4 + 1e-3 * want, "channel %d: %g, want %g", k,
+                  (double)v3_get(with, k), want);
+        cr_expect(fabs(v3_get(without, k)) < 1e-6, "black ceiling, channel %d: %g", k, (double)v3_get(without, k));
+    }
+}
+
 Test(tracer, drt_indirect_options_parse_and_validate)
 {
     ct_error err;
