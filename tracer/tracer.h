@@ -45,6 +45,12 @@ enum {
     TRC_DIM_PIXEL = 1    /* the reference renderer's sub-pixel jitter */
 };
 
+/* Changes whenever an image a mode gives changes (not its speed), so that
+ * references cached by scripts (named after `corrtex reference --help`,
+ * which prints it) are rendered again: 1: drt's final gather follows
+ * mirrors. */
+#define TRC_VERSION 1
+
 typedef struct trc_options {
     trc_mode mode;
     int shadow_rays;     /* K: light samples per shading point */

@@ -124,9 +124,10 @@ static void help(FILE *f)
         "                    traced rays (default 2000000)\n"
         "  --bench-runs R    rounds of --raw-embree (default 2)\n"
         "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
-        "  --quiet, --verbose\n",
+        "  --quiet, --verbose\n"
+        "tracer version %d (changes when the images change: cached references carry it)\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
-        trc_indirect_name(d.indirect), d.gather_rays, (unsigned long long)p.seed);
+        trc_indirect_name(d.indirect), d.gather_rays, (unsigned long long)p.seed, TRC_VERSION);
 }
 
 static int bad(const char *fmt, const char *a, const char *b)
