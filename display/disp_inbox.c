@@ -444,8 +444,6 @@ static bool collect_ops(disp_inbox *b)
     return true;
 }
 
-/* Under the lock: copies marked runs into dst (cap bytes), making the
- * upload list; what does not fit stays marked. */
 /* n RGB half texels to RGBA (alpha 0, as a cleared texture has) at dst,
  * which may be unaligned mapped memory: one 8-byte store per texel. */
 static void rgb_to_rgba(uint8_t *dst, const uint16_t *src, int n)
@@ -456,6 +454,8 @@ static void rgb_to_rgba(uint8_t *dst, const uint16_t *src, int n)
     }
 }
 
+/* Under the lock: copies marked runs into dst (cap bytes), making the
+ * upload list; what does not fit stays marked. */
 static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
 {
     size_t off = 0;

@@ -1,11 +1,11 @@
 /* rq_refine.c: refinement past full coverage (rq_refine.h). */
 #include "master/rq_refine.h"
 
-#include "common/image.h"
-
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "common/image.h"
 
 int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, ct_error *err)
 {

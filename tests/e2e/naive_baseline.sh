@@ -57,6 +57,8 @@ bad "--mesh" "$scene" --path "$pathf" -o "$tmp/x"
 bad "nope" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
 bad "exceeds" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --samples-per-frame 65 -o "$tmp/x"
 bad "missing.ctmesh" "$scene" --mesh "$tmp/missing.ctmesh" --path "$pathf" -o "$tmp/x"
+# the tracer's option table, shared with corrtex-render and reference (tracer/trc_cli.h)
+bad "--indirect: 'photons' is not one of mesh|gather" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" -o "$tmp/x" --indirect photons
 bad "frame_00000.exr" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --frames 1 --samples-per-frame 0 --reference "$tmp/none" -o "$tmp/x"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: naive baselines"

@@ -78,6 +78,9 @@ check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
 check "--indirect: 'photons' is not one of mesh|gather" "$SCENE" "${common[@]}" --mode drt --indirect photons
 check "--gather-rays: '0'" "$SCENE" "${common[@]}" --mode drt --gather-rays 0
+# The tracer's option table (tracer/trc_cli.h): -1 means the mode's level, less is refused.
+check "--depth: '-2' is not an integer" "$SCENE" "${common[@]}" --mode drt --depth -2
+check "--branch-depth: '1025'" "$SCENE" "${common[@]}" --mode drt --branch-depth 1025
 # Given last, an unknown option is unknown, a known one lacks its value.
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus
 check "option --spp needs a value" "$SCENE" --width 8 --height 8 --mode path -o "$tmp/x.exr" --spp

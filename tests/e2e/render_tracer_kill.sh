@@ -9,17 +9,7 @@
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
 job_with_walker 3
-victim=$VICTIM
-echo "+ kill -9 $victim   (tracer rank 1)"
-t0=$(date +%s.%N)
-kill -9 "$victim"
-master_wait job 15 || fail "the job did not end within 15 s"
-t1=$(date +%s.%N)
-secs=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.1f", b - a }')
-echo "metric: job ended ${secs} s after the tracer was killed"
-awk -v s="$secs" 'BEGIN { exit !(s < 10) }' || fail "the job took ${secs} s to end (limit 10 s)"
-((MASTER_RC != 0)) || fail "mpirun exit status 0 after a rank died"
-display_gone
+signal_victim KILL 10
 drc=$DISPLAY_RC
 master_log job | grep -v progress | tail -n 12
 sed 's/^/  display: /' "$tmp/display.log" | tail -n 5
@@ -37,6 +27,5 @@ fi
 grep -q "error corrtex-display: connection to unix:$tmp/r.sock lost" "$tmp/display.log" ||
   fail "the display did not report the lost connection to the master"
 ((drc == 3)) || fail "display exit status $drc, expected 3 (connection lost)"
-left=$(pgrep -f "$tmp/r.sock" | wc -l)
-((left == 0)) || fail "$left processes of the job are left"
+no_job_left
 finish

@@ -10,22 +10,12 @@
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
 job_with_walker 3
-victim=$VICTIM
-echo "+ kill -TERM $victim   (tracer rank 1 alone)"
-t0=$EPOCHREALTIME
-kill -TERM "$victim"
-master_wait job 15 || fail "the job did not end within 15 s"
-secs=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
-echo "metric: job ended ${secs} s after SIGTERM to tracer rank 1"
-awk -v s="$secs" 'BEGIN { exit !(s < 5) }' || fail "the job took ${secs} s to end (limit 5 s)"
-((MASTER_RC != 0)) || fail "mpirun exit status 0 after a tracer left"
-display_gone
+signal_victim TERM 5
 drc=$DISPLAY_RC
 master_log job | grep -v progress | tail -n 8
 sed 's/^/  display: /' "$tmp/display.log" | tail -n 3
 grep -q 'tracer rank 1 left the job (it got a signal)' "$tmp/job.log" || fail "the master did not name the rank that left"
 grep -q 'tracer rank 1 left the job' "$tmp/display.log" || fail "the display did not show the master's message"
 ((drc == 3)) || fail "display exit status $drc, expected 3"
-left=$(pgrep -f "$tmp/r.sock" | wc -l)
-((left == 0)) || fail "$left processes of the job are left"
+no_job_left
 finish

@@ -170,6 +170,29 @@ job_with_walker() {
   [[ -n $VICTIM ]] || { fail "tracer rank 1 not found"; finish; }
 }
 
+# signal_victim SIG LIMIT: sends SIG to tracer rank 1 ($VICTIM, from
+# job_with_walker) alone; the job must end within LIMIT seconds with a
+# non-zero status, and then the display (DISPLAY_RC, display_gone).
+signal_victim() {
+  local sig=$1 limit=$2 t0 secs
+  echo "+ kill -$sig $VICTIM   (tracer rank 1 alone)"
+  t0=$EPOCHREALTIME
+  kill -"$sig" "$VICTIM"
+  master_wait job 15 || fail "the job did not end within 15 s"
+  secs=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
+  echo "metric: job ended ${secs} s after SIG$sig to tracer rank 1"
+  awk -v s="$secs" -v l="$limit" 'BEGIN { exit !(s < l) }' || fail "the job took ${secs} s to end (limit $limit s)"
+  ((MASTER_RC != 0)) || fail "mpirun exit status 0 after a tracer left"
+  display_gone
+}
+
+# no_job_left: no process of the job (its socket in the command line) runs.
+no_job_left() {
+  local left
+  left=$(pgrep -f "$tmp/r.sock" | wc -l)
+  ((left == 0)) || fail "$left processes of the job are left"
+}
+
 # display_gone: waits up to 5 s for the display to exit (killing it if it
 # does not, a failure); DISPLAY_RC.
 display_gone() {
