@@ -10,6 +10,7 @@
 
 #include <stdbool.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "common/error.h"
 #include "common/radmesh.h"
@@ -124,6 +125,24 @@ static inline vec3 emb_hit_point(const emb_hit *h)
 {
     const emb_tri *r = h->rec;
     return v3_add(r->a, v3_add(v3_scale(r->e1, h->u), v3_scale(r->e2, h->v)));
+}
+
+/* Offsets a point along n past the float error of the intersection (Waechter
+ * & Binder, Ray Tracing Gems ch. 6): integer ULP steps far from the origin,
+ * a small absolute step near it. Scale independent, so no scene-size epsilon. */
+static inline vec3 emb_offset_ray(vec3 p, vec3 n)
+{
+    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    float pc[3] = {p.x, p.y, p.z}, nc[3] = {n.x, n.y, n.z}, out[3];
+    for (int i = 0; i < 3; i++) {
+        int32_t of = (int32_t)(int_scale * nc[i]), bits;
+        memcpy(&bits, &pc[i], sizeof bits);
+        bits += pc[i] < 0.0f ? -of : of;
+        float moved;
+        memcpy(&moved, &bits, sizeof moved);
+        out[i] = fabsf(pc[i]) < origin ? pc[i] + float_scale * nc[i] : moved;
+    }
+    return v3(out[0], out[1], out[2]);
 }
 
 /* Geometric normal of mesh triangle t (unit; winding e1 x e2 = front side). */

@@ -52,24 +52,6 @@ static inline vec3 clamp0(vec3 a) { return v3(bsdf_maxf(a.x, 0.0f), bsdf_maxf(a.
 static inline float maxc(vec3 a) { return bsdf_maxf(a.x, bsdf_maxf(a.y, a.z)); }
 static inline float minf(float x, float y) { return x < y || y != y ? x : y; }
 
-/* Offsets a point along n past the float error of the intersection (Waechter
- * & Binder, Ray Tracing Gems ch. 6): integer ULP steps far from the origin,
- * a small absolute step near it. Scale independent, so no scene-size epsilon. */
-static inline vec3 offset_ray(vec3 p, vec3 n)
-{
-    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
-    float pc[3] = {p.x, p.y, p.z}, nc[3] = {n.x, n.y, n.z}, out[3];
-    for (int i = 0; i < 3; i++) {
-        int32_t of = (int32_t)(int_scale * nc[i]), bits;
-        memcpy(&bits, &pc[i], sizeof bits);
-        bits += pc[i] < 0.0f ? -of : of;
-        float moved;
-        memcpy(&moved, &bits, sizeof moved);
-        out[i] = fabsf(pc[i]) < origin ? pc[i] + float_scale * nc[i] : moved;
-    }
-    return v3(out[0], out[1], out[2]);
-}
-
 static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t shadow)
 {
     trc_raylog *l = c->st->log;
@@ -180,7 +162,7 @@ static vec3 through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target,
         att = v3_mul(att, glass_pass(m, cosd));
         if (!(maxc(att) > 0.0f)) return v3s(0.0f);
         vec3 p = emb_hit_point(&h);
-        o = offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
+        o = emb_offset_ray(p, cosd < 0.0f ? v3_neg(ng) : ng);
         d = v3_sub(target, o);
         dist = v3_len(d);
         if (!(dist > 0.0f) || v3_dot(d, d) <= 0.0f) return att;
@@ -207,7 +189,7 @@ static vec3 through_glass_base(integ_ctx *c, const emb_hit *first, vec3 d, bool 
         float cosd = v3_dot(d, ng);
         att = v3_mul(att, glass_pass(m, cosd));
         if (!(maxc(att) > 0.0f)) return v3s(0.0f);
-        vec3 o = offset_ray(emb_hit_point(&h), cosd < 0.0f ? v3_neg(ng) : ng);
+        vec3 o = emb_offset_ray(emb_hit_point(&h), cosd < 0.0f ? v3_neg(ng) : ng);
         c->st->secondary++;
         log_ray(c, o, d, INFINITY, 0);
         if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return v3s(0.0f);
@@ -299,7 +281,7 @@ static void dl_prepare(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo
             lc->f = mode == DIRECT_GLOSSY_MIS ? v3_add(lc->fg, bsdf_eval_diffuse(b, wi)) : lc->fg;
         }
         if (v3_is_zero(lc->f)) continue;
-        lc->target = offset_ray(lp.p, lp.n);
+        lc->target = emb_offset_ray(lp.p, lp.n);
         vec3 d = v3_sub(lc->target, q->origin);
         float dist = v3_len(d);
         if (!(dist > 0.0f)) continue;
@@ -365,7 +347,7 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
     vec3 sum = v3s(0.0f);
     if (!dl_active(c, b, mode)) return sum;
     dl_batch q;
-    q.origin = offset_ray(s->p, b->ng);
+    q.origin = emb_offset_ray(s->p, b->ng);
     /* The emitter probabilities at s, for all its light samples (lights.h). */
     light_sel sel;
     light_select_key(c->lights, s->lkey, s->p, &sel);
@@ -378,6 +360,69 @@ static vec3 direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 
         dl_finish(c, b, mode, nb, &q, &sum);
     }
     return sum;
+}
+
+/* Lamp samples by way of the mirrors per shading point: one per this many
+ * shadow rays (K), rounded up. The mirrored light is smooth: on `table` at
+ * 256x256 (docs/tracer.md) 4 samples instead of 1 cost 14 % more time per
+ * sample and raise the PSNR at 1 and 16 spp by only 0.1 and 0.02 dB. */
+#define MIRROR_LIGHT_SHARE 4
+
+/* Light reaching the diffuse layer at s from the lamps by way of one plane
+ * mirror (mirror_lights.h). Each of the K / MIRROR_LIGHT_SHARE samples picks
+ * a mirror s lies in front of, in proportion to the solid angle it fills
+ * (mlight_weight: every mirror that could reflect light to s keeps a
+ * positive chance, so the sum stays unbiased, and a room's own mirror gets
+ * most samples where a building has one per room), then a lamp point as
+ * the mirror's centre sees the lamps, mirrored behind the plane. It counts
+ * when the ray from s towards the image meets the mirror itself first and
+ * nothing but glass blocks the leg from the mirror to the lamp. Weight 1:
+ * no other part of drt brings this light to a diffuse layer (the mirror
+ * blocks the shadow rays, the radiosity solution has no mirrors, the
+ * gather leaves lamps seen in mirrors out). The glossy part is not taken:
+ * glossy rays count lamps seen in mirrors fully. Glass on the leg to the
+ * mirror blocks (a small loss of light, no double count). */
+static vec3 mirror_light(integ_ctx *c, const integ_surf *s, const bsdf *b)
+{
+    float cdf[MLIGHT_MAX];
+    float total = mlight_cdf(c->mirrors, s->p, cdf);
+    if (!(total > 0.0f)) return v3s(0.0f);
+    int k_rays = (c->opt->shadow_rays + MIRROR_LIGHT_SHARE - 1) / MIRROR_LIGHT_SHARE;
+    vec3 sum = v3s(0.0f), o = emb_offset_ray(s->p, b->ng);
+    float shift[4];
+    for (int k = 0; k < 4; k++) shift[k] = rnd(c);
+    for (int k = 0; k < k_rays; k++) {
+        /* Stratified as the real lamps' samples are (dl_prepare), the
+         * mirror choice by a fourth shifted coordinate. */
+        uint32_t j = (uint32_t)k;
+        mlight_path mp;
+        if (!mlight_pick(c->mirrors, c->lights, cdf, total, s->p, o, frac1((float)j / (float)k_rays + shift[3]),
+                         frac1(radical_inverse(j, 5) + shift[0]), frac1(radical_inverse(j, 2) + shift[1]),
+                         frac1(radical_inverse(j, 3) + shift[2]), &mp))
+            continue;
+        if (!bsdf_same_side(b, mp.wi)) continue;
+        vec3 f = bsdf_eval_diffuse(b, mp.wi);
+        if (v3_is_zero(f)) continue;
+        emb_hit h;
+        c->st->shadow++;
+        log_ray(c, o, mp.wi, mp.tm, 1);
+        if (!emb_intersect(c->emb, o, mp.wi, 0.0f, mp.tm * (1.0f + 2e-4f) + 2e-4f, &h) ||
+            !mlight_is_mirror_hit(mp.m, &h, mp.tm))
+            continue;
+        vec3 o2 = emb_offset_ray(emb_hit_point(&h), mp.n_side), target = emb_offset_ray(mp.lp.p, mp.lp.n);
+        vec3 d = v3_sub(target, o2);
+        float dist = v3_len(d);
+        if (!(dist > 0.0f)) continue;
+        d = v3_scale(d, 1.0f / dist);
+        c->st->shadow++;
+        log_ray(c, o2, d, dist, 1);
+        bool crossed = false;
+        vec3 tr = emb_occluded(c->emb, o2, d, 0.0f, dist) ? through_glass(c, o2, d, dist, target, &crossed) : v3s(1.0f);
+        if (v3_is_zero(tr)) continue;
+        float g = v3_dot(mp.wi, b->n) / (mp.pdf * (float)k_rays);
+        sum = v3_add(sum, v3_scale(v3_mul(v3_mul(v3_mul(f, mp.m->rho), mp.lp.le), tr), g));
+    }
+    return finite3(sum) ? sum : v3s(0.0f);
 }
 
 /* Emission of s towards wo = -d, weighted as ew says. */
@@ -428,7 +473,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
             beta = v3_scale(beta, 1.0f / q);
         }
         if (!(maxc(beta) > 0.0f)) break;
-        o = offset_ray(s.p, bs.transmit ? v3_neg(b.ng) : b.ng);
+        o = emb_offset_ray(s.p, bs.transmit ? v3_neg(b.ng) : b.ng);
         d = bs.wi;
     }
     return L;
@@ -458,7 +503,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
     vec3 L = v3s(0.0f);
     if (nb <= 0 && !(maxc(b->L.km) > 0.0f) && !b->L.dielectric) return L;
     emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
-    vec3 up = offset_ray(s->p, b->ng);
+    vec3 up = emb_offset_ray(s->p, b->ng);
     for (int i = 0; i < nb; i++) {
         bsdf_sample bs;
         float u1 = rnd(c), u2 = rnd(c);
@@ -483,7 +528,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         }
         if (wrefl > 0.0f) L = v3_add(L, v3_scale(li(c, up, wr, depth + 1, refl), wrefl));
         if (ok && wrefr > 0.0f) {
-            vec3 lt = li(c, offset_ray(s->p, v3_neg(b->ng)), wt, depth + 1, refr);
+            vec3 lt = li(c, emb_offset_ray(s->p, v3_neg(b->ng)), wt, depth + 1, refr);
             L = v3_add(L, v3_mul(lt, v3_scale(b->L.kt, wrefr * b->eta * b->eta)));
         }
     }
@@ -521,7 +566,7 @@ static vec3 gather_hit(integ_ctx *c, emb_hit h, vec3 d)
         if (!(maxc(hm->mirror) > 0.0f) || k == GATHER_MIRROR_BOUNCES) return sum;
         att = v3_mul(att, hm->mirror);
         d = bsdf_reflect(v3_neg(d), ng);
-        vec3 o = offset_ray(emb_hit_point(&h), ng);
+        vec3 o = emb_offset_ray(emb_hit_point(&h), ng);
         c->st->secondary++;
         log_ray(c, o, d, INFINITY, 0);
         if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return sum;
@@ -540,7 +585,7 @@ static vec3 final_gather(integ_ctx *c, const integ_surf *s, const bsdf *b)
 {
     int n = c->opt->gather_rays;
     float su = rnd(c), sv = rnd(c);
-    vec3 o = offset_ray(s->p, b->ng), sum = v3s(0.0f);
+    vec3 o = emb_offset_ray(s->p, b->ng), sum = v3s(0.0f);
     for (int i = 0; i < n; i++) {
         /* (i / n, radical inverse of i in base 2), shifted: stratified in
          * the first number for any n, each ray still uniform. */
@@ -573,6 +618,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
     int nb = glossy_rays(opt, &b, depth);
     L = v3_add(L, direct_light(c, &s, &b, wo, DIRECT_GLOSSY_MIS, nb));
     if (b.L.p_d > 0.0f) {
+        if (mlight_count(c->mirrors)) L = v3_add(L, mirror_light(c, &s, &b));
         if (c->rad && opt->indirect == TRC_INDIRECT_GATHER && ew.mode == EMIS_FULL) {
             /* The first diffuse hit of the path (the camera's, or seen in
              * mirrors and through glass: the hits whose emission counts
@@ -587,7 +633,7 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
             bsdf_sample bs;
             float u1 = rnd(c), u2 = rnd(c);
             if (bsdf_sample_diffuse(&b, u1, u2, &bs)) {
-                vec3 li = path_li(c, offset_ray(s.p, b.ng), bs.wi, NULL, false, DRT_INDIRECT_DEPTH);
+                vec3 li = path_li(c, emb_offset_ray(s.p, b.ng), bs.wi, NULL, false, DRT_INDIRECT_DEPTH);
                 L = v3_add(L, v3_mul(bs.weight, li));
             }
         }

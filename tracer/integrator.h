@@ -14,6 +14,7 @@
 #include "tracer/bsdf.h"
 #include "tracer/embree_scene.h"
 #include "tracer/lights.h"
+#include "tracer/mirror_lights.h"
 #include "tracer/tracer.h"
 
 /* What one thread needs to trace one sample. */
@@ -21,6 +22,7 @@ typedef struct integ_ctx {
     const emb_scene *emb;
     const emb_mesh *mesh;
     const light_set *lights;
+    const mlight_set *mirrors; /* plane mirrors as virtual lights (drt with a mesh); NULL: none */
     const bsdf_mat *bmats;     /* per material: its precomputed lobes */
     const ct_radmesh *rad;     /* NULL: no interactive solution */
     const trc_options *opt;

@@ -45,7 +45,9 @@ typedef struct rad_elem {
     uint32_t link_off, nlinks;  /* in the patch's link block */
     uint64_t key;        /* stable id from the patch and the child path (seeds rays) */
     vec3 Bd;             /* direct part: emission + one bounce of emitted light */
+    vec3 Hm;             /* irradiance from lamps seen in plane mirrors (leaves; rad_mirror_leaf) */
     uint8_t nv, depth;
+    uint8_t hm_done;     /* Hm computed */
 } rad_elem;
 
 /* An input polygon: a scene triangle or a quad rebuilt from two triangles. */
@@ -113,6 +115,13 @@ typedef struct rad_ctx {
 
     rad_vis *vis;
 
+    /* Lamps seen in plane mirrors (rad_mirror.c): a tracer scene of the
+     * scene's own triangles, its lamps and mirrors; all NULL without a
+     * plane mirror or with mirror_samples 0. */
+    struct emb_scene *memb;
+    struct light_set *mlamps;
+    struct mlight_set *mirrors;
+
     atomic_uint_fast64_t bytes;     /* tracked memory */
     atomic_uint_fast64_t peak;
     uint64_t cap_bytes;
@@ -171,6 +180,22 @@ int rad_vis_occluded(const rad_vis *v, vec3 a, vec3 b);
 
 /* Bytes Embree uses for the scene. */
 uint64_t rad_vis_bytes(const rad_vis *v);
+
+/* --- rad_mirror.c --------------------------------------------------------- */
+
+/* Finds the scene's plane mirrors and builds what sampling the lamps seen
+ * in them needs (nothing when there are none or mirror_samples is 0). */
+int rad_mirror_new(rad_ctx *c, ct_error *err);
+
+/* Frees it. */
+void rad_mirror_free(rad_ctx *c);
+
+/* The irradiance from lamps seen in plane mirrors on leaf e, averaged
+ * over mirror_samples random points of it (deterministic per element). */
+vec3 rad_mirror_leaf(const rad_ctx *c, const rad_elem *e);
+
+/* The same at a mesh vertex x (normal n) of the final gather; key seeds it. */
+vec3 rad_mirror_point(const rad_ctx *c, vec3 x, vec3 n, uint64_t key);
 
 /* --- rad_link.c ----------------------------------------------------------- */
 

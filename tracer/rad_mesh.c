@@ -245,6 +245,11 @@ static void *gather_worker(void *arg)
             const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
             vec3 H, Hd;
             rad_final_gather(j->c, j->prep, j->leaf[g], j->pos[g], p->n, &H, &Hd);
+            if (j->c->mirrors) {
+                vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
+                H = v3_add(H, hm);
+                Hd = v3_add(Hd, hm);
+            }
             j->B[g] = v3_add(p->E, v3_mul(p->rho, H));
             j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
         }

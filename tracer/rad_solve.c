@@ -14,8 +14,9 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 3u   /* 2: --max-triangles shared out per patch and pass; 3: the error
-                                 * oracle, unbiased factors and visibility, the final gather */
+#define RAD_SOLVER_VERSION 4u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+                                 * oracle, unbiased factors and visibility, the final gather;
+                                 * 4: lamps seen in plane mirrors */
 
 void rad_params_default(rad_params *p)
 {
@@ -33,6 +34,7 @@ void rad_params_default(rad_params *p)
     p->max_passes = 8;
     p->crease_deg = 30.0;
     p->seed = 1;
+    p->mirror_samples = 32;
 }
 
 int rad_params_check(const rad_params *p, ct_error *err)
@@ -53,6 +55,8 @@ int rad_params_check(const rad_params *p, ct_error *err)
         return ct_fail(err, CT_EINVAL, "--tolerance %g outside (0, 1)", p->tolerance);
     if (p->max_iterations < 1) return ct_fail(err, CT_EINVAL, "--max-iterations must be at least 1");
     if (p->max_passes < 1) return ct_fail(err, CT_EINVAL, "--max-passes must be at least 1");
+    if (p->mirror_samples < 0 || p->mirror_samples > 4096)
+        return ct_fail(err, CT_EINVAL, "--mirror-samples %d outside [0, 4096]", p->mirror_samples);
     if (!(p->crease_deg >= 0.0 && p->crease_deg <= 180.0))
         return ct_fail(err, CT_EINVAL, "--crease-angle %g outside [0, 180]", p->crease_deg);
     return CT_OK;
@@ -91,6 +95,7 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
         for (uint32_t i = 0; i < s->nmats; i++) {
             h = mix_bytes(h, &s->mats[i].diffuse, sizeof(vec3));
             h = mix_bytes(h, &s->mats[i].emission, sizeof(vec3));
+            h = mix_bytes(h, &s->mats[i].mirror, sizeof(vec3));
         }
         for (uint32_t i = 0; i < s->nnodes; i++) h = mix_bytes(h, s->nodes[i].name, strlen(s->nodes[i].name));
     }
@@ -104,6 +109,7 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
     h = mix(h, (uint64_t)p->max_passes);
     h = mix_f(h, p->crease_deg);
     h = mix(h, p->seed);
+    h = mix(h, (uint64_t)p->mirror_samples);
     return h ? h : 1;
 }
 
@@ -180,6 +186,16 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     vec3 Ht = v3_add(Hdown, H), Hdt = v3_add(Hddown, Hd);
     vec3 B, Bd;
     if (e->child == RAD_NONE) {
+        if (c->mirrors) {
+            /* The lamps seen in mirrors: a fixed source term, sampled once
+             * per leaf (rad_mirror.c), direct light. */
+            if (!e->hm_done) {
+                e->Hm = rad_mirror_leaf(c, e);
+                e->hm_done = 1;
+            }
+            Ht = v3_add(Ht, e->Hm);
+            Hdt = v3_add(Hdt, e->Hm);
+        }
         B = v3_add(p->E, v3_mul(p->rho, Ht));
         Bd = v3_add(p->E, v3_mul(p->rho, Hdt));
         vec3 old = *rad_B(c, cur, ei);
@@ -353,6 +369,8 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     rc = rad_vis_new(s, prm->threads, &c->vis, err);
     if (rc) goto done;
     rad_track(c, (int64_t)rad_vis_bytes(c->vis));
+    rc = rad_mirror_new(c, err);
+    if (rc) goto done;
     if (atomic_load(&c->over_cap)) {
         rc = cap_error(c, err);
         goto done;
@@ -467,6 +485,7 @@ done:
         for (int i = 0; i < prm->threads; i++) rad_tls_free(&ws[i].tls);
     free(ws);
     rad_vis_free(c->vis);
+    rad_mirror_free(c);
     rad_free_patches(c);
     pthread_mutex_destroy(&c->alloc_lock);
     free(c);

@@ -35,6 +35,7 @@ typedef struct rad_params {
     int max_passes;         /* refinement passes at most */
     double crease_deg;      /* vertex values are averaged only below this normal angle */
     uint64_t seed;          /* visibility ray seed */
+    int mirror_samples;     /* lamp samples by way of plane mirrors per leaf and vertex (0: none) */
 } rad_params;
 
 /* What a solve did, for the final stats line and the tests. */

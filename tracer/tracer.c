@@ -8,6 +8,7 @@
 #include "tracer/embree_scene.h"
 #include "tracer/integrator.h"
 #include "tracer/lights.h"
+#include "tracer/mirror_lights.h"
 
 #if defined(__x86_64__) || defined(__SSE__)
 #include <xmmintrin.h>
@@ -32,6 +33,7 @@ struct trc_tracer {
     const ct_radmesh *rad;
     emb_scene *emb;
     light_set *lights;
+    mlight_set *mirrors;
     bsdf_mat *bmats;     /* per scene material */
     bool has_dielectric;
 };
@@ -114,6 +116,12 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rc) goto fail;
     rc = light_build(t->emb, &t->lights, err);
     if (rc) goto fail;
+    /* Only drt with a radiosity mesh samples mirrored lamps (integrator.c,
+     * mirror_light): without a mesh its path-traced indirect light finds them. */
+    if (rad && o->mode == TRC_MODE_DRT) {
+        rc = mlight_build(t->emb, t->lights, &t->mirrors, err);
+        if (rc) goto fail;
+    }
     t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);
     if (!t->bmats) {
         rc = ct_fail(err, CT_ENOMEM, "out of memory for %u materials", scene->nmats);
@@ -134,6 +142,7 @@ void trc_free(trc_tracer *t)
 {
     if (!t) return;
     light_free(t->lights);
+    mlight_free(t->mirrors);
     free(t->bmats);
     emb_free(t->emb);
     free(t);
@@ -153,6 +162,7 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->emb = t->emb;
     c->mesh = emb_get_mesh(t->emb);
     c->lights = t->lights;
+    c->mirrors = t->mirrors;
     c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;

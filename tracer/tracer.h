@@ -48,8 +48,8 @@ enum {
 /* Changes whenever an image a mode gives changes (not its speed), so that
  * references cached by scripts (named after `corrtex reference --help`,
  * which prints it) are rendered again: 1: drt's final gather follows
- * mirrors. */
-#define TRC_VERSION 1
+ * mirrors; 2: drt samples lamps seen in plane mirrors. */
+#define TRC_VERSION 2
 
 typedef struct trc_options {
     trc_mode mode;

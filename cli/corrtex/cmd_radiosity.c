@@ -50,6 +50,9 @@ static const optab OPTS[] = {
     {"crease-angle", 0, OPTAB_DOUBLE, OF(p.crease_deg), 0, 180, NULL, "DEG",
      "average vertex values only below this normal angle", NULL},
     {"seed", 0, OPTAB_U64, OF(p.seed), 0, 1.8446744073709552e19, NULL, "S", "visibility ray seed", NULL},
+    {"mirror-samples", 0, OPTAB_INT, OF(p.mirror_samples), 0, 4096, NULL, "N",
+     "lamp samples by way of plane mirrors per element and vertex: the light a mirror reflects from the lamps "
+     "onto diffuse surfaces (0: none, mirrors black)", NULL},
     {"image", 0, OPTAB_STRING, OF(image), 0, 0, NULL, "FILE",
      "also render the solution as the display shows it (Gouraud) from a scene camera: FILE.exr (linear) or "
      "FILE.png (sRGB)", NULL},

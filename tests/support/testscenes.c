@@ -136,3 +136,71 @@ fail:
     scene_free(s);
     return NULL;
 }
+
+/* Form factor from a point to a parallel rectangle [0,a]x[0,b] at height c
+ * whose corner lies straight above it; odd in a and b. */
+static double ff_corner(double a, double b, double c)
+{
+    double x = a / c, y = b / c;
+    return (x / sqrt(1 + x * x) * atan(y / sqrt(1 + x * x)) + y / sqrt(1 + y * y) * atan(x / sqrt(1 + y * y))) /
+           (2 * M_PI);
+}
+
+double ts_ff_rect(double px, double pz, double x0, double x1, double z0, double z1, double c)
+{
+    return ff_corner(x1 - px, z1 - pz, c) - ff_corner(x0 - px, z1 - pz, c) - ff_corner(x1 - px, z0 - pz, c) +
+           ff_corner(x0 - px, z0 - pz, c);
+}
+
+
+ct_scene *ts_mirror_lamp(bool split, bool cover, bool diffuse_ceiling, ct_error *err)
+{
+    ct_scene *s = scene_new("mirrorlamp");
+    if (!s) {
+        ct_fail(err, CT_ENOMEM, "out of memory");
+        return NULL;
+    }
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3(10, 5, 2), err);
+    int black = ts_diffuse(s, "black", v3s(0.0f), v3s(0.0f), err);
+    scene_material mm = scene_material_default("ceiling");
+    mm.diffuse = diffuse_ceiling ? v3s(0.8f) : v3s(0.0f);
+    if (!diffuse_ceiling) mm.mirror = v3(0.8f, 0.6f, 0.4f);
+    int ceil_m = scene_add_material(s, &mm, err);
+    bool ok = floor_m >= 0 && lamp >= 0 && black >= 0 && ceil_m >= 0;
+    /* The floor in 0.5 m tiles: vertices for the radiosity test to read
+     * (the mirror light does not drive the solver's subdivision). */
+    ok = ok && scene_begin_node(s, "floor", SCENE_NODE_PART, (uint32_t)floor_m, err) >= 0;
+    for (int i = 0; i < 40 && ok; i++)
+        for (int j = 0; j < 40 && ok; j++) {
+            vec3 c = v3(-10.0f + 0.5f * (float)i, 0, -10.0f + 0.5f * (float)j);
+            ok = add_quad(s, c, v3_add(c, v3(0, 0, 0.5f)), v3_add(c, v3(0.5f, 0, 0.5f)), v3_add(c, v3(0.5f, 0, 0)),
+                          err) == 0;
+        }
+    ok = ok && scene_end_node(s, err) == 0;
+    /* A diffuse wall at x = -6 facing +x, (0,2,0) x (0,0,20) = (40,0,0). */
+    ok = ok && ts_quad(s, "side_wall", (uint32_t)floor_m, v3(-6, 0, -10), v3(0, 2, 0), v3(0, 0, 20), err) >= 0;
+    /* Front (0,0,0.6) x (0.6,0,0) = up. */
+    ok = ok && ts_quad(s, "lamp", (uint32_t)lamp, v3(1.5f, 1, -0.3f), v3(0, 0, 0.6f), v3(0.6f, 0, 0), err) >= 0;
+    if (split) {
+        ok = ok && ts_quad(s, "ceiling_a", (uint32_t)ceil_m, v3(-10, 2, -10), v3(13, 0, 0), v3(0, 0, 20), err) >= 0;
+        ok = ok && ts_quad(s, "ceiling_b", (uint32_t)ceil_m, v3(3, 2, -10), v3(7, 0, 0), v3(0, 0, 20), err) >= 0;
+        ok = ok && ts_quad(s, "wall", (uint32_t)ceil_m, v3(-9, 0, 5), v3(0, 1.5f, 0), v3(2, 0, 0), err) >= 0;
+    } else {
+        ok = ok && ts_quad(s, "ceiling", (uint32_t)ceil_m, v3(-10, 2, -10), v3(20, 0, 0), v3(0, 0, 20), err) >= 0;
+    }
+    if (cover)
+        ok = ok && ts_quad(s, "plate", (uint32_t)black, v3(1.4f, 1.05f, -0.4f), v3(0, 0, 0.8f), v3(0.8f, 0, 0),
+                           err) >= 0;
+    if (!ok || scene_finalize(s, err) != CT_OK) {
+        scene_free(s);
+        return NULL;
+    }
+    return s;
+}
+
+vec3 ts_mirror_lamp_floor(float x, float z)
+{
+    float f = (float)ts_ff_rect(x, z, 1.5, 2.1, -0.3, 0.3, 3.0);
+    return v3_scale(v3(0.5f * 0.8f * 10.0f, 0.5f * 0.6f * 5.0f, 0.5f * 0.4f * 2.0f), f);
+}

@@ -28,4 +28,24 @@ int ts_diffuse(ct_scene *s, const char *name, vec3 rho, vec3 le, ct_error *err);
  * "main" looks into it. Finalized. NULL on failure (err filled). */
 ct_scene *ts_room(ct_error *err);
 
+/* Form factor from the point (px, 0, pz) facing up to the rectangle
+ * [x0,x1]x[z0,z1] at height c facing down. */
+double ts_ff_rect(double px, double pz, double x0, double x1, double z0, double z1, double c);
+
+/* A floor (rho 0.5, y = 0) lit only by a lamp seen in a mirror: a lamp
+ * 0.6 x 0.6 at height 1 over x in [1.5, 2.1], z in [-0.3, 0.3], L_e
+ * (10, 5, 2), facing up, under a mirror ceiling (R = (0.8, 0.6, 0.4)) at
+ * height 2 facing down. The floor sees the lamp's image at height 3 facing
+ * down; a diffuse wall (rho 0.5) at x = -6 facing +x, 2 high, takes
+ * the floor's light on. split: the ceiling is two mirrors meeting at x = 3 and a third
+ * mirror hangs on a wall; cover: a black plate just over the lamp hides it
+ * from the mirror; diffuse_ceiling: a diffuse ceiling (0.8) instead of the
+ * mirror. Finalized; NULL on failure (err filled). */
+ct_scene *ts_mirror_lamp(bool split, bool cover, bool diffuse_ceiling, ct_error *err);
+
+/* The floor's radiance at (x, 0, z) in ts_mirror_lamp's plain scene
+ * (where the reflection point lies on the first mirror): rho * R * L_e *
+ * F(image). */
+vec3 ts_mirror_lamp_floor(float x, float z);
+
 #endif

@@ -12,6 +12,7 @@
 #include "common/metrics.h"
 #include "common/rng.h"
 #include "tests/support/rad_fixtures.h"
+#include "tests/support/testscenes.h"
 #include "tracer/radiosity.h"
 
 /* Two parallel unit squares at distance 1: F = 0.19982 (Howell's catalogue,
@@ -514,4 +515,55 @@ Test(radiosity, cornell_scene_mesh_is_conforming)
     for (uint32_t n = 0; n < s->nnodes; n++) cr_assert_str_eq(m.nodes[n].name, s->nodes[n].name);
     rmesh_free(&m);
     scene_free(s);
+}
+
+/* The lamps seen in plane mirrors are a source term of the solution
+ * (tracer/rad_mirror.c): on ts_mirror_lamp's floor, lit only by the lamp's
+ * image in the mirror ceiling, every vertex under the image's reach must
+ * hold rho * R * L_e * F(image) (B / pi) as direct light (rad_direct);
+ * with --mirror-samples 0 the mirror is black and the floor dark. The
+ * diffuse wall beside the floor takes the floor's light on: the mirror
+ * light is reflected further like any other light (the wall's indirect
+ * part grows far beyond what the lamp's grazing light on the wall's top
+ * gives without the mirror). */
+Test(radiosity, lamps_seen_in_plane_mirrors, .timeout = 120)
+{
+    ct_error err;
+    double wall_indirect[2] = {0.0, 0.0};
+    for (int ms = 0; ms <= 256; ms += 256) {
+        ct_scene *s = ts_mirror_lamp(false, false, false, &err);
+        cr_assert(s, "%s", err.msg);
+        rad_params p = test_params();
+        p.mirror_samples = ms;
+        ct_radmesh m;
+        rad_stats st;
+        solve_ok(s, &p, &m, &st);
+        int checked = 0;
+        double worst = 0.0, indirect = 0.0;
+        for (uint32_t v = 0; v < m.nverts; v++) {
+            vec3 x = m.pos[v];
+            if (fabsf(x.x + 6.0f) < 1e-5f)   /* the side wall */
+                indirect = fmax(indirect, v3_maxc(v3_sub(m.rad[v], m.rad_direct[v])));
+            if (fabsf(x.y) > 1e-5f || !(m.nrm[v].y > 0.99f)) continue;   /* the floor's vertices */
+            if (x.x < -1.5f || x.x > 0.5f || x.z < -1.0f || x.z > 1.0f) continue;
+            vec3 want = ms ? ts_mirror_lamp_floor(x.x, x.z) : v3s(0.0f);
+            for (int k = 0; k < 3; k++) {
+                double got = v3_get(m.rad_direct[v], k), d = fabs(got - v3_get(want, k));
+                worst = fmax(worst, d / (v3_get(want, k) + 1e-3));
+                cr_expect(d < 0.05 * v3_get(want, k) + 1e-5, "mirror samples %d, vertex (%g, %g), channel %d: "
+                          "direct %g, analytic %g", ms, (double)x.x, (double)x.z, k, got, (double)v3_get(want, k));
+                cr_expect(v3_get(m.rad[v], k) >= got, "rad below its direct part");
+            }
+            checked++;
+        }
+        printf("metric: mirror samples %d: %d floor vertices, worst deviation %.4f, largest indirect on the wall "
+               "%.3g\n", ms, checked, worst, indirect);
+        cr_assert(checked >= 4, "only %d floor vertices checked", checked);
+        wall_indirect[ms != 0] = indirect;
+        rmesh_free(&m);
+        scene_free(s);
+    }
+    cr_expect(wall_indirect[1] > 10.0 * wall_indirect[0] && wall_indirect[1] > 1e-4,
+              "the mirror light is not reflected on: the wall's indirect light %g with it, %g without",
+              wall_indirect[1], wall_indirect[0]);
 }

@@ -121,22 +121,6 @@ Test(tracer, white_furnace_drt_path_traced_indirect) { furnace(TRC_MODE_DRT); }
 
 /* --- form factor ---------------------------------------------------------- */
 
-/* Form factor from a point to a parallel rectangle [0,a]x[0,b] at height c
- * whose corner lies straight above it; odd in a and b. */
-static double ff_corner(double a, double b, double c)
-{
-    double x = a / c, y = b / c;
-    return (x / sqrt(1 + x * x) * atan(y / sqrt(1 + x * x)) + y / sqrt(1 + y * y) * atan(x / sqrt(1 + y * y))) /
-           (2 * M_PI);
-}
-
-/* Point (px, pz) under the rectangle [x0,x1]x[z0,z1] at height c. */
-static double ff_rect(double px, double pz, double x0, double x1, double z0, double z1, double c)
-{
-    return ff_corner(x1 - px, z1 - pz, c) - ff_corner(x0 - px, z1 - pz, c) - ff_corner(x1 - px, z0 - pz, c) +
-           ff_corner(x0 - px, z0 - pz, c);
-}
-
 /* A floor under one light 1 x 0.6 at height 1 (x in [-0.5, 0.5]) or, with
  * two_lights, also a second one 0.6 x 0.6 at height 1.5 over x in [1, 1.6]:
  * two emitters, so the spatial light selection picks between them. */
@@ -171,8 +155,8 @@ static void form_factor(trc_mode mode, bool with_rad, bool two_lights)
         vec3 l = mean_at(t, &v, pix[k][0], pix[k][1], 2000, 100000u * (k + 1), &last);
         cr_assert(last.flags & CT_SAMPLE_HIT);
         cr_assert(fabsf(last.hit.y) < 1e-4f, "must hit the floor");
-        double f = ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
-        if (two_lights) f += ff_rect(last.hit.x, last.hit.z, 1.0, 1.6, -0.3, 0.3, 1.5);
+        double f = ts_ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
+        if (two_lights) f += ts_ff_rect(last.hit.x, last.hit.z, 1.0, 1.6, -0.3, 0.3, 1.5);
         /* L = rho / pi * E = rho / pi * (L_e pi F) = rho L_e F. */
         double want = 0.5 * 10.0 * f;
         cr_expect(fabs(l.x - want) < 0.02 * want + 1e-5, "%s: at (%g, %g) L = %g, analytic %g (F = %g)",
@@ -323,7 +307,7 @@ Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
     trc_view v = view_of(v3(0, 0.6f, -2.5f), v3(0, 0, 0), 60.0f, 16, 16);
     ct_sample last;
     vec3 l = mean_at(t, &v, 8, 8, 2000, 1, &last);
-    double f = ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
+    double f = ts_ff_rect(last.hit.x, last.hit.z, -0.5, 0.5, -0.3, 0.3, 1.0);
     double want_x = 0.5 * 10.0 * f + 0.1, want_z = 0.5 * 2.0 * f + 0.3;
     cr_expect(fabs(l.x - want_x) < 0.02 * want_x, "L.x = %g, want direct + indirect %g", (double)l.x, want_x);
     cr_expect(fabs(l.z - want_z) < 0.02 * want_z, "L.z = %g, want %g", (double)l.z, want_z);
@@ -432,6 +416,55 @@ Test(tracer, drt_final_gather_follows_mirrors)
                   (double)v3_get(with, k), want);
         cr_expect(fabs(v3_get(without, k)) < 1e-6, "black ceiling, channel %d: %g", k, (double)v3_get(without, k));
     }
+}
+
+/* A lamp seen in a plane mirror lights a diffuse floor (mirror_lights.h;
+ * the scene: ts_mirror_lamp): drt's floor radiance must be rho * R * L_e *
+ * F(image), the form factor to the lamp's image; the stand-in mesh (A = 0)
+ * adds nothing else. Covered, or with a diffuse ceiling: nothing. Split
+ * into three mirrors: the same. */
+static void floor_under_mirror(trc_indirect ind, bool cover, bool diffuse_ceiling, bool split)
+{
+    ct_error err;
+    ct_scene *s = ts_mirror_lamp(split, cover, diffuse_ceiling, &err);
+    cr_assert(s, "%s", err.msg);
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
+    trc_tracer *t = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, ind);
+    trc_view v = view_of(v3(-0.5f, 1.5f, -2.5f), v3(-0.5f, 0, 0), 40.0f, 16, 16);
+    static const float pix[][2] = {{8, 8}, {3, 12}, {13, 10}, {8, 15}};
+    for (size_t k = 0; k < sizeof pix / sizeof pix[0]; k++) {
+        ct_sample last;
+        vec3 l = mean_at(t, &v, pix[k][0], pix[k][1], split ? 4000 : 1000, 7000u * (k + 1), &last);
+        cr_assert(fabsf(last.hit.y) < 1e-4f, "must hit the floor");
+        vec3 want3 = ts_mirror_lamp_floor(last.hit.x, last.hit.z);
+        for (int ch = 0; ch < 3; ch++) {
+            double want = cover || diffuse_ceiling ? 0.0 : v3_get(want3, ch);
+            double got = v3_get(l, ch);
+            if (ch == 0)
+                printf("metric: %s, lamp in a mirror%s%s%s, floor at (%.2f, %.2f): %g (analytic %g)\n",
+                       trc_indirect_name(ind), cover ? ", covered" : "", diffuse_ceiling ? ", diffuse ceiling" : "",
+                       split ? ", three mirrors" : "", (double)last.hit.x, (double)last.hit.z, got, want);
+            cr_expect(fabs(got - want) < 0.02 * want + 1e-6, "%s at (%g, %g), channel %d: %g, analytic %g",
+                      trc_indirect_name(ind), (double)last.hit.x, (double)last.hit.z, ch, got, want);
+        }
+    }
+    trc_free(t);
+    rmesh_free(&rad);
+    scene_free(s);
+}
+
+Test(tracer, drt_samples_lamps_seen_in_a_plane_mirror)
+{
+    floor_under_mirror(TRC_INDIRECT_GATHER, false, false, false);
+    floor_under_mirror(TRC_INDIRECT_MESH, false, false, false);
+    floor_under_mirror(TRC_INDIRECT_GATHER, false, false, true);
+}
+
+Test(tracer, drt_mirrored_lamp_blocked_or_no_mirror)
+{
+    floor_under_mirror(TRC_INDIRECT_GATHER, true, false, false);
+    floor_under_mirror(TRC_INDIRECT_GATHER, false, true, false);
 }
 
 Test(tracer, drt_indirect_options_parse_and_validate)
