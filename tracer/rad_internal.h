@@ -175,8 +175,11 @@ int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err);
 /* Frees it (NULL is fine). */
 void rad_vis_free(rad_vis *v);
 
-/* 1 when the segment a -> b (excluding the last 1e-4 of it) is blocked. */
-int rad_vis_occluded(const rad_vis *v, vec3 a, vec3 b);
+/* The fraction of light that passes the segment a -> b (excluding the last
+ * 1e-4 of it): 0 when something opaque blocks it, else the product of the
+ * glass crossings' transmission and Fresnel factors (1 without glass; 0
+ * after RMESH_MAX_GLASS_CROSSINGS). */
+float rad_vis_transmit(const rad_vis *v, vec3 a, vec3 b);
 
 /* Bytes Embree uses for the scene. */
 uint64_t rad_vis_bytes(const rad_vis *v);

@@ -273,7 +273,7 @@ static double visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays,
         double kern = (double)cx * cy / d2;
         sum += kern;
         traced++;
-        if (!rad_vis_occluded(c->vis, v3_add(x, nr), v3_add(y, ns))) sumv += kern;
+        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, ns));
     }
     atomic_fetch_add(&c->rays, traced);
     *nvalid = (int)traced;
@@ -341,7 +341,7 @@ static void cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *
         double kern = (double)cx * cy / (M_PI * d2);
         sum += kern;
         traced++;
-        if (!rad_vis_occluded(c->vis, v3_add(x, nr), v3_add(y, v3_scale(q->n, c->ray_eps)))) sumv += kern;
+        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, v3_scale(q->n, c->ray_eps)));
     }
     atomic_fetch_add(&c->rays, traced);
     *F = (double)k->area * sum / nrays;

@@ -14,9 +14,9 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 4u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 5u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
-                                 * 4: lamps seen in plane mirrors */
+                                 * 4: lamps seen in plane mirrors; 5: light passes glass */
 
 void rad_params_default(rad_params *p)
 {
@@ -203,7 +203,8 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         if (r > w->residual) w->residual = r;
         double refl = v3_maxc(v3_mul(p->rho, Ht));
         if (refl > w->max_reflected) w->max_reflected = refl;
-        if (w->final)
+        /* (Glass passes on what its links bring, attenuated: rad_vis_transmit.) */
+        if (w->final && !c->scene->mats[p->mat].dielectric)
             w->absorbed += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho), Ht)) * e->area;
     } else {
         B = Bd = v3s(0.0f);

@@ -1,6 +1,9 @@
-/* rad_visibility.c: the radiosity solver's own Embree scene (every scene
- * triangle, all opaque) and segment occlusion queries. Kept separate from the
- * tracer's scene so the solver can run without it; a successor may share one. */
+/* rad_visibility.c: the radiosity solver's own Embree scenes and segment
+ * transmission queries: the opaque triangles in one scene, glass (the
+ * dielectric materials) in another, which a segment passes attenuated by
+ * each crossing's transmission and Fresnel factor as the tracer's shadow
+ * rays do (docs/radiosity.md, "Glass"). Kept separate from the tracer's
+ * scene so the solver can run without it; a successor may share one. */
 #include "tracer/rad_internal.h"
 
 #include <embree3/rtcore.h>
@@ -10,7 +13,10 @@
 
 struct rad_vis {
     RTCDevice dev;
-    RTCScene scn;
+    RTCScene scn;        /* opaque triangles */
+    RTCScene glass;      /* dielectric triangles; NULL without any */
+    rmesh_material *gmat;   /* per glass primitive: its material... */
+    vec3 *gn;               /* ...and unit normal */
     atomic_int_fast64_t bytes;
     ct_error *err;
 };
@@ -29,46 +35,81 @@ static bool on_memory(void *user, ssize_t bytes, bool post)
     return true;
 }
 
-int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err)
+/* A scene of the triangles of s whose material is (glass) or is not
+ * dielectric; prim[i] receives the scene triangle of primitive i. NULL with
+ * *n = 0 when there are none. */
+static RTCScene build_scene(rad_vis *v, const ct_scene *s, bool glass, uint32_t *prim, uint32_t *n)
 {
-    *out = NULL;
-    rad_vis *v = calloc(1, sizeof *v);
-    if (!v) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for the Embree scene");
-    char cfg[64];
-    snprintf(cfg, sizeof cfg, "threads=%d", threads > 0 ? threads : 1);
-    v->err = err;
-    v->dev = rtcNewDevice(cfg);
-    if (!v->dev) {
-        free(v);
-        return ct_fail(err, CT_ESYS, "embree: cannot create a device (error %d)", (int)rtcGetDeviceError(NULL));
-    }
-    rtcSetDeviceErrorFunction(v->dev, on_error, v);
-    rtcSetDeviceMemoryMonitorFunction(v->dev, on_memory, v);
-    v->scn = rtcNewScene(v->dev);
-    rtcSetSceneBuildQuality(v->scn, RTC_BUILD_QUALITY_HIGH);
+    *n = 0;
+    for (uint32_t t = 0; t < s->ntris; t++)
+        if (s->mats[s->tri_mat[t]].dielectric == glass) prim[(*n)++] = t;
+    if (*n == 0) return NULL;
+    RTCScene scn = rtcNewScene(v->dev);
+    rtcSetSceneBuildQuality(scn, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry g = rtcNewGeometry(v->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                        3 * sizeof(float), s->nverts);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                           3 * sizeof(unsigned), s->ntris);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                        s->nverts);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), *n);
     if (!vb || !ib) {
         rtcReleaseGeometry(g);
-        rad_vis_free(v);
-        return ct_fail(err, CT_ENOMEM, "embree: out of memory for %u triangles", s->ntris);
+        rtcReleaseScene(scn);
+        return NULL;
     }
     for (uint32_t i = 0; i < s->nverts; i++) {
         vb[3 * i] = s->pos[i].x;
         vb[3 * i + 1] = s->pos[i].y;
         vb[3 * i + 2] = s->pos[i].z;
     }
-    memcpy(ib, s->tris, (size_t)s->ntris * 3 * sizeof(unsigned));
+    for (uint32_t i = 0; i < *n; i++) memcpy(ib + 3 * (size_t)i, s->tris + 3 * (size_t)prim[i], 3 * sizeof(unsigned));
     rtcCommitGeometry(g);
-    rtcAttachGeometry(v->scn, g);
+    rtcAttachGeometry(scn, g);
     rtcReleaseGeometry(g);
-    rtcCommitScene(v->scn);
-    if (rtcGetDeviceError(v->dev) != RTC_ERROR_NONE) {
+    rtcCommitScene(scn);
+    return scn;
+}
+
+int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err)
+{
+    *out = NULL;
+    rad_vis *v = calloc(1, sizeof *v);
+    uint32_t *prim = malloc((s->ntris ? s->ntris : 1) * sizeof *prim);
+    if (!v || !prim) {
+        free(v);
+        free(prim);
+        return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for the Embree scene");
+    }
+    char cfg[64];
+    snprintf(cfg, sizeof cfg, "threads=%d", threads > 0 ? threads : 1);
+    v->err = err;
+    v->dev = rtcNewDevice(cfg);
+    if (!v->dev) {
+        free(v);
+        free(prim);
+        return ct_fail(err, CT_ESYS, "embree: cannot create a device (error %d)", (int)rtcGetDeviceError(NULL));
+    }
+    rtcSetDeviceErrorFunction(v->dev, on_error, v);
+    rtcSetDeviceMemoryMonitorFunction(v->dev, on_memory, v);
+    uint32_t n;
+    v->scn = build_scene(v, s, false, prim, &n);
+    if (!v->scn && n == 0) v->scn = rtcNewScene(v->dev), rtcCommitScene(v->scn);   /* all glass: nothing opaque */
+    v->glass = build_scene(v, s, true, prim, &n);
+    int rc = CT_OK;
+    if (n && v->glass) {
+        v->gmat = malloc(n * sizeof *v->gmat);
+        v->gn = malloc(n * sizeof *v->gn);
+        if (!v->gmat || !v->gn) rc = CT_ENOMEM;
+        for (uint32_t i = 0; i < n && !rc; i++) {
+            uint32_t t = prim[i];
+            const uint32_t *vi = s->tris + 3 * (size_t)t;
+            v->gmat[i] = rmesh_material_of(&s->mats[s->tri_mat[t]]);
+            v->gn[i] = v3_norm(v3_cross(v3_sub(s->pos[vi[1]], s->pos[vi[0]]), v3_sub(s->pos[vi[2]], s->pos[vi[0]])));
+        }
+    }
+    free(prim);
+    if (rc || !v->scn || (n && !v->glass) || rtcGetDeviceError(v->dev) != RTC_ERROR_NONE) {
         rad_vis_free(v);
-        return ct_fail(err, CT_ESYS, "embree: building the visibility scene failed");
+        return rc ? ct_fail(err, CT_ENOMEM, "radiosity: out of memory for the glass table")
+                  : ct_fail(err, CT_ESYS, "embree: building the visibility scene failed");
     }
     v->err = NULL;   /* later errors would come from worker threads */
     *out = v;
@@ -79,29 +120,58 @@ void rad_vis_free(rad_vis *v)
 {
     if (!v) return;
     if (v->scn) rtcReleaseScene(v->scn);
+    if (v->glass) rtcReleaseScene(v->glass);
     if (v->dev) rtcReleaseDevice(v->dev);
+    free(v->gmat);
+    free(v->gn);
     free(v);
 }
 
-int rad_vis_occluded(const rad_vis *v, vec3 a, vec3 b)
+static void segment_ray(struct RTCRay *r, vec3 a, vec3 b, float tnear)
+{
+    r->org_x = a.x;
+    r->org_y = a.y;
+    r->org_z = a.z;
+    r->dir_x = b.x - a.x;
+    r->dir_y = b.y - a.y;
+    r->dir_z = b.z - a.z;
+    r->tnear = tnear;
+    r->tfar = 1.0f - 1e-4f;
+    r->time = 0.0f;
+    r->mask = 0xFFFFFFFFu;
+    r->id = 0;
+    r->flags = 0;
+}
+
+float rad_vis_transmit(const rad_vis *v, vec3 a, vec3 b)
 {
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRay r;
-    r.org_x = a.x;
-    r.org_y = a.y;
-    r.org_z = a.z;
-    r.dir_x = b.x - a.x;
-    r.dir_y = b.y - a.y;
-    r.dir_z = b.z - a.z;
-    r.tnear = 0.0f;
-    r.tfar = 1.0f - 1e-4f;
-    r.time = 0.0f;
-    r.mask = 0xFFFFFFFFu;
-    r.id = 0;
-    r.flags = 0;
+    segment_ray(&r, a, b, 0.0f);
     rtcOccluded1(v->scn, &ctx, &r);
-    return r.tfar < 0.0f;
+    if (r.tfar < 0.0f) return 0.0f;
+    if (!v->glass) return 1.0f;
+    segment_ray(&r, a, b, 0.0f);
+    rtcOccluded1(v->glass, &ctx, &r);
+    if (!(r.tfar < 0.0f)) return 1.0f;
+    /* Through glass: each crossing in order (closest hits), its factor at
+     * the segment's angle (rmesh_glass_pass, the mean of its channels). */
+    vec3 d = v3_norm(v3_sub(b, a));
+    float t0 = 0.0f, tr = 1.0f;
+    for (int k = 0; k < RMESH_MAX_GLASS_CROSSINGS; k++) {
+        struct RTCRayHit rh;
+        segment_ray(&rh.ray, a, b, t0);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(v->glass, &ctx, &rh);
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return tr;
+        uint32_t i = rh.hit.primID;
+        tr *= v3_avg(rmesh_glass_pass(&v->gmat[i], v3_dot(d, v->gn[i])));
+        if (!(tr > 0.0f)) return 0.0f;
+        /* Just past this crossing (the segment runs over t in [0, 1]). */
+        t0 = rh.ray.tfar + 1e-5f;
+    }
+    return 0.0f;
 }
 
 uint64_t rad_vis_bytes(const rad_vis *v)
