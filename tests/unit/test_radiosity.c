@@ -567,3 +567,57 @@ Test(radiosity, lamps_seen_in_plane_mirrors, .timeout = 120)
               "the mirror light is not reflected on: the wall's indirect light %g with it, %g without",
               wall_indirect[1], wall_indirect[0]);
 }
+
+/* Light passes glass (solver version 5): a floor under a lamp, with a glass
+ * slab (index 1.5) between them, gets the lamp's direct light times the
+ * two crossings' transmission T and (1 - F) each, F ~ 0.04 for the
+ * near-normal directions from the lamp (within 1.5 % for all of them), so
+ * T^2 0.96^2 of what it gets without the slab; for T = 0.98 and 0.5. */
+static double floor_direct(float transmission)
+{
+    ct_error err;
+    ct_scene *s = scene_new("glassfloor");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(10.0f), &err);
+    cr_assert(floor_m >= 0 && lamp >= 0);
+    cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-1, 0, -1), v3(0, 0, 2), v3(2, 0, 0), &err) >= 0);
+    cr_assert(ts_quad(s, "lamp", (uint32_t)lamp, v3(-0.5f, 1, -0.3f), v3(1, 0, 0), v3(0, 0, 0.6f), &err) >= 0);
+    if (transmission > 0.0f) {
+        scene_material g = scene_material_default("glass");
+        g.diffuse = v3s(0.0f);
+        g.dielectric = 1;
+        g.ior = 1.5f;
+        g.transmission = v3s(transmission);
+        int gm = scene_add_material(s, &g, &err);
+        cr_assert(gm >= 0, "%s", err.msg);
+        cr_assert(ts_box(s, "slab", (uint32_t)gm, v3(-3, 0.5f, -3), v3(3, 0.51f, 3), false, &err) >= 0);
+    }
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    rad_params p = test_params();
+    ct_radmesh m;
+    solve_ok(s, &p, &m, NULL);
+    /* The floor's vertex nearest its centre. */
+    double best = 1e9, val = 0.0;
+    for (uint32_t v = 0; v < m.nverts; v++) {
+        if (fabsf(m.pos[v].y) > 1e-5f) continue;
+        double d = hypot(m.pos[v].x, m.pos[v].z);
+        if (d < best) best = d, val = m.rad_direct[v].x;
+    }
+    cr_assert(best < 0.3, "no floor vertex near the centre (%g)", best);
+    rmesh_free(&m);
+    scene_free(s);
+    return val;
+}
+
+Test(radiosity, light_passes_glass, .timeout = 120)
+{
+    double open = floor_direct(0.0f);
+    cr_assert(open > 0.0);
+    const float T[2] = {0.98f, 0.5f};
+    for (int i = 0; i < 2; i++) {
+        double ratio = floor_direct(T[i]) / open, want = (double)T[i] * T[i] * 0.96 * 0.96;
+        printf("metric: through glass of transmission %.2f: %.4f of the light (expected %.4f)\n", (double)T[i], ratio,
+               want);
+        cr_expect(fabs(ratio - want) < 0.03 * want, "transmission %g: ratio %g, expected %g", (double)T[i], ratio, want);
+    }
+}
