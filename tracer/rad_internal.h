@@ -60,6 +60,7 @@ typedef struct rad_patch {
     rad_link *links;     /* this patch tree's links */
     uint32_t nlinks;
     uint64_t want;       /* triangles its last refinement wanted beyond its quota */
+    float open;          /* the part of its hemisphere its links see (rad_solve.c, patch_openness) */
 } rad_patch;
 
 /* A source cluster: a node of a binary BVH over input patches. A child is a
@@ -72,7 +73,8 @@ typedef struct rad_cluster {
     uint32_t child[2];
     uint32_t pbegin, pend;  /* range in rad_ctx.order */
     int has_emitter;
-    vec3 B[2];           /* area-weighted radiosity of its patches */
+    vec3 B[2];           /* radiosity of its patches, weighted by area x openness */
+    float wopen;         /* the sum of those weights */
     vec3 E;              /* area-weighted emission */
 } rad_cluster;
 

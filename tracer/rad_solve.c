@@ -14,9 +14,10 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 5u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 6u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
-                                 * 4: lamps seen in plane mirrors; 5: light passes glass */
+                                 * 4: lamps seen in plane mirrors; 5: light passes glass;
+                                 * 6: clusters weigh their patches by openness */
 
 void rad_params_default(rad_params *p)
 {
@@ -299,23 +300,55 @@ static int run_job(rad_ctx *c, worker *ws, int n, job_kind kind, int final)
 
 /* Cluster radiosity for the next buffer: clusters are numbered in pre-order,
  * so children come after parents and a reverse sweep sees them first. */
+/* The sum of the factors of e's links and its ancestors' (sumf: its
+ * parent's), area-weighted over its leaves. */
+static double subtree_factor(const rad_ctx *c, uint32_t ei, double sumf)
+{
+    const rad_elem *e = rad_el(c, ei);
+    const rad_patch *p = &c->patches[e->patch];
+    for (uint32_t i = 0; i < e->nlinks; i++) sumf += p->links[e->link_off + i].ff;
+    if (e->child == RAD_NONE) return sumf * e->area;
+    double s = 0.0;
+    for (uint32_t k = 0; k < 4; k++) s += subtree_factor(c, e->child + k, sumf);
+    return s;
+}
+
+/* Each patch's openness: the mean over it of the summed factors of the
+ * links it gathers through, about 1 where its hemisphere is open and 0
+ * where it is covered (a ceiling under a lamp's housing, a wall behind a
+ * shelf). */
+static void patch_openness(rad_ctx *c)
+{
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        rad_patch *p = &c->patches[i];
+        const rad_elem *r = rad_el(c, p->root);
+        double f = r->area > 0.0f ? subtree_factor(c, p->root, 0.0) / r->area : 1.0;
+        p->open = (float)fmin(1.0, fmax(0.0, f));
+    }
+}
+
 static void update_clusters(rad_ctx *c)
 {
     int nxt = 1 - c->cur;
     for (uint32_t i = c->nclusters; i-- > 0;) {
         rad_cluster *k = &c->clusters[i];
         vec3 B = v3s(0.0f);
+        float w = 0.0f;
         for (int j = 0; j < 2; j++) {
             uint32_t ch = k->child[j];
             if (ch & RAD_CLUSTER_BIT) {
                 const rad_cluster *q = &c->clusters[ch & RAD_ID_MASK];
-                B = v3_madd(B, q->B[nxt], q->area);
+                B = v3_madd(B, q->B[nxt], q->wopen);
+                w += q->wopen;
             } else {
                 const rad_elem *e = rad_el(c, ch);
-                B = v3_madd(B, *rad_B(c, nxt, ch), e->area);
+                float a = e->area * c->patches[e->patch].open;
+                B = v3_madd(B, *rad_B(c, nxt, ch), a);
+                w += a;
             }
         }
-        k->B[nxt] = k->area > 0.0f ? v3_scale(B, 1.0f / k->area) : v3s(0.0f);
+        k->wopen = w;
+        k->B[nxt] = w > 0.0f ? v3_scale(B, 1.0f / w) : v3s(0.0f);
     }
 }
 
@@ -396,6 +429,7 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
             goto done;
         }
         run_job(c, ws, prm->threads, JOB_PUBLISH, 0);
+        patch_openness(c);
         st->passes = c->pass + 1;
         uint64_t refined = atomic_load(&c->refined);
         uint64_t nlinks = 0;
