@@ -137,7 +137,7 @@ int mlight_build(const emb_scene *e, const light_set *lights, mlight_set **out, 
         nacc += node_planes(m, tris + i, j - i, acc + nacc, (uint32_t)nacc);
         i = j;
     }
-    qsort(acc, nacc, sizeof *acc, cmp_area);
+    if (nacc > 1) qsort(acc, nacc, sizeof *acc, cmp_area);
     s->n = nacc < MLIGHT_MAX ? (uint32_t)nacc : MLIGHT_MAX;
     for (uint32_t i = 0; i < s->n; i++) {
         mlight_plane *p = &s->m[i];

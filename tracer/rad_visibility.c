@@ -91,7 +91,11 @@ int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err)
     rtcSetDeviceMemoryMonitorFunction(v->dev, on_memory, v);
     uint32_t n;
     v->scn = build_scene(v, s, false, prim, &n);
-    if (!v->scn && n == 0) v->scn = rtcNewScene(v->dev), rtcCommitScene(v->scn);   /* all glass: nothing opaque */
+    if (!v->scn && n == 0) {
+        /* All glass: nothing opaque. */
+        v->scn = rtcNewScene(v->dev);
+        rtcCommitScene(v->scn);
+    }
     v->glass = build_scene(v, s, true, prim, &n);
     int rc = CT_OK;
     if (n && v->glass) {

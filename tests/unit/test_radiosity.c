@@ -526,7 +526,7 @@ Test(radiosity, cornell_scene_mesh_is_conforming)
  * light is reflected further like any other light (the wall's indirect
  * part grows far beyond what the lamp's grazing light on the wall's top
  * gives without the mirror). */
-Test(radiosity, lamps_seen_in_plane_mirrors, .timeout = 120)
+Test(radiosity, lamps_seen_in_plane_mirrors)
 {
     ct_error err;
     double wall_indirect[2] = {0.0, 0.0};
@@ -609,7 +609,7 @@ static double floor_direct(float transmission)
     return val;
 }
 
-Test(radiosity, light_passes_glass, .timeout = 120)
+Test(radiosity, light_passes_glass)
 {
     double open = floor_direct(0.0f);
     cr_assert(open > 0.0);
