@@ -63,11 +63,11 @@ void rq_refine_free(rq_refine *r);
 void rq_refine_epoch(rq_refine *r);
 
 /* A sample of pixel p that hit `node`: its correction dL, the luminance of
- * its L_base and its error norm |E|. A sample on another node than the pixel's first one (a
- * silhouette) counts towards n but not into the mean: the mean is written
- * into that node's texture. While refining, the pixel is queued again with
- * its new priority. Returns 1 when the sample entered the mean, 0 when not,
- * negative on failure. */
+ * its L_base and its error norm |E|. A sample on another node than the
+ * pixel's first one (a silhouette) counts towards n but not into the mean:
+ * the mean is written into that node's texture. While refining, the pixel
+ * is queued again with its new priority. Returns 1 when the sample entered
+ * the mean, 0 when not, negative on failure. */
 int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float base_lum, float err_norm,
                   ct_error *err);
 

@@ -403,21 +403,16 @@ static vec3 mirror_light(integ_ctx *c, const integ_surf *s, const bsdf *b)
         if (!bsdf_same_side(b, mp.wi)) continue;
         vec3 f = bsdf_eval_diffuse(b, mp.wi);
         if (v3_is_zero(f)) continue;
-        emb_hit h;
+        mlight_leg leg;
         c->st->shadow++;
         log_ray(c, o, mp.wi, mp.tm, 1);
-        if (!emb_intersect(c->emb, o, mp.wi, 0.0f, mp.tm * (1.0f + 2e-4f) + 2e-4f, &h) ||
-            !mlight_is_mirror_hit(mp.m, &h, mp.tm))
-            continue;
-        vec3 o2 = emb_offset_ray(emb_hit_point(&h), mp.n_side), target = emb_offset_ray(mp.lp.p, mp.lp.n);
-        vec3 d = v3_sub(target, o2);
-        float dist = v3_len(d);
-        if (!(dist > 0.0f)) continue;
-        d = v3_scale(d, 1.0f / dist);
+        if (!mlight_to_mirror(c->emb, &mp, o, &leg)) continue;
         c->st->shadow++;
-        log_ray(c, o2, d, dist, 1);
+        log_ray(c, leg.o, leg.d, leg.dist, 1);
         bool crossed = false;
-        vec3 tr = emb_occluded(c->emb, o2, d, 0.0f, dist) ? through_glass(c, o2, d, dist, target, &crossed) : v3s(1.0f);
+        vec3 tr = emb_occluded(c->emb, leg.o, leg.d, 0.0f, leg.dist)
+                      ? through_glass(c, leg.o, leg.d, leg.dist, leg.target, &crossed)
+                      : v3s(1.0f);
         if (v3_is_zero(tr)) continue;
         float g = v3_dot(mp.wi, b->n) / (mp.pdf * (float)k_rays);
         sum = v3_add(sum, v3_scale(v3_mul(v3_mul(v3_mul(f, mp.m->rho), mp.lp.le), tr), g));

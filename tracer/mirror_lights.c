@@ -104,6 +104,11 @@ static uint32_t node_planes(const emb_mesh *m, const mtri *tris, size_t n, plane
     return np;
 }
 
+static bool mirror_tri(const emb_mesh *m, uint32_t t)
+{
+    return mlight_material(&m->mats[m->tri_mat[t]]) && emb_tri_area(m, t) > 0.0f;
+}
+
 int mlight_build(const emb_scene *e, const light_set *lights, mlight_set **out, ct_error *err)
 {
     *out = NULL;
@@ -111,8 +116,7 @@ int mlight_build(const emb_scene *e, const light_set *lights, mlight_set **out, 
     mlight_set *s = calloc(1, sizeof *s);
     size_t nt = 0;
     for (uint32_t t = 0; t < m->ntris; t++) {
-        const scene_material *mm = &m->mats[m->tri_mat[t]];
-        if (v3_maxc(mm->mirror) > 0.0f && !mm->dielectric && emb_tri_area(m, t) > 0.0f) nt++;
+        if (mirror_tri(m, t)) nt++;
     }
     mtri *tris = malloc((nt ? nt : 1) * sizeof *tris);
     plane_acc *acc = NULL;
@@ -120,9 +124,7 @@ int mlight_build(const emb_scene *e, const light_set *lights, mlight_set **out, 
     if (!s || !tris) goto oom;
     nt = 0;
     for (uint32_t t = 0; t < m->ntris; t++) {
-        const scene_material *mm = &m->mats[m->tri_mat[t]];
-        if (v3_maxc(mm->mirror) > 0.0f && !mm->dielectric && emb_tri_area(m, t) > 0.0f)
-            tris[nt++] = (mtri){m->tri_node[t], m->tri_mat[t], t};
+        if (mirror_tri(m, t)) tris[nt++] = (mtri){m->tri_node[t], m->tri_mat[t], t};
     }
     qsort(tris, nt, sizeof *tris, cmp_mtri);
     for (size_t i = 0; i < nt;) {
@@ -214,6 +216,20 @@ bool mlight_pick(const mlight_set *s, const light_set *lights, const float *cdf,
     return true;
 }
 
+bool mlight_to_mirror(const emb_scene *e, const mlight_path *mp, vec3 o, mlight_leg *leg)
+{
+    emb_hit h;
+    if (!emb_intersect(e, o, mp->wi, 0.0f, mp->tm * (1.0f + 2e-4f) + 2e-4f, &h) || !mlight_is_mirror_hit(mp->m, &h, mp->tm))
+        return false;
+    leg->o = emb_offset_ray(emb_hit_point(&h), mp->n_side);
+    leg->target = emb_offset_ray(mp->lp.p, mp->lp.n);
+    vec3 d = v3_sub(leg->target, leg->o);
+    leg->dist = v3_len(d);
+    if (!(leg->dist > 0.0f)) return false;
+    leg->d = v3_scale(d, 1.0f / leg->dist);
+    return true;
+}
+
 vec3 mlight_irradiance(const mlight_set *s, const emb_scene *e, const light_set *lights, vec3 x, vec3 nx, vec3 o,
                        int n, ct_rng *rng)
 {
@@ -228,14 +244,8 @@ vec3 mlight_irradiance(const mlight_set *s, const emb_scene *e, const light_set 
         if (!mlight_pick(s, lights, cdf, total, x, o, u[0], u[1], u[2], u[3], &mp)) continue;
         float cos_x = v3_dot(mp.wi, nx);
         if (!(cos_x > 0.0f)) continue;
-        emb_hit h;
-        if (!emb_intersect(e, o, mp.wi, 0.0f, mp.tm * (1.0f + 2e-4f) + 2e-4f, &h) ||
-            !mlight_is_mirror_hit(mp.m, &h, mp.tm))
-            continue;
-        vec3 o2 = emb_offset_ray(emb_hit_point(&h), mp.n_side), target = emb_offset_ray(mp.lp.p, mp.lp.n);
-        vec3 d = v3_sub(target, o2);
-        float dist = v3_len(d);
-        if (!(dist > 0.0f) || emb_occluded(e, o2, v3_scale(d, 1.0f / dist), 0.0f, dist)) continue;
+        mlight_leg leg;
+        if (!mlight_to_mirror(e, &mp, o, &leg) || emb_occluded(e, leg.o, leg.d, 0.0f, leg.dist)) continue;
         sum = v3_add(sum, v3_scale(v3_mul(mp.m->rho, mp.lp.le), cos_x / mp.pdf));
     }
     sum = v3_scale(sum, 1.0f / (float)n);

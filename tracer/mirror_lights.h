@@ -70,6 +70,12 @@ uint32_t mlight_count(const mlight_set *s);
 /* Mirror i (i < mlight_count). */
 const mlight_plane *mlight_get(const mlight_set *s, uint32_t i);
 
+/* Whether material m can make a mirror: a mirror layer, not glass. */
+static inline bool mlight_material(const scene_material *m)
+{
+    return (m->mirror.x > 0.0f || m->mirror.y > 0.0f || m->mirror.z > 0.0f) && !m->dielectric;
+}
+
 /* Signed distance of p from the mirror's plane. */
 static inline float mlight_side(const mlight_plane *m, vec3 p) { return v3_dot(m->n, p) - m->d; }
 
@@ -124,6 +130,17 @@ typedef struct mlight_path {
  * surface) to the image crosses the plane outside the mirror's bounds. */
 bool mlight_pick(const mlight_set *s, const light_set *lights, const float *cdf, float total, vec3 x, vec3 o,
                  float um, float u0, float u1, float u2, mlight_path *out);
+
+/* The leg from the mirror to the lamp of path mp, whose first leg leaves o. */
+typedef struct mlight_leg {
+    vec3 o, d, target;   /* from a point off the mirror towards the lamp (unit d) */
+    float dist;          /* to target */
+} mlight_leg;
+
+/* Traces the first leg of mp from o (one closest-hit ray, which must meet
+ * the mirror itself before anything else) and fills the second; false when
+ * something is in front of the mirror or no mirror is there. */
+bool mlight_to_mirror(const emb_scene *e, const mlight_path *mp, vec3 o, mlight_leg *leg);
 
 /* Irradiance at x (front normal n, rays from o) from the lamps seen in the
  * mirrors, by n random samples: the radiosity solver's source term

@@ -29,7 +29,7 @@ int rad_mirror_new(rad_ctx *c, ct_error *err)
     if (c->prm.mirror_samples <= 0) return CT_OK;
     bool any = false;
     for (uint32_t i = 0; i < s->nmats && !any; i++)
-        any = v3_maxc(s->mats[i].mirror) > 0.0f && !s->mats[i].dielectric;
+        any = mlight_material(&s->mats[i]);
     if (!any) return CT_OK;
     emb_mesh m = emb_mesh_of_scene(s);
     int rc = emb_new(&m, NULL, &c->memb, err);

@@ -142,6 +142,8 @@ int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_p
 /* ------------------------------------------------------------------------ */
 /* Worker threads over input patches                                        */
 
+/* Publishing a patch's tree (what sources see of it next pass) also makes
+ * its openness from the links just refined (patch_openness). */
 typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH } job_kind;
 
 typedef struct worker {
@@ -227,6 +229,30 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     return B;
 }
 
+/* The sum of the factors of e's links and its ancestors' (sumf: its
+ * parent's), area-weighted over its leaves. */
+static double subtree_factor(const rad_ctx *c, uint32_t ei, double sumf)
+{
+    const rad_elem *e = rad_el(c, ei);
+    const rad_patch *p = &c->patches[e->patch];
+    for (uint32_t i = 0; i < e->nlinks; i++) sumf += p->links[e->link_off + i].ff;
+    if (e->child == RAD_NONE) return sumf * e->area;
+    double s = 0.0;
+    for (uint32_t k = 0; k < 4; k++) s += subtree_factor(c, e->child + k, sumf);
+    return s;
+}
+
+/* Patch p's openness: the mean over it of the summed factors of the links
+ * it gathers through, about 1 where its hemisphere is open and 0 where it
+ * is covered (a ceiling under a lamp's housing, a wall behind a shelf). */
+static void patch_openness(rad_ctx *c, uint32_t pi)
+{
+    rad_patch *p = &c->patches[pi];
+    const rad_elem *r = rad_el(c, p->root);
+    double f = r->area > 0.0f ? subtree_factor(c, p->root, 0.0) / r->area : 1.0;
+    p->open = (float)fmin(1.0, fmax(0.0, f));
+}
+
 static void publish_tree(rad_ctx *c, uint32_t root)
 {
     uint32_t stack[4 * RAD_MAX_DEPTH + 8];
@@ -262,6 +288,7 @@ static void *worker_main(void *arg)
                 push_pull(w, c->patches[p].root, v3s(0.0f), v3s(0.0f), &bd);
             } else {
                 publish_tree(c, c->patches[p].root);
+                patch_openness(c, p);
             }
         }
         if (w->id == 0 && w->progress && w->kind == JOB_REFINE) {
@@ -300,33 +327,6 @@ static int run_job(rad_ctx *c, worker *ws, int n, job_kind kind, int final)
 
 /* Cluster radiosity for the next buffer: clusters are numbered in pre-order,
  * so children come after parents and a reverse sweep sees them first. */
-/* The sum of the factors of e's links and its ancestors' (sumf: its
- * parent's), area-weighted over its leaves. */
-static double subtree_factor(const rad_ctx *c, uint32_t ei, double sumf)
-{
-    const rad_elem *e = rad_el(c, ei);
-    const rad_patch *p = &c->patches[e->patch];
-    for (uint32_t i = 0; i < e->nlinks; i++) sumf += p->links[e->link_off + i].ff;
-    if (e->child == RAD_NONE) return sumf * e->area;
-    double s = 0.0;
-    for (uint32_t k = 0; k < 4; k++) s += subtree_factor(c, e->child + k, sumf);
-    return s;
-}
-
-/* Each patch's openness: the mean over it of the summed factors of the
- * links it gathers through, about 1 where its hemisphere is open and 0
- * where it is covered (a ceiling under a lamp's housing, a wall behind a
- * shelf). */
-static void patch_openness(rad_ctx *c)
-{
-    for (uint32_t i = 0; i < c->npatches; i++) {
-        rad_patch *p = &c->patches[i];
-        const rad_elem *r = rad_el(c, p->root);
-        double f = r->area > 0.0f ? subtree_factor(c, p->root, 0.0) / r->area : 1.0;
-        p->open = (float)fmin(1.0, fmax(0.0, f));
-    }
-}
-
 static void update_clusters(rad_ctx *c)
 {
     int nxt = 1 - c->cur;
@@ -429,7 +429,6 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
             goto done;
         }
         run_job(c, ws, prm->threads, JOB_PUBLISH, 0);
-        patch_openness(c);
         st->passes = c->pass + 1;
         uint64_t refined = atomic_load(&c->refined);
         uint64_t nlinks = 0;

@@ -66,6 +66,8 @@ check 2 "no emitting surface" "$tmp/dark.json" -o "$tmp/x.ctmesh"
 check 2 "\-\-error: 'abc'" "$scene" -o "$tmp/x.ctmesh" --error abc
 check 2 "\-\-threads" "$scene" -o "$tmp/x.ctmesh" --threads 0
 check 2 "unknown option '--bogus'" "$scene" -o "$tmp/x.ctmesh" --bogus
+check 2 "\-\-mirror-samples: '-1'" "$scene" -o "$tmp/x.ctmesh" --mirror-samples -1
+check 2 "\-\-mirror-samples: '4097'" "$scene" -o "$tmp/x.ctmesh" --mirror-samples 4097
 check 2 "cannot create" "$scene" -o "$tmp/no/such/dir/x.ctmesh" --error 1e-2
 check 2 "cannot create" "$scene" -o "$tmp/x.ctmesh" --image-planes "$tmp/no/such/dir/p.exr" --error 1e-2
 check 2 "no camera named 'nope'" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/x.png" --camera nope

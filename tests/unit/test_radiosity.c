@@ -363,6 +363,12 @@ Test(radiosity, bad_parameters_are_rejected)
     p.threads = 0;
     cr_assert_eq(rad_params_check(&p, &err), CT_EINVAL);
     cr_assert(strstr(err.msg, "--threads") != NULL);
+    for (int bad = 0; bad < 2; bad++) {
+        p = test_params();
+        p.mirror_samples = bad ? 4097 : -1;
+        cr_assert_eq(rad_params_check(&p, &err), CT_EINVAL);
+        cr_assert(strstr(err.msg, "--mirror-samples") != NULL, "%s", err.msg);
+    }
 }
 
 Test(radiosity, hash_follows_scene_and_parameters)
