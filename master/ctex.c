@@ -54,6 +54,10 @@ static const optab OPTS[] = {
      "aging weight of BRDF change: texture sizes per radian at glossiness 1 (§3.5)", NULL},
     {"resample-age", 0, OPTAB_FLOAT, OF(resample_age), 0, 1e9, "1", "X",
      "validity (texels) a resampled texel loses to fresh samples", NULL},
+    {"keep-projector-deg", 0, OPTAB_FLOAT, OF(keep_deg), 0, 90, "20", "X",
+     "a camera-local texture keeps the projector it was made for (no resampling, nothing re-sent) while it covers "
+     "the node's new view and the view direction to the node turned by at most this many degrees; 0 = resample on "
+     "every camera change", NULL},
     {"bvh-mat-weight", 0, OPTAB_FLOAT, OF(bvh_mat_weight), 0, 1e9, "1", "X",
      "BVH cost factor for groups mixing materials (§3.3)", NULL},
     {"cluster-tris", 0, OPTAB_INT, OF(cluster_tris), 0, 1e9, "4096", "N",

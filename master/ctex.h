@@ -53,6 +53,7 @@ typedef struct ctex_options {
     float age_flow;       /* §3.5: weight of the texture-flow term (camera-local) */
     float age_brdf;       /* §3.5: weight of the BRDF term, texture sizes per radian at glossiness 1 */
     float resample_age;   /* validity (texels) a resampled texel loses against fresh samples */
+    float keep_deg;       /* camera-local textures keep their projector up to this view angle change; 0 = never */
     float bvh_mat_weight; /* BVH: cost factor for groups that mix materials */
     int cluster_tris;     /* parts with more triangles are split into clusters; 0 = never */
 } ctex_options;
@@ -124,6 +125,8 @@ typedef struct ctex_stats {
     uint64_t dropped;         /* samples with no texture (miss, culled, off the texture) */
     uint64_t resizes;         /* resolution changes */
     uint64_t evictions;       /* parked textures evicted for memory */
+    uint64_t resampled;       /* camera changes that resampled a texture (reprojection, split, merge) */
+    uint64_t kept;            /* camera changes that left a camera-local texture on its projector */
     uint32_t hier_nodes;      /* nodes of the texture hierarchy */
     uint32_t hier_leaves;     /* its leaves (mesh parts) */
 } ctex_stats;

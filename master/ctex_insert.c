@@ -149,13 +149,19 @@ static int insert_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *
 }
 
 /* Texture position (in texels) of the point the ray through image position
- * (x, y) meets on texture t: a camera-local texture maps rays to positions,
- * an object-local one its plane through the hit p (normal t->n). */
+ * (x, y) meets on texture t: a camera-local texture projected from the
+ * current eye maps rays to positions; one that kept the projector of an
+ * earlier view (ctex_view.c) takes the ray's point at the hit p's depth;
+ * an object-local one its plane through p (normal t->n). */
 static bool texel_of_ray(const ctex *c, const ctex_tex *t, vec3 p, float x, float y, float *tx, float *ty)
 {
     vec3 d = cam_ray_dir(&c->cam, c->W, c->H, x, y);
     vec3 q = v3_add(c->cam.eye, d);
-    if (t->kind == CTEX_PROJ_OBJECT) {
+    if (t->kind == CTEX_PROJ_CAMERA && !v3_is_zero(v3_sub(t->cam.eye, c->cam.eye))) {
+        float dz = v3_dot(d, c->fwd);
+        if (!(dz > 1e-6f)) return false;
+        q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), c->fwd) / dz);
+    } else if (t->kind == CTEX_PROJ_OBJECT) {
         float dn = v3_dot(d, t->n);
         if (!(fabsf(dn) > 1e-6f)) return false;
         q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), t->n) / dn);

@@ -265,14 +265,85 @@ static float tex_rate_now(ctex *c, const slot *s)
     return (float)s->t.w / fmaxf(pxw, 1.0f);
 }
 
-/* Recomputes the projection of a camera-local texture for the current view
- * and carries its contents over (reprojection through its mid-depth plane). */
-static int reproject(ctex *c, uint32_t id, ct_error *err)
+/* Whether every corner of bounds b projects into texture t (half a texel
+ * of slack): then so does every surface point of its node, from any view. */
+static bool corners_inside(const ctex_tex *t, bounds3 b)
+{
+    float mu = 0.5f / (float)t->w, mv = 0.5f / (float)t->h;
+    for (int i = 0; i < 8; i++) {
+        float u, v;
+        if (!ctex_tex_project(t, b3_corner(b, i), &u, &v) || !(u >= -mu && v >= -mv && u <= 1.0f + mu && v <= 1.0f + mv))
+            return false;
+    }
+    return true;
+}
+
+/* Whether camera-local texture s may stay on the projector it was made for
+ * in the current view. The projector is the camera of an earlier view: its
+ * texels lie on the surface points that view's samples were splatted at,
+ * which is exact for every point that view saw, where resampling through a
+ * mid-depth plane (below) moves every point off that plane by the parallax;
+ * so keeping it loses nothing while
+ * - it still covers what the current view shows of the node: the node's
+ *   whole bounding box projects into it (the node was on screen whole when
+ *   it was made), or else the corners of the node's new rectangle, taken to
+ *   the old texture as resampling would take them, fall within it;
+ * - at least half of its area shows the node's part in the new view, and
+ *   its texel density on screen stays within twice the §3.6 bound;
+ * - the direction from which the node is seen turned by at most keep_deg
+ *   (further, the old projector meets the node's surfaces at a slant the
+ *   new view does not, and what it hid, the new view may show).
+ * Camera changes then cost neither resampling nor re-sending the texture.
+ * On success the size bounds are those of the new view. */
+static bool keep_projector(ctex *c, slot *s)
+{
+    const ctex_tex *t = &s->t;
+    if (!(c->o.keep_deg > 0.0f)) return false;
+    const ctex_hnode *n = &c->h.nodes[s->hnode];
+    vec3 ctr = b3_center(n->bounds), a = v3_sub(ctr, t->cam.eye), b = v3_sub(ctr, c->cam.eye);
+    float la = v3_len(a), lb = v3_len(b);
+    if (!(la > 0.0f && lb > 0.0f) || v3_dot(a, b) < la * lb * cosf(c->o.keep_deg * (CT_PI / 180.0f))) return false;
+    ctex_tex nt = {0};
+    float pxw, pxh;
+    make_projection(c, s->hnode, &nt, &pxw, &pxh);
+    if (nt.kind != CTEX_PROJ_CAMERA) return false;
+    /* the new rectangle's corners in the old texture (the extent on screen,
+     * and the coverage test of a node that was not on screen whole) */
+    float u0 = INFINITY, v0 = INFINITY, u1 = -INFINITY, v1 = -INFINITY;
+    for (int k = 0; k < 4; k++) {
+        float u, v;
+        if (!ctex_tex_project(t, ctex_tex_unproject(&nt, (float)(k & 1), (float)(k >> 1)), &u, &v)) return false;
+        u0 = fminf(u0, u); u1 = fmaxf(u1, u);
+        v0 = fminf(v0, v); v1 = fmaxf(v1, v);
+    }
+    float mu = 0.5f / (float)t->w, mv = 0.5f / (float)t->h;
+    if (!corners_inside(t, n->bounds) && !(u0 >= -mu && v0 >= -mv && u1 <= 1.0f + mu && v1 <= 1.0f + mv)) return false;
+    /* most of its texels still in view (else a smaller texture of the new
+     * rectangle serves with fewer texels to keep and to send) */
+    if ((fminf(u1, 1.0f) - fmaxf(u0, 0.0f)) * (fminf(v1, 1.0f) - fmaxf(v0, 0.0f)) < 0.5f) return false;
+    /* the whole old domain in pixels of the new view */
+    float fw = fmaxf(pxw, 1.0f) / fmaxf(u1 - u0, 1e-6f), fh = fmaxf(pxh, 1.0f) / fmaxf(v1 - v0, 1e-6f);
+    if ((float)t->w > 2.0f * c->o.tex_rate * fw || (float)t->h > 2.0f * c->o.tex_rate * fh) return false;
+    size_bounds(c, fw, fh, &s->max_w, &s->max_h);
+    return true;
+}
+
+/* Gives a texture the projection of the current view: object-local ones
+ * keep theirs (only the size bounds may shrink them); a camera-local one
+ * keeps its projector while that serves (keep_projector), else gets the
+ * current view's and its contents carried over (reprojection through its
+ * mid-depth plane). *moved: whether the projection changed. */
+static int reproject(ctex *c, uint32_t id, bool *moved, ct_error *err)
 {
     slot *s = &c->slots[id];
+    *moved = false;
     if (s->t.kind == CTEX_PROJ_CAMERA && s->t.cam_w == c->W && s->t.cam_h == c->H &&
         cam_same(&s->t.cam, &c->cam))
         return CT_OK;   /* same view: same projection */
+    if (s->t.kind == CTEX_PROJ_CAMERA && keep_projector(c, s)) {
+        c->st.kept++;
+        return CT_OK;
+    }
     ctex_tex old = s->t;
     ctex_tex *t = &s->t;
     float pxw, pxh;
@@ -281,6 +352,7 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
     if (t->kind == CTEX_PROJ_OBJECT && old.kind == CTEX_PROJ_OBJECT) {
         /* glued to the object: nothing moves; only the bounds may shrink it */
         if (t->w > s->max_w || t->h > s->max_h) {
+            *moved = true;
             int nw = t->w > s->max_w ? s->max_w : t->w, nh = t->h > s->max_h ? s->max_h : t->h;
             size_t ob = ctex_tex_bytes(t->w, t->h);
             int rc = ctex_tex_resize(t, nw, nh, err);
@@ -311,6 +383,8 @@ static int reproject(ctex *c, uint32_t id, ct_error *err)
     t->since_resize = old.since_resize;
     const ctex_tex *src[1] = {&old};
     ctex_tex_resample(t, src, 1, 0.0f);
+    *moved = true;
+    c->st.resampled++;
     free(old.tx);
     c->bytes += ctex_tex_bytes(w, h);
     if (s->active && (w != old.w || h != old.h)) ctex_ev_alloc(c, id);
@@ -359,6 +433,7 @@ static int create_texture(ctex *c, uint32_t n, ct_error *err)
         int k = ns < 64 ? ns : 64;
         for (int i = 0; i < k; i++) src[i] = &c->slots[c->srcs[i]].t;
         ctex_tex_resample(&s->t, src, k, c->o.resample_age);
+        c->st.resampled++;
     }
     ctex_ev_alloc(c, (uint32_t)id);
     ctex_ev_proj(c, (uint32_t)id);
@@ -401,11 +476,12 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
         if (c->assigned[n]) {
             /* §3.5 aging, then the new projection (camera-local: reprojected) */
             ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));
-            rc = reproject(c, i, err);
+            bool moved;
+            rc = reproject(c, i, &moved, err);
             if (rc) return rc;
             s->last_epoch = c->epoch;
             s->last_eye = c->cam.eye;
-            if (s->t.kind == CTEX_PROJ_CAMERA) ctex_ev_proj(c, i);   /* object-local: unchanged */
+            if (moved && s->t.kind == CTEX_PROJ_CAMERA) ctex_ev_proj(c, i);   /* object-local: unchanged */
             continue;
         }
         int related = 0;
@@ -428,7 +504,8 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
         if (id >= 0) {
             slot *s = &c->slots[id];
             ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));
-            rc = reproject(c, (uint32_t)id, err);
+            bool moved;
+            rc = reproject(c, (uint32_t)id, &moved, err);
             if (rc) return rc;
             s->active = 1;
             s->last_epoch = c->epoch;

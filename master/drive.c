@@ -108,6 +108,7 @@ int drv_set_view(drv *d, const ct_camera *cam, int width, int height, ct_error *
 void drv_begin_frame(drv *d, uint32_t k)
 {
     d->lockstep = true;
+    sess_set_lockstep(d->s, true);
     d->in_frame = true;
     d->frame_left = k;
     d->frame_samples = 0;
@@ -126,6 +127,7 @@ bool drv_in_frame(const drv *d)
 void drv_set_lockstep(drv *d, bool on)
 {
     d->lockstep = on;
+    sess_set_lockstep(d->s, on);
 }
 
 int drv_inflight(const drv *d)
@@ -295,6 +297,11 @@ static int feed_frame(drv *d, ct_error *err)
         d->round_out++;
     }
     return 1;
+}
+
+int drv_receive(drv *d, ct_error *err)
+{
+    return receive(d, err);
 }
 
 int drv_step(drv *d, ct_error *err)

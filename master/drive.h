@@ -74,6 +74,11 @@ void drv_set_lockstep(drv *d, bool on);
  * port or the session. */
 int drv_step(drv *d, ct_error *err);
 
+/* Takes every answered batch into the session and hands out nothing: a
+ * loop about to change the view calls it first, so that samples already
+ * here go in for the view they were traced for. 1 when any was taken. */
+int drv_receive(drv *d, ct_error *err);
+
 /* Batches in flight over all lanes. */
 int drv_inflight(const drv *d);
 

@@ -209,11 +209,12 @@ static void stats(loop *l, double now)
     ct_log(sum || bps > 0 ? CT_LOG_INFO : CT_LOG_DEBUG, COMPONENT,
            "stats: %.0f samples/s (%s), total %llu (%llu without texture, %llu stale), queue %llu, coverage "
            "%.1f%%%s, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy %.0f%%, "
-           "%d master thread%s, %llu node mismatches%s",
+           "%d master thread%s, %llu node mismatches, views %llu (%.1f ms in all, %llu shown-node maps)%s",
            sum / dt, per_rank, (unsigned long long)n.inserted, (unsigned long long)n.no_texture,
            (unsigned long long)n.stale, (unsigned long long)rs.queued, 100.0 * rs.coverage, refining, ts.textures,
            ts.bytes / 1048576.0, bps / 1000.0, 100 * br, 100 * bs, 100 * bt, 100 * (tot > 1 ? 1 : tot),
-           sess_threads(l->s), sess_threads(l->s) == 1 ? "" : "s", (unsigned long long)rs.mismatches, dropped);
+           sess_threads(l->s), sess_threads(l->s) == 1 ? "" : "s", (unsigned long long)rs.mismatches,
+           (unsigned long long)n.views, 1e3 * n.t_view, (unsigned long long)n.shown_maps, dropped);
     wire_stats st = {.flags = n.all_positive ? WIRE_FLAG_ALL_POSITIVE : 0u,
                      .samples_total = n.inserted,
                      .samples_per_s = (float)(sum / dt),
@@ -243,8 +244,13 @@ static int turn(loop *l, int *busy, int *leave, ct_error *err)
      * display (lockstep: it renders the previous frame meanwhile). */
     if (inflight) l->t_sample_wait += t1 - t0;
     else if (l->lockstep && dsrv_has_display(l->ds)) l->t_render_wait += t1 - t0;
+    /* Samples that arrived go in before a camera that came with them
+     * changes the view: they belong to the view they were traced for. */
+    int early = drv_receive(l->d, err);
+    if (early < 0) return early;
     if ((rc = handle_display(l, leave, err))) return rc;
     int got = drv_step(l->d, err);
+    if (got >= 0) got |= early;
     if (got < 0) return got;
     int started = start_frame(l, err);
     if (started < 0) return started;

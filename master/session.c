@@ -27,6 +27,10 @@ struct sess {
     uint32_t *shown;
     size_t shown_cap;
     shown_buf *sb;
+    bool shown_ok;         /* the map is of the current view */
+    bool lockstep;
+    double shown_rest;     /* seconds (sess_options.shown_rest_ms) */
+    double view_t;         /* when the current view was set */
     sess_counters n;
     /* one chunk: its splatted and refinement samples */
     ct_sample *splat, *refine, *write;   /* write: the refinement samples that write their pixel's mean */
@@ -38,6 +42,9 @@ struct sess {
 static const optab OPTS[] = {
     {"master-threads", 0, OPTAB_INT, OF(threads), 0, POOL_MAX_THREADS, "0", "N",
      "threads of the master inserting samples; 0: the cores it may use", NULL},
+    {"shown-rest-ms", 0, OPTAB_DOUBLE, OF(shown_rest_ms), 0, 60000, "250", "X",
+     "running free, the shown-node map of a view (§3.7's node check) is drawn once the camera rested this long "
+     "(ms); 0: with every view", NULL},
 };
 #undef OF
 
@@ -58,6 +65,7 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
     s->seed = c->seed;
     s->mesh = c->mesh;
     s->n.all_positive = true;
+    s->shown_rest = c->opt.shown_rest_ms / 1000.0;
     int threads = c->opt.threads > 0 ? c->opt.threads : pool_cpus();
     if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
     s->splat = malloc(SESS_CHUNK * sizeof *s->splat);
@@ -102,6 +110,19 @@ bool sess_same_view(const sess *s, const ct_camera *cam, int width, int height)
     return s->have_view && width == s->w && height == s->h && memcmp(cam, &s->cam, sizeof *cam) == 0;
 }
 
+/* The shown-node map of the current view (s->cam, s->w, s->h). */
+static int draw_shown(sess *s, ct_error *err)
+{
+    double t0 = ct_now();
+    int rc = shown_render(s->mesh, &s->cam, s->w, s->h, s->pool, &s->sb, RQ_NODE_NONE, s->shown, err);
+    if (rc) return rc;
+    s->shown_ok = true;
+    s->n.shown_maps++;
+    ct_debug(COMPONENT, "shown-node map %dx%d: %.1f ms (%u triangles, %d threads)", s->w, s->h,
+             1e3 * (ct_now() - t0), s->mesh->ntris, pool_threads(s->pool));
+    return CT_OK;
+}
+
 int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error *err)
 {
     if (sess_same_view(s, cam, width, height)) return 0;
@@ -127,17 +148,27 @@ int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error
     }
     ctex_set_clock(s->tex, ct_now_us());   /* stamps of the textures it makes */
     if ((rc = ctex_set_camera(s->tex, cam, width, height, err))) return rc;
-    double t1 = ct_now();
-    if ((rc = shown_render(s->mesh, cam, width, height, s->pool, &s->sb, RQ_NODE_NONE, s->shown, err))) return rc;
-    ct_debug(COMPONENT, "view %dx%d: queue and textures %.1f ms, shown-node map %.1f ms (%u triangles, %d threads)",
-             width, height, 1e3 * (t1 - t0), 1e3 * (ct_now() - t1), s->mesh->ntris, pool_threads(s->pool));
+    ctex_stats ts = ctex_get_stats(s->tex);
+    ct_debug(COMPONENT, "view %dx%d: queue and textures %.1f ms (textures resampled %llu, kept on their projector %llu "
+             "so far)", width, height, 1e3 * (ct_now() - t0), (unsigned long long)ts.resampled,
+             (unsigned long long)ts.kept);
     s->cam = *cam;
     s->w = width;
     s->h = height;
+    s->shown_ok = false;
+    s->view_t = ct_now();
+    if ((s->lockstep || !(s->shown_rest > 0.0)) && (rc = draw_shown(s, err))) return rc;
     s->have_view = true;
     s->epoch++;
+    s->n.views++;
+    s->n.t_view += ct_now() - t0;
     s->n.t_texture += ct_now() - t0;
     return 1;
+}
+
+void sess_set_lockstep(sess *s, bool on)
+{
+    s->lockstep = on;
 }
 
 bool sess_has_view(const sess *s)
@@ -173,6 +204,7 @@ int sess_next(sess *s, ct_request *out, uint32_t n, ct_error *err)
  * own node when one of the four shows it, else the one at its pixel. */
 static uint32_t shown_at(const sess *s, const ct_sample *x)
 {
+    if (!s->shown_ok) return RQ_NODE_UNKNOWN;
     float fx = floorf(x->px), fy = floorf(x->py);
     if (!(fx >= 0.0f && fy >= 0.0f && fx < (float)s->w && fy < (float)s->h)) return RQ_NODE_UNKNOWN;
     uint32_t hit = (x->flags & CT_SAMPLE_HIT) ? x->node : RQ_NODE_NONE;
@@ -256,6 +288,10 @@ int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_err
         return CT_OK;
     }
     double t0 = ct_now();
+    if (!s->shown_ok && (s->lockstep || t0 - s->view_t >= s->shown_rest)) {
+        int rc = draw_shown(s, err);
+        if (rc) return rc;
+    }
     ctex_set_clock(s->tex, ct_now_us());
     for (uint32_t i = 0; i < n; i += SESS_CHUNK) insert_chunk(s, smp + i, n - i < SESS_CHUNK ? n - i : SESS_CHUNK, k, err);
     s->n.t_texture += ct_now() - t0;
@@ -280,5 +316,5 @@ sess_counters sess_get_counters(const sess *s)
 
 const uint32_t *sess_shown(const sess *s)
 {
-    return s->have_view ? s->shown : NULL;
+    return s->have_view && s->shown_ok ? s->shown : NULL;
 }

@@ -39,10 +39,11 @@
 #define SESS_CHUNK 1024u
 
 typedef struct sess_options {
-    int threads;   /* master threads inserting samples; 0: the cores this process may use */
+    int threads;           /* master threads inserting samples; 0: the cores this process may use */
+    double shown_rest_ms;  /* running free, a view's shown-node map is drawn once it is this old; 0: at once */
 } sess_options;
 
-/* The option table (--master-threads). */
+/* The option table (--master-threads, --shown-rest-ms). */
 const optab *sess_options_table(size_t *n);
 
 typedef struct sess_config {
@@ -63,6 +64,9 @@ typedef struct sess_counters {
     uint64_t rejected;     /* samples the request queue refused (logged) */
     bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */
     double t_texture;      /* seconds in insertion and view changes */
+    uint64_t views;        /* views set (epochs) */
+    double t_view;         /* seconds in setting them (queue, textures, and the map when drawn at once) */
+    uint64_t shown_maps;   /* shown-node maps drawn */
 } sess_counters;
 
 typedef struct sess sess;
@@ -75,9 +79,19 @@ int sess_threads(const sess *s);
 
 /* Sets the view: 1 when it starts a new epoch (the request queue starts
  * over or reprojects, the textures are aged and reassigned, the shown-node
- * map is drawn), 0 when it is the current view, negative for a camera or
- * image the engines refuse (then there is no view until the next one). */
+ * map is drawn or, running free with shown_rest_ms > 0, marked due), 0 when
+ * it is the current view, negative for a camera or image the engines refuse
+ * (then there is no view until the next one). */
 int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error *err);
+
+/* Lockstep (frames that must not depend on timing): every view's
+ * shown-node map is drawn when the view is set. Running free (the default),
+ * a moving camera's views do not wait for theirs: it is drawn when the first
+ * samples go in after the view is shown_rest_ms old, and until then §3.7's
+ * node check is skipped (it matters for the refinement of a view the camera
+ * rests on; drawing the map costs tens of milliseconds per view at 1024^2,
+ * docs/sampling.md). */
+void sess_set_lockstep(sess *s, bool on);
 
 bool sess_has_view(const sess *s);
 bool sess_same_view(const sess *s, const ct_camera *cam, int width, int height);
@@ -103,7 +117,7 @@ void sess_queue_stats(const sess *s, rq_stats *st);
 sess_counters sess_get_counters(const sess *s);
 
 /* The shown-node map of the current view (width x height, RQ_NODE_NONE for
- * background), NULL without a view. */
+ * background), NULL without a view or while it is not drawn yet. */
 const uint32_t *sess_shown(const sess *s);
 
 #endif

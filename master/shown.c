@@ -9,6 +9,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
+
 /* Per vertex: image position, 1/z, and its eye-space coordinates. */
 typedef struct vtx {
     float sx, sy, iz;
@@ -30,6 +34,7 @@ typedef struct job {
     shown_buf *b;
     int w, h;
     size_t npx;
+    size_t stride;            /* of one task's planes: npx and room for a vector past the last pixel */
     int ntasks;
     vec3 eye, r, u, f;
     float tw, th;
@@ -37,7 +42,7 @@ typedef struct job {
     uint32_t *out;
 } job;
 
-enum { VERTS_PER_TASK = 8192, ROWS_PER_TASK = 16 };
+enum { VERTS_PER_TASK = 8192, ROWS_PER_TASK = 16, LANES = 8 };
 
 void shown_buf_free(shown_buf *b)
 {
@@ -94,8 +99,9 @@ static void draw(const job *j, float *izp, uint32_t *trip, const vtx *a, const v
     if (area == 0.0f || !isfinite(area)) return;
     float inv = 1.0f / area;   /* its sign makes either winding count */
     int x0 = (int)fx0, x1 = (int)fx1, y0 = (int)fy0, y1 = (int)fy1;
-    /* Barycentric weights step linearly along a row: evaluated at the row's
-     * first centre, then incremented (the same steps whatever the task). */
+    /* Barycentric weights are linear along a row: evaluated at the row's
+     * first centre of the bounding box, then at x0 + k by one multiply-add
+     * per pixel (the same values whatever the task). */
     float d0 = (c->sy - b->sy) * -inv, d1 = (a->sy - c->sy) * -inv, d2 = (b->sy - a->sy) * -inv;
     float diz = d0 * a->iz + d1 * b->iz + d2 * c->iz;
     for (int y = y0; y <= y1; y++) {
@@ -106,11 +112,41 @@ static void draw(const job *j, float *izp, uint32_t *trip, const vtx *a, const v
         float iz = w0 * a->iz + w1 * b->iz + w2 * c->iz;
         float *zr = izp + (size_t)y * (size_t)j->w;
         uint32_t *tr = trip + (size_t)y * (size_t)j->w;
-        for (int x = x0; x <= x1; x++, w0 += d0, w1 += d1, w2 += d2, iz += diz)
-            if (w0 >= 0.0f && w1 >= 0.0f && w2 >= 0.0f && iz > zr[x]) {
-                zr[x] = iz;
+        int x = x0;
+#if defined(__AVX__)
+        /* Eight pixels at a time, blended: lanes past x1 keep what they
+         * hold (they lie in this row, the next one, or the plane's padding,
+         * all this task's own). */
+        const __m256 lane = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7), zero = _mm256_setzero_ps();
+        const __m256 vw0 = _mm256_set1_ps(w0), vw1 = _mm256_set1_ps(w1), vw2 = _mm256_set1_ps(w2);
+        const __m256 vd0 = _mm256_set1_ps(d0), vd1 = _mm256_set1_ps(d1), vd2 = _mm256_set1_ps(d2);
+        const __m256 viz = _mm256_set1_ps(iz), vdiz = _mm256_set1_ps(diz), vlast = _mm256_set1_ps((float)(x1 - x0));
+        const __m256 vt = _mm256_castsi256_ps(_mm256_set1_epi32((int)t));
+        for (; x <= x1; x += LANES) {
+            __m256 k = _mm256_add_ps(_mm256_set1_ps((float)(x - x0)), lane);
+            __m256 e0 = _mm256_add_ps(vw0, _mm256_mul_ps(k, vd0));
+            __m256 e1 = _mm256_add_ps(vw1, _mm256_mul_ps(k, vd1));
+            __m256 e2 = _mm256_add_ps(vw2, _mm256_mul_ps(k, vd2));
+            __m256 z = _mm256_add_ps(viz, _mm256_mul_ps(k, vdiz));
+            __m256 old = _mm256_loadu_ps(zr + x);
+            __m256 in = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(e0, zero, _CMP_GE_OQ), _mm256_cmp_ps(e1, zero, _CMP_GE_OQ)),
+                                      _mm256_and_ps(_mm256_cmp_ps(e2, zero, _CMP_GE_OQ), _mm256_cmp_ps(z, old, _CMP_GT_OQ)));
+            in = _mm256_and_ps(in, _mm256_cmp_ps(k, vlast, _CMP_LE_OQ));
+            if (_mm256_testz_ps(in, in)) continue;
+            _mm256_storeu_ps(zr + x, _mm256_blendv_ps(old, z, in));
+            __m256 ot = _mm256_loadu_ps((const float *)(const void *)(tr + x));
+            _mm256_storeu_ps((float *)(void *)(tr + x), _mm256_blendv_ps(ot, vt, in));
+        }
+#else
+        for (; x <= x1; x++) {
+            float k = (float)(x - x0);
+            float e0 = w0 + k * d0, e1 = w1 + k * d1, e2 = w2 + k * d2, z = iz + k * diz;
+            if (e0 >= 0.0f && e1 >= 0.0f && e2 >= 0.0f && z > zr[x]) {
+                zr[x] = z;
                 tr[x] = t;
             }
+        }
+#endif
     }
 }
 
@@ -137,8 +173,8 @@ static void raster_task(void *ctx, int worker, size_t task)
 {
     (void)worker;
     const job *j = ctx;
-    float *izp = j->b->iz + task * j->npx;
-    uint32_t *trip = j->b->tri + task * j->npx;
+    float *izp = j->b->iz + task * j->stride;
+    uint32_t *trip = j->b->tri + task * j->stride;
     memset(izp, 0, j->npx * sizeof *izp);
     uint32_t nt = j->m->ntris, per = (uint32_t)(((uint64_t)nt + (uint64_t)j->ntasks - 1) / (uint64_t)j->ntasks);
     uint32_t t0 = (uint32_t)task * per, t1 = t0 + per < nt ? t0 + per : nt;
@@ -162,8 +198,8 @@ static void merge_task(void *ctx, int worker, size_t task)
         float best = 0.0f;
         uint32_t bt = UINT32_MAX;
         for (int k = 0; k < j->ntasks; k++) {
-            float iz = j->b->iz[(size_t)k * j->npx + i];
-            uint32_t t = j->b->tri[(size_t)k * j->npx + i];
+            float iz = j->b->iz[(size_t)k * j->stride + i];
+            uint32_t t = j->b->tri[(size_t)k * j->stride + i];
             if (iz > best || (iz == best && iz > 0.0f && t < bt)) {
                 best = iz;
                 bt = t;
@@ -193,7 +229,8 @@ int shown_render(const ct_radmesh *m, const ct_camera *cam, int width, int heigh
         b->v = v;
         b->vcap = m->nverts;
     }
-    size_t planes = j.npx * (size_t)j.ntasks;
+    j.stride = j.npx + LANES;
+    size_t planes = j.stride * (size_t)j.ntasks;
     if (planes > b->plane_cap) {
         free(b->iz);
         free(b->tri);

@@ -1,6 +1,10 @@
 /* rank.c: a tracer rank's loop (rank.h). Every received message is read at
  * once (so the master's sends complete), request batches wait in a FIFO,
- * camera and control messages act immediately. */
+ * camera and control messages act immediately; a batch is traced in slices
+ * with the same intake between them (intake()), so that the previous
+ * batch's samples leave while this one is traced (a large MPI message moves
+ * only while both sides call MPI) and a camera change stops a batch whose
+ * samples the master would drop. */
 #include "tracer/rank.h"
 
 #include <stdio.h>
@@ -95,14 +99,40 @@ static void order_free(batch_order *o)
 static uint64_t trace_threads(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req,
                               size_t n, ct_sample *out);
 
+/* Requests traced between two looks at the master's messages: a few
+ * milliseconds of work (a batch is up to 4096 requests, tens of ms). */
+#define SLICE 256
+
+/* Between two slices of a batch: 1 to go on, 0 when the batch is to stop,
+ * negative on an MPI failure. */
+typedef int (*slice_fn)(void *ctx, ct_error *err);
+
+/* Traces req[0..n) in slices of SLICE, asking `between` after each; 1 when
+ * done, 0 when stopped, negative on failure. *rays accumulates. */
+static int trace_slices(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req, size_t n,
+                        ct_sample *out, slice_fn between, void *ctx, uint64_t *rays, ct_error *err)
+{
+    for (size_t a = 0; a < n; a += SLICE) {
+        size_t m = n - a < SLICE ? n - a : SLICE;
+        *rays += trace_threads(pool, c, v, req + a, m, out + a);
+        if (a + m < n) {
+            int go = between(ctx, err);
+            if (go <= 0) return go;
+        }
+    }
+    return 1;
+}
+
 /* Traces a batch in Morton order of its pixels and answers in request
  * order. The queue hands out requests spread over the whole image (highest
  * error first); neighbours in a row share BVH nodes and triangles in the
  * cache: table at 1024^2 traced 5 % more samples a second this way. The
  * records do not depend on the order (each sample's randomness is its own,
- * tracer.h). Without memory for the permutation the batch goes as it came. */
-static uint64_t trace_batch(ct_pool *pool, const trank_config *c, batch_order *o, const trc_view *v,
-                            const ct_request *req, size_t n, ct_sample *out)
+ * tracer.h). Without memory for the permutation the batch goes as it came.
+ * Returns as trace_slices. */
+static int trace_batch(ct_pool *pool, const trank_config *c, batch_order *o, const trc_view *v,
+                       const ct_request *req, size_t n, ct_sample *out, slice_fn between, void *ctx, uint64_t *rays,
+                       ct_error *err)
 {
     if (n > o->cap) {
         keyed *k = realloc(o->k, n * sizeof *k);
@@ -111,7 +141,7 @@ static uint64_t trace_batch(ct_pool *pool, const trank_config *c, batch_order *o
         if (r) o->req = r;
         ct_sample *s = r ? realloc(o->out, n * sizeof *s) : NULL;
         if (s) o->out = s;
-        if (!s) return trace_threads(pool, c, v, req, n, out);
+        if (!s) return trace_slices(pool, c, v, req, n, out, between, ctx, rays, err);
         o->cap = n;
     }
     for (size_t i = 0; i < n; i++) {
@@ -122,9 +152,10 @@ static uint64_t trace_batch(ct_pool *pool, const trank_config *c, batch_order *o
     }
     qsort(o->k, n, sizeof *o->k, by_key);
     for (size_t i = 0; i < n; i++) o->req[i] = req[o->k[i].idx];
-    uint64_t rays = trace_threads(pool, c, v, o->req, n, o->out);
-    for (size_t i = 0; i < n; i++) out[o->k[i].idx] = o->out[i];
-    return rays;
+    int rc = trace_slices(pool, c, v, o->req, n, o->out, between, ctx, rays, err);
+    if (rc > 0)
+        for (size_t i = 0; i < n; i++) out[o->k[i].idx] = o->out[i];
+    return rc;
 }
 
 /* Traces n requests on the pool (trc_trace_par); returns the rays. */
@@ -167,6 +198,62 @@ static int farewell(const trank_config *c, int shutdown, wire_buf *msg, ct_error
     return 0;
 }
 
+/* What the loop keeps between messages. */
+typedef struct intake_state {
+    const trank_config *c;
+    fifo *q;
+    wire_buf *msg;
+    uint32_t epoch;        /* newest camera epoch heard of */
+    uint32_t batch_epoch;  /* of the batch being traced */
+    int shutdown;
+} intake_state;
+
+/* Reads every message that arrived: request batches to the FIFO, cameras
+ * and control at once; then progresses the sends (the samples on their
+ * way to the master). */
+static int intake(intake_state *in, ct_error *err)
+{
+    char peer[32];
+    snprintf(peer, sizeof peer, "master (rank 0)");
+    for (;;) {
+        mpil_info info;
+        int got = mpil_probe(0, MPIL_ANY, &info, err);
+        if (got < 0) return got;
+        if (!got) break;
+        int rc = mpil_recv(&info, in->msg, err);
+        if (rc < 0) return rc;
+        unsigned kind = 0;
+        uint32_t count = 0;
+        if ((rc = wire_mpi_peek(in->msg->data, in->msg->len, peer, &kind, &count, err)) < 0) return rc;
+        if (kind == WIRE_MPI_REQUESTS) {
+            if ((rc = fifo_push(in->q, in->msg, err)) < 0) return rc;
+        } else if (kind == WIRE_MPI_CAMERA) {
+            wire_mpi_camera cam;
+            if ((rc = wire_mpi_decode_camera(in->msg->data, in->msg->len, peer, &cam, err)) < 0) return rc;
+            if (cam.epoch > in->epoch) in->epoch = cam.epoch;
+        } else if (kind == WIRE_MPI_CONTROL) {
+            wire_mpi_control ctl;
+            if ((rc = wire_mpi_decode_control(in->msg->data, in->msg->len, peer, &ctl, err)) < 0) return rc;
+            if (ctl.op == WIRE_MPI_OP_SHUTDOWN) in->shutdown = 1;
+            /* CONFIG is not needed: every rank parses the same command line. */
+        } else {
+            return ct_fail(err, CT_EPROTO, "tracer %d: unexpected MPI message kind %u from the master", in->c->rank,
+                           kind);
+        }
+    }
+    return mpil_progress(err) < 0 ? CT_EIO : 0;
+}
+
+/* Between slices: the intake; the batch goes on unless the camera moved on
+ * (the master drops samples of older views) or the job ends. */
+static int between_slices(void *ctx, ct_error *err)
+{
+    intake_state *in = ctx;
+    int rc = intake(in, err);
+    if (rc < 0) return rc;
+    return !in->shutdown && !(in->c->stop && *in->c->stop) && in->batch_epoch >= in->epoch;
+}
+
 int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
 {
     memset(st, 0, sizeof *st);
@@ -176,45 +263,20 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
     ct_sample *samples = NULL;
     batch_order order = {0};
     uint32_t cap = 0;
-    uint32_t epoch = 0;
     char peer[32];
     snprintf(peer, sizeof peer, "master (rank 0)");
     ct_pool *pool = NULL;
-    int rc = pool_new(c->threads < 1 ? 1 : c->threads, &pool, err), shutdown = 0;
+    int rc = pool_new(c->threads < 1 ? 1 : c->threads, &pool, err);
     if (rc) return rc;
+    intake_state in = {.c = c, .q = &q, .msg = &msg};
 
-    while (!shutdown && !(c->stop && *c->stop)) {
+    while (!in.shutdown && !(c->stop && *c->stop)) {
         /* 1. read everything that arrived */
-        mpil_info info;
-        for (;;) {
-            int got = mpil_probe(0, MPIL_ANY, &info, err);
-            if (got < 0) { rc = got; goto out; }
-            if (!got) break;
-            if ((rc = mpil_recv(&info, &msg, err)) < 0) goto out;
-            unsigned kind = 0;
-            uint32_t count = 0;
-            if ((rc = wire_mpi_peek(msg.data, msg.len, peer, &kind, &count, err)) < 0) goto out;
-            if (kind == WIRE_MPI_REQUESTS) {
-                if ((rc = fifo_push(&q, &msg, err)) < 0) goto out;
-            } else if (kind == WIRE_MPI_CAMERA) {
-                wire_mpi_camera cam;
-                if ((rc = wire_mpi_decode_camera(msg.data, msg.len, peer, &cam, err)) < 0) goto out;
-                if (cam.epoch > epoch) epoch = cam.epoch;
-            } else if (kind == WIRE_MPI_CONTROL) {
-                wire_mpi_control ctl;
-                if ((rc = wire_mpi_decode_control(msg.data, msg.len, peer, &ctl, err)) < 0) goto out;
-                if (ctl.op == WIRE_MPI_OP_SHUTDOWN) shutdown = 1;
-                /* CONFIG is not needed: every rank parses the same command line. */
-            } else {
-                rc = ct_fail(err, CT_EPROTO, "tracer %d: unexpected MPI message kind %u from the master", c->rank,
-                             kind);
-                goto out;
-            }
-        }
-        if (shutdown) break;
-        if ((rc = mpil_progress(err)) < 0) goto out;
+        if ((rc = intake(&in, err)) < 0) goto out;
+        if (in.shutdown) break;
 
         /* 2. one batch */
+        mpil_info info;
         if (q.n == 0) {
             int got = mpil_wait(0, MPIL_ANY, c->idle_sleep_us, 0.05, &info, err);
             if (got < 0) { rc = got; goto out; }
@@ -236,25 +298,32 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         if (rc == 0) rc = wire_mpi_decode_requests(b.data, b.len, peer, &h, reqs, cap, &count, err);
         wire_buf_free(&b);
         if (rc < 0) goto out;
-        if (h.epoch > epoch) epoch = h.epoch;
+        if (h.epoch > in.epoch) in.epoch = h.epoch;
         wire_mpi_samples sh = {.batch = h.batch, .rank = (uint32_t)c->rank};
         uint32_t nout = 0;
-        if (h.epoch < epoch) {
+        if (h.epoch < in.epoch) {
             st->stale_batches++;   /* the camera moved on: answer empty */
         } else {
             trc_view v = {.cam = h.cam, .width = (int)h.width, .height = (int)h.height};
             double t0 = ct_now();
-            st->rays += trace_batch(pool, c, &order, &v, reqs, count, samples);
+            in.batch_epoch = h.epoch;
+            rc = trace_batch(pool, c, &order, &v, reqs, count, samples, between_slices, &in, &st->rays, err);
             st->busy_s += ct_now() - t0;
-            st->samples += count;
-            nout = count;
+            if (rc < 0) goto out;
+            if (rc > 0) {
+                st->samples += count;
+                nout = count;
+            } else {
+                st->stale_batches++;   /* stopped: the camera moved on, or the job ends */
+            }
+            rc = 0;
         }
         st->batches++;
         reply.len = 0;
         if ((rc = wire_mpi_encode_samples(&sh, samples, nout, &reply, err)) < 0) goto out;
         if ((rc = mpil_isend(0, MPIL_TAG_SAMPLES, &reply, err)) < 0) goto out;
     }
-    rc = farewell(c, shutdown, &msg, err);
+    rc = farewell(c, in.shutdown, &msg, err);
 out:
     pool_free(pool);
     fifo_free(&q);

@@ -121,7 +121,7 @@ Test(ctex_converge, cornell_128, .timeout = 300)
     rq_options ro;
     rq_options_default(&ro);
     ro.refine_error = 0.0f;   /* as corrtex converge: one sample per pixel at most */
-    sess_config sc = {&m, s->mats, s->nmats, &ro, &co, 1, {1}};
+    sess_config sc = {&m, s->mats, s->nmats, &ro, &co, 1, {1, 0.0}};
     sess *ss = NULL;
     cr_assert_eq(sess_new(&sc, &ss, &err), 0, "%s", err.msg);
     tport *port = NULL;

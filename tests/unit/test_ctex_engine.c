@@ -467,3 +467,91 @@ Test(ctex_engine, split_and_merge_resample_contents)
     tcx_release(&t);
 }
 
+
+/* Whether events hold a PROJ of texture id. */
+static bool has_proj_event(const ctex *c, int32_t id)
+{
+    size_t n;
+    const ctex_event *ev = ctex_events(c, &n);
+    for (size_t i = 0; i < n; i++)
+        if (ev[i].kind == CTEX_EV_PROJ && ev[i].tex == (uint32_t)id) return true;
+    return false;
+}
+
+/* A camera-local texture keeps the projector it was made for when the
+ * camera moves a little (same matrix, no PROJ event, the correction at a
+ * surface point exactly as before, refinement writes where its pixel's ray
+ * meets the surface), and gets the new view's when the view of its node
+ * turned by more than --keep-projector-deg, or always with 0. */
+Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
+{
+    for (int pass = 0; pass < 2; pass++) {
+        tcx_scene t;
+        ctex_options o = ctex_options_default();
+        o.eps = 0.0f;
+        if (pass == 1) o.keep_deg = 0.0f;
+        const int W = 96, H = 64;
+        ctex *c = tcx_front_engine(&t, o, W, H);
+        uint32_t box = (uint32_t)t.box[1];
+        int32_t id = ctex_owner(c, box, UINT32_MAX, v3s(0.0f));
+        cr_assert_geq(id, 0);
+        ctex_proj_kind kind;
+        mat4 m0, m1;
+        cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, &kind, &m0, NULL), 1);
+        cr_assert_eq(kind, CTEX_PROJ_CAMERA);
+        vec3 p = v3(0.1f, 0.6f, 0.5f);   /* on the box's front face */
+        ct_sample s = tcx_sample(box, p, v3s(1.0f), v3s(0.0f));
+        ctex_insert_info info;
+        cr_assert_eq(ctex_insert(c, &s, &info), 1);
+        vec3 before = ctex_lookup(c, box, UINT32_MAX, p);
+        cr_assert_gt(before.x, 0.5f);
+        ctex_events_clear(c);
+        ctex_stats st0 = ctex_get_stats(c);
+        ct_camera small = cam_look_at(v3(0.3f, 4.1f, 13.8f), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
+        cr_assert_eq(ctex_set_camera(c, &small, W, H, &err), 0, "%s", err.msg);
+        cr_assert_eq(ctex_owner(c, box, UINT32_MAX, v3s(0.0f)), id);
+        cr_assert_eq(ctex_texture_info(c, (uint32_t)id, NULL, NULL, NULL, NULL, &m1, NULL), 1);
+        ctex_stats st1 = ctex_get_stats(c);
+        vec3 after = ctex_lookup(c, box, UINT32_MAX, p);
+        if (pass == 0) {
+            cr_assert_eq(memcmp(&m0, &m1, sizeof m0), 0, "the projector changed on a small move");
+            cr_assert_not(has_proj_event(c, id), "a PROJ event for a kept projector");
+            cr_assert_gt(st1.kept, st0.kept);
+            cr_assert_eq(after.x, before.x, "the correction moved: %g -> %g", (double)before.x, (double)after.x);
+            /* refinement: the pixel whose ray meets p writes p's texels */
+            float px, py;
+            cr_assert(cam_project(&small, W, H, p, &px, &py, NULL));
+            ct_sample r = tcx_sample(box, p, v3s(0.0f), v3s(0.0f));
+            r.px = px;
+            r.py = py;
+            cr_assert_eq(ctex_refine(c, &r, v3s(-0.25f), &info), 1);
+            ctex_tex *tx = ctex_visible_texture(c, (uint32_t)id);
+            float u, v;
+            cr_assert(tx && ctex_tex_project(tx, p, &u, &v));
+            vec3 refined = ctex_texel_rgb(ctex_tex_at(tx, (int)(u * (float)tx->w), (int)(v * (float)tx->h)));
+            cr_assert_float_eq(refined.x, -0.25f, 0.01f, "refinement wrote elsewhere: %g at p's texel", (double)refined.x);
+            /* and only there: one pixel covers about a texel of this texture */
+            int written = 0;
+            for (int y = 0; y < tx->h; y++)
+                for (int x = 0; x < tx->w; x++) written += fabsf(ctex_texel_rgb(ctex_tex_at(tx, x, y)).x + 0.25f) < 0.01f;
+            cr_assert_leq(written, 4, "one pixel's refinement wrote %d texels of a %dx%d texture", written, tx->w, tx->h);
+            /* a turn of more than 20 degrees around the node: the new view's projector */
+            ct_camera side = cam_look_at(v3(9.0f, 4.0f, 9.0f), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
+            ctex_events_clear(c);
+            cr_assert_eq(ctex_set_camera(c, &side, W, H, &err), 0, "%s", err.msg);
+            int32_t id2 = ctex_owner(c, box, UINT32_MAX, v3s(0.0f));
+            cr_assert_geq(id2, 0);
+            mat4 m2;
+            cr_assert_eq(ctex_texture_info(c, (uint32_t)id2, NULL, NULL, NULL, NULL, &m2, NULL), 1);
+            cr_assert_neq(memcmp(&m1, &m2, sizeof m1), 0, "the projector was kept through a 40 degree turn");
+            cr_assert(has_proj_event(c, id2));
+        } else {
+            cr_assert_neq(memcmp(&m0, &m1, sizeof m0), 0, "--keep-projector-deg 0 kept the projector");
+            cr_assert(has_proj_event(c, id));
+            cr_assert_eq(st1.kept, st0.kept);
+            cr_assert_gt(st1.resampled, st0.resampled);
+        }
+        ctex_free(c);
+        tcx_release(&t);
+    }
+}

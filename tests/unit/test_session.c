@@ -10,6 +10,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "common/pool.h"
 #include "common/radmesh.h"
@@ -59,7 +60,7 @@ static sess *new_session(const ct_radmesh *m, int threads)
     rq_options ro;
     rq_options_default(&ro);
     ctex_options co = ctex_options_default();
-    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, {threads}};
+    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, {threads, 0.0}};
     sess *s = NULL;
     cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
     cr_assert_eq(sess_threads(s), threads);
@@ -82,7 +83,7 @@ static void traced_nodes(uint32_t *out)
 
 Test(session, shown_map_is_the_item_buffer)
 {
-    static uint32_t traced[W * H];
+    static uint32_t traced[W * H], first[W * H];
     traced_nodes(traced);
     for (int threads = 1; threads <= 3; threads++) {
         sess *s = new_session(&mesh, threads);
@@ -95,8 +96,41 @@ Test(session, shown_map_is_the_item_buffer)
         /* only pixel centres on an edge between parts may differ */
         cr_assert_geq(same, W * H * 98 / 100, "%d threads: %d of %d pixels agree with the traced hits", threads, same,
                       W * H);
+        /* and the map does not depend on the threads */
+        if (threads == 1) memcpy(first, shown, sizeof first);
+        else cr_assert_arr_eq(shown, first, sizeof first, "%d threads drew another map than one", threads);
         sess_free(s);
     }
+}
+
+/* Running free with a rest time, a new view's map waits until the view is
+ * that old and samples go in; lockstep draws it with the view. */
+Test(session, shown_map_waits_for_a_resting_camera)
+{
+    rq_options ro;
+    rq_options_default(&ro);
+    ctex_options co = ctex_options_default();
+    sess_config c = {&mesh, scene->mats, scene->nmats, &ro, &co, 1, {1, 60.0}};
+    sess *s = NULL;
+    cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
+    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
+    cr_assert_null(sess_shown(s), "the map is drawn before the camera rested");
+    cr_assert_eq(sess_insert(s, NULL, 0, NULL, &err), 0, "%s", err.msg);
+    cr_assert_null(sess_shown(s), "samples 0 ms after the view drew the map");
+    struct timespec ts = {0, 80 * 1000000L};
+    nanosleep(&ts, NULL);
+    cr_assert_eq(sess_insert(s, NULL, 0, NULL, &err), 0, "%s", err.msg);
+    cr_assert_not_null(sess_shown(s), "the camera rested 80 ms, and no map");
+    /* a moved camera: no map again; lockstep draws it at once */
+    ct_camera moved = cam;
+    moved.eye.x += 0.01f;
+    cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
+    cr_assert_null(sess_shown(s));
+    sess_set_lockstep(s, true);
+    moved.eye.x += 0.01f;
+    cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
+    cr_assert_not_null(sess_shown(s), "lockstep: the view came without its map");
+    sess_free(s);
 }
 
 /* --- a sink that records ------------------------------------------------------ */
