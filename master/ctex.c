@@ -368,6 +368,13 @@ float ctex_splat_ex(const ctex *c, uint32_t tex, vec3 p)
     return ctex_splat_ex_at(c, &c->slots[tex].t, p);
 }
 
+bool ctex_view_independent(const ctex *c, const ct_sample *s)
+{
+    if (!(s->flags & CT_SAMPLE_HIT)) return false;
+    int32_t l = ctex_leaf_of_hit(c, s->node, s->tri, s->hit);
+    return l >= 0 && c->h.nodes[c->h.leaf_node[l]].gloss == 0.0f;
+}
+
 ctex_stats ctex_get_stats(const ctex *c)
 {
     ctex_stats st = c->st;

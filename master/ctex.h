@@ -16,6 +16,7 @@
 #ifndef CT_MASTER_CTEX_H
 #define CT_MASTER_CTEX_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -152,6 +153,13 @@ void ctex_free(ctex *c);
 int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_error *err);
 
 /* --- per sample ----------------------------------------------------------- */
+
+/* Whether sample s's radiance does not depend on the view: the surface it
+ * hit (its hierarchy leaf) has only diffuse materials. Such a sample, traced
+ * for a view the camera has left, is still a right correction in the new
+ * one: L_hq and L_base are both the same from any direction, and the splat
+ * goes through the current view's texture of its world point. */
+bool ctex_view_independent(const ctex *c, const ct_sample *s);
 
 /* Inserts a sample (§3.4): maps its hit point into the texture of its node,
  * reads the displayed correction, computes the error and splats

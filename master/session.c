@@ -34,6 +34,7 @@ struct sess {
     sess_counters n;
     /* one chunk: its splatted and refinement samples */
     ct_sample *splat, *refine, *write;   /* write: the refinement samples that write their pixel's mean */
+    ct_sample *late;                     /* of an older view, view-independent */
     vec3 *means;
     ctex_insert_info *info;
 };
@@ -70,10 +71,11 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
     if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
     s->splat = malloc(SESS_CHUNK * sizeof *s->splat);
     s->refine = malloc(SESS_CHUNK * sizeof *s->refine);
+    s->late = malloc(SESS_CHUNK * sizeof *s->late);
     s->write = malloc(SESS_CHUNK * sizeof *s->write);
     s->means = malloc(SESS_CHUNK * sizeof *s->means);
     s->info = malloc(SESS_CHUNK * sizeof *s->info);
-    int rc = s->splat && s->refine && s->write && s->means && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
+    int rc = s->splat && s->refine && s->late && s->write && s->means && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
     if (!rc) rc = pool_new(threads, &s->pool, err);
     if (!rc) rc = ctex_new(c->mesh, c->mats, c->nmats, &s->ctex_opt, &s->tex, err);
     if (rc) {
@@ -94,6 +96,7 @@ void sess_free(sess *s)
     free(s->shown);
     free(s->splat);
     free(s->refine);
+    free(s->late);
     free(s->write);
     free(s->means);
     free(s->info);
@@ -237,11 +240,16 @@ static void rejected(sess *s, const ct_sample *x, ct_error *err)
 /* One chunk (at most SESS_CHUNK samples). */
 static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
 {
-    uint32_t m = 0, nr = 0;
+    uint32_t m = 0, nr = 0, nl = 0;
     for (uint32_t i = 0; i < n; i++) {
-        if (smp[i].epoch != s->epoch) s->n.stale++;
-        else if (rq_refines(s->rq, smp[i].request_id)) s->refine[nr++] = smp[i];
-        else s->splat[m++] = smp[i];
+        if (smp[i].epoch != s->epoch) {
+            if (ctex_view_independent(s->tex, &smp[i])) s->late[nl++] = smp[i];
+            else s->n.stale++;
+        } else if (rq_refines(s->rq, smp[i].request_id)) {
+            s->refine[nr++] = smp[i];
+        } else {
+            s->splat[m++] = smp[i];
+        }
     }
     ctex_insert_par(s->tex, s->pool, s->splat, m, s->info);
     for (uint32_t j = 0; j < m; j++) {
@@ -278,6 +286,19 @@ static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *
     if (k && k->samples) {
         if (m) k->samples(k->user, s->splat, m);
         if (kept) k->samples(k->user, s->refine, kept);
+    }
+    /* Late samples: splatted, never reported (their requests belong to a
+     * view the queue has left). */
+    if (nl) {
+        ctex_insert_par(s->tex, s->pool, s->late, nl, s->info);
+        for (uint32_t j = 0; j < nl; j++) {
+            if (s->info[j].tex < 0) {
+                s->n.stale++;
+                continue;
+            }
+            count(s, &s->late[j], &s->info[j]);
+            s->n.late++;
+        }
     }
 }
 

@@ -14,8 +14,12 @@
  * (ctex_refine_par). So the textures and the queue depend on the order of the
  * samples and never on the number of threads: lockstep rounds, inserted in
  * request-id order, give the same frames for any number of tracer ranks and
- * master threads. A sink (sink.h) hears of every inserted sample. Owns the
- * sess_ prefix. */
+ * master threads. A sample of an older view (the camera moved on while it
+ * was traced) is *late*: the queue never hears of it, but where its surface
+ * is diffuse (ctex_view_independent) it is still splatted into the current
+ * view's textures after the chunk's others; elsewhere it is stale and
+ * dropped. A sink (sink.h) hears of every sample of the current view that
+ * went in. Owns the sess_ prefix. */
 #ifndef CT_MASTER_SESSION_H
 #define CT_MASTER_SESSION_H
 
@@ -60,7 +64,8 @@ typedef struct sess_config {
 typedef struct sess_counters {
     uint64_t inserted;     /* samples inserted (splatted or not) */
     uint64_t no_texture;   /* ... of them without a texture (a miss, culled, off its texture) */
-    uint64_t stale;        /* samples of an older view, ignored */
+    uint64_t late;         /* samples of an older view splatted all the same (diffuse surfaces; counted in inserted) */
+    uint64_t stale;        /* samples of an older view, ignored (a view-dependent surface, or no texture now) */
     uint64_t rejected;     /* samples the request queue refused (logged) */
     bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */
     double t_texture;      /* seconds in insertion and view changes */
@@ -105,7 +110,8 @@ uint32_t sess_epoch(const sess *s);
 int sess_next(sess *s, ct_request *out, uint32_t n, ct_error *err);
 
 /* Inserts n samples in this order (see above); samples of an older epoch
- * are counted and ignored. sink (may be NULL) gets the inserted ones. */
+ * are splatted where they are view-independent, else counted and ignored.
+ * sink (may be NULL) gets the inserted ones of the current epoch. */
 int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err);
 
 /* The corrective textures (for a sink that sends or draws them). */

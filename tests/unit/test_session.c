@@ -394,3 +394,49 @@ Test(session, mismatch_children_where_another_node_is_shown)
     free(cut.tri_node);
     free(cut.tri_mat);
 }
+
+/* Samples traced for a view the camera has left: those on diffuse surfaces
+ * are splatted into the new view's textures (late), the others (the
+ * mirror and glass spheres, misses) are dropped (stale); the request queue
+ * hears of none of them. */
+Test(session, late_samples_on_diffuse_surfaces_go_in)
+{
+    sess *s = new_session(&mesh, 1);
+    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
+    static ct_request req[W * H];
+    static ct_sample smp[W * H];
+    int k = sess_next(s, req, W * H, &err);
+    cr_assert_gt(k, 0, "%s", err.msg);
+    trc_view v = {cam, W, H};
+    trc_trace_par(tracer, NULL, &v, req, (size_t)k, smp, true, NULL);
+    uint32_t diffuse = 0;
+    for (int i = 0; i < k; i++) diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
+    cr_assert(diffuse > 0 && diffuse < (uint32_t)k, "%u of %d samples on diffuse surfaces", diffuse, k);
+    /* the camera moves on before they come back */
+    ct_camera moved = cam;
+    moved.eye.x += 0.02f;
+    cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
+    rq_stats before;
+    sess_queue_stats(s, &before);
+    cr_assert_eq(sess_insert(s, smp, (uint32_t)k, NULL, &err), 0, "%s", err.msg);
+    sess_counters n = sess_get_counters(s);
+    rq_stats after;
+    sess_queue_stats(s, &after);
+    cr_assert_eq(after.reported, before.reported, "the queue heard of samples of an older view");
+    cr_assert_eq(n.late + n.stale, (uint64_t)k, "late %llu + stale %llu of %d", (unsigned long long)n.late,
+                 (unsigned long long)n.stale, k);
+    cr_assert_eq(n.inserted, n.late);
+    /* every late one is on a diffuse surface, and most diffuse ones went in
+     * (some may lie on a part the moved view does not texture) */
+    cr_assert_leq(n.late, diffuse);
+    cr_assert_geq(n.late, diffuse * 9 / 10, "%llu of %u diffuse samples went in", (unsigned long long)n.late, diffuse);
+    /* and they are in the textures: the correction at a late sample's point */
+    int checked = 0;
+    for (int i = 0; i < k && checked < 20; i++) {
+        if (!ctex_view_independent(sess_textures(s), &smp[i])) continue;
+        vec3 c = ctex_lookup(sess_textures(s), smp[i].node, smp[i].tri, smp[i].hit);
+        checked += c.x != 0.0f || c.y != 0.0f || c.z != 0.0f;
+    }
+    cr_assert_eq(checked, 20, "only %d of 20 late samples' points show a correction", checked);
+    sess_free(s);
+}
