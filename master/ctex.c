@@ -293,7 +293,10 @@ int ctex_new(const ct_radmesh *mesh, const scene_material *mats, uint32_t nmats,
     c->assigned = calloc(N, 1);
     c->list = malloc(N * sizeof *c->list);
     c->names = malloc((size_t)mesh->nnodes * SCENE_NAME_LEN);
-    if (!c->node_tex || !c->leaf_owner || !c->assigned || !c->list || !c->names) {
+    /* an eighth of the memory cap kept for reuse: one or two of the
+     * largest textures' worth */
+    c->mem = ctex_mem_new((size_t)(c->o.mem_mb * 1048576.0 / 8.0));
+    if (!c->node_tex || !c->leaf_owner || !c->assigned || !c->list || !c->names || !c->mem) {
         ctex_free(c);
         return ct_fail(err, CT_ENOMEM, "out of memory for the texture engine");
     }
@@ -330,6 +333,7 @@ void ctex_free(ctex *c)
     free(c->par_groups);
     free(c->par_keys);
     ctex_hier_free(&c->h);
+    ctex_mem_free(c->mem);
     free(c);
 }
 

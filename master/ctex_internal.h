@@ -9,6 +9,7 @@
 
 #include "master/ctex.h"
 #include "master/ctex_hier.h"
+#include "master/ctex_mem.h"
 #include "master/ctex_tex.h"
 
 typedef struct slot {
@@ -29,6 +30,7 @@ typedef struct slot {
 struct ctex {
     ctex_options o;
     ctex_hier h;
+    ctex_mem *mem;         /* texel arrays given back, for the next ones */
     slot *slots;
     uint32_t nslots, cap_slots;
     int32_t *node_tex;     /* hierarchy node -> live slot, -1 */

@@ -6,6 +6,8 @@
  * internals for no reader's gain. */
 #include "master/ctex_tex.h"
 
+#include "master/ctex_mem.h"
+
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -24,24 +26,16 @@ static inline v4f texel4(const ctex_texel *p)
     return f;
 }
 
-/* Texel storage. Samples land anywhere in 5-15 million texels (tens of MiB),
- * so with 4 KiB pages nearly every splat misses the TLB as well as the
- * caches; arrays of 2 MiB and more are aligned to 2 MiB and advised as huge
- * pages (transparent huge pages in "madvise" mode), which removes most page
- * walks. The size is not rounded up: the tail past the last whole 2 MiB stays
- * in small pages, so the memory cap's count (ctex_tex_bytes: 8 bytes a
- * texel of the padded rows) stays true. Freed with free(). */
-static ctex_texel *alloc_texels(size_t n)
+/* Texel storage: ctex_mem.h (huge pages, the pool of given-back arrays). */
+static ctex_texel *alloc_texels(const ctex_tex *t, size_t n)
 {
-    enum { HUGE = 2u << 20 };
-    size_t bytes = n * sizeof(ctex_texel);
-    if (bytes < HUGE) return malloc(bytes);
-    void *p = NULL;
-    if (posix_memalign(&p, HUGE, bytes)) return NULL;
-#ifdef MADV_HUGEPAGE
-    (void)madvise(p, bytes, MADV_HUGEPAGE);   /* a hint: failure only costs speed */
-#endif
-    return p;
+    return ctex_mem_get(t->mem, n * sizeof(ctex_texel));
+}
+
+/* Gives t's texel array back (its size from t->w, t->h). */
+static void free_texels(const ctex_tex *t, ctex_texel *tx)
+{
+    ctex_mem_put(t->mem, tx, ctex_tex_bytes(t->w, t->h));
 }
 
 static void clear_texels(ctex_texel *tx, size_t n)
@@ -54,14 +48,14 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     if (w < 1 || h < 1 || w > 65536 || h > 65536)
         return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", w, h);
     const int pitch = ctex_tex_pitch(w);
-    ctex_texel *tx = alloc_texels((size_t)pitch * (size_t)h);
+    ctex_texel *tx = alloc_texels(t, (size_t)pitch * (size_t)h);
     if (!tx) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
     if (ctex_dirty_reset(&t->d, w, h, err)) {
-        free(tx);
+        ctex_mem_put(t->mem, tx, ctex_tex_bytes(w, h));
         return CT_ENOMEM;
     }
     clear_texels(tx, (size_t)pitch * (size_t)h);
-    free(t->tx);
+    if (t->tx) free_texels(t, t->tx);
     t->tx = tx;
     t->w = w;
     t->h = h;
@@ -76,7 +70,7 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
 
 void ctex_tex_release(ctex_tex *t)
 {
-    free(t->tx);
+    if (t->tx) free_texels(t, t->tx);
     t->tx = NULL;
     t->w = t->h = t->pitch = 0;
     ctex_dirty_free(&t->d);
@@ -547,10 +541,10 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
         return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", nw, nh);
     if (nw == t->w && nh == t->h) return CT_OK;
     const int npitch = ctex_tex_pitch(nw);
-    ctex_texel *nt = alloc_texels((size_t)npitch * (size_t)nh);
+    ctex_texel *nt = alloc_texels(t, (size_t)npitch * (size_t)nh);
     if (!nt) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", nw, nh);
     if (ctex_dirty_reset(&t->d, nw, nh, err)) {
-        free(nt);
+        ctex_mem_put(t->mem, nt, ctex_tex_bytes(nw, nh));
         return CT_ENOMEM;
     }
     {
@@ -619,7 +613,7 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
         }
     }
 done:
-    free(t->tx);
+    free_texels(t, t->tx);
     t->tx = nt;
     t->w = nw;
     t->h = nh;

@@ -56,6 +56,7 @@ typedef struct ctex_tex {
     uint32_t since_resize;
     int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
     ctex_dirty d;          /* texels the display has not received (ctex_dirty.h) */
+    struct ctex_mem *mem;  /* where its texel arrays come from and go back to (ctex_mem.h); NULL: the system */
 } ctex_tex;
 
 /* Row pitch of a texture w texels wide: w rounded up to whole 64-byte cache

@@ -385,7 +385,7 @@ static int reproject(ctex *c, uint32_t id, bool *moved, ct_error *err)
     ctex_tex_resample(t, src, 1, 0.0f);
     *moved = true;
     c->st.resampled++;
-    free(old.tx);
+    ctex_mem_put(old.mem, old.tx, ctex_tex_bytes(old.w, old.h));
     c->bytes += ctex_tex_bytes(w, h);
     if (s->active && (w != old.w || h != old.h)) ctex_ev_alloc(c, id);
     return CT_OK;
@@ -419,6 +419,7 @@ static int create_texture(ctex *c, uint32_t n, ct_error *err)
     aspect_size(c, pxw, pxh, longer, s->max_w, s->max_h, &w, &h);
     if (!ctex_make_room(c, ctex_tex_bytes(w, h))) aspect_size(c, pxw, pxh, (float)c->o.tex_min, s->max_w, s->max_h, &w, &h);
     s->t.d.clock = &c->now_us;
+    s->t.mem = c->mem;
     int rc = ctex_tex_init(&s->t, w, h, err);
     if (rc) return rc;
     c->bytes += ctex_tex_bytes(w, h);
