@@ -1,7 +1,13 @@
 /* pool.c: the thread pool (pool.h). A loop is a generation: pool_run
  * publishes the task function and count, bumps the generation and wakes the
- * workers; everyone takes task numbers from one atomic counter; the last
- * worker to finish wakes the caller. */
+ * workers; everyone takes task numbers from one atomic word that holds the
+ * generation beside the next task number, so a worker that wakes late (its
+ * core busy with another process) can never take a task of a later loop
+ * with the function of an earlier one; the caller returns as soon as every
+ * task is done, without waiting for workers that found nothing left to do.
+ * (Waiting for every worker to check in cost the master's insertion more
+ * than the second thread gave on a 2-core machine shared with a display:
+ * docs/benchmarks.md, "Master: saturation".) */
 #include "common/pool.h"
 
 #include <pthread.h>
@@ -16,26 +22,40 @@ typedef struct worker {
     pthread_t th;
 } worker;
 
+/* One loop as a worker copies it. */
+typedef struct job {
+    pool_fn fn;
+    void *ctx;
+    size_t ntasks;
+    uint32_t gen;
+} job;
+
 struct ct_pool {
     int n;                      /* threads, the caller included */
     worker *w;                  /* n - 1 workers */
     pthread_mutex_t mu;
     pthread_cond_t go, done;
-    uint64_t gen;               /* loops started (guarded by mu) */
-    int busy;                   /* workers not finished with the current loop (mu) */
+    job cur;                    /* the current loop (mu) */
     int stop;                   /* (mu) */
-    pool_fn fn;
-    void *ctx;
-    size_t ntasks;
-    atomic_size_t next;
+    atomic_uint_fast64_t next;  /* generation << 32 | next task number */
+    atomic_size_t finished;     /* tasks of the current loop done */
 };
 
-static void take_tasks(ct_pool *p, int id)
+/* Takes and runs tasks of loop j until none is left or a later loop began. */
+static void take_tasks(ct_pool *p, const job *j, int id)
 {
+    uint_fast64_t v = atomic_load_explicit(&p->next, memory_order_acquire);
     for (;;) {
-        size_t i = atomic_fetch_add_explicit(&p->next, 1, memory_order_relaxed);
-        if (i >= p->ntasks) return;
-        p->fn(p->ctx, id, i);
+        if ((uint32_t)(v >> 32) != j->gen || (v & 0xffffffffu) >= j->ntasks) return;
+        if (!atomic_compare_exchange_weak_explicit(&p->next, &v, v + 1, memory_order_acq_rel, memory_order_acquire))
+            continue;
+        j->fn(j->ctx, id, (size_t)(v & 0xffffffffu));
+        if (atomic_fetch_add_explicit(&p->finished, 1, memory_order_acq_rel) + 1 == j->ntasks) {
+            pthread_mutex_lock(&p->mu);
+            pthread_cond_signal(&p->done);
+            pthread_mutex_unlock(&p->mu);
+        }
+        v = atomic_load_explicit(&p->next, memory_order_acquire);
     }
 }
 
@@ -43,16 +63,16 @@ static void *worker_main(void *arg)
 {
     worker *w = arg;
     ct_pool *p = w->p;
-    uint64_t seen = 0;
+    uint32_t seen = 0;
     pthread_mutex_lock(&p->mu);
     for (;;) {
-        while (p->gen == seen && !p->stop) pthread_cond_wait(&p->go, &p->mu);
+        while (p->cur.gen == seen && !p->stop) pthread_cond_wait(&p->go, &p->mu);
         if (p->stop) break;
-        seen = p->gen;
+        job j = p->cur;
+        seen = j.gen;
         pthread_mutex_unlock(&p->mu);
-        take_tasks(p, w->id);
+        take_tasks(p, &j, w->id);
         pthread_mutex_lock(&p->mu);
-        if (--p->busy == 0) pthread_cond_signal(&p->done);
     }
     pthread_mutex_unlock(&p->mu);
     return NULL;
@@ -70,6 +90,7 @@ int pool_new(int threads, ct_pool **out, ct_error *err)
     pthread_cond_init(&p->go, NULL);
     pthread_cond_init(&p->done, NULL);
     atomic_init(&p->next, 0);
+    atomic_init(&p->finished, 0);
     if (threads > 1) {
         p->w = calloc((size_t)threads - 1, sizeof *p->w);
         if (!p->w) {
@@ -114,22 +135,21 @@ int pool_threads(const ct_pool *p)
 void pool_run(ct_pool *p, size_t n, pool_fn fn, void *ctx)
 {
     if (n == 0) return;
-    if (!p || p->n == 1 || n == 1) {
+    if (!p || p->n == 1 || n == 1 || n > UINT32_MAX) {
         for (size_t i = 0; i < n; i++) fn(ctx, 0, i);
         return;
     }
     pthread_mutex_lock(&p->mu);
-    p->fn = fn;
-    p->ctx = ctx;
-    p->ntasks = n;
-    atomic_store_explicit(&p->next, 0, memory_order_relaxed);
-    p->busy = p->n - 1;
-    p->gen++;
+    job j = {fn, ctx, n, p->cur.gen + 1};
+    if (j.gen == 0) j.gen = 1;   /* 0 is what a new worker has seen */
+    p->cur = j;
+    atomic_store_explicit(&p->finished, 0, memory_order_relaxed);
+    atomic_store_explicit(&p->next, (uint_fast64_t)j.gen << 32, memory_order_release);
     pthread_cond_broadcast(&p->go);
     pthread_mutex_unlock(&p->mu);
-    take_tasks(p, 0);
+    take_tasks(p, &j, 0);
     pthread_mutex_lock(&p->mu);
-    while (p->busy > 0) pthread_cond_wait(&p->done, &p->mu);
+    while (atomic_load_explicit(&p->finished, memory_order_acquire) < n) pthread_cond_wait(&p->done, &p->mu);
     pthread_mutex_unlock(&p->mu);
 }
 

@@ -256,6 +256,7 @@ static inline __attribute__((always_inline)) void prefetch_sample(const ctex *c,
 /* --- parallel insertion -------------------------------------------------------- */
 
 enum { OWNER_TASK = 512 };   /* samples per task of the first pass */
+enum { PAR_MIN_SAMPLES = 1024 };   /* fewer samples are splatted by the calling thread alone */
 
 typedef struct par_job {
     ctex *c;
@@ -373,7 +374,11 @@ static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl
         qsort(c->par_keys, ngroups, sizeof *c->par_keys, by_key);
         for (uint32_t g = 0; g < ngroups; g++) c->par_groups[g] = (uint32_t)c->par_keys[g];
     }
-    pool_run(pool, ngroups, group_task, &j);
+    /* Waking the other threads costs more than they give on a few hundred
+     * samples (rounds of 256 ran slower on two threads than on one, office
+     * at 1024^2: docs/benchmarks.md "Master: saturation"); the result is
+     * the same either way. */
+    pool_run(n >= PAR_MIN_SAMPLES ? pool : NULL, ngroups, group_task, &j);
     size_t done = 0;
     for (uint32_t g = 0; g < ngroups; g++) {
         uint32_t id = c->par_groups[g];

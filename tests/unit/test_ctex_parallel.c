@@ -93,7 +93,7 @@ Test(ctex_parallel, parallel_insert_independent_of_threads)
     tcx_build(&t);
     ctex_options o = ctex_options_default();
     o.splat_window = 16;
-    enum { N = 6000, B = 300 };
+    enum { N = 12000, B = 1200 };   /* B over PAR_MIN_SAMPLES (ctex_insert.c): the threads take part */
     ct_sample *s = scattered_samples(&t, N);
     ctex *ref = NULL;
     ctex_insert_info *iref = malloc(N * sizeof *iref), *ii = malloc(N * sizeof *ii);
