@@ -641,10 +641,7 @@ void ctex_tex_resample(ctex_tex *dst, const ctex_tex *const *src, int nsrc, floa
             for (int s = 0; s < nsrc; s++) {
                 const ctex_tex *st = src[s];
                 float u, v;
-                if (!ctex_tex_project(st, p, &u, &v)) continue;
-                /* half a texel of slack at the borders */
-                float mu = 0.5f / (float)st->w, mv = 0.5f / (float)st->h;
-                if (u < -mu || u > 1.0f + mu || v < -mv || v > 1.0f + mv) continue;
+                if (!ctex_tex_project(st, p, &u, &v) || !ctex_tex_covers(st, u, v)) continue;
                 const ctex_texel *n = nearest(st, u, v);
                 if (!ctex_texel_valid(n)) continue;
                 float rel = ctex_tex_v(st, n) - st->vmax;

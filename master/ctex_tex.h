@@ -256,6 +256,14 @@ static inline bool ctex_tex_project(const ctex_tex *t, vec3 p, float *u, float *
     return true;
 }
 
+/* Whether texture position (u, v) lies on texture t, with half a texel of
+ * slack at the borders (false for NaN). */
+static inline bool ctex_tex_covers(const ctex_tex *t, float u, float v)
+{
+    float mu = 0.5f / (float)t->w, mv = 0.5f / (float)t->h;
+    return u >= -mu && v >= -mv && u <= 1.0f + mu && v <= 1.0f + mv;
+}
+
 /* World point of texture position (u, v): on the node's mid-plane for an
  * object-local texture, on the plane at ref_depth for a camera-local one. */
 vec3 ctex_tex_unproject(const ctex_tex *t, float u, float v);

@@ -265,15 +265,13 @@ static float tex_rate_now(ctex *c, const slot *s)
     return (float)s->t.w / fmaxf(pxw, 1.0f);
 }
 
-/* Whether every corner of bounds b projects into texture t (half a texel
- * of slack): then so does every surface point of its node, from any view. */
+/* Whether every corner of bounds b projects into texture t: then so does
+ * every surface point of its node, from any view. */
 static bool corners_inside(const ctex_tex *t, bounds3 b)
 {
-    float mu = 0.5f / (float)t->w, mv = 0.5f / (float)t->h;
     for (int i = 0; i < 8; i++) {
         float u, v;
-        if (!ctex_tex_project(t, b3_corner(b, i), &u, &v) || !(u >= -mu && v >= -mv && u <= 1.0f + mu && v <= 1.0f + mv))
-            return false;
+        if (!ctex_tex_project(t, b3_corner(b, i), &u, &v) || !ctex_tex_covers(t, u, v)) return false;
     }
     return true;
 }
@@ -316,8 +314,7 @@ static bool keep_projector(ctex *c, slot *s)
         u0 = fminf(u0, u); u1 = fmaxf(u1, u);
         v0 = fminf(v0, v); v1 = fmaxf(v1, v);
     }
-    float mu = 0.5f / (float)t->w, mv = 0.5f / (float)t->h;
-    if (!corners_inside(t, n->bounds) && !(u0 >= -mu && v0 >= -mv && u1 <= 1.0f + mu && v1 <= 1.0f + mv)) return false;
+    if (!corners_inside(t, n->bounds) && !(ctex_tex_covers(t, u0, v0) && ctex_tex_covers(t, u1, v1))) return false;
     /* most of its texels still in view (else a smaller texture of the new
      * rectangle serves with fewer texels to keep and to send) */
     if ((fminf(u1, 1.0f) - fmaxf(u0, 0.0f)) * (fminf(v1, 1.0f) - fmaxf(v0, 0.0f)) < 0.5f) return false;

@@ -107,8 +107,7 @@ int drv_set_view(drv *d, const ct_camera *cam, int width, int height, ct_error *
 
 void drv_begin_frame(drv *d, uint32_t k)
 {
-    d->lockstep = true;
-    sess_set_lockstep(d->s, true);
+    drv_set_lockstep(d, true);
     d->in_frame = true;
     d->frame_left = k;
     d->frame_samples = 0;

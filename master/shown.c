@@ -175,7 +175,7 @@ static void raster_task(void *ctx, int worker, size_t task)
     const job *j = ctx;
     float *izp = j->b->iz + task * j->stride;
     uint32_t *trip = j->b->tri + task * j->stride;
-    memset(izp, 0, j->npx * sizeof *izp);
+    memset(izp, 0, j->stride * sizeof *izp);   /* the padding too: vector loads read it */
     uint32_t nt = j->m->ntris, per = (uint32_t)(((uint64_t)nt + (uint64_t)j->ntasks - 1) / (uint64_t)j->ntasks);
     uint32_t t0 = (uint32_t)task * per, t1 = t0 + per < nt ? t0 + per : nt;
     float zn = j->b->znear;

@@ -19,6 +19,9 @@
 
 #define COMPONENT "tracer"
 
+/* Who sent what a tracer decodes, for its error lines. */
+static const char PEER[] = "master (rank 0)";
+
 typedef struct fifo {
     wire_buf *items;
     size_t head, n, cap;
@@ -178,8 +181,6 @@ static int farewell(const trank_config *c, int shutdown, wire_buf *msg, ct_error
     wire_buf bye = {0};
     int rc = mpil_isend(0, MPIL_TAG_BYE, &bye, err);
     if (rc < 0) return rc;
-    char peer[32];
-    snprintf(peer, sizeof peer, "master (rank 0)");
     double end = ct_now() + 3.0;
     while (!shutdown) {
         mpil_info info;
@@ -189,9 +190,9 @@ static int farewell(const trank_config *c, int shutdown, wire_buf *msg, ct_error
         if (!got) break;
         unsigned kind = 0;
         uint32_t count = 0;
-        if (wire_mpi_peek(msg->data, msg->len, peer, &kind, &count, err) < 0 || kind != WIRE_MPI_CONTROL) continue;
+        if (wire_mpi_peek(msg->data, msg->len, PEER, &kind, &count, err) < 0 || kind != WIRE_MPI_CONTROL) continue;
         wire_mpi_control ctl;
-        if (wire_mpi_decode_control(msg->data, msg->len, peer, &ctl, err) == 0 && ctl.op == WIRE_MPI_OP_SHUTDOWN)
+        if (wire_mpi_decode_control(msg->data, msg->len, PEER, &ctl, err) == 0 && ctl.op == WIRE_MPI_OP_SHUTDOWN)
             shutdown = 1;
     }
     if (!shutdown) ct_debug(COMPONENT, "rank %d: no SHUTDOWN from the master within 3 s of leaving", c->rank);
@@ -213,8 +214,6 @@ typedef struct intake_state {
  * way to the master). */
 static int intake(intake_state *in, ct_error *err)
 {
-    char peer[32];
-    snprintf(peer, sizeof peer, "master (rank 0)");
     for (;;) {
         mpil_info info;
         int got = mpil_probe(0, MPIL_ANY, &info, err);
@@ -224,16 +223,16 @@ static int intake(intake_state *in, ct_error *err)
         if (rc < 0) return rc;
         unsigned kind = 0;
         uint32_t count = 0;
-        if ((rc = wire_mpi_peek(in->msg->data, in->msg->len, peer, &kind, &count, err)) < 0) return rc;
+        if ((rc = wire_mpi_peek(in->msg->data, in->msg->len, PEER, &kind, &count, err)) < 0) return rc;
         if (kind == WIRE_MPI_REQUESTS) {
             if ((rc = fifo_push(in->q, in->msg, err)) < 0) return rc;
         } else if (kind == WIRE_MPI_CAMERA) {
             wire_mpi_camera cam;
-            if ((rc = wire_mpi_decode_camera(in->msg->data, in->msg->len, peer, &cam, err)) < 0) return rc;
+            if ((rc = wire_mpi_decode_camera(in->msg->data, in->msg->len, PEER, &cam, err)) < 0) return rc;
             if (cam.epoch > in->epoch) in->epoch = cam.epoch;
         } else if (kind == WIRE_MPI_CONTROL) {
             wire_mpi_control ctl;
-            if ((rc = wire_mpi_decode_control(in->msg->data, in->msg->len, peer, &ctl, err)) < 0) return rc;
+            if ((rc = wire_mpi_decode_control(in->msg->data, in->msg->len, PEER, &ctl, err)) < 0) return rc;
             if (ctl.op == WIRE_MPI_OP_SHUTDOWN) in->shutdown = 1;
             /* CONFIG is not needed: every rank parses the same command line. */
         } else {
@@ -263,8 +262,6 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
     ct_sample *samples = NULL;
     batch_order order = {0};
     uint32_t cap = 0;
-    char peer[32];
-    snprintf(peer, sizeof peer, "master (rank 0)");
     ct_pool *pool = NULL;
     int rc = pool_new(c->threads < 1 ? 1 : c->threads, &pool, err);
     if (rc) return rc;
@@ -285,7 +282,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         wire_buf b = fifo_pop(&q);
         unsigned kind = 0;
         uint32_t count = 0;
-        rc = wire_mpi_peek(b.data, b.len, peer, &kind, &count, err);
+        rc = wire_mpi_peek(b.data, b.len, PEER, &kind, &count, err);
         if (rc == 0 && count > cap) {
             ct_request *r = realloc(reqs, count * sizeof *r);
             ct_sample *s = r ? realloc(samples, count * sizeof *s) : NULL;
@@ -295,7 +292,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
             else cap = count;
         }
         wire_mpi_requests h;
-        if (rc == 0) rc = wire_mpi_decode_requests(b.data, b.len, peer, &h, reqs, cap, &count, err);
+        if (rc == 0) rc = wire_mpi_decode_requests(b.data, b.len, PEER, &h, reqs, cap, &count, err);
         wire_buf_free(&b);
         if (rc < 0) goto out;
         if (h.epoch > in.epoch) in.epoch = h.epoch;
