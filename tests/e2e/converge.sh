@@ -71,6 +71,10 @@ run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --eps abc --quiet
 expect_error "--eps"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --insert-runs 0 --quiet
 expect_error "--insert-runs"
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --keep-projector-deg 91 --quiet
+expect_error "--keep-projector-deg: '91' is not a number in \[0, 90\]"
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --shown-rest-ms -1 --quiet
+expect_error "--shown-rest-ms: '-1' is not a number in \[0, 60000\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
 run_corrtex 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand-in 0.3 --quiet
