@@ -56,6 +56,7 @@ void trc_options_default(trc_options *o, trc_mode mode)
     }
     o->indirect = TRC_INDIRECT_GATHER;
     o->gather_rays = 4;
+    o->gather_direct = TRC_GATHER_DIRECT_TRACE;
 }
 
 const char *trc_mode_name(trc_mode m)
@@ -73,6 +74,15 @@ const char *trc_indirect_name(trc_indirect i)
     switch (i) {
     case TRC_INDIRECT_MESH: return "mesh";
     case TRC_INDIRECT_GATHER: return "gather";
+    }
+    return "?";
+}
+
+const char *trc_gather_direct_name(trc_gather_direct g)
+{
+    switch (g) {
+    case TRC_GATHER_DIRECT_MESH: return "mesh";
+    case TRC_GATHER_DIRECT_TRACE: return "trace";
     }
     return "?";
 }
@@ -95,6 +105,8 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
         return ct_fail(err, CT_EINVAL, "indirect light %d unknown", (int)o->indirect);
     if (o->gather_rays < 1 || o->gather_rays > 4096)
         return ct_fail(err, CT_EINVAL, "gather rays %d outside 1..4096", o->gather_rays);
+    if (o->gather_direct != TRC_GATHER_DIRECT_MESH && o->gather_direct != TRC_GATHER_DIRECT_TRACE)
+        return ct_fail(err, CT_EINVAL, "gather direct light %d unknown", (int)o->gather_direct);
     if (rad && rad->nnodes != scene->nnodes)
         return ct_fail(err, CT_ESTALE, "radiosity mesh has %u nodes, the scene %u", rad->nnodes,
                        scene->nnodes);

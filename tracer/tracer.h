@@ -39,6 +39,13 @@ typedef enum trc_indirect {
     TRC_INDIRECT_GATHER = 1    /* a final gather: G cosine rays read the mesh where they land */
 } trc_indirect;
 
+/* What a final-gather ray counts of the lamps' direct light where it lands
+ * (docs/tracer.md, "Indirect light"). */
+typedef enum trc_gather_direct {
+    TRC_GATHER_DIRECT_MESH  = 0,   /* the mesh's value there, direct part included */
+    TRC_GATHER_DIRECT_TRACE = 1    /* the mesh's indirect part plus one traced lamp sample */
+} trc_gather_direct;
+
 /* Random stream dimensions (the third id of rng_make). */
 enum {
     TRC_DIM_TRACE = 0,   /* everything the integrator draws */
@@ -48,8 +55,9 @@ enum {
 /* Changes whenever an image a mode gives changes (not its speed), so that
  * references cached by scripts (named after `corrtex reference --help`,
  * which prints it) are rendered again: 1: drt's final gather follows
- * mirrors; 2: drt samples lamps seen in plane mirrors. */
-#define TRC_VERSION 2
+ * mirrors; 2: drt samples lamps seen in plane mirrors; 3: the gather traces
+ * the lamps' light where its rays land (TRC_GATHER_DIRECT_TRACE). */
+#define TRC_VERSION 3
 
 typedef struct trc_options {
     trc_mode mode;
@@ -59,13 +67,15 @@ typedef struct trc_options {
     int depth;           /* D: bounces (drt, reuse-diffuse: recursion; path: maximum length) */
     trc_indirect indirect;   /* drt with a mesh: its indirect light */
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
+    trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
 
 /* Defaults of a mode: path K=1, D=64 (Russian roulette from bounce 3);
  * drt and reuse-diffuse K=4, B=4, D=5, splitting on the first level only;
- * drt's indirect light by final gather, G=4. Seed 1. */
+ * drt's indirect light by final gather, G=4, the lamps traced where its
+ * rays land. Seed 1. */
 void trc_options_default(trc_options *o, trc_mode mode);
 
 /* "path", "drt", "reuse-diffuse". */
@@ -73,6 +83,9 @@ const char *trc_mode_name(trc_mode m);
 
 /* "mesh", "gather". */
 const char *trc_indirect_name(trc_indirect i);
+
+/* "mesh", "trace". */
+const char *trc_gather_direct_name(trc_gather_direct g);
 
 /* A recorded ray (benchmark replay of the very rays a run traced). */
 typedef struct trc_ray {

@@ -3,6 +3,7 @@
 
 static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
 static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
+static const int GATHER_DIRECT[] = {TRC_GATHER_DIRECT_TRACE, TRC_GATHER_DIRECT_MESH};
 
 #define OF(f) offsetof(trc_cli, f)
 static const optab ROWS[] = {
@@ -21,6 +22,9 @@ static const optab ROWS[] = {
      "drt's indirect light: the mesh read at the hit, or a final gather of the mesh (docs/tracer.md)", INDIRECT},
     {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "rays of --indirect gather per shading point",
      NULL},
+    {"gather-direct", 0, OPTAB_CHOICE, OF(gather_direct), 0, 0, "trace", "trace|mesh",
+     "--indirect gather: the lamps' light where a gather ray lands, by one traced lamp sample (the mesh's indirect "
+     "part beside it) or read from the mesh (faster; its shadows are blurred, docs/tracer.md)", GATHER_DIRECT},
 };
 #undef OF
 
@@ -39,4 +43,5 @@ void trc_cli_apply(const trc_cli *c, trc_options *o)
     if (c->depth >= 0) o->depth = c->depth;
     o->indirect = (trc_indirect)c->indirect;
     o->gather_rays = c->gather_rays;
+    o->gather_direct = (trc_gather_direct)c->gather_direct;
 }

@@ -22,11 +22,12 @@ typedef struct trc_cli {
     int depth;          /* D; -1: the mode's */
     int indirect;       /* trc_indirect */
     int gather_rays;    /* G */
+    int gather_direct;  /* trc_gather_direct */
 } trc_cli;
 
 /* The rows (optab.h) filling a trc_cli: --mode (default drt),
  * --shadow-rays, --branch, --branch-depth, --depth, --indirect,
- * --gather-rays. */
+ * --gather-rays, --gather-direct. */
 const optab *trc_cli_table(size_t *n);
 
 /* The options of c's mode with what c sets over them (the seed and the

@@ -112,6 +112,10 @@ static void help(FILE *f)
         "                      gather: a final gather, G cosine rays reading the mesh where\n"
         "                           they land, at the first diffuse hit (default %s)\n"
         "  --gather-rays G   rays of --indirect gather per shading point (default %d)\n"
+        "  --gather-direct W --indirect gather: the lamps' light where a gather ray lands,\n"
+        "                      trace: one traced lamp sample beside the mesh's indirect part\n"
+        "                      mesh: read from the mesh (faster; its shadows blurred)\n"
+        "                    (default %s)\n"
         "  --seed N          random seed (default %llu)\n"
         "  --tile N          tile edge in pixels (default 16)\n"
         "  --half            write half-float EXR (default: 32-bit float)\n"
@@ -127,7 +131,8 @@ static void help(FILE *f)
         "  --quiet, --verbose\n"
         "tracer version %d (changes when the images change: cached references carry it)\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
-        trc_indirect_name(d.indirect), d.gather_rays, (unsigned long long)p.seed, TRC_VERSION);
+        trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct),
+        (unsigned long long)p.seed, TRC_VERSION);
 }
 
 static int bad(const char *fmt, const char *a, const char *b)

@@ -9,12 +9,15 @@
 # samples per pixel) in 4 x 4 pixel blocks on one flat surface a pixel away
 # from its edges and without a shadow boundary (the masks of
 # tests/e2e/radiosity_regions.sh), and the blocks' rms must be within 3 %.
-# Worst-block bounds: the room 5 % (measured 1.7 %), the L room 10 %
-# (5.1-5.9 %), the Cornell box 12 %: drt's own difference from path tracing (its indirect
-# light gathered from the radiosity mesh) is up to +5 % on the short box's
-# front face, and the refined means move a block by about 2 % from run to
-# run (free running, the samples arrive in a different order: Cornell's
-# worst blocks were 4.7, 5.6, 5.8, 8.4 and, under the sanitizers, 11.0 %). The references' noise is 0.1-1.2 % (docs/radiosity.md). The
+# Worst-block bounds: the room 5 % (measured 2.0-2.6 %), the L room 10 %
+# (5.5-7.0 %), the Cornell box 10 % (4.5-6.9 %); the refined means move a
+# block by about 2 % from run to run (free running, the samples arrive in a
+# different order). While the gather read the lamps' light where its rays
+# land from the mesh, whose shadows are blurred, the short box's front face
+# (lit by the floor in the box's shadow in front of it) converged 10 % too
+# bright: Cornell's worst blocks were 7.1-12.6 %, its rms 1.9-2.4 % (now
+# 1.4-1.5 %), and CI failed on it (docs/tracer.md, "Indirect light"). The
+# references' noise is 0.1-1.2 % (docs/radiosity.md). The
 # radiosity alone is printed beside (the L room's is 18 % off: the
 # corrections take the image to the truth). Before refinement weighed a
 # pixel's uncertainty as displayed (sRGB), the dark front face of the short
@@ -30,7 +33,7 @@ run_ct() {
   out=$("$corrtex" "$@" 2>"$tmp/ct.err") || { fail "corrtex $1 failed: $(tail -n 3 "$tmp/ct.err")"; finish; }
 }
 img=(--width 64 --height 64 --spp 16 --quiet)
-for sc_bound in cornell_diffuse:0.12 boxroom:0.05 lroom:0.10; do
+for sc_bound in cornell_diffuse:0.10 boxroom:0.05 lroom:0.10; do
   sc=${sc_bound%:*} bound=${sc_bound#*:} scene="$data/${sc_bound%:*}.json" ref="$data/${sc_bound%:*}-ref.exr"
   echo "== $sc"
   [[ -f $ref ]] || { fail "missing $ref"; continue; }

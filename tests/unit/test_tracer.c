@@ -329,7 +329,8 @@ Test(tracer, drt_indirect_diffuse_from_radiosity_mesh)
  * indirect light (rho * A, read at the hit). The difference of the two modes
  * is therefore rho * A * (rho - 1), exactly, sample by sample up to the
  * direct light's noise, which both share (same seeds: the direct light is
- * drawn first). */
+ * drawn first). The gather reads the lamps' light from the mesh here
+ * (--gather-direct mesh); the traced variant is tested below. */
 Test(tracer, drt_final_gather_reads_the_mesh_where_its_rays_land)
 {
     ct_error err;
@@ -349,6 +350,7 @@ Test(tracer, drt_final_gather_reads_the_mesh_where_its_rays_land)
         o.shadow_rays = 4;
         o.gather_rays = g;
         o.indirect = TRC_INDIRECT_GATHER;
+        o.gather_direct = TRC_GATHER_DIRECT_MESH;
         trc_tracer *tg;
         CHECK(trc_new(s, &rad, &o, &tg, &err));
         trc_tracer *tm = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, TRC_INDIRECT_MESH);
@@ -369,6 +371,62 @@ Test(tracer, drt_final_gather_reads_the_mesh_where_its_rays_land)
         trc_free(tg);
         trc_free(tm);
     }
+    rmesh_free(&rad);
+    scene_free(s);
+}
+
+/* The gather with the lamps' light traced where its rays land
+ * (TRC_GATHER_DIRECT_TRACE, the default) over a mesh with no indirect light
+ * (stand-in radiosity with ambient 0: every surface's radiosity is its
+ * emission, its direct part too) brings exactly the light reflected once
+ * between the lamp and the camera's hit: the same as path tracing with two
+ * bounces (the hit's direct light, and the direct light at the second
+ * vertex), in expectation. In the closed box of the test above (lamp at the
+ * top, walls rho 0.5), a point on the floor in the lamp's view and one on a
+ * side wall. The gather that reads the mesh has nothing to read there
+ * (its mean is the direct light alone): the test tells the two apart. */
+Test(tracer, drt_gather_traces_the_lamps_where_its_rays_land)
+{
+    ct_error err;
+    ct_scene *s = scene_new("gatherbox");
+    int wall = ts_diffuse(s, "wall", v3s(0.5f), v3s(0.0f), &err);
+    int lamp = ts_diffuse(s, "lamp", v3s(0.5f), v3(8, 8, 8), &err);
+    cr_assert(ts_box(s, "box", (uint32_t)wall, v3(0, 0, 0), v3(2, 2, 2), true, &err) >= 0);
+    cr_assert(ts_quad(s, "lamp", (uint32_t)lamp, v3(0.8f, 1.999f, 0.8f), v3(0.4f, 0, 0), v3(0, 0, 0.4f), &err) >= 0);
+    CHECK(scene_finalize(s, &err));
+    ct_radmesh rad;
+    CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
+    trc_options o;
+    trc_options_default(&o, TRC_MODE_DRT);
+    cr_assert_eq(o.gather_direct, TRC_GATHER_DIRECT_TRACE, "the traced lamps are the default");
+    trc_tracer *tg, *tm, *tp;
+    CHECK(trc_new(s, &rad, &o, &tg, &err));
+    o.gather_direct = TRC_GATHER_DIRECT_MESH;
+    CHECK(trc_new(s, &rad, &o, &tm, &err));
+    trc_options_default(&o, TRC_MODE_PATH);
+    o.depth = 2;
+    CHECK(trc_new(s, NULL, &o, &tp, &err));
+    const vec3 eyes[2][2] = {{v3(1.0f, 1.5f, 0.2f), v3(1.0f, 0.0f, 1.2f)},    /* floor */
+                             {v3(1.0f, 1.0f, 1.0f), v3(0.0f, 0.6f, 1.0f)}};   /* side wall */
+    const int n = 16384;
+    for (int i = 0; i < 2; i++) {
+        trc_view v = view_of(eyes[i][0], eyes[i][1], 20.0f, 3, 3);
+        double vg, vp;
+        vec3 g = moments_at(tg, &v, 1.5f, 1.5f, n, 11u, NULL, &vg);
+        vec3 p = moments_at(tp, &v, 1.5f, 1.5f, n, 11u, NULL, &vp);
+        vec3 m = mean_at(tm, &v, 1.5f, 1.5f, n, 11u, NULL);
+        double sigma = sqrt((vg + vp) / n), d = v3_get(g, 0) - v3_get(p, 0);
+        printf("metric: %s: gather tracing the lamps %.5f, path (2 bounces) %.5f (sigma of the difference %.5f), "
+               "gather reading the mesh %.5f\n", i ? "wall" : "floor", (double)v3_get(g, 0), (double)v3_get(p, 0), sigma,
+               (double)v3_get(m, 0));
+        cr_expect(fabs(d) < 4.0 * sigma + 1e-4, "%s: traced gather %g, path %g (sigma %g)", i ? "wall" : "floor",
+                  (double)v3_get(g, 0), (double)v3_get(p, 0), sigma);
+        cr_expect(v3_get(p, 0) - v3_get(m, 0) > 10.0 * sigma, "%s: the gather reading the mesh %g, path %g",
+                  i ? "wall" : "floor", (double)v3_get(m, 0), (double)v3_get(p, 0));
+    }
+    trc_free(tg);
+    trc_free(tm);
+    trc_free(tp);
     rmesh_free(&rad);
     scene_free(s);
 }
@@ -421,8 +479,10 @@ Test(tracer, drt_final_gather_follows_mirrors)
 /* A lamp seen in a plane mirror lights a diffuse floor (mirror_lights.h;
  * the scene: ts_mirror_lamp): drt's floor radiance must be rho * R * L_e *
  * F(image), the form factor to the lamp's image; the stand-in mesh (A = 0)
- * adds nothing else. Covered, or with a diffuse ceiling: nothing. Split
- * into three mirrors: the same. */
+ * adds nothing else, with the gather reading the lamps' light from it
+ * (--gather-direct mesh: traced, the lamps' light once reflected by the
+ * walls would add to the analytic value, which leaves it out). Covered, or
+ * with a diffuse ceiling: nothing. Split into three mirrors: the same. */
 static void floor_under_mirror(trc_indirect ind, bool cover, bool diffuse_ceiling, bool split)
 {
     ct_error err;
@@ -430,7 +490,12 @@ static void floor_under_mirror(trc_indirect ind, bool cover, bool diffuse_ceilin
     cr_assert(s, "%s", err.msg);
     ct_radmesh rad;
     CHECK(rmesh_from_scene(s, v3s(0.0f), &rad, &err));
-    trc_tracer *t = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, ind);
+    trc_options o;
+    trc_options_default(&o, TRC_MODE_DRT);
+    o.indirect = ind;
+    o.gather_direct = TRC_GATHER_DIRECT_MESH;
+    trc_tracer *t;
+    CHECK(trc_new(s, &rad, &o, &t, &err));
     trc_view v = view_of(v3(-0.5f, 1.5f, -2.5f), v3(-0.5f, 0, 0), 40.0f, 16, 16);
     static const float pix[][2] = {{8, 8}, {3, 12}, {13, 10}, {8, 15}};
     for (size_t k = 0; k < sizeof pix / sizeof pix[0]; k++) {

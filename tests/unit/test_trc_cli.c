@@ -14,7 +14,7 @@ static int parse(trc_cli *c, const char *const *args, ct_error *err)
     const optab *t = trc_cli_table(&n);
     cr_assert_eq(optab_defaults(t, n, c, err), 0, "%s", err->msg);
     char prog[] = "prog";
-    char *argv[16] = {prog};
+    char *argv[32] = {prog};
     int argc = 1;
     for (; args[argc - 1]; argc++) argv[argc] = (char *)args[argc - 1];
     optab_group g = {t, n, c};
@@ -38,6 +38,8 @@ Test(trc_cli, defaults_are_the_modes)
     cr_expect_eq(got.depth, want.depth);
     cr_expect_eq(got.indirect, want.indirect);
     cr_expect_eq(got.gather_rays, want.gather_rays);
+    cr_expect_eq(got.gather_direct, want.gather_direct);
+    cr_expect_eq(got.gather_direct, TRC_GATHER_DIRECT_TRACE);
     /* path's own defaults, not drt's, when only the mode is given */
     const char *path[] = {"--mode", "path", NULL};
     cr_assert_eq(parse(&c, path, &err), 0, "%s", err.msg);
@@ -53,7 +55,7 @@ Test(trc_cli, given_values_override_the_mode_and_zero_levels_count)
     trc_cli c;
     ct_error err;
     const char *a[] = {"--mode", "reuse-diffuse", "--shadow-rays", "9", "--branch", "3", "--branch-depth", "0",
-                       "--depth", "0", "--indirect", "mesh", "--gather-rays", "7", NULL};
+                       "--depth", "0", "--indirect", "mesh", "--gather-rays", "7", "--gather-direct", "mesh", NULL};
     cr_assert_eq(parse(&c, a, &err), 0, "%s", err.msg);
     trc_options o;
     trc_cli_apply(&c, &o);
@@ -64,6 +66,7 @@ Test(trc_cli, given_values_override_the_mode_and_zero_levels_count)
     cr_expect_eq(o.depth, 0, "--depth 0 is a depth, not 'the default'");
     cr_expect_eq(o.indirect, TRC_INDIRECT_MESH);
     cr_expect_eq(o.gather_rays, 7);
+    cr_expect_eq(o.gather_direct, TRC_GATHER_DIRECT_MESH);
     const char *m1[] = {"--depth", "-1", NULL};
     cr_assert_eq(parse(&c, m1, &err), 0, "%s", err.msg);
     trc_cli_apply(&c, &o);
@@ -83,6 +86,7 @@ Test(trc_cli, bad_values_name_the_option)
         {"--branch-depth", "1025", "--branch-depth"},
         {"--indirect", "path", "path"},
         {"--gather-rays", "0", "--gather-rays: '0'"},
+        {"--gather-direct", "path", "path"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         trc_cli c;
