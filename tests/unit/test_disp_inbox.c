@@ -6,13 +6,15 @@
  * textures; a texture freed and allocated again between two frames starts
  * from zero at its new size; stamps reach the frame that shows them;
  * messages that do not fit are refused with their reason; the lag
- * histogram's quantiles; resizes racing the frames that take them. */
+ * histogram's quantiles; resizes racing the frames that take them; every
+ * kind of message in random order racing frames that draw them. */
 #include <criterion/criterion.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "display/disp_inbox.h"
 #include "display/disp_lag.h"
@@ -319,5 +321,116 @@ Test(disp_inbox, resizes_racing_frames_upload_into_the_texture_they_were_made_fo
     printf("metric: %d frames taken while 20000 resizes raced them, %llu texels uploaded\n", frames,
            (unsigned long long)texels);
     cr_expect_eq(rc, 0, "frame %d: %s", frames, err.msg);
+    rig_close(&r);
+}
+
+/* Every message the connection thread hands over, in random order and
+ * sizes, racing the frames: textures of a few ids allocated at random
+ * sizes, re-allocated, freed and allocated again, patched in random
+ * rectangles with stamps, given projections, a new scene now and then,
+ * sample points, frame ends and statistics; the render thread applies
+ * what arrived, draws it, and reads the stamps a frame took, as the
+ * display does. Nothing may be refused (the thread keeps to what it
+ * allocated), and under the sanitizers nothing may touch memory it does
+ * not own: a free-running walk crashed the display once with a corrupted
+ * heap, the walk's traffic being of this kind. */
+#define CHURN_IDS 12
+typedef struct churner {
+    disp_inbox *in;
+    fx_box_nodes nd;
+    int rounds, scenes;
+    int rc;
+    ct_error err;
+    atomic_bool stop, done;
+} churner;
+
+static uint32_t churn_rand(uint64_t *s)
+{
+    *s = *s * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (uint32_t)(*s >> 33);
+}
+
+static void *churn_loop(void *arg)
+{
+    churner *c = arg;
+    static uint16_t px[64 * 64 * 3];
+    static float pts[3 * 300];
+    fill(px, 64 * 64 * 3, 0.1f, 0.02f);
+    for (int i = 0; i < 3 * 300; i++) pts[i] = (float)(i % 7) * 0.1f - 0.3f;
+    const uint32_t nodes[] = {c->nd.back, c->nd.floor, c->nd.left, c->nd.right, c->nd.block, c->nd.room};
+    int w[CHURN_IDS] = {0}, h[CHURN_IDS] = {0};   /* 0: not allocated */
+    uint64_t seed = 12345;
+    mat4 p = wall_proj();
+    for (int i = 0; !c->rc && !atomic_load(&c->stop); i++) {
+        uint32_t r = churn_rand(&seed), id = r % CHURN_IDS, op = (r >> 8) % 100;
+        c->rounds = i + 1;
+        if (i % 16 == 0) usleep(100);   /* a few hundred messages per frame, as a fast master sends */
+        if (i && i % 20000 == 0) {
+            ct_radmesh m;
+            fx_box_nodes nd;
+            c->rc = fx_box_mesh(2 + c->scenes % 3, &m, &nd, &c->err);
+            if (!c->rc) {
+                disp_inbox_scene(c->in, &m);
+                rmesh_free(&m);
+                c->scenes++;
+                for (int k = 0; k < CHURN_IDS; k++) w[k] = h[k] = 0;
+            }
+        } else if (op < 15) {
+            w[id] = 1 + (int)(churn_rand(&seed) % 64);
+            h[id] = 1 + (int)(churn_rand(&seed) % 64);
+            disp_proj_kind k = churn_rand(&seed) & 1 ? DISP_PROJ_CAMERA_PERSPECTIVE : DISP_PROJ_OBJECT_PARALLEL;
+            c->rc = disp_inbox_tex_alloc(c->in, id, nodes[churn_rand(&seed) % 6], w[id], h[id], k, &c->err);
+        } else if (op < 22 && w[id]) {
+            c->rc = disp_inbox_tex_free(c->in, id, &c->err);
+            w[id] = h[id] = 0;
+        } else if (op < 30 && w[id]) {
+            c->rc = disp_inbox_tex_projection(c->in, id, &p, &c->err);
+        } else if (op < 90 && w[id]) {
+            int pw = 1 + (int)(churn_rand(&seed) % (uint32_t)w[id]), ph = 1 + (int)(churn_rand(&seed) % (uint32_t)h[id]);
+            int x = (int)(churn_rand(&seed) % (uint32_t)(w[id] - pw + 1));
+            int y = (int)(churn_rand(&seed) % (uint32_t)(h[id] - ph + 1));
+            c->rc = disp_inbox_tex_patch(c->in, id, x, y, pw, ph, px, 1000u + (uint64_t)i, 1 + (uint32_t)(r % 5),
+                                         &c->err);
+        } else if (op < 94) {
+            disp_inbox_points(c->in, pts, 1 + r % 300, r % 3);
+        } else if (op < 97) {
+            disp_inbox_frame_end(c->in, (uint64_t)i, 0, 7, false);
+            disp_inbox_stats(c->in, (uint64_t)i, false);
+        }
+    }
+    atomic_store(&c->done, true);
+    return NULL;
+}
+
+Test(disp_inbox, every_message_racing_frames_in_random_order)
+{
+    ct_error err;
+    rig r;
+    rig_open(&r);
+    disp_inbox_scene(r.in, &r.mesh);
+    churner ch = {.in = r.in, .nd = r.nd};
+    atomic_init(&ch.stop, false);
+    atomic_init(&ch.done, false);
+    pthread_t th;
+    cr_assert_eq(pthread_create(&th, NULL, churn_loop, &ch), 0);
+    static uint8_t img[W * H * 3];
+    int frames = 0, rc = 0;
+    uint64_t texels = 0, stamped = 0;
+    for (; !rc && frames < 300; frames++) {
+        disp_inbox_took took;
+        rc = disp_inbox_apply(r.in, r.s, &took, &err);
+        if (rc) break;
+        texels += took.texels;
+        for (uint32_t i = 0; i < took.nstamps; i++) stamped += took.stamps[i].samples;
+        if (disp_session_scene_of(r.s)) rc = fx_render_session(r.s, W, H, img, &err);
+    }
+    atomic_store(&ch.stop, true);
+    pthread_join(th, NULL);
+    cr_assert_eq(ch.rc, 0, "the connection thread was refused: %s", ch.err.msg);
+    cr_expect_eq(rc, 0, "frame %d: %s", frames, err.msg);
+    printf("metric: %d frames drew while %d random messages (%d scenes) raced them: %llu texels uploaded, "
+           "%llu stamped samples shown\n",
+           frames, ch.rounds, ch.scenes, (unsigned long long)texels, (unsigned long long)stamped);
+    cr_expect_gt(texels, 0u);
     rig_close(&r);
 }
