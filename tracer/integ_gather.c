@@ -1,0 +1,125 @@
+/* integ_gather.c: drt's final gather of the radiosity solution at the
+ * first diffuse hit (integ_internal.h; docs/tracer.md, "Indirect light"). */
+#include "tracer/integ_internal.h"
+
+/* Mirrors a gather ray follows (their light is not in the radiosity
+ * solution, which has no specular transport) before it reads the mesh. */
+#define GATHER_MIRROR_BOUNCES 4
+
+/* The direct light leaving the diffuse layer of the surface at h towards
+ * -d, as the radiosity solution's direct part counts it (rad_direct: the
+ * lamps, and the lamps seen in plane mirrors), traced: one lamp sample
+ * (chosen as the point's own shadow rays choose) and its shadow ray (glass
+ * attenuates), and where the scene has mirrors, one in MIRROR_LIGHT_SHARE
+ * landings a lamp sample by way of a mirror, weighted up by as much. */
+static vec3 gather_direct(integ_ctx *c, const emb_hit *h, vec3 d)
+{
+    integ_surf s;
+    integ_make_surf(c, h, d, &s);
+    bsdf b;
+    surf_bsdf(&s, v3_neg(d), &b);
+    if (!(b.L.p_d > 0.0f)) return v3s(0.0f);
+    vec3 l = v3s(0.0f);
+    if (mlight_count(c->mirrors) && rnd(c) * (float)MIRROR_LIGHT_SHARE < 1.0f)
+        l = v3_scale(integ_mirror_light_n(c, &s, &b, 1), (float)MIRROR_LIGHT_SHARE);
+    if (light_count(c->lights) == 0) return l;
+    light_sel sel;
+    light_select_key(c->lights, s.lkey, s.p, &sel);
+    float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
+    light_point lp;
+    if (!light_sample(c->lights, &sel, u0, u1, u2, &lp) || lp.tri == h->tri) return l;
+    vec3 wi = v3_sub(lp.p, s.p);
+    float d2 = v3_len2(wi);
+    if (!(d2 > 0.0f)) return l;
+    wi = v3_scale(wi, 1.0f / sqrtf(d2));
+    float cos_l = -v3_dot(wi, lp.n);
+    if (cos_l <= 0.0f || !bsdf_same_side(&b, wi)) return l;
+    float pl = lp.pdf_area * d2 / cos_l;
+    if (!(pl > 0.0f && pl < INFINITY)) return l;
+    vec3 f = bsdf_eval_diffuse(&b, wi);
+    if (v3_is_zero(f)) return l;
+    vec3 o = emb_offset_ray(s.p, b.ng), target = emb_offset_ray(lp.p, lp.n);
+    vec3 sd = v3_sub(target, o);
+    float dist = v3_len(sd);
+    if (!(dist > 0.0f)) return l;
+    sd = v3_scale(sd, 1.0f / dist);
+    c->st->shadow++;
+    log_ray(c, o, sd, dist, 1);
+    bool crossed = false;
+    vec3 tr = emb_occluded(c->emb, o, sd, 0.0f, dist) ? integ_through_glass(c, o, sd, dist, target, &crossed) : v3s(1.0f);
+    vec3 lamp = v3_scale(v3_mul(v3_mul(f, lp.le), tr), v3_dot(wi, b.n) / pl);
+    return finite3(lamp) ? v3_add(l, lamp) : l;
+}
+
+/* What a final-gather ray from a diffuse point finds at h, coming along d:
+ * the mesh's radiance there less the emission the point's shadow rays
+ * already brought (through glass as the display shows it; behind a
+ * surface's back nothing: radiosity's surfaces are one-sided), plus what a
+ * mirror there reflects: the radiosity solution has a mirror as black, so
+ * the ray is reflected on (at most GATHER_MIRROR_BOUNCES times) and reads
+ * the mesh where it lands. Emission seen in a mirror is left out as well:
+ * a light reached that way by a cosine-sampled ray is a caustic, rare and
+ * bright, which in one-sample images is fireflies (the corrections of the
+ * Cornell box's floor under its mirror sphere; on `table` at 256x256 a
+ * one-sample image lost 1.8 dB with it, 16 samples 1.0 dB, and only from
+ * about 64 samples on did it gain). What a mirror shows of the lit room
+ * is kept. With TRC_GATHER_DIRECT_TRACE the direct part of that radiance
+ * is traced instead of read (gather_direct): the mesh blurs its shadows
+ * over the elements they cross, and a gather next to a contact reads them
+ * at close range (docs/tracer.md, "Indirect light"). */
+static vec3 gather_hit(integ_ctx *c, emb_hit h, vec3 d)
+{
+    vec3 sum = v3s(0.0f), att = v3s(1.0f);
+    for (int k = 0;; k++) {
+        const scene_material *hm = &c->mesh->mats[h.mat];
+        vec3 ng = h.rec->ng;
+        float cosd = v3_dot(d, ng);
+        if (hm->dielectric) return v3_add(sum, v3_mul(att, integ_through_glass_base(c, &h, d, true)));
+        if (cosd >= 0.0f) return sum;
+        vec3 l;
+        if (c->opt->gather_direct == TRC_GATHER_DIRECT_TRACE) {
+            l = clamp0(v3_sub(integ_vertex_lerp(c->rad->rad, &h), integ_vertex_lerp(c->rad->rad_direct, &h)));
+            l = v3_add(l, gather_direct(c, &h, d));
+        } else {
+            l = clamp0(v3_sub(integ_vertex_lerp(c->rad->rad, &h), hm->emission));
+        }
+        sum = v3_add(sum, v3_mul(att, l));
+        if (!(maxc(hm->mirror) > 0.0f) || k == GATHER_MIRROR_BOUNCES) return sum;
+        att = v3_mul(att, hm->mirror);
+        d = bsdf_reflect(v3_neg(d), ng);
+        vec3 o = emb_offset_ray(emb_hit_point(&h), ng);
+        c->st->secondary++;
+        log_ray(c, o, d, INFINITY, 0);
+        if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return sum;
+    }
+}
+
+/* drt's indirect diffuse light at s by a final gather from the radiosity
+ * solution: G cosine-weighted rays (stratified, one random shift per
+ * point) read the mesh's radiance where they land, less the emission the K
+ * shadow rays already brought (seen through glass as the display shows it,
+ * behind a surface's back nothing: radiosity's surfaces are one-sided).
+ * Read at s itself, the mesh's own error and its Gouraud interpolation
+ * are the image's floor; gathered, they are averaged over the hemisphere
+ * one bounce away (docs/tracer.md, "Indirect light"). */
+vec3 integ_final_gather(integ_ctx *c, const integ_surf *s, const bsdf *b)
+{
+    int n = c->opt->gather_rays;
+    float su = rnd(c), sv = rnd(c);
+    vec3 o = emb_offset_ray(s->p, b->ng), sum = v3s(0.0f);
+    for (int i = 0; i < n; i++) {
+        /* (i / n, radical inverse of i in base 2), shifted: stratified in
+         * the first number for any n, each ray still uniform. */
+        float u1 = frac1((float)i / (float)n + su);
+        float u2 = frac1(radical_inverse((uint32_t)i, 2) + sv);
+        bsdf_sample bs;
+        if (!bsdf_sample_diffuse(b, u1, u2, &bs)) continue;
+        emb_hit h;
+        c->st->secondary++;
+        log_ray(c, o, bs.wi, INFINITY, 0);
+        if (!emb_intersect(c->emb, o, bs.wi, 0.0f, INFINITY, &h)) continue;
+        sum = v3_add(sum, v3_mul(bs.weight, gather_hit(c, h, bs.wi)));
+    }
+    sum = v3_scale(sum, 1.0f / (float)n);
+    return finite3(sum) ? sum : v3s(0.0f);
+}
