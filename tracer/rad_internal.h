@@ -202,6 +202,30 @@ vec3 rad_mirror_leaf(const rad_ctx *c, const rad_elem *e);
 /* The same at a mesh vertex x (normal n) of the final gather; key seeds it. */
 vec3 rad_mirror_point(const rad_ctx *c, vec3 x, vec3 n, uint64_t key);
 
+/* --- rad_ff.c -------------------------------------------------------------- */
+
+/* Random stream tags of a link's rays (rad_visibility). */
+#define TAG_DECIDE 0x7669u   /* rays that decide whether a link is refined */
+#define TAG_VALUE  0x7661u   /* rays of the factor a kept link carries */
+#define TAG_RETEST 0x7265u   /* a second look before a link is dropped */
+
+/* Whether source src (element or cluster) emits. */
+int rad_src_has_emitter(const rad_ctx *c, uint32_t src);
+
+/* Unoccluded factor F(r <- s) between two elements and its spread dF over
+ * r, integrated over the smaller one and turned by reciprocity. */
+void rad_ff_elem(const rad_ctx *c, const rad_elem *r, const rad_elem *s, double *F, double *dF);
+
+/* Visible fraction of source src seen from receiver r by nrays jittered,
+ * kernel-weighted segments (stream tag, shared between receivers when
+ * shared); *nvalid the segments traced; -1 when none could be. */
+double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, uint64_t tag, int shared,
+                      int *nvalid);
+
+/* r's average factor to cluster src, unoccluded (*F) and visible (*FV), by
+ * Monte Carlo over the cluster's area. */
+void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, double *FV);
+
 /* --- rad_link.c ----------------------------------------------------------- */
 
 /* Per-thread scratch of the refinement. */
@@ -247,6 +271,8 @@ void rad_tls_free(rad_tls *t);
 /* Meshes the leaves into a conforming triangle mesh with per-vertex values. */
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err);
 
+/* --- rad_gather.c --------------------------------------------------------- */
+
 /* What the final gather reads per element (by element id): the sums over
  * its links whose factor is the same at every vertex (clusters, and
  * factors flat over the element), and the others, to be taken at each
@@ -257,7 +283,7 @@ typedef struct rad_gather_prep {
     uint32_t *idx;
 } rad_gather_prep;
 
-/* Fills g from the final links (rad_link.c); CT_ENOMEM when out of memory. */
+/* Fills g from the final links; CT_ENOMEM when out of memory. */
 int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g);
 
 /* Frees g's arrays. */
@@ -265,7 +291,7 @@ void rad_gather_prep_free(rad_gather_prep *g);
 
 /* The final gather at a mesh vertex x of leaf (normal n): the irradiance H
  * and its direct part Hd over the links of the leaf and its ancestors, each
- * element source's factor taken at x itself (rad_link.c). */
+ * element source's factor taken at x itself. */
 void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, uint32_t leaf, vec3 x, vec3 n, vec3 *H,
                       vec3 *Hd);
 

@@ -2,10 +2,12 @@
  * Hanrahan, Salzman and Aupperle 1991 with source-side clusters, Embree
  * visibility, and its conforming Gouraud mesh (common/radmesh.h). Owns the
  * rad_ prefix; the pieces live in rad_patch.c (input patches, element and
- * cluster hierarchies), rad_visibility.c (Embree occlusion), rad_link.c (form
- * factors, error oracle, link refinement), rad_solve.c (gather, push-pull,
- * passes, threads), rad_mesh.c (conforming meshing) and rad_view.c (a
- * Gouraud image of the mesh). docs/radiosity.md
+ * cluster hierarchies), rad_visibility.c (Embree occlusion), rad_ff.c (form
+ * factors, link visibility), rad_link.c (error oracle, link refinement),
+ * rad_solve.c (gather, push-pull, passes, threads), rad_gather.c (the final
+ * gather at the mesh's vertices), rad_mesh.c (conforming meshing),
+ * rad_mirror.c (lamps seen in plane mirrors) and rad_view.c (a Gouraud image
+ * of the mesh). docs/radiosity.md
  * describes the method, its parameters and how non-diffuse materials are
  * treated. */
 #ifndef CT_RADIOSITY_H

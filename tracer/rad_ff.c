@@ -1,0 +1,344 @@
+/* rad_ff.c: form factors (Lambert's contour formula from points of the
+ * smaller element to the other's polygon, averaged over a small quadrature,
+ * turned by reciprocity), cluster factors by Monte Carlo over the cluster's
+ * area, and visibility by jittered Embree rays weighted by the point kernel
+ * (rad_internal.h). */
+#include "tracer/rad_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/rng.h"
+
+/* ------------------------------------------------------------------------ */
+/* Form factors                                                             */
+
+double rad_ff_point_polygon(vec3 x, vec3 n, const vec3 *poly, int npoly)
+{
+    if (npoly < 3 || npoly > 8) return 0.0;
+    /* Newell normal of the polygon: x must lie in front of it. */
+    double nx = 0, ny = 0, nz = 0, cx = 0, cy = 0, cz = 0;
+    for (int i = 0; i < npoly; i++) {
+        vec3 a = poly[i], b = poly[(i + 1) % npoly];
+        nx += ((double)a.y - b.y) * ((double)a.z + b.z);
+        ny += ((double)a.z - b.z) * ((double)a.x + b.x);
+        nz += ((double)a.x - b.x) * ((double)a.y + b.y);
+        cx += a.x; cy += a.y; cz += a.z;
+    }
+    cx /= npoly; cy /= npoly; cz /= npoly;
+    if (nx * (x.x - cx) + ny * (x.y - cy) + nz * (x.z - cz) <= 0.0) return 0.0;
+
+    /* Clip the polygon to the receiver's upper half-space (Sutherland-Hodgman
+     * against one plane), so only what the point can see counts. */
+    double q[12][3];
+    int nq = 0;
+    for (int i = 0; i < npoly; i++) {
+        vec3 a = poly[i], b = poly[(i + 1) % npoly];
+        double da = (double)n.x * (a.x - x.x) + (double)n.y * (a.y - x.y) + (double)n.z * (a.z - x.z);
+        double db = (double)n.x * (b.x - x.x) + (double)n.y * (b.y - x.y) + (double)n.z * (b.z - x.z);
+        if (da >= 0.0) {
+            q[nq][0] = a.x - (double)x.x; q[nq][1] = a.y - (double)x.y; q[nq][2] = a.z - (double)x.z;
+            nq++;
+        }
+        if ((da >= 0.0) != (db >= 0.0)) {
+            double t = da / (da - db);
+            q[nq][0] = a.x + t * ((double)b.x - a.x) - x.x;
+            q[nq][1] = a.y + t * ((double)b.y - a.y) - x.y;
+            q[nq][2] = a.z + t * ((double)b.z - a.z) - x.z;
+            nq++;
+        }
+    }
+    if (nq < 3) return 0.0;
+    double sum = 0.0;
+    for (int i = 0; i < nq; i++) {
+        const double *a = q[i], *b = q[(i + 1) % nq];
+        double la = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        double lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+        if (la < 1e-20 || lb < 1e-20) continue;
+        double cr[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        double lc = sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+        if (lc < 1e-30) continue;
+        double gamma = atan2(lc, a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+        sum += gamma * (n.x * cr[0] + n.y * cr[1] + n.z * cr[2]) / lc;
+    }
+    return fabs(sum) / (2.0 * M_PI);
+}
+
+static vec3 poly_point(const vec3 *p, int np, float u, float v)
+{
+    if (np == 4) return v3_lerp(v3_lerp(p[0], p[1], u), v3_lerp(p[3], p[2], u), v);
+    if (u + v > 1.0f) { u = 1.0f - u; v = 1.0f - v; }
+    return v3_add(p[0], v3_add(v3_scale(v3_sub(p[1], p[0]), u), v3_scale(v3_sub(p[2], p[0]), v)));
+}
+
+double rad_ff_polygons(const vec3 *a, int na, const vec3 *b, int nb, int n)
+{
+    if (n < 1 || (na != 3 && na != 4)) return 0.0;
+    vec3 nrm = v3_norm(v3_cross(v3_sub(a[1], a[0]), v3_sub(a[2], a[0])));
+    double sum = 0.0;
+    int cnt = 0;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            float u = ((float)i + 0.5f) / (float)n, v = ((float)j + 0.5f) / (float)n;
+            /* A triangle's folded square would sample the diagonal twice. */
+            if (na == 3 && u + v > 1.0f) continue;
+            sum += rad_ff_point_polygon(poly_point(a, na, u, v), nrm, b, nb);
+            cnt++;
+        }
+    return cnt ? sum / cnt : 0.0;
+}
+
+/* The receiver's quadrature points: quads 2 x 2 points at 1/4 and 3/4 of
+ * each side, triangles the 3-point rule (4/6, 1/6, 1/6); returns their
+ * count. */
+static int quad_points(const rad_elem *r, vec3 *x)
+{
+    if (r->nv == 4) {
+        static const float g[2] = {0.25f, 0.75f};
+        for (int i = 0; i < 2; i++)
+            for (int j = 0; j < 2; j++) x[2 * i + j] = poly_point(r->p, 4, g[i], g[j]);
+        return 4;
+    }
+    for (int k = 0; k < 3; k++)
+        x[k] = v3_add(v3_scale(r->p[k], 4.0f / 6.0f),
+                      v3_add(v3_scale(r->p[(k + 1) % 3], 1.0f / 6.0f), v3_scale(r->p[(k + 2) % 3], 1.0f / 6.0f)));
+    return 3;
+}
+
+/* Point-to-polygon factor from element a to polygon b averaged over a: at
+ * a's centre, or over its quadrature points when a is large compared with
+ * the distance d (where the factor varies over a). An element straddling
+ * b's plane is clipped to the part in front of it first: its centre or
+ * quadrature points alone would give all of it or nothing (a floor element
+ * half under a box, seen from the box's side), which lost 16 % of the
+ * floor's factor to a box standing on it. */
+static double ff_avg(const rad_ctx *c, const rad_elem *a, const rad_elem *b, float d)
+{
+    vec3 n = c->patches[a->patch].n, nb = c->patches[b->patch].n;
+    float tol = fmaxf(1e-5f * a->radius, 0.05f * c->ray_eps);
+    int front = 0, back = 0;
+    float h[4];
+    for (int i = 0; i < a->nv; i++) {
+        h[i] = v3_dot(nb, v3_sub(a->p[i], b->c));
+        front += h[i] > tol;
+        back += h[i] < -tol;
+    }
+    if (front && back) {
+        /* Clip a's polygon to b's front half-space (Sutherland-Hodgman),
+         * then integrate over its fan of triangles, each at its centroid. */
+        vec3 q[8];
+        int nq = 0;
+        for (int i = 0; i < a->nv; i++) {
+            int j = (i + 1) % a->nv;
+            if (h[i] >= 0.0f) q[nq++] = a->p[i];
+            if ((h[i] >= 0.0f) != (h[j] >= 0.0f)) q[nq++] = v3_lerp(a->p[i], a->p[j], h[i] / (h[i] - h[j]));
+        }
+        double sum = 0.0;
+        for (int k = 1; k + 1 < nq; k++) {
+            float ta = 0.5f * v3_len(v3_cross(v3_sub(q[k], q[0]), v3_sub(q[k + 1], q[0])));
+            vec3 g = v3_scale(v3_add(v3_add(q[0], q[k]), q[k + 1]), 1.0f / 3.0f);
+            sum += ta * rad_ff_point_polygon(g, n, b->p, b->nv);
+        }
+        return a->area > 0.0f ? sum / a->area : 0.0;
+    }
+    if (a->radius < 0.2f * d) return rad_ff_point_polygon(a->c, n, b->p, b->nv);
+    vec3 x[4];
+    int nq = quad_points(a, x);
+    double sum = 0.0;
+    for (int k = 0; k < nq; k++) sum += rad_ff_point_polygon(x[k], n, b->p, b->nv);
+    return sum / nq;
+}
+
+/* Unoccluded form factor F from element r to element s (r's average), and
+ * dF, how much the point factor varies over r: the spread (largest minus
+ * smallest) of the point-to-polygon factors at r's centre, its corners
+ * (nudged inside: a corner on an edge shared with s lies in s's plane) and,
+ * when r is large compared with the distance, its quadrature points. A link
+ * gives its whole receiver one irradiance, so dF is what it cannot show:
+ * the refinement splits receivers by it (refine_elem).
+ *
+ * F is integrated over the smaller of the two and turned by reciprocity,
+ * F(r <- s) = A_s / A_r * F(s -> r). Averaged over a large receiver's few
+ * points, a small source close to one of them came out orders of magnitude
+ * too strong (a sphere's tiny pole triangle 3 mm above the floor was given
+ * F = 0.11 to the whole 0.3 m^2 floor, 900 times what reciprocity allows),
+ * and energy was created. */
+void rad_ff_elem(const rad_ctx *c, const rad_elem *r, const rad_elem *s, double *F, double *dF)
+{
+    vec3 n = c->patches[r->patch].n;
+    float d = v3_len(v3_sub(s->c, r->c));
+    /* The corners are among the points: a source standing on a large
+     * receiver (a box on a floor element) hides from the receiver's
+     * centre and inner points, which all lie behind it. */
+    vec3 x[9];
+    int nx = 0;
+    x[nx++] = r->c;
+    for (int i = 0; i < r->nv; i++) x[nx++] = v3_lerp(r->p[i], r->c, 1e-3f);
+    if (r->radius >= 0.2f * d) nx += quad_points(r, x + nx);
+    double lo = HUGE_VAL, hi = 0.0;
+    for (int k = 0; k < nx; k++) {
+        double f = rad_ff_point_polygon(x[k], n, s->p, s->nv);
+        lo = fmin(lo, f);
+        hi = fmax(hi, f);
+    }
+    *dF = hi - lo;
+    if (s->area < r->area) *F = r->area > 0.0f ? ff_avg(c, s, r, d) * s->area / r->area : 0.0;
+    else *F = ff_avg(c, r, s, d);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Visibility and cluster factors                                           */
+
+int rad_src_has_emitter(const rad_ctx *c, uint32_t src)
+{
+    if (src & RAD_CLUSTER_BIT) return c->clusters[src & RAD_ID_MASK].has_emitter;
+    return v3_maxc(c->patches[rad_el(c, src)->patch].E) > 0.0f;
+}
+
+/* The random stream of a link's rays, one per tag (TAG_*). Shared: the
+ * stream of every link from this source. Links from one non-emitting source
+ * share their jitter pattern, so neighbouring receivers see the same few
+ * rays' bias instead of independent noise (blotches across a curved
+ * surface); shadow rays to emitters stay independent, or penumbrae would
+ * show as a few shifted hard shadows. */
+static ct_rng link_rng(const rad_ctx *c, const rad_elem *r, uint32_t src, int shared, uint64_t tag)
+{
+    uint64_t skey = (src & RAD_CLUSTER_BIT) ? ct_hash64(src) : rad_el(c, src)->key;
+    return rng_make(c->prm.seed, shared ? 0x5eedu : r->key, skey, tag);
+}
+
+/* A random pairing of n strata (Fisher-Yates). */
+static void strata_perm(ct_rng *g, uint16_t *perm, int n)
+{
+    for (int i = 0; i < n; i++) perm[i] = (uint16_t)i;
+    for (int i = n - 1; i > 0; i--) {
+        uint32_t j = rng_below(g, (uint32_t)i + 1);
+        uint16_t t = perm[i];
+        perm[i] = perm[j];
+        perm[j] = t;
+    }
+}
+
+/* Stratum i of an m x m grid, jittered. */
+static void stratum(ct_rng *g, int i, int m, float *u, float *v)
+{
+    *u = ((float)(i % m) + rng_float(g)) / (float)m;
+    *v = ((float)((i / m) % m) + rng_float(g)) / (float)m;
+}
+
+/* Visible fraction of source s seen from receiver r: jittered segments
+ * between points stratified over both (the source strata paired with the
+ * receiver's by a random permutation, so a penumbra's estimate varies less
+ * from element to element), each weighted by its point-to-point kernel
+ * cos_r+ cos_s+ / d^2. Unweighted, a segment to a point behind the
+ * receiver's plane (or from one behind the source's) counted as blocked:
+ * the form factor's clipping already leaves such points out, so a sphere
+ * seeing half of a floor got half its light twice over. Returns -1 when no
+ * segment's kernel is positive (the exchange is too slight for its rays to
+ * find). */
+double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, uint64_t tag, int shared,
+                      int *nvalid)
+{
+    int emitting = rad_src_has_emitter(c, src);
+    ct_rng g = link_rng(c, r, src, !emitting && shared, tag);
+    int m = 1;
+    while (m * m < nrays) m++;
+    nrays = m * m;   /* whole rows of strata: a partial last row leaves its stretch of the elements unsampled */
+    vec3 n = c->patches[r->patch].n;
+    const rad_elem *se = rad_el(c, src);
+    vec3 nsrc = c->patches[se->patch].n;
+    vec3 nr = v3_scale(n, c->ray_eps), ns = v3_scale(nsrc, c->ray_eps);
+    uint16_t perm[1024];
+    strata_perm(&g, perm, nrays);
+    double sum = 0.0, sumv = 0.0;
+    uint64_t traced = 0;
+    for (int i = 0; i < nrays; i++) {
+        float u, v, su, sv;
+        stratum(&g, i, m, &u, &v);
+        vec3 x = rad_elem_point(r, u, v);
+        stratum(&g, perm[i], m, &su, &sv);
+        vec3 y = rad_elem_point(se, su, sv);
+        vec3 w = v3_sub(y, x);
+        float d2 = v3_len2(w);
+        if (!(d2 > 0.0f)) continue;
+        float inv = 1.0f / sqrtf(d2);
+        float cx = v3_dot(n, w) * inv, cy = -v3_dot(nsrc, w) * inv;
+        if (cx <= 0.0f || cy <= 0.0f) continue;
+        double kern = (double)cx * cy / d2;
+        sum += kern;
+        traced++;
+        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, ns));
+    }
+    atomic_fetch_add(&c->rays, traced);
+    *nvalid = (int)traced;
+    return sum > 0.0 ? sumv / sum : -1.0;
+}
+
+/* The patch of cluster k whose stretch of the cluster's area holds the
+ * fraction u in [0, 1): patches are drawn in proportion to their area, and
+ * since a cluster's patches are in BVH order, stratified u spread the
+ * points over the cluster. */
+static const rad_sgeo *cluster_patch(const rad_ctx *c, const rad_cluster *k, float u)
+{
+    double lo_a = c->sarea[k->pbegin], hi_a = c->sarea[k->pend];
+    double a = lo_a + (double)u * (hi_a - lo_a);
+    uint32_t lo = k->pbegin, hi = k->pend - 1;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (c->sarea[mid + 1] <= a) lo = mid + 1;
+        else hi = mid;
+    }
+    return &c->sgeo[lo];
+}
+
+/* A cluster seen from r, by Monte Carlo over its area: points x_i
+ * stratified over r, y_i drawn by area over the cluster's patches
+ * (cluster_patch), and
+ *   F = A_k / n * sum cos_x+ cos_y+ / (pi d^2),   FV = the same over the free segments,
+ * an unbiased estimate of r's average factor to the cluster, unoccluded
+ * and visible. Patches turned away from x_i count zero, so no model of the
+ * cluster's projected area is needed (the normal-sum model this replaced
+ * overestimated clusters of mixed orientations by up to half), and the
+ * points follow the area, not the patch count: with one patch per pick, a
+ * cluster of a large floor and a finely tessellated sphere was tested
+ * almost only towards the sphere, whose self-occlusion then cut the floor's
+ * light from the link. Segments whose kernel is zero trace no ray. */
+void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, double *FV)
+{
+    const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
+    int emitting = k->has_emitter;
+    int nrays = emitting ? c->prm.shadow_rays : c->prm.vis_rays;
+    ct_rng g = link_rng(c, r, src, !emitting, TAG_DECIDE);
+    int m = 1;
+    while (m * m < nrays) m++;
+    nrays = m * m;   /* whole rows of strata: a partial last row leaves its stretch of the elements unsampled */
+    vec3 n = c->patches[r->patch].n;
+    vec3 nr = v3_scale(n, c->ray_eps);
+    uint16_t perm[1024];
+    strata_perm(&g, perm, nrays);
+    double sum = 0.0, sumv = 0.0;
+    uint64_t traced = 0;
+    for (int i = 0; i < nrays; i++) {
+        float u, v;
+        stratum(&g, i, m, &u, &v);
+        vec3 x = rad_elem_point(r, u, v);
+        float pu = ((float)perm[i] + rng_float(&g)) / (float)nrays;
+        const rad_sgeo *q = cluster_patch(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
+        float su = rng_float(&g), sv = rng_float(&g);
+        vec3 y = poly_point(q->p, (int)q->nv, su, sv);
+        vec3 w = v3_sub(y, x);
+        float d2 = v3_len2(w);
+        if (!(d2 > 0.0f)) continue;
+        float inv = 1.0f / sqrtf(d2);
+        float cx = v3_dot(n, w) * inv, cy = -v3_dot(q->n, w) * inv;
+        if (cx <= 0.0f || cy <= 0.0f) continue;
+        double kern = (double)cx * cy / (M_PI * d2);
+        sum += kern;
+        traced++;
+        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, v3_scale(q->n, c->ray_eps)));
+    }
+    atomic_fetch_add(&c->rays, traced);
+    *F = (double)k->area * sum / nrays;
+    *FV = (double)k->area * sumv / nrays;
+}
