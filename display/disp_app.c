@@ -22,6 +22,8 @@
 #include "display/gl_load.h"
 #include "proto/auth.h"
 
+#include "display/disp_app_internal.h"
+
 #define COMP "corrtex-display"
 
 void disp_app_defaults(disp_app_opts *o)
@@ -47,40 +49,6 @@ const char *disp_app_keys_help(void)
     return disp_keys_help();
 }
 
-typedef struct app {
-    const disp_app_opts *o;
-    gl_backend *backend;
-    disp_session *session;
-    disp_compositor *comp;
-    disp_capture *capture;
-    ct_radmesh mesh;          /* kept for synthetic textures */
-    bool have_mesh;
-    ct_campath path;
-    bool have_path;
-    disp_fly fly;
-    bool have_cam;            /* fly.cam was set from the options or the scene */
-    bool frame_taken;         /* lockstep: a frame was drawn, the next one is not asked for yet */
-    disp_render_opts ropts;
-    /* the master connection */
-    disp_client *client;
-    disp_inbox *inbox;            /* what its thread received, applied before each frame */
-    disp_inbox_took took;         /* what the frame being drawn took from it */
-    disp_lag *lag;                /* insertion at the master -> presented frame */
-    double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
-    double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
-    disp_scene_cache *cache;
-    double retry_at, backoff;     /* next reconnection attempt, its delay */
-    bool cam_sent;                /* last_cam went to this connection */
-    bool ever_connected;
-    ct_camera last_cam;
-    /* title statistics */
-    double stat_t0;
-    uint32_t stat_frames;
-    disp_counters stat_c0;
-    char status[160];
-    uint64_t points_version;      /* of the sample points last uploaded */
-    bool points_uploaded;
-} app;
 
 static int load_solution(app *a, ct_error *err)
 {
@@ -121,7 +89,7 @@ static int load_solution(app *a, ct_error *err)
     return CT_OK;
 }
 
-static void set_title(app *a, double now, bool force)
+void app_set_title(app *a, double now, bool force)
 {
     double dt = now - a->stat_t0;
     if (!force && dt < 0.5) return;
@@ -149,11 +117,11 @@ static void set_title(app *a, double now, bool force)
 }
 
 /* Handles key presses; false when the user asked to quit. */
-static bool handle_keys(app *a, const gl_input *in)
+bool app_handle_keys(app *a, const gl_input *in)
 {
     for (int i = 0; i < in->npresses; i++) {
         switch (disp_keys_apply(in->presses[i], &a->ropts)) {
-        case DISP_KEY_CHANGED: set_title(a, ct_now(), true); break;
+        case DISP_KEY_CHANGED: app_set_title(a, ct_now(), true); break;
         case DISP_KEY_HELP: fputs(disp_keys_help(), stdout); fflush(stdout); break;
         case DISP_KEY_CAMERA: {
             vec3 f;
@@ -178,170 +146,6 @@ static double cpu_now(void)
     struct timespec ts;
     if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts)) return 0.0;
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* Reconnection back-off: 0.5 s doubling to 8 s. */
-#define BACKOFF_FIRST 0.5
-#define BACKOFF_MAX 8.0
-
-static int try_connect(app *a, ct_error *err)
-{
-    /* 3 s for connect + handshake: a master answers at once or not at all,
-     * and a reconnecting display must not freeze for long. */
-    disp_client_opts co = {a->o->connect, a->o->token_file, (uint32_t)a->o->samples_per_frame, 3000};
-    int rc = disp_client_connect(&co, a->cache, a->inbox, &a->client, err);
-    if (rc) return rc;
-    a->cam_sent = false;
-    a->ever_connected = true;
-    a->backoff = BACKOFF_FIRST;
-    a->status[0] = '\0';
-    return CT_OK;
-}
-
-/* The connection failed or was lost: with --reconnect schedule a retry and
- * keep showing the last image; else fail with DISP_EXIT_LOST. */
-static int connection_lost(app *a, ct_error *cause, double now, ct_error *err)
-{
-    disp_client_close(a->client);
-    a->client = NULL;
-    if (!a->o->reconnect) {
-        ct_fail(err, CT_EIO, a->ever_connected ? "connection to %s lost: %s" : "cannot connect to %s: %s",
-                a->o->connect, cause->msg);
-        return DISP_EXIT_LOST;
-    }
-    if (a->backoff <= 0) a->backoff = BACKOFF_FIRST;
-    a->retry_at = now + a->backoff;
-    ct_warn(COMP, "%s %s: %s; retrying in %.1f s", a->ever_connected ? "connection lost to" : "cannot connect to",
-            a->o->connect, cause->msg, a->backoff);
-    snprintf(a->status, sizeof a->status, "CONNECTION LOST (%.60s), retrying", cause->msg);
-    a->backoff = a->backoff * 2 > BACKOFF_MAX ? BACKOFF_MAX : a->backoff * 2;
-    set_title(a, now, true);
-    return CT_OK;
-}
-
-/* Checks the connection (its thread reads on its own) and reconnects when
- * due. Returns 0, 1 when the master ended the session, or DISP_EXIT_LOST
- * with err filled. */
-static int service(app *a, ct_error *err)
-{
-    if (!a->o->connect) return CT_OK;
-    double now = ct_now();
-    ct_error e;
-    ct_error_clear(&e);
-    if (!a->client) {
-        if (now < a->retry_at) return CT_OK;
-        if (try_connect(a, &e)) return connection_lost(a, &e, now, err);
-        ct_info(COMP, "reconnected to %s", a->o->connect);
-        return CT_OK;
-    }
-    if (disp_client_status(a->client, &e)) {
-        if (disp_client_ended(a->client)) {
-            ct_info(COMP, "%s", e.msg);
-            return 1;   /* orderly end */
-        }
-        return connection_lost(a, &e, now, err);
-    }
-    return CT_OK;
-}
-
-/* Moves what the connection thread received into the session: scene,
- * textures, changed texels (uploaded once each), points, statistics. */
-static int take_inbox(app *a, ct_error *err)
-{
-    if (!a->inbox) return CT_OK;
-    double t0 = ct_now();
-    int rc = disp_inbox_apply(a->inbox, a->session, &a->took, err);
-    a->t_take += ct_now() - t0;
-    return rc;
-}
-
-/* After a frame is presented: the lag of every sample its patches carried
- * (master clock of the patch's oldest change to now, on the master's clock). */
-static void count_lag(app *a)
-{
-    int64_t off;
-    if (!a->lag || !a->client || !a->took.nstamps || !disp_client_clock_offset(a->client, &off)) return;
-    int64_t now = (int64_t)ct_now_us() + off;
-    for (uint32_t i = 0; i < a->took.nstamps; i++) {
-        const disp_inbox_stamp *t = &a->took.stamps[i];
-        disp_lag_add(a->lag, (double)(now - (int64_t)t->stamp_us) / 1000.0, t->samples);
-    }
-}
-
-/* What the connection says about the frame about to be drawn. */
-enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4, STEP_ERROR = 5 };
-
-/* With --connect, before the camera of a frame is known: checks the
- * connection and takes what arrived. */
-static int connection_begin(app *a, ct_error *err)
-{
-    if (take_inbox(a, err)) return STEP_ERROR;
-    int st = service(a, err);
-    if (st == 0) return STEP_DRAW;
-    /* What arrived before the connection ended (the thread has stopped:
-     * nothing comes after this) is drawn too. */
-    ct_error e;
-    if (take_inbox(a, &e)) ct_warn(COMP, "%s", e.msg);
-    return st == 1 ? STEP_END : STEP_LOST;
-}
-
-/* Then: sends the camera when it changed (cam NULL: the display has none
- * yet, it starts from the view the master suggests or an overview of the
- * scene once the scene is there), STEP_WAIT until there is a scene, and in
- * lockstep waits until the master's FRAME of the current epoch and all its
- * texels are in. With the next frame's camera known (next), lockstep asks
- * for that frame at once, before this one is drawn: the master computes it
- * while the display draws (the texels it sends wait in the inbox, which
- * this frame has already taken), so a frame costs the longer of the two,
- * not their sum. */
-static int send_camera(app *a, const ct_camera *cam, ct_error *err)
-{
-    ct_error e;
-    if (disp_client_send_camera(a->client, cam, a->o->width, a->o->height, &e))
-        return connection_lost(a, &e, ct_now(), err) ? STEP_LOST : STEP_DRAW;
-    a->cam_sent = true;
-    a->last_cam = *cam;
-    a->frame_taken = false;
-    return STEP_DRAW;
-}
-
-static int connection_step(app *a, const ct_camera *cam, const ct_camera *next, gl_input *in, double t_start,
-                           ct_error *err)
-{
-    const disp_app_opts *o = a->o;
-    int st;
-    /* In lockstep every CAMERA asks for one frame, so a still camera sends
-     * its (unchanged) camera again once the previous frame was drawn. */
-    bool ask_frame = o->samples_per_frame > 0 && a->frame_taken;
-    if (cam && a->client && (!a->cam_sent || ask_frame || !cam_same(cam, &a->last_cam)) &&
-        send_camera(a, cam, err) == STEP_LOST)
-        return STEP_LOST;
-    if (!disp_session_scene_of(a->session)) {
-        if (a->client) snprintf(a->status, sizeof a->status, "waiting for the scene from %s", o->connect);
-        set_title(a, ct_now(), false);
-        ct_sleep_us(5000);
-        return STEP_WAIT;
-    }
-    if (!strncmp(a->status, "waiting", 7)) a->status[0] = '\0';
-    /* Lockstep (docs/protocol.md): draw frame k only after FRAME k. */
-    double w0 = ct_now(), take0 = a->t_take;
-    while (a->client && o->samples_per_frame > 0 && !disp_inbox_frame_ready(a->inbox, NULL)) {
-        st = service(a, err);
-        if (st) return st == 1 ? STEP_END : STEP_LOST;
-        if (!a->client) break;
-        ct_sleep_us(1000);
-        if (take_inbox(a, err)) return STEP_ERROR;
-        gl_backend_poll(a->backend, in);
-        if (!handle_keys(a, in)) return STEP_QUIT;
-        if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
-    }
-    a->t_wait += ct_now() - w0 - (a->t_take - take0);
-    if (a->client) {
-        disp_inbox_take_frame(a->inbox);
-        a->frame_taken = true;
-        if (o->samples_per_frame > 0 && next && send_camera(a, next, err) == STEP_LOST) return STEP_LOST;
-    }
-    return STEP_DRAW;
 }
 
 /* The run loop; returns 0, a negative CT_E* code, or DISP_EXIT_LOST. */
@@ -377,18 +181,18 @@ static int run(app *a, ct_error *err)
     bool path_done = false;
     gl_input in;
     memset(&in, 0, sizeof in);
-    set_title(a, t_start, true);
+    app_set_title(a, t_start, true);
     while (nframes <= 0 || k < (uint32_t)nframes) {
         double now = ct_now();
         double dt = now - t_last;
         t_last = now;
         gl_backend_poll(a->backend, &in);
-        if (!handle_keys(a, &in)) break;
+        if (!app_handle_keys(a, &in)) break;
         if (o->max_seconds > 0 && now - t_start >= o->max_seconds) break;
         if (o->stop && *o->stop) break;
         bool last = path_done, ended = false;
         if (o->connect) {
-            int st = connection_begin(a, err);
+            int st = app_connection_begin(a, err);
             if (st == STEP_END) {
                 /* The master ended the run: draw (and capture) what arrived, then stop. */
                 if (!disp_session_scene_of(a->session)) break;
@@ -436,7 +240,7 @@ static int run(app *a, ct_error *err)
                          (!a->have_path || nframes > 0);
         if (have_next && a->have_path) next = campath_frame(&a->path, (int)k + 1, nframes);
         if (o->connect && !ended) {
-            int st = connection_step(a, a->have_path || a->have_cam ? &cam : NULL, have_next ? &next : NULL, &in,
+            int st = app_connection_step(a, a->have_path || a->have_cam ? &cam : NULL, have_next ? &next : NULL, &in,
                                      t_start, err);
             if (st == STEP_QUIT) break;
             if (st == STEP_END) {
@@ -503,7 +307,7 @@ static int run(app *a, ct_error *err)
         disp_session_frame_drawn(a->session);
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
-        count_lag(a);
+        app_count_lag(a);
         double frame_ms = 1000.0 * (ct_now() - t0);
         /* The first frame pays for shader compilation (JIT on llvmpipe). */
         if (k == 0) {
@@ -530,7 +334,7 @@ static int run(app *a, ct_error *err)
             a->t_capture += ct_now() - cap0;
             if (rc) break;
         }
-        set_title(a, ct_now(), false);
+        app_set_title(a, ct_now(), false);
         k++;
         if (!window && nframes > 1) ct_progress(COMP, (double)k / nframes, 0, "frame %u/%d", k, nframes);
         if (last) break;
@@ -609,7 +413,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         if (!rc) rc = disp_scene_cache_new(o->cache_dir, (uint64_t)o->cache_max_mb << 20, &a.cache, err);
         ct_error e;
         ct_error_clear(&e);
-        if (!rc && try_connect(&a, &e) && connection_lost(&a, &e, ct_now(), err)) {
+        if (!rc && app_try_connect(&a, &e) && app_connection_lost(&a, &e, ct_now(), err)) {
             status = DISP_EXIT_LOST;
             rc = CT_EIO;
         }

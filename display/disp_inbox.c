@@ -1,5 +1,7 @@
 /* disp_inbox.c: the hand-over between the connection thread and the render
- * thread (disp_inbox.h). */
+ * thread (disp_inbox.h). Over 600 lines on purpose: the two threads' halves
+ * of one hand-over share one private struct and its lock, and are read
+ * together when the locking is checked. */
 #include "display/disp_inbox.h"
 
 #include <pthread.h>

@@ -1,4 +1,5 @@
-/* Corrective textures on the box: a node with a known synthetic correction
+/* (Over 600 lines: the compositor's correction tests over one box fixture.)
+ * Corrective textures on the box: a node with a known synthetic correction
  * (object-local parallel on a wall, camera-local perspective on an inner
  * node) gives the expected pixels; one-pass equals three-pass; the
  * subtractive pass is skipped when every correction is positive. */

@@ -1,4 +1,5 @@
-/* Hierarchical radiosity: form factors against the analytic value, energy
+/* (Over 600 lines: the solver's tests over shared test scenes.)
+ * Hierarchical radiosity: form factors against the analytic value, energy
  * balance and region means in a closed box at three thresholds, the
  * conforming mesh (edges, T-vertices, values, node and material per
  * triangle), determinism across thread counts, and the memory cap. */

@@ -1,4 +1,5 @@
-/* The tracer against analytic answers: white furnace, a plane under a
+/* (Over 600 lines: one module's tests, each with its own small scene.)
+ * The tracer against analytic answers: white furnace, a plane under a
  * rectangular area light (point-to-rectangle form factor), a glass slab's
  * Fresnel energy balance, a mirror showing a known emitter; determinism
  * across batch orders and threads; reuse-diffuse corrections never negative. */
