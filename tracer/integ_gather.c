@@ -6,19 +6,25 @@
  * solution, which has no specular transport) before it reads the mesh. */
 #define GATHER_MIRROR_BOUNCES 4
 
-/* The direct light leaving the diffuse layer of the surface at h towards
- * -d, as the radiosity solution's direct part counts it (rad_direct: the
- * lamps, and the lamps seen in plane mirrors), traced: one lamp sample
- * (chosen as the point's own shadow rays choose) and its shadow ray (glass
- * attenuates), and where the scene has mirrors, one in MIRROR_LIGHT_SHARE
- * landings a lamp sample by way of a mirror, weighted up by as much. */
+/* The direct light leaving the surface at h towards -d, traced: one lamp
+ * sample (chosen as the point's own shadow rays choose) and its shadow ray
+ * (glass attenuates), reflected by the diffuse and the glossy lobe, and
+ * where the scene has mirrors, one in MIRROR_LIGHT_SHARE landings a lamp
+ * sample by way of a mirror onto the diffuse layer, weighted up by as much.
+ * What the radiosity solution's direct part counts (rad_direct: the lamps
+ * on the diffuse layer, and the lamps seen in plane mirrors), and the
+ * lamps' glossy reflection, which the solution leaves out: light a glossy
+ * desk or table top throws onto the walls (office at 64 spp: +0.5 dB, its
+ * 16x16-block rms error 10.0 -> 9.1 %; table +0.1 dB). Weight 1: no other
+ * part of drt brings the lamps' light by a glossy bounce to a diffuse
+ * surface. */
 static vec3 gather_direct(integ_ctx *c, const emb_hit *h, vec3 d)
 {
     integ_surf s;
     integ_make_surf(c, h, d, &s);
     bsdf b;
     surf_bsdf(&s, v3_neg(d), &b);
-    if (!(b.L.p_d > 0.0f)) return v3s(0.0f);
+    if (!bsdf_has_smooth(&b)) return v3s(0.0f);
     vec3 l = v3s(0.0f);
     if (mlight_count(c->mirrors) && rnd(c) * (float)MIRROR_LIGHT_SHARE < 1.0f)
         l = v3_scale(integ_mirror_light_n(c, &s, &b, 1), (float)MIRROR_LIGHT_SHARE);
@@ -36,7 +42,8 @@ static vec3 gather_direct(integ_ctx *c, const emb_hit *h, vec3 d)
     if (cos_l <= 0.0f || !bsdf_same_side(&b, wi)) return l;
     float pl = lp.pdf_area * d2 / cos_l;
     if (!(pl > 0.0f && pl < INFINITY)) return l;
-    vec3 f = bsdf_eval_diffuse(&b, wi);
+    float pdf;
+    vec3 f = bsdf_eval(&b, v3_neg(d), wi, &pdf);
     if (v3_is_zero(f)) return l;
     vec3 o = emb_offset_ray(s.p, b.ng), target = emb_offset_ray(lp.p, lp.n);
     vec3 sd = v3_sub(target, o);

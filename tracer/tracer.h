@@ -56,8 +56,9 @@ enum {
  * references cached by scripts (named after `corrtex reference --help`,
  * which prints it) are rendered again: 1: drt's final gather follows
  * mirrors; 2: drt samples lamps seen in plane mirrors; 3: the gather traces
- * the lamps' light where its rays land (TRC_GATHER_DIRECT_TRACE). */
-#define TRC_VERSION 3
+ * the lamps' light where its rays land (TRC_GATHER_DIRECT_TRACE); 4: by
+ * the landing surface's glossy lobe too. */
+#define TRC_VERSION 4
 
 typedef struct trc_options {
     trc_mode mode;
