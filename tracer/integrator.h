@@ -3,7 +3,9 @@
  * ray helpers they share (self-intersection offsets, shadow rays that pass
  * dielectrics attenuated by their transmission and Fresnel, ray counting).
  * Internal to tracer/: tracer.c owns the public API. No allocation per ray:
- * everything lives on the stack of the calling thread. */
+ * everything lives on the stack of the calling thread. The estimators are
+ * in integrator.c, their direct light in integ_light.c and drt's final
+ * gather in integ_gather.c (integ_internal.h joins them). */
 #ifndef CT_TRACER_INTEGRATOR_H
 #define CT_TRACER_INTEGRATOR_H
 
