@@ -28,33 +28,9 @@ static vec3 gather_direct(integ_ctx *c, const emb_hit *h, vec3 d)
     vec3 l = v3s(0.0f);
     if (mlight_count(c->mirrors) && rnd(c) * (float)MIRROR_LIGHT_SHARE < 1.0f)
         l = v3_scale(integ_mirror_light_n(c, &s, &b, 1), (float)MIRROR_LIGHT_SHARE);
-    if (light_count(c->lights) == 0) return l;
-    light_sel sel;
-    light_select_key(c->lights, s.lkey, s.p, &sel);
-    float u0 = rnd(c), u1 = rnd(c), u2 = rnd(c);
-    light_point lp;
-    if (!light_sample(c->lights, &sel, u0, u1, u2, &lp) || lp.tri == h->tri) return l;
-    vec3 wi = v3_sub(lp.p, s.p);
-    float d2 = v3_len2(wi);
-    if (!(d2 > 0.0f)) return l;
-    wi = v3_scale(wi, 1.0f / sqrtf(d2));
-    float cos_l = -v3_dot(wi, lp.n);
-    if (cos_l <= 0.0f || !bsdf_same_side(&b, wi)) return l;
-    float pl = lp.pdf_area * d2 / cos_l;
-    if (!(pl > 0.0f && pl < INFINITY)) return l;
-    float pdf;
-    vec3 f = bsdf_eval(&b, v3_neg(d), wi, &pdf);
-    if (v3_is_zero(f)) return l;
-    vec3 o = emb_offset_ray(s.p, b.ng), target = emb_offset_ray(lp.p, lp.n);
-    vec3 sd = v3_sub(target, o);
-    float dist = v3_len(sd);
-    if (!(dist > 0.0f)) return l;
-    sd = v3_scale(sd, 1.0f / dist);
-    c->st->shadow++;
-    log_ray(c, o, sd, dist, 1);
-    bool crossed = false;
-    vec3 tr = emb_occluded(c->emb, o, sd, 0.0f, dist) ? integ_through_glass(c, o, sd, dist, target, &crossed) : v3s(1.0f);
-    vec3 lamp = v3_scale(v3_mul(v3_mul(f, lp.le), tr), v3_dot(wi, b.n) / pl);
+    /* One sample of the whole non-delta bsdf, no competing strategy (nb 0:
+     * MIS weight 1). */
+    vec3 lamp = integ_direct_light_n(c, &s, &b, v3_neg(d), DIRECT_ALL, 0, 1);
     return finite3(lamp) ? v3_add(l, lamp) : l;
 }
 

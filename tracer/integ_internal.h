@@ -114,6 +114,10 @@ vec3 integ_through_glass_base(integ_ctx *c, const emb_hit *first, vec3 d, bool r
  * rays compete in the MIS weights. */
 vec3 integ_direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb);
 
+/* The same from k_rays light samples. */
+vec3 integ_direct_light_n(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb,
+                          int k_rays);
+
 /* Light reaching the diffuse layer at s from the lamps by way of one plane
  * mirror, from k_rays samples. */
 vec3 integ_mirror_light_n(integ_ctx *c, const integ_surf *s, const bsdf *b, int k_rays);

@@ -96,6 +96,7 @@ typedef struct dl_batch {
     float sfar[SHADOW_BATCH];
     bool blocked[SHADOW_BATCH];
     vec3 origin;
+    int k;            /* the point's light samples in all (K) */
     int n;            /* shadow rays to test */
 } dl_batch;
 
@@ -105,7 +106,7 @@ static void dl_prepare(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo
                        int k0, int kn, const light_sel *sel, const float shift[3], dl_batch *q)
 {
     q->n = 0;
-    int k_rays = c->opt->shadow_rays;
+    int k_rays = q->k;
     for (int k = 0; k < kn; k++) {
         /* The K light samples of a point are a randomly shifted Halton-like
          * set (k / K, radical inverses in bases 2 and 3): stratified over the
@@ -165,7 +166,7 @@ static void dl_test(integ_ctx *c, dl_batch *q)
 /* Adds the batch's contributions, in sample order, to *sum. */
 static void dl_finish(integ_ctx *c, const bsdf *b, direct_mode mode, int nb, const dl_batch *q, vec3 *sum)
 {
-    int k_rays = c->opt->shadow_rays;
+    int k_rays = q->k;
     for (int i = 0; i < q->n; i++) {
         const light_cand *lc = &q->cand[i];
         bool crossed = false;
@@ -197,14 +198,14 @@ static inline bool dl_active(const integ_ctx *c, const bsdf *b, direct_mode mode
  * their shadow rays with one packet query (they leave one point towards the
  * same lights: a coherent bundle), then add the contributions in sample
  * order. */
-vec3 integ_direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode,
-                         int nb)
+vec3 integ_direct_light_n(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb,
+                          int k_rays)
 {
-    int k_rays = c->opt->shadow_rays;
     vec3 sum = v3s(0.0f);
     if (!dl_active(c, b, mode)) return sum;
     dl_batch q;
     q.origin = emb_offset_ray(s->p, b->ng);
+    q.k = k_rays;
     /* The emitter probabilities at s, for all its light samples (lights.h). */
     light_sel sel;
     light_select_key(c->lights, s->lkey, s->p, &sel);
@@ -217,6 +218,11 @@ vec3 integ_direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 w
         dl_finish(c, b, mode, nb, &q, &sum);
     }
     return sum;
+}
+
+vec3 integ_direct_light(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, direct_mode mode, int nb)
+{
+    return integ_direct_light_n(c, s, b, wo, mode, nb, c->opt->shadow_rays);
 }
 
 /* Light reaching the diffuse layer at s from the lamps by way of one plane
