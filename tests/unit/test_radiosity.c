@@ -134,6 +134,41 @@ Test(radiosity, energy_and_regions_converge_in_a_closed_box, .timeout = 240)
     scene_free(s);
 }
 
+/* The closed box with 60 boxes in it (tests/data/radiosity/clutterbox.json):
+ * every photon is still absorbed somewhere, but here links are partly or
+ * wholly blocked. A cluster link whose rays all came back blocked used to
+ * be dropped, although a later pass would have split it into children with
+ * fresh estimates: a selection on the discarded rays, which lost power.
+ * Over three seeds at --error 1e-4 the solver before absorbed 0.9799,
+ * 0.9822 and 0.9808 of the emitted power (mean 0.9810); with such links
+ * kept 0.9829, 0.9848, 0.9837 (mean 0.9838; the solver is deterministic
+ * for a seed). What is left of the gap is open work (docs/radiosity.md,
+ * "Energy with occlusion"). */
+Test(radiosity, blocked_links_stay_until_no_pass_can_refine_them, .timeout = 240)
+{
+    ct_scene *s;
+    ct_error err;
+    cr_assert_eq(scene_load("tests/data/radiosity/clutterbox.json", &s, &err), 0, "%s", err.msg);
+    double sum = 0.0;
+    for (int seed = 1; seed <= 3; seed++) {
+        rad_params p = test_params();
+        p.error = 1e-4;
+        p.tolerance = 1e-6;
+        p.seed = (uint64_t)seed;
+        ct_radmesh m;
+        rad_stats st;
+        solve_ok(s, &p, &m, &st);
+        double ratio = st.absorbed / st.emitted;
+        cr_log_info("box with boxes, seed %d: absorbed / emitted %.5f, %llu links", seed, ratio,
+                    (unsigned long long)st.links);
+        cr_assert_leq(ratio, 1.002, "seed %d: absorbed / emitted = %.5f: power created", seed, ratio);
+        sum += ratio;
+        rmesh_free(&m);
+    }
+    cr_assert_geq(sum / 3.0, 0.983, "mean absorbed / emitted %.5f: power lost", sum / 3.0);
+    scene_free(s);
+}
+
 /* Position key for edge checks: exact bits (the mesh welds exactly). */
 typedef struct pkey { float x, y, z; } pkey;
 
