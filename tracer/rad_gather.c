@@ -78,8 +78,9 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
                         if (sweep) g->idx[fill++] = e->link_off + i;
                         else g->off[ei + 1]++;
                     } else if (sweep) {
-                        vec3 B = (l->src & RAD_CLUSTER_BIT) ? c->clusters[l->src & RAD_ID_MASK].B[c->cur]
-                                                            : *rad_B(c, c->cur, l->src);
+                        vec3 B = (l->src & RAD_CLUSTER_BIT)
+                                     ? rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], c->cur, e->c)
+                                     : *rad_B(c, c->cur, l->src);
                         vec3 E = (l->src & RAD_CLUSTER_BIT) ? c->clusters[l->src & RAD_ID_MASK].E
                                                             : c->patches[rad_el(c, l->src)->patch].E;
                         g->flat[ei] = v3_madd(g->flat[ei], B, l->ff);

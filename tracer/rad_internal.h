@@ -73,8 +73,12 @@ typedef struct rad_cluster {
     uint32_t child[2];
     uint32_t pbegin, pend;  /* range in rad_ctx.order */
     int has_emitter;
-    vec3 B[2];           /* radiosity of its patches, weighted by area x openness */
-    float wopen;         /* the sum of those weights */
+    /* Its patches' radiosity as seen from each axis direction (+x, -x, +y,
+     * -y, +z, -z), per buffer (see rad_cluster_B): sums of B weighted by
+     * area x openness x the patch normal's component towards that
+     * direction, and the sums of those weights. */
+    vec3 NB[2][6];
+    float W[2][6];
     vec3 E;              /* area-weighted emission */
 } rad_cluster;
 
@@ -139,6 +143,50 @@ typedef struct rad_ctx {
 static inline rad_elem *rad_el(const rad_ctx *c, uint32_t i)
 {
     return &c->chunks[i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
+}
+
+/* Cluster k's radiosity in buffer b as a receiver at point x sees it: the
+ * mean of its patches' radiosity weighted by area x openness x how much of
+ * each faces x. The facing term cos+(n . w) towards w = x - centre is taken
+ * as sum_i |w_i| [n_i has w_i's sign] |n_i| (exact for axis-aligned
+ * patches, a blend of the axis directions otherwise), so the six sums of
+ * the cluster (NB, W) give it for any x. A plain mean counted the dark
+ * undersides of furniture in what a ceiling sees of it and the lit tops in
+ * what the floor sees: a closed box with 60 boxes in it absorbed 98.8 %
+ * of the emitted power, 99.4 % with this (docs/radiosity.md, "Energy with
+ * occlusion"). */
+static inline vec3 rad_cluster_B(const rad_cluster *k, int b, vec3 x)
+{
+    vec3 w = v3_sub(x, k->c);
+    float wc[3] = {w.x, w.y, w.z};
+    vec3 num = v3s(0.0f);
+    float den = 0.0f;
+    for (int i = 0; i < 3; i++) {
+        int d = 2 * i + (wc[i] < 0.0f);
+        float a = wc[i] < 0.0f ? -wc[i] : wc[i];
+        num = v3_madd(num, k->NB[b][d], a);
+        den += a * k->W[b][d];
+    }
+    if (!(den > 0.0f)) {
+        /* x at the centre, or nothing faces it: the mean over all sides. */
+        num = v3s(0.0f);
+        den = 0.0f;
+        for (int d = 0; d < 6; d++) {
+            num = v3_add(num, k->NB[b][d]);
+            den += k->W[b][d];
+        }
+    }
+    return den > 0.0f ? v3_scale(num, 1.0f / den) : v3s(0.0f);
+}
+
+/* The brightest of cluster k's six sides in buffer b (per channel): no
+ * receiver sees more of it (rad_cluster_B blends the sides). */
+static inline vec3 rad_cluster_B_max(const rad_cluster *k, int b)
+{
+    vec3 m = v3s(0.0f);
+    for (int d = 0; d < 6; d++)
+        if (k->W[b][d] > 0.0f) m = v3_max(m, v3_scale(k->NB[b][d], 1.0f / k->W[b][d]));
+    return m;
 }
 
 /* Radiosity of element i in buffer b (0 or 1). */

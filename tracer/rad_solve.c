@@ -18,7 +18,8 @@
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
-                                 * whose rays were all blocked stay (refined later) */
+                                 * whose rays were all blocked stay (refined later), a
+                                 * cluster's radiosity as seen from the receiver's side */
 
 void rad_params_default(rad_params *p)
 {
@@ -177,7 +178,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         vec3 B;
         if (src & RAD_CLUSTER_BIT) {
             const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
-            B = k->B[cur];
+            B = rad_cluster_B(k, cur, e->c);
             /* The direct part needs no iteration: only the final gather
              * computes it (it reads the elements, which is slower). */
             if (w->final) Hd = v3_madd(Hd, k->E, l->ff);
@@ -326,30 +327,46 @@ static int run_job(rad_ctx *c, worker *ws, int n, job_kind kind, int final)
     return atomic_load(&c->failed) ? CT_ENOMEM : 0;
 }
 
-/* Cluster radiosity for the next buffer: clusters are numbered in pre-order,
- * so children come after parents and a reverse sweep sees them first. */
+/* Cluster radiosity for the next buffer (rad_cluster_B): clusters are
+ * numbered in pre-order, so children come after parents and a reverse
+ * sweep sees them first. Each patch weighs by its area times its openness
+ * (a covered patch, nothing sees it, counts for nothing) times its normal's
+ * component towards each of the six axis directions. */
 static void update_clusters(rad_ctx *c)
 {
     int nxt = 1 - c->cur;
     for (uint32_t i = c->nclusters; i-- > 0;) {
         rad_cluster *k = &c->clusters[i];
-        vec3 B = v3s(0.0f);
-        float w = 0.0f;
+        vec3 NB[6];
+        float W[6];
+        for (int d = 0; d < 6; d++) {
+            NB[d] = v3s(0.0f);
+            W[d] = 0.0f;
+        }
         for (int j = 0; j < 2; j++) {
             uint32_t ch = k->child[j];
             if (ch & RAD_CLUSTER_BIT) {
                 const rad_cluster *q = &c->clusters[ch & RAD_ID_MASK];
-                B = v3_madd(B, q->B[nxt], q->wopen);
-                w += q->wopen;
+                for (int d = 0; d < 6; d++) {
+                    NB[d] = v3_add(NB[d], q->NB[nxt][d]);
+                    W[d] += q->W[nxt][d];
+                }
             } else {
                 const rad_elem *e = rad_el(c, ch);
-                float a = e->area * c->patches[e->patch].open;
-                B = v3_madd(B, *rad_B(c, nxt, ch), a);
-                w += a;
+                const rad_patch *p = &c->patches[e->patch];
+                float a = e->area * p->open;
+                float nc[3] = {p->n.x, p->n.y, p->n.z};
+                vec3 b = *rad_B(c, nxt, ch);
+                for (int d = 0; d < 6; d++) {
+                    float f = (d & 1) ? -nc[d / 2] : nc[d / 2];
+                    if (!(f > 0.0f)) continue;
+                    NB[d] = v3_madd(NB[d], b, a * f);
+                    W[d] += a * f;
+                }
             }
         }
-        k->wopen = w;
-        k->B[nxt] = w > 0.0f ? v3_scale(B, 1.0f / w) : v3s(0.0f);
+        memcpy(k->NB[nxt], NB, sizeof NB);
+        memcpy(k->W[nxt], W, sizeof W);
     }
 }
 
