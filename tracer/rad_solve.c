@@ -14,11 +14,11 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 7u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 8u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
-                                 * whose rays were all blocked stay (refined later), a
+                                 * whose rays were all blocked stay (refined later); 8: a
                                  * cluster's radiosity as seen from the receiver's side */
 
 void rad_params_default(rad_params *p)
