@@ -12,11 +12,11 @@
 /* ------------------------------------------------------------------------ */
 /* Error oracle and refinement                                              */
 
-/* An upper estimate of the radiosity r gathers from src: a cluster's
- * brightest side (what it shows any receiver is a blend of its sides,
- * rad_cluster_B). Bounding by what r sees of it refined less where r faces
- * a cluster's dark side, and a closed box with boxes in it lost 0.5 % of
- * its power more. */
+/* An upper estimate of the radiosity any receiver gathers from src, for
+ * the refinement's bounds: a cluster's brightest side (what it shows a
+ * receiver is a blend of its sides, rad_cluster_B). Bounding by the side
+ * the receiver sees refined less towards dark sides, and a closed box with
+ * boxes in it lost 0.5 % of its power more. */
 static vec3 src_B(const rad_ctx *c, uint32_t src)
 {
     if (src & RAD_CLUSTER_BIT) return rad_cluster_B_max(&c->clusters[src & RAD_ID_MASK], c->cur);
