@@ -342,3 +342,45 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
     *F = (double)k->area * sum / nrays;
     *FV = (double)k->area * sumv / nrays;
 }
+
+/* Visible fraction of source src (element or cluster) seen from point x
+ * (normal n, already lifted off its surface): rays to nrays points over the
+ * source (an element's stratified, a cluster's drawn by area over its
+ * patches), each weighted by its point-to-point kernel; -1 when no point is
+ * in front of x. key seeds the jitter, so the result does not depend on
+ * the thread that asks. */
+float rad_point_visibility(const rad_ctx *c, vec3 x, vec3 n, uint32_t src, int nrays, uint64_t key)
+{
+    uint64_t skey = (src & RAD_CLUSTER_BIT) ? ct_hash64(src) : rad_el(c, src)->key;
+    ct_rng g = rng_make(c->prm.seed, key, skey, 0x7665727478ULL);
+    int m = 1;
+    while (m * m < nrays) m++;
+    nrays = m * m;
+    const rad_cluster *k = (src & RAD_CLUSTER_BIT) ? &c->clusters[src & RAD_ID_MASK] : NULL;
+    const rad_elem *se = k ? NULL : rad_el(c, src);
+    double sum = 0.0, sumv = 0.0;
+    for (int i = 0; i < nrays; i++) {
+        float u = ((float)(i % m) + rng_float(&g)) / (float)m;
+        float v = ((float)(i / m) + rng_float(&g)) / (float)m;
+        vec3 y, ny;
+        if (k) {
+            float pu = ((float)i + rng_float(&g)) / (float)nrays;
+            const rad_sgeo *q = cluster_patch(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
+            y = poly_point(q->p, (int)q->nv, u, v);
+            ny = q->n;
+        } else {
+            y = rad_elem_point(se, u, v);
+            ny = c->patches[se->patch].n;
+        }
+        vec3 w = v3_sub(y, x);
+        float d2 = v3_len2(w);
+        if (!(d2 > 0.0f)) continue;
+        float inv = 1.0f / sqrtf(d2);
+        float cx = v3_dot(n, w) * inv, cy = -v3_dot(ny, w) * inv;
+        if (cx <= 0.0f || cy <= 0.0f) continue;
+        double kern = (double)cx * cy / d2;
+        sum += kern;
+        sumv += kern * rad_vis_transmit(c->vis, x, v3_add(y, v3_scale(ny, c->ray_eps)));
+    }
+    return sum > 0.0 ? (float)(sumv / sum) : -1.0f;
+}

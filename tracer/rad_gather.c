@@ -38,12 +38,15 @@ static float gather_factor(const rad_ctx *c, vec3 x, vec3 n, const rad_elem *s)
  * final gather keeps the link's own factor. */
 #define GATHER_FLAT 0.01f
 
+
 /* Whether the final gather keeps link l (of element e) as it is: a cluster's
  * factor is all it knows, and a factor that hardly varies over its
  * receiver is its own value at every vertex too (most links: far or small
- * sources). */
-static int gather_flat(const rad_elem *e, const rad_link *l)
+ * sources) -- unless the source is partly hidden and the gather looks at
+ * the vertex's own visibility (vertex_vis). */
+static int gather_flat(const rad_ctx *c, const rad_elem *e, const rad_link *l)
 {
+    if (c->prm.vertex_rays > 0 && l->vis < 1.0f) return 0;
     return (l->src & RAD_CLUSTER_BIT) || l->gr <= GATHER_FLAT * e->area * l->ff;
 }
 
@@ -74,7 +77,7 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
                 uint32_t fill = sweep ? g->off[ei] : 0;
                 for (uint32_t i = 0; i < e->nlinks; i++) {
                     const rad_link *l = &p->links[e->link_off + i];
-                    if (!gather_flat(e, l)) {
+                    if (!gather_flat(c, e, l)) {
                         if (sweep) g->idx[fill++] = e->link_off + i;
                         else g->off[ei + 1]++;
                     } else if (sweep) {
@@ -104,11 +107,54 @@ void rad_gather_prep_free(rad_gather_prep *g)
     memset(g, 0, sizeof *g);
 }
 
-void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, uint32_t leaf, vec3 x, vec3 n, vec3 *H,
-                      vec3 *Hd)
+/* A vertex's seed: its position's bits (the vertex is gathered once per
+ * leaf around it, and each must see the same rays). */
+static uint64_t vertex_key(vec3 x)
+{
+    uint32_t kx, ky, kz;
+    memcpy(&kx, &x.x, 4);
+    memcpy(&ky, &x.y, 4);
+    memcpy(&kz, &x.z, 4);
+    return ((uint64_t)kx << 32 | ky) ^ ((uint64_t)kz * 0x9e3779b97f4a7c15ULL);
+}
+
+/* Share of a vertex's irradiance above which a partly hidden link's
+ * expected change is traced with all of --vertex-rays, and how many single
+ * rays sample the rest (rad_final_gather). */
+#define GATHER_VIS_SHARE 0.01
+#define GATHER_SMALL_SAMPLES 4   /* times --vertex-rays */
+
+static int scratch_push(rad_gather_scratch *w, const rad_link *l, float f0, vec3 B, vec3 E)
+{
+    if (w->n == w->cap) {
+        size_t cap = w->cap ? 2 * w->cap : 256;
+        rad_partial *q = realloc(w->v, cap * sizeof *q);
+        if (!q) return -1;
+        w->v = q;
+        w->cap = cap;
+    }
+    rad_partial *e = &w->v[w->n++];
+    e->src = l->src;
+    e->vis = l->vis;
+    e->f0 = f0;
+    e->B = B;
+    e->E = E;
+    return 0;
+}
+
+void rad_gather_scratch_free(rad_gather_scratch *w)
+{
+    free(w->v);
+    memset(w, 0, sizeof *w);
+}
+
+void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
+                      vec3 n, vec3 *H, vec3 *Hd)
 {
     vec3 h = v3s(0.0f), hd = v3s(0.0f);
     vec3 xp = gather_point(c, rad_el(c, leaf), x, n);
+    int look = c->prm.vertex_rays > 0;
+    w->n = 0;
     for (uint32_t ei = leaf; ei != RAD_NONE; ei = rad_el(c, ei)->parent) {
         const rad_elem *e = rad_el(c, ei);
         const rad_patch *p = &c->patches[e->patch];
@@ -116,12 +162,85 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, uint32_t leaf,
         hd = v3_add(hd, g->flat_d[ei]);
         for (uint32_t k = g->off[ei]; k < g->off[ei + 1]; k++) {
             const rad_link *l = &p->links[g->idx[k]];
-            const rad_elem *s = rad_el(c, l->src);
-            float f = gather_factor(c, xp, n, s) * l->vis;
-            h = v3_madd(h, *rad_B(c, c->cur, l->src), f);
-            hd = v3_madd(hd, c->patches[s->patch].E, f);
+            float f0, f;
+            vec3 B, E;
+            if (l->src & RAD_CLUSTER_BIT) {
+                /* Non-flat only when partly hidden: its factor stays the
+                 * receiver's average, its visibility becomes the vertex's. */
+                const rad_cluster *q = &c->clusters[l->src & RAD_ID_MASK];
+                f0 = l->gr;
+                f = l->ff;
+                B = rad_cluster_B(q, c->cur, xp);
+                E = q->E;
+            } else {
+                const rad_elem *s = rad_el(c, l->src);
+                f0 = gather_factor(c, xp, n, s);
+                f = f0 * l->vis;
+                B = *rad_B(c, c->cur, l->src);
+                E = c->patches[s->patch].E;
+            }
+            h = v3_madd(h, B, f);
+            hd = v3_madd(hd, E, f);
+            /* Out of memory: this vertex keeps its elements' visibility. */
+            if (look && l->vis < 1.0f && f0 > 0.0f && v3_maxc(B) > 0.0f && scratch_push(w, l, f0, B, E)) look = 0;
         }
     }
-    *H = h;
-    *Hd = hd;
+    if (!look || w->n == 0) {
+        *H = h;
+        *Hd = hd;
+        return;
+    }
+    /* A link's visibility is its receiver's average: across a shadow
+     * boundary (a box's shadow on the floor, lit or indirect) every vertex
+     * of the receiver got the same share, and the boundary was as coarse as
+     * the elements that the power threshold leaves there, which is coarse
+     * wherever the light is dim. So the vertex looks at its own visibility
+     * of every partly hidden link, as an unbiased estimate of the sum of
+     * their changes f0 B (v - V): a link whose expected change (the mean
+     * deviation 2 V (1 - V) of a lit / shadowed pattern covering V of the
+     * receiver) exceeds GATHER_VIS_SHARE of the vertex's irradiance is
+     * traced with --vertex-rays rays; the others -- thousands of small
+     * sources in a dim corner, none of which matters alone but all of
+     * which err the same way -- are sampled with single rays, drawn in
+     * proportion to f0 B sqrt(V (1 - V)) (the spread of one ray's outcome)
+     * at evenly spaced points of their running sum. Tracing every link
+     * took the office building's meshing from 36 to 76 s. */
+    double ref = v3_maxc(h), S = 0.0;
+    uint64_t key = vertex_key(x);
+    for (size_t i = 0; i < w->n; i++) {
+        rad_partial *e = &w->v[i];
+        double b = v3_maxc(e->B) * e->f0;
+        if (b * 2.0 * e->vis * (1.0 - e->vis) > GATHER_VIS_SHARE * ref) {
+            float v = rad_point_visibility(c, xp, n, e->src, c->prm.vertex_rays, key);
+            if (v >= 0.0f) {
+                float df = e->f0 * (v - e->vis);
+                h = v3_madd(h, e->B, df);
+                hd = v3_madd(hd, e->E, df);
+            }
+            e->s = 0.0;
+        } else {
+            e->s = b * sqrt(e->vis * (1.0 - e->vis));
+            S += e->s;
+        }
+    }
+    if (S > 0.0) {
+        int m = GATHER_SMALL_SAMPLES * c->prm.vertex_rays;
+        ct_rng rg = rng_make(c->prm.seed, key, 0x736d616c6cULL, 0);
+        double step = S / m, at = rng_float(&rg) * step, run = 0.0;
+        size_t i = 0;
+        for (int j = 0; j < m; j++, at += step) {
+            while (i + 1 < w->n && run + w->v[i].s <= at) run += w->v[i++].s;
+            rad_partial *e = &w->v[i];
+            if (e->s <= 0.0) continue;
+            float v = rad_point_visibility(c, xp, n, e->src, 1, key + (uint64_t)j);
+            if (v < 0.0f) continue;
+            /* Drawn with probability m s / S per sample. */
+            float df = (float)(e->f0 * (v - e->vis) * S / (m * e->s));
+            h = v3_madd(h, e->B, df);
+            hd = v3_madd(hd, e->E, df);
+        }
+    }
+    /* A sampled change may overshoot where the vertex is nearly dark. */
+    *H = v3_max(h, v3s(0.0f));
+    *Hd = v3_max(hd, v3s(0.0f));
 }

@@ -28,8 +28,8 @@
 typedef struct rad_link {
     uint32_t src;
     float ff;
-    float vis;           /* the visible fraction in ff (1 for a cluster: ff is all it knows) */
-    float gr, gv;
+    float vis;           /* the visible fraction in ff */
+    float gr, gv;        /* a cluster's: gr its unoccluded factor (ff / vis, also where vis is 0), gv 0 */
 } rad_link;
 
 /* A patch or sub-patch: a triangle (nv = 3) or a quad (nv = 4) in world
@@ -274,6 +274,11 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
  * Monte Carlo over the cluster's area. */
 void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, double *FV);
 
+/* Visible fraction of source src (element or cluster) seen from point x
+ * with normal n, by nrays kernel-weighted rays seeded by key; -1 when no
+ * part of the source is in front of x. */
+float rad_point_visibility(const rad_ctx *c, vec3 x, vec3 n, uint32_t src, int nrays, uint64_t key);
+
 /* --- rad_link.c ----------------------------------------------------------- */
 
 /* Per-thread scratch of the refinement. */
@@ -337,10 +342,26 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g);
 /* Frees g's arrays. */
 void rad_gather_prep_free(rad_gather_prep *g);
 
+/* A gathering thread's scratch: the partly hidden links of one vertex. */
+typedef struct rad_partial {
+    uint32_t src;
+    float vis, f0;       /* the link's visibility, the unoccluded factor at the vertex */
+    vec3 B, E;
+    double s;            /* sampling weight */
+} rad_partial;
+
+typedef struct rad_gather_scratch {
+    rad_partial *v;
+    size_t n, cap;
+} rad_gather_scratch;
+
+void rad_gather_scratch_free(rad_gather_scratch *w);
+
 /* The final gather at a mesh vertex x of leaf (normal n): the irradiance H
  * and its direct part Hd over the links of the leaf and its ancestors, each
- * element source's factor taken at x itself. */
-void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, uint32_t leaf, vec3 x, vec3 n, vec3 *H,
-                      vec3 *Hd);
+ * element source's factor taken at x itself, and with --vertex-rays the
+ * visibility of partly hidden sources seen from x itself. */
+void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
+                      vec3 n, vec3 *H, vec3 *Hd);
 
 #endif

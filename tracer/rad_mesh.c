@@ -237,6 +237,7 @@ typedef struct gather_job {
 static void *gather_worker(void *arg)
 {
     gather_job *j = arg;
+    rad_gather_scratch w = {0};
     for (;;) {
         uint32_t b = atomic_fetch_add(j->next, 256);
         if (b >= j->n) break;
@@ -244,7 +245,7 @@ static void *gather_worker(void *arg)
         for (uint32_t g = b; g < e; g++) {
             const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
             vec3 H, Hd;
-            rad_final_gather(j->c, j->prep, j->leaf[g], j->pos[g], p->n, &H, &Hd);
+            rad_final_gather(j->c, j->prep, &w, j->leaf[g], j->pos[g], p->n, &H, &Hd);
             if (j->c->mirrors) {
                 vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
                 H = v3_add(H, hm);
@@ -254,6 +255,7 @@ static void *gather_worker(void *arg)
             j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
         }
     }
+    rad_gather_scratch_free(&w);
     return NULL;
 }
 

@@ -14,12 +14,14 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 8u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 9u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
                                  * whose rays were all blocked stay (refined later); 8: a
-                                 * cluster's radiosity as seen from the receiver's side */
+                                 * cluster's radiosity as seen from the receiver's side; 9: contact
+                                 * regions refined further, vertices look at their own visibility
+                                 * of partly hidden sources */
 
 void rad_params_default(rad_params *p)
 {
@@ -32,6 +34,7 @@ void rad_params_default(rad_params *p)
     p->memory_cap_mb = 4096;
     p->vis_rays = 4;
     p->shadow_rays = 16;
+    p->vertex_rays = 8;
     p->tolerance = 1e-3;
     p->max_iterations = 100;
     p->max_passes = 8;
@@ -54,6 +57,8 @@ int rad_params_check(const rad_params *p, ct_error *err)
         return ct_fail(err, CT_EINVAL, "--vis-rays %d outside [1, 1024]", p->vis_rays);
     if (p->shadow_rays < 1 || p->shadow_rays > 1024)
         return ct_fail(err, CT_EINVAL, "--shadow-rays %d outside [1, 1024]", p->shadow_rays);
+    if (p->vertex_rays < 0 || p->vertex_rays > 1024)
+        return ct_fail(err, CT_EINVAL, "--vertex-rays %d outside [0, 1024]", p->vertex_rays);
     if (!(p->tolerance > 0.0 && p->tolerance < 1.0))
         return ct_fail(err, CT_EINVAL, "--tolerance %g outside (0, 1)", p->tolerance);
     if (p->max_iterations < 1) return ct_fail(err, CT_EINVAL, "--max-iterations must be at least 1");
@@ -107,6 +112,7 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
     h = mix(h, p->max_triangles);
     h = mix(h, (uint64_t)p->vis_rays);
     h = mix(h, (uint64_t)p->shadow_rays);
+    h = mix(h, (uint64_t)p->vertex_rays);
     h = mix_f(h, p->tolerance);
     h = mix(h, (uint64_t)p->max_iterations);
     h = mix(h, (uint64_t)p->max_passes);

@@ -32,6 +32,7 @@ typedef struct rad_params {
     uint32_t memory_cap_mb; /* fail when the solver's memory would exceed this */
     int vis_rays;           /* visibility rays per link from a non-emitting source */
     int shadow_rays;        /* visibility rays per link from a source containing emitters */
+    int vertex_rays;        /* final gather: rays from a vertex to a partly hidden source (0: the link's own visibility) */
     double tolerance;       /* residual (relative to the brightest reflected light) to stop iterating */
     int max_iterations;     /* gather/push-pull iterations per refinement pass at most */
     int max_passes;         /* refinement passes at most */

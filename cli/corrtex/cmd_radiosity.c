@@ -41,6 +41,9 @@ static const optab OPTS[] = {
      NULL},
     {"shadow-rays", 0, OPTAB_INT, OF(p.shadow_rays), 1, 1024, NULL, "N",
      "visibility rays per link from an emitting source", NULL},
+    {"vertex-rays", 0, OPTAB_INT, OF(p.vertex_rays), 0, 1024, NULL, "N",
+     "final gather: visibility rays from a mesh vertex to a partly hidden source whose light it may change by "
+     "more than 1 % (0: every vertex takes its element's visibility)", NULL},
     {"tolerance", 0, OPTAB_DOUBLE, OF(p.tolerance), 1e-15, 1.0, NULL, "R",
      "stop iterating when the largest change of a radiosity, relative to the brightest reflected radiosity, is "
      "below R", NULL},

@@ -12,10 +12,10 @@
 # without a shadow boundary (--flat: the direct light varies over it by at
 # most half the block's mean), must be within 5 % of the reference, and
 # the blocks' rms within 5 % too. Not in the L room: its worst blocks, the
-# far arm's ceiling lit around the corner (+11 to +13 %) and the occluding
-# box's face at its foot (-18 %), are held to 20 % until the solver meets
-# 5 % there (docs/radiosity.md, Accuracy; the solver before this test had
-# 43 %).
+# far arm's ceiling lit around the corner (+6 to +10 %) and the floor at the
+# occluding box's foot (-10 %; -15 % with another seed), are held to 15 %
+# until the solver meets 5 % there (docs/radiosity.md, Accuracy; the solver
+# before this test had 43 %, solver version 8 18.4 %).
 #
 # The references are committed (scripts/make-radiosity-refs renders them:
 # 32768 samples per pixel, path tracing; regenerating takes minutes per
@@ -29,7 +29,7 @@ source "$(dirname "$0")/lib/common.sh"
 data="$root/tests/data/radiosity"
 [[ -f $root/scenes/cornell/cornell.obj ]] || { echo "missing scenes/cornell meshes (run make scenes)"; exit 1; }
 run_tail=40
-for sc_bound in cornell_diffuse:0.05 boxroom:0.05 lroom:0.20; do
+for sc_bound in cornell_diffuse:0.05 boxroom:0.05 lroom:0.15; do
   sc=${sc_bound%:*} bound=${sc_bound#*:}
   echo "== $sc"
   [[ -f $data/$sc-ref.exr ]] || { fail "missing $data/$sc-ref.exr (scripts/make-radiosity-refs)"; continue; }
