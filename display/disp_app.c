@@ -271,8 +271,13 @@ static int run(app *a, ct_error *err)
          * that redrew an unchanged view took it from the tracers. */
         uint64_t gen = disp_session_image_gen(a->session);
         bool capture_due = a->capture && (k == 0 || last || (o->out_every > 0 && now - t_captured >= o->out_every));
+        /* --texel-fps: where the display shares its host with tracers,
+         * each frame drawn for new texels alone is CPU the tracers lose
+         * (docs/display.md, "Sharing a host with the tracers"); a moving
+         * camera is still drawn at once. */
+        bool texels_due = gen != drawn_gen && (o->texel_fps <= 0.0 || now - t_drawn >= 1.0 / o->texel_fps);
         bool draw = o->continuous || nframes > 0 || o->samples_per_frame > 0 || k == 0 || last || capture_due ||
-                    gen != drawn_gen || !cam_same(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
+                    texels_due || !cam_same(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
                     a->ropts.view != drawn_opts.view || a->ropts.exposure != drawn_opts.exposure ||
                     a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
                     in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);

@@ -70,6 +70,10 @@ static void usage(FILE *f, const disp_app_opts *d)
             "                        measurements; by default a still, unchanged view is not redrawn)\n"
             "  --full-redraw         draw a still camera's radiosity every frame (by default it is\n"
             "                        kept from the second frame on and only corrections are redrawn)\n"
+            "  --texel-fps F         redraw a view for new texels alone at most F times a second\n"
+            "                        (a moving camera is drawn at once; default 0: whenever they\n"
+            "                        arrive). On a host shared with tracer ranks, what the display\n"
+            "                        does not draw the tracers trace (docs/display.md)\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
             disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
@@ -229,6 +233,12 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--no-images")) o.no_images = true;
         else if (!strcmp(a, "--continuous")) o.continuous = true;
         else if (!strcmp(a, "--full-redraw")) o.full_redraw = true;
+        else if (!strcmp(a, "--texel-fps")) {
+            NEED();
+            float f;
+            bad = parse_float(a, v, 0, 1000, &f);
+            o.texel_fps = f;
+        }
         else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
             NEED();
             float x;

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# --texel-fps: a display that shares its host with tracer ranks redraws a
+# still view for new texels at most F times a second (docs/display.md,
+# "Sharing a host with the tracers"). Two displays watch the same still view
+# of the Cornell box for 4 s each while the master (2 tracer ranks) streams
+# corrections: one with --texel-fps 2, which may draw the first frame, the
+# last and one every half second (at most 2 x 4 + 3), and one without,
+# which draws whenever texels arrive. Checks: the capped display stays
+# within its bound and draws fewer frames than the other, and its last
+# frame still carries the corrections (it differs from the radiosity view).
+source "$(dirname "$0")/lib/mpi.sh"
+need_programs "$corrtex"
+cornell_args
+CAM=(--camera 278,273,-800,278,273,0,39.3)
+master_start job 3 "${CORNELL[@]}" --listen "unix:$tmp/r.sock" --stats-s 0.25 --shadow-rays 16 --branch 8
+master_wait_listen job || finish
+# The display prints "display: N frames in S s; ...".
+frames_of() { sed -n 's/^display: \([0-9]*\) frames in .*/\1/p' "$tmp/$1.log"; }
+display_run capped --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "${CAM[@]}" --seconds 4 \
+  --texel-fps 2 --out "$tmp/capped"
+((DISPLAY_RC == 0)) || fail "capped display exit status $DISPLAY_RC"
+display_run free --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "${CAM[@]}" --seconds 4 \
+  --out "$tmp/free"
+((DISPLAY_RC == 0)) || fail "free display exit status $DISPLAY_RC"
+display_run rad --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "${CAM[@]}" --view radiosity \
+  --frames 1 --out "$tmp/rad"
+kill -TERM "$(rank_pid job 0)"
+master_wait job 20 || fail "the job did not end"
+((MASTER_RC == 0)) || fail "job exit status $MASTER_RC"
+nc=$(frames_of capped) nf=$(frames_of free)
+echo "metric: frames in 4 s of a still view while texels stream: $nc with --texel-fps 2, $nf without"
+[[ -n $nc && -n $nf ]] || { fail "a display printed no frame count"; finish; }
+((nc <= 11)) || fail "--texel-fps 2 drew $nc frames in 4 s (at most 11)"
+((nc < nf)) || fail "--texel-fps 2 drew $nc frames, no fewer than the uncapped display's $nf"
+last=$(ls "$tmp/capped"/frame_*.exr | tail -n 1)
+d=$("$corrtex" compare "$last" "$tmp/rad/frame_00000.exr" | sed -n 's/^rmse //p')
+echo "metric: the capped display's last frame: rmse $d against the radiosity view"
+awk -v d="$d" 'BEGIN { exit !(d > 0.005) }' || fail "the capped display's last frame shows no corrections (rmse $d)"
+# A bad value is refused with one line naming the option.
+"$display" --texel-fps -1 --scene "${CORNELL[0]}" >"$tmp/bad.out" 2>&1
+rc=$?
+((rc == 2)) || fail "--texel-fps -1: exit status $rc, not 2"
+grep -q -- "--texel-fps: '-1'" "$tmp/bad.out" || { fail "--texel-fps -1: no message naming it"; cat "$tmp/bad.out"; }
+finish
