@@ -189,17 +189,19 @@ static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_l
 
 /* The factor a kept element link carries: F times the visible fraction of
  * n rays independent of evaluate's (see there; as many as it traced); -1
- * when they are all blocked (the link carries nothing and goes). That
- * drop is a selection on rays a later refinement would discard (see the
- * cluster links in refine_elem); keeping such element links too gained
- * little power and made the Cornell box's short box brighter where the
- * mesh's blurred contact shadow lights it (docs/radiosity.md, "Energy
- * with occlusion"), so they still go. */
+ * when these rays and evaluate's were all blocked (the link carries
+ * nothing and goes). A link whose deciding rays saw some of the source
+ * stays even when these all came back blocked, with factor 0: dropping it
+ * was a selection on rays that a later refinement discards (the cluster
+ * links in refine_elem), which took 0.2 % of the emitted power out of the
+ * closed box with boxes in it (solver version 9; docs/radiosity.md,
+ * "Energy with occlusion"). The final gather looks at such a link from
+ * every vertex (its visibility, 0, is partial). */
 static int value(rad_ctx *c, const rad_elem *r, rad_link *l, double F, int n)
 {
     int nvalid;
     double V = rad_visibility(c, r, l->src, n, TAG_VALUE, n <= c->prm.shadow_rays, &nvalid);
-    if (V == 0.0) return -1;
+    if (V == 0.0 && l->gr == 0.0f && l->gv == 0.0f) return -1;
     l->vis = (float)(V < 0.0 ? 1.0 : V);
     l->ff = (float)(F * l->vis);
     return 0;

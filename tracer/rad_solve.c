@@ -14,14 +14,15 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 9u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 10u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
                                  * whose rays were all blocked stay (refined later); 8: a
                                  * cluster's radiosity as seen from the receiver's side; 9: contact
                                  * regions refined further, vertices look at their own visibility
-                                 * of partly hidden sources */
+                                 * of partly hidden sources; 10: element links whose value rays
+                                 * were all blocked stay when their deciding rays were not */
 
 void rad_params_default(rad_params *p)
 {

@@ -145,7 +145,10 @@ Test(radiosity, energy_and_regions_converge_in_a_closed_box, .timeout = 240)
  * once kept), and a cluster showed every receiver its patches' mean
  * radiosity, the dark undersides to the ceiling as much as the lit tops
  * (0.9900, 0.9912, 0.9934, mean 0.9915, with the side it turns to the
- * receiver, rad_cluster_B). docs/radiosity.md, "Energy with occlusion". */
+ * receiver, rad_cluster_B). An element link whose value rays were all
+ * blocked was dropped too, the same selection (0.9925, 0.9934, 0.9956,
+ * mean 0.9938, once kept: solver version 10). docs/radiosity.md, "Energy
+ * with occlusion". */
 Test(radiosity, box_with_boxes_keeps_its_power, .timeout = 240)
 {
     ct_scene *s;
@@ -167,7 +170,7 @@ Test(radiosity, box_with_boxes_keeps_its_power, .timeout = 240)
         sum += ratio;
         rmesh_free(&m);
     }
-    cr_assert_geq(sum / 3.0, 0.989, "mean absorbed / emitted %.5f: power lost", sum / 3.0);
+    cr_assert_geq(sum / 3.0, 0.992, "mean absorbed / emitted %.5f: power lost", sum / 3.0);
     scene_free(s);
 }
 
