@@ -38,12 +38,11 @@ static float gather_factor(const rad_ctx *c, vec3 x, vec3 n, const rad_elem *s)
  * final gather keeps the link's own factor. */
 #define GATHER_FLAT 0.01f
 
-
 /* Whether the final gather keeps link l (of element e) as it is: a cluster's
  * factor is all it knows, and a factor that hardly varies over its
  * receiver is its own value at every vertex too (most links: far or small
  * sources) -- unless the source is partly hidden and the gather looks at
- * the vertex's own visibility (vertex_vis). */
+ * the vertex's own visibility (rad_final_gather). */
 static int gather_flat(const rad_ctx *c, const rad_elem *e, const rad_link *l)
 {
     if (c->prm.vertex_rays > 0 && l->vis < 1.0f) return 0;

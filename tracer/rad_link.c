@@ -195,8 +195,8 @@ static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_l
  * was a selection on rays that a later refinement discards (the cluster
  * links in refine_elem), which took 0.2 % of the emitted power out of the
  * closed box with boxes in it (solver version 9; docs/radiosity.md,
- * "Energy with occlusion"). The final gather looks at such a link from
- * every vertex (its visibility, 0, is partial). */
+ * "Energy with occlusion"). The final gather's vertices keep its 0: their
+ * own rays go to links in proportion to V (1 - V). */
 static int value(rad_ctx *c, const rad_elem *r, rad_link *l, double F, int n)
 {
     int nvalid;
