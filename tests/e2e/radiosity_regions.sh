@@ -12,10 +12,11 @@
 # without a shadow boundary (--flat: the direct light varies over it by at
 # most half the block's mean), must be within 5 % of the reference, and
 # the blocks' rms within 5 % too. Not in the L room: its worst blocks, the
-# far arm's ceiling lit around the corner (+6 to +11 %) and the floor at the
-# occluding box's foot (-8 to -11 % over seeds 1-3), are held to 15 %
-# until the solver meets 5 % there (docs/radiosity.md, Accuracy; the solver
-# before this test had 43 %, solver version 8 18.4 %).
+# far arm's end wall near its edges with the ceiling and the side wall (+6
+# to +11 %) and the floor at the occluding box's foot (-8 to -11 % over
+# seeds 1-3), are held to 15 % until the solver meets 5 % there
+# (docs/radiosity.md, Accuracy; the solver before this test had 43 %,
+# solver version 8 18.4 %).
 #
 # The references are committed (scripts/make-radiosity-refs renders them:
 # 32768 samples per pixel, path tracing; regenerating takes minutes per
