@@ -1,8 +1,8 @@
 /* rad_ff.c: form factors (Lambert's contour formula from points of the
  * smaller element to the other's polygon, averaged over a small quadrature,
  * turned by reciprocity), cluster factors by Monte Carlo over the cluster's
- * area, and visibility by jittered Embree rays weighted by the point kernel
- * (rad_internal.h). */
+ * area, and visibility by jittered Embree rays weighted by the point kernel,
+ * from an element or from a mesh vertex (rad_internal.h). */
 #include "tracer/rad_internal.h"
 
 #include <math.h>
@@ -202,10 +202,41 @@ int rad_src_has_emitter(const rad_ctx *c, uint32_t src)
  * rays' bias instead of independent noise (blotches across a curved
  * surface); shadow rays to emitters stay independent, or penumbrae would
  * show as a few shifted hard shadows. */
+/* A source's stable key: an element's (patch and child path), a cluster's
+ * hashed index. */
+static uint64_t src_key(const rad_ctx *c, uint32_t src)
+{
+    return (src & RAD_CLUSTER_BIT) ? ct_hash64(src) : rad_el(c, src)->key;
+}
+
 static ct_rng link_rng(const rad_ctx *c, const rad_elem *r, uint32_t src, int shared, uint64_t tag)
 {
-    uint64_t skey = (src & RAD_CLUSTER_BIT) ? ct_hash64(src) : rad_el(c, src)->key;
-    return rng_make(c->prm.seed, shared ? 0x5eedu : r->key, skey, tag);
+    return rng_make(c->prm.seed, shared ? 0x5eedu : r->key, src_key(c, src), tag);
+}
+
+/* The side m of the m x m strata for at least nrays rays: whole rows of
+ * strata, as a partial last row leaves its stretch of the elements
+ * unsampled. */
+static int strata_side(int nrays)
+{
+    int m = 1;
+    while (m * m < nrays) m++;
+    return m;
+}
+
+/* Whether the segment x -> y leaves x's front (normal nx) and arrives at
+ * y's front (normal ny); *cc receives cos_x cos_y and *d2 the squared
+ * length, the parts of the point-to-point kernel. */
+static int facing(vec3 x, vec3 nx, vec3 y, vec3 ny, double *cc, float *d2)
+{
+    vec3 w = v3_sub(y, x);
+    *d2 = v3_len2(w);
+    if (!(*d2 > 0.0f)) return 0;
+    float inv = 1.0f / sqrtf(*d2);
+    float cx = v3_dot(nx, w) * inv, cy = -v3_dot(ny, w) * inv;
+    if (cx <= 0.0f || cy <= 0.0f) return 0;
+    *cc = (double)cx * cy;
+    return 1;
 }
 
 /* A random pairing of n strata (Fisher-Yates). */
@@ -242,9 +273,8 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
 {
     int emitting = rad_src_has_emitter(c, src);
     ct_rng g = link_rng(c, r, src, !emitting && shared, tag);
-    int m = 1;
-    while (m * m < nrays) m++;
-    nrays = m * m;   /* whole rows of strata: a partial last row leaves its stretch of the elements unsampled */
+    int m = strata_side(nrays);
+    nrays = m * m;
     vec3 n = c->patches[r->patch].n;
     const rad_elem *se = rad_el(c, src);
     vec3 nsrc = c->patches[se->patch].n;
@@ -259,13 +289,10 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
         vec3 x = rad_elem_point(r, u, v);
         stratum(&g, perm[i], m, &su, &sv);
         vec3 y = rad_elem_point(se, su, sv);
-        vec3 w = v3_sub(y, x);
-        float d2 = v3_len2(w);
-        if (!(d2 > 0.0f)) continue;
-        float inv = 1.0f / sqrtf(d2);
-        float cx = v3_dot(n, w) * inv, cy = -v3_dot(nsrc, w) * inv;
-        if (cx <= 0.0f || cy <= 0.0f) continue;
-        double kern = (double)cx * cy / d2;
+        double cc;
+        float d2;
+        if (!facing(x, n, y, nsrc, &cc, &d2)) continue;
+        double kern = cc / d2;
         sum += kern;
         traced++;
         sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, ns));
@@ -292,6 +319,15 @@ static const rad_sgeo *cluster_patch(const rad_ctx *c, const rad_cluster *k, flo
     return &c->sgeo[lo];
 }
 
+/* A point of cluster k for the fractions pu (which patch, by area) and su,
+ * sv (where on it); *ny receives its patch's normal. */
+static vec3 cluster_point(const rad_ctx *c, const rad_cluster *k, float pu, float su, float sv, vec3 *ny)
+{
+    const rad_sgeo *q = cluster_patch(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
+    *ny = q->n;
+    return poly_point(q->p, (int)q->nv, su, sv);
+}
+
 /* A cluster seen from r, by Monte Carlo over its area: points x_i
  * stratified over r, y_i drawn by area over the cluster's patches
  * (cluster_patch), and
@@ -310,9 +346,8 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
     int emitting = k->has_emitter;
     int nrays = emitting ? c->prm.shadow_rays : c->prm.vis_rays;
     ct_rng g = link_rng(c, r, src, !emitting, TAG_DECIDE);
-    int m = 1;
-    while (m * m < nrays) m++;
-    nrays = m * m;   /* whole rows of strata: a partial last row leaves its stretch of the elements unsampled */
+    int m = strata_side(nrays);
+    nrays = m * m;
     vec3 n = c->patches[r->patch].n;
     vec3 nr = v3_scale(n, c->ray_eps);
     uint16_t perm[1024];
@@ -324,19 +359,16 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
         stratum(&g, i, m, &u, &v);
         vec3 x = rad_elem_point(r, u, v);
         float pu = ((float)perm[i] + rng_float(&g)) / (float)nrays;
-        const rad_sgeo *q = cluster_patch(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
         float su = rng_float(&g), sv = rng_float(&g);
-        vec3 y = poly_point(q->p, (int)q->nv, su, sv);
-        vec3 w = v3_sub(y, x);
-        float d2 = v3_len2(w);
-        if (!(d2 > 0.0f)) continue;
-        float inv = 1.0f / sqrtf(d2);
-        float cx = v3_dot(n, w) * inv, cy = -v3_dot(q->n, w) * inv;
-        if (cx <= 0.0f || cy <= 0.0f) continue;
-        double kern = (double)cx * cy / (M_PI * d2);
+        vec3 ny;
+        vec3 y = cluster_point(c, k, pu, su, sv, &ny);
+        double cc;
+        float d2;
+        if (!facing(x, n, y, ny, &cc, &d2)) continue;
+        double kern = cc / (M_PI * d2);
         sum += kern;
         traced++;
-        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, v3_scale(q->n, c->ray_eps)));
+        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, v3_scale(ny, c->ray_eps)));
     }
     atomic_fetch_add(&c->rays, traced);
     *F = (double)k->area * sum / nrays;
@@ -351,34 +383,25 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
  * the thread that asks. */
 float rad_point_visibility(const rad_ctx *c, vec3 x, vec3 n, uint32_t src, int nrays, uint64_t key)
 {
-    uint64_t skey = (src & RAD_CLUSTER_BIT) ? ct_hash64(src) : rad_el(c, src)->key;
-    ct_rng g = rng_make(c->prm.seed, key, skey, 0x7665727478ULL);
-    int m = 1;
-    while (m * m < nrays) m++;
-    nrays = m * m;
+    ct_rng g = rng_make(c->prm.seed, key, src_key(c, src), 0x7665727478ULL);
+    int m = strata_side(nrays);
     const rad_cluster *k = (src & RAD_CLUSTER_BIT) ? &c->clusters[src & RAD_ID_MASK] : NULL;
     const rad_elem *se = k ? NULL : rad_el(c, src);
     double sum = 0.0, sumv = 0.0;
-    for (int i = 0; i < nrays; i++) {
-        float u = ((float)(i % m) + rng_float(&g)) / (float)m;
-        float v = ((float)(i / m) + rng_float(&g)) / (float)m;
+    for (int i = 0; i < m * m; i++) {
+        float u, v;
+        stratum(&g, i, m, &u, &v);
         vec3 y, ny;
         if (k) {
-            float pu = ((float)i + rng_float(&g)) / (float)nrays;
-            const rad_sgeo *q = cluster_patch(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
-            y = poly_point(q->p, (int)q->nv, u, v);
-            ny = q->n;
+            y = cluster_point(c, k, ((float)i + rng_float(&g)) / (float)(m * m), u, v, &ny);
         } else {
             y = rad_elem_point(se, u, v);
             ny = c->patches[se->patch].n;
         }
-        vec3 w = v3_sub(y, x);
-        float d2 = v3_len2(w);
-        if (!(d2 > 0.0f)) continue;
-        float inv = 1.0f / sqrtf(d2);
-        float cx = v3_dot(n, w) * inv, cy = -v3_dot(ny, w) * inv;
-        if (cx <= 0.0f || cy <= 0.0f) continue;
-        double kern = (double)cx * cy / d2;
+        double cc;
+        float d2;
+        if (!facing(x, n, y, ny, &cc, &d2)) continue;
+        double kern = cc / d2;
         sum += kern;
         sumv += kern * rad_vis_transmit(c->vis, x, v3_add(y, v3_scale(ny, c->ray_eps)));
     }

@@ -1,6 +1,7 @@
 /* rad_gather.c: the final gather at the mesh's vertices: what each
  * element's links bring, summed once for the links whose factor is flat over
- * it, the others' factors taken at every vertex (rad_internal.h). */
+ * it, the others' factors taken at every vertex, and the visibility of
+ * partly hidden sources looked at from the vertex itself (rad_internal.h). */
 #include "tracer/rad_internal.h"
 
 #include <math.h>
@@ -147,6 +148,63 @@ void rad_gather_scratch_free(rad_gather_scratch *w)
     memset(w, 0, sizeof *w);
 }
 
+/* The changes of a vertex's partly hidden links (w, gathered at xp with
+ * normal n) when it looks at their visibility itself, added to *h and *hd.
+ *
+ * A link's visibility is its receiver's average: across a shadow
+ * boundary (a box's shadow on the floor, lit or indirect) every vertex
+ * of the receiver got the same share, and the boundary was as coarse as
+ * the elements that the power threshold leaves there, which is coarse
+ * wherever the light is dim. So the vertex looks at its own visibility
+ * of every partly hidden link, as an unbiased estimate of the sum of
+ * their changes f0 B (v - V): a link whose expected change (the mean
+ * deviation 2 V (1 - V) of a lit / shadowed pattern covering V of the
+ * receiver) exceeds GATHER_VIS_SHARE of the vertex's irradiance is
+ * traced with --vertex-rays rays; the others -- thousands of small
+ * sources in a dim corner, none of which matters alone but all of
+ * which err the same way -- are sampled with single rays, drawn in
+ * proportion to f0 B sqrt(V (1 - V)) (the spread of one ray's outcome)
+ * at evenly spaced points of their running sum. Tracing every link
+ * took the office building's meshing from 36 to 76 s. */
+static void look_at_partial_links(const rad_ctx *c, rad_gather_scratch *w, vec3 xp, vec3 n, uint64_t key, vec3 *h,
+                                   vec3 *hd)
+{
+    double ref = v3_maxc(*h), S = 0.0;
+    for (size_t i = 0; i < w->n; i++) {
+        rad_partial *e = &w->v[i];
+        double b = v3_maxc(e->B) * e->f0;
+        if (b * 2.0 * e->vis * (1.0 - e->vis) > GATHER_VIS_SHARE * ref) {
+            float v = rad_point_visibility(c, xp, n, e->src, c->prm.vertex_rays, key);
+            if (v >= 0.0f) {
+                float df = e->f0 * (v - e->vis);
+                *h = v3_madd(*h, e->B, df);
+                *hd = v3_madd(*hd, e->E, df);
+            }
+            e->s = 0.0;
+        } else {
+            e->s = b * sqrt(e->vis * (1.0 - e->vis));
+            S += e->s;
+        }
+    }
+    if (S > 0.0) {
+        int m = GATHER_SMALL_SAMPLES * c->prm.vertex_rays;
+        ct_rng rg = rng_make(c->prm.seed, key, 0x736d616c6cULL, 0);
+        double step = S / m, at = rng_float(&rg) * step, run = 0.0;
+        size_t i = 0;
+        for (int j = 0; j < m; j++, at += step) {
+            while (i + 1 < w->n && run + w->v[i].s <= at) run += w->v[i++].s;
+            rad_partial *e = &w->v[i];
+            if (e->s <= 0.0) continue;
+            float v = rad_point_visibility(c, xp, n, e->src, 1, key + (uint64_t)j);
+            if (v < 0.0f) continue;
+            /* Drawn with probability m s / S per sample. */
+            float df = (float)(e->f0 * (v - e->vis) * S / (m * e->s));
+            *h = v3_madd(*h, e->B, df);
+            *hd = v3_madd(*hd, e->E, df);
+        }
+    }
+}
+
 void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
                       vec3 n, vec3 *H, vec3 *Hd)
 {
@@ -184,61 +242,7 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
             if (look && l->vis < 1.0f && f0 > 0.0f && v3_maxc(B) > 0.0f && scratch_push(w, l, f0, B, E)) look = 0;
         }
     }
-    if (!look || w->n == 0) {
-        *H = h;
-        *Hd = hd;
-        return;
-    }
-    /* A link's visibility is its receiver's average: across a shadow
-     * boundary (a box's shadow on the floor, lit or indirect) every vertex
-     * of the receiver got the same share, and the boundary was as coarse as
-     * the elements that the power threshold leaves there, which is coarse
-     * wherever the light is dim. So the vertex looks at its own visibility
-     * of every partly hidden link, as an unbiased estimate of the sum of
-     * their changes f0 B (v - V): a link whose expected change (the mean
-     * deviation 2 V (1 - V) of a lit / shadowed pattern covering V of the
-     * receiver) exceeds GATHER_VIS_SHARE of the vertex's irradiance is
-     * traced with --vertex-rays rays; the others -- thousands of small
-     * sources in a dim corner, none of which matters alone but all of
-     * which err the same way -- are sampled with single rays, drawn in
-     * proportion to f0 B sqrt(V (1 - V)) (the spread of one ray's outcome)
-     * at evenly spaced points of their running sum. Tracing every link
-     * took the office building's meshing from 36 to 76 s. */
-    double ref = v3_maxc(h), S = 0.0;
-    uint64_t key = vertex_key(x);
-    for (size_t i = 0; i < w->n; i++) {
-        rad_partial *e = &w->v[i];
-        double b = v3_maxc(e->B) * e->f0;
-        if (b * 2.0 * e->vis * (1.0 - e->vis) > GATHER_VIS_SHARE * ref) {
-            float v = rad_point_visibility(c, xp, n, e->src, c->prm.vertex_rays, key);
-            if (v >= 0.0f) {
-                float df = e->f0 * (v - e->vis);
-                h = v3_madd(h, e->B, df);
-                hd = v3_madd(hd, e->E, df);
-            }
-            e->s = 0.0;
-        } else {
-            e->s = b * sqrt(e->vis * (1.0 - e->vis));
-            S += e->s;
-        }
-    }
-    if (S > 0.0) {
-        int m = GATHER_SMALL_SAMPLES * c->prm.vertex_rays;
-        ct_rng rg = rng_make(c->prm.seed, key, 0x736d616c6cULL, 0);
-        double step = S / m, at = rng_float(&rg) * step, run = 0.0;
-        size_t i = 0;
-        for (int j = 0; j < m; j++, at += step) {
-            while (i + 1 < w->n && run + w->v[i].s <= at) run += w->v[i++].s;
-            rad_partial *e = &w->v[i];
-            if (e->s <= 0.0) continue;
-            float v = rad_point_visibility(c, xp, n, e->src, 1, key + (uint64_t)j);
-            if (v < 0.0f) continue;
-            /* Drawn with probability m s / S per sample. */
-            float df = (float)(e->f0 * (v - e->vis) * S / (m * e->s));
-            h = v3_madd(h, e->B, df);
-            hd = v3_madd(hd, e->E, df);
-        }
-    }
+    if (look && w->n > 0) look_at_partial_links(c, w, xp, n, vertex_key(x), &h, &hd);
     /* A sampled change may overshoot where the vertex is nearly dark. */
     *H = v3_max(h, v3s(0.0f));
     *Hd = v3_max(hd, v3s(0.0f));
