@@ -38,6 +38,7 @@ void disp_app_defaults(disp_app_opts *o)
     o->vsync = true;
     o->float_format = GL_RGBA32F;
     o->ambient = 0.3f;
+    o->texel_cpu = 0.0;
     o->reconnect = false;
     o->sample_frames = DISP_SAMPLE_FRAMES;
     o->sample_max = DISP_SAMPLE_MAX;
@@ -175,7 +176,8 @@ static int run(app *a, ct_error *err)
     memset(&drawn_cam, 0, sizeof drawn_cam);
     disp_render_opts drawn_opts = a->ropts;
     int drawn_w = 0, drawn_h = 0;
-    double t_drawn = 0;
+    double t_drawn = 0;      /* when the last frame began */
+    double frame_cpu = 0;    /* CPU seconds of the last frame, taking what arrived included */
     int rc = CT_OK;
     bool fly_ready = disp_session_scene_of(a->session) != NULL;
     bool path_done = false;
@@ -184,6 +186,7 @@ static int run(app *a, ct_error *err)
     app_set_title(a, t_start, true);
     while (nframes <= 0 || k < (uint32_t)nframes) {
         double now = ct_now();
+        double c_top = o->texel_cpu > 0.0 ? cpu_now() : 0.0;
         double dt = now - t_last;
         t_last = now;
         gl_backend_poll(a->backend, &in);
@@ -191,6 +194,21 @@ static int run(app *a, ct_error *err)
         if (o->max_seconds > 0 && now - t_start >= o->max_seconds) break;
         if (o->stop && *o->stop) break;
         bool last = path_done, ended = false;
+        /* --texel-fps, --texel-cpu: where the display shares its host with
+         * tracers, each frame drawn for new texels alone is CPU the tracers
+         * lose (docs/display.md, "Sharing a host with the tracers"). Until
+         * the next such frame is allowed the inbox is left alone: the
+         * texels collect there, each tile uploaded once when the frame
+         * comes. A free-running view only; a moving camera is drawn at
+         * once, with what arrived. --texel-cpu weighs the CPU the last
+         * frame took (taking in texels, drawing, tone mapping; llvmpipe's
+         * threads included, as process CPU over the frame) against that
+         * many cores of the wall time since it began: a frame of a few CPU
+         * ms (a GPU, a small window) is not held back, software GL at
+         * 1024^2 is. */
+        a->hold_texels = o->connect && k > 0 && nframes <= 0 && o->samples_per_frame == 0 && !o->continuous &&
+                         ((o->texel_fps > 0.0 && now - t_drawn < 1.0 / o->texel_fps) ||
+                          (o->texel_cpu > 0.0 && now - t_drawn < frame_cpu / o->texel_cpu));
         if (o->connect) {
             int st = app_connection_begin(a, err);
             if (st == STEP_END) {
@@ -271,20 +289,23 @@ static int run(app *a, ct_error *err)
          * that redrew an unchanged view took it from the tracers. */
         uint64_t gen = disp_session_image_gen(a->session);
         bool capture_due = a->capture && (k == 0 || last || (o->out_every > 0 && now - t_captured >= o->out_every));
-        /* --texel-fps: where the display shares its host with tracers,
-         * each frame drawn for new texels alone is CPU the tracers lose
-         * (docs/display.md, "Sharing a host with the tracers"); a moving
-         * camera is still drawn at once. */
-        bool texels_due = gen != drawn_gen && (o->texel_fps <= 0.0 || now - t_drawn >= 1.0 / o->texel_fps);
+        /* While held nothing was taken; a change of gen then is the
+         * samples view's oldest points leaving, which can wait as well. */
+        bool texels_due = gen != drawn_gen && !a->hold_texels;
         bool draw = o->continuous || nframes > 0 || o->samples_per_frame > 0 || k == 0 || last || capture_due ||
                     texels_due || !cam_same(&cam, &drawn_cam) || a->ropts.passes != drawn_opts.passes ||
                     a->ropts.view != drawn_opts.view || a->ropts.exposure != drawn_opts.exposure ||
                     a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
                     in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);
         if (!draw) {
+            bool waiting = a->hold_texels && a->inbox && disp_inbox_pending(a->inbox);
             ct_sleep_us(2000);
-            a->t_idle += ct_now() - now;
+            *(waiting ? &a->t_held : &a->t_idle) += ct_now() - now;
             continue;
+        }
+        if (a->hold_texels) {
+            if ((rc = app_take_inbox(a, err))) break;
+            gen = disp_session_image_gen(a->session);
         }
         drawn_gen = gen;
         drawn_cam = cam;
@@ -313,6 +334,7 @@ static int run(app *a, ct_error *err)
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
         app_count_lag(a);
+        if (o->texel_cpu > 0.0) frame_cpu = cpu_now() - c_top;
         double frame_ms = 1000.0 * (ct_now() - t0);
         /* The first frame pays for shader compilation (JIT on llvmpipe). */
         if (k == 0) {
@@ -361,6 +383,8 @@ static int run(app *a, ct_error *err)
                1000.0 * a->t_wait / k, 1000.0 * a->t_take / k, 1000.0 * a->t_capture / k);
     if (a->t_idle > 0.05)
         printf("display: nothing new to draw for %.1f s of %.1f s (no frame drawn then)\n", a->t_idle, total);
+    if (a->t_held > 0.05)
+        printf("display: new texels held back for %.1f s of %.1f s by --texel-fps / --texel-cpu\n", a->t_held, total);
     if (a->lag && a->lag->n)
         printf("display: lag from insertion at the master to the screen: median %.0f ms, p90 %.0f ms, p99 %.0f ms, "
                "max %.0f ms over %llu samples\n",

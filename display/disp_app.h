@@ -55,6 +55,7 @@ typedef struct disp_app_opts {
     double max_seconds;           /* stop after this long (0: no limit) */
     bool continuous;              /* draw every frame, also when nothing changed (timings) */
     double texel_fps;             /* new texels alone redraw a view at most this often (0: no limit) */
+    double texel_cpu;             /* and use at most this many cores doing so (0: no limit) */
     bool full_redraw;             /* no kept base: a still camera's radiosity drawn every frame */
     uint32_t sample_frames;       /* the samples view shows the points of this many frames */
     uint32_t sample_max;          /* and keeps at most this many points */

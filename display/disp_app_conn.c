@@ -80,11 +80,19 @@ static int service(app *a, ct_error *err)
  * textures, changed texels (uploaded once each), points, statistics. */
 static int take_inbox(app *a, ct_error *err)
 {
-    if (!a->inbox) return CT_OK;
+    if (!a->inbox || a->hold_texels) return CT_OK;
     double t0 = ct_now();
     int rc = disp_inbox_apply(a->inbox, a->session, &a->took, err);
     a->t_take += ct_now() - t0;
     return rc;
+}
+
+/* Takes the inbox even while texel redraws are held back: a frame drawn
+ * for another reason (the camera moved) shows the newest texels. */
+int app_take_inbox(app *a, ct_error *err)
+{
+    a->hold_texels = false;
+    return take_inbox(a, err);
 }
 
 /* After a frame is presented: the lag of every sample its patches carried

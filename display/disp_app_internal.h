@@ -37,6 +37,8 @@ typedef struct app {
     disp_lag *lag;                /* insertion at the master -> presented frame */
     double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
     double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
+    double t_held;                /* seconds new texels waited for --texel-fps / --texel-cpu */
+    bool hold_texels;             /* the inbox is not taken: texel redraws are held back */
     disp_scene_cache *cache;
     double retry_at, backoff;     /* next reconnection attempt, its delay */
     bool cam_sent;                /* last_cam went to this connection */
@@ -78,5 +80,6 @@ int app_connection_step(app *a, const ct_camera *cam, const ct_camera *next, gl_
 
 /* After a frame is presented: the lag of every sample its patches carried. */
 void app_count_lag(app *a);
+int app_take_inbox(app *a, ct_error *err);
 
 #endif

@@ -503,6 +503,14 @@ static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
     b->dirty_bytes = rest;
 }
 
+bool disp_inbox_pending(disp_inbox *b)
+{
+    pthread_mutex_lock(&b->mu);
+    bool p = b->dirty_bytes > 0 || b->nstamps > 0;
+    pthread_mutex_unlock(&b->mu);
+    return p;
+}
+
 int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_error *err)
 {
     memset(took, 0, sizeof *took);

@@ -96,6 +96,9 @@ void disp_inbox_new_epoch(disp_inbox *b, uint32_t epoch);
  * (its stamps stay valid until the next call). */
 int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_error *err);
 
+/* Whether texels arrived that no apply has taken yet. */
+bool disp_inbox_pending(disp_inbox *b);
+
 /* Lockstep and status state. */
 disp_inbox_state disp_inbox_get_state(disp_inbox *b);
 

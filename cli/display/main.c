@@ -74,9 +74,12 @@ static void usage(FILE *f, const disp_app_opts *d)
             "                        (a moving camera is drawn at once; default 0: whenever they\n"
             "                        arrive). On a host shared with tracer ranks, what the display\n"
             "                        does not draw the tracers trace (docs/display.md)\n"
+            "  --texel-cpu C         and spend at most C cores on such redraws, drawing, tone mapping\n"
+            "                        and texel uploads included (default %.2g; 0: no limit): software\n"
+            "                        GL at 1024x1024 is held to a few redraws a second, a GPU is not\n"
             "  --quiet | --verbose\n\n%s",
             d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
-            disp_view_name(d->view), d->sample_frames, d->sample_max, disp_app_keys_help());
+            disp_view_name(d->view), d->sample_frames, d->sample_max, d->texel_cpu, disp_app_keys_help());
 }
 
 static int parse_int(const char *opt, const char *s, int lo, int hi, int *out)
@@ -238,6 +241,12 @@ int main(int argc, char **argv)
             float f;
             bad = parse_float(a, v, 0, 1000, &f);
             o.texel_fps = f;
+        }
+        else if (!strcmp(a, "--texel-cpu")) {
+            NEED();
+            float f;
+            bad = parse_float(a, v, 0, 1000, &f);
+            o.texel_cpu = f;
         }
         else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
             NEED();

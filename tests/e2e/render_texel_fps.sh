@@ -8,6 +8,12 @@
 # which draws whenever texels arrive. Checks: the capped display stays
 # within its bound and draws fewer frames than the other, and its last
 # frame still carries the corrections (it differs from the radiosity view).
+# A third display holds its redraws to 0.05 cores with --texel-cpu (a
+# 128x128 frame and its frames.csv row cost a few CPU ms, so it waits a
+# tenth of a second or more between them, the first frame's shader
+# compilation longer). While held, texels collect in the inbox and reach the screen with
+# the next frame: the lag statistics count them all (they once counted only
+# the texels of the last look at the inbox before a frame).
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs "$corrtex"
 cornell_args
@@ -22,6 +28,9 @@ display_run capped --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "
 display_run free --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "${CAM[@]}" --seconds 4 \
   --out "$tmp/free"
 ((DISPLAY_RC == 0)) || fail "free display exit status $DISPLAY_RC"
+display_run cpu --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "${CAM[@]}" --seconds 4 \
+  --texel-cpu 0.05 --out "$tmp/cpu" --no-images
+((DISPLAY_RC == 0)) || fail "--texel-cpu display exit status $DISPLAY_RC"
 display_run rad --connect "$ADDR" "${HEADLESS[@]}" --width 128 --height 128 "${CAM[@]}" --view radiosity \
   --frames 1 --out "$tmp/rad"
 kill -TERM "$(rank_pid job 0)"
@@ -32,6 +41,21 @@ echo "metric: frames in 4 s of a still view while texels stream: $nc with --texe
 [[ -n $nc && -n $nf ]] || { fail "a display printed no frame count"; finish; }
 ((nc <= 11)) || fail "--texel-fps 2 drew $nc frames in 4 s (at most 11)"
 ((nc < nf)) || fail "--texel-fps 2 drew $nc frames, no fewer than the uncapped display's $nf"
+ncpu=$(frames_of cpu)
+echo "metric: frames in 4 s with --texel-cpu 0.05: $ncpu"
+[[ -n $ncpu ]] && ((ncpu >= 3 && 3 * ncpu <= nf)) ||
+  fail "--texel-cpu 0.05 drew $ncpu frames in 4 s (3 or more, at most a third of the uncapped display's $nf)"
+# Samples the lag statistics counted against those the master reported
+# from the third frame on (the first STATS, in the second row, holds all the
+# job inserted before the display came).
+for d in capped cpu; do
+  lagn=$(sed -n 's/^display: lag .* over \([0-9]*\) samples$/\1/p' "$tmp/$d.log")
+  col=$(head -n 1 "$tmp/$d/frames.csv" | tr ',' '\n' | grep -n '^samples$' | cut -d: -f1)
+  sum=$(awk -F, -v c="$col" 'NR > 3 { s += $c } END { print s + 0 }' "$tmp/$d/frames.csv")
+  echo "metric: $d display: lag counted for $lagn samples, the master reported $sum"
+  [[ -n $lagn && -n $col ]] && awk -v a="$lagn" -v b="$sum" 'BEGIN { exit !(b > 0 && a >= 0.5 * b) }' ||
+    fail "$d display: the lag counted $lagn of $sum samples"
+done
 last=$(ls "$tmp/capped"/frame_*.exr | tail -n 1)
 d=$("$corrtex" compare "$last" "$tmp/rad/frame_00000.exr" | sed -n 's/^rmse //p')
 echo "metric: the capped display's last frame: rmse $d against the radiosity view"
@@ -41,4 +65,8 @@ awk -v d="$d" 'BEGIN { exit !(d > 0.005) }' || fail "the capped display's last f
 rc=$?
 ((rc == 2)) || fail "--texel-fps -1: exit status $rc, not 2"
 grep -q -- "--texel-fps: '-1'" "$tmp/bad.out" || { fail "--texel-fps -1: no message naming it"; cat "$tmp/bad.out"; }
+"$display" --texel-cpu 2000 --scene "${CORNELL[0]}" >"$tmp/bad.out" 2>&1
+rc=$?
+((rc == 2)) || fail "--texel-cpu 2000: exit status $rc, not 2"
+grep -q -- "--texel-cpu: '2000'" "$tmp/bad.out" || { fail "--texel-cpu 2000: no message naming it"; cat "$tmp/bad.out"; }
 finish
