@@ -1,11 +1,13 @@
 /* bin/corrtex-display: the display client. Parses options and runs
  * display/disp_app.c; links common, proto, display and GL only. */
 #include <signal.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "common/log.h"
+#include "common/optab.h"
 #include "display/disp_app.h"
 #include "display/gl_load.h"
 
@@ -20,90 +22,156 @@ static void on_signal(int sig)
     g_stop = sig;
 }
 
-static void usage(FILE *f, const disp_app_opts *d)
+/* The command line: the run's options, and the choices and switches that
+ * map onto them once parsed. */
+typedef struct cli {
+    disp_app_opts o;
+    int backend, passes, view, fbo;
+    const char *camera;           /* --camera EX,EY,EZ,TX,TY,TZ[,FOV] */
+    bool no_cache, no_vsync, quiet, verbose;
+} cli;
+
+#define OF(f) offsetof(cli, f)
+static const int BACKENDS[] = {GL_BACKEND_GLFW, GL_BACKEND_EGL, GL_BACKEND_OSMESA};
+static const int PASSES[] = {1, 3};
+static const int FBOS[] = {GL_RGBA32F, GL_RGBA16F};
+static const int VIEWS[] = {DISP_VIEW_FULL, DISP_VIEW_RADIOSITY, DISP_VIEW_CORRECTIONS, DISP_VIEW_ASSIGNMENT,
+                            DISP_VIEW_SAMPLES};
+
+/* Rows without a default of their own take disp_app_defaults' (--help
+ * shows them from the defaults struct). */
+static const optab INPUT_OPTS[] = {
+    {"connect", 0, OPTAB_STRING, OF(o.connect), 0, 0, NULL, "ADDR",
+     "master's display socket: unix:PATH or tcp:HOST:PORT", NULL},
+    {"token-file", 0, OPTAB_STRING, OF(o.token_file), 0, 0, NULL, "FILE",
+     "shared token for the handshake (else $CORRTEX_TOKEN)", NULL},
+    {"reconnect", 0, OPTAB_FLAG, OF(o.reconnect), 0, 0, NULL, NULL,
+     "on a lost connection retry with back-off (else exit 3)", NULL},
+    {"cache", 0, OPTAB_STRING, OF(o.cache_dir), 0, 0, NULL, "DIR",
+     "keep received scenes in DIR by content hash ($XDG_CACHE_HOME/corrtex, else ~/.cache/corrtex)", NULL},
+    {"cache-max-mb", 0, OPTAB_U32, OF(o.cache_max_mb), 0, 1 << 24, NULL, "N",
+     "MiB of scenes kept there at most, least recently used removed first (0: no bound)", NULL},
+    {"no-cache", 0, OPTAB_FLAG, OF(no_cache), 0, 0, NULL, NULL, "keep the scene in memory only", NULL},
+    {"samples-per-frame", 0, OPTAB_INT, OF(o.samples_per_frame), 0, 100000000, NULL, "K",
+     "lockstep: the master inserts K samples per frame (0: free running)", NULL},
+    {"mesh", 0, OPTAB_STRING, OF(o.mesh), 0, 0, NULL, "FILE.ctmesh",
+     "a radiosity mesh cache (corrtex radiosity), no master", NULL},
+    {"scene", 0, OPTAB_STRING, OF(o.scene), 0, 0, NULL, "FILE.json",
+     "a scene with a stand-in radiosity (constant per material), no master", NULL},
+    {"ambient", 0, OPTAB_FLOAT, OF(o.ambient), 0, 100, NULL, "A", "stand-in radiosity: emission + diffuse * A", NULL},
+    {"synthetic", 0, OPTAB_U32, OF(o.synthetic), 0, 100000, NULL, "N",
+     "up to N synthetic correction textures, one per visible part (benchmarks without a master)", NULL},
+    {"synthetic-tiles", 0, OPTAB_FLAG, OF(o.synthetic_tiles), 0, 0, NULL, NULL,
+     "cut parts into tiles to make all N (textures stack on parts)", NULL},
+    {"synthetic-positive", 0, OPTAB_FLAG, OF(o.synthetic_positive), 0, 0, NULL, NULL, "make them all positive", NULL},
+};
+
+static const optab VIEW_OPTS[] = {
+    {"backend", 0, OPTAB_CHOICE, OF(backend), 0, 0, NULL, "glfw|egl|osmesa",
+     "a window, or headless (default glfw when $DISPLAY is set, else egl)", BACKENDS},
+    {"width", 0, OPTAB_INT, OF(o.width), 1, 16384, NULL, "W", "image width", NULL},
+    {"height", 0, OPTAB_INT, OF(o.height), 1, 16384, NULL, "H", "image height", NULL},
+    {"exposure", 0, OPTAB_FLOAT, OF(o.exposure), -30, 30, NULL, "STOPS", "displayed = linear * 2^STOPS", NULL},
+    {"passes", 0, OPTAB_CHOICE, OF(passes), 0, 0, "1", "1|3", "corrections in one shader pass or three passes",
+     PASSES},
+    {"view", 0, OPTAB_CHOICE, OF(view), 0, 0, "full", "full|radiosity|corrections|assignment|samples",
+     "what is drawn (docs/display.md, \"Debug views\")", VIEWS},
+    {"sample-frames", 0, OPTAB_U32, OF(o.sample_frames), 1, 100000, NULL, "N",
+     "samples view: show the sample points of the last N frames", NULL},
+    {"sample-max", 0, OPTAB_U32, OF(o.sample_max), 1, 100000000, NULL, "N", "samples view: keep at most N points",
+     NULL},
+    {"fbo", 0, OPTAB_CHOICE, OF(fbo), 0, 0, "32f", "32f|16f", "float framebuffer format", FBOS},
+    {"no-vsync", 0, OPTAB_FLAG, OF(no_vsync), 0, 0, NULL, NULL, "window: do not wait for vertical sync", NULL},
+    {"camera", 0, OPTAB_STRING, OF(camera), 0, 0, NULL, "EX,EY,EZ,TX,TY,TZ[,FOV]",
+     "start camera: eye, target, vertical field of view in degrees (default 50)", NULL},
+    {"camera-name", 0, OPTAB_STRING, OF(o.camera_name), 0, 0, NULL, "NAME",
+     "a named camera of --scene (default: its first one)", NULL},
+};
+
+static const optab RUN_OPTS[] = {
+    {"path", 0, OPTAB_STRING, OF(o.path), 0, 0, NULL, "FILE", "camera path (common/campath.h format)", NULL},
+    {"frames", 0, OPTAB_INT, OF(o.frames), 0, 10000000, NULL, "N",
+     "N frames spread over the path (0: real time); headless without a path, N frames of the still camera (0: one, "
+     "or with --connect until the master ends or a signal)", NULL},
+    {"seconds", 0, OPTAB_DOUBLE, OF(o.max_seconds), 0, 1e7, NULL, "S", "stop after S seconds (0: no limit)", NULL},
+    {"out", 0, OPTAB_STRING, OF(o.out_dir), 0, 0, NULL, "DIR", "write frame_NNNNN.exr/.png and frames.csv", NULL},
+    {"out-every", 0, OPTAB_DOUBLE, OF(o.out_every), 0, 1e6, NULL, "S",
+     "capture a frame at most every S seconds (0: every frame)", NULL},
+    {"no-images", 0, OPTAB_FLAG, OF(o.no_images), 0, 0, NULL, NULL, "with --out: frames.csv only", NULL},
+    {"reference", 0, OPTAB_STRING, OF(o.ref_dir), 0, 0, NULL, "DIR|FILE",
+     "add RMSE/PSNR against DIR/frame_NNNNN.exr, or against FILE.exr for every frame (a still view), to frames.csv",
+     NULL},
+    {"hold", 0, OPTAB_DOUBLE, OF(o.hold_seconds), 0, 1e6, NULL, "S",
+     "real-time path: stay at its last camera S seconds after it ends", NULL},
+    {"continuous", 0, OPTAB_FLAG, OF(o.continuous), 0, 0, NULL, NULL,
+     "draw every frame, also when nothing changed (frame-rate measurements; else a still, unchanged view is not "
+     "redrawn)", NULL},
+    {"full-redraw", 0, OPTAB_FLAG, OF(o.full_redraw), 0, 0, NULL, NULL,
+     "draw a still camera's radiosity every frame (else it is kept from the second frame on and only the "
+     "corrections are redrawn)", NULL},
+    {"texel-fps", 0, OPTAB_DOUBLE, OF(o.texel_fps), 0, 1000, NULL, "F",
+     "redraw a view for new texels alone at most F times a second; a moving camera is drawn at once (0: whenever "
+     "they arrive). On a host shared with tracer ranks, what the display does not draw the tracers trace "
+     "(docs/display.md)", NULL},
+    {"texel-cpu", 0, OPTAB_DOUBLE, OF(o.texel_cpu), 0, 1000, NULL, "C",
+     "and spend at most C cores on such redraws, taking in texels, drawing and tone mapping included (0: no "
+     "limit): software GL at 1024x1024 is held to a few redraws a second, a GPU is not", NULL},
+};
+
+static const optab LOG_OPTS[] = {
+    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "warnings and errors only", NULL},
+    {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
+};
+#undef OF
+
+enum { NGROUPS = 5 };
+static const char *const GROUP_TITLES[NGROUPS] = {"input", "view", "walkthroughs and output", "log", NULL};
+
+static void groups(cli *c, optab_group *g)
 {
-    fprintf(f,
-            "usage: corrtex-display [options]\n"
-            "Shows the interactive solution corrected by corrective textures, from a master\n"
-            "(--connect) or alone (--mesh / --scene), in a window or headless.\n\n"
-            "input:\n"
-            "  --connect ADDR        master's display socket: unix:PATH or tcp:HOST:PORT\n"
-            "  --token-file FILE     shared token for the handshake (else $CORRTEX_TOKEN)\n"
-            "  --reconnect           on a lost connection retry with back-off (default: exit 3)\n"
-            "  --cache DIR           keep received scenes in DIR by content hash (default %s)\n"
-            "  --cache-max-mb N      scenes kept there, at most, least recently used removed first\n"
-            "                        (default %u MiB; 0: no bound)\n"
-            "  --no-cache            keep the scene in memory only\n"
-            "  --samples-per-frame K lockstep: the master inserts K samples per frame (default 0: free-running)\n"
-            "  --mesh FILE.ctmesh    a radiosity mesh cache (corrtex radiosity), no master\n"
-            "  --scene FILE.json     a scene with a stand-in radiosity (constant per material), no master\n"
-            "  --ambient A           stand-in radiosity: emission + diffuse * A (default %.2f)\n"
-            "  --synthetic N         up to N synthetic correction textures, one per visible part\n"
-            "                        (benchmarks without a master; default 0)\n"
-            "  --synthetic-tiles     cut parts into tiles to make all N (textures stack on parts)\n"
-            "  --synthetic-positive  make them all positive\n"
-            "view:\n"
-            "  --backend B           glfw, egl or osmesa (default %s: glfw when $DISPLAY is set)\n"
-            "  --width W --height H  image size (default %dx%d)\n"
-            "  --exposure STOPS      displayed = linear * 2^STOPS (default %.1f)\n"
-            "  --passes 1|3          corrections in one shader pass or three passes (default %d)\n"
-            "  --view V              full, radiosity, corrections, assignment, samples (default %s)\n"
-            "  --sample-frames N     samples view: show the sample points of the last N frames (default %u)\n"
-            "  --sample-max N        samples view: keep at most N points (default %u)\n"
-            "  --fbo 32f|16f         float framebuffer format (default 32f)\n"
-            "  --no-vsync            window: do not wait for vertical sync\n"
-            "  --camera EX,EY,EZ,TX,TY,TZ[,FOV]   start camera (eye, target, vertical fov degrees, default 50)\n"
-            "  --camera-name NAME    a named camera of --scene (default: its first one)\n"
-            "walkthroughs and output:\n"
-            "  --path FILE           camera path (common/campath.h format)\n"
-            "  --frames N            N frames spread over the path (default 0: real time; headless\n"
-            "                        without a path: N frames of the still camera, default: 1,\n"
-            "                        or with --connect until the master ends or a signal)\n"
-            "  --seconds S           stop after S seconds (default 0: no limit)\n"
-            "  --out DIR             write frame_NNNNN.exr/.png and frames.csv\n"
-            "  --out-every S         capture a frame at most every S seconds (default 0: every frame)\n"
-            "  --no-images           with --out: frames.csv only\n"
-            "  --reference DIR|FILE  add RMSE/PSNR against DIR/frame_NNNNN.exr, or against FILE.exr for\n"
-            "                        every frame (a still view), to frames.csv\n"
-            "  --hold S              real-time path: stay at its last camera S seconds after it ends (0)\n"
-            "  --continuous          draw every frame, also when nothing changed (frame-rate\n"
-            "                        measurements; by default a still, unchanged view is not redrawn)\n"
-            "  --full-redraw         draw a still camera's radiosity every frame (by default it is\n"
-            "                        kept from the second frame on and only corrections are redrawn)\n"
-            "  --texel-fps F         redraw a view for new texels alone at most F times a second\n"
-            "                        (a moving camera is drawn at once; default 0: whenever they\n"
-            "                        arrive). On a host shared with tracer ranks, what the display\n"
-            "                        does not draw the tracers trace (docs/display.md)\n"
-            "  --texel-cpu C         and spend at most C cores on such redraws, drawing, tone mapping\n"
-            "                        and texel uploads included (default %.2g; 0: no limit): software\n"
-            "                        GL at 1024x1024 is held to a few redraws a second, a GPU is not\n"
-            "  --quiet | --verbose\n\n%s",
-            d->cache_dir ? d->cache_dir : "none", d->cache_max_mb, d->ambient, gl_backend_name(d->backend), d->width, d->height, d->exposure, d->passes,
-            disp_view_name(d->view), d->sample_frames, d->sample_max, d->texel_cpu, disp_app_keys_help());
+    g[0] = (optab_group){INPUT_OPTS, OPTAB_COUNT(INPUT_OPTS), c};
+    g[1] = (optab_group){VIEW_OPTS, OPTAB_COUNT(VIEW_OPTS), c};
+    g[2] = (optab_group){RUN_OPTS, OPTAB_COUNT(RUN_OPTS), c};
+    g[3] = (optab_group){LOG_OPTS, OPTAB_COUNT(LOG_OPTS), c};
+    g[4] = (optab_group){NULL, 0, NULL};
 }
 
-static int parse_int(const char *opt, const char *s, int lo, int hi, int *out)
+/* Every option's default: the rows' own, disp_app_defaults' for the rest,
+ * and the scene cache under $XDG_CACHE_HOME or ~/.cache (in cache). */
+static void defaults(cli *c, char *cache, size_t cache_size)
 {
-    char *end;
-    long v = strtol(s, &end, 10);
-    if (*s == '\0' || *end != '\0' || v < lo || v > hi) {
-        ct_log(CT_LOG_ERROR, COMP, "%s: '%s' is not an integer in %d..%d", opt, s, lo, hi);
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
+    memset(c, 0, sizeof *c);
+    optab_group g[NGROUPS];
+    groups(c, g);
+    ct_error e;
+    for (int k = 0; g[k].rows; k++) optab_defaults(g[k].rows, g[k].n, g[k].base, &e);
+    disp_app_defaults(&c->o);
+    c->backend = (int)c->o.backend;
+    c->passes = c->o.passes;
+    c->view = (int)c->o.view;
+    c->fbo = (int)c->o.float_format;
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    cache[0] = '\0';
+    if (xdg && *xdg) snprintf(cache, cache_size, "%s/corrtex", xdg);
+    else if (home && *home) snprintf(cache, cache_size, "%s/.cache/corrtex", home);
+    if (cache[0]) c->o.cache_dir = cache;
 }
 
-static int parse_float(const char *opt, const char *s, float lo, float hi, float *out)
+static void usage(FILE *f)
 {
-    char *end;
-    float v = strtof(s, &end);
-    if (*s == '\0' || *end != '\0' || !(v >= lo && v <= hi)) {
-        ct_log(CT_LOG_ERROR, COMP, "%s: '%s' is not a number in %g..%g", opt, s, lo, hi);
-        return -1;
+    cli d;
+    char cache[2048];
+    defaults(&d, cache, sizeof cache);
+    fprintf(f, "usage: corrtex-display [options]\n"
+               "Shows the interactive solution corrected by corrective textures, from a master\n"
+               "(--connect) or alone (--mesh / --scene), in a window or headless.\n");
+    optab_group g[NGROUPS];
+    groups(&d, g);
+    for (int k = 0; g[k].rows; k++) {
+        fprintf(f, "\n%s:\n", GROUP_TITLES[k]);
+        optab_usage(g[k].rows, g[k].n, g[k].base, f);
     }
-    *out = v;
-    return 0;
+    fprintf(f, "  --help                       this text\n\n%s", disp_app_keys_help());
 }
 
 static int parse_camera(const char *s, ct_camera *cam)
@@ -143,137 +211,36 @@ static int parse_camera(const char *s, ct_camera *cam)
 
 int main(int argc, char **argv)
 {
-    disp_app_opts o, d;
-    disp_app_defaults(&o);
-    /* Default scene cache: $XDG_CACHE_HOME/corrtex or ~/.cache/corrtex. */
-    char cache[2048] = "";
-    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
-    if (xdg && *xdg) snprintf(cache, sizeof cache, "%s/corrtex", xdg);
-    else if (home && *home) snprintf(cache, sizeof cache, "%s/.cache/corrtex", home);
-    if (cache[0]) o.cache_dir = cache;
-    d = o;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        ct_error err;
-        int bad = 0;
-#define NEED()                                                                  \
-    if (!v) {                                                                   \
-        ct_log(CT_LOG_ERROR, COMP, "%s needs a value (see --help)", a);         \
-        return DISP_EXIT_USAGE;                                                 \
-    }                                                                           \
-    i++;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            usage(stdout, &d);
-            return 0;
-        } else if (!strcmp(a, "--backend")) {
-            NEED();
-            if (gl_backend_parse(v, &o.backend, &err)) {
-                ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
-                return DISP_EXIT_USAGE;
-            }
-        } else if (!strcmp(a, "--width")) { NEED(); bad = parse_int(a, v, 1, 16384, &o.width); }
-        else if (!strcmp(a, "--height")) { NEED(); bad = parse_int(a, v, 1, 16384, &o.height); }
-        else if (!strcmp(a, "--exposure")) { NEED(); bad = parse_float(a, v, -30, 30, &o.exposure); }
-        else if (!strcmp(a, "--passes")) {
-            NEED();
-            bad = parse_int(a, v, 1, 3, &o.passes);
-            if (!bad && o.passes == 2) {
-                ct_log(CT_LOG_ERROR, COMP, "--passes: 1 or 3");
-                bad = 1;
-            }
-        } else if (!strcmp(a, "--view")) {
-            NEED();
-            int k;
-            for (k = 0; k < DISP_VIEW_COUNT; k++)
-                if (!strcmp(v, disp_view_name((disp_view)k))) break;
-            if (k == DISP_VIEW_COUNT) {
-                ct_log(CT_LOG_ERROR, COMP, "--view: unknown view '%s'", v);
-                bad = 1;
-            }
-            o.view = (disp_view)k;
-        } else if (!strcmp(a, "--sample-frames")) {
-            NEED();
-            int n;
-            bad = parse_int(a, v, 1, 100000, &n);
-            o.sample_frames = (uint32_t)n;
-        } else if (!strcmp(a, "--sample-max")) {
-            NEED();
-            int n;
-            bad = parse_int(a, v, 1, 100000000, &n);
-            o.sample_max = (uint32_t)n;
-        } else if (!strcmp(a, "--fbo")) {
-            NEED();
-            if (!strcmp(v, "32f")) o.float_format = GL_RGBA32F;
-            else if (!strcmp(v, "16f")) o.float_format = GL_RGBA16F;
-            else {
-                ct_log(CT_LOG_ERROR, COMP, "--fbo: 32f or 16f, not '%s'", v);
-                bad = 1;
-            }
-        } else if (!strcmp(a, "--no-vsync")) o.vsync = false;
-        else if (!strcmp(a, "--camera")) { NEED(); bad = parse_camera(v, &o.camera); o.has_camera = true; }
-        else if (!strcmp(a, "--camera-name")) { NEED(); o.camera_name = v; }
-        else if (!strcmp(a, "--mesh")) { NEED(); o.mesh = v; }
-        else if (!strcmp(a, "--scene")) { NEED(); o.scene = v; }
-        else if (!strcmp(a, "--ambient")) { NEED(); bad = parse_float(a, v, 0, 100, &o.ambient); }
-        else if (!strcmp(a, "--synthetic")) {
-            NEED();
-            int n;
-            bad = parse_int(a, v, 0, 100000, &n);
-            o.synthetic = (uint32_t)n;
-        } else if (!strcmp(a, "--synthetic-positive")) o.synthetic_positive = true;
-        else if (!strcmp(a, "--synthetic-tiles")) o.synthetic_tiles = true;
-        else if (!strcmp(a, "--path")) { NEED(); o.path = v; }
-        else if (!strcmp(a, "--frames")) { NEED(); bad = parse_int(a, v, 0, 10000000, &o.frames); }
-        else if (!strcmp(a, "--seconds")) {
-            NEED();
-            float s;
-            bad = parse_float(a, v, 0, 1e7f, &s);
-            o.max_seconds = s;
-        } else if (!strcmp(a, "--samples-per-frame")) { NEED(); bad = parse_int(a, v, 0, 100000000, &o.samples_per_frame); }
-        else if (!strcmp(a, "--out")) { NEED(); o.out_dir = v; }
-        else if (!strcmp(a, "--reference")) { NEED(); o.ref_dir = v; }
-        else if (!strcmp(a, "--no-images")) o.no_images = true;
-        else if (!strcmp(a, "--continuous")) o.continuous = true;
-        else if (!strcmp(a, "--full-redraw")) o.full_redraw = true;
-        else if (!strcmp(a, "--texel-fps")) {
-            NEED();
-            float f;
-            bad = parse_float(a, v, 0, 1000, &f);
-            o.texel_fps = f;
-        }
-        else if (!strcmp(a, "--texel-cpu")) {
-            NEED();
-            float f;
-            bad = parse_float(a, v, 0, 1000, &f);
-            o.texel_cpu = f;
-        }
-        else if (!strcmp(a, "--out-every") || !strcmp(a, "--hold")) {
-            NEED();
-            float x;
-            bad = parse_float(a, v, 0, 1e6f, &x);
-            if (!strcmp(a, "--hold")) o.hold_seconds = x;
-            else o.out_every = x;
-        }
-        else if (!strcmp(a, "--connect")) { NEED(); o.connect = v; }
-        else if (!strcmp(a, "--token-file")) { NEED(); o.token_file = v; }
-        else if (!strcmp(a, "--reconnect")) o.reconnect = true;
-        else if (!strcmp(a, "--cache")) { NEED(); o.cache_dir = v; }
-        else if (!strcmp(a, "--no-cache")) o.cache_dir = NULL;
-        else if (!strcmp(a, "--cache-max-mb")) {
-            NEED();
-            int n;
-            bad = parse_int(a, v, 0, 1 << 24, &n);
-            o.cache_max_mb = (uint32_t)n;
-        }
-        else if (!strcmp(a, "--quiet")) ct_log_set_level(CT_LOG_WARN);
-        else if (!strcmp(a, "--verbose")) ct_log_set_level(CT_LOG_DEBUG);
-        else {
-            ct_log(CT_LOG_ERROR, COMP, "unknown option '%s' (see --help)", a);
-            return DISP_EXIT_USAGE;
-        }
-#undef NEED
-        if (bad) return DISP_EXIT_USAGE;
+    cli c;
+    char cache[2048];
+    defaults(&c, cache, sizeof cache);
+    optab_group g[NGROUPS];
+    groups(&c, g);
+    const char *pos[1];
+    int npos = 0;
+    ct_error err;
+    ct_error_clear(&err);
+    int rc = optab_parse(g, NGROUPS - 1, argc, argv, pos, 0, &npos, &err);
+    if (rc == 1) {
+        usage(stdout);
+        return 0;
+    }
+    if (rc) {
+        ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
+        return DISP_EXIT_USAGE;
+    }
+    if (c.quiet) ct_log_set_level(CT_LOG_WARN);
+    if (c.verbose) ct_log_set_level(CT_LOG_DEBUG);
+    disp_app_opts o = c.o;
+    o.backend = (gl_backend_kind)c.backend;
+    o.passes = c.passes;
+    o.view = (disp_view)c.view;
+    o.float_format = (unsigned)c.fbo;
+    o.vsync = !c.no_vsync;
+    if (c.no_cache) o.cache_dir = NULL;
+    if (c.camera) {
+        if (parse_camera(c.camera, &o.camera)) return DISP_EXIT_USAGE;
+        o.has_camera = true;
     }
     int sources = (o.mesh != NULL) + (o.scene != NULL) + (o.connect != NULL);
     if (sources != 1) {
@@ -291,7 +258,6 @@ int main(int argc, char **argv)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
     o.stop = &g_stop;
-    ct_error err;
     ct_error_clear(&err);
     int status = disp_app_run(&o, &err);
     if (status != DISP_EXIT_OK) ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
