@@ -96,6 +96,7 @@ typedef struct rad_ctx {
     const ct_scene *scene;
     rad_params prm;
     double eps;          /* absolute link error threshold (power) */
+    double reflected_mean; /* area-weighted mean reflected radiosity of the last pass (0 in the first) */
     double min_area;     /* absolute */
     double total_area, emitted;
     float ray_eps;       /* offset of ray end points from surfaces */

@@ -14,7 +14,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 10u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 11u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -22,12 +22,14 @@
                                  * cluster's radiosity as seen from the receiver's side; 9: contact
                                  * regions refined further, vertices look at their own visibility
                                  * of partly hidden sources; 10: element links whose value rays
-                                 * were all blocked stay when their deciding rays were not */
+                                 * were all blocked stay when their deciding rays were not;
+                                 * 11: dim receivers refined further (--dim-floor) */
 
 void rad_params_default(rad_params *p)
 {
     memset(p, 0, sizeof *p);
     p->error = 1e-5;
+    p->dim_floor = 0.1;
     p->min_area = 2e-7;
     p->max_triangles = 2000000;
     long n = sysconf(_SC_NPROCESSORS_ONLN);
@@ -48,6 +50,8 @@ int rad_params_check(const rad_params *p, ct_error *err)
 {
     if (!(p->error > 0.0 && p->error < 1.0))
         return ct_fail(err, CT_EINVAL, "--error %g outside (0, 1)", p->error);
+    if (!(p->dim_floor >= 0.0 && p->dim_floor <= 1.0))
+        return ct_fail(err, CT_EINVAL, "--dim-floor %g outside [0, 1]", p->dim_floor);
     if (!(p->min_area > 0.0 && p->min_area < 1.0))
         return ct_fail(err, CT_EINVAL, "--min-area %g outside (0, 1)", p->min_area);
     if (p->max_triangles < 1) return ct_fail(err, CT_EINVAL, "--max-triangles must be at least 1");
@@ -109,6 +113,7 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
         for (uint32_t i = 0; i < s->nnodes; i++) h = mix_bytes(h, s->nodes[i].name, strlen(s->nodes[i].name));
     }
     h = mix_f(h, p->error);
+    h = mix_f(h, p->dim_floor);
     h = mix_f(h, p->min_area);
     h = mix(h, p->max_triangles);
     h = mix(h, (uint64_t)p->vis_rays);
@@ -273,6 +278,22 @@ static void publish_tree(rad_ctx *c, uint32_t root)
         if (e->child != RAD_NONE)
             for (uint32_t i = 0; i < 4; i++) stack[sp++] = e->child + i;
     }
+}
+
+/* The area-weighted mean over the input patches of their reflected
+ * radiosity (brightest channel), from the last pass's solution: what a
+ * dim receiver is measured against (refine_elem, --dim-floor). */
+static double mean_reflected(const rad_ctx *c)
+{
+    double area = 0.0, sum = 0.0;
+    for (uint32_t p = 0; p < c->npatches; p++) {
+        const rad_patch *pa = &c->patches[p];
+        const rad_elem *r = rad_el(c, pa->root);
+        vec3 b = *rad_B(c, c->cur, pa->root);
+        area += r->area;
+        sum += r->area * v3_maxc(v3_max(v3_sub(b, pa->E), v3s(0.0f)));
+    }
+    return area > 0.0 ? sum / area : 0.0;
 }
 
 static void *worker_main(void *arg)
@@ -447,6 +468,7 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         c->pass_budget = prm->max_triangles > est ? prm->max_triangles - est : 0;
         c->want_total = 0;
         for (uint32_t p = 0; p < c->npatches; p++) c->want_total += c->patches[p].want;
+        c->reflected_mean = c->pass > 0 ? mean_reflected(c) : 0.0;
         rc = run_job(c, ws, prm->threads, JOB_REFINE, 0);
         if (rc || atomic_load(&c->over_cap)) {
             rc = rc == CT_ENOMEM || atomic_load(&c->over_cap) ? cap_error(c, err)

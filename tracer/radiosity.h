@@ -26,6 +26,8 @@
 /* Solver parameters; every field is a `corrtex radiosity` option. */
 typedef struct rad_params {
     double error;           /* link error threshold, fraction of the total emitted power */
+    double dim_floor;       /* a receiver dimmer than the mean reflected radiosity takes the threshold times its
+                             * share of that mean, down to this factor (0: every receiver the same threshold) */
     double min_area;        /* smallest element area, fraction of the total surface area */
     uint32_t max_triangles; /* stop subdividing near this many output triangles */
     int threads;            /* worker threads (pthreads) */

@@ -41,6 +41,9 @@ static const optab OPTS[] = {
      NULL},
     {"shadow-rays", 0, OPTAB_INT, OF(p.shadow_rays), 1, 1024, NULL, "N",
      "visibility rays per link from an emitting source", NULL},
+    {"dim-floor", 0, OPTAB_DOUBLE, OF(p.dim_floor), 0, 1, NULL, "F",
+     "a receiver dimmer than the scene's mean reflected radiosity is refined for errors down to its share of "
+     "the threshold, at least F times it (0: one threshold everywhere)", NULL},
     {"vertex-rays", 0, OPTAB_INT, OF(p.vertex_rays), 0, 1024, NULL, "N",
      "final gather: visibility rays from a mesh vertex to a partly hidden source whose light it may change by "
      "more than 1 % (0: every vertex takes its element's visibility)", NULL},

@@ -11,12 +11,13 @@
 # contact shadows at the edges are docs/radiosity.md's separate table), and
 # without a shadow boundary (--flat: the direct light varies over it by at
 # most half the block's mean), must be within 5 % of the reference, and
-# the blocks' rms within 5 % too. Not in the L room: its worst blocks, the
-# far arm's end wall near its edges with the ceiling and the side wall (+6
-# to +11 %) and the floor at the occluding box's foot (-8 to -11 % over
-# seeds 1-3), are held to 15 % until the solver meets 5 % there
-# (docs/radiosity.md, Accuracy; the solver before this test had 43 %,
-# solver version 8 18.4 %).
+# the blocks' rms within 5 % too. Not in the L room: its worst block, the
+# floor at the occluding box's foot (-4 to -7 % over seeds 1-3: the
+# quadtree's elements straddle the contact line), is held to 7 % until the
+# solver meets 5 % there (docs/radiosity.md, Accuracy; the solver before
+# this test had 43 %, solver version 8 18.4 %, version 10 10.7 %, its far
+# arm's end wall too bright along its edges, which dim receivers refined
+# further took to 4 % in version 11).
 #
 # The references are committed (scripts/make-radiosity-refs renders them:
 # 32768 samples per pixel, path tracing; regenerating takes minutes per
@@ -30,7 +31,7 @@ source "$(dirname "$0")/lib/common.sh"
 data="$root/tests/data/radiosity"
 [[ -f $root/scenes/cornell/cornell.obj ]] || { echo "missing scenes/cornell meshes (run make scenes)"; exit 1; }
 run_tail=40
-for sc_bound in cornell_diffuse:0.05 boxroom:0.05 lroom:0.15; do
+for sc_bound in cornell_diffuse:0.05 boxroom:0.05 lroom:0.07; do
   sc=${sc_bound%:*} bound=${sc_bound#*:}
   echo "== $sc"
   [[ -f $data/$sc-ref.exr ]] || { fail "missing $data/$sc-ref.exr (scripts/make-radiosity-refs)"; continue; }

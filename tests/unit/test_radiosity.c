@@ -147,8 +147,9 @@ Test(radiosity, energy_and_regions_converge_in_a_closed_box, .timeout = 240)
  * (0.9900, 0.9912, 0.9934, mean 0.9915, with the side it turns to the
  * receiver, rad_cluster_B). An element link whose value rays were all
  * blocked was dropped too, the same selection (0.9925, 0.9934, 0.9956,
- * mean 0.9938, once kept: solver version 10). docs/radiosity.md, "Energy
- * with occlusion". */
+ * mean 0.9938, once kept: solver version 10); dim receivers refined
+ * further (--dim-floor, version 11): 0.9942, 0.9960, 0.9980, mean 0.9961.
+ * docs/radiosity.md, "Energy with occlusion". */
 Test(radiosity, box_with_boxes_keeps_its_power, .timeout = 240)
 {
     ct_scene *s;
@@ -170,7 +171,7 @@ Test(radiosity, box_with_boxes_keeps_its_power, .timeout = 240)
         sum += ratio;
         rmesh_free(&m);
     }
-    cr_assert_geq(sum / 3.0, 0.992, "mean absorbed / emitted %.5f: power lost", sum / 3.0);
+    cr_assert_geq(sum / 3.0, 0.995, "mean absorbed / emitted %.5f: power lost", sum / 3.0);
     scene_free(s);
 }
 
