@@ -144,6 +144,20 @@ static void field_text(const optab *r, const void *base, char *out, size_t cap)
     case OPTAB_DOUBLE: snprintf(out, cap, "%g", *(const double *)f); break;
     case OPTAB_FLAG: snprintf(out, cap, "%s", *(const bool *)f ? "on" : "off"); break;
     case OPTAB_STRING: snprintf(out, cap, "%s", *(const char *const *)f ? *(const char *const *)f : ""); break;
+    case OPTAB_CHOICE: {
+        /* The word whose code the field holds; none when it holds no word's. */
+        int v = *(const int *)f, k = 0;
+        out[0] = 0;
+        for (const char *p = r->arg; p; k++) {
+            size_t w = strcspn(p, "|");
+            if ((r->codes ? r->codes[k] : k) == v) {
+                snprintf(out, cap, "%.*s", (int)w, p);
+                break;
+            }
+            p = p[w] ? p + w + 1 : NULL;
+        }
+        break;
+    }
     default: out[0] = 0; break;
     }
 }
@@ -179,7 +193,7 @@ void optab_usage(const optab *t, size_t n, const void *defaults, FILE *f)
         char dv[64] = "";
         if (r->type == OPTAB_FLAG && !defaults) snprintf(dv, sizeof dv, "%s", r->def && strcmp(r->def, "0") ? "on" : "off");
         else if (r->def) snprintf(dv, sizeof dv, "%s", r->def);
-        else if (defaults && r->type != OPTAB_CHOICE && in_range(r, defaults)) field_text(r, defaults, dv, sizeof dv);
+        else if (defaults && in_range(r, defaults)) field_text(r, defaults, dv, sizeof dv);
         if (dv[0]) fprintf(f, " (default %s)\n", dv);
         else fputc('\n', f);
     }

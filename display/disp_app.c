@@ -38,7 +38,6 @@ void disp_app_defaults(disp_app_opts *o)
     o->vsync = true;
     o->float_format = GL_RGBA32F;
     o->ambient = 0.3f;
-    o->texel_cpu = 0.0;
     o->reconnect = false;
     o->sample_frames = DISP_SAMPLE_FRAMES;
     o->sample_max = DISP_SAMPLE_MAX;

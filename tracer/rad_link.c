@@ -352,6 +352,7 @@ static int refine_elem(rad_ctx *c, rad_tls *t, uint32_t ei, size_t in_b, size_t 
     for (size_t k = in_b; k < in_e; k++)
         if (add_cand(t, t->work[k].l.src, NULL)) return CT_ENOMEM;
     int r_split = receiver_splittable(c, t, rad_el(c, ei));
+    const double dim = dim_share(c, ei);   /* the receiver's B does not change while it is refined */
     size_t down = base;   /* work[base, down): links moving to the children */
     for (int again = 1; again;) {
         again = 0;
@@ -405,7 +406,7 @@ static int refine_elem(rad_ctx *c, rad_tls *t, uint32_t ei, size_t in_b, size_t 
                 double err = v3_maxc(src_B(c, src)) * ((double)k->l.gr + k->l.gv);
                 double gap = v3_len(v3_sub(s->c, r->c)) - s->radius - r->radius;
                 double lim = gap < CONTACT_GAP * r->radius && k->l.gv > 0.0f ? CONTACT_SHARE * c->eps : c->eps;
-                lim *= dim_share(c, ei);
+                lim *= dim;
                 move = err > lim && r_split;
                 if (!move && k->fresh && value(c, r, &k->l, F, nr) < 0) {
                     t->work[i] = t->work[--t->nwork];

@@ -26,7 +26,8 @@ static void on_signal(int sig)
  * map onto them once parsed. */
 typedef struct cli {
     disp_app_opts o;
-    int backend, passes, view, fbo;
+    int backend;                  /* -1 until given: disp_app_defaults' choice, which depends on $DISPLAY */
+    int passes, view, fbo;
     const char *camera;           /* --camera EX,EY,EZ,TX,TY,TZ[,FOV] */
     bool no_cache, no_vsync, quiet, verbose;
 } cli;
@@ -38,8 +39,8 @@ static const int FBOS[] = {GL_RGBA32F, GL_RGBA16F};
 static const int VIEWS[] = {DISP_VIEW_FULL, DISP_VIEW_RADIOSITY, DISP_VIEW_CORRECTIONS, DISP_VIEW_ASSIGNMENT,
                             DISP_VIEW_SAMPLES};
 
-/* Rows without a default of their own take disp_app_defaults' (--help
- * shows them from the defaults struct). */
+/* No row has a default of its own: disp_app_defaults' are the only ones
+ * (--help shows them from the defaults struct). */
 static const optab INPUT_OPTS[] = {
     {"connect", 0, OPTAB_STRING, OF(o.connect), 0, 0, NULL, "ADDR",
      "master's display socket: unix:PATH or tcp:HOST:PORT", NULL},
@@ -68,19 +69,19 @@ static const optab INPUT_OPTS[] = {
 
 static const optab VIEW_OPTS[] = {
     {"backend", 0, OPTAB_CHOICE, OF(backend), 0, 0, NULL, "glfw|egl|osmesa",
-     "a window, or headless (default glfw when $DISPLAY is set, else egl)", BACKENDS},
+     "a window, or headless (default: glfw when $DISPLAY is set, else egl)", BACKENDS},
     {"width", 0, OPTAB_INT, OF(o.width), 1, 16384, NULL, "W", "image width", NULL},
     {"height", 0, OPTAB_INT, OF(o.height), 1, 16384, NULL, "H", "image height", NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(o.exposure), -30, 30, NULL, "STOPS", "displayed = linear * 2^STOPS", NULL},
-    {"passes", 0, OPTAB_CHOICE, OF(passes), 0, 0, "1", "1|3", "corrections in one shader pass or three passes",
+    {"passes", 0, OPTAB_CHOICE, OF(passes), 0, 0, NULL, "1|3", "corrections in one shader pass or three passes",
      PASSES},
-    {"view", 0, OPTAB_CHOICE, OF(view), 0, 0, "full", "full|radiosity|corrections|assignment|samples",
+    {"view", 0, OPTAB_CHOICE, OF(view), 0, 0, NULL, "full|radiosity|corrections|assignment|samples",
      "what is drawn (docs/display.md, \"Debug views\")", VIEWS},
     {"sample-frames", 0, OPTAB_U32, OF(o.sample_frames), 1, 100000, NULL, "N",
      "samples view: show the sample points of the last N frames", NULL},
     {"sample-max", 0, OPTAB_U32, OF(o.sample_max), 1, 100000000, NULL, "N", "samples view: keep at most N points",
      NULL},
-    {"fbo", 0, OPTAB_CHOICE, OF(fbo), 0, 0, "32f", "32f|16f", "float framebuffer format", FBOS},
+    {"fbo", 0, OPTAB_CHOICE, OF(fbo), 0, 0, NULL, "32f|16f", "float framebuffer format", FBOS},
     {"no-vsync", 0, OPTAB_FLAG, OF(no_vsync), 0, 0, NULL, NULL, "window: do not wait for vertical sync", NULL},
     {"camera", 0, OPTAB_STRING, OF(camera), 0, 0, NULL, "EX,EY,EZ,TX,TY,TZ[,FOV]",
      "start camera: eye, target, vertical field of view in degrees (default 50)", NULL},
@@ -136,17 +137,13 @@ static void groups(cli *c, optab_group *g)
     g[4] = (optab_group){NULL, 0, NULL};
 }
 
-/* Every option's default: the rows' own, disp_app_defaults' for the rest,
- * and the scene cache under $XDG_CACHE_HOME or ~/.cache (in cache). */
+/* Every option's default: disp_app_defaults', and the scene cache under
+ * $XDG_CACHE_HOME or ~/.cache (in cache). */
 static void defaults(cli *c, char *cache, size_t cache_size)
 {
     memset(c, 0, sizeof *c);
-    optab_group g[NGROUPS];
-    groups(c, g);
-    ct_error e;
-    for (int k = 0; g[k].rows; k++) optab_defaults(g[k].rows, g[k].n, g[k].base, &e);
     disp_app_defaults(&c->o);
-    c->backend = (int)c->o.backend;
+    c->backend = -1;
     c->passes = c->o.passes;
     c->view = (int)c->o.view;
     c->fbo = (int)c->o.float_format;
@@ -232,7 +229,7 @@ int main(int argc, char **argv)
     if (c.quiet) ct_log_set_level(CT_LOG_WARN);
     if (c.verbose) ct_log_set_level(CT_LOG_DEBUG);
     disp_app_opts o = c.o;
-    o.backend = (gl_backend_kind)c.backend;
+    if (c.backend >= 0) o.backend = (gl_backend_kind)c.backend;
     o.passes = c.passes;
     o.view = (disp_view)c.view;
     o.float_format = (unsigned)c.fbo;

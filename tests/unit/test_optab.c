@@ -4,6 +4,8 @@
  * every engine's table has defaults that parse. */
 #include <criterion/criterion.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "common/optab.h"
@@ -172,4 +174,31 @@ Test(optab, every_engine_table_has_valid_defaults)
     ct_error err;
     cr_assert_eq(optab_defaults(broken, 1, &t, &err), CT_EINVAL);
     cr_assert(strstr(err.msg, "default: --count: '100'"), "%s", err.msg);
+}
+
+/* --help shows a choice without a default of its own by the word of the
+ * value in the defaults struct (corrtex-display's come from code), and none
+ * when the value is no word's (a default resolved later). */
+Test(optab, usage_shows_a_choice_default_from_the_struct)
+{
+    static const optab ROW[] = {
+        {"enc", 0, OPTAB_CHOICE, offsetof(toy, mode), 0, 0, NULL, "raw|auto|lz4", "a choice", MODE_CODES},
+    };
+    toy t;
+    memset(&t, 0, sizeof t);
+    char *text = NULL;
+    size_t len = 0;
+    const int values[] = {3, 99};
+    const char *want[] = {"(default lz4)", NULL};
+    for (int i = 0; i < 2; i++) {
+        t.mode = values[i];
+        FILE *f = open_memstream(&text, &len);
+        cr_assert_not_null(f);
+        optab_usage(ROW, 1, &t, f);
+        fclose(f);
+        if (want[i]) cr_assert(strstr(text, want[i]) != NULL, "value %d: %s", values[i], text);
+        else cr_assert(strstr(text, "default") == NULL, "value %d: %s", values[i], text);
+        free(text);
+        text = NULL;
+    }
 }
