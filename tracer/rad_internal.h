@@ -100,6 +100,7 @@ typedef struct rad_ctx {
     double min_area;     /* absolute */
     double total_area, emitted;
     float ray_eps;       /* offset of ray end points from surfaces */
+    uint32_t contact_vertices; /* mesh vertices given the value at a contact line (rad_contact.c) */
 
     uint32_t npatches;
     rad_patch *patches;
@@ -232,8 +233,25 @@ void rad_vis_free(rad_vis *v);
  * after RMESH_MAX_GLASS_CROSSINGS). */
 float rad_vis_transmit(const rad_vis *v, vec3 a, vec3 b);
 
+/* Whether the nearest opaque surface along the ray from o in direction d
+ * (any length) is seen from behind its winding's side; false when the ray
+ * hits nothing or a front face. */
+bool rad_vis_hits_back(const rad_vis *v, vec3 o, vec3 d);
+
 /* Bytes Embree uses for the scene. */
 uint64_t rad_vis_bytes(const rad_vis *v);
+
+/* --- rad_contact.c --------------------------------------------------------- */
+
+/* Mesh vertices hidden inside an object that stands on their surface (a
+ * floor's corner under a box): each takes the radiosity gathered where its
+ * edge to the brightest corner of one of its elements leaves the object,
+ * so that Gouraud shading does not smear its darkness over the element's
+ * visible part. nl elements leaf[i], the vertex groups of each on its
+ * boundary loop bvert[boff[i] .. boff[i+1]); nv vertex groups at pos with
+ * radiosity B and direct part Bd, changed in place; *moved counts them. */
+int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, const uint32_t *boff,
+                         const uint32_t *bvert, uint32_t nv, const vec3 *pos, vec3 *B, vec3 *Bd, uint32_t *moved);
 
 /* --- rad_mirror.c --------------------------------------------------------- */
 
@@ -364,5 +382,10 @@ void rad_gather_scratch_free(rad_gather_scratch *w);
  * visibility of partly hidden sources seen from x itself. */
 void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
                       vec3 n, vec3 *H, vec3 *Hd);
+
+/* Radiosity B and its direct part Bd at the n points pos[g], each on leaf
+ * leaf[g] (rad_final_gather, plus lamps seen in mirrors), on
+ * c->prm.threads threads. CT_OK or CT_ENOMEM. */
+int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd);
 
 #endif

@@ -8,8 +8,6 @@
  * duplicated so values stay separate. */
 #include "tracer/rad_internal.h"
 
-#include <pthread.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -222,65 +220,6 @@ static float on_segment(vec3 a, vec3 b, vec3 p)
     return v3_len2(v3_sub(d, v3_scale(ab, t))) <= tol * tol ? t : -1.0f;
 }
 
-/* The final gather at the mesh's vertices (rad_final_gather), on
- * c->prm.threads threads taking runs of vertices from a shared counter. */
-typedef struct gather_job {
-    const rad_ctx *c;
-    const rad_gather_prep *prep;
-    const uint32_t *leaf;
-    const vec3 *pos;
-    vec3 *B, *Bd;
-    uint32_t n;
-    atomic_uint *next;
-} gather_job;
-
-static void *gather_worker(void *arg)
-{
-    gather_job *j = arg;
-    rad_gather_scratch w = {0};
-    for (;;) {
-        uint32_t b = atomic_fetch_add(j->next, 256);
-        if (b >= j->n) break;
-        uint32_t e = b + 256 < j->n ? b + 256 : j->n;
-        for (uint32_t g = b; g < e; g++) {
-            const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
-            vec3 H, Hd;
-            rad_final_gather(j->c, j->prep, &w, j->leaf[g], j->pos[g], p->n, &H, &Hd);
-            if (j->c->mirrors) {
-                vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
-                H = v3_add(H, hm);
-                Hd = v3_add(Hd, hm);
-            }
-            j->B[g] = v3_add(p->E, v3_mul(p->rho, H));
-            j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
-        }
-    }
-    rad_gather_scratch_free(&w);
-    return NULL;
-}
-
-/* Radiosity B and its direct part Bd of the n vertices pos[g] of leaf[g]. */
-static int gather_vertices(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
-{
-    rad_gather_prep prep;
-    if (rad_gather_prepare(c, &prep) != CT_OK) {
-        rad_gather_prep_free(&prep);
-        return CT_ENOMEM;
-    }
-    atomic_uint next = 0;
-    gather_job j = {c, &prep, leaf, pos, B, Bd, n, &next};
-    pthread_t th[256];
-    int started = 0, nth = c->prm.threads < 256 ? c->prm.threads : 256;
-    for (int i = 1; i < nth; i++) {
-        if (pthread_create(&th[i], NULL, gather_worker, &j) != 0) break;
-        started = i;
-    }
-    gather_worker(&j);
-    for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
-    rad_gather_prep_free(&prep);
-    return 0;
-}
-
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
 {
     const ct_scene *s = c->scene;
@@ -452,7 +391,8 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
         }
     }
     free(slot_leaf);
-    rc = gather_vertices(c, vleaf, vpos, nv, vsum, vdsum);
+    rc = rad_gather_points(c, vleaf, vpos, nv, vsum, vdsum);
+    if (!rc) rc = rad_contact_vertices(c, leaves.v, leaves.n, boff.v, bvert, nv, vpos, vsum, vdsum, &c->contact_vertices);
     if (rc) goto oom;
 
     /* Count triangles and centre vertices, then fill the mesh. */

@@ -14,7 +14,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 11u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 12u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -23,7 +23,8 @@
                                  * regions refined further, vertices look at their own visibility
                                  * of partly hidden sources; 10: element links whose value rays
                                  * were all blocked stay when their deciding rays were not;
-                                 * 11: dim receivers refined further (--dim-floor) */
+                                 * 11: dim receivers refined further (--dim-floor); 12: vertices
+                                 * hidden under objects take the value at the contact line */
 
 void rad_params_default(rad_params *p)
 {
@@ -558,6 +559,7 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     st->residual = residual;
     st->triangles = out->ntris;
     st->vertices = out->nverts;
+    st->contact_vertices = c->contact_vertices;
     st->emitted = c->emitted;
     st->peak_bytes = atomic_load(&c->peak);
     rc = CT_OK;

@@ -7,6 +7,7 @@
 #include "tracer/rad_internal.h"
 
 #include <embree3/rtcore.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,6 +18,7 @@ struct rad_vis {
     RTCScene glass;      /* dielectric triangles; NULL without any */
     rmesh_material *gmat;   /* per glass primitive: its material... */
     vec3 *gn;               /* ...and unit normal */
+    vec3 *on;               /* per opaque primitive: its normal (winding's side) */
     atomic_int_fast64_t bytes;
     ct_error *err;
 };
@@ -96,8 +98,16 @@ int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err)
         v->scn = rtcNewScene(v->dev);
         rtcCommitScene(v->scn);
     }
-    v->glass = build_scene(v, s, true, prim, &n);
     int rc = CT_OK;
+    if (n) {
+        v->on = malloc(n * sizeof *v->on);
+        if (!v->on) rc = CT_ENOMEM;
+        for (uint32_t i = 0; i < n && !rc; i++) {
+            const uint32_t *vi = s->tris + 3 * (size_t)prim[i];
+            v->on[i] = v3_cross(v3_sub(s->pos[vi[1]], s->pos[vi[0]]), v3_sub(s->pos[vi[2]], s->pos[vi[0]]));
+        }
+    }
+    v->glass = build_scene(v, s, true, prim, &n);
     if (n && v->glass) {
         v->gmat = malloc(n * sizeof *v->gmat);
         v->gn = malloc(n * sizeof *v->gn);
@@ -128,6 +138,7 @@ void rad_vis_free(rad_vis *v)
     if (v->dev) rtcReleaseDevice(v->dev);
     free(v->gmat);
     free(v->gn);
+    free(v->on);
     free(v);
 }
 
@@ -176,6 +187,19 @@ float rad_vis_transmit(const rad_vis *v, vec3 a, vec3 b)
         t0 = rh.ray.tfar + 1e-5f;
     }
     return 0.0f;
+}
+
+bool rad_vis_hits_back(const rad_vis *v, vec3 o, vec3 d)
+{
+    if (!v->on) return false;
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    segment_ray(&rh.ray, o, v3_add(o, d), 0.0f);
+    rh.ray.tfar = INFINITY;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(v->scn, &ctx, &rh);
+    return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && v3_dot(v->on[rh.hit.primID], d) > 0.0f;
 }
 
 uint64_t rad_vis_bytes(const rad_vis *v)

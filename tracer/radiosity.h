@@ -56,6 +56,8 @@ typedef struct rad_stats {
     double residual;        /* last residual, relative to the brightest reflected light */
     uint32_t triangles;     /* output mesh */
     uint32_t vertices;
+    uint32_t contact_vertices; /* vertices hidden under an object on their surface, given the
+                                * radiosity at its contact line (docs/radiosity.md) */
     uint64_t peak_bytes;    /* the solver's own peak (elements, links, Embree) */
     double emitted;         /* total emitted power (mean of RGB, scene units) */
     double absorbed;        /* total absorbed power at convergence (same units) */

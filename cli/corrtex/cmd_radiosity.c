@@ -213,9 +213,10 @@ int cmd_radiosity(int argc, char **argv)
             st.iterations, st.residual, st.triangles, st.vertices, (unsigned long long)st.rays,
             (double)st.peak_bytes / (1 << 20), st.seconds);
     printf("patches %u\nelements %llu\nlinks %llu\npasses %d\niterations %d\nresidual %.3e\n"
-           "triangles %u\nvertices %u\nrays %llu\nsolver_mb %.1f\nseconds %.2f\nemitted %.6g\nabsorbed %.6g\n",
+           "triangles %u\nvertices %u\ncontact_vertices %u\nrays %llu\nsolver_mb %.1f\nseconds %.2f\nemitted %.6g\n"
+           "absorbed %.6g\n",
            st.patches, (unsigned long long)st.elements, (unsigned long long)st.links, st.passes, st.iterations,
-           st.residual, st.triangles, st.vertices, (unsigned long long)st.rays,
+           st.residual, st.triangles, st.vertices, st.contact_vertices, (unsigned long long)st.rays,
            (double)st.peak_bytes / (1 << 20), st.seconds, st.emitted, st.absorbed);
     rmesh_free(&m);
     scene_free(s);
