@@ -106,9 +106,26 @@ static int quad_points(const rad_elem *r, vec3 *x)
     return 3;
 }
 
+/* Gauss-Legendre points for averaging over an element: quads 2 x 2 at
+ * 1/2 -+ 1/(2 sqrt 3) of each side (exact for bicubics), triangles the
+ * 3-point rule of quad_points; returns their count. */
+static int gauss_points(const rad_elem *r, vec3 *x)
+{
+    if (r->nv != 4) return quad_points(r, x);
+    static const float g[2] = {0.21132487f, 0.78867513f};
+    for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++) x[2 * i + j] = poly_point(r->p, 4, g[i], g[j]);
+    return 4;
+}
+
 /* Point-to-polygon factor from element a to polygon b averaged over a: at
- * a's centre, or over its quadrature points when a is large compared with
- * the distance d (where the factor varies over a). An element straddling
+ * a's centre, or over its Gauss points when a's radius exceeds a tenth of
+ * the distance d. The factor is curved over a, so one point is biased by
+ * about (radius / d)^2, and always the same way for a small source beside a
+ * large perpendicular receiver (a wall's element and a floor's): the centre
+ * up to a fifth of d and the 1/4, 3/4 points beyond made the closed box's
+ * walls exchange 0.2 % too much and created 0.23 % of its power at
+ * --error 1e-4 (0.13 % now). An element straddling
  * b's plane is clipped to the part in front of it first: its centre or
  * quadrature points alone would give all of it or nothing (a floor element
  * half under a box, seen from the box's side), which lost 16 % of the
@@ -142,9 +159,9 @@ static double ff_avg(const rad_ctx *c, const rad_elem *a, const rad_elem *b, flo
         }
         return a->area > 0.0f ? sum / a->area : 0.0;
     }
-    if (a->radius < 0.2f * d) return rad_ff_point_polygon(a->c, n, b->p, b->nv);
+    if (a->radius < 0.1f * d) return rad_ff_point_polygon(a->c, n, b->p, b->nv);
     vec3 x[4];
-    int nq = quad_points(a, x);
+    int nq = gauss_points(a, x);
     double sum = 0.0;
     for (int k = 0; k < nq; k++) sum += rad_ff_point_polygon(x[k], n, b->p, b->nv);
     return sum / nq;
