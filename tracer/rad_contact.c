@@ -4,8 +4,8 @@
  * stands on it: an element straddles the box's edge with some corners
  * outside and some under the box, where the final gather finds no light.
  * Gouraud shading then smears that dark over the visible part of the
- * element: on the L room's floor at the box's foot 7-15 % too dark per
- * pixel. A hidden corner is given the radiosity gathered where its edge to
+ * element: along the L room's box a band up to an element (2 cm) wide, up
+ * to 60 % too dark at the box's edge. A hidden corner is given the radiosity gathered where its edge to
  * a lit corner of the same element comes out from under the box (the
  * contact line), which is what the visible part lies next to. */
 #include "tracer/rad_internal.h"

@@ -122,7 +122,7 @@ int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err)
     free(prim);
     if (rc || !v->scn || (n && !v->glass) || rtcGetDeviceError(v->dev) != RTC_ERROR_NONE) {
         rad_vis_free(v);
-        return rc ? ct_fail(err, CT_ENOMEM, "radiosity: out of memory for the glass table")
+        return rc ? ct_fail(err, CT_ENOMEM, "radiosity: out of memory for the visibility tables")
                   : ct_fail(err, CT_ESYS, "embree: building the visibility scene failed");
     }
     v->err = NULL;   /* later errors would come from worker threads */
