@@ -37,16 +37,25 @@ bad:
     return ct_fail(err, CT_EINVAL, "--%s: '%s' is not an integer in [%.17g, %.17g]", r->name, v, r->lo, r->hi);
 }
 
+/* The k-th word of "a|b|c" and its length in *len, or NULL past the last. */
+static const char *choice_word(const char *words, int k, size_t *len)
+{
+    const char *p = words;
+    for (int i = 0; p && i < k; i++) {
+        size_t w = strcspn(p, "|");
+        p = p[w] ? p + w + 1 : NULL;
+    }
+    if (p) *len = strcspn(p, "|");
+    return p;
+}
+
 /* The index of value among the words of "a|b|c", or -1. */
 static int choice_index(const char *words, const char *value)
 {
-    size_t len = strlen(value);
-    int k = 0;
-    for (const char *p = words; p; k++) {
-        size_t w = strcspn(p, "|");
+    size_t len = strlen(value), w;
+    const char *p;
+    for (int k = 0; (p = choice_word(words, k, &w)); k++)
         if (w == len && strncmp(p, value, len) == 0) return k;
-        p = p[w] ? p + w + 1 : NULL;
-    }
     return -1;
 }
 
@@ -146,16 +155,15 @@ static void field_text(const optab *r, const void *base, char *out, size_t cap)
     case OPTAB_STRING: snprintf(out, cap, "%s", *(const char *const *)f ? *(const char *const *)f : ""); break;
     case OPTAB_CHOICE: {
         /* The word whose code the field holds; none when it holds no word's. */
-        int v = *(const int *)f, k = 0;
+        int v = *(const int *)f;
+        size_t w;
+        const char *p;
         out[0] = 0;
-        for (const char *p = r->arg; p; k++) {
-            size_t w = strcspn(p, "|");
+        for (int k = 0; (p = choice_word(r->arg, k, &w)); k++)
             if ((r->codes ? r->codes[k] : k) == v) {
                 snprintf(out, cap, "%.*s", (int)w, p);
                 break;
             }
-            p = p[w] ? p + w + 1 : NULL;
-        }
         break;
     }
     default: out[0] = 0; break;

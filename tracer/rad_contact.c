@@ -5,9 +5,10 @@
  * outside and some under the box, where the final gather finds no light.
  * Gouraud shading then smears that dark over the visible part of the
  * element: along the L room's box a band up to an element (2 cm) wide, up
- * to 60 % too dark at the box's edge. A hidden corner is given the radiosity gathered where its edge to
- * a lit corner of the same element comes out from under the box (the
- * contact line), which is what the visible part lies next to. */
+ * to 60 % too dark at the box's edge. A hidden corner is given the
+ * radiosity gathered where its edge to a lit corner of the same element
+ * comes out from under the box (the contact line), which is what the
+ * visible part lies next to. */
 #include "tracer/rad_internal.h"
 
 #include <math.h>
@@ -54,11 +55,11 @@ int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, cons
      * wholly under the object has only dark corners to offer). */
     uint32_t *cl = malloc((nv ? nv : 1) * sizeof *cl);
     uint32_t *cu = malloc((nv ? nv : 1) * sizeof *cu);
-    float *cd = malloc((nv ? nv : 1) * sizeof *cd);
+    float *cmx = malloc((nv ? nv : 1) * sizeof *cmx);   /* that corner's luminance */
     uint32_t *rleaf = NULL, *rv = NULL;
     vec3 *rpos = NULL, *rB = NULL, *rBd = NULL;
     int rc = CT_ENOMEM;
-    if (!cl || !cu || !cd) goto done;
+    if (!cl || !cu || !cmx) goto done;
     for (uint32_t g = 0; g < nv; g++) cl[g] = RAD_NONE;
     uint32_t ncand = 0;
     for (size_t i = 0; i < nl; i++) {
@@ -76,10 +77,10 @@ int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, cons
             uint32_t g = bvert[k];
             if (!(v3_luminance(B[g]) < CONTACT_DARK * mx)) continue;
             if (cl[g] == RAD_NONE) ncand++;
-            else if (mx <= cd[g]) continue;
+            else if (mx <= cmx[g]) continue;
             cl[g] = (uint32_t)i;
             cu[g] = ub;
-            cd[g] = mx;
+            cmx[g] = mx;
         }
     }
     rleaf = malloc((ncand ? ncand : 1) * sizeof *rleaf);
@@ -119,7 +120,7 @@ int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, cons
 done:
     free(cl);
     free(cu);
-    free(cd);
+    free(cmx);
     free(rleaf);
     free(rv);
     free(rpos);

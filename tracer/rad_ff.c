@@ -89,13 +89,17 @@ double rad_ff_polygons(const vec3 *a, int na, const vec3 *b, int nb, int n)
     return cnt ? sum / cnt : 0.0;
 }
 
-/* The receiver's quadrature points: quads 2 x 2 points at 1/4 and 3/4 of
- * each side, triangles the 3-point rule (4/6, 1/6, 1/6); returns their
- * count. */
-static int quad_points(const rad_elem *r, vec3 *x)
+/* Side positions of a quad's 2 x 2 points: the receiver's spread points
+ * (1/4, 3/4) and the Gauss-Legendre points of a factor's average
+ * (1/2 -+ 1/(2 sqrt 3), exact for bicubics). */
+static const float SPREAD_AT[2] = {0.25f, 0.75f};
+static const float GAUSS_AT[2] = {0.21132487f, 0.78867513f};
+
+/* An element's 2 x 2 points at side positions g (quads) or the 3-point
+ * rule (4/6, 1/6, 1/6; triangles); returns their count. */
+static int elem_points(const rad_elem *r, const float g[2], vec3 *x)
 {
     if (r->nv == 4) {
-        static const float g[2] = {0.25f, 0.75f};
         for (int i = 0; i < 2; i++)
             for (int j = 0; j < 2; j++) x[2 * i + j] = poly_point(r->p, 4, g[i], g[j]);
         return 4;
@@ -104,18 +108,6 @@ static int quad_points(const rad_elem *r, vec3 *x)
         x[k] = v3_add(v3_scale(r->p[k], 4.0f / 6.0f),
                       v3_add(v3_scale(r->p[(k + 1) % 3], 1.0f / 6.0f), v3_scale(r->p[(k + 2) % 3], 1.0f / 6.0f)));
     return 3;
-}
-
-/* Gauss-Legendre points for averaging over an element: quads 2 x 2 at
- * 1/2 -+ 1/(2 sqrt 3) of each side (exact for bicubics), triangles the
- * 3-point rule of quad_points; returns their count. */
-static int gauss_points(const rad_elem *r, vec3 *x)
-{
-    if (r->nv != 4) return quad_points(r, x);
-    static const float g[2] = {0.21132487f, 0.78867513f};
-    for (int i = 0; i < 2; i++)
-        for (int j = 0; j < 2; j++) x[2 * i + j] = poly_point(r->p, 4, g[i], g[j]);
-    return 4;
 }
 
 /* Point-to-polygon factor from element a to polygon b averaged over a: at
@@ -161,7 +153,7 @@ static double ff_avg(const rad_ctx *c, const rad_elem *a, const rad_elem *b, flo
     }
     if (a->radius < 0.1f * d) return rad_ff_point_polygon(a->c, n, b->p, b->nv);
     vec3 x[4];
-    int nq = gauss_points(a, x);
+    int nq = elem_points(a, GAUSS_AT, x);
     double sum = 0.0;
     for (int k = 0; k < nq; k++) sum += rad_ff_point_polygon(x[k], n, b->p, b->nv);
     return sum / nq;
@@ -192,7 +184,7 @@ void rad_ff_elem(const rad_ctx *c, const rad_elem *r, const rad_elem *s, double 
     int nx = 0;
     x[nx++] = r->c;
     for (int i = 0; i < r->nv; i++) x[nx++] = v3_lerp(r->p[i], r->c, 1e-3f);
-    if (r->radius >= 0.2f * d) nx += quad_points(r, x + nx);
+    if (r->radius >= 0.2f * d) nx += elem_points(r, SPREAD_AT, x + nx);
     double lo = HUGE_VAL, hi = 0.0;
     for (int k = 0; k < nx; k++) {
         double f = rad_ff_point_polygon(x[k], n, s->p, s->nv);

@@ -5,11 +5,10 @@
 #include "tracer/rad_internal.h"
 
 #include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/pool.h"
 #include "common/rng.h"
 
 /* A point just inside leaf e near x, a hair in front of its plane: a mesh
@@ -258,60 +257,57 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
     *Hd = v3_max(hd, v3s(0.0f));
 }
 
-/* The final gather at the mesh's vertices (rad_final_gather), on
- * c->prm.threads threads taking runs of vertices from a shared counter. */
+/* The final gather at points (rad_gather_points), in runs of GATHER_RUN
+ * points per pool task, a scratch per worker. */
+#define GATHER_RUN 256
+
 typedef struct gather_job {
     const rad_ctx *c;
     const rad_gather_prep *prep;
+    rad_gather_scratch *w;   /* one per worker */
     const uint32_t *leaf;
     const vec3 *pos;
     vec3 *B, *Bd;
     uint32_t n;
-    atomic_uint *next;
 } gather_job;
 
-static void *gather_worker(void *arg)
+static void gather_task(void *ctx, int worker, size_t task)
 {
-    gather_job *j = arg;
-    rad_gather_scratch w = {0};
-    for (;;) {
-        uint32_t b = atomic_fetch_add(j->next, 256);
-        if (b >= j->n) break;
-        uint32_t e = b + 256 < j->n ? b + 256 : j->n;
-        for (uint32_t g = b; g < e; g++) {
-            const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
-            vec3 H, Hd;
-            rad_final_gather(j->c, j->prep, &w, j->leaf[g], j->pos[g], p->n, &H, &Hd);
-            if (j->c->mirrors) {
-                vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
-                H = v3_add(H, hm);
-                Hd = v3_add(Hd, hm);
-            }
-            j->B[g] = v3_add(p->E, v3_mul(p->rho, H));
-            j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
+    const gather_job *j = ctx;
+    uint32_t b = (uint32_t)task * GATHER_RUN, e = b + GATHER_RUN < j->n ? b + GATHER_RUN : j->n;
+    for (uint32_t g = b; g < e; g++) {
+        const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
+        vec3 H, Hd;
+        rad_final_gather(j->c, j->prep, &j->w[worker], j->leaf[g], j->pos[g], p->n, &H, &Hd);
+        if (j->c->mirrors) {
+            vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
+            H = v3_add(H, hm);
+            Hd = v3_add(Hd, hm);
         }
+        j->B[g] = v3_add(p->E, v3_mul(p->rho, H));
+        j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
     }
-    rad_gather_scratch_free(&w);
-    return NULL;
 }
 
 int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
 {
+    int nth = c->prm.threads < 1 ? 1 : c->prm.threads > POOL_MAX_THREADS ? POOL_MAX_THREADS : c->prm.threads;
     rad_gather_prep prep;
-    if (rad_gather_prepare(c, &prep) != CT_OK) {
+    rad_gather_scratch *w = calloc((size_t)nth, sizeof *w);
+    ct_pool *pool = NULL;
+    ct_error err;
+    int rc = w ? rad_gather_prepare(c, &prep) : CT_ENOMEM;
+    /* Without worker threads the caller gathers alone (pool NULL). */
+    if (!rc && nth > 1 && pool_new(nth, &pool, &err) != CT_OK) pool = NULL;
+    if (!rc) {
+        gather_job j = {c, &prep, w, leaf, pos, B, Bd, n};
+        pool_run(pool, ((size_t)n + GATHER_RUN - 1) / GATHER_RUN, gather_task, &j);
+    }
+    pool_free(pool);
+    if (w) {
+        for (int i = 0; i < nth; i++) rad_gather_scratch_free(&w[i]);
         rad_gather_prep_free(&prep);
-        return CT_ENOMEM;
     }
-    atomic_uint next = 0;
-    gather_job j = {c, &prep, leaf, pos, B, Bd, n, &next};
-    pthread_t th[256];
-    int started = 0, nth = c->prm.threads < 256 ? c->prm.threads : 256;
-    for (int i = 1; i < nth; i++) {
-        if (pthread_create(&th[i], NULL, gather_worker, &j) != 0) break;
-        started = i;
-    }
-    gather_worker(&j);
-    for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
-    rad_gather_prep_free(&prep);
-    return 0;
+    free(w);
+    return rc ? CT_ENOMEM : CT_OK;
 }
