@@ -1,8 +1,8 @@
 /* pool.h: the one pool of worker threads behind every fan-out (a tracer
  * rank's batch, the reference renderer's tiles, corrtex converge and naive,
- * the master's insertion and its item buffer, the radiosity solver's final
- * gather; its refinement passes and view renders keep their own threads
- * for now): a parallel loop over tasks
+ * the master's insertion and its item buffer, the radiosity solver's
+ * refinement passes, iterations and final gather, its view renders): a
+ * parallel loop over tasks
  * [0, n) in which the calling thread takes part, tasks handed out one at a
  * time by an atomic counter so that uneven tasks balance, workers asleep on
  * a condition variable between loops. One loop at a time, started from one

@@ -291,19 +291,15 @@ static void gather_task(void *ctx, int worker, size_t task)
 
 int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
 {
-    int nth = c->prm.threads < 1 ? 1 : c->prm.threads > POOL_MAX_THREADS ? POOL_MAX_THREADS : c->prm.threads;
+    /* On the solver's pool (rad_solve.c), the caller alone without one. */
+    int nth = pool_threads(c->pool);
     rad_gather_prep prep;
     rad_gather_scratch *w = calloc((size_t)nth, sizeof *w);
-    ct_pool *pool = NULL;
-    ct_error err;
     int rc = w ? rad_gather_prepare(c, &prep) : CT_ENOMEM;
-    /* Without worker threads the caller gathers alone (pool NULL). */
-    if (!rc && nth > 1 && pool_new(nth, &pool, &err) != CT_OK) pool = NULL;
     if (!rc) {
         gather_job j = {c, &prep, w, leaf, pos, B, Bd, n};
-        pool_run(pool, ((size_t)n + GATHER_RUN - 1) / GATHER_RUN, gather_task, &j);
+        pool_run(c->pool, ((size_t)n + GATHER_RUN - 1) / GATHER_RUN, gather_task, &j);
     }
-    pool_free(pool);
     if (w) {
         for (int i = 0; i < nth; i++) rad_gather_scratch_free(&w[i]);
         rad_gather_prep_free(&prep);

@@ -122,6 +122,8 @@ typedef struct rad_ctx {
     int pass;
 
     rad_vis *vis;
+    struct ct_pool *pool; /* the solver's threads (prm.threads, the caller
+                           * included; NULL: the caller alone) */
 
     /* Lamps seen in plane mirrors (rad_mirror.c): a tracer scene of the
      * scene's own triangles, its lamps and mirrors; all NULL without a

@@ -1,7 +1,7 @@
 /* rad_solve.c: the hierarchical radiosity driver: refinement passes (links
  * refined by the B*F*A oracle against the current solution), Jacobi
  * gather/push-pull iterations until the residual is under the tolerance,
- * worker threads over input patches, the memory cap, and the stats. */
+ * passes over input patches on a thread pool (common/pool.h), the memory cap, and the stats. */
 #include "tracer/rad_internal.h"
 
 #include <stdio.h>
@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "common/log.h"
+#include "common/pool.h"
 #include "common/rng.h"
 #include "common/timer.h"
 
@@ -165,7 +166,6 @@ typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH } job_kind;
 typedef struct worker {
     rad_ctx *c;
     job_kind kind;
-    atomic_uint *next;
     rad_tls tls;
     double residual;
     double max_reflected;   /* largest reflected radiosity (B - E) of a leaf */
@@ -174,7 +174,6 @@ typedef struct worker {
     int rc;
     rad_progress_fn progress;
     void *user;
-    int id;
 } worker;
 
 /* Gather over e's links and push-pull below it; returns e's area-weighted
@@ -298,60 +297,62 @@ static double mean_reflected(const rad_ctx *c)
     return area > 0.0 ? sum / area : 0.0;
 }
 
-static void *worker_main(void *arg)
+/* Patches per pool task: enough to keep the hand-out counter cold, few
+ * enough that the last tasks of a pass balance. */
+#define JOB_BATCH 16u
+
+typedef struct job {
+    rad_ctx *c;
+    worker *ws;   /* one per pool worker */
+} job;
+
+static void job_task(void *ctx, int wi, size_t task)
 {
-    worker *w = arg;
-    rad_ctx *c = w->c;
-    const uint32_t batch = 16;
-    for (;;) {
-        uint32_t b = atomic_fetch_add(w->next, batch);
-        if (b >= c->npatches || atomic_load(&c->failed)) break;
-        uint32_t e = b + batch < c->npatches ? b + batch : c->npatches;
-        for (uint32_t p = b; p < e; p++) {
-            if (w->kind == JOB_REFINE) {
-                int rc = rad_refine_patch(c, &w->tls, p);
-                if (rc) {
-                    w->rc = rc;
-                    atomic_store(&c->failed, 1);
-                    break;
-                }
-            } else if (w->kind == JOB_GATHER) {
-                vec3 bd;
-                push_pull(w, c->patches[p].root, v3s(0.0f), v3s(0.0f), &bd);
-            } else {
-                publish_tree(c, c->patches[p].root);
-                patch_openness(c, p);
+    const job *j = ctx;
+    worker *w = &j->ws[wi];
+    rad_ctx *c = j->c;
+    uint32_t b = (uint32_t)task * JOB_BATCH;
+    if (atomic_load(&c->failed)) return;
+    uint32_t e = b + JOB_BATCH < c->npatches ? b + JOB_BATCH : c->npatches;
+    for (uint32_t p = b; p < e; p++) {
+        if (w->kind == JOB_REFINE) {
+            int rc = rad_refine_patch(c, &w->tls, p);
+            if (rc) {
+                w->rc = rc;
+                atomic_store(&c->failed, 1);
+                return;
             }
-        }
-        if (w->id == 0 && w->progress && w->kind == JOB_REFINE) {
-            char msg[96];
-            snprintf(msg, sizeof msg, "pass %d: refining links (%u/%u patches)", c->pass + 1, e, c->npatches);
-            w->progress(w->user, (double)e / c->npatches, msg);
+        } else if (w->kind == JOB_GATHER) {
+            vec3 bd;
+            push_pull(w, c->patches[p].root, v3s(0.0f), v3s(0.0f), &bd);
+        } else {
+            publish_tree(c, c->patches[p].root);
+            patch_openness(c, p);
         }
     }
-    return NULL;
+    /* Progress from the calling thread only: the callback is not
+     * thread-safe. */
+    if (wi == 0 && w->progress && w->kind == JOB_REFINE) {
+        char msg[96];
+        snprintf(msg, sizeof msg, "pass %d: refining links (%u/%u patches)", c->pass + 1, e, c->npatches);
+        w->progress(w->user, (double)e / c->npatches, msg);
+    }
 }
 
+/* One pass of `kind` over every patch on the solver's pool; ws holds one
+ * worker state per pool thread (its scratch kept across passes). */
 static int run_job(rad_ctx *c, worker *ws, int n, job_kind kind, int final)
 {
-    atomic_uint next = 0;
-    pthread_t th[256];
-    int started = 0;
     for (int i = 0; i < n; i++) {
         ws[i].kind = kind;
-        ws[i].next = &next;
         ws[i].residual = 0.0;
         ws[i].max_reflected = 0.0;
         ws[i].absorbed = 0.0;
         ws[i].final = final;
         ws[i].rc = 0;
     }
-    for (int i = 1; i < n; i++) {
-        if (pthread_create(&th[i], NULL, worker_main, &ws[i]) != 0) break;
-        started = i;
-    }
-    worker_main(&ws[0]);
-    for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
+    job j = {c, ws};
+    pool_run(c->pool, (c->npatches + JOB_BATCH - 1) / JOB_BATCH, job_task, &j);
     for (int i = 0; i < n; i++)
         if (ws[i].rc) return ws[i].rc;
     return atomic_load(&c->failed) ? CT_ENOMEM : 0;
@@ -430,9 +431,13 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         rc = ct_fail(err, CT_ENOMEM, "radiosity: out of memory");
         goto done;
     }
+    /* Without worker threads the caller solves alone (pool NULL). */
+    if (prm->threads > 1 && pool_new(prm->threads, &c->pool, err) != CT_OK) {
+        ct_warn("radiosity", "%s: solving on one thread", err->msg);
+        c->pool = NULL;
+    }
     for (int i = 0; i < prm->threads; i++) {
         ws[i].c = c;
-        ws[i].id = i;
         ws[i].progress = progress;
         ws[i].user = user;
     }
@@ -568,6 +573,7 @@ done:
     if (ws)
         for (int i = 0; i < prm->threads; i++) rad_tls_free(&ws[i].tls);
     free(ws);
+    pool_free(c->pool);
     rad_vis_free(c->vis);
     rad_mirror_free(c);
     rad_free_patches(c);

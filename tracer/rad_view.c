@@ -8,11 +8,11 @@
 
 #include <embree3/rtcore.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/pool.h"
 #include "common/rng.h"
 
 typedef struct view_job {
@@ -20,7 +20,7 @@ typedef struct view_job {
     const ct_radmesh *m;
     const ct_camera *cam;
     ct_image *img;
-    int spp, which, nthreads, id;
+    int spp, which;
     float scale;   /* plane offsets' unit (plane_key) */
 } view_job;
 
@@ -40,67 +40,67 @@ static vec3 plane_key(const ct_radmesh *m, uint32_t t, float scale)
     return v3((float)m->tri_node[t] + 1.0f, code + 1.0f, off);
 }
 
-static void *view_rows(void *arg)
+/* One row of the image (a pool task): its own random stream, so the image
+ * is the same for any thread count. */
+static void view_row(void *arg, int worker, size_t row)
 {
-    view_job *j = arg;
-    int W = j->img->width, H = j->img->height;
+    (void)worker;
+    const view_job *j = arg;
+    int W = j->img->width, H = j->img->height, y = (int)row;
     int m = 1;
     while (m * m < j->spp) m++;
-    for (int y = j->id; y < H; y += j->nthreads) {
-        ct_rng g = rng_make(0x76696577u, (uint64_t)y, 0, 0);
-        for (int x = 0; x < W; x++) {
-            vec3 sum = v3s(0.0f), key = v3s(0.0f);
-            int same = 1;
-            for (int s = 0; s < j->spp; s++) {
-                float px = (float)x + (j->spp == 1 ? 0.5f : ((float)(s % m) + rng_float(&g)) / (float)m);
-                float py = (float)y + (j->spp == 1 ? 0.5f : ((float)((s / m) % m) + rng_float(&g)) / (float)m);
-                vec3 d = cam_ray_dir(j->cam, W, H, px, py);
-                struct RTCIntersectContext ctx;
-                rtcInitIntersectContext(&ctx);
-                struct RTCRayHit rh;
-                memset(&rh, 0, sizeof rh);
-                rh.ray.org_x = j->cam->eye.x;
-                rh.ray.org_y = j->cam->eye.y;
-                rh.ray.org_z = j->cam->eye.z;
-                rh.ray.dir_x = d.x;
-                rh.ray.dir_y = d.y;
-                rh.ray.dir_z = d.z;
+    ct_rng g = rng_make(0x76696577u, (uint64_t)y, 0, 0);
+    for (int x = 0; x < W; x++) {
+        vec3 sum = v3s(0.0f), key = v3s(0.0f);
+        int same = 1;
+        for (int s = 0; s < j->spp; s++) {
+            float px = (float)x + (j->spp == 1 ? 0.5f : ((float)(s % m) + rng_float(&g)) / (float)m);
+            float py = (float)y + (j->spp == 1 ? 0.5f : ((float)((s / m) % m) + rng_float(&g)) / (float)m);
+            vec3 d = cam_ray_dir(j->cam, W, H, px, py);
+            struct RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            struct RTCRayHit rh;
+            memset(&rh, 0, sizeof rh);
+            rh.ray.org_x = j->cam->eye.x;
+            rh.ray.org_y = j->cam->eye.y;
+            rh.ray.org_z = j->cam->eye.z;
+            rh.ray.dir_x = d.x;
+            rh.ray.dir_y = d.y;
+            rh.ray.dir_z = d.z;
+            rh.ray.tfar = INFINITY;
+            rh.ray.mask = 0xFFFFFFFFu;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(j->scn, &ctx, &rh);
+            vec3 att = v3s(1.0f);
+            for (int k = 0; rh.hit.geomID != RTC_INVALID_GEOMETRY_ID; k++) {
+                uint32_t mat = j->m->tri_mat[rh.hit.primID];
+                if (!rmesh_is_glass(j->m, mat)) break;
+                if (k == RMESH_MAX_GLASS_CROSSINGS) {   /* black, as the tracer */
+                    att = v3s(0.0f);
+                    break;
+                }
+                vec3 ng = v3_norm(v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+                att = v3_mul(att, rmesh_glass_pass(&j->m->mats[mat], v3_dot(d, ng)));
+                /* On along the same ray, just past this surface. */
+                rh.ray.tnear = rh.ray.tfar * (1.0f + 1e-5f);
                 rh.ray.tfar = INFINITY;
-                rh.ray.mask = 0xFFFFFFFFu;
                 rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
                 rtcIntersect1(j->scn, &ctx, &rh);
-                vec3 att = v3s(1.0f);
-                for (int k = 0; rh.hit.geomID != RTC_INVALID_GEOMETRY_ID; k++) {
-                    uint32_t mat = j->m->tri_mat[rh.hit.primID];
-                    if (!rmesh_is_glass(j->m, mat)) break;
-                    if (k == RMESH_MAX_GLASS_CROSSINGS) {   /* black, as the tracer */
-                        att = v3s(0.0f);
-                        break;
-                    }
-                    vec3 ng = v3_norm(v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
-                    att = v3_mul(att, rmesh_glass_pass(&j->m->mats[mat], v3_dot(d, ng)));
-                    /* On along the same ray, just past this surface. */
-                    rh.ray.tnear = rh.ray.tfar * (1.0f + 1e-5f);
-                    rh.ray.tfar = INFINITY;
-                    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                    rtcIntersect1(j->scn, &ctx, &rh);
-                }
-                if (j->which == RAD_VIEW_PLANES) {
-                    vec3 k = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? v3s(0.0f) : plane_key(j->m, rh.hit.primID, j->scale);
-                    if (s == 0) key = k;
-                    else same = same && k.x == key.x && k.y == key.y && k.z == key.z;
-                    continue;
-                }
-                if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-                vec3 v = j->which == RAD_VIEW_DIRECT ? rmesh_eval_direct(j->m, rh.hit.primID, rh.hit.u, rh.hit.v)
-                                                     : rmesh_eval(j->m, rh.hit.primID, rh.hit.u, rh.hit.v);
-                sum = v3_add(sum, v3_mul(att, v));
             }
-            if (j->which == RAD_VIEW_PLANES) img_set(j->img, x, y, same ? key : v3s(0.0f));
-            else img_set(j->img, x, y, v3_scale(sum, 1.0f / (float)j->spp));
+            if (j->which == RAD_VIEW_PLANES) {
+                vec3 k = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? v3s(0.0f) : plane_key(j->m, rh.hit.primID, j->scale);
+                if (s == 0) key = k;
+                else same = same && k.x == key.x && k.y == key.y && k.z == key.z;
+                continue;
+            }
+            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+            vec3 v = j->which == RAD_VIEW_DIRECT ? rmesh_eval_direct(j->m, rh.hit.primID, rh.hit.u, rh.hit.v)
+                                                 : rmesh_eval(j->m, rh.hit.primID, rh.hit.u, rh.hit.v);
+            sum = v3_add(sum, v3_mul(att, v));
         }
+        if (j->which == RAD_VIEW_PLANES) img_set(j->img, x, y, same ? key : v3s(0.0f));
+        else img_set(j->img, x, y, v3_scale(sum, 1.0f / (float)j->spp));
     }
-    return NULL;
 }
 
 int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int which, int threads,
@@ -134,23 +134,15 @@ int rad_render_view(const ct_radmesh *m, const ct_camera *cam, int spp, int whic
     if (rtcGetDeviceError(dev) != RTC_ERROR_NONE) {
         rc = ct_fail(err, CT_ESYS, "embree: building the view scene failed");
     } else {
-        if (threads > 64) threads = 64;
-        view_job jobs[64];
-        pthread_t th[64];
-        int started = 0;
         float radius = 0.0f;
         for (uint32_t i = 0; i < m->nverts; i++) radius = fmaxf(radius, v3_len(m->pos[i]));
-        for (int i = 0; i < threads; i++) {
-            jobs[i] = (view_job){scn, m, cam, img, spp, which, threads, i, radius > 0.0f ? 256.0f / radius : 1.0f};
-        }
-        for (int i = 1; i < threads; i++) {
-            if (pthread_create(&th[i], NULL, view_rows, &jobs[i]) != 0) break;
-            started = i;
-        }
-        /* Rows of threads that did not start are rendered here. */
-        for (int i = started + 1; i < threads; i++) view_rows(&jobs[i]);
-        view_rows(&jobs[0]);
-        for (int i = 1; i <= started; i++) pthread_join(th[i], NULL);
+        view_job job = {scn, m, cam, img, spp, which, radius > 0.0f ? 256.0f / radius : 1.0f};
+        ct_pool *pool = NULL;
+        /* Without worker threads the caller renders alone (pool NULL). */
+        if (threads > 1 && pool_new(threads < POOL_MAX_THREADS ? threads : POOL_MAX_THREADS, &pool, err) != CT_OK)
+            pool = NULL;
+        pool_run(pool, (size_t)img->height, view_row, &job);
+        pool_free(pool);
     }
     rtcReleaseScene(scn);
     rtcReleaseDevice(dev);

@@ -541,6 +541,37 @@ Test(radiosity, max_triangles_mesh_is_the_same_for_any_thread_count)
     scene_free(s);
 }
 
+/* The view render runs its rows on a pool: each row has its own random
+ * stream, so the image is the same for any thread count. */
+Test(radiosity, view_render_is_the_same_for_any_thread_count)
+{
+    ct_scene *s = rfx_room_with_block();
+    rad_params p = budget_params();
+    ct_radmesh m;
+    solve_ok(s, &p, &m, NULL);
+    ct_camera cam = cam_look_at(v3(3.5f, 1.5f, 0.3f), v3(1.7f, 0.4f, 2.1f), v3(0, 1, 0), 60.0f);
+    ct_image img[2];
+    ct_error err;
+    const int threads[2] = {1, 3};
+    for (int k = 0; k < 2; k++) {
+        cr_assert_eq(img_alloc(&img[k], 37, 29, &err), 0, "%s", err.msg);
+        cr_assert_eq(rad_render_view(&m, &cam, 4, RAD_VIEW_TOTAL, threads[k], &img[k], &err), 0, "%s",
+                     err.msg);
+    }
+    double sum = 0.0;
+    for (int y = 0; y < 29; y++)
+        for (int x = 0; x < 37; x++) {
+            vec3 a = img_get(&img[0], x, y), b = img_get(&img[1], x, y);
+            cr_assert(a.x == b.x && a.y == b.y && a.z == b.z, "pixel (%d, %d) differs between 1 and 3 threads", x, y);
+            sum += a.x + a.y + a.z;
+        }
+    cr_assert_gt(sum, 0.0, "the view is black: nothing was rendered");
+    img_free(&img[0]);
+    img_free(&img[1]);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
 Test(radiosity, cornell_scene_mesh_is_conforming)
 {
     /* The real pipeline: the generated Cornell box (make scenes), imported
