@@ -49,18 +49,21 @@ void rq_refine_epoch(rq_refine *r)
  * pass for certainty. */
 #define MIN_TRUSTED 4
 
-float rq_refine_priority(const rq_refine *r, uint32_t p)
+/* Below this many samples a pixel's variance is shrunk towards its
+ * neighbours' (SHRINK_K samples' worth of it) when theirs is larger. Past
+ * MIN_TRUSTED a pixel whose samples happened to agree still passed for
+ * certain: on the diffuse Cornell box half of the drt samples of the short
+ * box's dark front face are 0 (every gather ray's lamp sample shadowed), so
+ * one pixel in 16 saw four zeros, stopped at a mean of -L_base and stayed a
+ * third as bright as the truth for good, a block in 16 with one or two of
+ * them (tests/e2e/render_regions.sh failed a 10 % bound on it). A pixel
+ * truly flat beside noisy ones pays at most this many samples. */
+#define SHRINK_UNTIL 16
+#define SHRINK_K 4.0f
+
+static float var_of(const rq_pixel *x)
 {
-    const rq_pixel *x = &r->px[p];
-    if (x->tag != r->tag || x->n == 0) return 0.0f;
-    float se = x->n > 1 ? sqrtf(x->m2 / (float)(x->n - 1) / (float)x->n) : 0.0f;
-    if (x->n < MIN_TRUSTED && x->first_err / sqrtf((float)x->n) > se) se = x->first_err / sqrtf((float)x->n);
-    /* A linear threshold let dark pixels keep one sample's noise: on the
-     * diffuse Cornell box the short box's front face (linear 0.02-0.05)
-     * ended 20 % off the path-traced truth in 4 x 4 blocks while the bright
-     * walls converged to 1-2 %. */
-    float shown = x->base + v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2]));
-    return se * img_tonemap_slope(shown);
+    return x->n > 1 ? x->m2 / (float)(x->n - 1) : 0.0f;
 }
 
 static float lum_of(const rq_pixel *x)
@@ -68,9 +71,9 @@ static float lum_of(const rq_pixel *x)
     return v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2]));
 }
 
-/* A pixel's first sample against its neighbours' (those with a sample of
- * the same node): the difference of its luminance from their mean. */
-static float contrast(const rq_refine *r, uint32_t p)
+/* The mean of f over p's 4-neighbours on its node with at least min_n
+ * samples; 0 when there is none (*count: how many). */
+static float neighbours_mean(const rq_refine *r, uint32_t p, uint16_t min_n, float (*f)(const rq_pixel *), int *count)
 {
     const rq_pixel *x = &r->px[p];
     int px = (int)(p % (uint32_t)r->w), py = (int)(p / (uint32_t)r->w);
@@ -81,11 +84,41 @@ static float contrast(const rq_refine *r, uint32_t p)
         int qx = px + dx[k], qy = py + dy[k];
         if (qx < 0 || qy < 0 || qx >= r->w || qy >= r->h) continue;
         const rq_pixel *q = &r->px[(size_t)qy * (size_t)r->w + (size_t)qx];
-        if (q->tag != r->tag || q->n == 0 || q->node != x->node) continue;
-        sum += lum_of(q);
+        if (q->tag != r->tag || q->n < min_n || q->node != x->node) continue;
+        sum += f(q);
         n++;
     }
-    return n ? fabsf(lum_of(x) - sum / (float)n) : 0.0f;
+    *count = n;
+    return n ? sum / (float)n : 0.0f;
+}
+
+float rq_refine_priority(const rq_refine *r, uint32_t p)
+{
+    const rq_pixel *x = &r->px[p];
+    if (x->tag != r->tag || x->n == 0) return 0.0f;
+    float var = var_of(x);
+    if (x->n > 1 && x->n < SHRINK_UNTIL) {
+        int nn;
+        float vn = neighbours_mean(r, p, 2, var_of, &nn);
+        if (vn > var) var = (x->m2 + SHRINK_K * vn) / ((float)(x->n - 1) + SHRINK_K);
+    }
+    float se = sqrtf(var / (float)x->n);
+    if (x->n < MIN_TRUSTED && x->first_err / sqrtf((float)x->n) > se) se = x->first_err / sqrtf((float)x->n);
+    /* A linear threshold let dark pixels keep one sample's noise: on the
+     * diffuse Cornell box the short box's front face (linear 0.02-0.05)
+     * ended 20 % off the path-traced truth in 4 x 4 blocks while the bright
+     * walls converged to 1-2 %. */
+    float shown = x->base + v3_luminance(v3(x->mean[0], x->mean[1], x->mean[2]));
+    return se * img_tonemap_slope(shown);
+}
+
+/* A pixel's first sample against its neighbours' (those with a sample of
+ * the same node): the difference of its luminance from their mean. */
+static float contrast(const rq_refine *r, uint32_t p)
+{
+    int n;
+    float m = neighbours_mean(r, p, 1, lum_of, &n);
+    return n ? fabsf(lum_of(&r->px[p]) - m) : 0.0f;
 }
 
 /* --- the heap ------------------------------------------------------------------- */

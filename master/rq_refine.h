@@ -8,8 +8,10 @@
  * samples, at least the first one's prior over sqrt(n): the larger of its
  * error |E| against what was displayed and its luminance's difference from
  * the mean of its four neighbours' (one sample per pixel says little about
- * a pixel's noise, its neighbours' spread more); pixels under the threshold
- * get no more.
+ * a pixel's noise, its neighbours' spread more); under 16 samples its
+ * variance is shrunk towards its neighbours' where theirs is larger (a few
+ * samples that agree by chance prove nothing beside noisy ones); pixels
+ * under the threshold get no more.
  * The master writes a pixel's mean into its texel (ctex_refine). Pixel state
  * carries the epoch it belongs to, so a camera change costs nothing.
  * Owns the rq_refine_ prefix; internal to the request queue (rq_engine.c). */
