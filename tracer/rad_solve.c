@@ -1,7 +1,8 @@
 /* rad_solve.c: the hierarchical radiosity driver: refinement passes (links
  * refined by the B*F*A oracle against the current solution), Jacobi
  * gather/push-pull iterations until the residual is under the tolerance,
- * passes over input patches on a thread pool (common/pool.h), the memory cap, and the stats. */
+ * each a loop over input patches on one thread pool (common/pool.h), the
+ * memory cap, and the stats. */
 #include "tracer/rad_internal.h"
 
 #include <stdio.h>
