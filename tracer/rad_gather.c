@@ -257,6 +257,115 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
     *Hd = v3_max(hd, v3s(0.0f));
 }
 
+/* The leaves of one patch tree and what their ancestors' links bring them
+ * (rad_leaf_scales): per leaf, the sum of b ff over every inherited link
+ * (tot), of the non-flat ones (mean) and the same with each non-flat link's
+ * factor taken at the leaf's centre (at); the same with the sources'
+ * emission for the direct part (the d fields). */
+typedef struct leaf_acc {
+    uint32_t *id;
+    double *tot, *mean, *at, *totd, *meand, *atd;
+    float *f;          /* scratch: one link's centre factors over a range of leaves */
+    uint32_t n;
+} leaf_acc;
+
+/* Walks element ei's subtree, appending its leaves to a, and shares each of
+ * ei's non-flat links among them by their centres' factors, scaled so that
+ * their area-weighted mean is the link's own (its power is kept). */
+static void leaf_walk(rad_ctx *c, const rad_patch *p, leaf_acc *a, uint32_t ei)
+{
+    const rad_elem *e = rad_el(c, ei);
+    uint32_t lo = a->n;
+    if (e->child == RAD_NONE) {
+        a->id[a->n++] = ei;
+        return;   /* a leaf's own links reach it as they are */
+    }
+    for (uint32_t k = 0; k < 4; k++) leaf_walk(c, p, a, e->child + k);
+    uint32_t hi = a->n;
+    for (uint32_t i = 0; i < e->nlinks; i++) {
+        const rad_link *l = &p->links[e->link_off + i];
+        int cl = (l->src & RAD_CLUSTER_BIT) != 0;
+        double b = cl ? v3_avg(rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], c->cur, e->c))
+                      : v3_avg(*rad_B(c, c->cur, l->src));
+        double ee = cl ? v3_avg(c->clusters[l->src & RAD_ID_MASK].E) : v3_avg(c->patches[rad_el(c, l->src)->patch].E);
+        int flat = cl || !(l->vis > 0.0f) || l->gr <= GATHER_FLAT * e->area * l->ff;
+        double sum = 0.0;
+        if (!flat) {
+            const rad_elem *s = rad_el(c, l->src);
+            for (uint32_t j = lo; j < hi; j++) {
+                const rad_elem *lf = rad_el(c, a->id[j]);
+                a->f[j] = gather_factor(c, v3_add(lf->c, v3_scale(p->n, c->ray_eps)), p->n, s);
+                sum += (double)lf->area * a->f[j];
+            }
+        }
+        double k = sum > 0.0 ? (double)e->area * l->ff / sum : 0.0;
+        for (uint32_t j = lo; j < hi; j++) {
+            a->tot[j] += b * l->ff;
+            a->totd[j] += ee * l->ff;
+            if (flat || !(sum > 0.0)) continue;
+            a->mean[j] += b * l->ff;
+            a->meand[j] += ee * l->ff;
+            a->at[j] += b * a->f[j] * k;
+            a->atd[j] += ee * a->f[j] * k;
+        }
+    }
+}
+
+/* A link held at a coarse receiver reaches every leaf below it with the
+ * receiver's mean factor. Where the receiver split for one link whose
+ * factor varies over it (the adjacent wall near an edge), its hundreds of
+ * other links stayed, each under the threshold and all erring the same
+ * way: near the edge the adjacent wall covers more of the hemisphere and
+ * every other source's factor is smaller, in the interior larger. In the
+ * closed room a leaf's factors summed to 1.39 within 1 cm of an edge and
+ * 0.94 beyond 30 cm, and the elements' indirect light ended 7 % dark in the
+ * interiors (docs/radiosity.md, "Light moved towards the surfaces'
+ * edges"). The final gather takes such links' factors at each vertex; this
+ * shares each non-flat inherited link among the leaves below its receiver
+ * by their centres' factors (its power kept: a centre's factor is not its
+ * leaf's mean, and the closed box gained 0.3 % of its power at --error
+ * 1e-4 without that), once, for the last pass's iterations. */
+int rad_leaf_scales(rad_ctx *c, uint32_t pi)
+{
+    const rad_patch *p = &c->patches[pi];
+    uint32_t nl = 0;
+    {
+        uint32_t stack[4 * RAD_MAX_DEPTH + 8];
+        int sp = 0;
+        stack[sp++] = p->root;
+        while (sp) {
+            const rad_elem *e = rad_el(c, stack[--sp]);
+            if (e->child == RAD_NONE) nl++;
+            else for (uint32_t k = 0; k < 4; k++) stack[sp++] = e->child + k;
+        }
+    }
+    leaf_acc a = {0};
+    a.id = malloc(nl * sizeof *a.id);
+    a.f = malloc(nl * sizeof *a.f);
+    a.tot = calloc(6 * (size_t)nl, sizeof *a.tot);
+    if (!a.id || !a.f || !a.tot) {
+        free(a.id);
+        free(a.f);
+        free(a.tot);
+        return CT_ENOMEM;
+    }
+    a.mean = a.tot + nl;
+    a.at = a.mean + nl;
+    a.totd = a.at + nl;
+    a.meand = a.totd + nl;
+    a.atd = a.meand + nl;
+    leaf_walk(c, p, &a, p->root);
+    for (uint32_t j = 0; j < a.n; j++) {
+        rad_elem *lf = rad_el(c, a.id[j]);
+        lf->hk = a.tot[j] > 0.0 ? (float)((a.at[j] - a.mean[j]) / a.tot[j]) : 0.0f;
+        lf->hkd = a.totd[j] > 0.0 ? (float)((a.atd[j] - a.meand[j]) / a.totd[j]) : 0.0f;
+    }
+    free(a.id);
+    free(a.f);
+    free(a.tot);
+    return CT_OK;
+}
+
 /* The final gather at points (rad_gather_points), in runs of GATHER_RUN
  * points per pool task, a scratch per worker. */
 #define GATHER_RUN 256

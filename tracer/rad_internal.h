@@ -46,6 +46,8 @@ typedef struct rad_elem {
     uint64_t key;        /* stable id from the patch and the child path (seeds rays) */
     vec3 Bd;             /* direct part: emission + one bounce of emitted light */
     vec3 Hm;             /* irradiance from lamps seen in plane mirrors (leaves; rad_mirror_leaf) */
+    float hk, hkd;       /* a leaf's scale, minus 1, of what its ancestors' links bring it, and
+                          * of their direct part (rad_leaf_scales; 0 until the last pass) */
     uint8_t nv, depth;
     uint8_t hm_done;     /* Hm computed */
 } rad_elem;
@@ -362,6 +364,11 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g);
 
 /* Frees g's arrays. */
 void rad_gather_prep_free(rad_gather_prep *g);
+
+/* Sets hk and hkd of patch p's leaves: what their ancestors' links bring
+ * them with each non-flat link shared out by the leaves' centres' factors,
+ * against the ancestors' mean factors (rad_gather.c); CT_ENOMEM. */
+int rad_leaf_scales(rad_ctx *c, uint32_t p);
 
 /* A gathering thread's scratch: the partly hidden links of one vertex. */
 typedef struct rad_partial {

@@ -16,7 +16,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 13u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 14u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -27,7 +27,8 @@
                                  * were all blocked stay when their deciding rays were not;
                                  * 11: dim receivers refined further (--dim-floor); 12: vertices
                                  * hidden under objects take the value at the contact line; 13: factors
-                                 * averaged over Gauss points from a tenth of the distance */
+                                 * averaged over Gauss points from a tenth of the distance; 14: a
+                                 * leaf's inherited light taken at its centre (rad_leaf_scales) */
 
 void rad_params_default(rad_params *p)
 {
@@ -162,7 +163,7 @@ int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_p
 
 /* Publishing a patch's tree (what sources see of it next pass) also makes
  * its openness from the links just refined (patch_openness). */
-typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH } job_kind;
+typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH, JOB_LEAF_SCALES } job_kind;
 
 typedef struct worker {
     rad_ctx *c;
@@ -201,6 +202,11 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
             if (w->final) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
         }
         H = v3_madd(H, B, l->ff);
+    }
+    /* A leaf's inherited light as its own centre sees it (rad_leaf_scales). */
+    if (e->child == RAD_NONE) {
+        Hdown = v3_scale(Hdown, 1.0f + e->hk);
+        Hddown = v3_scale(Hddown, 1.0f + e->hkd);
     }
     vec3 Ht = v3_add(Hdown, H), Hdt = v3_add(Hddown, Hd);
     vec3 B, Bd;
@@ -326,6 +332,12 @@ static void job_task(void *ctx, int wi, size_t task)
         } else if (w->kind == JOB_GATHER) {
             vec3 bd;
             push_pull(w, c->patches[p].root, v3s(0.0f), v3s(0.0f), &bd);
+        } else if (w->kind == JOB_LEAF_SCALES) {
+            if (rad_leaf_scales(c, p)) {
+                w->rc = CT_ENOMEM;
+                atomic_store(&c->failed, 1);
+                return;
+            }
         } else {
             publish_tree(c, c->patches[p].root);
             patch_openness(c, p);
@@ -494,6 +506,15 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         int last = (c->pass > 0 && refined * 1000 <= nlinks) || c->pass + 1 == prm->max_passes;
         /* Intermediate passes only need the oracle's B roughly right: a few
          * iterations; the last pass converges to the tolerance. */
+        if (last) {
+            double ts = ct_now();
+            if ((rc = run_job(c, ws, prm->threads, JOB_LEAF_SCALES, 0)) != 0) {
+                rc = ct_fail(err, rc, "radiosity: out of memory while sharing out the links' light");
+                goto done;
+            }
+            ct_debug("radiosity", "pass %d: inherited links shared out over the leaves in %.2f s", c->pass + 1,
+                     ct_now() - ts);
+        }
         int max_it = last ? prm->max_iterations : (prm->max_iterations < 6 ? prm->max_iterations : 6);
         double tol = last ? prm->tolerance : 10.0 * prm->tolerance;
         for (int it = 0; it < max_it; it++) {
