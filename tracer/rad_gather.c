@@ -1,7 +1,9 @@
 /* rad_gather.c: the final gather at the mesh's vertices: what each
  * element's links bring, summed once for the links whose factor is flat over
  * it, the others' factors taken at every vertex, and the visibility of
- * partly hidden sources looked at from the vertex itself (rad_internal.h). */
+ * partly hidden sources looked at from the vertex itself; and the same
+ * sharing of non-flat links at the leaves' centres for the solve's last
+ * pass (rad_leaf_scales) (rad_internal.h). */
 #include "tracer/rad_internal.h"
 
 #include <math.h>
@@ -40,15 +42,21 @@ static float gather_factor(const rad_ctx *c, vec3 x, vec3 n, const rad_elem *s)
  * final gather keeps the link's own factor. */
 #define GATHER_FLAT 0.01f
 
+/* Whether link l's factor hardly varies over its receiver e: its own value
+ * at every point of e too (most links: far or small sources). */
+static int factor_flat(const rad_elem *e, const rad_link *l)
+{
+    return l->gr <= GATHER_FLAT * e->area * l->ff;
+}
+
 /* Whether the final gather keeps link l (of element e) as it is: a cluster's
- * factor is all it knows, and a factor that hardly varies over its
- * receiver is its own value at every vertex too (most links: far or small
- * sources) -- unless the source is partly hidden and the gather looks at
- * the vertex's own visibility (rad_final_gather). */
+ * factor is all it knows, and a flat factor is its own value at every
+ * vertex -- unless the source is partly hidden and the gather looks at the
+ * vertex's own visibility (rad_final_gather). */
 static int gather_flat(const rad_ctx *c, const rad_elem *e, const rad_link *l)
 {
     if (c->prm.vertex_rays > 0 && l->vis < 1.0f) return 0;
-    return (l->src & RAD_CLUSTER_BIT) || l->gr <= GATHER_FLAT * e->area * l->ff;
+    return (l->src & RAD_CLUSTER_BIT) || factor_flat(e, l);
 }
 
 int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
@@ -288,7 +296,10 @@ static void leaf_walk(rad_ctx *c, const rad_patch *p, leaf_acc *a, uint32_t ei)
         double b = cl ? v3_avg(rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], c->cur, e->c))
                       : v3_avg(*rad_B(c, c->cur, l->src));
         double ee = cl ? v3_avg(c->clusters[l->src & RAD_ID_MASK].E) : v3_avg(c->patches[rad_el(c, l->src)->patch].E);
-        int flat = cl || !(l->vis > 0.0f) || l->gr <= GATHER_FLAT * e->area * l->ff;
+        /* Not gather_flat: no vertex rays look at a partly hidden source
+         * here, a cluster has no polygon to take a factor to, and a hidden
+         * link brings nothing to share. */
+        int flat = cl || !(l->vis > 0.0f) || factor_flat(e, l);
         double sum = 0.0;
         if (!flat) {
             const rad_elem *s = rad_el(c, l->src);
