@@ -26,6 +26,7 @@ struct fsink {
     char phase[32], prefix[32];
     long done;             /* samples of the phase so far */
     double t0;
+    double io;          /* seconds spent in earlier checkpoints (compositing, writing) */
 };
 
 int fsink_new(const fsink_config *c, fsink **out, ct_error *err)
@@ -49,7 +50,7 @@ int fsink_new(const fsink_config *c, fsink **out, ct_error *err)
     }
     k->csv = k->csv_at.f;
     fprintf(k->csv, "phase,samples,percent_pixels,coverage,rmse,psnr,ssim,textures,texels,"
-                    "splat_radius_mean,rmse_vs_samples,psnr_vs_samples,seconds\n");
+                    "splat_radius_mean,rmse_vs_samples,psnr_vs_samples,seconds,sampling_seconds\n");
     *out = k;
     return CT_OK;
 }
@@ -150,6 +151,7 @@ static void csv_num(FILE *f, double v, int last)
 static int checkpoint(fsink *k, sess *s, const char *phase, const char *stem, long samples, int sample_img,
                       ct_error *err)
 {
+    double reached = ct_now();
     const ctex *c = sess_textures(s);
     int rc = ctex_composite(c, k->hits, k->c.width, k->c.height, &k->comp, err);
     if (rc || (rc = write_pair(k, &k->comp, stem, err))) return rc;
@@ -177,7 +179,8 @@ static int checkpoint(fsink *k, sess *s, const char *phase, const char *stem, lo
     csv_num(k->csv, st.splat_radius_mean, 0);
     csv_num(k->csv, vr, 0);
     csv_num(k->csv, vp, 0);
-    csv_num(k->csv, ct_now() - k->t0, 1);
+    csv_num(k->csv, ct_now() - k->t0, 0);
+    csv_num(k->csv, reached - k->t0 - k->io, 1);
     ct_info(COMPONENT, "%s %ld samples (%.3f%% of pixels, coverage %.1f%%): rmse %.5g psnr %.2f dB, "
             "%u textures, %llu texels, splat radius %.2f, vs samples rmse %.5g",
             phase, samples, pct, 100.0 * coverage, m.rmse, m.psnr, st.textures, (unsigned long long)st.texels,
@@ -185,6 +188,7 @@ static int checkpoint(fsink *k, sess *s, const char *phase, const char *stem, lo
     if (m.rmse == m.rmse)
         printf("metric: %s_%ld_rmse=%.6g\nmetric: %s_%ld_psnr=%.4f\n", phase, samples, m.rmse, phase, samples, m.psnr);
     if (vr == vr) printf("metric: %s_%ld_vs_samples_rmse=%.6g\n", phase, samples, vr);
+    k->io += ct_now() - reached;
     return CT_OK;
 }
 

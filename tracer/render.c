@@ -9,6 +9,7 @@
 #include "common/pool.h"
 #include "common/rng.h"
 #include "common/timer.h"
+#include "tracer/screen_order.h"
 
 #define MAX_THREADS 256
 
@@ -29,6 +30,7 @@ typedef struct job {
     trc_view view;
     float *rgb;
     int tiles_x, ntiles;
+    uint32_t *order;        /* RENDER_ORDER_SHUFFLED: every pixel, tile x tile per task */
     atomic_int done;
     const char *progress;   /* progress line component of this pass, or NULL */
     double t0;
@@ -51,50 +53,99 @@ typedef struct worker {
  * small, so the tracer can trace their primary rays back to back. */
 #define CALL_REQUESTS 64
 
+/* Traces the spp samples of each of the n pixels pix[] (n * spp <=
+ * CALL_REQUESTS or n == 1) in one call and stores their means. */
+static void trace_pixels(worker *w, const uint64_t *pix, size_t npix)
+{
+    job *j = w->j;
+    const render_options *o = j->o;
+    uint64_t seed = trc_get_options(j->t)->seed;
+    size_t n = 0;
+    for (size_t i = 0; i < npix; i++) {
+        int x = (int)(pix[i] % (uint64_t)o->width), y = (int)(pix[i] / (uint64_t)o->width);
+        for (int s = 0; s < o->spp; s++) {
+            ct_request *r = &w->req[n++];
+            r->id = pix[i] * (uint64_t)o->spp + (uint64_t)s + 1;
+            r->parent = 0;
+            r->epoch = o->epoch;
+            ct_rng g = rng_make(seed, r->id, o->epoch, TRC_DIM_PIXEL);
+            r->px = (float)x + rng_float(&g);
+            r->py = (float)y + rng_float(&g);
+            r->radius = 0.5f;
+            r->priority = 0.0f;
+        }
+    }
+    trc_trace(j->t, &j->view, w->req, n, w->out, &w->st);
+    for (size_t i = 0; i < npix; i++) {
+        const ct_sample *out = w->out + i * (size_t)o->spp;
+        double sx = 0.0, sy = 0.0, sz = 0.0;
+        for (int s = 0; s < o->spp; s++) {
+            sx += out[s].l_hq.x;
+            sy += out[s].l_hq.y;
+            sz += out[s].l_hq.z;
+        }
+        float *p = j->rgb + 3 * pix[i];
+        p[0] = (float)(sx / o->spp);
+        p[1] = (float)(sy / o->spp);
+        p[2] = (float)(sz / o->spp);
+    }
+}
+
 static void render_tile(worker *w, int tile)
 {
     job *j = w->j;
     const render_options *o = j->o;
+    int group = o->spp < CALL_REQUESTS ? CALL_REQUESTS / o->spp : 1;
+    uint64_t pix[CALL_REQUESTS];
+    w->st.log = w->use_log && w->log.cap > 0 ? &w->log : NULL;
+    if (j->order) {
+        size_t per = (size_t)o->tile * (size_t)o->tile, total = (size_t)o->width * (size_t)o->height;
+        size_t a = (size_t)tile * per, b = a + per < total ? a + per : total;
+        for (size_t i = a; i < b; i += (size_t)group) {
+            size_t m = b - i < (size_t)group ? b - i : (size_t)group;
+            for (size_t k = 0; k < m; k++) pix[k] = j->order[i + k];
+            trace_pixels(w, pix, m);
+        }
+        w->st.log = NULL;
+        return;
+    }
     int x0 = (tile % j->tiles_x) * o->tile, y0 = (tile / j->tiles_x) * o->tile;
     int x1 = x0 + o->tile < o->width ? x0 + o->tile : o->width;
     int y1 = y0 + o->tile < o->height ? y0 + o->tile : o->height;
-    int group = o->spp < CALL_REQUESTS ? CALL_REQUESTS / o->spp : 1;
-    uint64_t seed = trc_get_options(j->t)->seed;
-    w->st.log = w->use_log && w->log.cap > 0 ? &w->log : NULL;
     for (int y = y0; y < y1; y++)
         for (int xs = x0; xs < x1; xs += group) {
             int xe = xs + group < x1 ? xs + group : x1;
-            size_t n = 0;
-            for (int x = xs; x < xe; x++) {
-                uint64_t pix = (uint64_t)y * (uint64_t)o->width + (uint64_t)x;
-                for (int s = 0; s < o->spp; s++) {
-                    ct_request *r = &w->req[n++];
-                    r->id = pix * (uint64_t)o->spp + (uint64_t)s + 1;
-                    r->parent = 0;
-                    r->epoch = o->epoch;
-                    ct_rng g = rng_make(seed, r->id, o->epoch, TRC_DIM_PIXEL);
-                    r->px = (float)x + rng_float(&g);
-                    r->py = (float)y + rng_float(&g);
-                    r->radius = 0.5f;
-                    r->priority = 0.0f;
-                }
-            }
-            trc_trace(j->t, &j->view, w->req, n, w->out, &w->st);
-            for (int x = xs; x < xe; x++) {
-                const ct_sample *out = w->out + (size_t)(x - xs) * (size_t)o->spp;
-                double sx = 0.0, sy = 0.0, sz = 0.0;
-                for (int s = 0; s < o->spp; s++) {
-                    sx += out[s].l_hq.x;
-                    sy += out[s].l_hq.y;
-                    sz += out[s].l_hq.z;
-                }
-                float *p = j->rgb + 3 * ((uint64_t)y * (uint64_t)o->width + (uint64_t)x);
-                p[0] = (float)(sx / o->spp);
-                p[1] = (float)(sy / o->spp);
-                p[2] = (float)(sz / o->spp);
-            }
+            for (int x = xs; x < xe; x++) pix[x - xs] = (uint64_t)y * (uint64_t)o->width + (uint64_t)x;
+            trace_pixels(w, pix, (size_t)(xe - xs));
         }
     w->st.log = NULL;
+}
+
+/* Every pixel in a seeded shuffle (Fisher-Yates), sorted in runs of
+ * o->sort_runs along the screen curve; NULL when out of memory. */
+static uint32_t *shuffled_pixels(const render_options *o, uint64_t seed)
+{
+    size_t n = (size_t)o->width * (size_t)o->height;
+    uint32_t *p = malloc(n * sizeof *p);
+    if (!p) return NULL;
+    for (size_t i = 0; i < n; i++) p[i] = (uint32_t)i;
+    ct_rng g = rng_make(seed, 0x6f72646572ULL, o->epoch, 0);
+    for (size_t i = n; i > 1; i--) {
+        size_t k = rng_below(&g, (uint32_t)i);
+        uint32_t t = p[i - 1];
+        p[i - 1] = p[k];
+        p[k] = t;
+    }
+    if (o->sort_runs > 1) {
+        so_buf b = {0};
+        int rc = so_pixels(&b, p, n, (uint32_t)o->width, o->sort_runs);
+        so_free(&b);
+        if (rc) {
+            free(p);
+            return NULL;
+        }
+    }
+    return p;
 }
 
 /* A tile (pool task); the calling thread also prints the progress line
@@ -172,6 +223,15 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     j.rgb = rgb;
     j.tiles_x = (o->width + o->tile - 1) / o->tile;
     j.ntiles = j.tiles_x * ((o->height + o->tile - 1) / o->tile);
+    j.order = NULL;
+    if (o->order == RENDER_ORDER_SHUFFLED) {
+        size_t total = (size_t)o->width * (size_t)o->height, per = (size_t)o->tile * (size_t)o->tile;
+        if (total > UINT32_MAX)
+            return ct_fail(err, CT_EINVAL, "shuffled order: %dx%d has more pixels than 2^32 - 1", o->width, o->height);
+        j.ntiles = (int)((total + per - 1) / per);
+    } else if (o->order != RENDER_ORDER_TILES) {
+        return ct_fail(err, CT_EINVAL, "unknown pixel order %d", o->order);
+    }
     atomic_init(&j.done, 0);
     ct_pool *pool = NULL;
     int prc = pool_new(o->threads, &pool, err);
@@ -202,6 +262,11 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
             pool_free(pool);
             return ct_fail(err, CT_ENOMEM, "out of memory for %d samples per pixel", o->spp);
         }
+    }
+    if (o->order == RENDER_ORDER_SHUFFLED && !(j.order = shuffled_pixels(o, trc_get_options(t)->seed))) {
+        free_workers(ws, o->threads);
+        pool_free(pool);
+        return ct_fail(err, CT_ENOMEM, "out of memory for the order of %dx%d pixels", o->width, o->height);
     }
     /* The timed pass traces without the ray log: recording every ray costs
      * the tracer some 15 % and is no part of its work. The log, when asked
@@ -238,6 +303,7 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
         res->stats.samples += ws[i].st.samples;
     }
     free_workers(ws, o->threads);
+    free(j.order);
     pool_free(pool);
     return CT_OK;
 }

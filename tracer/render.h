@@ -3,7 +3,7 @@
  * threads of the pool (common/pool.h) pulling square tiles, with a progress line.
  * Request ids are ((y * W + x) * spp + s + 1), the jitter comes from
  * rng_make(seed, id, epoch, TRC_DIM_PIXEL), so an image is bit-identical
- * for any thread count. Optionally logs (a random subset of) the rays it
+ * for any thread count and either pixel order. Optionally logs (a random subset of) the rays it
  * traced, in a second untimed pass, and replays them with raw Embree queries
  * in the order they were traced: the benchmark's physical limit for the same
  * rays. */
@@ -22,6 +22,10 @@ typedef struct render_options {
     int spp;              /* samples per pixel */
     int threads;          /* worker threads (>= 1) */
     int tile;             /* tile edge in pixels */
+    int order;            /* RENDER_ORDER_*: which pixels a pool task traces */
+    size_t sort_runs;     /* RENDER_ORDER_SHUFFLED: the shuffled pixels sorted along
+                             a Morton curve in runs of this many (screen_order.h),
+                             as a tracer rank sorts each batch; 0: not sorted */
     uint32_t epoch;       /* the requests' epoch (frame index for --frames) */
     size_t raylog_cap;    /* rays logged per thread for the raw replay (0: none);
                              a uniform random subset of the traced rays */
@@ -30,7 +34,16 @@ typedef struct render_options {
     const char *progress; /* progress line component, NULL: silent */
 } render_options;
 
-/* Defaults: 1 sample, 1 thread, 16-pixel tiles, epoch 0, no ray log. */
+/* The order pixels are traced in. The image does not depend on it (a
+ * request's id and jitter come from its pixel); the speed does: shuffled
+ * pixels are spread over the image as the request queue's are, a
+ * benchmark of how much the tracer owes to coherent rays. */
+enum {
+    RENDER_ORDER_TILES = 0,     /* square tiles, rows within a tile */
+    RENDER_ORDER_SHUFFLED = 1   /* a seeded shuffle of every pixel, tile x tile per task */
+};
+
+/* Defaults: 1 sample, 1 thread, 16-pixel tiles in tile order, epoch 0, no ray log. */
 void render_options_default(render_options *o, int width, int height);
 
 typedef struct render_result {

@@ -4,6 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "tracer/screen_order.h"
+
 typedef struct lport {
     tport base;
     const trc_tracer *t;
@@ -11,7 +13,33 @@ typedef struct lport {
     uint32_t epoch;      /* newest view */
     tport_fifo fifo;
     trc_stats st;
+    so_buf keys;          /* a batch in screen order (screen_order.h) */
+    uint32_t *perm;
+    ct_request *req;
+    ct_sample *out;
+    size_t cap;
 } lport;
+
+/* Traces r[0..n) into s in screen order; as it came without the memory. */
+static void trace_in_screen_order(lport *l, const trc_view *tv, const ct_request *r, uint32_t n, ct_sample *s)
+{
+    if (n > l->cap) {
+        uint32_t *p = realloc(l->perm, (size_t)n * sizeof *p);
+        if (p) l->perm = p;
+        ct_request *q = p ? realloc(l->req, (size_t)n * sizeof *q) : NULL;
+        if (q) l->req = q;
+        ct_sample *o = q ? realloc(l->out, (size_t)n * sizeof *o) : NULL;
+        if (o) l->out = o;
+        if (o) l->cap = n;
+    }
+    if (n > l->cap || so_requests(&l->keys, r, n, l->perm) != CT_OK) {
+        trc_trace_par(l->t, l->pool, tv, r, n, s, false, &l->st);
+        return;
+    }
+    for (uint32_t i = 0; i < n; i++) l->req[i] = r[l->perm[i]];
+    trc_trace_par(l->t, l->pool, tv, l->req, n, l->out, false, &l->st);
+    for (uint32_t i = 0; i < n; i++) s[l->perm[i]] = l->out[i];
+}
 
 static int lport_view(tport *p, const tport_view *v, ct_error *err)
 {
@@ -34,7 +62,7 @@ static int lport_submit(tport *p, int lane, uint64_t batch, const tport_view *v,
         if (!(s = malloc((size_t)n * sizeof *s)))
             return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory for %u samples", n);
         trc_view tv = {.cam = v->cam, .width = (int)v->width, .height = (int)v->height};
-        trc_trace_par(l->t, l->pool, &tv, r, n, s, false, &l->st);
+        trace_in_screen_order(l, &tv, r, n, s);
         ns = n;
     }
     return tport_fifo_push(&l->fifo, lane, batch, s, ns, err);
@@ -49,8 +77,13 @@ static int lport_poll(tport *p, tport_reply *out, ct_error *err)
 static void lport_close(tport *p, double wait_s)
 {
     (void)wait_s;
-    tport_fifo_free(&((lport *)p)->fifo);
-    free(p);
+    lport *l = (lport *)p;
+    tport_fifo_free(&l->fifo);
+    so_free(&l->keys);
+    free(l->perm);
+    free(l->req);
+    free(l->out);
+    free(l);
 }
 
 static const tport_ops LPORT_OPS = {lport_view, lport_submit, lport_poll, lport_close};

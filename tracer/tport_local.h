@@ -1,7 +1,8 @@
 /* tport_local.h: the in-process tracer port (proto/tport.h): lanes in this
  * process that trace with the real tracer (tracer.h) on the thread pool. A
- * batch is traced when it is submitted, on every thread of the pool, and
- * its reply waits for poll; more than one lane only changes how a lockstep
+ * batch is traced when it is submitted, on every thread of the pool, in
+ * screen order as a tracer rank traces it (screen_order.h), and its reply
+ * waits for poll; more than one lane only changes how a lockstep
  * round is split, as over several MPI ranks. Used by corrtex converge and
  * by the tests of the master's loop. */
 #ifndef CT_TRACER_TPORT_LOCAL_H

@@ -28,6 +28,8 @@ typedef struct ref_args {
     const char *radmesh;    /* .ctmesh interactive solution, or NULL */
     int frame, frames;      /* -1: not given */
     int width, height, spp, threads, tile;   /* width, height, spp 0: not given */
+    int order;              /* RENDER_ORDER_* */
+    long sort_runs;
     trc_cli trc;            /* the tracer's options; mode -1: not given */
     uint64_t seed;
     float exposure;
@@ -52,6 +54,8 @@ static const optab OPTS[] = {
     {"threads", 0, OPTAB_INT, OF(threads), 1, 256, NULL, "T", "", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "N", "", NULL},
     {"tile", 0, OPTAB_INT, OF(tile), 1, 4096, "16", "N", "", NULL},
+    {"order", 0, OPTAB_CHOICE, OF(order), 0, 0, "tiles", "tiles|shuffled", "", NULL},
+    {"sort-runs", 0, OPTAB_LONG, OF(sort_runs), 0, 1L << 32, "0", "N", "", NULL},
     {"half", 0, OPTAB_FLAG, OF(half), 0, 0, NULL, NULL, "", NULL},
     {"png", 0, OPTAB_FLAG, OF(png), 0, 0, NULL, NULL, "", NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "", NULL},
@@ -116,8 +120,17 @@ static void help(FILE *f)
         "                      trace: one traced lamp sample beside the mesh's indirect part\n"
         "                      mesh: read from the mesh (faster; its shadows blurred)\n"
         "                    (default %s)\n"
-        "  --seed N          random seed (default %llu)\n"
+        "  --seed N          random seed (default %llu)\n",
+        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
+        trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct),
+        (unsigned long long)p.seed);
+    fprintf(f,
         "  --tile N          tile edge in pixels (default 16)\n"
+        "  --order O         benchmark: the order pixels are traced in (the image is the\n"
+        "                    same): tiles, or shuffled over the whole image as the request\n"
+        "                    queue hands them out, tile x tile pixels a task (default tiles)\n"
+        "  --sort-runs N     --order shuffled: sort runs of N pixels along a Morton curve,\n"
+        "                    as a tracer rank sorts each batch (default 0: unsorted)\n"
         "  --half            write half-float EXR (default: 32-bit float)\n"
         "  --png             also write a PNG preview beside each EXR\n"
         "  --exposure E      PNG preview exposure in stops (default 0)\n"
@@ -130,9 +143,7 @@ static void help(FILE *f)
         "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
         "  --quiet, --verbose\n"
         "tracer version %d (changes when the images change: cached references carry it)\n",
-        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
-        trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct),
-        (unsigned long long)p.seed, TRC_VERSION);
+        TRC_VERSION);
 }
 
 static int bad(const char *fmt, const char *a, const char *b)
@@ -340,6 +351,8 @@ int cmd_reference(int argc, char **argv)
     ro.spp = a.spp;
     ro.threads = a.threads;
     ro.tile = a.tile;
+    ro.order = a.order;
+    ro.sort_runs = (size_t)a.sort_runs;
     ro.progress = ct_log_get_level() >= CT_LOG_INFO ? "reference" : NULL;
     if (a.raw_embree) ro.raylog_cap = (size_t)a.raw_cap;
     ro.bench_runs = a.bench_runs;

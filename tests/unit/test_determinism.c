@@ -197,6 +197,37 @@ Test(determinism, reference_image_independent_of_threads, .init = setup, .fini =
     trc_free(t);
 }
 
+Test(determinism, reference_image_independent_of_pixel_order, .init = setup, .fini = teardown)
+{
+    /* 37 x 29 with tiles of 5: the last task of the shuffled order is short,
+     * and 3 spp make calls of 21 pixels */
+    trc_tracer *t = tracer_for(TRC_MODE_DRT, false);
+    enum { W = 37, H = 29 };
+    render_options o;
+    render_options_default(&o, W, H);
+    o.spp = 3;
+    o.tile = 5;
+    static float tiles[W * H * 3], other[W * H * 3];
+    render_result r1, r2;
+    render_ok(t, &o, tiles, &r1);
+    const size_t runs[] = {0, 1, 7, 100000};
+    for (size_t i = 0; i < sizeof runs / sizeof runs[0]; i++) {
+        memset(other, 0, sizeof other);
+        o.order = RENDER_ORDER_SHUFFLED;
+        o.sort_runs = runs[i];
+        o.threads = 2;
+        render_ok(t, &o, other, &r2);
+        cr_expect(memcmp(tiles, other, sizeof tiles) == 0, "shuffled order, runs of %zu: image differs", runs[i]);
+        cr_expect(r2.stats.samples == (uint64_t)W * H * 3, "shuffled order traced %llu samples",
+                  (unsigned long long)r2.stats.samples);
+        cr_expect(trc_stats_rays(&r1.stats) == trc_stats_rays(&r2.stats), "ray counts differ");
+    }
+    ct_error err;
+    o.order = 7;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, other, &r2, &err), CT_EINVAL);
+    trc_free(t);
+}
+
 Test(determinism, raw_replay_counts_the_logged_rays, .init = setup, .fini = teardown)
 {
     trc_tracer *t = tracer_for(TRC_MODE_PATH, false);
