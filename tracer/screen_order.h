@@ -1,11 +1,12 @@
 /* screen_order.h: requests and pixels in screen order (a Morton curve over
  * their pixels). The request queue hands out requests spread over the
  * whole image, highest error first; traced in that order, consecutive
- * samples share no BVH nodes, triangles or mesh vertices in the cache, and
- * the tracer alone ran 27 % slower on table at 1024^2 with its pixels
- * shuffled than in tiles (docs/benchmarks.md, "Tracer: request order").
- * A batch traced along the curve gets part of that back; each sample's
- * randomness is its own (tracer.h), so the order changes no result.
+ * samples share no BVH nodes, triangles or mesh vertices in the cache: the
+ * tracer alone traced 25 % fewer samples a second on table and office at
+ * 1024^2 with its pixels shuffled than in tiles, and runs of 4096 sorted
+ * along the curve got back a third to two fifths of that
+ * (docs/benchmarks.md, "Tracer: request order"). Each sample's randomness
+ * is its own (tracer.h), so the order changes no result.
  * Owns the so_ prefix. */
 #ifndef CT_TRACER_SCREEN_ORDER_H
 #define CT_TRACER_SCREEN_ORDER_H
