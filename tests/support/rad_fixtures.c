@@ -90,6 +90,23 @@ ct_scene *rfx_parallel_squares(float d, float le)
     return s;
 }
 
+ct_scene *rfx_perpendicular_squares(float le)
+{
+    ct_scene *s = scene_new("corner");
+    if (!s) return NULL;
+    int black = add_mat(s, "black", v3s(0.0f), v3s(0.0f));
+    int lamp = add_mat(s, "lamp", v3s(0.0f), v3s(le));
+    int rc = 0;
+    rc |= rfx_add_grid(s, "receiver", (uint32_t)black, v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0), 1);
+    rc |= rfx_add_grid(s, "emitter", (uint32_t)lamp, v3(0, 0, 0), v3(0, 1, 0), v3(0, 0, 1), 1);
+    ct_error err;
+    if (rc || scene_finalize(s, &err) != 0) {
+        scene_free(s);
+        return NULL;
+    }
+    return s;
+}
+
 ct_scene *rfx_room_with_block(void)
 {
     ct_scene *s = scene_new("room");

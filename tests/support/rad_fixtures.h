@@ -20,6 +20,11 @@ ct_scene *rfx_closed_box(int n, float rho, float le);
  * le at z = d facing down and a black receiver at z = 0 facing up. */
 ct_scene *rfx_parallel_squares(float d, float le);
 
+/* Two unit squares at a right angle sharing the edge x = z = 0: a black
+ * receiver in z = 0 facing up and an emitter of radiance le in x = 0
+ * facing +x. */
+ct_scene *rfx_perpendicular_squares(float le);
+
 /* A box room (floor, walls, ceiling lamp) with a table-like block standing
  * on the floor: shadows that force uneven refinement. */
 ct_scene *rfx_room_with_block(void);
