@@ -2,7 +2,9 @@
  * refined by the B*F*A oracle against the current solution), Jacobi
  * gather/push-pull iterations until the residual is under the tolerance,
  * each a loop over input patches on one thread pool (common/pool.h), the
- * memory cap, and the stats. */
+ * memory cap, and the stats. (Just over 600 lines on purpose: the passes,
+ * the iterations and the jobs they hand the pool share one worker state
+ * and one order of steps, which one file keeps in view.) */
 #include "tracer/rad_internal.h"
 
 #include <stdio.h>
