@@ -73,15 +73,17 @@ ct_scene *rfx_closed_box(int n, float rho, float le)
     return s;
 }
 
-ct_scene *rfx_parallel_squares(float d, float le)
+/* A black unit square receiver in z = 0 facing up and a unit square
+ * emitter of radiance le spanning corner, corner + e1, corner + e1 + e2. */
+static ct_scene *receiver_and_emitter(const char *name, vec3 corner, vec3 e1, vec3 e2, float le)
 {
-    ct_scene *s = scene_new("squares");
+    ct_scene *s = scene_new(name);
     if (!s) return NULL;
     int black = add_mat(s, "black", v3s(0.0f), v3s(0.0f));
     int lamp = add_mat(s, "lamp", v3s(0.0f), v3s(le));
     int rc = 0;
     rc |= rfx_add_grid(s, "receiver", (uint32_t)black, v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0), 1);
-    rc |= rfx_add_grid(s, "emitter", (uint32_t)lamp, v3(0, 0, d), v3(0, 1, 0), v3(1, 0, 0), 1);
+    rc |= rfx_add_grid(s, "emitter", (uint32_t)lamp, corner, e1, e2, 1);
     ct_error err;
     if (rc || scene_finalize(s, &err) != 0) {
         scene_free(s);
@@ -90,21 +92,14 @@ ct_scene *rfx_parallel_squares(float d, float le)
     return s;
 }
 
+ct_scene *rfx_parallel_squares(float d, float le)
+{
+    return receiver_and_emitter("squares", v3(0, 0, d), v3(0, 1, 0), v3(1, 0, 0), le);
+}
+
 ct_scene *rfx_perpendicular_squares(float le)
 {
-    ct_scene *s = scene_new("corner");
-    if (!s) return NULL;
-    int black = add_mat(s, "black", v3s(0.0f), v3s(0.0f));
-    int lamp = add_mat(s, "lamp", v3s(0.0f), v3s(le));
-    int rc = 0;
-    rc |= rfx_add_grid(s, "receiver", (uint32_t)black, v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0), 1);
-    rc |= rfx_add_grid(s, "emitter", (uint32_t)lamp, v3(0, 0, 0), v3(0, 1, 0), v3(0, 0, 1), 1);
-    ct_error err;
-    if (rc || scene_finalize(s, &err) != 0) {
-        scene_free(s);
-        return NULL;
-    }
-    return s;
+    return receiver_and_emitter("corner", v3(0, 0, 0), v3(0, 1, 0), v3(0, 0, 1), le);
 }
 
 ct_scene *rfx_room_with_block(void)
