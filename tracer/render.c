@@ -1,5 +1,6 @@
 #include "tracer/render.h"
 
+#include <limits.h>
 #include <stdbool.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -222,16 +223,22 @@ int render_image(const trc_tracer *t, const ct_camera *cam, const render_options
     j.view.height = o->height;
     j.rgb = rgb;
     j.tiles_x = (o->width + o->tile - 1) / o->tile;
-    j.ntiles = j.tiles_x * ((o->height + o->tile - 1) / o->tile);
+    uint64_t ntiles = (uint64_t)j.tiles_x * (uint64_t)((o->height + o->tile - 1) / o->tile);
     j.order = NULL;
     if (o->order == RENDER_ORDER_SHUFFLED) {
-        size_t total = (size_t)o->width * (size_t)o->height, per = (size_t)o->tile * (size_t)o->tile;
+        uint64_t total = (uint64_t)o->width * (uint64_t)o->height, per = (uint64_t)o->tile * (uint64_t)o->tile;
         if (total > UINT32_MAX)
             return ct_fail(err, CT_EINVAL, "shuffled order: %dx%d has more pixels than 2^32 - 1", o->width, o->height);
-        j.ntiles = (int)((total + per - 1) / per);
+        ntiles = (total + per - 1) / per;
     } else if (o->order != RENDER_ORDER_TILES) {
         return ct_fail(err, CT_EINVAL, "unknown pixel order %d", o->order);
     }
+    /* (tasks are counted in an int, and a task per pixel of a huge image
+     * would only schedule) */
+    if (ntiles > INT_MAX)
+        return ct_fail(err, CT_EINVAL, "%llu tiles of %d pixels: choose a larger --tile", (unsigned long long)ntiles,
+                       o->tile);
+    j.ntiles = (int)ntiles;
     atomic_init(&j.done, 0);
     ct_pool *pool = NULL;
     int prc = pool_new(o->threads, &pool, err);

@@ -416,7 +416,17 @@ Test(render, rejects_bad_sizes, .init = setup, .fini = teardown)
     o.spp = 1;
     o.threads = 0;
     cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
-    o.threads = 1;
+    /* more tasks than an int counts: refused before anything is traced */
+    render_options_default(&o, 65536, 65536);
+    o.tile = 1;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
+    o.order = RENDER_ORDER_SHUFFLED;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
+    render_options_default(&o, 65536, 32768);
+    o.tile = 1;
+    o.order = RENDER_ORDER_SHUFFLED;
+    cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), CT_EINVAL);
+    render_options_default(&o, 1, 1);
     cr_expect_eq(render_image(t, &room->cams[0].cam, &o, px, &r, &err), 0, "%s", err.msg);
     cr_expect(px[0] >= 0.0f && r.stats.samples == 1);
     trc_free(t);
