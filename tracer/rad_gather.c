@@ -267,12 +267,12 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
 
 /* The leaves of one patch tree and what their ancestors' links bring them
  * (rad_leaf_scales): per leaf, the sum of b ff over every inherited link
- * (tot), of the non-flat ones (mean) and the same with each non-flat link's
- * factor taken at the leaf's centre (at); the same with the sources'
- * emission for the direct part (the d fields). */
+ * (tot) and how much the non-flat ones change it with each one's factor
+ * taken at the leaf's centre (shift); the same with the sources' emission
+ * for the direct part (the d fields). */
 typedef struct leaf_acc {
     uint32_t *id;
-    double *tot, *mean, *at, *totd, *meand, *atd;
+    double *tot, *shift, *totd, *shiftd;
     float *f;          /* scratch: one link's centre factors over a range of leaves */
     uint32_t n;
 } leaf_acc;
@@ -314,10 +314,8 @@ static void leaf_walk(rad_ctx *c, const rad_patch *p, leaf_acc *a, uint32_t ei)
             a->tot[j] += b * l->ff;
             a->totd[j] += ee * l->ff;
             if (flat || !(sum > 0.0)) continue;
-            a->mean[j] += b * l->ff;
-            a->meand[j] += ee * l->ff;
-            a->at[j] += b * a->f[j] * k;
-            a->atd[j] += ee * a->f[j] * k;
+            a->shift[j] += b * (a->f[j] * k - l->ff);
+            a->shiftd[j] += ee * (a->f[j] * k - l->ff);
         }
     }
 }
@@ -353,23 +351,21 @@ int rad_leaf_scales(rad_ctx *c, uint32_t pi)
     leaf_acc a = {0};
     a.id = malloc(nl * sizeof *a.id);
     a.f = malloc(nl * sizeof *a.f);
-    a.tot = calloc(6 * (size_t)nl, sizeof *a.tot);
+    a.tot = calloc(4 * (size_t)nl, sizeof *a.tot);
     if (!a.id || !a.f || !a.tot) {
         free(a.id);
         free(a.f);
         free(a.tot);
         return CT_ENOMEM;
     }
-    a.mean = a.tot + nl;
-    a.at = a.mean + nl;
-    a.totd = a.at + nl;
-    a.meand = a.totd + nl;
-    a.atd = a.meand + nl;
+    a.shift = a.tot + nl;
+    a.totd = a.shift + nl;
+    a.shiftd = a.totd + nl;
     leaf_walk(c, p, &a, p->root);
     for (uint32_t j = 0; j < a.n; j++) {
         rad_elem *lf = rad_el(c, a.id[j]);
-        lf->hk = a.tot[j] > 0.0 ? (float)((a.at[j] - a.mean[j]) / a.tot[j]) : 0.0f;
-        lf->hkd = a.totd[j] > 0.0 ? (float)((a.atd[j] - a.meand[j]) / a.totd[j]) : 0.0f;
+        lf->hk = a.tot[j] > 0.0 ? (float)(a.shift[j] / a.tot[j]) : 0.0f;
+        lf->hkd = a.totd[j] > 0.0 ? (float)(a.shiftd[j] / a.totd[j]) : 0.0f;
     }
     free(a.id);
     free(a.f);

@@ -63,24 +63,6 @@ static void fifo_free(fifo *f)
     free(f->items);
 }
 
-/* A batch's requests in screen order, and the buffers for it (kept
- * between batches). */
-typedef struct batch_order {
-    so_buf keys;
-    uint32_t *perm;
-    ct_request *req;
-    ct_sample *out;
-    size_t cap;
-} batch_order;
-
-static void order_free(batch_order *o)
-{
-    so_free(&o->keys);
-    free(o->perm);
-    free(o->req);
-    free(o->out);
-}
-
 static uint64_t trace_threads(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req,
                               size_t n, ct_sample *out);
 
@@ -112,26 +94,13 @@ static int trace_slices(ct_pool *pool, const trank_config *c, const trc_view *v,
  * 5 % more samples a second this way) and answers in request order.
  * Without memory for the permutation the batch goes as it came. Returns as
  * trace_slices. */
-static int trace_batch(ct_pool *pool, const trank_config *c, batch_order *o, const trc_view *v,
+static int trace_batch(ct_pool *pool, const trank_config *c, so_batch *o, const trc_view *v,
                        const ct_request *req, size_t n, ct_sample *out, slice_fn between, void *ctx, uint64_t *rays,
                        ct_error *err)
 {
-    if (n > o->cap) {
-        uint32_t *p = realloc(o->perm, n * sizeof *p);
-        if (p) o->perm = p;
-        ct_request *r = p ? realloc(o->req, n * sizeof *r) : NULL;
-        if (r) o->req = r;
-        ct_sample *s = r ? realloc(o->out, n * sizeof *s) : NULL;
-        if (s) o->out = s;
-        if (!s) return trace_slices(pool, c, v, req, n, out, between, ctx, rays, err);
-        o->cap = n;
-    }
-    if (so_requests(&o->keys, req, n, o->perm) != CT_OK)
-        return trace_slices(pool, c, v, req, n, out, between, ctx, rays, err);
-    for (size_t i = 0; i < n; i++) o->req[i] = req[o->perm[i]];
+    if (so_batch_order(o, req, n) != CT_OK) return trace_slices(pool, c, v, req, n, out, between, ctx, rays, err);
     int rc = trace_slices(pool, c, v, o->req, n, o->out, between, ctx, rays, err);
-    if (rc > 0)
-        for (size_t i = 0; i < n; i++) out[o->perm[i]] = o->out[i];
+    if (rc > 0) so_batch_scatter(o, n, out);
     return rc;
 }
 
@@ -234,7 +203,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
     wire_buf msg = {0}, reply = {0};
     ct_request *reqs = NULL;
     ct_sample *samples = NULL;
-    batch_order order = {0};
+    so_batch order = {0};
     uint32_t cap = 0;
     ct_pool *pool = NULL;
     int rc = pool_new(c->threads < 1 ? 1 : c->threads, &pool, err);
@@ -302,7 +271,7 @@ out:
     wire_buf_free(&reply);
     free(reqs);
     free(samples);
-    order_free(&order);
+    so_batch_free(&order);
     if (rc == 0)
         ct_debug(COMPONENT, "rank %d: %llu batches (%llu stale), %llu samples, %llu rays, %.2f s tracing", c->rank,
                  (unsigned long long)st->batches, (unsigned long long)st->stale_batches,

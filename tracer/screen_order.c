@@ -2,6 +2,7 @@
 #include "tracer/screen_order.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 /* Interleaves the low 16 bits of x with zeros (a Morton code's half). */
 static uint32_t spread16(uint32_t x)
@@ -61,6 +62,37 @@ int so_requests(so_buf *b, const ct_request *req, size_t n, uint32_t *perm)
     qsort(b->k, n, sizeof *b->k, by_u64);
     for (size_t i = 0; i < n; i++) perm[i] = (uint32_t)b->k[i];
     return CT_OK;
+}
+
+void so_batch_free(so_batch *b)
+{
+    so_free(&b->keys);
+    free(b->perm);
+    free(b->req);
+    free(b->out);
+    memset(b, 0, sizeof *b);
+}
+
+int so_batch_order(so_batch *b, const ct_request *req, size_t n)
+{
+    if (n > b->cap) {
+        uint32_t *p = realloc(b->perm, n * sizeof *p);
+        if (p) b->perm = p;
+        ct_request *r = p ? realloc(b->req, n * sizeof *r) : NULL;
+        if (r) b->req = r;
+        ct_sample *s = r ? realloc(b->out, n * sizeof *s) : NULL;
+        if (!s) return CT_ENOMEM;
+        b->out = s;
+        b->cap = n;
+    }
+    if (so_requests(&b->keys, req, n, b->perm) != CT_OK) return CT_ENOMEM;
+    for (size_t i = 0; i < n; i++) b->req[i] = req[b->perm[i]];
+    return CT_OK;
+}
+
+void so_batch_scatter(const so_batch *b, size_t n, ct_sample *out)
+{
+    for (size_t i = 0; i < n; i++) out[b->perm[i]] = b->out[i];
 }
 
 int so_pixels(so_buf *b, uint32_t *pix, size_t n, uint32_t width, size_t run)

@@ -33,6 +33,27 @@ void so_free(so_buf *b);
  * without room for the keys (perm is then the identity). */
 int so_requests(so_buf *b, const ct_request *req, size_t n, uint32_t *perm);
 
+/* A batch of requests in screen order and room for its samples, kept
+ * between batches (zero-initialised before the first): what a tracer rank
+ * and the in-process port trace a batch through. */
+typedef struct so_batch {
+    so_buf keys;
+    uint32_t *perm;
+    ct_request *req;   /* the batch along the curve (so_batch_order) */
+    ct_sample *out;    /* room for their samples, traced in that order */
+    size_t cap;
+} so_batch;
+
+void so_batch_free(so_batch *b);
+
+/* b->req[0..n): req[0..n) along the curve. CT_ENOMEM without the memory:
+ * trace the batch as it came. */
+int so_batch_order(so_batch *b, const ct_request *req, size_t n);
+
+/* out[0..n): b->out[0..n) back in the order of the requests that
+ * so_batch_order was given. */
+void so_batch_scatter(const so_batch *b, size_t n, ct_sample *out);
+
 /* Sorts pix[0..n) (pixel indices y * width + x) along the curve in place,
  * in runs of `run` (0 or >= n: all at once). CT_ENOMEM as above (pix is
  * then unchanged). */

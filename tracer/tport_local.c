@@ -13,32 +13,18 @@ typedef struct lport {
     uint32_t epoch;      /* newest view */
     tport_fifo fifo;
     trc_stats st;
-    so_buf keys;          /* a batch in screen order (screen_order.h) */
-    uint32_t *perm;
-    ct_request *req;
-    ct_sample *out;
-    size_t cap;
+    so_batch order;       /* a batch in screen order (screen_order.h) */
 } lport;
 
 /* Traces r[0..n) into s in screen order; as it came without the memory. */
 static void trace_in_screen_order(lport *l, const trc_view *tv, const ct_request *r, uint32_t n, ct_sample *s)
 {
-    if (n > l->cap) {
-        uint32_t *p = realloc(l->perm, (size_t)n * sizeof *p);
-        if (p) l->perm = p;
-        ct_request *q = p ? realloc(l->req, (size_t)n * sizeof *q) : NULL;
-        if (q) l->req = q;
-        ct_sample *o = q ? realloc(l->out, (size_t)n * sizeof *o) : NULL;
-        if (o) l->out = o;
-        if (o) l->cap = n;
-    }
-    if (n > l->cap || so_requests(&l->keys, r, n, l->perm) != CT_OK) {
+    if (so_batch_order(&l->order, r, n) != CT_OK) {
         trc_trace_par(l->t, l->pool, tv, r, n, s, false, &l->st);
         return;
     }
-    for (uint32_t i = 0; i < n; i++) l->req[i] = r[l->perm[i]];
-    trc_trace_par(l->t, l->pool, tv, l->req, n, l->out, false, &l->st);
-    for (uint32_t i = 0; i < n; i++) s[l->perm[i]] = l->out[i];
+    trc_trace_par(l->t, l->pool, tv, l->order.req, n, l->order.out, false, &l->st);
+    so_batch_scatter(&l->order, n, s);
 }
 
 static int lport_view(tport *p, const tport_view *v, ct_error *err)
@@ -79,10 +65,7 @@ static void lport_close(tport *p, double wait_s)
     (void)wait_s;
     lport *l = (lport *)p;
     tport_fifo_free(&l->fifo);
-    so_free(&l->keys);
-    free(l->perm);
-    free(l->req);
-    free(l->out);
+    so_batch_free(&l->order);
     free(l);
 }
 

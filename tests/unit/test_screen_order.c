@@ -96,3 +96,35 @@ Test(screen_order, pixels_are_sorted_within_their_runs_only)
     cr_expect_eq(so_pixels(&b, pix, N, 0, 0), CT_EINVAL);
     so_free(&b);
 }
+
+Test(screen_order, a_batch_goes_out_along_the_curve_and_its_samples_come_back_in_request_order)
+{
+    so_batch b = {0};
+    ct_rng g = rng_make(11, 0, 0, 0);
+    const size_t sizes[] = {5, 700, 64};   /* grows, then reuses its room */
+    for (size_t t = 0; t < sizeof sizes / sizeof sizes[0]; t++) {
+        size_t n = sizes[t];
+        ct_request *req = calloc(n, sizeof *req);
+        ct_sample *out = calloc(n, sizeof *out);
+        cr_assert(req && out);
+        for (size_t i = 0; i < n; i++) {
+            req[i].id = 100 + i;
+            req[i].px = 512.0f * rng_float(&g);
+            req[i].py = 512.0f * rng_float(&g);
+        }
+        cr_assert_eq(so_batch_order(&b, req, n), CT_OK);
+        for (size_t i = 0; i < n; i++) {
+            if (i)
+                cr_assert_leq(so_key((uint32_t)b.req[i - 1].px, (uint32_t)b.req[i - 1].py),
+                              so_key((uint32_t)b.req[i].px, (uint32_t)b.req[i].py), "step %zu goes back", i);
+            /* a stand-in tracer: each sample names its request */
+            b.out[i].request_id = b.req[i].id;
+        }
+        so_batch_scatter(&b, n, out);
+        for (size_t i = 0; i < n; i++) cr_assert_eq(out[i].request_id, req[i].id, "sample %zu is not its request's", i);
+        free(req);
+        free(out);
+    }
+    so_batch_free(&b);
+    cr_expect(b.req == NULL && b.cap == 0);
+}
