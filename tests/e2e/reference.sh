@@ -90,5 +90,7 @@ check "needs a radiosity mesh" "$SCENE" "${common[@]}" --mode reuse-diffuse
 check "--stand-in-radiosity: '-1'" "$SCENE" "${common[@]}" --mode drt --stand-in-radiosity -1
 check "path 'nowhere'" "$SCENE" "${common[@]}" --mode path --path nowhere --frames 2
 check "--bench-runs: '0'" "$SCENE" "${common[@]}" --mode path --raw-embree --bench-runs 0
+check "--order: 'diagonal' is not one of tiles|shuffled" "$SCENE" "${common[@]}" --mode path --order diagonal
+check "--sort-runs: '-1'" "$SCENE" "${common[@]}" --mode path --order shuffled --sort-runs -1
 [[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"
 exit $fail
