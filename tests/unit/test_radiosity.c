@@ -114,7 +114,7 @@ Test(radiosity, form_factor_perpendicular_squares_solver)
 
 /* The closed unit box of tests/data/radiosity/closedbox.json (walls of
  * reflectance 0.5, a lamp in the ceiling) at four thresholds: every photon
- * is absorbed somewhere, so absorbed / emitted must be 1 within 0.25 % at
+ * is absorbed somewhere, so absorbed / emitted must be 1 within 0.2 % at
  * each (iterated to a residual of 1e-6, so what remains is the links'), and
  * the region means of the Gouraud view (64 x 64, 4 x 4 pixel blocks on one
  * flat surface) against the committed path-traced reference
@@ -127,7 +127,9 @@ Test(radiosity, form_factor_perpendicular_squares_solver)
  * rad_leaf_scales): 1.0020, 1.0018, 1.0015, 1.0014, rms 0.26, 0.16, 0.09,
  * 0.08 %: the light where it belongs shows the factors' own excess a
  * little more (with the sharing in the final gather only, the power is
- * version 13's to the digit). */
+ * version 13's to the digit); version 15 (Gauss points from a fortieth of
+ * the distance, not a tenth): 1.0006, 1.0007, 1.0009, 1.0009, rms 0.32,
+ * 0.20, 0.10, 0.08 %. */
 Test(radiosity, energy_and_regions_converge_in_a_closed_box, .timeout = 240)
 {
     const char *scene_path = "tests/data/radiosity/closedbox.json", *ref_path = "tests/data/radiosity/closedbox-ref.exr";
@@ -157,7 +159,7 @@ Test(radiosity, energy_and_regions_converge_in_a_closed_box, .timeout = 240)
         cr_assert_eq(metrics_regions(&img, &ref, &planes, 1, NULL, 1.0, 4, &r, &err), 0, "%s", err.msg);
         cr_log_info("closed box, --error %g: absorbed / emitted %.5f, %llu links; %d regions: worst %.4f, rms %.4f",
                     p.error, ratio, (unsigned long long)st.links, r.counted, r.worst, r.rms);
-        cr_assert(fabs(ratio - 1.0) <= 0.0025, "--error %g: absorbed / emitted = %.5f, not within 0.25 %%", p.error, ratio);
+        cr_assert(fabs(ratio - 1.0) <= 0.002, "--error %g: absorbed / emitted = %.5f, not within 0.2 %%", p.error, ratio);
         cr_assert_gt(r.counted, 100);
         cr_assert_leq(r.worst, 0.05, "--error %g: a region is off by %.4f", p.error, r.worst);
         cr_assert_lt(r.rms, last_rms, "--error %g: region rms %.4f did not fall below %.4f", p.error, r.rms, last_rms);
