@@ -197,7 +197,21 @@ static void look_at_partial_links(const rad_ctx *c, rad_gather_scratch *w, vec3 
             }
             e->s = 0.0;
         } else {
-            e->s = b * sqrt(e->vis * (1.0 - e->vis));
+            /* A link kept though all its rays were blocked (V = 0) may
+             * still be partly visible from here: a receiver in the
+             * shadow of a box that sees past it. With V = 0 it had no
+             * spread and was never looked at, and the floor 30-40 cm
+             * behind the L room's box stayed 1.5-6 % dark; its weight
+             * is the spread of the rule of succession's 1 / (n + 2) for
+             * n blocked rays. Each draw is weighted by its odds, so the
+             * estimate of the vertex's own visibility stays unbiased.
+             * Element links only: the office building keeps millions of
+             * cluster links whose rays all met walls, and looking at those
+             * too took its solve from 50 to 66 s for nothing the L room
+             * showed. */
+            int hidden = e->vis <= 0.0f && !(e->src & RAD_CLUSTER_BIT);
+            double v = hidden ? 1.0 / (c->prm.vis_rays + 2) : e->vis;
+            e->s = b * sqrt(v * (1.0 - v));
             S += e->s;
         }
     }

@@ -18,7 +18,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 15u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 16u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -31,7 +31,8 @@
                                  * hidden under objects take the value at the contact line; 13: factors
                                  * averaged over Gauss points from a tenth of the distance; 14: a
                                  * leaf's inherited light taken at its centre (rad_leaf_scales);
-                                 * 15: Gauss points from a fortieth of the distance */
+                                 * 15: Gauss points from a fortieth of the distance; 16: vertices
+                                 * look at element links whose rays were all blocked */
 
 void rad_params_default(rad_params *p)
 {
