@@ -11,11 +11,12 @@
 # contact shadows at the edges are docs/radiosity.md's separate table), and
 # without a shadow boundary (--flat: the direct light varies over it by at
 # most half the block's mean), must be within 5 % of the reference, and
-# the blocks' rms within 5 % too. Not in the L room: its worst block (the
-# floor in the occluding box's shadow, lit only past the box, 4-7 % over
-# seeds 1-3 in version 11: its vertices' sampled visibility; 4-5 % in
-# version 12) is held to 7 % until the solver meets 5 % there for every
-# seed (docs/radiosity.md, Accuracy; the solver before this test had 43 %,
+# the blocks' rms within 5 % too. The L room's worst block (the floor in
+# the occluding box's shadow, lit only past the box: its vertices' sampled
+# visibility) was 4-7 % over seeds 1-3 in version 11, 4-5.7 % up to
+# version 15, and held to 7 % until solver version 16 (vertices look at
+# links whose rays were all blocked) met 5 % for every seed: 4.7 / 3.8 /
+# 4.7 % (docs/radiosity.md, Accuracy; the solver before this test had 43 %,
 # solver version 8 18.4 %, version 10 10.7 %, its far arm's end wall too
 # bright along its edges, which dim receivers refined further took to 4 %
 # in version 11).
@@ -32,7 +33,7 @@ source "$(dirname "$0")/lib/common.sh"
 data="$root/tests/data/radiosity"
 [[ -f $root/scenes/cornell/cornell.obj ]] || { echo "missing scenes/cornell meshes (run make scenes)"; exit 1; }
 run_tail=40
-for sc_bound in cornell_diffuse:0.05 boxroom:0.05 lroom:0.07; do
+for sc_bound in cornell_diffuse:0.05 boxroom:0.05 lroom:0.05; do
   sc=${sc_bound%:*} bound=${sc_bound#*:}
   echo "== $sc"
   [[ -f $data/$sc-ref.exr ]] || { fail "missing $data/$sc-ref.exr (scripts/make-radiosity-refs)"; continue; }
@@ -58,7 +59,8 @@ done
 # that reach out from under it; version 12 (more single rays where the
 # partly hidden light is a large share, hidden corners given the light at
 # the contact line) 8.5-11.2 % and 2.7-4.1 %, version 13 8.3-11.4 % and
-# 2.7-4.6 % (bounds 12 % and 5 %). Reference noise: two seeds
+# 2.7-4.6 %, version 16 (links whose rays were all blocked looked at too)
+# 6.7-9.2 % and 2.1-3.5 % (bounds 10 % and 4 %). Reference noise: two seeds
 # of it differ by 1.5 % at worst, 0.49 % rms (32768 spp).
 echo "== lroom_foot"
 sc=lroom_foot
@@ -67,9 +69,9 @@ if [[ -f $data/$sc-ref.exr ]]; then
   run_corrtex 0 compare "$tmp/$sc.exr" "$data/$sc-ref.exr" --regions 4 --region-table
   worst=$(awk '$1 == "region_worst" { print $2 }' <<<"$out")
   rms=$(awk '$1 == "region_rms" { print $2 }' <<<"$out")
-  echo "metric: ${sc}_region_worst=$worst ${sc}_region_rms=$rms (bounds: worst 0.12, rms 0.05)"
-  awk -v w="$worst" 'BEGIN { exit !(w <= 0.12) }' || fail "$sc: a region mean is off by $worst (more than 0.12)"
-  awk -v r="$rms" 'BEGIN { exit !(r <= 0.05) }' || fail "$sc: the region means' rms error is $rms (more than 0.05)"
+  echo "metric: ${sc}_region_worst=$worst ${sc}_region_rms=$rms (bounds: worst 0.10, rms 0.04)"
+  awk -v w="$worst" 'BEGIN { exit !(w <= 0.10) }' || fail "$sc: a region mean is off by $worst (more than 0.10)"
+  awk -v r="$rms" 'BEGIN { exit !(r <= 0.04) }' || fail "$sc: the region means' rms error is $rms (more than 0.04)"
 else
   fail "missing $data/$sc-ref.exr (scripts/make-radiosity-refs)"
 fi
