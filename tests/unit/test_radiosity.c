@@ -47,6 +47,34 @@ Test(radiosity, point_polygon_hemisphere)
     cr_assert_eq(rad_ff_point_polygon(v3(0, 0, 0), v3(0, 0, 1), rev, 4), 0.0);
 }
 
+/* Point to a parallel rectangle [0, a] x [0, b] at height c, the point
+ * under its corner (Howell's catalogue, B-3): the closed form the point
+ * factor's edge angles must reproduce. */
+static double ff_corner_rect(double a, double b, double c)
+{
+    double A = a / c, B = b / c, sa = sqrt(1.0 + A * A), sb = sqrt(1.0 + B * B);
+    return (A / sa * atan(B / sa) + B / sb * atan(A / sb)) / (2.0 * M_PI);
+}
+
+Test(radiosity, point_polygon_matches_closed_form)
+{
+    /* From a thousandth of the height to a hundred times it: tiny angles,
+     * and with the point under an edge's midpoint, edge angles near pi (the
+     * rational atan's range reductions, rad_ff.c). */
+    const double sizes[] = {1e-3, 0.1, 1.0, 7.0, 100.0};
+    for (int i = 0; i < 5; i++) {
+        float a = (float)sizes[i];
+        vec3 corner[4] = {v3(0, 0, 1), v3(0, a, 1), v3(a, a, 1), v3(a, 0, 1)};
+        double f = rad_ff_point_polygon(v3(0, 0, 0), v3(0, 0, 1), corner, 4), want = ff_corner_rect(a, a, 1.0);
+        cr_assert(fabs(f - want) <= 1e-5 * want, "corner, side %g: F = %.9g, closed form %.9g", sizes[i], f, want);
+        vec3 edge[4] = {v3(-a, 0, 1), v3(-a, a, 1), v3(a, a, 1), v3(a, 0, 1)};
+        f = rad_ff_point_polygon(v3(0, 0, 0), v3(0, 0, 1), edge, 4);
+        want = 2.0 * ff_corner_rect(a, a, 1.0);
+        cr_assert(fabs(f - want) <= 1e-5 * want, "edge midpoint, side %g: F = %.9g, closed form %.9g", sizes[i], f,
+                  want);
+    }
+}
+
 Test(radiosity, form_factor_parallel_squares_analytic)
 {
     vec3 a[4] = {v3(0, 0, 0), v3(1, 0, 0), v3(1, 1, 0), v3(0, 1, 0)};
