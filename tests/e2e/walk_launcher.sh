@@ -68,6 +68,18 @@ if [[ -f $out/report.md ]]; then
   for want in "## Settings" "## Results" "samples/s" "frames/s" "![error](error.png)" "contact.png" "mpirun -np 2"; do
     grep -qF -- "$want" "$out/report.md" || fail "report.md lacks '$want'"
   done
+  grep -q '^| radiosity_s | [0-9.]* |$' "$out/report.md" || fail "report.md lacks the radiosity's seconds: $(grep radiosity_s "$out/report.md")"
 fi
+# Again with the cache current: the report says so instead of a bare 0.0 s.
+out2="$tmp/walk2"
+cmd=("$walk" cornell --path walk --frames 2 --samples-per-frame $spf --width $w --height $w --ranks 2
+     --listen "unix:$sock" --out "$out2" --radiosity-cache "$tmp/cornell.ctmesh"
+     --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240)
+log_cmd "${cmd[@]}"
+(cd "$root" && env -u DISPLAY XDG_CACHE_HOME="$tmp/xdg" "${cmd[@]}") >"$tmp/walk2.out" 2>&1 || fail "second walk (cache current): exit status $?"
+grep -q "radiosity: checking the cache" "$tmp/walk2.out" || fail "the second walk did not announce the cache check"
+grep -q '^| radiosity_s | [0-9.]* (the cache was up to date) |$' "$out2/report.md" 2>/dev/null ||
+  fail "the second report does not say the cache was up to date: $(grep radiosity_s "$out2/report.md" 2>/dev/null)"
+no_strays "after the second walk"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: walk of $n frames with report; nothing left behind"
