@@ -203,7 +203,9 @@ static void look_at_partial_links(const rad_ctx *c, rad_gather_scratch *w, vec3 
              * spread and was never looked at, and the floor 30-40 cm
              * behind the L room's box stayed 1.5-6 % dark; its weight
              * is the spread of the rule of succession's 1 / (n + 2) for
-             * n blocked rays. Each draw is weighted by its odds, so the
+             * n = --vis-rays blocked rays (a lamp's links had more, so
+             * theirs is drawn more often than it needs, which costs rays,
+             * not accuracy). Each draw is weighted by its odds, so the
              * estimate of the vertex's own visibility stays unbiased.
              * Element links only: the office building keeps millions of
              * cluster links whose rays all met walls, and looking at those
