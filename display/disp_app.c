@@ -20,6 +20,7 @@
 #include "display/disp_session.h"
 #include "display/disp_synthetic.h"
 #include "display/gl_load.h"
+#include "display/gl_target.h"
 #include "proto/auth.h"
 
 #include "display/disp_app_internal.h"
@@ -396,6 +397,22 @@ static int run(app *a, ct_error *err)
     return rc;
 }
 
+/* The float target's samples a pixel for --msaa want (0: auto). A software
+ * rasteriser pays for every sample with CPU the tracers on the same host
+ * would use (docs/display.md, "Antialiasing"), so auto is 1 there and 4 on
+ * a GPU; more than the context allows is cut to what it allows. */
+static int msaa_samples(int want)
+{
+    int max = gl_target_max_samples();
+    if (want == 0) {
+        const char *r = (const char *)gl.GetString(GL_RENDERER);
+        bool soft = r && (strstr(r, "llvmpipe") || strstr(r, "softpipe") || strstr(r, "swrast") || strstr(r, "SWR"));
+        want = soft ? 1 : 4;
+    }
+    if (want > max) ct_warn(COMP, "--msaa %d: the GL context allows %d samples a pixel; using %d", want, max, max);
+    return want < max ? want : max;
+}
+
 int disp_app_run(const disp_app_opts *o, ct_error *err)
 {
     app a;
@@ -428,13 +445,16 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     rc = load_solution(&a, err);
     if (rc && rc != CT_ENOMEM && rc != CT_ESYS) status = DISP_EXIT_USAGE;
     if (!rc) rc = gl_backend_open(o->backend, o->width, o->height, "corrtex", o->vsync, &a.backend, err);
+    int samples = 1;
     if (!rc) {
-        ct_info(COMP, "backend %s: %s, %s", gl_backend_name(o->backend), (const char *)gl.GetString(GL_RENDERER),
-                (const char *)gl.GetString(GL_VERSION));
+        samples = msaa_samples(o->msaa);
+        ct_info(COMP, "backend %s: %s, %s, %d sample%s a pixel", gl_backend_name(o->backend),
+                (const char *)gl.GetString(GL_RENDERER), (const char *)gl.GetString(GL_VERSION), samples,
+                samples > 1 ? "s" : "");
         rc = disp_session_new(&a.session, err);
         if (!rc) disp_session_set_sample_limits(a.session, o->sample_frames, o->sample_max);
     }
-    if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, &a.comp, err);
+    if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, samples, &a.comp, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
         GLint max = 0;

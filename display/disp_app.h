@@ -30,6 +30,7 @@ typedef struct disp_app_opts {
     disp_view view;
     bool vsync;
     unsigned float_format;        /* GL_RGBA32F or GL_RGBA16F */
+    int msaa;                     /* samples a pixel; 0: 4 on a GPU, 1 on a software rasteriser */
     const char *mesh;             /* --mesh FILE.ctmesh */
     const char *scene;            /* --scene FILE.json (stand-in radiosity) */
     float ambient;                /* stand-in radiosity's ambient term */

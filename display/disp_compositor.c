@@ -19,7 +19,9 @@ typedef struct mesh_prog {
 
 struct disp_compositor {
     int width, height;
-    gl_target hdr;       /* linear float image + depth */
+    gl_target hdr;       /* linear float image + depth (multisampled when samples > 1) */
+    gl_target res;       /* hdr resolved to one sample a pixel (samples > 1 only) */
+    int samples;
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
     gl_target base;      /* radiosity + glass of base_cam, no corrections (made on first use) */
     bool base_ok;        /* base holds base_cam's view of scene base_scene */
@@ -83,7 +85,7 @@ static int build_mesh_prog(mesh_prog *p, int pass, int ntex, ct_error *err)
     return CT_OK;
 }
 
-int disp_compositor_new(int width, int height, unsigned float_format, disp_compositor **out,
+int disp_compositor_new(int width, int height, unsigned float_format, int samples, disp_compositor **out,
                         ct_error *err)
 {
     *out = NULL;
@@ -95,7 +97,9 @@ int disp_compositor_new(int width, int height, unsigned float_format, disp_compo
     if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for the compositor");
     c->width = width;
     c->height = height;
-    int rc = gl_target_init(&c->hdr, width, height, float_format, true, err);
+    c->samples = samples > 1 ? samples : 1;
+    int rc = gl_target_init_ms(&c->hdr, width, height, float_format, true, c->samples, err);
+    if (!rc && c->samples > 1) rc = gl_target_init(&c->res, width, height, float_format, false, err);
     if (!rc) rc = gl_target_init(&c->ldr, width, height, GL_RGBA8, false, err);
     for (int p = 0; p < GL_PASS_COUNT && !rc; p++)
         if (p != GL_PASS_ONE) rc = build_mesh_prog(&c->mesh[p], p, 1, err);
@@ -139,6 +143,7 @@ void disp_compositor_free(disp_compositor *c)
 {
     if (!c) return;
     gl_target_free(&c->hdr);
+    gl_target_free(&c->res);
     gl_target_free(&c->ldr);
     gl_target_free(&c->base);
     for (int p = 0; p < GL_PASS_COUNT; p++)
@@ -657,7 +662,7 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
     uint64_t serial = disp_scene_serial(s);
     if (!c->base_ok || c->base_scene != serial || !cam_same(&c->base_cam, cam)) {
         if (!c->base.fbo) {
-            int rc = gl_target_init(&c->base, c->width, c->height, c->hdr.format, true, err);
+            int rc = gl_target_init_ms(&c->base, c->width, c->height, c->hdr.format, true, c->samples, err);
             if (rc) return rc;
         }
         clear_target(&c->base);
@@ -764,9 +769,13 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     free(tex);
     gl.BindVertexArray(0);
     gl.UseProgram(0);
+    if (!rc && c->samples > 1) gl_target_resolve(&c->hdr, &c->res);
     if (stats) *stats = st;
     return rc ? rc : gl_check("frame rendering", err);
 }
+
+/* The single-sampled linear image of the last render. */
+static const gl_target *shown(const disp_compositor *c) { return c->samples > 1 ? &c->res : &c->hdr; }
 
 int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, bool to_window, int win_w,
                             int win_h, ct_error *err)
@@ -776,7 +785,7 @@ int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, bool 
     gl.Disable(GL_BLEND);
     gl.UseProgram(c->tonemap);
     gl.ActiveTexture(GL_TEXTURE0);
-    gl.BindTexture(GL_TEXTURE_2D, c->hdr.color);
+    gl.BindTexture(GL_TEXTURE_2D, shown(c)->color);
     gl.Uniform1i(c->tm_image, 0);
     gl.Uniform1f(c->tm_exposure, o->exposure);
     gl.Uniform1i(c->tm_mode, o->view == DISP_VIEW_CORRECTIONS ? 1 : 0);
@@ -796,7 +805,7 @@ void disp_compositor_read_linear(disp_compositor *c, float *rgb)
         memset(rgb, 0, w * h * 3 * sizeof *rgb);
         return;
     }
-    gl_target_read_f32(&c->hdr, rgba);
+    gl_target_read_f32(shown(c), rgba);
     for (size_t y = 0; y < h; y++)
         for (size_t x = 0; x < w; x++) {
             const float *src = rgba + 4 * ((h - 1 - y) * w + x);

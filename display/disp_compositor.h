@@ -59,8 +59,10 @@ typedef struct disp_render_stats {
 typedef struct disp_compositor disp_compositor;
 
 /* Compiles the programs and creates width x height targets; float_format is
- * GL_RGBA32F or GL_RGBA16F (0: RGBA32F). Needs a current context. */
-int disp_compositor_new(int width, int height, unsigned float_format, disp_compositor **out,
+ * GL_RGBA32F or GL_RGBA16F (0: RGBA32F); samples a pixel of the float target
+ * (multisampling: 1 for none, at most gl_target_max_samples()), averaged
+ * into the image each render leaves. Needs a current context. */
+int disp_compositor_new(int width, int height, unsigned float_format, int samples, disp_compositor **out,
                         ct_error *err);
 
 /* Deletes programs and targets. NULL is fine. */

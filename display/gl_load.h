@@ -92,6 +92,7 @@
     X(PFNGLGENRENDERBUFFERSPROC, GenRenderbuffers)                                \
     X(PFNGLBINDRENDERBUFFERPROC, BindRenderbuffer)                                \
     X(PFNGLRENDERBUFFERSTORAGEPROC, RenderbufferStorage)                          \
+    X(PFNGLRENDERBUFFERSTORAGEMULTISAMPLEPROC, RenderbufferStorageMultisample)    \
     X(PFNGLDELETERENDERBUFFERSPROC, DeleteRenderbuffers)                          \
     X(PFNGLDRAWARRAYSPROC, DrawArrays)                                            \
     X(PFNGLDRAWELEMENTSPROC, DrawElements)

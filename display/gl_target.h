@@ -1,6 +1,7 @@
-/* gl_target.h: off-screen render targets (a colour texture, optionally a
- * depth and stencil buffer, in one framebuffer object) and pixel
- * read-back. Pixels come back in GL order: row 0 is the bottom row. */
+/* gl_target.h: off-screen render targets (a colour texture, or a
+ * multisampled colour renderbuffer, optionally a depth and stencil buffer,
+ * in one framebuffer object), resolving and pixel read-back. Pixels come
+ * back in GL order: row 0 is the bottom row. */
 #ifndef CT_GL_TARGET_H
 #define CT_GL_TARGET_H
 
@@ -13,6 +14,7 @@ typedef struct gl_target {
     GLuint fbo, color, depth;
     GLenum format;      /* GL_RGBA32F, GL_RGBA16F or GL_RGBA8 */
     int width, height;
+    int samples;        /* 1: color is a texture; more: a multisampled renderbuffer */
 } gl_target;
 
 /* Creates a width x height target with the given colour format and an
@@ -20,11 +22,23 @@ typedef struct gl_target {
  * with an 8-bit stencil; checks completeness. */
 int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err);
 
+/* The same with `samples` samples a pixel (1: gl_target_init). A
+ * multisampled target is drawn into and resolved (gl_target_resolve), not
+ * read or sampled. */
+int gl_target_init_ms(gl_target *t, int width, int height, GLenum format, bool depth, int samples,
+                      ct_error *err);
+
+/* The most samples a pixel the context's renderbuffers allow (at least 1). */
+int gl_target_max_samples(void);
+
+/* Averages src's samples into dst's colour (same size; dst single-sampled). */
+void gl_target_resolve(const gl_target *src, const gl_target *dst);
+
 /* Deletes the GL objects and zeroes t. */
 void gl_target_free(gl_target *t);
 
-/* Copies src's colour, depth and stencil into dst (same size and formats)
- * and leaves dst bound for drawing. */
+/* Copies src's colour, depth and stencil into dst (same size, formats and
+ * samples) and leaves dst bound for drawing. */
 void gl_target_copy(const gl_target *src, const gl_target *dst);
 
 /* Binds t for drawing (or the default framebuffer when t is NULL) and sets

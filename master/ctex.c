@@ -404,17 +404,21 @@ ctex_stats ctex_get_stats(const ctex *c)
 
 /* --- compositor ----------------------------------------------------------------------- */
 
-int ctex_composite(const ctex *c, const ctex_hit *hits, int width, int height, ct_image *out,
+int ctex_composite(const ctex *c, const ctex_hit *hits, int spp, int width, int height, ct_image *out,
                    ct_error *err)
 {
     if (!out->px || out->width != width || out->height != height)
         return ct_fail(err, CT_EINVAL, "compositor output is not %dx%d", width, height);
+    if (spp < 1) return ct_fail(err, CT_EINVAL, "compositor: %d hits per pixel", spp);
     for (int y = 0; y < height; y++)
         for (int x = 0; x < width; x++) {
-            const ctex_hit *h = &hits[(size_t)y * (size_t)width + (size_t)x];
-            vec3 v = h->l_base;
-            if (h->node != UINT32_MAX) v = v3_add(v, ctex_lookup(c, h->node, h->tri, h->p));
-            img_set(out, x, y, v);
+            const ctex_hit *h = &hits[((size_t)y * (size_t)width + (size_t)x) * (size_t)spp];
+            vec3 v = v3s(0.0f);
+            for (int k = 0; k < spp; k++) {
+                v = v3_add(v, h[k].l_base);
+                if (h[k].node != UINT32_MAX) v = v3_add(v, ctex_lookup(c, h[k].node, h[k].tri, h[k].p));
+            }
+            img_set(out, x, y, v3_scale(v, 1.0f / (float)spp));
         }
     return CT_OK;
 }

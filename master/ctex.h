@@ -271,8 +271,11 @@ ctex_stats ctex_get_stats(const ctex *c);
 /* --- compositor ---------------------------------------------------------------- */
 
 /* The image the display draws: per pixel l_base plus the bilinear correction
- * of the pixel's node at its hit point. out must be width x height. */
-int ctex_composite(const ctex *c, const ctex_hit *hits, int width, int height, ct_image *out,
+ * of the pixel's node at its hit point, averaged over the pixel's spp hits
+ * (hits holds width x height x spp, a pixel's spp hits one after the other:
+ * spp > 1 is a display drawing with multisampling). out must be width x
+ * height. */
+int ctex_composite(const ctex *c, const ctex_hit *hits, int spp, int width, int height, ct_image *out,
                    ct_error *err);
 
 /* A distinct colour for texture tex (the paper's Fig. 5 debug view). */

@@ -20,6 +20,7 @@ struct fsink {
     FILE *csv;
     char csv_path[4096];
     const ctex_hit *hits;
+    int spp;               /* hits per pixel */
     ct_image ref;          /* the phase's reference (px NULL when none) */
     ct_image comp, hq, aux;
     uint8_t *covered;      /* pixel has a sample of the current phase */
@@ -89,7 +90,8 @@ int fsink_assignment(fsink *k, sess *s, const char *stem, ct_error *err)
     const ctex *c = sess_textures(s);
     for (int y = 0; y < k->c.height; y++)
         for (int x = 0; x < k->c.width; x++) {
-            const ctex_hit *h = &k->hits[(size_t)y * (size_t)k->c.width + (size_t)x];
+            /* a pixel's first hit: the debug view needs no antialiasing */
+            const ctex_hit *h = &k->hits[((size_t)y * (size_t)k->c.width + (size_t)x) * (size_t)k->spp];
             vec3 col = v3s(0.0f);
             if (h->node != UINT32_MAX) {
                 float l = img_tonemap(v3_luminance(h->l_base), k->c.exposure);
@@ -153,7 +155,7 @@ static int checkpoint(fsink *k, sess *s, const char *phase, const char *stem, lo
 {
     double reached = ct_now();
     const ctex *c = sess_textures(s);
-    int rc = ctex_composite(c, k->hits, k->c.width, k->c.height, &k->comp, err);
+    int rc = ctex_composite(c, k->hits, k->spp, k->c.width, k->c.height, &k->comp, err);
     if (rc || (rc = write_pair(k, &k->comp, stem, err))) return rc;
     if (sample_img) {
         char sstem[256];
@@ -219,11 +221,13 @@ sink fsink_sink(fsink *k)
     return (sink){k, on_samples, on_frame};
 }
 
-int fsink_phase(fsink *k, const char *phase, const char *prefix, const ctex_hit *hits, const char *ref, ct_error *err)
+int fsink_phase(fsink *k, const char *phase, const char *prefix, const ctex_hit *hits, int spp, const char *ref,
+                ct_error *err)
 {
     snprintf(k->phase, sizeof k->phase, "%s", phase);
     snprintf(k->prefix, sizeof k->prefix, "%s", prefix);
     k->hits = hits;
+    k->spp = spp;
     k->done = 0;
     memset(k->covered, 0, (size_t)k->c.width * (size_t)k->c.height);
     img_free(&k->ref);

@@ -33,9 +33,10 @@ sink fsink_sink(fsink *k);
 
 /* A phase starts (its checkpoints count its samples from 0): the name in
  * the CSV ("still", "after"), the file prefix, the primary hits of its view
- * (width x height, kept by the caller) and its reference image (NULL:
- * none; it must have the view's size). */
-int fsink_phase(fsink *k, const char *phase, const char *prefix, const ctex_hit *hits, const char *ref,
+ * (width x height x spp, a pixel's spp hits one after the other, kept by
+ * the caller; ctex_composite) and its reference image (NULL: none; it must
+ * have the view's size). */
+int fsink_phase(fsink *k, const char *phase, const char *prefix, const ctex_hit *hits, int spp, const char *ref,
                 ct_error *err);
 
 /* The image without this phase's samples: NAME.exr/.png and a CSV row of

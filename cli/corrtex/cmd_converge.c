@@ -42,7 +42,7 @@
 
 typedef struct conv_opts {
     const char *camera, *samples, *samples_after, *move_to, *out, *reference, *reference_after, *mesh, *record;
-    int width, height, batch, threads, insert_runs;
+    int width, height, batch, threads, insert_runs, aa;
     trc_cli trc;   /* the tracer's options */
     uint64_t seed;
     float exposure, stand_in;
@@ -69,6 +69,9 @@ static const optab OPTS[] = {
     {"stand-in", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, NULL, "A",
      "interactive solution: the constant stand-in (emission + diffuse x A per material) instead of radiosity "
      "(tests)", NULL},
+    {"aa", 0, OPTAB_INT, OF(aa), 1, 4, "2", "N",
+     "the compositor's primary hits per pixel side (N x N, averaged): the display's multisampling; 1: the pixel "
+     "centre only", NULL},
     {"batch", 0, OPTAB_INT, OF(batch), 1, 65536, "256", "B", "requests per batch (a lockstep round)", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, POOL_MAX_THREADS, "2", "T", "tracing threads", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 2147483647, "1", "S", "seed of the queue and the tracer", NULL},
@@ -141,33 +144,42 @@ static int parse_list(const char *s, long *out, int *n, const char *flag, ct_err
     return CT_OK;
 }
 
-/* Primary hits at every pixel centre: what the display shows (for the
- * compositor). */
-static int primary_hits(const trc_tracer *t, ct_pool *pool, const ct_camera *cam, int w, int h, uint32_t epoch,
-                        ctex_hit *hits, ct_error *err)
+/* Primary hits at aa x aa stratified points of every pixel (its centre for
+ * aa = 1), pixel by pixel: what the display shows, for the compositor. The
+ * reference images average over the whole pixel, so a compositor that took
+ * the centre alone would count the edges' aliasing as error. */
+static int primary_hits(const trc_tracer *t, ct_pool *pool, const ct_camera *cam, int w, int h, int aa,
+                        uint32_t epoch, ctex_hit *hits, ct_error *err)
 {
-    size_t n = (size_t)w * (size_t)h;
-    ct_request *req = calloc(n, sizeof *req);
-    ct_sample *s = calloc(n, sizeof *s);
+    size_t spp = (size_t)aa * (size_t)aa, n = (size_t)w * (size_t)h * spp;
+    /* in chunks: the records of all aa x aa hits of a large view would not fit */
+    size_t chunk = n < ((size_t)1 << 20) ? n : ((size_t)1 << 20);
+    ct_request *req = calloc(chunk, sizeof *req);
+    ct_sample *s = calloc(chunk, sizeof *s);
     if (!req || !s) {
         free(req);
         free(s);
-        return ct_fail(err, CT_ENOMEM, "out of memory for %zu primary hits", n);
-    }
-    for (size_t i = 0; i < n; i++) {
-        req[i].id = i + 1;
-        req[i].epoch = epoch;
-        req[i].px = (float)(i % (size_t)w) + 0.5f;
-        req[i].py = (float)(i / (size_t)w) + 0.5f;
+        return ct_fail(err, CT_ENOMEM, "out of memory for %zu primary hits", chunk);
     }
     trc_view v = {*cam, w, h};
-    trc_trace_par(t, pool, &v, req, n, s, true, NULL);
-    for (size_t i = 0; i < n; i++) {
-        int hit = (s[i].flags & CT_SAMPLE_HIT) != 0;
-        hits[i].node = hit ? s[i].node : UINT32_MAX;
-        hits[i].tri = hit ? s[i].tri : UINT32_MAX;
-        hits[i].p = s[i].hit;
-        hits[i].l_base = hit ? s[i].l_base : v3s(0.0f);
+    for (size_t b = 0; b < n; b += chunk) {
+        size_t m = n - b < chunk ? n - b : chunk;
+        for (size_t j = 0; j < m; j++) {
+            size_t i = b + j, pix = i / spp, sub = i % spp;
+            req[j].id = i + 1;
+            req[j].epoch = epoch;
+            req[j].px = (float)(pix % (size_t)w) + ((float)(sub % (size_t)aa) + 0.5f) / (float)aa;
+            req[j].py = (float)(pix / (size_t)w) + ((float)(sub / (size_t)aa) + 0.5f) / (float)aa;
+        }
+        trc_trace_par(t, pool, &v, req, m, s, true, NULL);
+        for (size_t j = 0; j < m; j++) {
+            ctex_hit *o = &hits[b + j];
+            int hit = (s[j].flags & CT_SAMPLE_HIT) != 0;
+            o->node = hit ? s[j].node : UINT32_MAX;
+            o->tri = hit ? s[j].tri : UINT32_MAX;
+            o->p = s[j].hit;
+            o->l_base = hit ? s[j].l_base : v3s(0.0f);
+        }
     }
     free(req);
     free(s);
@@ -230,7 +242,7 @@ static int phase(run *r, const ct_camera *cam, uint32_t epoch, const char *name,
                  const char *ref, const long *ck, int nck, ct_error *err)
 {
     int W = r->o->width, H = r->o->height, rc;
-    if ((rc = primary_hits(r->t, r->pool, cam, W, H, epoch, r->hits, err))) return rc;
+    if ((rc = primary_hits(r->t, r->pool, cam, W, H, r->o->aa, epoch, r->hits, err))) return rc;
     double tc = ct_now();
     if ((rc = drv_set_view(r->d, cam, W, H, err)) < 0) return rc;
     if (epoch > 0) {
@@ -241,7 +253,7 @@ static int phase(run *r, const ct_camera *cam, uint32_t epoch, const char *name,
     }
     char stem[64];
     snprintf(stem, sizeof stem, "%sassignment", prefix);
-    if ((rc = fsink_phase(r->fk, name, prefix, r->hits, ref, err)) || (rc = fsink_snapshot(r->fk, r->s, snap, err)) ||
+    if ((rc = fsink_phase(r->fk, name, prefix, r->hits, r->o->aa * r->o->aa, ref, err)) || (rc = fsink_snapshot(r->fk, r->s, snap, err)) ||
         (rc = fsink_assignment(r->fk, r->s, stem, err)))
         return rc;
     uint64_t first = sess_get_counters(r->s).inserted;
@@ -475,7 +487,7 @@ int cmd_converge(int argc, char **argv)
     drv_set_lockstep(r.d, true);
     r.t = tr;
     r.pool = pool;
-    if (!(r.hits = malloc((size_t)o.width * (size_t)o.height * sizeof *r.hits))) {
+    if (!(r.hits = malloc((size_t)o.width * (size_t)o.height * (size_t)o.aa * (size_t)o.aa * sizeof *r.hits))) {
         rc = ct_fail(&err, CT_ENOMEM, "out of memory for a %dx%d run", o.width, o.height);
         goto fail;
     }

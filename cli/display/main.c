@@ -81,6 +81,9 @@ static const optab VIEW_OPTS[] = {
      "samples view: show the sample points of the last N frames", NULL},
     {"sample-max", 0, OPTAB_U32, OF(o.sample_max), 1, 100000000, NULL, "N", "samples view: keep at most N points",
      NULL},
+    {"msaa", 0, OPTAB_INT, OF(o.msaa), 0, 64, NULL, "N",
+     "samples a pixel (antialiasing; 1: none; default 0: 4 on a GPU, 1 on a software rasteriser, whose CPU the "
+     "tracers on the same host would use)", NULL},
     {"fbo", 0, OPTAB_CHOICE, OF(fbo), 0, 0, NULL, "32f|16f", "float framebuffer format", FBOS},
     {"no-vsync", 0, OPTAB_FLAG, OF(no_vsync), 0, 0, NULL, NULL, "window: do not wait for vertical sync", NULL},
     {"camera", 0, OPTAB_STRING, OF(camera), 0, 0, NULL, "EX,EY,EZ,TX,TY,TZ[,FOV]",

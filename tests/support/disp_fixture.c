@@ -260,7 +260,7 @@ static int read_all(int fd, void *p, size_t n)
 }
 
 static void child(int fd, gl_backend_kind kind, int width, int height, const ct_camera *cam,
-                  const disp_render_opts *o, int frames, fx_setup_fn setup, void *ctx)
+                  const disp_render_opts *o, int samples, int frames, fx_setup_fn setup, void *ctx)
 {
     child_head h;
     memset(&h, 0, sizeof h);
@@ -276,7 +276,7 @@ static void child(int fd, gl_backend_kind kind, int width, int height, const ct_
     if (!rc) rc = gl_backend_open(kind, width, height, "corrtex test", false, &b, &err);
     if (!rc) rc = disp_session_new(&s, &err);
     if (!rc && setup) rc = setup(s, ctx, &err);
-    if (!rc) rc = disp_compositor_new(width, height, 0, &c, &err);
+    if (!rc) rc = disp_compositor_new(width, height, 0, samples, &c, &err);
     for (int k = 0; k < frames && !rc; k++)
         rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), cam, o, NULL, &err);
     bool win = b && gl_backend_is_window(b);
@@ -312,6 +312,12 @@ int fx_render_frames(gl_backend_kind kind, int width, int height, const ct_camer
                      const disp_render_opts *o, int frames, fx_setup_fn setup, void *ctx, fx_frame *out,
                      char *msg, size_t msgcap)
 {
+    return fx_render_ms(kind, width, height, cam, o, 1, frames, setup, ctx, out, msg, msgcap);
+}
+
+int fx_render_ms(gl_backend_kind kind, int width, int height, const ct_camera *cam, const disp_render_opts *o,
+                 int samples, int frames, fx_setup_fn setup, void *ctx, fx_frame *out, char *msg, size_t msgcap)
+{
     memset(out, 0, sizeof *out);
     int fds[2];
     if (pipe(fds)) {
@@ -326,7 +332,7 @@ int fx_render_frames(gl_backend_kind kind, int width, int height, const ct_camer
     }
     if (pid == 0) {
         close(fds[0]);
-        child(fds[1], kind, width, height, cam, o, frames, setup, ctx);
+        child(fds[1], kind, width, height, cam, o, samples, frames, setup, ctx);
         _exit(0);
     }
     close(fds[1]);
@@ -472,7 +478,7 @@ vec3 fx_bilinear(const float *rgb, int w, int h, float s, float t)
 int fx_render_session(disp_session *s, int width, int height, uint8_t *out, ct_error *err)
 {
     disp_compositor *c = NULL;
-    int rc = disp_compositor_new(width, height, 0, &c, err);
+    int rc = disp_compositor_new(width, height, 0, 1, &c, err);
     if (rc) return rc;
     ct_camera cam = fx_box_camera();
     disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false};

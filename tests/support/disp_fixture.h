@@ -73,6 +73,10 @@ int fx_render(gl_backend_kind kind, int width, int height, const ct_camera *cam,
 int fx_render_frames(gl_backend_kind kind, int width, int height, const ct_camera *cam,
                      const disp_render_opts *o, int frames, fx_setup_fn setup, void *ctx, fx_frame *out,
                      char *msg, size_t msgcap);
+/* fx_render_frames with a multisampled float target of `samples` samples a
+ * pixel (disp_compositor_new). */
+int fx_render_ms(gl_backend_kind kind, int width, int height, const ct_camera *cam, const disp_render_opts *o,
+                 int samples, int frames, fx_setup_fn setup, void *ctx, fx_frame *out, char *msg, size_t msgcap);
 void fx_frame_free(fx_frame *f);
 
 /* Starts Xvfb on a free display number and points $DISPLAY at it; returns

@@ -148,7 +148,7 @@ Test(ctex_converge, cornell_128, .timeout = 300)
         drv_begin_frame(d, ck[k] < 0 ? UINT32_MAX : (uint32_t)(ck[k] - done));
         while (drv_in_frame(d)) cr_assert_geq(drv_step(d, &err), 0, "%s", err.msg);
         done = (long)sess_get_counters(ss).inserted;
-        cr_assert_eq(ctex_composite(c, hits, W, H, &comp, &err), 0);
+        cr_assert_eq(ctex_composite(c, hits, 1, W, H, &comp, &err), 0);
         img_metrics mt;
         cr_assert_eq(metrics_compare(&comp, &ref, &mt, &err), 0);
         rmse[k] = mt.rmse;

@@ -131,14 +131,22 @@ Test(ctex_events, compositor_adds_bilinear_correction)
     }
     /* (built by hand: the compositor only needs the pixel array) */
     ct_image img = {8, 8, calloc(8 * 8 * 3, sizeof(float))};
-    cr_assert_eq(ctex_composite(c, hits, 8, 8, &img, &err), 0);
+    cr_assert_eq(ctex_composite(c, hits, 1, 8, 8, &img, &err), 0);
     for (int i = 0; i < 64; i++) {
         vec3 v = img_get(&img, i % 8, i / 8);
         float expect = i % 2 ? 0.1f : 0.35f;
         cr_assert_float_eq(v.x, expect, 1e-5, "pixel %d: %g", i, (double)v.x);
     }
     ct_image bad = {4, 4, calloc(4 * 4 * 3, sizeof(float))};
-    cr_assert_lt(ctex_composite(c, hits, 8, 8, &bad, &err), 0);
+    cr_assert_lt(ctex_composite(c, hits, 1, 8, 8, &bad, &err), 0);
+    /* Two hits a pixel (a multisampling display, converge --aa): each
+     * pixel of the 4 x 8 image averages a corrected and an uncorrected hit. */
+    ct_image half = {4, 8, calloc(4 * 8 * 3, sizeof(float))};
+    cr_assert_eq(ctex_composite(c, hits, 2, 4, 8, &half, &err), 0, "%s", err.msg);
+    for (int i = 0; i < 32; i++)
+        cr_assert_float_eq(img_get(&half, i % 4, i / 4).x, 0.225f, 1e-5, "pixel %d", i);
+    cr_assert_lt(ctex_composite(c, hits, 0, 4, 8, &half, &err), 0, "0 hits a pixel");
+    free(half.px);
     free(bad.px);
     free(img.px);
     ctex_free(c);

@@ -133,7 +133,7 @@ static void rig_open(rig *r, fx_setup *f)
     cr_assert_eq(gl_backend_open(GL_BACKEND_OSMESA, W, H, NULL, false, &r->b, &err), 0, "%s", err.msg);
     cr_assert_eq(disp_session_new(&r->s, &err), 0);
     cr_assert_eq(setup(r->s, f ? f : &none, &err), 0, "%s", err.msg);
-    cr_assert_eq(disp_compositor_new(W, H, 0, &r->c, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_compositor_new(W, H, 0, 1, &r->c, &err), 0, "%s", err.msg);
 }
 
 static void rig_close(rig *r)

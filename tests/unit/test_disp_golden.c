@@ -1,7 +1,8 @@
 /* Golden images of the radiosity pass: the box mesh drawn by OSMesa and by
  * EGL agrees with a software Gouraud rasterisation at pixel centres, and the
  * two backends agree with each other; a surface 1 mm in front of another
- * (a whiteboard on its frame) does not z-fight with it across a deep scene. */
+ * (a whiteboard on its frame) does not z-fight with it across a deep scene;
+ * multisampling averages the edges toward the pixel's mean. */
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -175,3 +176,69 @@ Test(disp_golden, one_millimetre_apart_at_twenty_metres) { layered((layers){20.0
 
 /* The classic 24-bit fallback: 1 mm apart at 8 m (the office's whiteboard). */
 Test(disp_golden, one_millimetre_apart_at_eight_metres_classic_depth) { layered((layers){8.0f, false}); }
+
+/* Multisampling (--msaa): with 4 samples a pixel the interior pixels keep
+ * the single-sample values (the varyings are centroid-sampled, so a covered
+ * pixel is shaded at its centre), and the pixels on the box's edges come
+ * closer to the pixel's true mean, a 4x4-supersampled software
+ * rasterisation box-filtered to the image, than the single-sample image
+ * does: the error the edges of a centre-sampled image carry against a
+ * reference that averages the whole pixel. */
+Test(disp_golden, multisampling_averages_the_edges)
+{
+    ct_radmesh m;
+    ct_camera cam;
+    fx_ref ref;
+    ct_error err;
+    cr_assert_eq(fx_box_reference(W, H, &m, NULL, &cam, &ref, &err), 0, "%s", err.msg);
+    enum { S = 4 };
+    fx_ref fine;
+    cr_assert_eq(fx_rasterise(&m, &cam, W * S, H * S, &fine), 0);
+    disp_render_opts o = {1, DISP_VIEW_RADIOSITY, 0.0f, false, false};
+    fx_frame one, ms;
+    char msg[256];
+    cr_assert_eq(fx_render_ms(GL_BACKEND_EGL, W, H, &cam, &o, 1, 1, setup_box, NULL, &one, msg, sizeof msg), 0,
+                 "egl: %s", msg);
+    cr_assert_eq(fx_render_ms(GL_BACKEND_EGL, W, H, &cam, &o, 4, 1, setup_box, NULL, &ms, msg, sizeof msg), 0,
+                 "egl, 4 samples: %s", msg);
+    double e_one = 0, e_ms = 0;
+    size_t edges = 0, inner = 0, same = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t p = (size_t)y * W + (size_t)x;
+            if (ref.smooth[p]) {
+                /* the box's triangles have colours of their own: a pixel
+                 * across two of them is averaged too, one inside one is not */
+                inner++;
+                double d = 0;
+                for (int k = 0; k < 3; k++)
+                    d = fmax(d, fabs((double)one.linear[3 * p + (size_t)k] - ms.linear[3 * p + (size_t)k]));
+                same += d < 1e-5;
+                continue;
+            }
+            edges++;
+            for (int k = 0; k < 3; k++) {
+                double mean = 0;
+                for (int j = 0; j < S; j++)
+                    for (int i = 0; i < S; i++)
+                        mean += fine.rgb[3 * ((size_t)(S * y + j) * (size_t)(W * S) + (size_t)(S * x + i)) + (size_t)k];
+                mean /= S * S;
+                e_one += fabs((double)one.linear[3 * p + (size_t)k] - mean);
+                e_ms += fabs((double)ms.linear[3 * p + (size_t)k] - mean);
+            }
+        }
+    e_one /= 3.0 * (double)edges;
+    e_ms /= 3.0 * (double)edges;
+    printf("metric: %zu edge pixels, mean |diff| to the 16-sample mean: 1 sample %.4f, 4 samples %.4f (must be "
+           "under half)\n", edges, e_one, e_ms);
+    printf("metric: %zu of %zu pixels inside one part unchanged by multisampling (must be at least 3/4)\n", same,
+           inner);
+    cr_expect_gt(edges, (size_t)100, "only %zu edge pixels", edges);
+    cr_expect_geq(4 * same, 3 * inner, "%zu of %zu inner pixels unchanged", same, inner);
+    cr_expect_lt(e_ms, 0.5 * e_one, "4 samples %.4f against 1 sample %.4f", e_ms, e_one);
+    fx_frame_free(&one);
+    fx_frame_free(&ms);
+    fx_ref_free(&fine);
+    fx_ref_free(&ref);
+    rmesh_free(&m);
+}
