@@ -455,6 +455,13 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         if (!rc) disp_session_set_sample_limits(a.session, o->sample_frames, o->sample_max);
     }
     if (!rc) rc = disp_compositor_new(o->width, o->height, o->float_format, samples, &a.comp, err);
+    if (rc == CT_ESYS && samples > 1) {
+        /* A large window's multisampled targets may not fit the GPU's memory:
+         * an aliased image beats none. */
+        ct_warn(COMP, "%d samples a pixel at %dx%d: %s; drawing with 1", samples, o->width, o->height, err->msg);
+        ct_error_clear(err);
+        rc = disp_compositor_new(o->width, o->height, o->float_format, 1, &a.comp, err);
+    }
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
         GLint max = 0;
