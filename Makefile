@@ -67,7 +67,7 @@ else
 Q := @
 endif
 
-FOLDERS := common proto tracer master display
+FOLDERS := common proto tracer radiosity master display
 # Sources of a folder: its .c files, one level of subfolders included.
 srcs_of = $(sort $(wildcard $(1)/*.c $(1)/*/*.c))
 objs_of = $(patsubst %.c,$(BUILD)/%.o,$(call srcs_of,$(1)))
@@ -75,6 +75,7 @@ objs_of = $(patsubst %.c,$(BUILD)/%.o,$(call srcs_of,$(1)))
 LIB_common := $(BUILD)/libcommon.a
 LIB_proto  := $(BUILD)/libproto.a
 LIB_tracer := $(BUILD)/libtracer.a
+LIB_radiosity := $(BUILD)/libradiosity.a
 LIB_master := $(BUILD)/libmaster.a
 LIB_display:= $(BUILD)/libdisplay.a
 
@@ -103,7 +104,7 @@ UNIT_SRCS := $(sort $(wildcard tests/unit/test_*.c))
 UNIT_BINS := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(UNIT_SRCS))
 TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(sort $(wildcard tests/support/*.c)))
 
-ALL_LIBS := $(LIB_display) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
+ALL_LIBS := $(LIB_display) $(LIB_master) $(LIB_radiosity) $(LIB_tracer) $(LIB_proto) $(LIB_common)
 
 .PHONY: all test test-asan unit-bins e2e check-deps bench demo install man clean scenes fuzz setup
 .DEFAULT_GOAL := all
@@ -125,11 +126,16 @@ $(BUILD)/%.o: %.c $(FLAGS_STAMP)
 	$(Q)$(CC) $(CFLAGS) $(if $(filter master/% proto/%,$<),$(MPICF)) -c $< -o $@
 
 lib_objs = $(or $(call objs_of,$(1)),$(BUILD)/empty.o)
+# A library also depends on the list of its objects, so that a source file
+# moved out of a folder leaves its archive (which would still hold it).
 define LIBRULE
-$$(LIB_$(1)): $$(call lib_objs,$(1))
+$$(BUILD)/lib$(1).objs: FORCE
+	@mkdir -p $$(dir $$@)
+	@[ "$$$$(cat $$@ 2>/dev/null)" = '$$(call lib_objs,$(1))' ] || echo '$$(call lib_objs,$(1))' > $$@
+$$(LIB_$(1)): $$(call lib_objs,$(1)) $$(BUILD)/lib$(1).objs
 	@mkdir -p $$(dir $$@)
 	@[ "$(V)" = 1 ] || echo "  AR      $$@"
-	$(Q)rm -f $$@ && $(AR) rcs $$@ $$^
+	$(Q)rm -f $$@ && $(AR) rcs $$@ $$(call lib_objs,$(1))
 endef
 $(foreach f,$(FOLDERS),$(eval $(call LIBRULE,$(f))))
 
@@ -138,12 +144,12 @@ $(BUILD)/empty.o:
 	@mkdir -p $(dir $@)
 	$(Q)echo 'typedef int ct_empty_unit;' | $(CC) -x c -c - -o $@
 
-$(BINDIR)/corrtex: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_SRCS)) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
+$(BINDIR)/corrtex: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_SRCS)) $(LIB_master) $(LIB_radiosity) $(LIB_tracer) $(LIB_proto) $(LIB_common)
 	@mkdir -p $(dir $@)
 	@[ "$(V)" = 1 ] || echo "  LD      $@"
 	$(Q)$(CC) $(LDFLAGS_BASE) -o $@ $^ $(LIBS_EMBREE) $(LIBS_PROTO) $(LIBS_COMMON)
 
-$(BINDIR)/corrtex-render: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_render_SRCS)) $(LIB_master) $(LIB_tracer) $(LIB_proto) $(LIB_common)
+$(BINDIR)/corrtex-render: $(patsubst %.c,$(BUILD)/%.o,$(PROG_corrtex_render_SRCS)) $(LIB_master) $(LIB_radiosity) $(LIB_tracer) $(LIB_proto) $(LIB_common)
 	@mkdir -p $(dir $@)
 	@[ "$(V)" = 1 ] || echo "  LD      $@"
 	$(Q)$(CC) $(LDFLAGS_BASE) -o $@ $^ $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)

@@ -31,7 +31,7 @@
 #include "master/sampler.h"
 #include "master/session.h"
 #include "proto/srec.h"
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 #include "tracer/tport_local.h"
 #include "tracer/tracer.h"
 #include "tracer/trc_cli.h"

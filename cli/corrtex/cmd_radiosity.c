@@ -1,5 +1,5 @@
 /* corrtex radiosity SCENE -o FILE.ctmesh [options]: solves the scene's
- * interactive solution (hierarchical radiosity, tracer/radiosity.h) and writes
+ * interactive solution (hierarchical radiosity, radiosity/radiosity.h) and writes
  * its conforming mesh as a .ctmesh cache (docs/radiosity.md). */
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,7 +12,7 @@
 #include "common/optab.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 
 typedef struct radiosity_opts {
     rad_params p;

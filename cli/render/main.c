@@ -24,7 +24,7 @@
 #include "proto/tport.h"
 #include "proto/wire.h"
 #include "proto/xport.h"
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 #include "tracer/rank.h"
 #include "tracer/tracer.h"
 #include "tracer/trc_cli.h"

@@ -1,5 +1,5 @@
 /* Mesh vertices hidden under an object standing on their surface
- * (tracer/rad_contact.c): the L room's box stands on its floor without a
+ * (radiosity/rad_contact.c): the L room's box stands on its floor without a
  * bottom face, and the floor's quadtree elements straddle the box's edges.
  * Their corners under the box used to keep the darkness the final gather
  * finds there (about a fifteenth of the floor's light just outside), which
@@ -7,7 +7,7 @@
 #include <criterion/criterion.h>
 #include <stdlib.h>
 
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 
 /* The box's footprint on the floor (tests/data/radiosity/lroom.obj). */
 #define BOX_X0 1.75f

@@ -14,7 +14,7 @@
 #include "common/rng.h"
 #include "tests/support/rad_fixtures.h"
 #include "tests/support/testscenes.h"
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 
 /* Two parallel unit squares at distance 1: F = 0.19982 (Howell's catalogue,
  * configuration C-11). */
@@ -666,7 +666,7 @@ Test(radiosity, cornell_scene_mesh_is_conforming)
 }
 
 /* The lamps seen in plane mirrors are a source term of the solution
- * (tracer/rad_mirror.c): on ts_mirror_lamp's floor, lit only by the lamp's
+ * (radiosity/rad_mirror.c): on ts_mirror_lamp's floor, lit only by the lamp's
  * image in the mirror ceiling, every vertex under the image's reach must
  * hold rho * R * L_e * F(image) (B / pi) as direct light (rad_direct);
  * with --mirror-samples 0 the mirror is black and the floor dark. The

@@ -1,7 +1,7 @@
 /* rad_link.c: the per-patch link refinement with its error oracle (the
  * links' error over the receiver and from the source's radiosity, not their
  * power), over the factors and visibility of rad_ff.c. */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

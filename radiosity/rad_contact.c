@@ -9,7 +9,7 @@
  * radiosity gathered where its edge to a lit corner of the same element
  * comes out from under the box (the contact line), which is what the
  * visible part lies next to. */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

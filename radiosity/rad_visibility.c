@@ -4,7 +4,7 @@
  * each crossing's transmission and Fresnel factor as the tracer's shadow
  * rays do (docs/radiosity.md, "Glass"). Kept separate from the tracer's
  * scene so the solver can run without it; a successor may share one. */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <embree3/rtcore.h>
 #include <math.h>

@@ -11,7 +11,7 @@
 #include <stdint.h>
 
 #include "common/scene.h"
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 
 #define RAD_NONE        UINT32_MAX
 #define RAD_CLUSTER_BIT 0x80000000u   /* a source reference naming a cluster */

@@ -5,7 +5,7 @@
  * memory cap, and the stats. (Just over 600 lines on purpose: the passes,
  * the iterations and the jobs they hand the pool share one worker state
  * and one order of steps, which one file keeps in view.) */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -11,7 +11,7 @@
  * the mesh's indirect part as rad - rad_direct. The sampling needs a tracer
  * scene of the scene's triangles next to the solver's own visibility scene
  * (only when the scene has a plane mirror). */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <stdlib.h>
 

@@ -4,7 +4,7 @@
  * partly hidden sources looked at from the vertex itself; and the same
  * sharing of non-flat links at the leaves' centres for the solve's last
  * pass (rad_leaf_scales) (rad_internal.h). */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

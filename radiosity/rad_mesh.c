@@ -6,7 +6,7 @@
  * Vertex values are the mean of the leaves that share the vertex, within one
  * node and material and below the crease angle; elsewhere vertices are
  * duplicated so values stay separate. */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

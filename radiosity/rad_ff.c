@@ -3,7 +3,7 @@
  * turned by reciprocity), cluster factors by Monte Carlo over the cluster's
  * area, and visibility by jittered Embree rays weighted by the point kernel,
  * from an element or from a mesh vertex (rad_internal.h). */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

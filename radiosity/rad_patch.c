@@ -1,7 +1,7 @@
 /* rad_patch.c: input patches from the scene's triangles (quads rebuilt from
  * the two triangles of one input polygon), element storage and 4-way
  * subdivision, and the source-cluster BVH over the input patches. */
-#include "tracer/rad_internal.h"
+#include "radiosity/rad_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

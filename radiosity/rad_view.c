@@ -4,7 +4,7 @@
  * rmesh_glass_pass),
  * by ray casting with Embree: a preview image for users and the image the
  * tests compare against a path-traced reference. */
-#include "tracer/radiosity.h"
+#include "radiosity/radiosity.h"
 
 #include <embree3/rtcore.h>
 #include <math.h>
