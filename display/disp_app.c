@@ -407,7 +407,7 @@ static int msaa_samples(int want)
     if (want == 0) {
         const char *r = (const char *)gl.GetString(GL_RENDERER);
         bool soft = r && (strstr(r, "llvmpipe") || strstr(r, "softpipe") || strstr(r, "swrast") || strstr(r, "SWR"));
-        want = soft ? 1 : 4;
+        return soft ? 1 : (4 < max ? 4 : max);
     }
     if (want > max) ct_warn(COMP, "--msaa %d: the GL context allows %d samples a pixel; using %d", want, max, max);
     return want < max ? want : max;

@@ -253,7 +253,8 @@ static int phase(run *r, const ct_camera *cam, uint32_t epoch, const char *name,
     }
     char stem[64];
     snprintf(stem, sizeof stem, "%sassignment", prefix);
-    if ((rc = fsink_phase(r->fk, name, prefix, r->hits, r->o->aa * r->o->aa, ref, err)) || (rc = fsink_snapshot(r->fk, r->s, snap, err)) ||
+    if ((rc = fsink_phase(r->fk, name, prefix, r->hits, r->o->aa * r->o->aa, ref, err)) ||
+        (rc = fsink_snapshot(r->fk, r->s, snap, err)) ||
         (rc = fsink_assignment(r->fk, r->s, stem, err)))
         return rc;
     uint64_t first = sess_get_counters(r->s).inserted;
