@@ -98,9 +98,9 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     c->width = width;
     c->height = height;
     c->samples = samples > 1 ? samples : 1;
-    int rc = gl_target_init_ms(&c->hdr, width, height, float_format, true, c->samples, err);
-    if (!rc && c->samples > 1) rc = gl_target_init(&c->res, width, height, float_format, false, err);
-    if (!rc) rc = gl_target_init(&c->ldr, width, height, GL_RGBA8, false, err);
+    int rc = gl_target_init(&c->hdr, width, height, float_format, true, c->samples, err);
+    if (!rc && c->samples > 1) rc = gl_target_init(&c->res, width, height, float_format, false, 1, err);
+    if (!rc) rc = gl_target_init(&c->ldr, width, height, GL_RGBA8, false, 1, err);
     for (int p = 0; p < GL_PASS_COUNT && !rc; p++)
         if (p != GL_PASS_ONE) rc = build_mesh_prog(&c->mesh[p], p, 1, err);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX && !rc; k++)
@@ -662,7 +662,7 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
     uint64_t serial = disp_scene_serial(s);
     if (!c->base_ok || c->base_scene != serial || !cam_same(&c->base_cam, cam)) {
         if (!c->base.fbo) {
-            int rc = gl_target_init_ms(&c->base, c->width, c->height, c->hdr.format, true, c->samples, err);
+            int rc = gl_target_init(&c->base, c->width, c->height, c->hdr.format, true, c->samples, err);
             if (rc) return rc;
         }
         clear_target(&c->base);

@@ -2,13 +2,7 @@
 
 #include <string.h>
 
-int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err)
-{
-    return gl_target_init_ms(t, width, height, format, depth, 1, err);
-}
-
-int gl_target_init_ms(gl_target *t, int width, int height, GLenum format, bool depth, int samples,
-                      ct_error *err)
+int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, int samples, ct_error *err)
 {
     memset(t, 0, sizeof *t);
     t->width = width;

@@ -19,14 +19,10 @@ typedef struct gl_target {
 
 /* Creates a width x height target with the given colour format and an
  * optional depth buffer (32-bit float with reversed depth, else 24-bit)
- * with an 8-bit stencil; checks completeness. */
-int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, ct_error *err);
-
-/* The same with `samples` samples a pixel (1: gl_target_init). A
- * multisampled target is drawn into and resolved (gl_target_resolve), not
- * read or sampled. */
-int gl_target_init_ms(gl_target *t, int width, int height, GLenum format, bool depth, int samples,
-                      ct_error *err);
+ * with an 8-bit stencil, `samples` samples a pixel; checks completeness. A
+ * multisampled target (samples > 1) is drawn into and resolved
+ * (gl_target_resolve), not read or sampled. */
+int gl_target_init(gl_target *t, int width, int height, GLenum format, bool depth, int samples, ct_error *err);
 
 /* The most samples a pixel the context's renderbuffers allow (at least 1). */
 int gl_target_max_samples(void);

@@ -77,6 +77,10 @@ run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --shown-rest-ms -1
 expect_error "--shown-rest-ms: '-1' is not a number in \[0, 60000\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --aa 5 --quiet
+expect_error "--aa: '5' is not an integer in \[1, 4\]"
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --aa 0 --quiet
+expect_error "--aa"
 run_corrtex 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand-in 0.3 --quiet
 expect_error "missing.json"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet

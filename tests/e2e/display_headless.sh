@@ -68,6 +68,9 @@ bad "nope.json" --backend osmesa --scene "$tmp/nope.json"
 bad "--passes" --backend osmesa --scene "$SCENE" --passes 2
 bad "unknown option" --backend osmesa --scene "$SCENE" --bogus
 bad "backend" --backend vulkan --scene "$SCENE"
+bad "--msaa" --backend osmesa --scene "$SCENE" --msaa 65
+bad "--msaa" --backend osmesa --scene "$SCENE" --msaa -1
+bad "--msaa" --backend osmesa --scene "$SCENE" --msaa four
 bad "exactly one" --backend osmesa
 printf '0 0 0 1 0 0 0\n0 1 1 1 0 0 0\n' >"$tmp/bad.path"
 bad "bad.path" --backend osmesa --scene "$SCENE" --path "$tmp/bad.path"
