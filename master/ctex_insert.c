@@ -9,6 +9,14 @@
 
 /* --- samples ----------------------------------------------------------------------- */
 
+/* A texture whose density is uneven (a dense part on screen, a sparse
+ * one) can have a mean splat radius over --splat-hi at one size and under
+ * --splat-lo at half of it: it halved and doubled again every few windows
+ * (table at 1024x1024: its largest texture 60 times in one first pass,
+ * each a pass over 2 million texels). Each reversal doubles the evidence
+ * the next one needs, up to 2^MAX_REVERSALS times. */
+#define MAX_REVERSALS 8
+
 /* Resizes slot id to nw x nh (after the memory cap allowed growth). */
 static void resize(ctex *c, uint32_t id, int nw, int nh)
 {
@@ -19,6 +27,7 @@ static void resize(ctex *c, uint32_t id, int nw, int nh)
              (double)t->mean_r, t->since_resize);
     if (ctex_tex_resize(t, nw, nh, NULL)) return;   /* out of memory: keep the old size */
     c->bytes = c->bytes - ob + ctex_tex_bytes(nw, nh);
+    if (dir == -t->last_resize && t->reversals < MAX_REVERSALS) t->reversals++;
     t->last_resize = dir;
     t->mean_r = 0.0f;
     t->since_resize = 0;
@@ -30,7 +39,7 @@ static void resize(ctex *c, uint32_t id, int nw, int nh)
  * `defer` (a parallel insertion) the change is only noted, once per call,
  * and made after every texture's samples (apply_resizes): growth takes
  * memory that other textures compete for. */
-static void adapt_resolution(ctex *c, uint32_t id, int r, int defer)
+void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer)
 {
     slot *s = &c->slots[id];
     ctex_tex *t = &s->t;
@@ -42,15 +51,17 @@ static void adapt_resolution(ctex *c, uint32_t id, int r, int defer)
     t->mean_r += (rc - t->mean_r) / (float)(n < win ? n + 1 : win);
     t->since_resize = n + 1;
     if (t->since_resize < win || s->pend_w) return;
-    /* hysteresis: reversing the last change needs four windows of evidence */
+    /* hysteresis: reversing the last change needs four windows of evidence,
+     * twice as many after each reversal */
+    const uint32_t rev = (4u * win) << t->reversals;
     int nw = t->w, nh = t->h;
     if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
-        if (t->last_resize > 0 && t->since_resize < 4 * win) return;
+        if (t->last_resize > 0 && t->since_resize < rev) return;
         nw = (t->w + 1) / 2; nh = (t->h + 1) / 2;
         if (nw < c->o.tex_min) nw = t->w < c->o.tex_min ? t->w : c->o.tex_min;
         if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
     } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
-        if (t->last_resize < 0 && t->since_resize < 4 * win) return;
+        if (t->last_resize < 0 && t->since_resize < rev) return;
         /* exact doublings only: an axis that would pass its bound stays */
         nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;
         nh = 2 * t->h <= s->max_h ? 2 * t->h : t->h;
@@ -144,7 +155,7 @@ static int insert_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *
     int r = ex == 1.0f ? ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max)
                        : ctex_tex_splat_aniso(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex);
     info->radius = r;
-    adapt_resolution(c, (uint32_t)id, r, defer);
+    ctex_adapt_resolution(c, (uint32_t)id, r, defer);
     return 1;
 }
 

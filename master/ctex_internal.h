@@ -1,7 +1,8 @@
 /* ctex_internal.h: what the corrective-texture engine's files share
  * (ctex.c: options, events, lifecycle, queries, compositor; ctex_view.c:
  * the per-view assignment, projections, aging and memory; ctex_insert.c:
- * sample insertion and resolution changes). Not for other modules. */
+ * sample insertion and resolution changes). Not for other modules (the
+ * engine's unit tests drive the resolution rule through it). */
 #ifndef CT_MASTER_CTEX_INTERNAL_H
 #define CT_MASTER_CTEX_INTERNAL_H
 
@@ -79,6 +80,11 @@ void ctex_destroy_slot(ctex *c, uint32_t id);
 /* Evicts parked textures, least recently visible first, until `need` more
  * bytes fit under the cap; returns whether they fit. */
 int ctex_make_room(ctex *c, size_t need);
+
+/* §3.6: texture id's running mean of splat radii takes radius r; halves or
+ * doubles the texture when the mean says so (with defer, a parallel
+ * insertion: only notes it). ctex_insert.c. */
+void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer);
 
 /* The leaf a hit belongs to: its part's leaf, or for a part split into
  * clusters the leaf of its triangle (or, when the triangle is unknown, the

@@ -33,7 +33,8 @@ enum {
     CTEX_VQ = 8,                      /* validity steps per texel */
     CTEX_Q_EMPTY = INT16_MIN,         /* no correction: older than everything */
     CTEX_Q_OLDEST = INT16_MIN + 1,    /* older validities clamp to this one */
-    CTEX_Q_REBASE = 4096              /* vmax more than 512 texels above vbase: rebase */
+    CTEX_Q_REBASE = 4096,             /* vmax more than 512 texels above vbase: rebase */
+    CTEX_DBL_SLACK_Q = 2              /* steps a doubling adds to every distance (ctex_tex.c) */
 };
 
 /* A texture with its projection. */
@@ -55,6 +56,7 @@ typedef struct ctex_tex {
     float mean_r;
     uint32_t since_resize;
     int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
+    uint8_t reversals;     /* changes that undid the one before (ctex_insert.c) */
     ctex_dirty d;          /* texels the display has not received (ctex_dirty.h) */
     struct ctex_mem *mem;  /* where its texel arrays come from and go back to (ctex_mem.h); NULL: the system */
 } ctex_tex;

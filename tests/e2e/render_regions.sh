@@ -16,10 +16,12 @@
 # about 2 % from run to run (free running, the samples arrive in a
 # different order). Since radiosity solver version 16 (2026-11-29, 13 runs:
 # 2.9-8.4 %, median 4.4 %; one over the old 8 % bound) the worst block is
-# always on the short box's dark front face and always too dark, while the
-# radiosity alone is within 2 % there: the refinement of a face whose drt
-# samples are often zero stops on low means (an open bias, docs/sampling.md
-# "Refinement"). Before a pixel's
+# nearly always on the short box's dark front face and usually too dark,
+# while the radiosity alone is within 2 % there. That is noise, not a bias:
+# over 8 runs of this pipeline the face's blocks average 0.990-1.012 of the
+# reference, its mean 1.0005; about half of drt's samples there are 0, and
+# the mean of such skewed samples falls short more often than it overshoots
+# (docs/sampling.md "Refinement"). Before a pixel's
 # variance was shrunk towards its neighbours' (master/rq_refine.c), one
 # pixel in 16 of the short box's dark front face, whose drt samples are 0
 # about half of the time, stopped after four zeros at a third of the truth:

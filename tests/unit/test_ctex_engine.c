@@ -14,6 +14,7 @@
 #include "common/scene.h"
 #include "master/ctex.h"
 #include "master/ctex_hier.h"
+#include "master/ctex_internal.h"   /* the resolution rule, driven directly */
 #include "master/ctex_tex.h"
 #include "tests/support/ctex_scenes.h"
 
@@ -554,4 +555,55 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
         ctex_free(c);
         tcx_release(&t);
     }
+}
+
+/* A texture whose splat radii change with its size (a dense part on
+ * screen and a sparse one: under --splat-lo at one size, over --splat-hi at
+ * twice it) halved and doubled again every four windows; each reversal now
+ * doubles the samples the next one needs. Driven through the resolution
+ * rule itself (ctex_internal.h): radius 0 while the texture is small, 10
+ * (the clamp, 2 --splat-hi) once it is large. */
+Test(ctex_engine, resolution_reversals_back_off)
+{
+    tcx_scene t;
+    tcx_build(&t);
+    ctex_options o = ctex_options_default();
+    o.splat_window = 16;
+    ctex *c = tcx_engine(&t, o);
+    ct_camera cam = tcx_front_cam();
+    cr_assert_eq(ctex_set_camera(c, &cam, 96, 96, &err), 0);
+    ct_sample s = tcx_sample((uint32_t)t.floor, v3(0.5f, 0.0f, 0.5f), v3s(0.5f), v3s(0.3f));
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    const uint32_t id = (uint32_t)info.tex;
+    int w0, h0;
+    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h0, NULL, NULL, NULL), 0);
+    /* samples until each change: small -> radius 0 (doubles), large -> 10 (halves) */
+    int gaps[10];
+    for (int k = 0; k < 10; k++) {
+        int w, h, n = 0;
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+        const int r = w > w0 ? 10 : 0;
+        for (;;) {
+            int w1, h1;
+            ctex_adapt_resolution(c, id, r, 0);
+            n++;
+            ctex_texture_info(c, id, NULL, &w1, &h1, NULL, NULL, NULL);
+            if (w1 != w) break;
+            cr_assert_lt(n, 1 << 20, "change %d never came", k);
+        }
+        gaps[k] = n;
+    }
+    cr_log_info("samples before each change: %d %d %d %d %d %d %d %d %d %d", gaps[0], gaps[1], gaps[2], gaps[3],
+                gaps[4], gaps[5], gaps[6], gaps[7], gaps[8], gaps[9]);
+    /* the first change (nothing before it to reverse) takes one window (the
+     * inserted sample was its first); reversal k (from 1) takes 4 windows
+     * << (k - 1), up to << 8 */
+    cr_assert_eq(gaps[0], 16 - 1);
+    for (int k = 1; k < 10; k++) {
+        int want = (4 * 16) << (k - 1 < 8 ? k - 1 : 8);
+        cr_assert_eq(gaps[k], want, "reversal %d after %d samples, expected %d", k, gaps[k], want);
+    }
+    ctex_free(c);
+    tcx_release(&t);
 }
