@@ -3,6 +3,7 @@
  * waits for poll. */
 #include "master/tport_replay.h"
 
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -10,6 +11,7 @@ typedef struct rport {
     tport base;
     ct_sample *rec;      /* by request id */
     size_t nrec;
+    bool dense;          /* ids rec[0].request_id + i: found by index */
     tport_fifo fifo;
 } rport;
 
@@ -19,8 +21,16 @@ static int by_id(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* The master answers the replay port's requests as fast as it can, so the
+ * lookup is part of what bench_master times: a recording answers every
+ * request it made, its ids are consecutive, and an index replaces the
+ * binary search (4-5 % of a replay's profile). */
 static const ct_sample *find(const rport *r, uint64_t id)
 {
+    if (r->dense) {
+        uint64_t i = id - r->rec[0].request_id;
+        return id >= r->rec[0].request_id && i < r->nrec ? &r->rec[i] : NULL;
+    }
     size_t lo = 0, hi = r->nrec;
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
@@ -87,6 +97,8 @@ int tport_replay_new(const ct_sample *rec, size_t n, int lanes, tport **out, ct_
     memcpy(r->rec, rec, n * sizeof *rec);
     r->nrec = n;
     qsort(r->rec, n, sizeof *r->rec, by_id);
+    r->dense = n > 0 && r->rec[n - 1].request_id - r->rec[0].request_id == n - 1;
+    for (size_t i = 1; r->dense && i < n; i++) r->dense = r->rec[i].request_id == r->rec[i - 1].request_id + 1;
     r->base.ops = &RPORT_OPS;
     r->base.lanes = lanes;
     *out = &r->base;
