@@ -99,8 +99,7 @@ void ctex_tex_rebase(ctex_tex *t)
  * those halves hold (blending). */
 typedef struct splat_val {
     uint64_t rgb;     /* the texel's bytes with q = 0 */
-    vec3 f;
-    v4f f4;           /* f, 0 */
+    v4f f4;           /* its value as stored (halves), 0 */
     float blend;      /* band (texels) */
 } splat_val;
 
@@ -180,8 +179,7 @@ static inline __attribute__((always_inline)) int32_t splat_centre(ctex_tex *t, i
     ctex_texel_set(t, &h, val, 0.0f);
     h.q = 0;
     memcpy(&sv->rgb, &h, sizeof sv->rgb);
-    sv->f = ctex_texel_rgb(&h);
-    sv->f4 = (v4f){sv->f.x, sv->f.y, sv->f.z, 0.0f};
+    sv->f4 = texel4(&h);   /* q = 0: the fourth lane is 0 */
     sv->blend = blend < 0.0f ? 0.0f : blend;
     const int32_t qmax = ctex_tex_q(t, t->vmax);
     ctex_texel *c = ctex_tex_at(t, ci, cj);
@@ -405,10 +403,10 @@ static bool sample_valid(const ctex_tex *t, float x, float y, vec3 *out)
  * adds to every texel's scaled distance. An old texel's distance was
  * measured from its centre, but its sample lay anywhere in it: twice the
  * old distance is what the new texels can claim at best, not what they
- * have. Claimed exactly, it
- * ties with a fresh sample's even rings, which put() does not take (a ring
- * must beat a texel's validity), so the fresh sample's splat stopped there
- * and the older, interpolated values stayed around it. On table at
+ * have. Claimed exactly, it ties with a fresh sample's even rings, which
+ * put() does not take (a ring must beat a texel's validity), so the fresh
+ * sample's splat stopped there and the older, interpolated values stayed
+ * around it. On table at
  * 1024x1024, every pixel sampled once (corrtex converge), 432 of 992
  * 32-pixel blocks of the corrected image were more than 2 % off drt's
  * converged image, 26 with a quarter texel; PSNR against a path-traced

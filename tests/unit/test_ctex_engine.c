@@ -566,12 +566,9 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
 Test(ctex_engine, resolution_reversals_back_off)
 {
     tcx_scene t;
-    tcx_build(&t);
     ctex_options o = ctex_options_default();
     o.splat_window = 16;
-    ctex *c = tcx_engine(&t, o);
-    ct_camera cam = tcx_front_cam();
-    cr_assert_eq(ctex_set_camera(c, &cam, 96, 96, &err), 0);
+    ctex *c = tcx_front_engine(&t, o, 96, 96);
     ct_sample s = tcx_sample((uint32_t)t.floor, v3(0.5f, 0.0f, 0.5f), v3s(0.5f), v3s(0.3f));
     ctex_insert_info info;
     cr_assert_eq(ctex_insert(c, &s, &info), 1);
