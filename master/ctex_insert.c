@@ -17,19 +17,21 @@
  * the next one needs, up to 2^MAX_REVERSALS times. */
 #define MAX_REVERSALS 8
 
-/* Resizes slot id to nw x nh (after the memory cap allowed growth). */
-static void resize(ctex *c, uint32_t id, int nw, int nh)
+/* Resizes slot id to nw x nh (after the memory cap allowed growth), its
+ * rows on pool's threads (NULL: the caller's). */
+static void resize(ctex *c, uint32_t id, int nw, int nh, ct_pool *pool)
 {
     ctex_tex *t = &c->slots[id].t;
     size_t ob = ctex_tex_bytes(t->w, t->h);
     int dir = nw > t->w || nh > t->h ? 1 : -1;
     ct_debug("ctex", "texture %u: %dx%d -> %dx%d (mean splat radius %.2f over %u samples)", id, t->w, t->h, nw, nh,
              (double)t->mean_r, t->since_resize);
-    if (ctex_tex_resize(t, nw, nh, NULL)) return;   /* out of memory: keep the old size */
+    if (ctex_tex_resize_on(t, nw, nh, pool, NULL)) return;   /* out of memory: keep the old size */
     c->bytes = c->bytes - ob + ctex_tex_bytes(nw, nh);
     if (dir == -t->last_resize && t->reversals < MAX_REVERSALS) t->reversals++;
     t->last_resize = dir;
     t->mean_r = 0.0f;
+    t->sum_r = 0.0;
     t->since_resize = 0;
     c->st.resizes++;
     ctex_ev_alloc(c, id);
@@ -49,19 +51,22 @@ void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer)
      * single outliers from halving a texture that is dense elsewhere. */
     float rc = fminf((float)r, 2.0f * c->o.splat_hi);
     t->mean_r += (rc - t->mean_r) / (float)(n < win ? n + 1 : win);
+    t->sum_r += rc;
     t->since_resize = n + 1;
     if (t->since_resize < win || s->pend_w) return;
     /* hysteresis: reversing the last change needs four windows of evidence,
-     * twice as many after each reversal */
+     * twice as many after each reversal, and the mean of every radius since
+     * that change past the threshold too */
     const uint32_t rev = (4u * win) << t->reversals;
+    const float since_mean = (float)(t->sum_r / (double)t->since_resize);
     int nw = t->w, nh = t->h;
     if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
-        if (t->last_resize > 0 && t->since_resize < rev) return;
+        if (t->last_resize > 0 && (t->since_resize < rev || !(since_mean > c->o.splat_hi))) return;
         nw = (t->w + 1) / 2; nh = (t->h + 1) / 2;
         if (nw < c->o.tex_min) nw = t->w < c->o.tex_min ? t->w : c->o.tex_min;
         if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
     } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
-        if (t->last_resize < 0 && t->since_resize < rev) return;
+        if (t->last_resize < 0 && (t->since_resize < rev || !(since_mean < c->o.splat_lo))) return;
         /* exact doublings only: an axis that would pass its bound stays */
         nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;
         nh = 2 * t->h <= s->max_h ? 2 * t->h : t->h;
@@ -76,11 +81,11 @@ void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer)
         s->pend_h = nh;
         return;
     }
-    resize(c, id, nw, nh);
+    resize(c, id, nw, nh, NULL);
 }
 
 /* The resolution changes noted by a parallel insertion, in slot order. */
-static void apply_resizes(ctex *c)
+static void apply_resizes(ctex *c, ct_pool *pool)
 {
     for (uint32_t id = 0; id < c->nslots; id++) {
         slot *s = &c->slots[id];
@@ -91,7 +96,7 @@ static void apply_resizes(ctex *c)
         if (!s->live || (nw == t->w && nh == t->h)) continue;
         if ((nw > t->w || nh > t->h) && !ctex_make_room(c, ctex_tex_bytes(nw, nh) - ctex_tex_bytes(t->w, t->h)))
             continue;   /* the memory cap denies growth */
-        resize(c, id, nw, nh);
+        resize(c, id, nw, nh, pool);
     }
 }
 
@@ -398,7 +403,7 @@ static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl
     }
     c->st.inserted += done;
     c->st.dropped += dropped;
-    if (!dl) apply_resizes(c);
+    if (!dl) apply_resizes(c, pool);
     return done;
 }
 

@@ -6,6 +6,7 @@
  * internals for no reader's gain. */
 #include "master/ctex_tex.h"
 
+#include "common/pool.h"
 #include "master/ctex_mem.h"
 
 #include <stdlib.h>
@@ -63,6 +64,7 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     t->vmax = 0.0f;   /* §3.4: the first samples start at validity 0 */
     t->vbase = 0.0f;
     t->mean_r = 0.0f;
+    t->sum_r = 0.0;
     t->since_resize = 0;
     t->last_resize = 0;
     t->reversals = 0;
@@ -475,9 +477,8 @@ static inline void dbl_texel(const dbl_ctx *d, const ctex_texel *const ps[4], ct
     q->q = dbl_q(d, ctex_texel_valid(ps[0]) ? (float)ps[0]->q : d->qm - (float)CTEX_VQ);
 }
 
-static void double_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int fx, int fy)
+static dbl_ctx dbl_init(const ctex_tex *t, int fx, int fy)
 {
-    const int w = t->w, h = t->h;
     dbl_ctx d;
     d.qm = (t->vmax - t->vbase) * (float)CTEX_VQ;
     d.vs = (float)(fx > fy ? fx : fy);
@@ -486,7 +487,16 @@ static void double_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int fx, 
     d.ws[2] = (1.0f - wx1) * wy1; d.ws[3] = wx1 * wy1;
     d.w0 = (v4f){d.ws[0], d.ws[0], d.ws[0], d.ws[0]}; d.w1 = (v4f){d.ws[1], d.ws[1], d.ws[1], d.ws[1]};
     d.w2 = (v4f){d.ws[2], d.ws[2], d.ws[2], d.ws[2]}; d.w3 = (v4f){d.ws[3], d.ws[3], d.ws[3], d.ws[3]};
-    for (int j = 0; j < h; j++) {
+    return d;
+}
+
+/* Old rows [j0, j1) of an exact doubling (fx, fy in {1, 2}) into nt. */
+static void double_rows(const ctex_tex *t, const dbl_ctx *dp, ctex_texel *nt, int npitch, int fx, int fy, int j0,
+                        int j1)
+{
+    const int w = t->w, h = t->h;
+    const dbl_ctx d = *dp;
+    for (int j = j0; j < j1; j++) {
         for (int b = 0; b < fy; b++) {
             int jn = fy == 1 ? j : (b ? (j + 1 < h ? j + 1 : j) : (j > 0 ? j - 1 : 0));
             const ctex_texel *r0 = ctex_tex_at(t, 0, j), *r1 = ctex_tex_at(t, 0, jn);
@@ -525,15 +535,15 @@ static void double_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int fx, 
     }
 }
 
-/* Exact halving with block sizes bx, by in {1, 2} (odd sizes: the last block
- * is one texel wide): the mean of each block's valid texels, the best
- * validity, distances scaled down. */
-static void halve_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int nw, int nh, int bx, int by)
+/* New rows [j0, j1) of an exact halving with block sizes bx, by in {1, 2}
+ * (odd sizes: the last block is one texel wide): the mean of each block's
+ * valid texels, the best validity, distances scaled down. */
+static void halve_rows(const ctex_tex *t, ctex_texel *nt, int npitch, int nw, int bx, int by, int j0, int j1)
 {
     const int w = t->w, h = t->h;
     const float vmax = t->vmax, vs = 1.0f / (float)(bx > by ? bx : by);
     /* (nt shares t's vbase: ctex_tex_resize) */
-    for (int j = 0; j < nh; j++) {
+    for (int j = j0; j < j1; j++) {
         int y0 = by * j, y1 = y0 + by > h ? h : y0 + by;
         ctex_texel *o = nt + (size_t)j * (size_t)npitch;
         for (int i = 0; i < nw; i++) {
@@ -561,7 +571,47 @@ static void halve_exact(const ctex_tex *t, ctex_texel *nt, int npitch, int nw, i
     }
 }
 
+/* An exact resize's rows in bands, one task each (the pool's threads write
+ * disjoint rows of the new array from the old one: the same texels for any
+ * thread count). A resize of a large texture is a pass over millions of
+ * texels, most of them fresh pages the kernel zeroes on first touch, and
+ * the parallel insertion's threads would otherwise wait for it. */
+enum { RESIZE_BAND = 32 };   /* rows a task */
+#define RESIZE_PAR_TEXELS ((size_t)1 << 16)   /* old texels from which a resize is split */
+
+typedef struct resize_job {
+    const ctex_tex *t;
+    ctex_texel *nt;
+    int npitch, rows, f1, f2;   /* f1, f2: fx, fy (doubling) or bx, by (halving); rows: of the pass */
+    int nw;                     /* halving: the new width */
+    const dbl_ctx *d;           /* doubling; NULL: halving */
+} resize_job;
+
+static void resize_task(void *ctx, int worker, size_t task)
+{
+    (void)worker;
+    const resize_job *r = ctx;
+    int j0 = (int)task * RESIZE_BAND, j1 = j0 + RESIZE_BAND < r->rows ? j0 + RESIZE_BAND : r->rows;
+    if (r->d)
+        double_rows(r->t, r->d, r->nt, r->npitch, r->f1, r->f2, j0, j1);
+    else
+        halve_rows(r->t, r->nt, r->npitch, r->nw, r->f1, r->f2, j0, j1);
+}
+
+static void resize_run(ct_pool *pool, resize_job *r)
+{
+    size_t tasks = (size_t)(r->rows + RESIZE_BAND - 1) / RESIZE_BAND;
+    /* a small texture: not worth waking the workers */
+    if ((size_t)r->t->h * (size_t)r->t->pitch < RESIZE_PAR_TEXELS) pool = NULL;
+    pool_run(pool, tasks, resize_task, r);
+}
+
 int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
+{
+    return ctex_tex_resize_on(t, nw, nh, NULL, err);
+}
+
+int ctex_tex_resize_on(ctex_tex *t, int nw, int nh, ct_pool *pool, ct_error *err)
 {
     if (nw < 1 || nh < 1 || nw > 65536 || nh > 65536)
         return ct_fail(err, CT_EINVAL, "texture size %dx%d out of range", nw, nh);
@@ -576,12 +626,15 @@ int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err)
     {
         int fx = nw == 2 * t->w ? 2 : (nw == t->w ? 1 : 0), fy = nh == 2 * t->h ? 2 : (nh == t->h ? 1 : 0);
         if (fx && fy) {
-            double_exact(t, nt, npitch, fx, fy);
+            const dbl_ctx d = dbl_init(t, fx, fy);
+            resize_job r = {t, nt, npitch, t->h, fx, fy, nw, &d};
+            resize_run(pool, &r);
             goto done;
         }
         int bx = nw == (t->w + 1) / 2 ? 2 : (nw == t->w ? 1 : 0), by = nh == (t->h + 1) / 2 ? 2 : (nh == t->h ? 1 : 0);
         if (bx && by) {
-            halve_exact(t, nt, npitch, nw, nh, bx, by);
+            resize_job r = {t, nt, npitch, nh, bx, by, nw, NULL};
+            resize_run(pool, &r);
             goto done;
         }
     }

@@ -54,6 +54,7 @@ typedef struct ctex_tex {
     float ref_depth;       /* camera-local: depth of the plane used to unproject */
     /* §3.6 running mean of splat radii */
     float mean_r;
+    double sum_r;          /* the clamped radii since the last change (ctex_insert.c) */
     uint32_t since_resize;
     int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
     uint8_t reversals;     /* changes that undid the one before (ctex_insert.c) */
@@ -281,6 +282,10 @@ static inline void ctex_tex_age(ctex_tex *t, float offset)
  * texels) when shrinking, bilinear when growing; validities are rescaled to
  * the new texel size relative to v_max. The whole texture becomes unsent. */
 int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err);
+
+/* The same with an exact doubling's or halving's rows spread over pool's
+ * threads (NULL: the caller's alone); the same texels either way. */
+int ctex_tex_resize_on(ctex_tex *t, int nw, int nh, struct ct_pool *pool, ct_error *err);
 
 /* Fills dst's texels from the sources: each texel centre is unprojected to a
  * world point, projected into every source, and takes the bilinear value of

@@ -377,6 +377,7 @@ static int reproject(ctex *c, uint32_t id, bool *moved, ct_error *err)
     }
     t->vmax = old.vmax;
     t->mean_r = old.mean_r;
+    t->sum_r = old.sum_r;
     t->since_resize = old.since_resize;
     const ctex_tex *src[1] = {&old};
     ctex_tex_resample(t, src, 1, 0.0f);

@@ -557,6 +557,58 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
     }
 }
 
+/* An engine whose resolution rule is driven by hand (ctex_internal.h):
+ * a window of 16 and one floor sample, whose texture is *id. */
+static ctex *floor_texture_engine(tcx_scene *t, ctex_options *o, uint32_t *id)
+{
+    o->splat_window = 16;
+    ctex *c = tcx_front_engine(t, *o, 96, 96);
+    ct_sample s = tcx_sample((uint32_t)t->floor, v3(0.5f, 0.0f, 0.5f), v3s(0.5f), v3s(0.3f));
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    *id = (uint32_t)info.tex;
+    return c;
+}
+
+/* A doubled texture whose radii run under --splat-hi on the whole but
+ * over it for a window now and then (samples landing in a sparse part for a
+ * while: office at 1024x1024 halved its floor and walls from 2048 to 1024
+ * and doubled them again, up to three times in one first pass): the
+ * running mean crosses the threshold, the mean since the doubling does not,
+ * so the texture keeps its size. A steady over-threshold run still halves
+ * it (resolution_reversals_back_off). */
+Test(ctex_engine, resolution_reversal_needs_the_mean_since_the_change)
+{
+    tcx_scene t;
+    ctex_options o = ctex_options_default();
+    uint32_t id;
+    ctex *c = floor_texture_engine(&t, &o, &id);
+    int w0, w, h;
+    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h, NULL, NULL, NULL), 0);
+    w = w0;
+    for (int n = 0; n < 64 && w == w0; n++) {
+        ctex_adapt_resolution(c, id, 0, 0);
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    }
+    cr_assert_eq(w, 2 * w0, "the texture did not double (%d -> %d)", w0, w);
+    /* 40 radii of 3, then 24 of 8: mean 4.875 under --splat-hi 5; the
+     * 16-sample running mean passes 5 in every run of 8s */
+    cr_assert_float_eq(o.splat_hi, 5.0f, 0.0f);
+    float peak = 0.0f;
+    for (int n = 0; n < 64 * 200; n++) {
+        ctex_adapt_resolution(c, id, n % 64 < 40 ? 3 : 8, 0);
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+        const float mr = c->slots[id].t.mean_r;
+        if (mr > peak) peak = mr;
+        cr_assert_eq(w, 2 * w0, "halved after %d samples of mean 4.875 (running mean up to %.2f)", n + 1,
+                     (double)peak);
+    }
+    cr_assert_gt(peak, o.splat_hi, "the running mean never passed --splat-hi (%.2f): the test tests nothing",
+                 (double)peak);
+    ctex_free(c);
+    tcx_release(&t);
+}
+
 /* A texture whose splat radii change with its size (a dense part on
  * screen and a sparse one: under --splat-lo at one size, over --splat-hi at
  * twice it) halved and doubled again every four windows; each reversal now
@@ -567,12 +619,8 @@ Test(ctex_engine, resolution_reversals_back_off)
 {
     tcx_scene t;
     ctex_options o = ctex_options_default();
-    o.splat_window = 16;
-    ctex *c = tcx_front_engine(&t, o, 96, 96);
-    ct_sample s = tcx_sample((uint32_t)t.floor, v3(0.5f, 0.0f, 0.5f), v3s(0.5f), v3s(0.3f));
-    ctex_insert_info info;
-    cr_assert_eq(ctex_insert(c, &s, &info), 1);
-    const uint32_t id = (uint32_t)info.tex;
+    uint32_t id;
+    ctex *c = floor_texture_engine(&t, &o, &id);
     int w0, h0;
     cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h0, NULL, NULL, NULL), 0);
     /* samples until each change: small -> radius 0 (doubles), large -> 10 (halves) */

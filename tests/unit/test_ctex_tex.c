@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/pool.h"
 #include "common/rng.h"
 #include "master/ctex_tex.h"
 
@@ -684,4 +685,39 @@ Test(ctex_tex, huge_corrections_clamp_to_the_half_range)
     vec3 s = ctex_tex_sample(&t, 0.4f, 0.6f);
     cr_assert(isfinite(s.x) && isfinite(s.y) && isfinite(s.z));
     ctex_tex_release(&t);
+}
+
+/* An exact doubling or halving split over a pool's threads by row bands
+ * (ctex_tex_resize_on) writes the very texels of the serial pass: textures
+ * large enough to be split (several bands), with empty texels among valid
+ * ones and odd sizes (halving's last block one texel wide). */
+Test(ctex_tex, resize_on_a_pool_matches_serial)
+{
+    ct_pool *pool = NULL;
+    cr_assert_eq(pool_new(3, &pool, NULL), 0);
+    const int sizes[3][2] = {{301, 263}, {256, 300}, {517, 129}};
+    for (int s = 0; s < 3; s++) {
+        const int W = sizes[s][0], H = sizes[s][1];
+        for (int grow = 0; grow < 2; grow++) {
+            ctex_tex a = {0}, b = {0};
+            cr_assert_eq(ctex_tex_init(&a, W, H, NULL), 0);
+            cr_assert_eq(ctex_tex_init(&b, W, H, NULL), 0);
+            cr_assert_geq(H * a.pitch, 1 << 16, "too small to be split (RESIZE_PAR_TEXELS, ctex_tex.c)");
+            fill_random(&a, 40 + (uint64_t)s);
+            ct_rng r = rng_make(50 + (uint64_t)s, 0, 0, 0);
+            for (int i = 0; i < W * H; i++)
+                if (rng_float(&r) < 0.2f) ctex_texel_clear(at(&a, i % W, i / W));
+            a.vmax = b.vmax = 2.25f;
+            copy_texels(&b, &a);
+            const int nw = grow ? 2 * W : (W + 1) / 2, nh = grow ? 2 * H : (H + 1) / 2;
+            cr_assert_eq(ctex_tex_resize(&a, nw, nh, NULL), 0);
+            cr_assert_eq(ctex_tex_resize_on(&b, nw, nh, pool, NULL), 0);
+            for (int j = 0; j < nh; j++)
+                cr_assert_eq(memcmp(at(&a, 0, j), at(&b, 0, j), (size_t)nw * sizeof(ctex_texel)), 0,
+                             "%dx%d %s: row %d differs", W, H, grow ? "doubled" : "halved", j);
+            ctex_tex_release(&a);
+            ctex_tex_release(&b);
+        }
+    }
+    pool_free(pool);
 }
