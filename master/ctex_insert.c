@@ -32,6 +32,7 @@ static void resize(ctex *c, uint32_t id, int nw, int nh, ct_pool *pool)
     t->last_resize = dir;
     t->mean_r = 0.0f;
     t->sum_r = 0.0;
+    t->n_sum = 0;
     t->since_resize = 0;
     c->st.resizes++;
     ctex_ev_alloc(c, id);
@@ -52,13 +53,16 @@ void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer)
     float rc = fminf((float)r, 2.0f * c->o.splat_hi);
     t->mean_r += (rc - t->mean_r) / (float)(n < win ? n + 1 : win);
     t->sum_r += rc;
+    t->n_sum++;
     t->since_resize = n + 1;
     if (t->since_resize < win || s->pend_w) return;
     /* hysteresis: reversing the last change needs four windows of evidence,
      * twice as many after each reversal, and the mean of every radius since
-     * that change past the threshold too */
+     * that change past the threshold too (since the last aging, if later:
+     * the views before saw other densities; the running mean alone for the
+     * first window after it) */
     const uint32_t rev = (4u * win) << t->reversals;
-    const float since_mean = (float)(t->sum_r / (double)t->since_resize);
+    const float since_mean = t->n_sum >= win ? (float)(t->sum_r / (double)t->n_sum) : t->mean_r;
     int nw = t->w, nh = t->h;
     if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
         if (t->last_resize > 0 && (t->since_resize < rev || !(since_mean > c->o.splat_hi))) return;

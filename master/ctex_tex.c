@@ -65,6 +65,7 @@ int ctex_tex_init(ctex_tex *t, int w, int h, ct_error *err)
     t->vbase = 0.0f;
     t->mean_r = 0.0f;
     t->sum_r = 0.0;
+    t->n_sum = 0;
     t->since_resize = 0;
     t->last_resize = 0;
     t->reversals = 0;

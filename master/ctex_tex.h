@@ -54,7 +54,8 @@ typedef struct ctex_tex {
     float ref_depth;       /* camera-local: depth of the plane used to unproject */
     /* §3.6 running mean of splat radii */
     float mean_r;
-    double sum_r;          /* the clamped radii since the last change (ctex_insert.c) */
+    double sum_r;          /* the clamped radii since the last change or aging (ctex_insert.c) */
+    uint32_t n_sum;        /* how many */
     uint32_t since_resize;
     int last_resize;       /* +1 doubled, -1 halved, 0 none: hysteresis */
     uint8_t reversals;     /* changes that undid the one before (ctex_insert.c) */

@@ -254,6 +254,16 @@ static float age_offset(const ctex *c, const slot *s, vec3 e0)
     return off;
 }
 
+/* §3.5 aging on a camera change. The radii since the texture's last
+ * resolution change were measured against samples of the views before;
+ * the mean a reversal needs (ctex_insert.c) starts again from here. */
+static void age(ctex *c, slot *s)
+{
+    ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));
+    s->t.sum_r = 0.0;
+    s->t.n_sum = 0;
+}
+
 /* Texels per screen pixel of a live texture: camera-local over the rectangle
  * it was made for, object-local at the current view. */
 static float tex_rate_now(ctex *c, const slot *s)
@@ -378,6 +388,7 @@ static int reproject(ctex *c, uint32_t id, bool *moved, ct_error *err)
     t->vmax = old.vmax;
     t->mean_r = old.mean_r;
     t->sum_r = old.sum_r;
+    t->n_sum = old.n_sum;
     t->since_resize = old.since_resize;
     const ctex_tex *src[1] = {&old};
     ctex_tex_resample(t, src, 1, 0.0f);
@@ -474,7 +485,7 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
         uint32_t n = s->hnode;
         if (c->assigned[n]) {
             /* §3.5 aging, then the new projection (camera-local: reprojected) */
-            ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));
+            age(c, s);
             bool moved;
             rc = reproject(c, i, &moved, err);
             if (rc) return rc;
@@ -502,7 +513,7 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
         if (id >= 0 && c->slots[id].active) continue;   /* kept */
         if (id >= 0) {
             slot *s = &c->slots[id];
-            ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));
+            age(c, s);
             bool moved;
             rc = reproject(c, (uint32_t)id, &moved, err);
             if (rc) return rc;

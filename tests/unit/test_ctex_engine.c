@@ -609,6 +609,52 @@ Test(ctex_engine, resolution_reversal_needs_the_mean_since_the_change)
     tcx_release(&t);
 }
 
+/* The mean since the change starts again at a camera change: the radii
+ * measured in the views before tell nothing of this one's density. A
+ * doubled texture that took 4,000 radii of 1 (no change) and then sees a
+ * camera change, a window of radii of 4 and then radii of 10 halves within
+ * a few windows, where the mean since its doubling would have stayed under
+ * --splat-hi for 4,000 more. */
+Test(ctex_engine, resolution_reversal_counts_from_the_last_camera_change)
+{
+    tcx_scene t;
+    ctex_options o = ctex_options_default();
+    uint32_t id;
+    ctex *c = floor_texture_engine(&t, &o, &id);
+    int w0, w, h;
+    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h, NULL, NULL, NULL), 0);
+    w = w0;
+    for (int n = 0; n < 64 && w == w0; n++) {
+        ctex_adapt_resolution(c, id, 0, 0);
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    }
+    cr_assert_eq(w, 2 * w0, "the texture did not double (%d -> %d)", w0, w);
+    for (int n = 0; n < 4000; n++) ctex_adapt_resolution(c, id, 1, 0);
+    ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    cr_assert_eq(w, 2 * w0, "radii of 1 changed the size");
+    ct_camera cam = cam_look_at(v3(0.5f, 4, 14), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
+    cr_assert_eq(ctex_set_camera(c, &cam, 96, 96, &err), 0, "%s", err.msg);
+    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), (int32_t)id, "the floor keeps its texture");
+    ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    cr_assert_eq(w, 2 * w0, "the camera change resized the texture");
+    /* a window of 4s (under --splat-hi: no change), so that the mean since
+     * the camera change, not the running mean alone, decides below */
+    for (int k = 0; k < 16; k++) ctex_adapt_resolution(c, id, 4, 0);
+    ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    cr_assert_eq(w, 2 * w0, "radii of 4 changed the size");
+    int n = 0;
+    while (w == 2 * w0 && n < 4000) {
+        ctex_adapt_resolution(c, id, 10, 0);
+        n++;
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    }
+    cr_log_info("halved after %d radii of 10 since the camera change", n);
+    cr_assert_eq(w, w0, "no halving after %d radii of 10", n);
+    cr_assert_leq(n, 4 * 16, "halved only after %d radii of 10", n);
+    ctex_free(c);
+    tcx_release(&t);
+}
+
 /* A texture whose splat radii change with its size (a dense part on
  * screen and a sparse one: under --splat-lo at one size, over --splat-hi at
  * twice it) halved and doubled again every four windows; each reversal now
