@@ -9,6 +9,7 @@ struct disp_textures {
     disp_texture *items;
     uint32_t count, cap;
     unsigned clear_fbo;   /* zeroes new textures on the GPU (no CPU buffer) */
+    unsigned read_fbo;    /* the old texture of a resize, scaled into the new one */
 };
 
 int disp_textures_new(disp_textures **out, ct_error *err)
@@ -28,6 +29,7 @@ void disp_textures_free(disp_textures *t)
     if (!t) return;
     disp_textures_clear(t);
     if (t->clear_fbo) gl.DeleteFramebuffers(1, &t->clear_fbo);
+    if (t->read_fbo) gl.DeleteFramebuffers(1, &t->read_fbo);
     free(t->items);
     free(t);
 }
@@ -52,6 +54,24 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
         return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, width,
                        height, (int)max);
     disp_texture *x = find(t, id);
+    /* An object-local texture the master resized (§3.6) keeps its
+     * projection, so its old texels, scaled, are the best picture of the new
+     * ones until their patches arrive: without them the object's correction
+     * vanished for the updates that resend a large texture (a 2048² one is
+     * tens of MB). Camera-local ones are re-allocated when reprojected, with
+     * a projection of their own: zeroed. */
+    unsigned old_tex = 0;
+    int ow = 0, oh = 0;
+    bool old_neg = false, old_nz = false;
+    if (x && x->kind == DISP_PROJ_OBJECT_PARALLEL && kind == DISP_PROJ_OBJECT_PARALLEL && x->nonzero &&
+        (x->width != width || x->height != height)) {
+        old_tex = x->gl_tex;
+        ow = x->width;
+        oh = x->height;
+        old_neg = x->negative;
+        old_nz = x->nonzero;
+        gl.GenTextures(1, &x->gl_tex);
+    }
     if (!x) {
         if (t->count == t->cap) {
             uint32_t cap = t->cap ? 2 * t->cap : 64;
@@ -82,17 +102,37 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     gl.BindTexture(GL_TEXTURE_2D, x->gl_tex);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
     gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, NULL);
-    /* Zeroed contents: a fresh texture corrects nothing. */
+    /* Zeroed contents: a fresh texture corrects nothing; a resized one
+     * starts as its old texels scaled (bilinear, texel centres). */
     if (!t->clear_fbo) gl.GenFramebuffers(1, &t->clear_fbo);
     gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
     gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, x->gl_tex, 0);
     GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
-    if (st == GL_FRAMEBUFFER_COMPLETE) {
+    bool scaled = false;
+    if (st == GL_FRAMEBUFFER_COMPLETE && old_tex) {
+        if (!t->read_fbo) gl.GenFramebuffers(1, &t->read_fbo);
+        gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t->read_fbo);
+        gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, old_tex, 0);
+        if (gl.CheckFramebufferStatus(GL_READ_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE) {
+            gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, t->clear_fbo);
+            gl.BlitFramebuffer(0, 0, ow, oh, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+            scaled = true;
+        }
+        gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+        gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+    }
+    if (st == GL_FRAMEBUFFER_COMPLETE && !scaled) {
         gl.ClearColor(0, 0, 0, 0);
         gl.Clear(GL_COLOR_BUFFER_BIT);
     }
     gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (old_tex) gl.DeleteTextures(1, &old_tex);
+    if (scaled) {
+        x->negative = old_neg;
+        x->nonzero = old_nz;
+    }
     if (st != GL_FRAMEBUFFER_COMPLETE)
         return ct_fail(err, CT_ESYS, "texture %u: cannot clear a %dx%d RGBA16F texture (0x%04x)", id, width,
                        height, (unsigned)st);

@@ -492,8 +492,11 @@ Test(disp_corrections, sample_points_in_the_samples_view)
 }
 
 /* A texture that got no patch corrects nothing (allocation zeroes it on the
- * GPU), also after a resize of a texture that held values. */
-Test(disp_corrections, fresh_and_resized_textures_are_zero)
+ * GPU), also after a re-allocation at its size of a texture that held
+ * values; an object-local one the master resized starts as its old texels
+ * scaled (so its correction does not vanish while the new texels stream),
+ * a camera-local one as zeros. */
+Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
 {
     fx_box_nodes nd = box_nodes();
     ct_error err;
@@ -510,8 +513,9 @@ Test(disp_corrections, fresh_and_resized_textures_are_zero)
     rig_render(&rg, &cam, &o, NULL, NULL, rad);
     o.view = DISP_VIEW_FULL;
     /* Rounds: fresh 64x64; re-allocated at the same size after holding
-     * values; re-allocated at 32x16 after holding values. */
+     * values; as a camera-local texture at 32x16 after holding values. */
     const int sizes[3][2] = {{64, 64}, {64, 64}, {32, 16}};
+    const disp_proj_kind kinds[3] = {DISP_PROJ_OBJECT_PARALLEL, DISP_PROJ_OBJECT_PARALLEL, DISP_PROJ_CAMERA_PERSPECTIVE};
     for (int round = 0; round < 3; round++) {
         /* Never patched with a non-zero value: not drawn at all. */
         disp_render_stats st;
@@ -536,10 +540,36 @@ Test(disp_corrections, fresh_and_resized_textures_are_zero)
         for (int i = 0; i < tw * th * 3; i++) v[i] = 0.5f;
         cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, tw, th, v, &err), 0, "%s", err.msg);
         free(v);
-        if (round < 2)
+        if (round < 2) {
             cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, sizes[round + 1][0], sizes[round + 1][1],
-                                                DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+                                                kinds[round + 1], &err), 0);
+            cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0);
+        }
     }
+    /* Object-local again, filled with 0.5, then resized to 48x24: drawn as
+     * if its 48x24 texels were all 0.5 (a constant scales to itself). */
+    cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 32, 16, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0);
+    float *half = malloc((size_t)48 * 24 * 3 * sizeof *half);
+    for (int i = 0; i < 48 * 24 * 3; i++) half[i] = 0.5f;
+    cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 32, 16, half, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 48, 24, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    cr_assert(disp_textures_find(disp_session_textures(s), 1)->nonzero, "the scaled texels count as non-zero");
+    float *scaled = malloc(n * sizeof *scaled);
+    o.passes = 3;
+    disp_render_stats st;
+    rig_render(&rg, &cam, &o, &st, NULL, scaled);
+    cr_expect_eq(st.textures_drawn, 1u, "the resized texture was not drawn");
+    cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 48, 24, half, &err), 0, "%s", err.msg);
+    rig_render(&rg, &cam, &o, &st, NULL, full);
+    double mx, mean;
+    fx_diff(scaled, full, n, &mx, &mean);
+    printf("metric: resized object-local texture before its patches vs after: linear max %.2e, mean %.2e\n", mx, mean);
+    cr_expect_lt(mx, 1e-3, "the scaled old texels differ from the new ones by %g", mx);
+    fx_diff(scaled, rad, n, &mx, &mean);
+    cr_expect_gt(mx, 0.1, "the resized texture corrected nothing (max %g)", mx);
+    free(half);
+    free(scaled);
     free(full);
     free(rad);
     rig_close(&rg);
