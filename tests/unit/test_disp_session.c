@@ -128,15 +128,22 @@ Test(disp_session, texture_events_that_do_not_fit)
     uint32_t want = 0;
     for (uint32_t i = 0; i < m.ntris; i++) want += m.tri_node[i] == nd.back;
     cr_expect_eq(t->tri_end - t->tri_begin, want);
-    /* A resize (TEX_ALLOC of a live id) keeps the projection; a freed and
-     * reused id waits for a new one. */
+    /* A resize (TEX_ALLOC of a live id) keeps the projection; an
+     * object-local one starts as its old texels scaled (so as non-zero and
+     * negative as they were), any other re-allocation at zero; a freed and
+     * reused id waits for a new projection. */
     cr_assert_eq(disp_session_tex_projection(s, 3, &id, &err), 0);
     cr_assert_eq(disp_session_tex_alloc(s, 3, nd.back, 8, 8, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
     t = disp_textures_find(disp_session_textures(s), 3);
     cr_expect(t->has_proj);
     cr_expect_eq(t->width, 8);
-    cr_expect_not(t->negative, "a resized texture starts at zero");
-    cr_expect_not(t->nonzero, "a resized texture starts at zero");
+    cr_expect(t->negative, "a resized object-local texture keeps its old texels, scaled");
+    cr_expect(t->nonzero, "a resized object-local texture keeps its old texels, scaled");
+    cr_assert_eq(disp_session_tex_alloc(s, 3, nd.back, 4, 4, DISP_PROJ_CAMERA_PERSPECTIVE, &err), 0);
+    t = disp_textures_find(disp_session_textures(s), 3);
+    cr_expect(t->has_proj);
+    cr_expect_not(t->negative, "a re-allocated camera-local texture starts at zero");
+    cr_expect_not(t->nonzero, "a re-allocated camera-local texture starts at zero");
     cr_expect_eq(disp_session_tex_free(s, 3, &err), 0);
     cr_expect_eq(disp_textures_count(disp_session_textures(s)), 0u);
     cr_assert_eq(disp_session_tex_alloc(s, 3, nd.back, 4, 4, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
