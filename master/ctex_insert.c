@@ -56,21 +56,25 @@ void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer)
     t->n_sum++;
     t->since_resize = n + 1;
     if (t->since_resize < win || s->pend_w) return;
-    /* hysteresis: reversing the last change needs four windows of evidence,
-     * twice as many after each reversal, and the mean of every radius since
-     * that change past the threshold too (since the last aging, if later:
-     * the views before saw other densities; the running mean alone for the
-     * first window after it) */
+    /* Every change needs the mean of every radius since the last change
+     * past the threshold as well as the running mean (since the last aging,
+     * if later: the views before saw other densities; the running mean alone
+     * for the first window after it): the running mean's window swings by
+     * a texel where the queue moves between dense and sparse parts of a
+     * texture. Reversing the last change also needs four windows of
+     * evidence, twice as many after each reversal. */
     const uint32_t rev = (4u * win) << t->reversals;
     const float since_mean = t->n_sum >= win ? (float)(t->sum_r / (double)t->n_sum) : t->mean_r;
     int nw = t->w, nh = t->h;
     if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
-        if (t->last_resize > 0 && (t->since_resize < rev || !(since_mean > c->o.splat_hi))) return;
+        if (!(since_mean > c->o.splat_hi)) return;
+        if (t->last_resize > 0 && t->since_resize < rev) return;
         nw = (t->w + 1) / 2; nh = (t->h + 1) / 2;
         if (nw < c->o.tex_min) nw = t->w < c->o.tex_min ? t->w : c->o.tex_min;
         if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
     } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
-        if (t->last_resize < 0 && (t->since_resize < rev || !(since_mean < c->o.splat_lo))) return;
+        if (!(since_mean < c->o.splat_lo)) return;
+        if (t->last_resize < 0 && t->since_resize < rev) return;
         /* exact doublings only: an axis that would pass its bound stays */
         nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;
         nh = 2 * t->h <= s->max_h ? 2 * t->h : t->h;

@@ -609,6 +609,44 @@ Test(ctex_engine, resolution_reversal_needs_the_mean_since_the_change)
     tcx_release(&t);
 }
 
+/* The same for a change in the direction of the last one, or the first:
+ * radii whose running mean dips under --splat-lo now and then but whose
+ * mean since the texture's last change stays over it (office's floor and
+ * walls doubled early that way, then halved again, docs/textures.md
+ * "Resolution") leave the size alone; a steady run of radii under it still
+ * doubles the texture. */
+Test(ctex_engine, resolution_change_needs_the_mean_since_the_last)
+{
+    tcx_scene t;
+    ctex_options o = ctex_options_default();
+    uint32_t id;
+    ctex *c = floor_texture_engine(&t, &o, &id);
+    int w0, w, h;
+    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h, NULL, NULL, NULL), 0);
+    cr_assert_float_eq(o.splat_lo, 1.0f, 0.0f);
+    /* 40 radii of 2, then 24 of 0: mean 1.25; the 16-sample running mean
+     * falls to 0.4 in every run of 0s */
+    float low = 1e9f;
+    for (int n = 0; n < 64 * 200; n++) {
+        ctex_adapt_resolution(c, id, n % 64 < 40 ? 2 : 0, 0);
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+        if (n > 64 && c->slots[id].t.mean_r < low) low = c->slots[id].t.mean_r;
+        cr_assert_eq(w, w0, "doubled after %d samples of mean 1.25", n + 1);
+    }
+    cr_assert_lt(low, o.splat_lo, "the running mean never fell under --splat-lo (%.2f): the test tests nothing",
+                 (double)low);
+    int n = 0;
+    while (w == w0 && n < 20000) {
+        ctex_adapt_resolution(c, id, 0, 0);
+        n++;
+        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
+    }
+    cr_log_info("doubled after %d radii of 0", n);
+    cr_assert_eq(w, 2 * w0, "radii of 0 never doubled it");
+    ctex_free(c);
+    tcx_release(&t);
+}
+
 /* The mean since the change starts again at a camera change: the radii
  * measured in the views before tell nothing of this one's density. A
  * doubled texture that took 4,000 radii of 1 (no change) and then sees a
