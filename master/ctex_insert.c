@@ -38,7 +38,8 @@ static void resize(ctex *c, uint32_t id, int nw, int nh, ct_pool *pool)
     ctex_ev_alloc(c, id);
 }
 
-/* §3.6: the running mean of splat radii decides halving or doubling. With
+/* §3.6: the running mean of splat radii, and the mean since the last
+ * change, decide halving or doubling (docs/textures.md). With
  * `defer` (a parallel insertion) the change is only noted, once per call,
  * and made after every texture's samples (apply_resizes): growth takes
  * memory that other textures compete for. */
