@@ -570,6 +570,43 @@ static ctex *floor_texture_engine(tcx_scene *t, ctex_options *o, uint32_t *id)
     return c;
 }
 
+static int tex_width(const ctex *c, uint32_t id)
+{
+    int w, h;
+    cr_assert_geq(ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL), 0);
+    return w;
+}
+
+/* Feeds radius r to texture id until its width changes, at most max
+ * times; how many it took (max: no change). */
+static int radii_until_change(ctex *c, uint32_t id, int r, int max)
+{
+    const int w = tex_width(c, id);
+    int n = 0;
+    while (n < max && tex_width(c, id) == w) {
+        ctex_adapt_resolution(c, id, r, 0);
+        n++;
+    }
+    return n;
+}
+
+/* Feeds n radii of the pattern lo (the first n_lo of every 64) and hi (the
+ * rest); asserts the width stays; returns the running mean's extreme
+ * (the largest with want_peak, else the smallest) after the first 64. */
+static float pattern_keeps_size(ctex *c, uint32_t id, int n, int n_lo, int lo, int hi, bool want_peak)
+{
+    const int w = tex_width(c, id);
+    float ext = want_peak ? -1e9f : 1e9f;
+    for (int k = 0; k < n; k++) {
+        ctex_adapt_resolution(c, id, k % 64 < n_lo ? lo : hi, 0);
+        cr_assert_eq(tex_width(c, id), w, "the size changed after %d radii of mean %.3f", k + 1,
+                     (double)(n_lo * lo + (64 - n_lo) * hi) / 64.0);
+        const float mr = c->slots[id].t.mean_r;
+        if (k >= 64) ext = want_peak ? fmaxf(ext, mr) : fminf(ext, mr);
+    }
+    return ext;
+}
+
 /* A doubled texture whose radii run under --splat-hi on the whole but
  * over it for a window now and then (samples landing in a sparse part for a
  * while: office at 1024x1024 halved its floor and walls from 2048 to 1024
@@ -583,26 +620,13 @@ Test(ctex_engine, resolution_reversal_needs_the_mean_since_the_change)
     ctex_options o = ctex_options_default();
     uint32_t id;
     ctex *c = floor_texture_engine(&t, &o, &id);
-    int w0, w, h;
-    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h, NULL, NULL, NULL), 0);
-    w = w0;
-    for (int n = 0; n < 64 && w == w0; n++) {
-        ctex_adapt_resolution(c, id, 0, 0);
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    }
-    cr_assert_eq(w, 2 * w0, "the texture did not double (%d -> %d)", w0, w);
+    const int w0 = tex_width(c, id);
+    radii_until_change(c, id, 0, 64);
+    cr_assert_eq(tex_width(c, id), 2 * w0, "the texture did not double");
     /* 40 radii of 3, then 24 of 8: mean 4.875 under --splat-hi 5; the
      * 16-sample running mean passes 5 in every run of 8s */
     cr_assert_float_eq(o.splat_hi, 5.0f, 0.0f);
-    float peak = 0.0f;
-    for (int n = 0; n < 64 * 200; n++) {
-        ctex_adapt_resolution(c, id, n % 64 < 40 ? 3 : 8, 0);
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-        const float mr = c->slots[id].t.mean_r;
-        if (mr > peak) peak = mr;
-        cr_assert_eq(w, 2 * w0, "halved after %d samples of mean 4.875 (running mean up to %.2f)", n + 1,
-                     (double)peak);
-    }
+    float peak = pattern_keeps_size(c, id, 64 * 200, 40, 3, 8, true);
     cr_assert_gt(peak, o.splat_hi, "the running mean never passed --splat-hi (%.2f): the test tests nothing",
                  (double)peak);
     ctex_free(c);
@@ -621,28 +645,16 @@ Test(ctex_engine, resolution_change_needs_the_mean_since_the_last)
     ctex_options o = ctex_options_default();
     uint32_t id;
     ctex *c = floor_texture_engine(&t, &o, &id);
-    int w0, w, h;
-    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h, NULL, NULL, NULL), 0);
+    const int w0 = tex_width(c, id);
     cr_assert_float_eq(o.splat_lo, 1.0f, 0.0f);
     /* 40 radii of 2, then 24 of 0: mean 1.25; the 16-sample running mean
      * falls to 0.4 in every run of 0s */
-    float low = 1e9f;
-    for (int n = 0; n < 64 * 200; n++) {
-        ctex_adapt_resolution(c, id, n % 64 < 40 ? 2 : 0, 0);
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-        if (n > 64 && c->slots[id].t.mean_r < low) low = c->slots[id].t.mean_r;
-        cr_assert_eq(w, w0, "doubled after %d samples of mean 1.25", n + 1);
-    }
+    float low = pattern_keeps_size(c, id, 64 * 200, 40, 2, 0, false);
     cr_assert_lt(low, o.splat_lo, "the running mean never fell under --splat-lo (%.2f): the test tests nothing",
                  (double)low);
-    int n = 0;
-    while (w == w0 && n < 20000) {
-        ctex_adapt_resolution(c, id, 0, 0);
-        n++;
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    }
+    int n = radii_until_change(c, id, 0, 20000);
     cr_log_info("doubled after %d radii of 0", n);
-    cr_assert_eq(w, 2 * w0, "radii of 0 never doubled it");
+    cr_assert_eq(tex_width(c, id), 2 * w0, "radii of 0 never doubled it");
     ctex_free(c);
     tcx_release(&t);
 }
@@ -659,35 +671,20 @@ Test(ctex_engine, resolution_reversal_counts_from_the_last_camera_change)
     ctex_options o = ctex_options_default();
     uint32_t id;
     ctex *c = floor_texture_engine(&t, &o, &id);
-    int w0, w, h;
-    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h, NULL, NULL, NULL), 0);
-    w = w0;
-    for (int n = 0; n < 64 && w == w0; n++) {
-        ctex_adapt_resolution(c, id, 0, 0);
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    }
-    cr_assert_eq(w, 2 * w0, "the texture did not double (%d -> %d)", w0, w);
-    for (int n = 0; n < 4000; n++) ctex_adapt_resolution(c, id, 1, 0);
-    ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    cr_assert_eq(w, 2 * w0, "radii of 1 changed the size");
+    const int w0 = tex_width(c, id);
+    radii_until_change(c, id, 0, 64);
+    cr_assert_eq(tex_width(c, id), 2 * w0, "the texture did not double");
+    pattern_keeps_size(c, id, 4000, 64, 1, 1, true);
     ct_camera cam = cam_look_at(v3(0.5f, 4, 14), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
     cr_assert_eq(ctex_set_camera(c, &cam, 96, 96, &err), 0, "%s", err.msg);
     cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), (int32_t)id, "the floor keeps its texture");
-    ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    cr_assert_eq(w, 2 * w0, "the camera change resized the texture");
+    cr_assert_eq(tex_width(c, id), 2 * w0, "the camera change resized the texture");
     /* a window of 4s (under --splat-hi: no change), so that the mean since
      * the camera change, not the running mean alone, decides below */
-    for (int k = 0; k < 16; k++) ctex_adapt_resolution(c, id, 4, 0);
-    ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    cr_assert_eq(w, 2 * w0, "radii of 4 changed the size");
-    int n = 0;
-    while (w == 2 * w0 && n < 4000) {
-        ctex_adapt_resolution(c, id, 10, 0);
-        n++;
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-    }
+    pattern_keeps_size(c, id, 16, 64, 4, 4, true);
+    int n = radii_until_change(c, id, 10, 4000);
     cr_log_info("halved after %d radii of 10 since the camera change", n);
-    cr_assert_eq(w, w0, "no halving after %d radii of 10", n);
+    cr_assert_eq(tex_width(c, id), w0, "no halving after %d radii of 10", n);
     cr_assert_leq(n, 4 * 16, "halved only after %d radii of 10", n);
     ctex_free(c);
     tcx_release(&t);
@@ -705,23 +702,12 @@ Test(ctex_engine, resolution_reversals_back_off)
     ctex_options o = ctex_options_default();
     uint32_t id;
     ctex *c = floor_texture_engine(&t, &o, &id);
-    int w0, h0;
-    cr_assert_geq(ctex_texture_info(c, id, NULL, &w0, &h0, NULL, NULL, NULL), 0);
+    const int w0 = tex_width(c, id);
     /* samples until each change: small -> radius 0 (doubles), large -> 10 (halves) */
     int gaps[10];
     for (int k = 0; k < 10; k++) {
-        int w, h, n = 0;
-        ctex_texture_info(c, id, NULL, &w, &h, NULL, NULL, NULL);
-        const int r = w > w0 ? 10 : 0;
-        for (;;) {
-            int w1, h1;
-            ctex_adapt_resolution(c, id, r, 0);
-            n++;
-            ctex_texture_info(c, id, NULL, &w1, &h1, NULL, NULL, NULL);
-            if (w1 != w) break;
-            cr_assert_lt(n, 1 << 20, "change %d never came", k);
-        }
-        gaps[k] = n;
+        gaps[k] = radii_until_change(c, id, tex_width(c, id) > w0 ? 10 : 0, 1 << 20);
+        cr_assert_lt(gaps[k], 1 << 20, "change %d never came", k);
     }
     cr_log_info("samples before each change: %d %d %d %d %d %d %d %d %d %d", gaps[0], gaps[1], gaps[2], gaps[3],
                 gaps[4], gaps[5], gaps[6], gaps[7], gaps[8], gaps[9]);
