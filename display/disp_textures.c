@@ -62,14 +62,13 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
      * a projection of their own: zeroed. */
     unsigned old_tex = 0;
     int ow = 0, oh = 0;
-    bool old_neg = false, old_nz = false;
+    bool old_neg = false;
     if (x && x->kind == DISP_PROJ_OBJECT_PARALLEL && kind == DISP_PROJ_OBJECT_PARALLEL && x->nonzero &&
         (x->width != width || x->height != height)) {
         old_tex = x->gl_tex;
         ow = x->width;
         oh = x->height;
         old_neg = x->negative;
-        old_nz = x->nonzero;
         gl.GenTextures(1, &x->gl_tex);
     }
     if (!x) {
@@ -94,8 +93,6 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     x->kind = kind;
     /* A re-allocation of a live id (the master resized it) keeps its
      * projection until a new one arrives; a new id waits for one. */
-    x->negative = false;
-    x->nonzero = false;
     /* Stored as RGBA16F: llvmpipe samples it faster than RGB16F, GPUs pad
      * RGB16F to four channels anyway, and it is colour-renderable, so the
      * zeroing below needs no CPU buffer of the texture's size. */
@@ -129,10 +126,9 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
     if (old_tex) gl.DeleteTextures(1, &old_tex);
-    if (scaled) {
-        x->negative = old_neg;
-        x->nonzero = old_nz;
-    }
+    /* scaled texels are the old ones (which were non-zero) */
+    x->negative = scaled && old_neg;
+    x->nonzero = scaled;
     if (st != GL_FRAMEBUFFER_COMPLETE)
         return ct_fail(err, CT_ESYS, "texture %u: cannot clear a %dx%d RGBA16F texture (0x%04x)", id, width,
                        height, (unsigned)st);

@@ -38,6 +38,14 @@ static void resize(ctex *c, uint32_t id, int nw, int nh, ct_pool *pool)
     ctex_ev_alloc(c, id);
 }
 
+/* The mean of t's radii since its last change or aging; the running mean
+ * for the first window after it. Only when the running mean passes a
+ * threshold: a division per sample otherwise, in the insertion loop. */
+static inline float since_mean(const ctex_tex *t, uint32_t win)
+{
+    return t->n_sum >= win ? (float)(t->sum_r / (double)t->n_sum) : t->mean_r;
+}
+
 /* §3.6: the running mean of splat radii, and the mean since the last
  * change, decide halving or doubling (docs/textures.md). With
  * `defer` (a parallel insertion) the change is only noted, once per call,
@@ -65,16 +73,15 @@ void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer)
      * texture. Reversing the last change also needs four windows of
      * evidence, twice as many after each reversal. */
     const uint32_t rev = (4u * win) << t->reversals;
-    const float since_mean = t->n_sum >= win ? (float)(t->sum_r / (double)t->n_sum) : t->mean_r;
     int nw = t->w, nh = t->h;
     if (t->mean_r > c->o.splat_hi && (t->w > c->o.tex_min || t->h > c->o.tex_min)) {
-        if (!(since_mean > c->o.splat_hi)) return;
+        if (!(since_mean(t, win) > c->o.splat_hi)) return;
         if (t->last_resize > 0 && t->since_resize < rev) return;
         nw = (t->w + 1) / 2; nh = (t->h + 1) / 2;
         if (nw < c->o.tex_min) nw = t->w < c->o.tex_min ? t->w : c->o.tex_min;
         if (nh < c->o.tex_min) nh = t->h < c->o.tex_min ? t->h : c->o.tex_min;
     } else if (t->mean_r < c->o.splat_lo && (t->w < s->max_w || t->h < s->max_h)) {
-        if (!(since_mean < c->o.splat_lo)) return;
+        if (!(since_mean(t, win) < c->o.splat_lo)) return;
         if (t->last_resize < 0 && t->since_resize < rev) return;
         /* exact doublings only: an axis that would pass its bound stays */
         nw = 2 * t->w <= s->max_w ? 2 * t->w : t->w;

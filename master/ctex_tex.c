@@ -642,6 +642,7 @@ int ctex_tex_resize_on(ctex_tex *t, int nw, int nh, ct_pool *pool, ct_error *err
     const float sx = (float)t->w / (float)nw, sy = (float)t->h / (float)nh;
     /* Validities are distances in texels: rescale them relative to v_max. */
     const float vs = 1.0f / fmaxf(sx, sy);
+    const float slack = (float)CTEX_DBL_SLACK_Q / (float)CTEX_VQ;   /* what a doubling adds (dbl_q) */
     const bool shrink = nw <= t->w && nh <= t->h;
     for (int j = 0; j < nh; j++) {
         for (int i = 0; i < nw; i++) {
@@ -687,7 +688,6 @@ int ctex_tex_resize_on(ctex_tex *t, int nw, int nh, ct_pool *pool, ct_error *err
                         /* next to the valid region: take the neighbours' best */
                         best = t->vmax - 1.0f;
                     }
-                    const float slack = (float)CTEX_DBL_SLACK_Q / (float)CTEX_VQ;
                     ctex_texel_set(t, o, val, t->vmax + (best - t->vmax) * vs - slack);
                 }
             }

@@ -256,7 +256,8 @@ static float age_offset(const ctex *c, const slot *s, vec3 e0)
 
 /* §3.5 aging on a camera change. The radii since the texture's last
  * resolution change were measured against samples of the views before;
- * the mean a reversal needs (ctex_insert.c) starts again from here. */
+ * the mean since the change that a resolution change needs (ctex_insert.c)
+ * starts again from here. */
 static void age(ctex *c, slot *s)
 {
     ctex_tex_age(&s->t, age_offset(c, s, s->last_eye));

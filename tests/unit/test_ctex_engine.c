@@ -557,19 +557,6 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
     }
 }
 
-/* An engine whose resolution rule is driven by hand (ctex_internal.h):
- * a window of 16 and one floor sample, whose texture is *id. */
-static ctex *floor_texture_engine(tcx_scene *t, ctex_options *o, uint32_t *id)
-{
-    o->splat_window = 16;
-    ctex *c = tcx_front_engine(t, *o, 96, 96);
-    ct_sample s = tcx_sample((uint32_t)t->floor, v3(0.5f, 0.0f, 0.5f), v3s(0.5f), v3s(0.3f));
-    ctex_insert_info info;
-    cr_assert_eq(ctex_insert(c, &s, &info), 1);
-    *id = (uint32_t)info.tex;
-    return c;
-}
-
 static int tex_width(const ctex *c, uint32_t id)
 {
     int w, h;
@@ -588,6 +575,38 @@ static int radii_until_change(ctex *c, uint32_t id, int r, int max)
         n++;
     }
     return n;
+}
+
+/* An engine whose resolution rule is driven by hand (ctex_internal.h):
+ * a window of 16 and one floor sample, whose texture is id, w0 texels
+ * wide; with `doubled`, radii of 0 have doubled it once. */
+typedef struct rtex {
+    tcx_scene t;
+    ctex_options o;
+    ctex *c;
+    uint32_t id;
+    int w0;
+} rtex;
+
+static void rtex_open(rtex *r, bool doubled)
+{
+    r->o = ctex_options_default();
+    r->o.splat_window = 16;
+    r->c = tcx_front_engine(&r->t, r->o, 96, 96);
+    ct_sample s = tcx_sample((uint32_t)r->t.floor, v3(0.5f, 0.0f, 0.5f), v3s(0.5f), v3s(0.3f));
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(r->c, &s, &info), 1);
+    r->id = (uint32_t)info.tex;
+    r->w0 = tex_width(r->c, r->id);
+    if (!doubled) return;
+    radii_until_change(r->c, r->id, 0, 64);
+    cr_assert_eq(tex_width(r->c, r->id), 2 * r->w0, "the texture did not double");
+}
+
+static void rtex_close(rtex *r)
+{
+    ctex_free(r->c);
+    tcx_release(&r->t);
 }
 
 /* Feeds n radii of the pattern lo (the first n_lo of every 64) and hi (the
@@ -616,21 +635,15 @@ static float pattern_keeps_size(ctex *c, uint32_t id, int n, int n_lo, int lo, i
  * it (resolution_reversals_back_off). */
 Test(ctex_engine, resolution_reversal_needs_the_mean_since_the_change)
 {
-    tcx_scene t;
-    ctex_options o = ctex_options_default();
-    uint32_t id;
-    ctex *c = floor_texture_engine(&t, &o, &id);
-    const int w0 = tex_width(c, id);
-    radii_until_change(c, id, 0, 64);
-    cr_assert_eq(tex_width(c, id), 2 * w0, "the texture did not double");
+    rtex r;
+    rtex_open(&r, true);
     /* 40 radii of 3, then 24 of 8: mean 4.875 under --splat-hi 5; the
      * 16-sample running mean passes 5 in every run of 8s */
-    cr_assert_float_eq(o.splat_hi, 5.0f, 0.0f);
-    float peak = pattern_keeps_size(c, id, 64 * 200, 40, 3, 8, true);
-    cr_assert_gt(peak, o.splat_hi, "the running mean never passed --splat-hi (%.2f): the test tests nothing",
+    cr_assert_float_eq(r.o.splat_hi, 5.0f, 0.0f);
+    float peak = pattern_keeps_size(r.c, r.id, 64 * 200, 40, 3, 8, true);
+    cr_assert_gt(peak, r.o.splat_hi, "the running mean never passed --splat-hi (%.2f): the test tests nothing",
                  (double)peak);
-    ctex_free(c);
-    tcx_release(&t);
+    rtex_close(&r);
 }
 
 /* The same for a change in the direction of the last one, or the first:
@@ -641,22 +654,18 @@ Test(ctex_engine, resolution_reversal_needs_the_mean_since_the_change)
  * doubles the texture. */
 Test(ctex_engine, resolution_change_needs_the_mean_since_the_last)
 {
-    tcx_scene t;
-    ctex_options o = ctex_options_default();
-    uint32_t id;
-    ctex *c = floor_texture_engine(&t, &o, &id);
-    const int w0 = tex_width(c, id);
-    cr_assert_float_eq(o.splat_lo, 1.0f, 0.0f);
+    rtex r;
+    rtex_open(&r, false);
+    cr_assert_float_eq(r.o.splat_lo, 1.0f, 0.0f);
     /* 40 radii of 2, then 24 of 0: mean 1.25; the 16-sample running mean
      * falls to 0.4 in every run of 0s */
-    float low = pattern_keeps_size(c, id, 64 * 200, 40, 2, 0, false);
-    cr_assert_lt(low, o.splat_lo, "the running mean never fell under --splat-lo (%.2f): the test tests nothing",
+    float low = pattern_keeps_size(r.c, r.id, 64 * 200, 40, 2, 0, false);
+    cr_assert_lt(low, r.o.splat_lo, "the running mean never fell under --splat-lo (%.2f): the test tests nothing",
                  (double)low);
-    int n = radii_until_change(c, id, 0, 20000);
+    int n = radii_until_change(r.c, r.id, 0, 20000);
     cr_log_info("doubled after %d radii of 0", n);
-    cr_assert_eq(tex_width(c, id), 2 * w0, "radii of 0 never doubled it");
-    ctex_free(c);
-    tcx_release(&t);
+    cr_assert_eq(tex_width(r.c, r.id), 2 * r.w0, "radii of 0 never doubled it");
+    rtex_close(&r);
 }
 
 /* The mean since the change starts again at a camera change: the radii
@@ -667,27 +676,21 @@ Test(ctex_engine, resolution_change_needs_the_mean_since_the_last)
  * --splat-hi for 4,000 more. */
 Test(ctex_engine, resolution_reversal_counts_from_the_last_camera_change)
 {
-    tcx_scene t;
-    ctex_options o = ctex_options_default();
-    uint32_t id;
-    ctex *c = floor_texture_engine(&t, &o, &id);
-    const int w0 = tex_width(c, id);
-    radii_until_change(c, id, 0, 64);
-    cr_assert_eq(tex_width(c, id), 2 * w0, "the texture did not double");
-    pattern_keeps_size(c, id, 4000, 64, 1, 1, true);
+    rtex r;
+    rtex_open(&r, true);
+    pattern_keeps_size(r.c, r.id, 4000, 64, 1, 1, true);
     ct_camera cam = cam_look_at(v3(0.5f, 4, 14), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
-    cr_assert_eq(ctex_set_camera(c, &cam, 96, 96, &err), 0, "%s", err.msg);
-    cr_assert_eq(ctex_owner(c, (uint32_t)t.floor, UINT32_MAX, v3s(0.0f)), (int32_t)id, "the floor keeps its texture");
-    cr_assert_eq(tex_width(c, id), 2 * w0, "the camera change resized the texture");
+    cr_assert_eq(ctex_set_camera(r.c, &cam, 96, 96, &err), 0, "%s", err.msg);
+    cr_assert_eq(ctex_owner(r.c, (uint32_t)r.t.floor, UINT32_MAX, v3s(0.0f)), (int32_t)r.id, "the floor keeps its texture");
+    cr_assert_eq(tex_width(r.c, r.id), 2 * r.w0, "the camera change resized the texture");
     /* a window of 4s (under --splat-hi: no change), so that the mean since
      * the camera change, not the running mean alone, decides below */
-    pattern_keeps_size(c, id, 16, 64, 4, 4, true);
-    int n = radii_until_change(c, id, 10, 4000);
+    pattern_keeps_size(r.c, r.id, 16, 64, 4, 4, true);
+    int n = radii_until_change(r.c, r.id, 10, 4000);
     cr_log_info("halved after %d radii of 10 since the camera change", n);
-    cr_assert_eq(tex_width(c, id), w0, "no halving after %d radii of 10", n);
+    cr_assert_eq(tex_width(r.c, r.id), r.w0, "no halving after %d radii of 10", n);
     cr_assert_leq(n, 4 * 16, "halved only after %d radii of 10", n);
-    ctex_free(c);
-    tcx_release(&t);
+    rtex_close(&r);
 }
 
 /* A texture whose splat radii change with its size (a dense part on
@@ -698,15 +701,12 @@ Test(ctex_engine, resolution_reversal_counts_from_the_last_camera_change)
  * (the clamp, 2 --splat-hi) once it is large. */
 Test(ctex_engine, resolution_reversals_back_off)
 {
-    tcx_scene t;
-    ctex_options o = ctex_options_default();
-    uint32_t id;
-    ctex *c = floor_texture_engine(&t, &o, &id);
-    const int w0 = tex_width(c, id);
+    rtex r;
+    rtex_open(&r, false);
     /* samples until each change: small -> radius 0 (doubles), large -> 10 (halves) */
     int gaps[10];
     for (int k = 0; k < 10; k++) {
-        gaps[k] = radii_until_change(c, id, tex_width(c, id) > w0 ? 10 : 0, 1 << 20);
+        gaps[k] = radii_until_change(r.c, r.id, tex_width(r.c, r.id) > r.w0 ? 10 : 0, 1 << 20);
         cr_assert_lt(gaps[k], 1 << 20, "change %d never came", k);
     }
     cr_log_info("samples before each change: %d %d %d %d %d %d %d %d %d %d", gaps[0], gaps[1], gaps[2], gaps[3],
@@ -719,6 +719,5 @@ Test(ctex_engine, resolution_reversals_back_off)
         int want = (4 * 16) << (k - 1 < 8 ? k - 1 : 8);
         cr_assert_eq(gaps[k], want, "reversal %d after %d samples, expected %d", k, gaps[k], want);
     }
-    ctex_free(c);
-    tcx_release(&t);
+    rtex_close(&r);
 }
