@@ -52,7 +52,11 @@ void trc_options_default(trc_options *o, trc_mode mode)
         o->shadow_rays = 4;
         o->branch = 4;
         o->branch_depth = 1;
-        o->depth = 5;
+        /* A ray through a wine glass crosses four surfaces before it
+         * reaches the table behind, and its solid foot keeps rays inside
+         * for several more; at 5 levels those ended black (table, every
+         * pixel once at 1024x1024: +0.15 dB, rays +7 %; docs/tracer.md). */
+        o->depth = 8;
     }
     o->indirect = TRC_INDIRECT_GATHER;
     o->gather_rays = 4;

@@ -17,7 +17,7 @@ static const optab ROWS[] = {
     {"branch-depth", 0, OPTAB_INT, OF(branch_depth), -1, 1024, "-1", "L",
      "drt: levels that split into B glossy rays and both Fresnel branches (-1: the mode's, 1)", NULL},
     {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D",
-     "drt: recursion depth; path: maximum bounces (-1: the mode's, drt 5, path 64)", NULL},
+     "drt: recursion depth; path: maximum bounces (-1: the mode's, drt 8, path 64)", NULL},
     {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",
      "drt's indirect light: the mesh read at the hit, or a final gather of the mesh (docs/tracer.md)", INDIRECT},
     {"gather-rays", 0, OPTAB_INT, OF(gather_rays), 1, 4096, "4", "G", "rays of --indirect gather per shading point",

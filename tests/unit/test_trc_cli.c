@@ -70,7 +70,7 @@ Test(trc_cli, given_values_override_the_mode_and_zero_levels_count)
     const char *m1[] = {"--depth", "-1", NULL};
     cr_assert_eq(parse(&c, m1, &err), 0, "%s", err.msg);
     trc_cli_apply(&c, &o);
-    cr_expect_eq(o.depth, 5, "-1: the mode's depth");
+    cr_expect_eq(o.depth, 8, "-1: the mode's depth");
 }
 
 Test(trc_cli, bad_values_name_the_option)
