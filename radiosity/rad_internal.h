@@ -55,7 +55,11 @@ typedef struct rad_elem {
 /* An input polygon: a scene triangle or a quad rebuilt from two triangles. */
 typedef struct rad_patch {
     vec3 n;              /* unit normal of the front side */
-    vec3 rho;            /* diffuse reflectance */
+    vec3 rho;            /* diffuse reflectance: what the solution shows */
+    vec3 rho_t;          /* what it passes on: rho plus its glossy and mirror
+                          * layers' reflectance, spread as if diffuse (rad_patch.c) */
+    vec3 rho_ml;         /* the part of rho_t a plane mirror's lamp images pass on
+                          * instead (rad_mirror.c): not applied to its direct light */
     vec3 E;              /* emitted radiosity: pi * L_e */
     uint32_t node, mat;
     uint32_t root;       /* root element */
@@ -260,7 +264,8 @@ int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, cons
 /* --- rad_mirror.c --------------------------------------------------------- */
 
 /* Finds the scene's plane mirrors and builds what sampling the lamps seen
- * in them needs (nothing when there are none or mirror_samples is 0). */
+ * in them needs (nothing when there are none or mirror_samples is 0), and
+ * sets rho_ml of the patches that lie on one of those mirrors. */
 int rad_mirror_new(rad_ctx *c, ct_error *err);
 
 /* Frees it. */

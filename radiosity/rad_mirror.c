@@ -23,6 +23,29 @@
 /* The third stream id of the mirror samples' random numbers. */
 #define RAD_MIRROR_STREAM 0x6d6972726f72ULL
 
+/* The patches on a plane mirror whose lamp images are sampled: their
+ * mirror layer passes the lamps' light on by those images, so it must not
+ * pass it on again through their radiosity (rho_ml, push_pull). */
+static void mark_mirror_patches(rad_ctx *c)
+{
+    float tol = 50.0f * c->ray_eps;
+    for (uint32_t pi = 0; pi < c->npatches; pi++) {
+        rad_patch *p = &c->patches[pi];
+        const scene_material *m = &c->scene->mats[p->mat];
+        if (!mlight_material(m)) continue;
+        vec3 x = rad_el(c, p->root)->c;
+        for (uint32_t i = 0; i < mlight_count(c->mirrors); i++) {
+            const mlight_plane *pl = mlight_get(c->mirrors, i);
+            float cs = v3_dot(p->n, pl->n);
+            if (pl->mat != p->mat || !(cs > 0.9999f || cs < -0.9999f) || fabsf(mlight_side(pl, x)) > tol ||
+                !mlight_in_bounds(pl, x))
+                continue;
+            p->rho_ml = v3_min(v3_max(m->mirror, v3s(0.0f)), p->rho_t);
+            break;
+        }
+    }
+}
+
 int rad_mirror_new(rad_ctx *c, ct_error *err)
 {
     const ct_scene *s = c->scene;
@@ -35,8 +58,12 @@ int rad_mirror_new(rad_ctx *c, ct_error *err)
     int rc = emb_new(&m, NULL, &c->memb, err);
     if (!rc) rc = light_build(c->memb, &c->mlamps, err);
     if (!rc) rc = mlight_build(c->memb, c->mlamps, &c->mirrors, err);
-    if (rc || mlight_count(c->mirrors) == 0 || light_count(c->mlamps) == 0) rad_mirror_free(c);
-    return rc;
+    if (rc || mlight_count(c->mirrors) == 0 || light_count(c->mlamps) == 0) {
+        rad_mirror_free(c);
+        return rc;
+    }
+    mark_mirror_patches(c);
+    return CT_OK;
 }
 
 void rad_mirror_free(rad_ctx *c)

@@ -251,9 +251,20 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         const scene_material *m = &s->mats[s->tri_mat[t]];
         p->n = fn;
         /* Reflectance below 1 so the iteration converges (and energy is
-         * never created); non-diffuse layers are ignored (docs/radiosity.md). */
-        p->rho = v3(fminf(fmaxf(m->diffuse.x, 0.0f), 0.99f), fminf(fmaxf(m->diffuse.y, 0.0f), 0.99f),
-                    fminf(fmaxf(m->diffuse.z, 0.0f), 0.99f));
+         * never created). The solution shows the diffuse layer alone, but
+         * passes on what the glossy and mirror layers reflect too, spread
+         * as if diffuse: without it a glossy table top and a wall mirror
+         * absorbed their light, and every surface lit by way of them was
+         * 2-5 % dark (docs/radiosity.md, Materials). Glass passes light
+         * through its links' visibility instead. */
+        p->rho = v3_min(v3_max(m->diffuse, v3s(0.0f)), v3s(0.99f));
+        vec3 spec = v3s(0.0f);
+        if (!m->dielectric) {
+            if (m->glossy != SCENE_GLOSSY_NONE) spec = v3_max(m->specular, v3s(0.0f));
+            spec = v3_add(spec, v3_max(m->mirror, v3s(0.0f)));
+        }
+        p->rho_t = v3_min(v3_add(p->rho, spec), v3s(0.99f));
+        p->rho_ml = v3s(0.0f);
         p->E = v3_scale(v3_max(m->emission, v3s(0.0f)), CT_PI);
         p->node = s->tri_node[t];
         p->mat = s->tri_mat[t];

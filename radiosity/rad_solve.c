@@ -18,7 +18,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 16u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 17u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -32,7 +32,8 @@
                                  * averaged over Gauss points from a tenth of the distance; 14: a
                                  * leaf's inherited light taken at its centre (rad_leaf_scales);
                                  * 15: Gauss points from a fortieth of the distance; 16: vertices
-                                 * look at element links whose rays were all blocked */
+                                 * look at element links whose rays were all blocked; 17: glossy
+                                 * and mirror layers pass their light on (rho_t) */
 
 void rad_params_default(rad_params *p)
 {
@@ -191,6 +192,10 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     const rad_patch *p = &c->patches[e->patch];
     int cur = c->cur, nxt = 1 - cur;
     vec3 H = v3s(0.0f), Hd = v3s(0.0f);
+    /* The direct part needs no iteration (only the final gather computes
+     * it: it reads the elements, which is slower), except on plane mirrors,
+     * which pass on the rest (rho_ml). */
+    bool direct = w->final || v3_maxc(p->rho_ml) > 0.0f;
     for (uint32_t i = 0; i < e->nlinks; i++) {
         const rad_link *l = &p->links[e->link_off + i];
         uint32_t src = l->src;
@@ -198,12 +203,10 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         if (src & RAD_CLUSTER_BIT) {
             const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
             B = rad_cluster_B(k, cur, e->c);
-            /* The direct part needs no iteration: only the final gather
-             * computes it (it reads the elements, which is slower). */
-            if (w->final) Hd = v3_madd(Hd, k->E, l->ff);
+            if (direct) Hd = v3_madd(Hd, k->E, l->ff);
         } else {
             B = *rad_B(c, cur, src);
-            if (w->final) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
+            if (direct) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
         }
         H = v3_madd(H, B, l->ff);
     }
@@ -225,16 +228,20 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
             Ht = v3_add(Ht, e->Hm);
             Hdt = v3_add(Hdt, e->Hm);
         }
-        B = v3_add(p->E, v3_mul(p->rho, Ht));
+        /* What the element passes on (rho_t); a plane mirror's lamp
+         * images pass its direct light on (rho_ml). */
+        vec3 refl = v3_max(v3_sub(v3_mul(p->rho_t, Ht), v3_mul(p->rho_ml, Hdt)), v3s(0.0f));
+        B = v3_add(p->E, refl);
         Bd = v3_add(p->E, v3_mul(p->rho, Hdt));
         vec3 old = *rad_B(c, cur, ei);
         double r = v3_maxc(v3(fabsf(B.x - old.x), fabsf(B.y - old.y), fabsf(B.z - old.z)));
         if (r > w->residual) w->residual = r;
-        double refl = v3_maxc(v3_mul(p->rho, Ht));
-        if (refl > w->max_reflected) w->max_reflected = refl;
-        /* (Glass passes on what its links bring, attenuated: rad_vis_transmit.) */
+        if (v3_maxc(refl) > w->max_reflected) w->max_reflected = v3_maxc(refl);
+        /* (Glass passes on what its links bring, attenuated:
+         * rad_vis_transmit. What a plane mirror's images pass on is not
+         * absorbed either.) */
         if (w->final && !c->scene->mats[p->mat].dielectric)
-            w->absorbed += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho), Ht)) * e->area;
+            w->absorbed += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho_t), Ht)) * e->area;
     } else {
         B = Bd = v3s(0.0f);
         for (uint32_t i = 0; i < 4; i++) {
