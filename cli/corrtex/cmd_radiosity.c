@@ -58,7 +58,7 @@ static const optab OPTS[] = {
     {"seed", 0, OPTAB_U64, OF(p.seed), 0, 1.8446744073709552e19, NULL, "S", "visibility ray seed", NULL},
     {"mirror-samples", 0, OPTAB_INT, OF(p.mirror_samples), 0, 4096, NULL, "N",
      "lamp samples by way of plane mirrors per element and vertex: the light a mirror reflects from the lamps "
-     "onto diffuse surfaces (0: none, mirrors black)", NULL},
+     "onto diffuse surfaces (0: none; a mirror then passes the lamps' light on as if diffuse, docs/radiosity.md)", NULL},
     {"image", 0, OPTAB_STRING, OF(image), 0, 0, NULL, "FILE",
      "also render the solution as the display shows it (Gouraud) from a scene camera: FILE.exr (linear) or "
      "FILE.png (sRGB)", NULL},
