@@ -36,9 +36,7 @@ static void mark_mirror_patches(rad_ctx *c)
         vec3 x = rad_el(c, p->root)->c;
         for (uint32_t i = 0; i < mlight_count(c->mirrors); i++) {
             const mlight_plane *pl = mlight_get(c->mirrors, i);
-            float cs = v3_dot(p->n, pl->n);
-            if (pl->mat != p->mat || !(cs > 0.9999f || cs < -0.9999f) || fabsf(mlight_side(pl, x)) > tol ||
-                !mlight_in_bounds(pl, x))
+            if (!mlight_same_kind(pl, p->mat, p->n) || fabsf(mlight_side(pl, x)) > tol || !mlight_in_bounds(pl, x))
                 continue;
             p->rho_ml = v3_min(v3_max(m->mirror, v3s(0.0f)), p->rho_t);
             break;

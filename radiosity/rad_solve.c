@@ -236,7 +236,8 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         vec3 old = *rad_B(c, cur, ei);
         double r = v3_maxc(v3(fabsf(B.x - old.x), fabsf(B.y - old.y), fabsf(B.z - old.z)));
         if (r > w->residual) w->residual = r;
-        if (v3_maxc(refl) > w->max_reflected) w->max_reflected = v3_maxc(refl);
+        double rmax = v3_maxc(refl);
+        if (rmax > w->max_reflected) w->max_reflected = rmax;
         /* (Glass passes on what its links bring, attenuated:
          * rad_vis_transmit. What a plane mirror's images pass on is not
          * absorbed either.) */

@@ -100,12 +100,20 @@ static inline bool mlight_in_bounds(const mlight_plane *m, vec3 q)
     return a >= m->u0 && a <= m->u1 && b >= m->v0 && b <= m->v1;
 }
 
+/* Whether a surface of material mat with normal n (either side) is parallel
+ * to mirror m and of its material: what being part of the mirror needs
+ * besides lying in its plane. */
+static inline bool mlight_same_kind(const mlight_plane *m, uint32_t mat, vec3 n)
+{
+    float c = v3_dot(n, m->n);
+    return mat == m->mat && (c > 0.9999f || c < -0.9999f);
+}
+
 /* Whether a ray's hit h at distance near t_plane is the mirror itself
  * (its material, its plane) and not something in front of it. */
 static inline bool mlight_is_mirror_hit(const mlight_plane *m, const emb_hit *h, float t_plane)
 {
-    float c = v3_dot(h->rec->ng, m->n);
-    return h->mat == m->mat && (c > 0.9999f || c < -0.9999f) &&
+    return mlight_same_kind(m, h->mat, h->rec->ng) &&
            fabsf(h->t - t_plane) <= 1e-4f * (t_plane > 1.0f ? t_plane : 1.0f);
 }
 
