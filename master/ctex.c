@@ -23,7 +23,7 @@ static const optab OPTS[] = {
     {"blend", 0, OPTAB_FLOAT, OF(blend), 0, 1e6, "1", "X",
      "validity band (texels) blended at splat borders; 0 = off (§3.4)", NULL},
     /* noise-aware splatting (docs/textures.md, "Mixing") */
-    {"mix", 0, OPTAB_FLOAT, OF(mix), 0.01, 1, "0.5", "X",
+    {"mix", 0, OPTAB_FLOAT, OF(mix), 0.01, 1, "0.3", "X",
      "weight of a new sample against the correction it lands on (noise-aware splatting); 1 = off: each texel "
      "holds its nearest sample", NULL},
     {"mix-radius", 0, OPTAB_FLOAT, OF(mix_radius), 0, 1e6, "16", "X",

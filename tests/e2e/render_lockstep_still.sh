@@ -8,26 +8,25 @@
 # specular and glossy transport traced): single drt samples carry Monte Carlo
 # penumbra noise that, on the Cornell box's accurate radiosity, can make more
 # corrections measure worse at 64x64; reuse-diffuse corrections (the mirror,
-# the glass) converge to the reference, so frame 3 must beat frame 0. K = 300
-# at 64x64: with 800 a frame the specular pixels were all covered by frame 0
-# already (frame 3 within 0.001 dB of it); 300 -> 1,200 samples gains about
-# 0.3 dB (the run is deterministic: the same figures every time). With 400
-# and the radiosity mesh of solver version 3, one sample of a caustic through
-# the glass sphere (1.7 where the 16-spp reference has 0.02, splatted over
-# 2x2 pixels) lands in frames 1-3 and costs more than the rest gains: a
+# the glass) converge to the reference, so frame 3 must beat frame 0 by
+# half a dB. K = 100 at 64x64: 100 -> 400 samples gain about 1.1 dB (1.0-1.1
+# with a 16, 64 or 256-spp reference and --mix 0.3, 0.5 or 1; the run is
+# deterministic). With 300 a frame the gain was 0.1-0.3 dB and one sample
+# of a caustic through the glass sphere (5.4 where the 256-spp reference has
+# 0.07, splatted over 3x3 pixels) landed in frame 1 and cost 0.6 dB: a
 # single outlier, which a still view keeps until better samples cover it.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs "$corrtex"
 cornell_args
 sock="$tmp/still.sock"
-K=300
+K=100
 cam=278,273,-800,278,273,0,39.3
 
 master_start master 2 "${CORNELL[@]}" --listen "unix:$sock" --exit-when-display-leaves --mode reuse-diffuse
 master_wait_listen master || finish
 
 # The reference on the job's own radiosity mesh (written before it listens).
-ref=("$corrtex" reference "${CORNELL[0]}" --camera front --width 64 --height 64 --spp 16 --mode reuse-diffuse
+ref=("$corrtex" reference "${CORNELL[0]}" --camera front --width 64 --height 64 --spp 64 --mode reuse-diffuse
   --radmesh "$tmp/cornell.ctmesh" --threads 2 -o "$tmp/ref/frame_00000.exr")
 mkdir -p "$tmp/ref"
 log_cmd "${ref[@]}"
@@ -45,5 +44,5 @@ col() { head -n 1 "$1" | tr ',' '\n' | grep -n -x "$2" | cut -d: -f1; }
 val() { awk -F, -v c="$(col "$1" "$3")" -v r=$(($2 + 2)) 'NR == r { print $c }' "$1"; }
 p0=$(val "$tmp/out/frames.csv" 0 psnr_db); p3=$(val "$tmp/out/frames.csv" 3 psnr_db)
 echo "metric: still camera, lockstep K=$K: PSNR frame 0 $p0 dB, frame 3 $p3 dB"
-awk -v a="$p0" -v b="$p3" 'BEGIN { exit !(b > a) }' || fail "PSNR did not rise from frame 0 to frame 3"
+awk -v a="$p0" -v b="$p3" 'BEGIN { exit !(b > a + 0.5) }' || fail "PSNR did not rise by 0.5 dB from frame 0 to frame 3"
 finish

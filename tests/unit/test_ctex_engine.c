@@ -414,7 +414,7 @@ static void noisy_field(float mix, int n, double *floor_dev, double *panel_dev)
 }
 
 /* Mixing averages the noise of neighbouring samples out on a diffuse
- * surface (the default mix 0.5), and much less on a glossy one, whose
+ * surface (the default mix, 0.3), and much less on a glossy one, whose
  * corrections carry detail. Mix 1 keeps each sample's own value: the
  * noise of single samples, 0.6 / sqrt(12) = 0.17 at a texel, somewhat less
  * after bilinear lookups and box-filtered halvings (0.10 here). */
