@@ -128,7 +128,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
     return L;
 }
 
-/* Below the splitting levels the weaker Fresnel branch of an event (weight
+/* Below the fresnel_depth levels the weaker Fresnel branch of an event (weight
  * w < 1/2) is traced with probability min(1, w / FRESNEL_WEAK_P), its
  * radiance scaled by w / p: a ray about every fourth event of a thin
  * glass's 4 % reflections, each at a quarter of the weight picking by F
@@ -152,7 +152,7 @@ static int glossy_rays(const trc_options *opt, const bsdf *b, int depth)
 
 /* The traced non-diffuse transport at s (drt, reuse-diffuse): nb glossy
  * rays MIS-weighted against light sampling, the mirror ray, and the Fresnel
- * reflection and refraction: both on the first branch_depth levels, below
+ * reflection and refraction: both on the first fresnel_depth levels, below
  * the stronger always and the weaker by chance (unbiased). li continues a
  * ray. */
 static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, vec3 wo, int depth, emis_w ew,
@@ -179,7 +179,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
         bool ok;
         float f = bsdf_dielectric(b, wo, &wr, &wt, &ok);
         float wrefl = f, wrefr = ok ? 1.0f - f : 0.0f;
-        if (ok && depth >= c->opt->branch_depth) {
+        if (ok && depth >= c->opt->fresnel_depth) {
             /* The stronger branch always, with its Fresnel weight; the
              * weaker by chance (FRESNEL_WEAK_P; unbiased). Picking one of
              * the two by F instead dropped a glass's transmitted light

@@ -57,14 +57,16 @@ enum {
  * which prints it) are rendered again: 1: drt's final gather follows
  * mirrors; 2: drt samples lamps seen in plane mirrors; 3: the gather traces
  * the lamps' light where its rays land (TRC_GATHER_DIRECT_TRACE); 4: by
- * the landing surface's glossy lobe too. */
-#define TRC_VERSION 4
+ * the landing surface's glossy lobe too; 5: both Fresnel branches on the
+ * first three levels (fresnel_depth). */
+#define TRC_VERSION 5
 
 typedef struct trc_options {
     trc_mode mode;
     int shadow_rays;     /* K: light samples per shading point */
     int branch;          /* B: rays per glossy lobe (drt, reuse-diffuse) */
-    int branch_depth;    /* levels that split (B glossy rays, both Fresnel branches); 1 below */
+    int branch_depth;    /* levels that split into B glossy rays; 1 below */
+    int fresnel_depth;   /* levels that trace both Fresnel branches; below, the weaker by chance */
     int depth;           /* D: bounces (drt, reuse-diffuse: recursion; path: maximum length) */
     trc_indirect indirect;   /* drt with a mesh: its indirect light */
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
@@ -74,7 +76,8 @@ typedef struct trc_options {
 } trc_options;
 
 /* Defaults of a mode: path K=1, D=64 (Russian roulette from bounce 3);
- * drt and reuse-diffuse K=4, B=4, D=5, splitting on the first level only;
+ * drt and reuse-diffuse K=4, B=4, D=8, glossy splitting on the first level
+ * only, both Fresnel branches on the first three;
  * drt's indirect light by final gather, G=4, the lamps traced where its
  * rays land. Seed 1. */
 void trc_options_default(trc_options *o, trc_mode mode);

@@ -15,7 +15,10 @@ static const optab ROWS[] = {
     {"branch", 0, OPTAB_INT, OF(branch), 1, 4096, NULL, "B", "drt: rays per glossy lobe (default: the mode's, 4)",
      NULL},
     {"branch-depth", 0, OPTAB_INT, OF(branch_depth), -1, 1024, "-1", "L",
-     "drt: levels that split into B glossy rays and both Fresnel branches (-1: the mode's, 1)", NULL},
+     "drt: levels that split into B glossy rays (-1: the mode's, 1)", NULL},
+    {"fresnel-depth", 0, OPTAB_INT, OF(fresnel_depth), -1, 1024, "-1", "F",
+     "drt: levels that trace both the reflection and the refraction at glass; below, the stronger and the weaker "
+     "by chance (-1: the mode's, 3)", NULL},
     {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D",
      "drt: recursion depth; path: maximum bounces (-1: the mode's, drt 8, path 64)", NULL},
     {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",
@@ -40,6 +43,7 @@ void trc_cli_apply(const trc_cli *c, trc_options *o)
     if (c->shadow_rays > 0) o->shadow_rays = c->shadow_rays;
     if (c->branch > 0) o->branch = c->branch;
     if (c->branch_depth >= 0) o->branch_depth = c->branch_depth;
+    if (c->fresnel_depth >= 0) o->fresnel_depth = c->fresnel_depth;
     if (c->depth >= 0) o->depth = c->depth;
     o->indirect = (trc_indirect)c->indirect;
     o->gather_rays = c->gather_rays;

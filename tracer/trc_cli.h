@@ -19,6 +19,7 @@ typedef struct trc_cli {
     int shadow_rays;    /* K; 0: the mode's */
     int branch;         /* B; 0: the mode's */
     int branch_depth;   /* -1: the mode's */
+    int fresnel_depth;  /* -1: the mode's */
     int depth;          /* D; -1: the mode's */
     int indirect;       /* trc_indirect */
     int gather_rays;    /* G */

@@ -106,9 +106,12 @@ static void help(FILE *f)
         "  --threads T       render threads (default: %ld, the online CPUs)\n"
         "  --shadow-rays K   light samples per shading point (default: path %d, drt %d)\n"
         "  --branch B        drt: rays per glossy lobe at a hit (default %d)\n"
-        "  --branch-depth L  drt: levels that split into B glossy rays and both Fresnel\n"
-        "                    branches; deeper levels trace one ray per event, so a sample\n"
-        "                    costs about B * D rays, not B^D (default %d)\n"
+        "  --branch-depth L  drt: levels that split into B glossy rays; deeper levels\n"
+        "                    trace one ray per lobe, so a sample costs about B * D rays,\n"
+        "                    not B^D (default %d)\n"
+        "  --fresnel-depth F drt: levels that trace both the reflection and the refraction\n"
+        "                    at glass; below, the stronger and the weaker by chance\n"
+        "                    (default %d)\n"
         "  --depth D         drt: recursion depth (default %d); path: maximum bounces\n"
         "                    (default %d, Russian roulette after 3); -1: the mode's\n"
         "  --indirect I      drt with a radiosity mesh: its indirect diffuse light,\n"
@@ -121,7 +124,7 @@ static void help(FILE *f)
         "                      mesh: read from the mesh (faster; its shadows blurred)\n"
         "                    (default %s)\n"
         "  --seed N          random seed (default %llu)\n",
-        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.depth, p.depth,
+        ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.fresnel_depth, d.depth, p.depth,
         trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct),
         (unsigned long long)p.seed);
     fprintf(f,

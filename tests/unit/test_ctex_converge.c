@@ -223,8 +223,8 @@ Test(ctex_converge, cornell_128, .timeout = 300)
      * its neighbours': the composite departs from the single samples by
      * part of their noise, on purpose, and comes nearer the truth than the
      * same samples unmixed (same-node pixels against the 32-sample
-     * reference, and PSNR over the image; 0.0399 vs 0.0417 and 28.19 vs
-     * 27.83 dB when written). */
+     * reference, and PSNR over the image; 0.0348 vs 0.0381 and 29.33 vs
+     * 28.52 dB when written). */
     cr_assert_lt(def.e_ref_comp, off.e_ref_comp, "mixed composite vs the reference: sRGB rmse %.4f, unmixed %.4f",
                  def.e_ref_comp, off.e_ref_comp);
     cr_assert_gt(def.psnr[3], off.psnr[3], "PSNR at full coverage: mixed %.2f dB, unmixed %.2f dB", def.psnr[3],

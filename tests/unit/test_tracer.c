@@ -205,7 +205,7 @@ Test(tracer, plane_under_two_area_lights_drt) { form_factor(TRC_MODE_DRT, false,
 /* A 0.1 thick glass slab at y in [-0.1, 0] seen at 45 degrees; emitters
  * (L_e = 1) below (transmitted light), above (reflected light) or both.
  * var, if given, receives the variance of one sample's red channel. */
-static vec3 slab_moments(trc_mode mode, bool below, bool above, int n, int branch_depth, double *var)
+static vec3 slab_moments(trc_mode mode, bool below, bool above, int n, int fresnel_depth, double *var)
 {
     ct_error err;
     ct_scene *s = scene_new("slab");
@@ -225,7 +225,7 @@ static vec3 slab_moments(trc_mode mode, bool below, bool above, int n, int branc
     trc_options o;
     trc_options_default(&o, mode);
     o.shadow_rays = 1;
-    o.branch_depth = branch_depth;
+    o.fresnel_depth = fresnel_depth;
     trc_tracer *t;
     CHECK(trc_new(s, NULL, &o, &t, &err));
     trc_view v = view_of(v3(0, 1, -1), v3(0, 0, 0), 30.0f, 9, 9);
@@ -235,9 +235,9 @@ static vec3 slab_moments(trc_mode mode, bool below, bool above, int n, int branc
     return l;
 }
 
-static vec3 slab(trc_mode mode, bool below, bool above, int n, int branch_depth)
+static vec3 slab(trc_mode mode, bool below, bool above, int n, int fresnel_depth)
 {
-    return slab_moments(mode, below, above, n, branch_depth, NULL);
+    return slab_moments(mode, below, above, n, fresnel_depth, NULL);
 }
 
 Test(tracer, glass_slab_fresnel_energy_balance)
@@ -253,10 +253,11 @@ Test(tracer, glass_slab_fresnel_energy_balance)
     cr_expect(fabs(lt.x - t_slab) < 1e-4, "drt: slab transmits %g, analytic %g", (double)lt.x, t_slab);
     cr_expect(fabs(lr.x - r_slab) < 1e-4, "drt: slab reflects %g, analytic %g", (double)lr.x, r_slab);
     cr_expect(fabs(lb.x - 1.0) < 1e-4, "drt: R + T = %g, not 1", (double)lb.x);
-    /* Default drt (split on the first level, one branch by Fresnel below) and
-     * path (one branch everywhere): unbiased on average. */
+    /* drt with both branches on the first level only (the stronger below,
+     * the weaker by chance) and path (one branch everywhere): unbiased on
+     * average. */
     vec3 dt = slab(TRC_MODE_DRT, true, false, 20000, 1);
-    cr_expect(fabs(dt.x - t_slab) < 0.01, "drt (branch depth 1): slab transmits %g, analytic %g", (double)dt.x,
+    cr_expect(fabs(dt.x - t_slab) < 0.01, "drt (Fresnel depth 1): slab transmits %g, analytic %g", (double)dt.x,
               t_slab);
     vec3 pt = slab(TRC_MODE_PATH, true, false, 20000, 1);
     vec3 pb = slab(TRC_MODE_PATH, true, true, 2000, 1);
@@ -264,7 +265,7 @@ Test(tracer, glass_slab_fresnel_energy_balance)
     cr_expect(fabs(pb.x - 1.0) < 0.01, "path: R + T = %g, not 1", (double)pb.x);
 }
 
-/* Below the splitting levels (branch depth 0: from the camera ray on) drt
+/* Below the Fresnel levels (Fresnel depth 0: from the camera ray on) drt
  * traces the stronger Fresnel branch of every event and the weaker by
  * chance. Seen through the slab with the lamp below, every sample keeps the
  * transmitted light: picking one branch by F instead gave the reflection's
@@ -277,10 +278,10 @@ Test(tracer, glass_keeps_the_transmitted_light_of_every_sample)
     double t_slab = (1 - r) / (1 + r), picked = r * (1 - r) * t_slab * t_slab;
     double var;
     vec3 lt = slab_moments(TRC_MODE_DRT, true, false, 20000, 0, &var);
-    printf("metric: slab seen at 45 deg, branch depth 0: mean %.4f (analytic %.4f), variance of a sample %.2e "
+    printf("metric: slab seen at 45 deg, Fresnel depth 0: mean %.4f (analytic %.4f), variance of a sample %.2e "
            "(one branch by F: about %.2e)\n",
            (double)lt.x, t_slab, var, picked);
-    cr_expect(fabs(lt.x - t_slab) < 0.01, "drt (branch depth 0): slab transmits %g, analytic %g", (double)lt.x,
+    cr_expect(fabs(lt.x - t_slab) < 0.01, "drt (Fresnel depth 0): slab transmits %g, analytic %g", (double)lt.x,
               t_slab);
     cr_expect(var < 0.1 * picked, "variance of a sample %g, not under a tenth of one branch by F (%g)", var, picked);
 }

@@ -35,6 +35,8 @@ Test(trc_cli, defaults_are_the_modes)
     cr_expect_eq(got.shadow_rays, want.shadow_rays);
     cr_expect_eq(got.branch, want.branch);
     cr_expect_eq(got.branch_depth, want.branch_depth);
+    cr_expect_eq(got.fresnel_depth, want.fresnel_depth);
+    cr_expect_eq(got.fresnel_depth, 3);
     cr_expect_eq(got.depth, want.depth);
     cr_expect_eq(got.indirect, want.indirect);
     cr_expect_eq(got.gather_rays, want.gather_rays);
@@ -55,7 +57,8 @@ Test(trc_cli, given_values_override_the_mode_and_zero_levels_count)
     trc_cli c;
     ct_error err;
     const char *a[] = {"--mode", "reuse-diffuse", "--shadow-rays", "9", "--branch", "3", "--branch-depth", "0",
-                       "--depth", "0", "--indirect", "mesh", "--gather-rays", "7", "--gather-direct", "mesh", NULL};
+                       "--fresnel-depth", "0", "--depth", "0", "--indirect", "mesh", "--gather-rays", "7",
+                       "--gather-direct", "mesh", NULL};
     cr_assert_eq(parse(&c, a, &err), 0, "%s", err.msg);
     trc_options o;
     trc_cli_apply(&c, &o);
@@ -63,6 +66,7 @@ Test(trc_cli, given_values_override_the_mode_and_zero_levels_count)
     cr_expect_eq(o.shadow_rays, 9);
     cr_expect_eq(o.branch, 3);
     cr_expect_eq(o.branch_depth, 0, "--branch-depth 0 is a level, not 'the default'");
+    cr_expect_eq(o.fresnel_depth, 0, "--fresnel-depth 0 is a level, not 'the default'");
     cr_expect_eq(o.depth, 0, "--depth 0 is a depth, not 'the default'");
     cr_expect_eq(o.indirect, TRC_INDIRECT_MESH);
     cr_expect_eq(o.gather_rays, 7);
@@ -84,6 +88,7 @@ Test(trc_cli, bad_values_name_the_option)
         {"--branch", "x", "--branch: 'x'"},
         {"--depth", "-2", "--depth: '-2'"},
         {"--branch-depth", "1025", "--branch-depth"},
+        {"--fresnel-depth", "-2", "--fresnel-depth: '-2'"},
         {"--indirect", "path", "path"},
         {"--gather-rays", "0", "--gather-rays: '0'"},
         {"--gather-direct", "path", "path"},
