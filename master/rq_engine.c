@@ -49,12 +49,6 @@ struct rq_engine {
     uint64_t next_id;        /* next request id; ids start at 1 */
     rq_heap heap;
     rq_mask mask;
-    /* Per pixel, 1 + the bits of the highest priority queued for it this
-     * epoch (0: none). A request for a pixel that already has one queued at
-     * least as high would pop after it, find the pixel sampled and be
-     * discarded: it is not queued at all (the same requests pop in the same
-     * order, with fewer pushes and pops). */
-    uint32_t *queued_prio;
     uint64_t switch_count;   /* sampled pixels at which the list takes over */
     int list_mode;
     uint64_t global_round;
@@ -114,12 +108,6 @@ static inline bool enqueue(rq_engine *e, float px, float py, float radius, float
     }
     rq_item it;
     it.key = rq_key(prio, e->seq);
-    /* Equal priorities pop in push order, so the queued one comes first. */
-    uint32_t qp = (uint32_t)(it.key >> 32) + 1u;
-    if (e->queued_prio[p] >= qp) {
-        e->st.discarded_queued++;
-        return false;
-    }
     if (e->seq < UINT32_MAX) e->seq++;
     it.parent = parent;
     it.px = px;
@@ -130,7 +118,6 @@ static inline bool enqueue(rq_engine *e, float px, float py, float radius, float
         e->st.discarded_full++;
         return false;
     }
-    e->queued_prio[p] = qp;
     if (e->heap.n > e->st.peak_queued) e->st.peak_queued = e->heap.n;
     return true;
 }
@@ -475,7 +462,6 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
     /* Older requests point at positions of the old image: drop them all. */
     rq_heap_clear(&e->heap);
     rq_mask_clear(&e->mask);
-    memset(e->queued_prio, 0, (size_t)e->w * (size_t)e->h * sizeof *e->queued_prio);
     rq_refine_epoch(&e->ref);
     e->list_mode = 0;
     e->fl_lo = e->next_id;
@@ -531,12 +517,6 @@ int rq_new(rq_engine **out, int width, int height, const ct_camera *cam, const r
     e->switch_count = (uint64_t)ceil((double)o.coverage_switch * (double)total);
     size_t maxq = o.max_queue > 0 ? (size_t)o.max_queue : (size_t)total;
     size_t initq = total / 16 < maxq ? (size_t)(total / 16) : maxq;
-    e->queued_prio = calloc((size_t)total, sizeof *e->queued_prio);
-    if (!e->queued_prio) {
-        rq_free(e);
-        return ct_fail(err, CT_ENOMEM, "sampler: cannot allocate the queued-priority map of %dx%d", width, height);
-    }
-    e->grows++;
     if ((rc = rq_heap_init(&e->heap, initq, maxq, err)) != 0 ||
         (rc = rq_mask_init(&e->mask, width, height, err)) != 0 ||
         (rc = reserve_flights(e, 1024, err)) != 0) {
@@ -570,7 +550,6 @@ void rq_free(rq_engine *e)
     rq_heap_free(&e->heap);
     rq_mask_free(&e->mask);
     rq_refine_free(&e->ref);
-    free(e->queued_prio);
     free(e->fl);
     free(e->sig);
     free(e);

@@ -77,7 +77,6 @@ typedef struct rq_stats {
     uint64_t discarded_threshold; /* children under min_priority */
     uint64_t discarded_outside;   /* children outside the image */
     uint64_t discarded_full;      /* requests dropped because the queue was full */
-    uint64_t discarded_queued;    /* requests for a pixel already queued at least as high */
     uint64_t leaves;              /* samples whose children would be below min_radius */
     uint64_t seeds;               /* initial-grid requests queued */
     uint64_t children;            /* children queued (mismatch children included) */

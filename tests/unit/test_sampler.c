@@ -259,8 +259,7 @@ Test(sampler, no_children_below_min_radius)
     answer(e, &c, 8, 8, &r[0], v3s(1), 1);
     rq_stats st;
     rq_stats_get(e, &st);
-    /* two children may share a pixel: the second is not queued */
-    cr_assert_eq(st.children + st.discarded_mask + st.discarded_outside + st.discarded_queued, 4u);
+    cr_assert_eq(st.children + st.discarded_mask + st.discarded_outside, 4u);
     cr_assert_eq(st.leaves, 0u);
     k = batch(e, r, 64);
     for (int i = 0; i < k; i++) {
@@ -289,37 +288,6 @@ Test(sampler, mask_discards_children_on_sampled_pixels)
     cr_assert_eq(st.discarded_mask + st.discarded_outside, 16u);
     cr_assert_eq(batch(e, r, 8), 0, "every pixel handed out");
     rq_stats_get(e, &st);
-    cr_assert_eq(st.coverage, 1.0);
-    rq_free(e);
-}
-
-/* A request for a pixel that already has one queued at least as high would
- * pop after it and find the pixel sampled: it is not queued at all. Here a
- * sample's 16 children fall into the 2x2 image's pixels: the other three
- * hold seeds queued at the seeds' priority (far above a child's), the
- * sample's own is sampled. None is queued, and the pops are what they would
- * have been: the three seeds, then nothing. */
-Test(sampler, a_request_under_a_queued_one_is_not_queued)
-{
-    rq_options o = spaced(1);
-    o.children = 16;
-    o.min_radius = 0.01f;
-    rq_engine *e = make(2, 2, &o, 9);
-    ct_camera c = cam_a();
-    ct_request r[8];
-    cr_assert_eq(batch(e, r, 1), 1);
-    answer(e, &c, 2, 2, &r[0], v3s(1), 1);
-    rq_stats st;
-    rq_stats_get(e, &st);
-    cr_assert_eq(st.children, 0u);
-    cr_assert_gt(st.discarded_queued, 0u, "children on pixels with a queued seed");
-    cr_assert_eq(st.children + st.discarded_mask + st.discarded_outside + st.discarded_queued, 16u);
-    cr_assert_eq(st.queued, 3u, "only the three seeds stay queued");
-    cr_assert_eq(batch(e, r, 8), 3);
-    for (int i = 0; i < 3; i++) cr_assert_eq(r[i].priority, o.prio_seed);
-    cr_assert_eq(batch(e, r, 8), 0, "every pixel handed out");
-    rq_stats_get(e, &st);
-    cr_assert_eq(st.popped, 4u);
     cr_assert_eq(st.coverage, 1.0);
     rq_free(e);
 }
@@ -480,8 +448,7 @@ Test(sampler, zero_error_is_covered_by_global_requests_and_the_list)
     }
     rq_stats st;
     rq_stats_get(e, &st);
-    /* random positions may repeat a pixel: the repeat is not queued */
-    cr_assert_eq(st.global + st.discarded_queued, (uint64_t)o.global_batch);
+    cr_assert_eq(st.global, (uint64_t)o.global_batch);
     cr_assert_float_eq(r[0].radius, sqrtf((float)(W * H - 4) / (float)o.global_batch), 1e-5f);
     answer_all(e, &c, W, H, r, 8, v3s(0));
     int n;
