@@ -22,12 +22,10 @@ csv_col() {
     index($1 "," $2, pre) == 1 { print $c; exit }' "$tmp/out1/convergence.csv"
 }
 
-for cam in front spheres; do
-  run_corrtex 0 reference "$scene" --camera $cam --width 48 --height 48 --spp 128 --mode drt --stand-in-radiosity 0.3 \
-    --seed 7 -o "$tmp/ref-$cam.exr"
+for cam_out in front:ref spheres:ref2; do
+  run_corrtex 0 reference "$scene" --camera "${cam_out%%:*}" --width 48 --height 48 --spp 128 --mode drt \
+    --stand-in-radiosity 0.3 --seed 7 -o "$tmp/${cam_out#*:}.exr"
 done
-mv "$tmp/ref-front.exr" "$tmp/ref.exr"
-mv "$tmp/ref-spheres.exr" "$tmp/ref2.exr"
 
 run_corrtex 0 converge "$scene" --camera front --samples 100,800,all --width 48 --height 48 --stand-in 0.3 --mode drt \
   --reference "$tmp/ref.exr" --move-to spheres --samples-after 600 --reference-after "$tmp/ref2.exr" \

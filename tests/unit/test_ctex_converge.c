@@ -6,8 +6,9 @@
  * error against a reference falls as samples grow, that at 100 % coverage
  * with mixing off the composite equals the high-quality values of the same
  * samples within a stated tolerance, and that the default noise-aware mixing
- * takes it nearer the reference than those samples unmixed. The interactive solution is the radiosity stand-in
- * (rmesh_from_scene: emission + diffuse x ambient), which keeps the test fast
+ * takes it nearer the reference than those samples unmixed. The
+ * interactive solution is the radiosity stand-in (rmesh_from_scene:
+ * emission + diffuse x ambient), which keeps the test fast
  * and makes the corrections large and signed. */
 #include <criterion/criterion.h>
 #include <math.h>
@@ -77,17 +78,14 @@ typedef struct run_result {
     size_t nsame;
 } run_result;
 
-static void run_loop(ct_scene *s, ct_radmesh *m, trc_tracer *tr, const ct_camera *camp, const ctex_hit *hits,
-                     const uint32_t *shown, const ct_image *ref, float mix, run_result *r)
+static void run_loop(ct_scene *s, ct_radmesh *m, trc_tracer *tr, const ct_camera *cam, const ctex_hit *hits,
+                     const uint32_t *shown, const ct_image *ref, ctex_options co, run_result *r)
 {
-    ct_camera cam = *camp;
     ct_image comp, hq;
     cr_assert_eq(img_alloc(&comp, W, H, &err), 0);
     cr_assert_eq(img_alloc(&hq, W, H, &err), 0);
     /* The master's session and loop over the in-process tracer port, one
      * lockstep frame per checkpoint, as corrtex converge runs them. */
-    ctex_options co = ctex_options_default();
-    if (mix > 0.0f) co.mix = mix;
     rq_options ro;
     rq_options_default(&ro);
     ro.refine_error = 0.0f;   /* as corrtex converge: one sample per pixel at most */
@@ -105,7 +103,7 @@ static void run_loop(ct_scene *s, ct_radmesh *m, trc_tracer *tr, const ct_camera
     drv *d = NULL;
     cr_assert_eq(drv_new(ss, port, &snk, &dopt, &d, &err), 0, "%s", err.msg);
     drv_set_lockstep(d, true);
-    cr_assert_eq(drv_set_view(d, &cam, W, H, &err), 1, "%s", err.msg);
+    cr_assert_eq(drv_set_view(d, cam, W, H, &err), 1, "%s", err.msg);
     ctex *c = sess_textures(ss);
 
     const long ck[] = {0, 160, 1640, 16384, -1};   /* 0, 1 %, 10 %, 100 % of the pixels, then until the queue is dry */
@@ -197,8 +195,10 @@ Test(ctex_converge, cornell_128, .timeout = 300)
 
     /* With the default options (noise-aware mixing on) and with mixing off. */
     run_result def, off;
-    run_loop(s, &m, tr, &cam, hits, shown, &ref, 0.0f, &def);
-    run_loop(s, &m, tr, &cam, hits, shown, &ref, 1.0f, &off);
+    ctex_options unmixed = ctex_options_default();
+    unmixed.mix = 1.0f;
+    run_loop(s, &m, tr, &cam, hits, shown, &ref, ctex_options_default(), &def);
+    run_loop(s, &m, tr, &cam, hits, shown, &ref, unmixed, &off);
 
     /* the error against the reference falls as samples grow (PSNR on the
      * displayed values: linear RMSE is dominated by the light's edge) */
