@@ -39,7 +39,13 @@ struct ct_pool {
     int stop;                   /* (mu) */
     atomic_uint_fast64_t next;  /* generation << 32 | next task number */
     atomic_size_t finished;     /* tasks of the current loop done */
+    pool_side_fn side_fn;       /* the side job (mu) */
+    void *side_ctx;
+    int side_state;             /* (mu) SIDE_* */
+    pthread_cond_t side_done;
 };
+
+enum { SIDE_NONE, SIDE_PENDING, SIDE_RUNNING };
 
 /* Takes and runs tasks of loop j until none is left or a later loop began. */
 static void take_tasks(ct_pool *p, const job *j, int id)
@@ -66,8 +72,21 @@ static void *worker_main(void *arg)
     uint32_t seen = 0;
     pthread_mutex_lock(&p->mu);
     for (;;) {
-        while (p->cur.gen == seen && !p->stop) pthread_cond_wait(&p->go, &p->mu);
+        while (p->cur.gen == seen && p->side_state != SIDE_PENDING && !p->stop) pthread_cond_wait(&p->go, &p->mu);
         if (p->stop) break;
+        if (p->side_state == SIDE_PENDING) {
+            /* The side job first: the caller is waiting for it last. Loops
+             * published meanwhile are joined after, if any task is left. */
+            p->side_state = SIDE_RUNNING;
+            pool_side_fn fn = p->side_fn;
+            void *ctx = p->side_ctx;
+            pthread_mutex_unlock(&p->mu);
+            fn(ctx);
+            pthread_mutex_lock(&p->mu);
+            p->side_state = SIDE_NONE;
+            pthread_cond_broadcast(&p->side_done);
+            continue;
+        }
         job j = p->cur;
         seen = j.gen;
         pthread_mutex_unlock(&p->mu);
@@ -89,6 +108,7 @@ int pool_new(int threads, ct_pool **out, ct_error *err)
     pthread_mutex_init(&p->mu, NULL);
     pthread_cond_init(&p->go, NULL);
     pthread_cond_init(&p->done, NULL);
+    pthread_cond_init(&p->side_done, NULL);
     atomic_init(&p->next, 0);
     atomic_init(&p->finished, 0);
     if (threads > 1) {
@@ -115,6 +135,7 @@ int pool_new(int threads, ct_pool **out, ct_error *err)
 void pool_free(ct_pool *p)
 {
     if (!p) return;
+    pool_side_wait(p);
     pthread_mutex_lock(&p->mu);
     p->stop = 1;
     pthread_cond_broadcast(&p->go);
@@ -122,6 +143,7 @@ void pool_free(ct_pool *p)
     for (int i = 1; i < p->n; i++) pthread_join(p->w[i - 1].th, NULL);
     pthread_cond_destroy(&p->go);
     pthread_cond_destroy(&p->done);
+    pthread_cond_destroy(&p->side_done);
     pthread_mutex_destroy(&p->mu);
     free(p->w);
     free(p);
@@ -150,6 +172,29 @@ void pool_run(ct_pool *p, size_t n, pool_fn fn, void *ctx)
     take_tasks(p, &j, 0);
     pthread_mutex_lock(&p->mu);
     while (atomic_load_explicit(&p->finished, memory_order_acquire) < n) pthread_cond_wait(&p->done, &p->mu);
+    pthread_mutex_unlock(&p->mu);
+}
+
+void pool_side(ct_pool *p, pool_side_fn fn, void *ctx)
+{
+    if (!p || p->n == 1) {
+        fn(ctx);
+        return;
+    }
+    pthread_mutex_lock(&p->mu);
+    while (p->side_state != SIDE_NONE) pthread_cond_wait(&p->side_done, &p->mu);
+    p->side_fn = fn;
+    p->side_ctx = ctx;
+    p->side_state = SIDE_PENDING;
+    pthread_cond_broadcast(&p->go);
+    pthread_mutex_unlock(&p->mu);
+}
+
+void pool_side_wait(ct_pool *p)
+{
+    if (!p || p->n == 1) return;
+    pthread_mutex_lock(&p->mu);
+    while (p->side_state != SIDE_NONE) pthread_cond_wait(&p->side_done, &p->mu);
     pthread_mutex_unlock(&p->mu);
 }
 

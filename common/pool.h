@@ -6,7 +6,11 @@
  * [0, n) in which the calling thread takes part, tasks handed out one at a
  * time by an atomic counter so that uneven tasks balance, workers asleep on
  * a condition variable between loops. One loop at a time, started from one
- * thread; a task must not start another. Owns the pool_ prefix. */
+ * thread; a task must not start another. Beside the loops, one *side job*
+ * at a time: a function one worker runs while the caller goes on (its own
+ * loops then run on the other threads; the worker joins them when the job
+ * is done), so that two independent stages of work overlap. Owns the pool_
+ * prefix. */
 #ifndef CT_COMMON_POOL_H
 #define CT_COMMON_POOL_H
 
@@ -36,6 +40,18 @@ int pool_threads(const ct_pool *p);
 /* Runs fn(ctx, worker, i) for every i in [0, n) and returns when all are
  * done. With p NULL (or one thread) the caller runs them in order. */
 void pool_run(ct_pool *p, size_t n, pool_fn fn, void *ctx);
+
+/* A side job. */
+typedef void (*pool_side_fn)(void *ctx);
+
+/* Hands fn(ctx) to one worker and returns at once; with p NULL or one
+ * thread the caller runs it before returning. Until pool_side_wait the
+ * caller must not touch what the side job touches, and the side job must
+ * not start loops. One at a time: a second pool_side waits for the first. */
+void pool_side(ct_pool *p, pool_side_fn fn, void *ctx);
+
+/* Returns once the side job (if any) is done; its writes are then visible. */
+void pool_side_wait(ct_pool *p);
 
 /* The cores this process may run on (its CPU affinity), at least 1. */
 int pool_cpus(void);

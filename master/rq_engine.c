@@ -114,6 +114,7 @@ static inline bool enqueue(rq_engine *e, float px, float py, float radius, float
     it.py = py;
     it.radius = radius;
     it.kind = kind;
+    it.tag = (uint32_t)p;
     if (rq_heap_push(&e->heap, &it) != 0) {
         e->st.discarded_full++;
         return false;
@@ -243,13 +244,15 @@ int rq_next_batch(rq_engine *e, ct_request *out, int n, ct_error *err)
     int k = 0;
     while (k < n) {
         rq_item it;
-        if (rq_heap_pop(&e->heap, &it)) {
-            /* Positions were checked when queued. */
-            uint32_t p = (uint32_t)pixel_of(e, it.px, it.py);
-            if (rq_mask_test_set(&e->mask, p)) {
+        if (e->heap.n) {
+            /* The pixel was checked when queued and travels as the tag: a
+             * request for a pixel handed out since is dropped unread. */
+            if (rq_mask_test_set(&e->mask, rq_heap_top_tag(&e->heap))) {
+                rq_heap_drop(&e->heap);
                 e->st.discarded_mask++;
                 continue;
             }
+            rq_heap_pop(&e->heap, &it);
             emit(e, &it, &out[k++]);
         } else if (e->list_mode) {
             uint32_t p;

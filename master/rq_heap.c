@@ -84,27 +84,19 @@ int rq_heap_push(rq_heap *h, const rq_item *it)
     }
     a[i].key = key;
     a[i].slot = slot;
-    a[i].unused = 0;
+    a[i].tag = it->tag;
     return 0;
 }
 
-bool rq_heap_pop(rq_heap *h, rq_item *out)
+/* Frees the top's slot and restores the heap without it. */
+static void remove_top(rq_heap *h)
 {
-    if (h->n == 0) return false;
     rq_hent *a = h->a;
-    uint32_t slot = a[0].slot;
-    const rq_payload *p = &h->pl[slot];
-    out->key = a[0].key;
-    out->parent = p->parent;
-    out->px = p->px;
-    out->py = p->py;
-    out->radius = p->radius;
-    out->kind = p->kind;
-    h->freel[h->nfree++] = slot;
+    h->freel[h->nfree++] = a[0].slot;
     size_t n = --h->n;
     if (n == 0) {
         h->hw = h->nfree = 0;
-        return true;
+        return;
     }
     rq_hent last = a[n];
     uint64_t key = last.key;
@@ -142,5 +134,25 @@ bool rq_heap_pop(rq_heap *h, rq_item *out)
         i = best;
     }
     a[i] = last;
+}
+
+bool rq_heap_pop(rq_heap *h, rq_item *out)
+{
+    if (h->n == 0) return false;
+    const rq_hent *top = &h->a[0];
+    const rq_payload *p = &h->pl[top->slot];
+    out->key = top->key;
+    out->tag = top->tag;
+    out->parent = p->parent;
+    out->px = p->px;
+    out->py = p->py;
+    out->radius = p->radius;
+    out->kind = p->kind;
+    remove_top(h);
     return true;
+}
+
+void rq_heap_drop(rq_heap *h)
+{
+    if (h->n) remove_top(h);
 }

@@ -32,16 +32,19 @@ typedef struct rq_item {
     float px, py;     /* image position, pixels */
     float radius;     /* domain radius s, pixels */
     uint32_t kind;    /* RQ_KIND_* */
+    uint32_t tag;     /* kept beside the key (the engine: the request's pixel), readable at the top without the rest */
 } rq_item;
 
 /* Storage: the heap orders 16-byte (key, slot) entries, laid out so that the
  * four children of a node share one 64-byte cache line; the rest of an item
  * waits in a slot of a payload pool (free slots on a stack) and is touched
- * once on push and once on pop. */
+ * once on push and once on pop; an item dropped unread (rq_heap_drop: the
+ * engine's requests for pixels handed out since they were queued, most of
+ * its pops) is never touched again. */
 typedef struct rq_hent {
     uint64_t key;
     uint32_t slot;
-    uint32_t unused;
+    uint32_t tag;
 } rq_hent;
 
 typedef struct rq_payload {
@@ -98,6 +101,13 @@ int rq_heap_push(rq_heap *h, const rq_item *it);
 
 /* Removes the highest item into *out; false when empty. */
 bool rq_heap_pop(rq_heap *h, rq_item *out);
+
+/* Removes the highest item without reading it (its payload's cache line
+ * stays cold); nothing when empty. */
+void rq_heap_drop(rq_heap *h);
+
+/* The highest item's tag; the heap must not be empty. */
+static inline uint32_t rq_heap_top_tag(const rq_heap *h) { return h->a[0].tag; }
 
 /* The highest key, or 0 when empty. */
 static inline uint64_t rq_heap_top_key(const rq_heap *h) { return h->n ? h->a[0].key : 0; }

@@ -11,6 +11,16 @@
 
 #define COMPONENT "master"
 
+/* One chunk's samples to splat, and the report of them to the queue as a
+ * side job of the pool (report_task). */
+typedef struct chunk {
+    sess *s;
+    ct_sample *splat;
+    ctex_insert_info *info;
+    uint32_t m;
+    ct_error err;        /* the side job's own: the caller's may be in use */
+} chunk;
+
 struct sess {
     rq_options rq_opt;
     ctex_options ctex_opt;
@@ -32,11 +42,15 @@ struct sess {
     double shown_rest;     /* seconds (sess_options.shown_rest_ms) */
     double view_t;         /* when the current view was set */
     sess_counters n;
-    /* one chunk: its splatted and refinement samples */
-    ct_sample *splat, *refine, *write;   /* write: the refinement samples that write their pixel's mean */
+    /* Two chunks' splatted samples and what their splats measured: the
+     * queue hears of one while the next is splatted (sess_insert). */
+    chunk ch[2];
+    /* the refinement and late samples of the chunk classified last */
+    ct_sample *refine, *write;           /* write: the refinement samples that write their pixel's mean */
     ct_sample *late;                     /* of an older view, view-independent */
     vec3 *means;
-    ctex_insert_info *info;
+    uint32_t nr, nl;
+    ctex_insert_info *info;              /* refinement writes and late splats */
 };
 
 #define OF(f) offsetof(sess_options, f)
@@ -69,13 +83,17 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
     s->shown_rest = c->opt.shown_rest_ms / 1000.0;
     int threads = c->opt.threads > 0 ? c->opt.threads : pool_cpus();
     if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
-    s->splat = malloc(SESS_CHUNK * sizeof *s->splat);
+    for (int i = 0; i < 2; i++) {
+        s->ch[i].s = s;
+        s->ch[i].splat = malloc(SESS_CHUNK * sizeof *s->ch[i].splat);
+        s->ch[i].info = malloc(SESS_CHUNK * sizeof *s->ch[i].info);
+    }
     s->refine = malloc(SESS_CHUNK * sizeof *s->refine);
     s->late = malloc(SESS_CHUNK * sizeof *s->late);
     s->write = malloc(SESS_CHUNK * sizeof *s->write);
     s->means = malloc(SESS_CHUNK * sizeof *s->means);
     s->info = malloc(SESS_CHUNK * sizeof *s->info);
-    int rc = s->splat && s->refine && s->late && s->write && s->means && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
+    int rc = s->ch[0].splat && s->ch[0].info && s->ch[1].splat && s->ch[1].info && s->refine && s->late && s->write && s->means && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
     if (!rc) rc = pool_new(threads, &s->pool, err);
     if (!rc) rc = ctex_new(c->mesh, c->mats, c->nmats, &s->ctex_opt, &s->tex, err);
     if (rc) {
@@ -94,7 +112,10 @@ void sess_free(sess *s)
     pool_free(s->pool);
     shown_buf_free(s->sb);
     free(s->shown);
-    free(s->splat);
+    for (int i = 0; i < 2; i++) {
+        free(s->ch[i].splat);
+        free(s->ch[i].info);
+    }
     free(s->refine);
     free(s->late);
     free(s->write);
@@ -194,8 +215,10 @@ uint32_t sess_epoch(const sess *s)
 int sess_next(sess *s, ct_request *out, uint32_t n, ct_error *err)
 {
     if (!s->have_view || n == 0) return 0;
+    double t0 = ct_now();
     int k = rq_next_batch(s->rq, out, n > INT32_MAX ? INT32_MAX : (int)n, err);
     for (int i = 0; i < k; i++) out[i].epoch = s->epoch;
+    s->n.t_next += ct_now() - t0;
     return k;
 }
 
@@ -244,8 +267,10 @@ static void rejected(sess *s, const ct_sample *x, ct_error *err)
     s->n.rejected++;
 }
 
-/* One chunk (at most SESS_CHUNK samples). */
-static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+/* Sorts a chunk (at most SESS_CHUNK samples) into c's samples to splat
+ * and the session's refinement and late ones. Reads the queue (which
+ * requests refine), so it runs before an earlier chunk's report starts. */
+static void classify(sess *s, chunk *c, const ct_sample *smp, uint32_t n)
 {
     uint32_t m = 0, nr = 0, nl = 0;
     for (uint32_t i = 0; i < n; i++) {
@@ -255,23 +280,40 @@ static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *
         } else if (rq_refines(s->rq, smp[i].request_id)) {
             s->refine[nr++] = smp[i];
         } else {
-            s->splat[m++] = smp[i];
+            c->splat[m++] = smp[i];
         }
     }
-    ctex_insert_par(s->tex, s->pool, s->splat, m, s->info);
-    for (uint32_t j = 0; j < m; j++) {
+    c->m = m;
+    s->nr = nr;
+    s->nl = nl;
+}
+
+/* Reports a chunk's splatted samples to the queue, in their order, with the
+ * errors their splats measured. Touches the queue, the counters and the
+ * chunk, never the textures: it runs beside the next chunk's splats. */
+static void report_task(void *ctx)
+{
+    chunk *c = ctx;
+    sess *s = c->s;
+    for (uint32_t j = 0; j < c->m; j++) {
         /* the map's line of a sample a few ahead (samples land anywhere in
          * a map of megabytes: one cache miss each otherwise) */
-        if (j + 8 < m) prefetch_shown(s, &s->splat[j + 8]);
-        ct_sample *x = &s->splat[j];
-        count(s, x, &s->info[j]);
+        if (j + 8 < c->m) prefetch_shown(s, &c->splat[j + 8]);
+        ct_sample *x = &c->splat[j];
+        count(s, x, &c->info[j]);
         x->epoch = s->rq_epoch;
-        if (rq_report(s->rq, x, s->info[j].error, shown_at(s, x), err) < 0) rejected(s, x, err);
+        if (rq_report(s->rq, x, c->info[j].error, shown_at(s, x), &c->err) < 0) rejected(s, x, &c->err);
     }
-    /* Refinement samples are not splatted: their pixel's mean goes into
-     * their texel once the queue has them. */
+}
+
+/* The rest of a chunk after its report: the refinement samples (reported,
+ * and those the queue takes into their pixel's mean write it), then the
+ * late ones (splatted, never reported: their requests belong to a view the
+ * queue has left). */
+static void refine_and_late(sess *s, ct_error *err)
+{
     uint32_t kept = 0, nw = 0;
-    for (uint32_t j = 0; j < nr; j++) {
+    for (uint32_t j = 0; j < s->nr; j++) {
         ct_sample *x = &s->refine[j];
         x->epoch = s->rq_epoch;
         int rc = rq_report(s->rq, x, v3s(0.0f), shown_at(s, x), err);
@@ -287,21 +329,16 @@ static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *
             s->means[nw++] = rq_pixel_mean(s->rq, x->px, x->py);
         }
     }
+    s->nr = kept;
     ctex_refine_par(s->tex, s->pool, s->write, s->means, nw, s->info);
     const ctex_insert_info unwritten = {.tex = -1};
     for (uint32_t j = 0, w = 0; j < kept; j++) {
         bool written = w < nw && s->write[w].request_id == s->refine[j].request_id;
         count(s, &s->refine[j], written ? &s->info[w++] : &unwritten);
     }
-    if (k && k->samples) {
-        if (m) k->samples(k->user, s->splat, m);
-        if (kept) k->samples(k->user, s->refine, kept);
-    }
-    /* Late samples: splatted, never reported (their requests belong to a
-     * view the queue has left). */
-    if (nl) {
-        ctex_insert_par(s->tex, s->pool, s->late, nl, s->info);
-        for (uint32_t j = 0; j < nl; j++) {
+    if (s->nl) {
+        ctex_insert_par(s->tex, s->pool, s->late, s->nl, s->info);
+        for (uint32_t j = 0; j < s->nl; j++) {
             if (s->info[j].tex < 0) {
                 s->n.stale++;
                 continue;
@@ -309,6 +346,48 @@ static void insert_chunk(sess *s, const ct_sample *smp, uint32_t n, const sink *
             count(s, &s->late[j], &s->info[j]);
             s->n.late++;
         }
+    }
+}
+
+static void to_sink(const sess *s, const chunk *c, uint32_t nr, const sink *k)
+{
+    if (!k || !k->samples) return;
+    if (c->m) k->samples(k->user, c->splat, c->m);
+    if (nr) k->samples(k->user, s->refine, nr);
+}
+
+/* The chunks in order: each is classified and splatted, then reported
+ * (refinement and late samples after). When a chunk has neither, its
+ * report runs on another thread while the next chunk is classified and
+ * splatted: the textures and the queue see the same operations in the same
+ * order as one after the other (the report reads no texel, the splats no
+ * queue state), so the result does not depend on the threads. */
+static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+{
+    uint32_t nchunks = (n + SESS_CHUNK - 1) / SESS_CHUNK;
+    chunk *cur = &s->ch[0];
+    classify(s, cur, smp, n < SESS_CHUNK ? n : SESS_CHUNK);
+    ctex_insert_par(s->tex, s->pool, cur->splat, cur->m, cur->info);
+    for (uint32_t c = 0; c < nchunks; c++) {
+        chunk *nxt = cur == &s->ch[0] ? &s->ch[1] : &s->ch[0];
+        uint32_t at = (c + 1) * SESS_CHUNK, nn = c + 1 < nchunks ? (n - at < SESS_CHUNK ? n - at : SESS_CHUNK) : 0;
+        if (nn && s->nr == 0 && s->nl == 0) {
+            classify(s, nxt, smp + at, nn);
+            ct_error_clear(&cur->err);
+            pool_side(s->pool, report_task, cur);
+            ctex_insert_par(s->tex, s->pool, nxt->splat, nxt->m, nxt->info);
+            pool_side_wait(s->pool);
+            to_sink(s, cur, 0, k);
+        } else {
+            report_task(cur);
+            refine_and_late(s, err);
+            to_sink(s, cur, s->nr, k);
+            if (nn) {
+                classify(s, nxt, smp + at, nn);
+                ctex_insert_par(s->tex, s->pool, nxt->splat, nxt->m, nxt->info);
+            }
+        }
+        cur = nxt;
     }
 }
 
@@ -324,7 +403,7 @@ int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_err
         if (rc) return rc;
     }
     ctex_set_clock(s->tex, ct_now_us());
-    for (uint32_t i = 0; i < n; i += SESS_CHUNK) insert_chunk(s, smp + i, n - i < SESS_CHUNK ? n - i : SESS_CHUNK, k, err);
+    if (n) insert_chunks(s, smp, n, k, err);
     s->n.t_texture += ct_now() - t0;
     return CT_OK;
 }

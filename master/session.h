@@ -69,6 +69,7 @@ typedef struct sess_counters {
     uint64_t rejected;     /* samples the request queue refused (logged) */
     bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */
     double t_texture;      /* seconds in insertion and view changes */
+    double t_next;         /* seconds in handing out requests (sess_next: the queue's pops) */
     uint64_t views;        /* views set (epochs) */
     double t_view;         /* seconds in setting them (queue, textures, and the map when drawn at once) */
     uint64_t shown_maps;   /* shown-node maps drawn */

@@ -251,20 +251,26 @@ int main(int argc, char **argv)
     }
     double t0 = ct_now(), c0 = cpu_s(), last_update = 0;
     uint64_t bytes0 = b.ds ? dsrv_bytes_sent(b.ds) : 0;
+    double t_tex0 = sess_get_counters(b.s).t_texture, t_next0 = sess_get_counters(b.s).t_next;
     if (!rc) {
         drv_set_lockstep(b.d, true);
         drv_begin_frame(b.d, UINT32_MAX);
     }
+    double t_disp = 0, t_drv = 0;   /* per-stage seconds (the session counts its own) */
     while (!rc && drv_in_frame(b.d)) {
+        double a = ct_now();
         rc = dsrv_step(b.ds, 0, &err);
         if (!rc) rc = events(&b, &err);
+        double m = ct_now();
         if (!rc) rc = drv_step(b.d, &err) < 0 ? CT_EIO : 0;
         double now = ct_now();
+        t_drv += now - m;
         /* free-running updates at corrtex-render's --patch-ms, paced by the ACKs */
         if (!rc && now - last_update >= 0.010 && dsink_can_update(b.dk)) {
             rc = dsink_update(b.dk, b.s, &err);
             last_update = now;
         }
+        t_disp += ct_now() - now + (m - a);
     }
     double wall = ct_now() - t0, cpu = cpu_s() - c0;
     if (!rc) {
@@ -272,6 +278,11 @@ int main(int argc, char **argv)
         printf("| %d | %llu | %.3f | %.3f | %.0f | %llu | %.1f |\n", sess_threads(b.s), (unsigned long long)n, wall,
                cpu, (double)n / wall, (unsigned long long)dsink_sync_stats(b.dk).updates,
                (double)(dsrv_bytes_sent(b.ds) - bytes0) / 1048576.0);
+        sess_counters cn = sess_get_counters(b.s);
+        fprintf(stderr,
+                "bench_master: stages (wall s): insertion %.3f, requests %.3f, port and loop %.3f, display %.3f\n",
+                cn.t_texture - t_tex0, cn.t_next - t_next0, t_drv - (cn.t_texture - t_tex0) - (cn.t_next - t_next0),
+                t_disp);
         if (n != nrec)
             fprintf(stderr, "bench_master: inserted %llu of the %zu recorded samples\n", (unsigned long long)n, nrec);
     }

@@ -116,3 +116,54 @@ Test(pool, bad_sizes_refused)
     cr_assert(pool_cpus() >= 1);
     pool_free(NULL);
 }
+
+/* Side jobs: each runs exactly once, beside loops that still do every task
+ * (the worker running it joins them late or not at all), and its writes are
+ * visible after pool_side_wait; without workers it runs at once. */
+typedef struct side_ctx {
+    atomic_int runs;
+    long value;          /* written by the job, read after the wait */
+    int sleep_ms;
+} side_ctx;
+
+static void side_job(void *ctx)
+{
+    side_ctx *c = ctx;
+    if (c->sleep_ms) {
+        struct timespec ts = {0, (long)c->sleep_ms * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    c->value = 12345;
+    atomic_fetch_add(&c->runs, 1);
+}
+
+Test(pool, side_job_beside_loops)
+{
+    for (int threads = 1; threads <= 3; threads++) {
+        ct_pool *p = NULL;
+        ct_error err;
+        cr_assert_eq(pool_new(threads, &p, &err), 0, "%s", err.msg);
+        for (int k = 0; k < 50; k++) {
+            side_ctx c = {.sleep_ms = k % 5 == 0 ? 2 : 0};
+            atomic_init(&c.runs, 0);
+            pool_side(p, side_job, &c);
+            if (threads == 1) cr_assert_eq(atomic_load(&c.runs), 1, "one thread: the job runs before pool_side returns");
+            /* loops while it runs: every task once */
+            for (int l = 0; l < 3; l++) check_loop(p, threads, (size_t)(1 + (k * 7 + l * 13) % 40));
+            pool_side_wait(p);
+            cr_assert_eq(atomic_load(&c.runs), 1, "threads %d, round %d: side job ran %d times", threads, k,
+                         atomic_load(&c.runs));
+            cr_assert_eq(c.value, 12345);
+        }
+        /* a second side job waits for the first; freeing waits for the last */
+        side_ctx a = {.sleep_ms = 3}, b = {0};
+        atomic_init(&a.runs, 0);
+        atomic_init(&b.runs, 0);
+        pool_side(p, side_job, &a);
+        pool_side(p, side_job, &b);
+        pool_free(p);
+        cr_assert_eq(atomic_load(&a.runs), 1);
+        cr_assert_eq(atomic_load(&b.runs), 1);
+    }
+    pool_side_wait(NULL);
+}

@@ -41,7 +41,7 @@ Test(rq_heap, pops_in_priority_order_with_fifo_ties)
         /* Few distinct values, so ties are frequent. */
         r[i].prio = (float)rng_below(&g, 50) * 0.25f;
         r[i].seq = i;
-        rq_item it = {rq_key(r[i].prio, i), i, (float)i, 0, 1, 0};
+        rq_item it = {rq_key(r[i].prio, i), i, (float)i, 0, 1, 0, 0};
         cr_assert_eq(rq_heap_push(&h, &it), 0);
     }
     qsort(r, N, sizeof *r, cmp_ref);
@@ -71,7 +71,8 @@ Test(rq_heap, interleaved_push_pop_matches_reference)
     for (int step = 0; step < 20000; step++) {
         if (np < 4096 && (np == 0 || rng_below(&g, 3) != 0)) {
             float p = rng_float(&g) * 100.0f;
-            rq_item it = {rq_key(p, seq), seq, 0, 0, 0, 0};
+            /* the tag travels beside the key: here a function of the item */
+            rq_item it = {rq_key(p, seq), seq, (float)seq, 0, 0, 0, seq * 2654435761u};
             cr_assert_eq(rq_heap_push(&h, &it), 0);
             pool[np].prio = p;
             pool[np].seq = seq++;
@@ -80,9 +81,17 @@ Test(rq_heap, interleaved_push_pop_matches_reference)
             int best = 0;
             for (int i = 1; i < np; i++)
                 if (cmp_ref(&pool[i], &pool[best]) < 0) best = i;
-            rq_item it;
-            cr_assert(rq_heap_pop(&h, &it));
-            cr_assert_eq(it.parent, pool[best].seq, "step %d", step);
+            cr_assert_eq(rq_heap_top_tag(&h), pool[best].seq * 2654435761u, "step %d: top tag", step);
+            if (step % 3 == 0) {
+                /* dropped unread: the next pop is the next in order */
+                rq_heap_drop(&h);
+            } else {
+                rq_item it;
+                cr_assert(rq_heap_pop(&h, &it));
+                cr_assert_eq(it.parent, pool[best].seq, "step %d", step);
+                cr_assert_eq(it.px, (float)pool[best].seq, "step %d: payload", step);
+                cr_assert_eq(it.tag, pool[best].seq * 2654435761u, "step %d: tag", step);
+            }
             pool[best] = pool[--np];
         }
         cr_assert_eq(h.n, (size_t)np);
@@ -95,16 +104,18 @@ Test(rq_heap, cap_refuses_and_keeps_heap_intact)
     rq_heap h;
     cr_assert_eq(rq_heap_init(&h, 2, 40, NULL), 0);
     for (uint32_t i = 0; i < 40; i++) {
-        rq_item it = {rq_key((float)i, i), i, 0, 0, 0, 0};
+        rq_item it = {rq_key((float)i, i), i, 0, 0, 0, 0, 0};
         cr_assert_eq(rq_heap_push(&h, &it), 0);
     }
-    rq_item extra = {rq_key(1000.0f, 99), 99, 0, 0, 0, 0};
+    rq_item extra = {rq_key(1000.0f, 99), 99, 0, 0, 0, 0, 0};
     cr_assert_eq(rq_heap_push(&h, &extra), CT_ENOMEM);
     cr_assert_eq(h.n, 40u);
     rq_item it;
     cr_assert(rq_heap_pop(&h, &it));
     cr_assert_eq(it.parent, 39u, "the refused item did not enter");
     rq_heap_clear(&h);
+    rq_heap_drop(&h);   /* empty: nothing */
+    cr_assert_eq(h.n, 0u);
     cr_assert_eq(rq_heap_top_key(&h), 0u);
     rq_heap_free(&h);
 }

@@ -225,7 +225,7 @@ static void rev_close(tport *p, double wait_s)
 
 static const tport_ops REV_OPS = {rev_view, rev_submit, rev_poll, rev_close};
 
-static void start(run *r, const ct_radmesh *m, int lanes, int threads)
+static void start_rounds(run *r, const ct_radmesh *m, int lanes, int threads, int round)
 {
     memset(r, 0, sizeof *r);
     r->s = new_session(m, threads);
@@ -237,11 +237,16 @@ static void start(run *r, const ct_radmesh *m, int lanes, int threads)
         rp->inner = r->port;
         r->port = &rp->base;
     }
-    drv_options o = {.window = 3, .batch_min = 16, .batch_max = 4096, .batch_ms = 20, .round = 256};
+    drv_options o = {.window = 3, .batch_min = 16, .batch_max = 4096, .batch_ms = 20, .round = round};
     sink k = {&r->rec, rec_samples, rec_frame};
     cr_assert_eq(drv_new(r->s, r->port, &k, &o, &r->d, &err), 0, "%s", err.msg);
     drv_set_lockstep(r->d, true);
     cr_assert_eq(drv_set_view(r->d, &cam, W, H, &err), 1, "%s", err.msg);
+}
+
+static void start(run *r, const ct_radmesh *m, int lanes, int threads)
+{
+    start_rounds(r, m, lanes, threads, 256);
 }
 
 static void frame(run *r, uint32_t k)
@@ -316,6 +321,37 @@ Test(session, live_and_offline_give_the_same_textures)
     stop(&live);
     stop(&off);
     stop(&mix);
+}
+
+/* Rounds larger than a chunk (SESS_CHUNK): a chunk's report to the queue
+ * runs beside the next chunk's splats on two or more threads, in order on
+ * one; the first pass, then refinement past full coverage (chunks with
+ * refinement samples take the serial path), give the same textures, queue
+ * and samples for 1, 2 and 3 master threads. */
+Test(session, chunks_reported_beside_splats_same_for_any_threads)
+{
+    static const uint32_t K[] = {3500, 3500, 3000};
+    run r[3];
+    for (int t = 0; t < 3; t++) start_rounds(&r[t], &mesh, 1, t + 1, 3500);
+    for (int i = 0; i < 3; i++) {
+        for (int t = 0; t < 3; t++) frame(&r[t], K[i]);
+        same_textures(r[1].s, r[0].s, "2 master threads against 1");
+        same_textures(r[2].s, r[0].s, "3 master threads against 1");
+    }
+    rq_stats q[3];
+    for (int t = 0; t < 3; t++) sess_queue_stats(r[t].s, &q[t]);
+    cr_assert(q[0].covered, "the frames were to reach full coverage and refine");
+    cr_assert_gt(sess_get_counters(r[0].s).inserted, (uint64_t)(W * H), "refinement samples went in");
+    for (int t = 1; t < 3; t++) {
+        cr_assert_eq(q[t].popped, q[0].popped);
+        cr_assert_eq(q[t].children, q[0].children);
+        cr_assert_eq(q[t].queued, q[0].queued);
+        cr_assert_eq(q[t].mismatches, q[0].mismatches);
+        cr_assert_eq(r[t].rec.n, r[0].rec.n);
+        cr_assert_eq(memcmp(r[t].rec.s, r[0].rec.s, r[0].rec.n * sizeof *r[0].rec.s), 0,
+                     "%d threads: the sink heard other samples", t + 1);
+    }
+    for (int t = 0; t < 3; t++) stop(&r[t]);
 }
 
 /* The mesh without one part: the interactive image shows the wall behind
