@@ -46,6 +46,9 @@ static const optab OPTS[] = {
      "target tracing time of one free-running batch (ms)", NULL},
     {"round", 0, OPTAB_INT, OF(round), 1, WIRE_MPI_MAX_BATCH, "256", "N",
      "lockstep: requests per round, inserted in id order", NULL},
+    {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
+     "lockstep: pop each round's successor ahead of its reports, as running free (the pops overlap the splats)",
+     NULL},
 };
 #undef OF
 
@@ -152,14 +155,22 @@ int drv_check(const drv *d, double now, double timeout_s, ct_error *err)
     return 0;
 }
 
-/* Inserts samples, counting those of the frame in progress. */
-static int insert(drv *d, const ct_sample *smp, uint32_t n, ct_error *err)
+/* Inserts samples, counting those of the frame in progress, and pops up
+ * to `want` requests ahead of their reports into d->reqs (*got). */
+static int insert_next(drv *d, const ct_sample *smp, uint32_t n, uint32_t want, int *got, ct_error *err)
 {
+    *got = 0;
+    int rc = grow((void **)&d->reqs, &d->reqs_cap, want, sizeof *d->reqs, err);
+    if (rc) return rc;
     sess_counters before = sess_get_counters(d->s);
-    int rc = sess_insert(d->s, smp, n, &d->k, err);
+    rc = sess_insert_next(d->s, smp, n, &d->k, d->reqs, want, got, err);
     if (d->in_frame) d->frame_samples += (uint32_t)(sess_get_counters(d->s).inserted - before.inserted);
     return rc;
 }
+
+static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, ct_error *err);
+static int submit_round(drv *d, uint32_t k, ct_error *err);
+static uint32_t batch_size(const drv *d, const lane *l);
 
 static int by_id(const void *a, const void *b)
 {
@@ -174,13 +185,21 @@ static bool sorted_by_id(const ct_sample *s, uint32_t n)
     return true;
 }
 
-/* Takes every answered batch; 1 when any was. */
-static int receive(drv *d, ct_error *err)
+/* Takes every answered batch; 1 when any was. `may_pop`: running free, a
+ * lane's next batch may be popped ahead and sent (not before a view
+ * change). A lockstep round's successor is popped ahead by pop_ahead
+ * alone: frames must not depend on when a round came back. */
+static int receive(drv *d, bool may_pop, ct_error *err)
 {
     int any = 0;
     tport_reply r;
-    int got;
-    while ((got = d->p->ops->poll(d->p, &r, err)) > 0) {
+    int got = 0;
+    /* Only the batches out now: those sent here (popped ahead) wait for
+     * the next call, so that a port answering at once cannot keep the
+     * caller (its display, its events) waiting for a whole frame. */
+    int budget = drv_inflight(d);
+    if (budget < 1) budget = 1;
+    while (budget-- > 0 && (got = d->p->ops->poll(d->p, &r, err)) > 0) {
         lane *l = &d->lanes[r.lane];
         double now = ct_now();
         /* A lane answers its batches in order: the oldest one is this. */
@@ -211,12 +230,26 @@ static int receive(drv *d, ct_error *err)
                 /* one lane's answer, or lanes that answered in order, come sorted */
                 if (!sorted_by_id(d->round_buf, d->round_n))
                     qsort(d->round_buf, d->round_n, sizeof *d->round_buf, by_id);
-                rc = insert(d, d->round_buf, d->round_n, err);
+                /* with pop_ahead, the frame's next round is popped ahead
+                 * of this one's reports and goes out at once */
+                uint32_t want = 0;
+                if (d->o.pop_ahead && d->in_frame)
+                    want = d->frame_left < (uint32_t)d->o.round ? d->frame_left : (uint32_t)d->o.round;
+                int k;
+                rc = insert_next(d, d->round_buf, d->round_n, want, &k, err);
                 d->round_n = 0;
                 if (rc) return rc;
+                if (k > 0 && (rc = submit_round(d, (uint32_t)k, err))) return rc;
             }
-        } else if ((rc = insert(d, r.samples, r.n, err))) {
-            return rc;
+        } else {
+            /* running free, the lane's next batch is popped ahead of this
+             * one's reports and goes back to it at once */
+            uint32_t want = 0;
+            if (may_pop && !d->lockstep && sess_has_view(d->s) && l->pub.inflight < d->o.window)
+                want = batch_size(d, l);
+            int k;
+            if ((rc = insert_next(d, r.samples, r.n, want, &k, err))) return rc;
+            if (k > 0 && (rc = submit(d, r.lane, d->reqs, (uint32_t)k, 0, err))) return rc;
         }
     }
     return got < 0 ? got : any;
@@ -293,28 +326,35 @@ static int feed_frame(drv *d, ct_error *err)
         int rc = d->k.frame ? d->k.frame(d->k.user, d->s, &f, err) : 0;
         return rc ? rc : 1;
     }
-    if (d->frame_left != UINT32_MAX) d->frame_left -= (uint32_t)k;
+    int rc = submit_round(d, (uint32_t)k, err);
+    return rc ? rc : 1;
+}
+
+/* Sends the k requests in d->reqs as the frame's next round. */
+static int submit_round(drv *d, uint32_t k, ct_error *err)
+{
+    if (d->frame_left != UINT32_MAX) d->frame_left -= k;
     /* One part per lane; the split does not change the result. */
-    uint32_t T = (uint32_t)d->p->lanes, per = ((uint32_t)k + T - 1) / T;
+    uint32_t T = (uint32_t)d->p->lanes, per = (k + T - 1) / T;
     for (uint32_t i = 0; i < T; i++) {
         uint32_t b = i * per;
-        if (b >= (uint32_t)k) break;
-        uint32_t e = b + per > (uint32_t)k ? (uint32_t)k : b + per;
+        if (b >= k) break;
+        uint32_t e = b + per > k ? k : b + per;
         int rc = submit(d, (int)i, d->reqs + b, e - b, 1, err);
         if (rc) return rc;
         d->round_out++;
     }
-    return 1;
+    return 0;
 }
 
-int drv_receive(drv *d, ct_error *err)
+int drv_receive(drv *d, bool may_pop, ct_error *err)
 {
-    return receive(d, err);
+    return receive(d, may_pop, err);
 }
 
 int drv_step(drv *d, ct_error *err)
 {
-    int got = receive(d, err);
+    int got = receive(d, true, err);
     if (got < 0) return got;
     int fed = d->lockstep ? feed_frame(d, err) : feed_free(d, err);
     if (fed < 0) return fed;

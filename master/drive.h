@@ -11,7 +11,15 @@
  * in rounds of `round` requests, split evenly over the lanes; a round's
  * samples go in only when all are back, sorted by request id, so a frame
  * does not depend on the number of lanes (nor, by the session's design, on
- * the number of master threads). Owns the drv_ prefix. */
+ * the number of master threads).
+ *
+ * Running free, a lane's next batch is popped as its answer goes in, ahead
+ * of that answer's reports (session.h, sess_insert_next): on two or more
+ * master threads the pops run beside the splats, and the batch goes back to
+ * the lane at once. A lockstep round's successor is popped the same way
+ * only with `pop_ahead`: it then does not know the round's children, which
+ * costs early frames some of their adaptivity (docs/sampling.md), so
+ * lockstep frames keep the exact order by default. Owns the drv_ prefix. */
 #ifndef CT_MASTER_DRIVE_H
 #define CT_MASTER_DRIVE_H
 
@@ -30,9 +38,11 @@ typedef struct drv_options {
     int batch_min, batch_max;   /* free-running batch size bounds (requests) */
     double batch_ms;            /* free-running: target tracing time of one batch */
     int round;                  /* lockstep: requests per round (independent of the lanes) */
+    bool pop_ahead;             /* lockstep: a round's successor popped ahead of its reports, as running free */
 } drv_options;
 
-/* The option table: --window, --batch-min, --batch-max, --batch-ms, --round. */
+/* The option table: --window, --batch-min, --batch-max, --batch-ms, --round,
+ * --pop-ahead. */
 const optab *drv_options_table(size_t *n);
 
 /* Per lane, for stats and batch sizing. */
@@ -74,10 +84,13 @@ void drv_set_lockstep(drv *d, bool on);
  * port or the session. */
 int drv_step(drv *d, ct_error *err);
 
-/* Takes every answered batch into the session and hands out nothing: a
- * loop about to change the view calls it first, so that samples already
- * here go in for the view they were traced for. 1 when any was taken. */
-int drv_receive(drv *d, ct_error *err);
+/* Takes every answered batch into the session: a loop about to change the
+ * view calls it first, so that samples already here go in for the view
+ * they were traced for. Running free it hands out a lane's next batch
+ * (popped ahead) only with may_pop: false when the view may change next,
+ * so that no batch goes out for a view about to be left. 1 when any was
+ * taken. */
+int drv_receive(drv *d, bool may_pop, ct_error *err);
 
 /* Batches in flight over all lanes. */
 int drv_inflight(const drv *d);

@@ -418,6 +418,15 @@ int dsrv_next_event(dsrv *s, dsrv_event *ev)
     return 1;
 }
 
+bool dsrv_view_pending(const dsrv *s)
+{
+    for (int i = 0; i < s->ev_n; i++) {
+        const dsrv_event *e = &s->ev[(s->ev_head + i) % MAX_EVENTS];
+        if (!(e->kind == DSRV_EV_MESSAGE && e->msg.type == WIRE_ACK)) return true;
+    }
+    return false;
+}
+
 int dsrv_send(dsrv *s, const wire_msg *m, int timeout_ms, ct_error *err)
 {
     if (!s->disp) return 0;

@@ -71,6 +71,10 @@ int dsrv_step(dsrv *s, int timeout_ms, ct_error *err);
 /* The next event (1), or 0 when none is queued. */
 int dsrv_next_event(dsrv *s, dsrv_event *ev);
 
+/* Whether an event other than an ACK is queued (a camera, settings, a
+ * display that came or went): what may change the view when taken. */
+bool dsrv_view_pending(const dsrv *s);
+
 /* Whether a display is connected (after its SETTINGS). */
 bool dsrv_has_display(const dsrv *s);
 

@@ -246,7 +246,7 @@ static int turn(loop *l, int *busy, int *leave, ct_error *err)
     else if (l->lockstep && dsrv_has_display(l->ds)) l->t_render_wait += t1 - t0;
     /* Samples that arrived go in before a camera that came with them
      * changes the view: they belong to the view they were traced for. */
-    int early = drv_receive(l->d, err);
+    int early = drv_receive(l->d, !dsrv_view_pending(l->ds), err);
     if (early < 0) return early;
     if ((rc = handle_display(l, leave, err))) return rc;
     int got = drv_step(l->d, err);

@@ -356,25 +356,78 @@ static void to_sink(const sess *s, const chunk *c, uint32_t nr, const sink *k)
     if (nr) k->samples(k->user, s->refine, nr);
 }
 
+/* Requests popped ahead of a batch's reports (sess_insert_next), in one
+ * portion per chunk of the batch. */
+typedef struct next_job {
+    sess *s;
+    ct_request *out;
+    uint32_t want;
+    uint32_t parts;   /* portions: the batch's chunks */
+    int got;          /* requests so far, or the queue's error */
+    double dt;        /* seconds */
+    ct_error err;
+} next_job;
+
+/* Portion i of the pops. */
+static void pop_portion(next_job *j, uint32_t i)
+{
+    if (!j || j->got < 0) return;
+    uint32_t a = (uint32_t)((uint64_t)j->want * i / j->parts), b = (uint32_t)((uint64_t)j->want * (i + 1) / j->parts);
+    if (b <= a) return;
+    double t0 = ct_now();
+    ct_request *out = j->out + j->got;
+    int k = rq_next_batch(j->s->rq, out, (int)(b - a), &j->err);
+    if (k < 0) {
+        j->got = k;
+    } else {
+        for (int q = 0; q < k; q++) out[q].epoch = j->s->epoch;
+        j->got += k;
+    }
+    j->dt += ct_now() - t0;
+}
+
+/* What the side thread does beside a chunk's splats: the report of the
+ * chunk before (if any), then the next portion of the pops (if any). */
+typedef struct side_job {
+    chunk *report;
+    next_job *ahead;
+    uint32_t portion;
+} side_job;
+
+static void side_task(void *ctx)
+{
+    side_job *j = ctx;
+    if (j->report) report_task(j->report);
+    pop_portion(j->ahead, j->portion);
+}
+
 /* The chunks in order: each is classified and splatted, then reported
  * (refinement and late samples after). When a chunk has neither, its
- * report runs on another thread while the next chunk is classified and
- * splatted: the textures and the queue see the same operations in the same
- * order as one after the other (the report reads no texel, the splats no
- * queue state), so the result does not depend on the threads. */
-static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+ * report runs on another thread (a side job of the pool) while the next
+ * chunk is classified and splatted, and so does each portion of the pops
+ * ahead: the queue's operations come in one fixed order (classify chunk
+ * c + 1, report chunk c, pop portion c + 1), so do the textures' (the
+ * report and the pops read no texel, the splats no queue state), and the
+ * result does not depend on the threads. */
+static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink *k, next_job *ahead,
+                          ct_error *err)
 {
     uint32_t nchunks = (n + SESS_CHUNK - 1) / SESS_CHUNK;
+    if (ahead) ahead->parts = nchunks;
     chunk *cur = &s->ch[0];
     classify(s, cur, smp, n < SESS_CHUNK ? n : SESS_CHUNK);
+    side_job sj = {NULL, ahead, 0};
+    if (ahead) pool_side(s->pool, side_task, &sj);
     ctex_insert_par(s->tex, s->pool, cur->splat, cur->m, cur->info);
+    if (ahead) pool_side_wait(s->pool);
     for (uint32_t c = 0; c < nchunks; c++) {
         chunk *nxt = cur == &s->ch[0] ? &s->ch[1] : &s->ch[0];
         uint32_t at = (c + 1) * SESS_CHUNK, nn = c + 1 < nchunks ? (n - at < SESS_CHUNK ? n - at : SESS_CHUNK) : 0;
         if (nn && s->nr == 0 && s->nl == 0) {
             classify(s, nxt, smp + at, nn);
             ct_error_clear(&cur->err);
-            pool_side(s->pool, report_task, cur);
+            sj = (side_job){cur, ahead, c + 1};
+            pool_side(s->pool, side_task, &sj);
             ctex_insert_par(s->tex, s->pool, nxt->splat, nxt->m, nxt->info);
             pool_side_wait(s->pool);
             to_sink(s, cur, 0, k);
@@ -384,15 +437,20 @@ static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink 
             to_sink(s, cur, s->nr, k);
             if (nn) {
                 classify(s, nxt, smp + at, nn);
+                sj = (side_job){NULL, ahead, c + 1};
+                if (ahead) pool_side(s->pool, side_task, &sj);
                 ctex_insert_par(s->tex, s->pool, nxt->splat, nxt->m, nxt->info);
+                if (ahead) pool_side_wait(s->pool);
             }
         }
         cur = nxt;
     }
 }
 
-int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+int sess_insert_next(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_request *out, uint32_t want,
+                     int *got, ct_error *err)
 {
+    *got = 0;
     if (!s->have_view) {
         s->n.stale += n;
         return CT_OK;
@@ -403,9 +461,23 @@ int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_err
         if (rc) return rc;
     }
     ctex_set_clock(s->tex, ct_now_us());
-    if (n) insert_chunks(s, smp, n, k, err);
+    next_job ahead = {s, out, want, 1, 0, 0.0, {0}};
+    if (n) insert_chunks(s, smp, n, k, want ? &ahead : NULL, err);
+    else if (want) pop_portion(&ahead, 0);
+    s->n.t_ahead += ahead.dt;
     s->n.t_texture += ct_now() - t0;
+    if (ahead.got < 0) {
+        *err = ahead.err;
+        return ahead.got;
+    }
+    *got = ahead.got;
     return CT_OK;
+}
+
+int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err)
+{
+    int got;
+    return sess_insert_next(s, smp, n, k, NULL, 0, &got, err);
 }
 
 ctex *sess_textures(sess *s)

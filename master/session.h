@@ -69,7 +69,8 @@ typedef struct sess_counters {
     uint64_t rejected;     /* samples the request queue refused (logged) */
     bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */
     double t_texture;      /* seconds in insertion and view changes */
-    double t_next;         /* seconds in handing out requests (sess_next: the queue's pops) */
+    double t_next;         /* seconds in sess_next (the queue's pops, nothing beside them) */
+    double t_ahead;        /* seconds of the pops inside sess_insert_next (on a side thread with 2+ threads; t_texture's wall includes what was not hidden) */
     uint64_t views;        /* views set (epochs) */
     double t_view;         /* seconds in setting them (queue, textures, and the map when drawn at once) */
     uint64_t shown_maps;   /* shown-node maps drawn */
@@ -114,6 +115,19 @@ int sess_next(sess *s, ct_request *out, uint32_t n, ct_error *err);
  * are splatted where they are view-independent, else counted and ignored.
  * sink (may be NULL) gets the inserted ones of the current epoch. */
 int sess_insert(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_error *err);
+
+/* sess_insert, and the next batch: up to `want` requests of the current
+ * view popped into out (as sess_next; *got how many) after the queue's
+ * look at the first samples (which of them refine) and before any of them
+ * is reported. So the next batch can go out without waiting for this
+ * one's report, and on two or more threads the pops run beside the first
+ * chunk's splats (a side job of the pool). The queue sees the same
+ * operations in the same order for any number of threads; what it hands
+ * out then does not know of these samples' children (one batch behind, as
+ * a tracer with batches in flight sees it anyway). Negative (the queue's
+ * error) when the pops failed; the samples went in all the same. */
+int sess_insert_next(sess *s, const ct_sample *smp, uint32_t n, const sink *k, ct_request *out, uint32_t want,
+                     int *got, ct_error *err);
 
 /* The corrective textures (for a sink that sends or draws them). */
 ctex *sess_textures(sess *s);

@@ -46,7 +46,7 @@ typedef struct conv_opts {
     trc_cli trc;   /* the tracer's options */
     uint64_t seed;
     float exposure, stand_in;
-    bool time_insert, quiet, verbose;
+    bool time_insert, quiet, verbose, pop_ahead;
 } conv_opts;
 
 #define OF(f) offsetof(conv_opts, f)
@@ -73,6 +73,8 @@ static const optab OPTS[] = {
      "the compositor's primary hits per pixel side (N x N, averaged): the display's multisampling; 1: the pixel "
      "centre only", NULL},
     {"batch", 0, OPTAB_INT, OF(batch), 1, 65536, "256", "B", "requests per batch (a lockstep round)", NULL},
+    {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
+     "pop each batch's successor ahead of its reports, as a free-running master does", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, POOL_MAX_THREADS, "2", "T", "tracing threads", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 2147483647, "1", "S", "seed of the queue and the tracer", NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "PNG exposure (stops)", NULL},
@@ -484,6 +486,7 @@ int cmd_converge(int argc, char **argv)
     rec.next = fsink_sink(r.fk);
     sink k = o.time_insert || o.record ? (sink){&rec, rec_samples, rec_frame} : rec.next;
     dopt.round = o.batch;
+    dopt.pop_ahead = o.pop_ahead;
     if ((rc = drv_new(r.s, port, &k, &dopt, &r.d, &err))) goto fail;
     drv_set_lockstep(r.d, true);
     r.t = tr;

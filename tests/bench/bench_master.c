@@ -9,10 +9,16 @@
  * acknowledges every update (SYNC -> ACK), so texture updates go out paced
  * by it as in corrtex-render (master/dsink.h). The session is driven as the
  * recording run drove it (lockstep rounds of --batch, the same view and
- * options), so it hands out the recorded requests. Prints one markdown
- * table row; scripts/bench-master writes them into docs/benchmarks.md.
+ * options, --pop-ahead too), so it hands out the recorded requests.
+ * Prints one markdown table row, with the loop's stages in wall seconds:
+ * insertion (sess_insert_next, the pops ahead included where they were not
+ * hidden), pops ahead (their own time, beside the splats with 2+ threads),
+ * requests (sess_next), port (the rest of the loop: the replay port,
+ * sorting rounds) and display (the server and the texture updates);
+ * scripts/bench-master writes them into docs/benchmarks.md.
  *   bench_master SCENE --camera NAME --width W --height H --stand-in A
- *                --record FILE --master-threads N [--batch B] [--header]
+ *                --record FILE --master-threads N [--batch B] [--pop-ahead]
+ *                [--header]
  * Exit 0, 1 when the run fails, 2 on bad usage. */
 #include <signal.h>
 #include <stdio.h>
@@ -40,6 +46,7 @@ typedef struct opts {
     int width, height, threads, batch;
     float stand_in;
     bool header;
+    bool pop_ahead;
 } opts;
 
 #define OF(f) offsetof(opts, f)
@@ -51,6 +58,8 @@ static const optab OPTS[] = {
     {"stand-in", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, "0.3", "A", "the recording run's --stand-in", NULL},
     {"master-threads", 0, OPTAB_INT, OF(threads), 1, POOL_MAX_THREADS, "1", "N", "the master's threads", NULL},
     {"batch", 0, OPTAB_INT, OF(batch), 1, 65536, "256", "B", "the recording run's --batch (a round)", NULL},
+    {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
+     "the recording run's --pop-ahead (each round popped ahead of the last one's reports)", NULL},
     {"header", 0, OPTAB_FLAG, OF(header), 0, 0, NULL, NULL, "print the table header first", NULL},
 };
 #undef OF
@@ -195,8 +204,9 @@ int main(int argc, char **argv)
         return 2;
     }
     if (o.header) {
-        printf("| master threads | samples | wall s | CPU s | samples/s | display updates | display MB |\n"
-               "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
+        printf("| master threads | samples | wall s | CPU s | samples/s | display updates | display MB | insertion s | "
+               "pops ahead s | requests s | port s | display s |\n"
+               "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |\n");
         fflush(stdout);
     }
     ct_scene *scene = NULL;
@@ -236,7 +246,8 @@ int main(int argc, char **argv)
      * wait for a core */
     dsink_config kc = {b.ds, &mesh, scene, 120000, (size_t)64 << 20, -1};
     if (!rc) rc = dsink_new(&kc, &b.dk, &err);
-    drv_options dopt = {.window = 1, .batch_min = 1, .batch_max = 65536, .batch_ms = 20, .round = o.batch};
+    drv_options dopt = {.window = 1, .batch_min = 1, .batch_max = 65536, .batch_ms = 20, .round = o.batch,
+                        .pop_ahead = o.pop_ahead};
     sink k;
     if (!rc) {
         k = dsink_sink(b.dk);
@@ -251,7 +262,8 @@ int main(int argc, char **argv)
     }
     double t0 = ct_now(), c0 = cpu_s(), last_update = 0;
     uint64_t bytes0 = b.ds ? dsrv_bytes_sent(b.ds) : 0;
-    double t_tex0 = sess_get_counters(b.s).t_texture, t_next0 = sess_get_counters(b.s).t_next;
+    double t_tex0 = sess_get_counters(b.s).t_texture, t_next0 = sess_get_counters(b.s).t_next,
+           t_ahead0 = sess_get_counters(b.s).t_ahead;
     if (!rc) {
         drv_set_lockstep(b.d, true);
         drv_begin_frame(b.d, UINT32_MAX);
@@ -275,14 +287,12 @@ int main(int argc, char **argv)
     double wall = ct_now() - t0, cpu = cpu_s() - c0;
     if (!rc) {
         uint64_t n = sess_get_counters(b.s).inserted;
-        printf("| %d | %llu | %.3f | %.3f | %.0f | %llu | %.1f |\n", sess_threads(b.s), (unsigned long long)n, wall,
-               cpu, (double)n / wall, (unsigned long long)dsink_sync_stats(b.dk).updates,
-               (double)(dsrv_bytes_sent(b.ds) - bytes0) / 1048576.0);
         sess_counters cn = sess_get_counters(b.s);
-        fprintf(stderr,
-                "bench_master: stages (wall s): insertion %.3f, requests %.3f, port and loop %.3f, display %.3f\n",
-                cn.t_texture - t_tex0, cn.t_next - t_next0, t_drv - (cn.t_texture - t_tex0) - (cn.t_next - t_next0),
-                t_disp);
+        double t_ins = cn.t_texture - t_tex0, t_req = cn.t_next - t_next0;
+        printf("| %d | %llu | %.3f | %.3f | %.0f | %llu | %.1f | %.3f | %.3f | %.3f | %.3f | %.3f |\n", sess_threads(b.s),
+               (unsigned long long)n, wall, cpu, (double)n / wall, (unsigned long long)dsink_sync_stats(b.dk).updates,
+               (double)(dsrv_bytes_sent(b.ds) - bytes0) / 1048576.0, t_ins, cn.t_ahead - t_ahead0, t_req,
+               t_drv - t_ins - t_req, t_disp);
         if (n != nrec)
             fprintf(stderr, "bench_master: inserted %llu of the %zu recorded samples\n", (unsigned long long)n, nrec);
     }

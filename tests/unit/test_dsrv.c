@@ -29,6 +29,7 @@ typedef struct server {
     pthread_t th;
     pthread_mutex_t mu;
     volatile int stop;
+    volatile int hold;   /* events stay queued in the server (dsrv_view_pending) */
     dsrv_event ev[64];
     int nev;
 } server;
@@ -38,13 +39,13 @@ static void *serve(void *arg)
     server *sv = arg;
     while (!sv->stop) {
         ct_error err;
-        dsrv_step(sv->s, 5, &err);
+        pthread_mutex_lock(&sv->mu);
+        dsrv_step(sv->s, sv->hold ? 0 : 5, &err);
         dsrv_event e;
-        while (dsrv_next_event(sv->s, &e)) {
-            pthread_mutex_lock(&sv->mu);
+        while (!sv->hold && dsrv_next_event(sv->s, &e))
             if (sv->nev < 64) sv->ev[sv->nev++] = e;
-            pthread_mutex_unlock(&sv->mu);
-        }
+        pthread_mutex_unlock(&sv->mu);
+        if (sv->hold) usleep(1000);
     }
     return NULL;
 }
@@ -158,6 +159,44 @@ static chan *connected_display(server *sv, char *spec, size_t cap, const char *t
     chan *d = display(spec, NULL, k);
     cr_assert_eq(wait_event(sv, 0, e), DSRV_EV_CONNECTED);
     return d;
+}
+
+/* What may change the view is pending while a camera is queued, not while
+ * only acknowledgements are (the master pops a tracer's next batch ahead
+ * only then: master/drive.h). */
+Test(dsrv, view_pending_for_a_camera_not_for_an_ack)
+{
+    char spec[128];
+    server sv;
+    dsrv_event e;
+    chan *d = connected_display(&sv, spec, sizeof spec, "pending", 0, &e);
+    sv.hold = 1;
+    wire_msg m = {.type = WIRE_ACK};
+    m.u.ack.seq = 0;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_send(d, &m, &err), 0, "%s", err.msg);
+    ping_pong(d, 7);   /* answered after the ACK was taken */
+    pthread_mutex_lock(&sv.mu);
+    bool pending = dsrv_view_pending(sv.s);
+    pthread_mutex_unlock(&sv.mu);
+    cr_assert_not(pending, "an ACK alone counted as a view change");
+    send_camera(d, 1);
+    double end = ct_now() + 3.0;
+    while (!pending && ct_now() < end) {
+        pthread_mutex_lock(&sv.mu);
+        pending = dsrv_view_pending(sv.s);
+        pthread_mutex_unlock(&sv.mu);
+        usleep(1000);
+    }
+    cr_assert(pending, "a queued CAMERA is not pending");
+    sv.hold = 0;
+    cr_assert_eq(wait_event(&sv, 2, &e), DSRV_EV_MESSAGE);
+    cr_assert_eq(e.msg.type, WIRE_CAMERA, "got %s", wire_type_name(e.msg.type));
+    pthread_mutex_lock(&sv.mu);
+    cr_assert_not(dsrv_view_pending(sv.s));
+    pthread_mutex_unlock(&sv.mu);
+    chan_free(d);
+    stop(&sv);
 }
 
 Test(dsrv, unix_socket_mode_and_default_address)

@@ -225,7 +225,7 @@ static void rev_close(tport *p, double wait_s)
 
 static const tport_ops REV_OPS = {rev_view, rev_submit, rev_poll, rev_close};
 
-static void start_rounds(run *r, const ct_radmesh *m, int lanes, int threads, int round)
+static void start_rounds(run *r, const ct_radmesh *m, int lanes, int threads, int round, bool ahead)
 {
     memset(r, 0, sizeof *r);
     r->s = new_session(m, threads);
@@ -237,7 +237,7 @@ static void start_rounds(run *r, const ct_radmesh *m, int lanes, int threads, in
         rp->inner = r->port;
         r->port = &rp->base;
     }
-    drv_options o = {.window = 3, .batch_min = 16, .batch_max = 4096, .batch_ms = 20, .round = round};
+    drv_options o = {.window = 3, .batch_min = 16, .batch_max = 4096, .batch_ms = 20, .round = round, .pop_ahead = ahead};
     sink k = {&r->rec, rec_samples, rec_frame};
     cr_assert_eq(drv_new(r->s, r->port, &k, &o, &r->d, &err), 0, "%s", err.msg);
     drv_set_lockstep(r->d, true);
@@ -246,7 +246,7 @@ static void start_rounds(run *r, const ct_radmesh *m, int lanes, int threads, in
 
 static void start(run *r, const ct_radmesh *m, int lanes, int threads)
 {
-    start_rounds(r, m, lanes, threads, 256);
+    start_rounds(r, m, lanes, threads, 256, false);
 }
 
 static void frame(run *r, uint32_t k)
@@ -332,7 +332,7 @@ Test(session, chunks_reported_beside_splats_same_for_any_threads)
 {
     static const uint32_t K[] = {3500, 3500, 3000};
     run r[3];
-    for (int t = 0; t < 3; t++) start_rounds(&r[t], &mesh, 1, t + 1, 3500);
+    for (int t = 0; t < 3; t++) start_rounds(&r[t], &mesh, 1, t + 1, 3500, false);
     for (int i = 0; i < 3; i++) {
         for (int t = 0; t < 3; t++) frame(&r[t], K[i]);
         same_textures(r[1].s, r[0].s, "2 master threads against 1");
@@ -352,6 +352,48 @@ Test(session, chunks_reported_beside_splats_same_for_any_threads)
                      "%d threads: the sink heard other samples", t + 1);
     }
     for (int t = 0; t < 3; t++) stop(&r[t]);
+}
+
+/* Lockstep rounds popped ahead of the last one's reports (--pop-ahead, as
+ * a free-running master pops): frames of exactly K samples, nothing left in
+ * flight after a frame, the same textures, queue and samples for 1, 2 and
+ * 3 master threads and 1 or 2 lanes, and another order than the exact one
+ * (the option does something). */
+Test(session, pop_ahead_same_for_any_threads_and_lanes)
+{
+    static const uint32_t K[] = {3500, 3500, 3000};
+    run r[4], exact;
+    for (int t = 0; t < 3; t++) start_rounds(&r[t], &mesh, 1, t + 1, 3000, true);
+    start_rounds(&r[3], &mesh, 2, 2, 3000, true);
+    start_rounds(&exact, &mesh, 1, 1, 3000, false);
+    for (int i = 0; i < 3; i++) {
+        for (int t = 0; t < 4; t++) {
+            frame(&r[t], K[i]);
+            cr_assert_eq(drv_inflight(r[t].d), 0, "requests left in flight after a frame");
+        }
+        frame(&exact, K[i]);
+        for (int t = 1; t < 4; t++) same_textures(r[t].s, r[0].s, "pop ahead: threads or lanes against 1 thread");
+    }
+    cr_assert_eq(r[0].rec.frames, 3);
+    cr_assert_eq(r[0].rec.frame_samples, 10000u, "frames of exactly K samples");
+    rq_stats q[4];
+    for (int t = 0; t < 4; t++) sess_queue_stats(r[t].s, &q[t]);
+    for (int t = 1; t < 4; t++) {
+        cr_assert_eq(q[t].popped, q[0].popped);
+        cr_assert_eq(q[t].children, q[0].children);
+        cr_assert_eq(q[t].queued, q[0].queued);
+        cr_assert_eq(r[t].rec.n, r[0].rec.n);
+        cr_assert_eq(memcmp(r[t].rec.s, r[0].rec.s, r[0].rec.n * sizeof *r[0].rec.s), 0,
+                     "run %d: the sink heard other samples", t);
+    }
+    cr_assert_eq(exact.rec.n, r[0].rec.n);
+    size_t moved = 0;
+    for (size_t i = 0; i < r[0].rec.n; i++)
+        moved += exact.rec.s[i].px != r[0].rec.s[i].px || exact.rec.s[i].py != r[0].rec.s[i].py;
+    cr_assert_gt(moved, 0u, "popping ahead handed out the same requests as the exact order");
+    cr_assert_gt(sess_get_counters(r[0].s).t_ahead, 0.0, "no pops were made ahead");
+    for (int t = 0; t < 4; t++) stop(&r[t]);
+    stop(&exact);
 }
 
 /* The mesh without one part: the interactive image shows the wall behind
