@@ -47,7 +47,8 @@ static const optab OPTS[] = {
     {"round", 0, OPTAB_INT, OF(round), 1, WIRE_MPI_MAX_BATCH, "256", "N",
      "lockstep: requests per round, inserted in id order", NULL},
     {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
-     "lockstep: pop each round's successor ahead of its reports, as running free (the pops overlap the splats)",
+     "pop a tracer's next batch (lockstep: the next round) ahead of the reports of the one going in, beside its "
+     "splats: more samples a second from a master that many tracers saturate, less adaptive sampling",
      NULL},
 };
 #undef OF
@@ -185,10 +186,10 @@ static bool sorted_by_id(const ct_sample *s, uint32_t n)
     return true;
 }
 
-/* Takes every answered batch; 1 when any was. `may_pop`: running free, a
- * lane's next batch may be popped ahead and sent (not before a view
- * change). A lockstep round's successor is popped ahead by pop_ahead
- * alone: frames must not depend on when a round came back. */
+/* Takes every answered batch; 1 when any was. With pop_ahead: running
+ * free, a lane's next batch is popped ahead and sent when `may_pop` (not
+ * before a view change); a lockstep round's successor regardless of it
+ * (frames must not depend on when a round came back). */
 static int receive(drv *d, bool may_pop, ct_error *err)
 {
     int any = 0;
@@ -242,10 +243,10 @@ static int receive(drv *d, bool may_pop, ct_error *err)
                 if (k > 0 && (rc = submit_round(d, (uint32_t)k, err))) return rc;
             }
         } else {
-            /* running free, the lane's next batch is popped ahead of this
-             * one's reports and goes back to it at once */
+            /* with pop_ahead, the lane's next batch is popped ahead of
+             * this one's reports and goes back to it at once */
             uint32_t want = 0;
-            if (may_pop && !d->lockstep && sess_has_view(d->s) && l->pub.inflight < d->o.window)
+            if (d->o.pop_ahead && may_pop && !d->lockstep && sess_has_view(d->s) && l->pub.inflight < d->o.window)
                 want = batch_size(d, l);
             int k;
             if ((rc = insert_next(d, r.samples, r.n, want, &k, err))) return rc;

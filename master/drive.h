@@ -13,13 +13,14 @@
  * does not depend on the number of lanes (nor, by the session's design, on
  * the number of master threads).
  *
- * Running free, a lane's next batch is popped as its answer goes in, ahead
- * of that answer's reports (session.h, sess_insert_next): on two or more
- * master threads the pops run beside the splats, and the batch goes back to
- * the lane at once. A lockstep round's successor is popped the same way
- * only with `pop_ahead`: it then does not know the round's children, which
- * costs early frames some of their adaptivity (docs/sampling.md), so
- * lockstep frames keep the exact order by default. Owns the drv_ prefix. */
+ * With `pop_ahead` (--pop-ahead), a lane's next batch (lockstep: the next
+ * round) is popped as the answer goes in, ahead of that answer's reports
+ * (session.h, sess_insert_next): on two or more master threads the pops
+ * run beside the splats, and the batch goes out at once. What it hands out
+ * then does not know of the answer's children: early lockstep frames lose
+ * some adaptivity, and a still view's refinement picks its pixels from
+ * older variances (docs/sampling.md), so it is for a master that many
+ * tracers saturate, and off by default. Owns the drv_ prefix. */
 #ifndef CT_MASTER_DRIVE_H
 #define CT_MASTER_DRIVE_H
 
@@ -38,7 +39,7 @@ typedef struct drv_options {
     int batch_min, batch_max;   /* free-running batch size bounds (requests) */
     double batch_ms;            /* free-running: target tracing time of one batch */
     int round;                  /* lockstep: requests per round (independent of the lanes) */
-    bool pop_ahead;             /* lockstep: a round's successor popped ahead of its reports, as running free */
+    bool pop_ahead;             /* the next batch or round popped ahead of the reports (see above) */
 } drv_options;
 
 /* The option table: --window, --batch-min, --batch-max, --batch-ms, --round,

@@ -74,7 +74,7 @@ static const optab OPTS[] = {
      "centre only", NULL},
     {"batch", 0, OPTAB_INT, OF(batch), 1, 65536, "256", "B", "requests per batch (a lockstep round)", NULL},
     {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
-     "pop each batch's successor ahead of its reports, as a free-running master does", NULL},
+     "pop each batch's successor ahead of its reports (corrtex-render --pop-ahead; docs/sampling.md)", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, POOL_MAX_THREADS, "2", "T", "tracing threads", NULL},
     {"seed", 0, OPTAB_U64, OF(seed), 0, 2147483647, "1", "S", "seed of the queue and the tracer", NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "PNG exposure (stops)", NULL},

@@ -15,6 +15,7 @@
 #include "common/pool.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
+#include "common/timer.h"
 #include "master/drive.h"
 #include "master/session.h"
 #include "master/sink.h"
@@ -394,6 +395,31 @@ Test(session, pop_ahead_same_for_any_threads_and_lanes)
     cr_assert_gt(sess_get_counters(r[0].s).t_ahead, 0.0, "no pops were made ahead");
     for (int t = 0; t < 4; t++) stop(&r[t]);
     stop(&exact);
+}
+
+/* Running free with --pop-ahead over two in-process tracers: every lane's
+ * next batch goes out from inside the insertion of its answer, the view is
+ * covered with every pixel handed out once, and a receive that must not
+ * pop (a view change coming) hands nothing out. */
+Test(session, pop_ahead_running_free)
+{
+    run r;
+    start_rounds(&r, &mesh, 2, 2, 256, true);
+    drv_set_lockstep(r.d, false);
+    rq_stats q = {0};
+    double end = ct_now() + 60.0;
+    while (!q.covered && ct_now() < end) {
+        cr_assert_geq(drv_step(r.d, &err), 0, "%s", err.msg);
+        sess_queue_stats(r.s, &q);
+    }
+    cr_assert(q.covered, "the view was not covered within 60 s");
+    cr_assert_eq(q.sampled_pixels, (uint64_t)(W * H));
+    cr_assert_gt(sess_get_counters(r.s).t_ahead, 0.0, "no batch was popped ahead");
+    /* what is still out comes back; without may_pop nothing new goes out */
+    end = ct_now() + 30.0;
+    while (drv_inflight(r.d) > 0 && ct_now() < end) cr_assert_geq(drv_receive(r.d, false, &err), 0, "%s", err.msg);
+    cr_assert_eq(drv_inflight(r.d), 0, "drv_receive without may_pop handed out batches");
+    stop(&r);
 }
 
 /* The mesh without one part: the interactive image shows the wall behind
