@@ -1,35 +1,62 @@
-/* rq_heap.c: 4-ary max-heap of rq_item (see rq_heap.h). A 4-ary heap halves
- * the depth of a binary one; with 16-byte entries aligned so that a node's
- * four children fill exactly one cache line, each level of a sift-down costs
- * one cache miss at most, which is what matters at a million queued requests. */
+/* rq_heap.c: the request queue's buckets of 4-ary max-heaps (see
+ * rq_heap.h). A 4-ary heap halves the depth of a binary one; with 16-byte
+ * entries aligned so that a node's four children fill exactly one cache
+ * line, each level of a sift-down costs one cache miss at most, and in a
+ * bucket of a few thousand entries the levels stay in the caches. */
 #include "master/rq_heap.h"
 
 #include <stdlib.h>
 
-/* Allocates the three arrays for cap items, copying n entries and hw slots. */
-static int realloc_arrays(rq_heap *h, size_t cap)
+static inline int bucket_of(uint64_t key)
 {
-    size_t bytes = (cap + 4) * sizeof(rq_hent);
+    return (int)(key >> RQ_BUCKET_SHIFT);
+}
+
+/* The highest non-empty bucket at or below b, -1 when none. */
+static int highest_used(const rq_heap *h, int b)
+{
+    for (int w = b >> 6; w >= 0; w--) {
+        uint64_t m = h->used[w];
+        if (w == b >> 6 && (b & 63) != 63) m &= ((uint64_t)2 << (b & 63)) - 1;
+        if (m) return (w << 6) + 63 - __builtin_clzll(m);
+    }
+    return -1;
+}
+
+/* Room for one more entry in bucket k: its array doubles when full. */
+static int bucket_room(rq_heap *h, rq_bucket *k)
+{
+    if (k->n < k->cap) return 0;
+    uint32_t ncap = k->cap ? 2 * k->cap : 64;
+    size_t bytes = ((size_t)ncap + 4) * sizeof(rq_hent);
     bytes = (bytes + 63) & ~(size_t)63;
     rq_hent *mem = aligned_alloc(64, bytes);
+    if (!mem) return CT_ENOMEM;
+    if (k->n) memcpy(mem + 3, k->a, k->n * sizeof *k->a);
+    free(k->mem);
+    k->mem = mem;
+    k->a = mem + 3;
+    k->cap = ncap;
+    h->grows++;
+    return 0;
+}
+
+/* Room for cap payload slots, keeping hw slots and nfree free ones. */
+static int payload_room(rq_heap *h, size_t cap)
+{
     rq_payload *pl = malloc(cap * sizeof *pl);
     uint32_t *freel = malloc(cap * sizeof *freel);
-    if (!mem || !pl || !freel) {
-        free(mem);
+    if (!pl || !freel) {
         free(pl);
         free(freel);
         return CT_ENOMEM;
     }
-    if (h->mem) {
-        memcpy(mem + 3, h->a, h->n * sizeof *h->a);
+    if (h->pl) {
         memcpy(pl, h->pl, h->hw * sizeof *pl);
         memcpy(freel, h->freel, h->nfree * sizeof *freel);
     }
-    free(h->mem);
     free(h->pl);
     free(h->freel);
-    h->mem = mem;
-    h->a = mem + 3;
     h->pl = pl;
     h->freel = freel;
     h->cap = cap;
@@ -40,21 +67,38 @@ static int realloc_arrays(rq_heap *h, size_t cap)
 int rq_heap_init(rq_heap *h, size_t initial_cap, size_t max_items, ct_error *err)
 {
     memset(h, 0, sizeof *h);
+    h->top = -1;
     if (max_items > UINT32_MAX) max_items = UINT32_MAX;
     if (initial_cap < 16) initial_cap = 16;
     if (max_items && initial_cap > max_items) initial_cap = max_items;
     h->max = max_items;
-    if (realloc_arrays(h, initial_cap) != 0)
+    h->b = calloc(RQ_BUCKETS, sizeof *h->b);
+    if (!h->b || payload_room(h, initial_cap) != 0) {
+        rq_heap_free(h);
         return ct_fail(err, CT_ENOMEM, "request queue: cannot allocate %zu items", initial_cap);
+    }
     return 0;
 }
 
 void rq_heap_free(rq_heap *h)
 {
-    free(h->mem);
+    if (h->b)
+        for (int i = 0; i < RQ_BUCKETS; i++) free(h->b[i].mem);
+    free(h->b);
     free(h->pl);
     free(h->freel);
     memset(h, 0, sizeof *h);
+    h->top = -1;
+}
+
+void rq_heap_clear(rq_heap *h)
+{
+    for (int w = 0; w < RQ_BUCKETS / 64; w++) {
+        for (uint64_t m = h->used[w]; m; m &= m - 1) h->b[(w << 6) + __builtin_ctzll(m)].n = 0;
+        h->used[w] = 0;
+    }
+    h->top = -1;
+    h->n = h->hw = h->nfree = 0;
 }
 
 int rq_heap_push(rq_heap *h, const rq_item *it)
@@ -63,8 +107,12 @@ int rq_heap_push(rq_heap *h, const rq_item *it)
         if (h->max && h->cap >= h->max) return CT_ENOMEM;
         size_t ncap = h->cap * 2;
         if (h->max && ncap > h->max) ncap = h->max;
-        if (realloc_arrays(h, ncap) != 0) return CT_ENOMEM;
+        if (payload_room(h, ncap) != 0) return CT_ENOMEM;
     }
+    uint64_t key = it->key;
+    int bi = bucket_of(key);
+    rq_bucket *k = &h->b[bi];
+    if (bucket_room(h, k) != 0) return CT_ENOMEM;
     uint32_t slot = h->nfree ? h->freel[--h->nfree] : (uint32_t)h->hw++;
     rq_payload *p = &h->pl[slot];
     p->parent = it->parent;
@@ -72,9 +120,8 @@ int rq_heap_push(rq_heap *h, const rq_item *it)
     p->py = it->py;
     p->radius = it->radius;
     p->kind = it->kind;
-    rq_hent *a = h->a;
-    size_t i = h->n++;
-    uint64_t key = it->key;
+    rq_hent *a = k->a;
+    size_t i = k->n++;
     /* Sift up: move parents down until the new key fits. */
     while (i > 0) {
         size_t q = (i - 1) >> 2;
@@ -85,17 +132,25 @@ int rq_heap_push(rq_heap *h, const rq_item *it)
     a[i].key = key;
     a[i].slot = slot;
     a[i].tag = it->tag;
+    h->n++;
+    h->used[bi >> 6] |= (uint64_t)1 << (bi & 63);
+    if (bi > h->top) h->top = bi;
     return 0;
 }
 
-/* Frees the top's slot and restores the heap without it. */
+/* Frees the top's slot and restores the top bucket's heap without it. */
 static void remove_top(rq_heap *h)
 {
-    rq_hent *a = h->a;
+    rq_bucket *k = &h->b[h->top];
+    rq_hent *a = k->a;
     h->freel[h->nfree++] = a[0].slot;
-    size_t n = --h->n;
+    h->n--;
+    size_t n = --k->n;
     if (n == 0) {
-        h->hw = h->nfree = 0;
+        int bi = h->top;
+        h->used[bi >> 6] &= ~((uint64_t)1 << (bi & 63));
+        h->top = bi > 0 ? highest_used(h, bi - 1) : -1;
+        if (h->n == 0) h->hw = h->nfree = 0;
         return;
     }
     rq_hent last = a[n];
@@ -139,7 +194,7 @@ static void remove_top(rq_heap *h)
 bool rq_heap_pop(rq_heap *h, rq_item *out)
 {
     if (h->n == 0) return false;
-    const rq_hent *top = &h->a[0];
+    const rq_hent *top = &h->b[h->top].a[0];
     const rq_payload *p = &h->pl[top->slot];
     out->key = top->key;
     out->tag = top->tag;

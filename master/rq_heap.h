@@ -1,6 +1,6 @@
-/* rq_heap.h: the request priority queue of the sampler (§3.7): a 4-ary
- * max-heap on flat arrays of fixed-size items. Pushing and popping never
- * allocate; the array only grows (doubling) when it is full, up to a cap.
+/* rq_heap.h: the request priority queue of the sampler (§3.7): max-heaps
+ * of fixed-size items in buckets by priority. Pushing and popping never
+ * allocate; an array only grows (doubling) when it is full, up to a cap.
  * Order is total and deterministic: higher priority first, and among equal
  * priorities the item pushed first (lower sequence number) first, both packed
  * into one 64-bit key so a comparison is a single integer compare. */
@@ -35,12 +35,20 @@ typedef struct rq_item {
     uint32_t tag;     /* kept beside the key (the engine: the request's pixel), readable at the top without the rest */
 } rq_item;
 
-/* Storage: the heap orders 16-byte (key, slot) entries, laid out so that the
- * four children of a node share one 64-byte cache line; the rest of an item
- * waits in a slot of a payload pool (free slots on a stack) and is touched
- * once on push and once on pop; an item dropped unread (rq_heap_drop: the
- * engine's requests for pixels handed out since they were queued, most of
- * its pops) is never touched again. */
+/* Storage: the 16-byte (key, slot, tag) entries sit in buckets by the
+ * key's top 13 bits (the priority's exponent and its first 4 mantissa bits:
+ * 16 buckets an octave), each bucket a 4-ary max-heap laid out so that the
+ * four children of a node share one 64-byte cache line. Every key of a
+ * bucket is above every key of a lower one, so the highest item is the top
+ * of the highest non-empty bucket (a bitmap finds it), and the order is the
+ * one heap's over all keys. Why: pops are most of the queue's time, and a
+ * pop's sift-down in one heap of half a million entries missed the caches
+ * at every level; the top bucket holds a few thousand (docs/sampling.md,
+ * "Performance and memory"). The rest of an item waits in a slot of a
+ * payload pool (free slots on a stack) and is touched once on push and
+ * once on pop; an item dropped unread (rq_heap_drop: the engine's requests
+ * for pixels handed out since they were queued, most of its pops) is never
+ * touched again. */
 typedef struct rq_hent {
     uint64_t key;
     uint32_t slot;
@@ -53,15 +61,27 @@ typedef struct rq_payload {
     uint32_t kind;
 } rq_payload;
 
-typedef struct rq_heap {
-    rq_hent *mem;       /* allocation (64-byte aligned) */
+enum {
+    RQ_BUCKET_SHIFT = 51,                       /* bucket = key >> 51 (bit 63 is the sign: 0) */
+    RQ_BUCKETS = 1 << (63 - RQ_BUCKET_SHIFT)    /* 4096 */
+};
+
+typedef struct rq_bucket {
+    rq_hent *mem;       /* allocation (64-byte aligned), NULL until first used */
     rq_hent *a;         /* mem + 3: a[4i+1..4i+4] start on a cache line */
+    uint32_t n, cap;
+} rq_bucket;
+
+typedef struct rq_heap {
+    rq_bucket *b;                       /* RQ_BUCKETS */
+    uint64_t used[RQ_BUCKETS / 64];     /* non-empty buckets */
+    int top;                            /* the highest non-empty bucket, -1 when empty */
     rq_payload *pl;     /* payload slots */
     uint32_t *freel;    /* stack of free slots below hw */
     size_t nfree;
     size_t hw;          /* slots ever used since the last clear */
     size_t n;           /* items queued */
-    size_t cap;         /* items allocated */
+    size_t cap;         /* payload slots allocated */
     size_t max;         /* cap on n (0 = none) */
     uint64_t grows;     /* allocations made so far (for the no-allocation check) */
 } rq_heap;
@@ -93,7 +113,7 @@ int rq_heap_init(rq_heap *h, size_t initial_cap, size_t max_items, ct_error *err
 void rq_heap_free(rq_heap *h);
 
 /* Empties the queue, keeping its memory. */
-static inline void rq_heap_clear(rq_heap *h) { h->n = h->hw = h->nfree = 0; }
+void rq_heap_clear(rq_heap *h);
 
 /* Queues a copy of *it. Returns 0, or CT_ENOMEM when the cap is reached or
  * growing failed (the item is then not queued and the heap is unchanged). */
@@ -107,9 +127,9 @@ bool rq_heap_pop(rq_heap *h, rq_item *out);
 void rq_heap_drop(rq_heap *h);
 
 /* The highest item's tag; the heap must not be empty. */
-static inline uint32_t rq_heap_top_tag(const rq_heap *h) { return h->a[0].tag; }
+static inline uint32_t rq_heap_top_tag(const rq_heap *h) { return h->b[h->top].a[0].tag; }
 
 /* The highest key, or 0 when empty. */
-static inline uint64_t rq_heap_top_key(const rq_heap *h) { return h->n ? h->a[0].key : 0; }
+static inline uint64_t rq_heap_top_key(const rq_heap *h) { return h->n ? h->b[h->top].a[0].key : 0; }
 
 #endif

@@ -53,9 +53,15 @@ Test(rq_heap, pops_in_priority_order_with_fifo_ties)
     }
     rq_item it;
     cr_assert_not(rq_heap_pop(&h, &it));
-    cr_assert_eq((uintptr_t)(h.a + 1) % 64, 0u, "children groups start on a cache line");
-    cr_assert_lt(h.grows, 20, "doubling growth, not one allocation per push (%llu)",
-                 (unsigned long long)h.grows);
+    int used = 0;
+    for (int b = 0; b < RQ_BUCKETS; b++) {
+        if (!h.b[b].mem) continue;
+        used++;
+        cr_assert_eq((uintptr_t)(h.b[b].a + 1) % 64, 0u, "bucket %d: children groups start on a cache line", b);
+    }
+    cr_assert_gt(used, 10, "items of %d priorities in %d buckets", 50, used);
+    cr_assert_lt(h.grows, 8 * (uint64_t)used, "doubling growth, not one allocation per push (%llu for %d buckets)",
+                 (unsigned long long)h.grows, used);
     free(r);
     rq_heap_free(&h);
 }
@@ -116,7 +122,42 @@ Test(rq_heap, cap_refuses_and_keeps_heap_intact)
     rq_heap_clear(&h);
     rq_heap_drop(&h);   /* empty: nothing */
     cr_assert_eq(h.n, 0u);
+    /* cleared buckets take items again, in order across buckets */
+    for (uint32_t i = 0; i < 6; i++) {
+        rq_item again = {rq_key((float)(i % 3) * 0.001f + (float)(i / 3) * 1000.0f, i), i, 0, 0, 0, 0, i};
+        cr_assert_eq(rq_heap_push(&h, &again), 0);
+    }
+    static const uint32_t order[] = {5, 4, 3, 2, 1, 0};
+    for (int i = 0; i < 6; i++) {
+        cr_assert(rq_heap_pop(&h, &it));
+        cr_assert_eq(it.parent, order[i], "after clear, pop %d", i);
+    }
     cr_assert_eq(rq_heap_top_key(&h), 0u);
+    rq_heap_free(&h);
+}
+
+Test(rq_heap, buckets_split_octaves_and_keep_one_order)
+{
+    /* priorities straddling bucket boundaries (16 an octave), equal ones
+     * (FIFO), zero and denormal-small ones: pops come in key order */
+    static const float pr[] = {1.0f, 1.0624f, 1.0625f, 1.0626f, 2.0f, 0.0f, 1e-40f, 1.0f, 3e38f, 0.5f, 1.0625f};
+    enum { N = sizeof pr / sizeof pr[0] };
+    rq_heap h;
+    cr_assert_eq(rq_heap_init(&h, 4, 0, NULL), 0);
+    for (uint32_t i = 0; i < N; i++) {
+        rq_item it = {rq_key(pr[i], i), i, 0, 0, 0, 0, 100 + i};
+        cr_assert_eq(rq_heap_push(&h, &it), 0);
+    }
+    uint64_t last = UINT64_MAX;
+    for (uint32_t i = 0; i < N; i++) {
+        cr_assert_eq(rq_heap_top_key(&h), rq_key(pr[rq_heap_top_tag(&h) - 100], rq_heap_top_tag(&h) - 100));
+        rq_item it;
+        cr_assert(rq_heap_pop(&h, &it));
+        cr_assert_lt(it.key, last, "pop %u out of order", i);
+        last = it.key;
+    }
+    cr_assert_eq(h.n, 0u);
+    cr_assert_eq(h.top, -1);
     rq_heap_free(&h);
 }
 
