@@ -381,6 +381,16 @@ static void make_children(rq_engine *e, uint64_t pid, const flight *f, float err
     }
 }
 
+void rq_report_prefetch(const rq_engine *e, const ct_sample *s)
+{
+    uint64_t id = s->request_id;
+    if (id >= e->fl_lo && id < e->next_id) __builtin_prefetch(&e->fl[id & (e->fl_cap - 1)], 1, 1);
+    if (e->ref.px) {
+        int64_t p = pixel_of(e, s->px, s->py);
+        if (p >= 0 && (size_t)p < e->ref.npx) __builtin_prefetch(&e->ref.px[p], 1, 1);
+    }
+}
+
 int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_error *err)
 {
     if (s->epoch < e->epoch) {

@@ -44,8 +44,8 @@ typedef struct rq_refine_ent {
 } rq_refine_ent;
 
 typedef struct rq_refine {
-    rq_pixel *px;
-    size_t npx;
+    rq_pixel *px;           /* npx records, mapped (px_bytes) */
+    size_t npx, px_bytes;
     int w, h;
     uint16_t tag;
     bool active;            /* every pixel was handed out: refining */

@@ -135,6 +135,11 @@ int rq_next_batch(rq_engine *e, ct_request *out, int n, ct_error *err);
  * outstanding or from a future epoch, CT_EINVAL for a non-finite E. */
 int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_error *err);
 
+/* Asks the caches for what rq_report(s) will touch that lies anywhere in
+ * megabytes (its request's record, its pixel's refinement state): a caller
+ * reporting a run of samples calls it a few samples ahead. */
+void rq_report_prefetch(const rq_engine *e, const ct_sample *s);
+
 /* A new camera with a new epoch (> the current one): drops every queued and
  * in-flight request, clears the mask, reprojects the significant samples
  * into the new view at prio_reproject. CT_EINVAL on an old epoch or a bad camera. */

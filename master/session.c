@@ -296,9 +296,13 @@ static void report_task(void *ctx)
     chunk *c = ctx;
     sess *s = c->s;
     for (uint32_t j = 0; j < c->m; j++) {
-        /* the map's line of a sample a few ahead (samples land anywhere in
-         * a map of megabytes: one cache miss each otherwise) */
-        if (j + 8 < c->m) prefetch_shown(s, &c->splat[j + 8]);
+        /* the map's line and the queue's records of a sample a few ahead
+         * (samples land anywhere in megabytes: one cache miss each
+         * otherwise) */
+        if (j + 8 < c->m) {
+            prefetch_shown(s, &c->splat[j + 8]);
+            rq_report_prefetch(s->rq, &c->splat[j + 8]);
+        }
         ct_sample *x = &c->splat[j];
         count(s, x, &c->info[j]);
         x->epoch = s->rq_epoch;
