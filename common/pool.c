@@ -175,6 +175,12 @@ void pool_run(ct_pool *p, size_t n, pool_fn fn, void *ctx)
     pthread_mutex_unlock(&p->mu);
 }
 
+/* Waits, holding p->mu, until no side job is pending or running. */
+static void side_idle(ct_pool *p)
+{
+    while (p->side_state != SIDE_NONE) pthread_cond_wait(&p->side_done, &p->mu);
+}
+
 void pool_side(ct_pool *p, pool_side_fn fn, void *ctx)
 {
     if (!p || p->n == 1) {
@@ -182,7 +188,7 @@ void pool_side(ct_pool *p, pool_side_fn fn, void *ctx)
         return;
     }
     pthread_mutex_lock(&p->mu);
-    while (p->side_state != SIDE_NONE) pthread_cond_wait(&p->side_done, &p->mu);
+    side_idle(p);
     p->side_fn = fn;
     p->side_ctx = ctx;
     p->side_state = SIDE_PENDING;
@@ -194,7 +200,7 @@ void pool_side_wait(ct_pool *p)
 {
     if (!p || p->n == 1) return;
     pthread_mutex_lock(&p->mu);
-    while (p->side_state != SIDE_NONE) pthread_cond_wait(&p->side_done, &p->mu);
+    side_idle(p);
     pthread_mutex_unlock(&p->mu);
 }
 

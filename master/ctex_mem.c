@@ -1,13 +1,16 @@
 /* ctex_mem.c: the pool of large texel arrays (ctex_mem.h). A few dozen
- * arrays at most: a linear best-fit search is all it needs. */
+ * arrays at most: a linear best-fit search is all it needs. Samples land
+ * anywhere in 5-15 million texels (tens of MiB), so arrays come from
+ * ct_huge_alloc (common/hugemem.h), huge pages from 2 MiB on; sizes are not
+ * rounded up (the tail past the last whole 2 MiB stays in small pages), so
+ * the memory cap's count (ctex_tex_bytes) stays true. */
 #include "master/ctex_mem.h"
 
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 
-enum { HUGE_PAGE = 2u << 20 };
+#include "common/hugemem.h"
 
 typedef struct block {
     void *p;
@@ -21,24 +24,6 @@ struct ctex_mem {
     size_t held, keep;
     size_t reused, fresh;
 };
-
-/* Samples land anywhere in 5-15 million texels (tens of MiB), so with
- * 4 KiB pages nearly every splat misses the TLB as well as the caches;
- * arrays of 2 MiB and more are aligned to 2 MiB and advised as huge pages
- * (transparent huge pages in "madvise" mode), which removes most page
- * walks. The size is not rounded up: the tail past the last whole 2 MiB
- * stays in small pages, so the memory cap's count (ctex_tex_bytes) stays
- * true. */
-static void *sys_get(size_t bytes)
-{
-    if (bytes < HUGE_PAGE) return malloc(bytes ? bytes : 1);
-    void *p = NULL;
-    if (posix_memalign(&p, HUGE_PAGE, bytes)) return NULL;
-#ifdef MADV_HUGEPAGE
-    (void)madvise(p, bytes, MADV_HUGEPAGE);   /* a hint: failure only costs speed */
-#endif
-    return p;
-}
 
 ctex_mem *ctex_mem_new(size_t keep_bytes)
 {
@@ -63,8 +48,8 @@ void ctex_mem_free(ctex_mem *m)
 
 void *ctex_mem_get(ctex_mem *m, size_t bytes)
 {
-    if (!m || bytes < HUGE_PAGE) return sys_get(bytes);
-    size_t slack = bytes / 4 > HUGE_PAGE ? bytes / 4 : HUGE_PAGE;
+    if (!m || bytes < CT_HUGE_PAGE) return ct_huge_alloc(bytes);
+    size_t slack = bytes / 4 > CT_HUGE_PAGE ? bytes / 4 : CT_HUGE_PAGE;
     pthread_mutex_lock(&m->lock);
     size_t best = m->n;
     for (size_t i = 0; i < m->n; i++)
@@ -82,13 +67,13 @@ void *ctex_mem_get(ctex_mem *m, size_t bytes)
         m->fresh++;
     }
     pthread_mutex_unlock(&m->lock);
-    return p ? p : sys_get(bytes);
+    return p ? p : ct_huge_alloc(bytes);
 }
 
 void ctex_mem_put(ctex_mem *m, void *p, size_t bytes)
 {
     if (!p) return;
-    if (!m || bytes < HUGE_PAGE || bytes > m->keep) {
+    if (!m || bytes < CT_HUGE_PAGE || bytes > m->keep) {
         free(p);
         return;
     }

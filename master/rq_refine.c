@@ -4,8 +4,8 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 
+#include "common/hugemem.h"
 #include "common/image.h"
 
 int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, ct_error *err)
@@ -14,17 +14,12 @@ int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, 
     memset(r, 0, sizeof *r);
     r->w = w;
     r->h = h;
-    /* Zero pages from the kernel, as huge pages where it gives them: every
-     * report touches its pixel's record, anywhere in 32 MiB at 1024^2, and
-     * with 4 KiB pages nearly every one missed the TLB (bench_rq "zero":
-     * rq_refine_add was 64 % of the queue's time). */
-    r->px_bytes = (npx ? npx : 1) * sizeof *r->px;
-    void *m = mmap(NULL, r->px_bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (m == MAP_FAILED) return ct_fail(err, CT_ENOMEM, "sampler: out of memory for the refinement of %zu pixels", npx);
-#ifdef MADV_HUGEPAGE
-    if (r->px_bytes >= (2u << 20)) (void)madvise(m, r->px_bytes, MADV_HUGEPAGE);
-#endif
-    r->px = m;
+    /* Every report updates its pixel's record, anywhere in 32 MiB at
+     * 1024^2: as huge pages (bench_rq "zero": rq_refine_add was 64 % of the
+     * queue's time with 4 KiB pages), zeroed by the kernel as touched. */
+    r->px_bytes = npx * sizeof *r->px;
+    r->px = ct_huge_zalloc(r->px_bytes);
+    if (!r->px) return ct_fail(err, CT_ENOMEM, "sampler: out of memory for the refinement of %zu pixels", npx);
     r->npx = npx;
     r->tag = 1;
     r->threshold = threshold;
@@ -34,7 +29,7 @@ int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, 
 
 void rq_refine_free(rq_refine *r)
 {
-    if (r->px) munmap(r->px, r->px_bytes);
+    ct_huge_zfree(r->px, r->px_bytes);
     free(r->heap);
     memset(r, 0, sizeof *r);
 }

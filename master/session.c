@@ -405,6 +405,17 @@ static void side_task(void *ctx)
     pop_portion(j->ahead, j->portion);
 }
 
+/* Classifies and splats chunk c while the side job runs beside it (none
+ * when it has nothing to do). */
+static void splat_beside(sess *s, chunk *c, const ct_sample *smp, uint32_t n, side_job *sj)
+{
+    classify(s, c, smp, n);
+    bool side = sj->report || sj->ahead;
+    if (side) pool_side(s->pool, side_task, sj);
+    ctex_insert_par(s->tex, s->pool, c->splat, c->m, c->info);
+    if (side) pool_side_wait(s->pool);
+}
+
 /* The chunks in order: each is classified and splatted, then reported
  * (refinement and late samples after). When a chunk has neither, its
  * report runs on another thread (a side job of the pool) while the next
@@ -419,34 +430,24 @@ static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink 
     uint32_t nchunks = (n + SESS_CHUNK - 1) / SESS_CHUNK;
     if (ahead) ahead->parts = nchunks;
     chunk *cur = &s->ch[0];
-    classify(s, cur, smp, n < SESS_CHUNK ? n : SESS_CHUNK);
     side_job sj = {NULL, ahead, 0};
-    if (ahead) pool_side(s->pool, side_task, &sj);
-    ctex_insert_par(s->tex, s->pool, cur->splat, cur->m, cur->info);
-    if (ahead) pool_side_wait(s->pool);
+    splat_beside(s, cur, smp, n < SESS_CHUNK ? n : SESS_CHUNK, &sj);
     for (uint32_t c = 0; c < nchunks; c++) {
         chunk *nxt = cur == &s->ch[0] ? &s->ch[1] : &s->ch[0];
         uint32_t at = (c + 1) * SESS_CHUNK, nn = c + 1 < nchunks ? (n - at < SESS_CHUNK ? n - at : SESS_CHUNK) : 0;
-        if (nn && s->nr == 0 && s->nl == 0) {
-            classify(s, nxt, smp + at, nn);
-            ct_error_clear(&cur->err);
-            sj = (side_job){cur, ahead, c + 1};
-            pool_side(s->pool, side_task, &sj);
-            ctex_insert_par(s->tex, s->pool, nxt->splat, nxt->m, nxt->info);
-            pool_side_wait(s->pool);
-            to_sink(s, cur, 0, k);
-        } else {
+        /* a chunk with refinement or late samples writes texels after its
+         * report: it is reported here, before the next chunk's splats */
+        bool beside = nn && s->nr == 0 && s->nl == 0;
+        if (!beside) {
             report_task(cur);
             refine_and_late(s, err);
-            to_sink(s, cur, s->nr, k);
-            if (nn) {
-                classify(s, nxt, smp + at, nn);
-                sj = (side_job){NULL, ahead, c + 1};
-                if (ahead) pool_side(s->pool, side_task, &sj);
-                ctex_insert_par(s->tex, s->pool, nxt->splat, nxt->m, nxt->info);
-                if (ahead) pool_side_wait(s->pool);
-            }
+            to_sink(s, cur, s->nr, k);   /* before classify overwrites the refinement samples */
         }
+        if (nn) {
+            sj = (side_job){beside ? cur : NULL, ahead, c + 1};
+            splat_beside(s, nxt, smp + at, nn, &sj);
+        }
+        if (beside) to_sink(s, cur, 0, k);
         cur = nxt;
     }
 }
