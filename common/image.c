@@ -2,8 +2,10 @@
 #include "common/fsutil.h"
 
 #include <errno.h>
+#include <math.h>
 #include <openexr.h>
 #include <png.h>
+#include <pthread.h>
 #include <setjmp.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -409,6 +411,49 @@ float img_tonemap(float linear, float exposure)
     if (v >= 1.0f) return 1.0f;
     /* sRGB OETF (IEC 61966-2-1). */
     return v <= 0.0031308f ? 12.92f * v : 1.055f * powf(v, 1.0f / 2.4f) - 0.055f;
+}
+
+/* The sRGB curve above its linear part (v > 0.0031308 > 2^-9) in steps of
+ * 2^-TM_STEP_BITS of an octave: floats from 2^-9 to 1 index the table by
+ * their exponent and top mantissa bits, and the step between two entries
+ * is linear (the curve is smooth enough there for 2e-7). */
+#define TM_STEP_BITS 10
+#define TM_OCTAVES 9
+#define TM_LO_BITS 0x3b000000u   /* 2^-9 */
+static float tm_table[(TM_OCTAVES << TM_STEP_BITS) + 1];
+static pthread_once_t tm_once = PTHREAD_ONCE_INIT;
+
+static void tm_init(void)
+{
+    for (uint32_t i = 0; i <= (TM_OCTAVES << TM_STEP_BITS); i++) {
+        uint32_t bits = TM_LO_BITS + (i << (23 - TM_STEP_BITS));
+        float v;
+        memcpy(&v, &bits, sizeof v);
+        tm_table[i] = (float)(1.055 * pow((double)v, 1.0 / 2.4) - 0.055);
+    }
+}
+
+void img_tonemap_n(const float *linear, float *out, size_t n)
+{
+    pthread_once(&tm_once, tm_init);
+    const float frac_scale = 1.0f / (float)(1u << (23 - TM_STEP_BITS));
+    for (size_t i = 0; i < n; i++) {
+        float v = linear[i];
+        if (!(v > 0.0031308f)) {
+            out[i] = v > 0.0f ? 12.92f * v : 0.0f;   /* negative and NaN: 0 */
+            continue;
+        }
+        if (v >= 1.0f) {
+            out[i] = 1.0f;
+            continue;
+        }
+        uint32_t bits;
+        memcpy(&bits, &v, sizeof bits);
+        uint32_t off = bits - TM_LO_BITS;
+        uint32_t k = off >> (23 - TM_STEP_BITS);
+        float t = (float)(off & ((1u << (23 - TM_STEP_BITS)) - 1)) * frac_scale;
+        out[i] = tm_table[k] + (tm_table[k + 1] - tm_table[k]) * t;
+    }
 }
 
 float img_tonemap_slope(float linear)

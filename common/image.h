@@ -46,6 +46,12 @@ int img_write_exr(const char *path, const ct_image *img, img_pixel_type type, ct
 /* sRGB-encoded display value in [0, 1] of a linear value times 2^exposure. */
 float img_tonemap(float linear, float exposure);
 
+/* img_tonemap at exposure 0 of n values (in and out may be the same
+ * array): a table with linear steps in place of powf, within 2e-7 of
+ * img_tonemap; for metrics over whole frames, where powf per channel cost
+ * more than the rest of the comparison. */
+void img_tonemap_n(const float *linear, float *out, size_t n);
+
 /* The slope of img_tonemap at exposure 0, d(display) / d(linear), at
  * `linear` taken into [0, 1] (12.92 at and below 0.0031308, 0.44 at 1 and
  * above): how much a linear error moves what a viewer sees there. */

@@ -69,10 +69,62 @@ static long first_non_finite(const ct_image *img)
     return -1;
 }
 
-int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct_error *err)
+struct metrics_ref {
+    const ct_image *img;
+    float *srgb;    /* tone-mapped R, G, B */
+    float *luma;    /* Rec. 709 luma of srgb */
+    float *rel_w;   /* 1 / (ref^2 + RELMSE_EPS) per channel */
+};
+
+void metrics_ref_free(metrics_ref *r)
 {
-    if (!a || !ref || !a->px || !ref->px || a->width < 1 || a->height < 1)
-        return ct_fail(err, CT_EINVAL, "metrics: empty image");
+    if (!r) return;
+    free(r->srgb);
+    free(r->luma);
+    free(r->rel_w);
+    free(r);
+}
+
+int metrics_ref_new(const ct_image *ref, metrics_ref **out, ct_error *err)
+{
+    *out = NULL;
+    if (!ref || !ref->px || ref->width < 1 || ref->height < 1) return ct_fail(err, CT_EINVAL, "metrics: empty image");
+    long bad = first_non_finite(ref);
+    if (bad >= 0)
+        return ct_fail(err, CT_EINVAL, "reference has a non-finite value at pixel (%ld, %ld)", bad % ref->width,
+                       bad / ref->width);
+    size_t npx = (size_t)ref->width * (size_t)ref->height;
+    metrics_ref *r = calloc(1, sizeof *r);
+    if (r) {
+        r->img = ref;
+        r->srgb = malloc(3 * npx * sizeof *r->srgb);
+        r->luma = malloc(npx * sizeof *r->luma);
+        r->rel_w = malloc(3 * npx * sizeof *r->rel_w);
+    }
+    if (!r || !r->srgb || !r->luma || !r->rel_w) {
+        metrics_ref_free(r);
+        return ct_fail(err, CT_ENOMEM, "metrics: out of memory for a %dx%d reference", ref->width, ref->height);
+    }
+    img_tonemap_n(ref->px, r->srgb, 3 * npx);
+    for (size_t p = 0; p < npx; p++) {
+        const float *s = r->srgb + 3 * p;
+        r->luma[p] = v3_luminance(v3(s[0], s[1], s[2]));
+        for (int c = 0; c < 3; c++) {
+            double vb = ref->px[3 * p + c];
+            r->rel_w[3 * p + c] = (float)(1.0 / (vb * vb + RELMSE_EPS));
+        }
+    }
+    *out = r;
+    return CT_OK;
+}
+
+/* Rows at a time, so the tone-mapped copy of a stays in cache. */
+#define CMP_ROWS 16
+
+int metrics_compare_ref(const ct_image *a, const metrics_ref *r, int what, img_metrics *out, ct_error *err)
+{
+    const ct_image *ref = r->img;
+    if (!a || !a->px || a->width < 1 || a->height < 1) return ct_fail(err, CT_EINVAL, "metrics: empty image");
     if (a->width != ref->width || a->height != ref->height)
         return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs reference %dx%d", a->width,
                        a->height, ref->width, ref->height);
@@ -81,44 +133,56 @@ int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct
     if (bad >= 0)
         return ct_fail(err, CT_EINVAL, "non-finite value at pixel (%ld, %ld)", bad % a->width,
                        bad / a->width);
-    bad = first_non_finite(ref);
-    if (bad >= 0)
-        return ct_fail(err, CT_EINVAL, "reference has a non-finite value at pixel (%ld, %ld)",
-                       bad % ref->width, bad / ref->width);
 
     int w = a->width, h = a->height;
     size_t npx = (size_t)w * (size_t)h;
-    float *ya = malloc(npx * sizeof *ya), *yb = malloc(npx * sizeof *yb);
+    size_t chunk = 3 * (size_t)w * CMP_ROWS;
+    float *sa = malloc(chunk * sizeof *sa);
+    float *ya = what & METRICS_SSIM ? malloc(npx * sizeof *ya) : NULL;
     int *ox = malloc(((size_t)w / SSIM_STRIDE + 2) * sizeof *ox);
     int *oy = malloc(((size_t)h / SSIM_STRIDE + 2) * sizeof *oy);
-    if (!ya || !yb || !ox || !oy) {
-        free(ya); free(yb); free(ox); free(oy);
+    if (!sa || !ox || !oy || (what & METRICS_SSIM && !ya)) {
+        free(sa); free(ya); free(ox); free(oy);
         return ct_fail(err, CT_ENOMEM, "metrics: out of memory for %dx%d images", w, h);
     }
     double se = 0.0, rel = 0.0, se_srgb = 0.0;
-    for (size_t p = 0; p < npx; p++) {
-        float sa[3], sb[3];
-        for (int c = 0; c < 3; c++) {
-            double va = a->px[3 * p + c], vb = ref->px[3 * p + c], d = va - vb;
-            se += d * d;
-            rel += d * d / (vb * vb + RELMSE_EPS);
-            sa[c] = img_tonemap(a->px[3 * p + c], 0.0f);
-            sb[c] = img_tonemap(ref->px[3 * p + c], 0.0f);
-            double ds = (double)sa[c] - sb[c];
+    for (size_t i0 = 0; i0 < 3 * npx; i0 += chunk) {
+        size_t n = 3 * npx - i0 < chunk ? 3 * npx - i0 : chunk;
+        const float *pa = a->px + i0, *pb = ref->px + i0, *sb = r->srgb + i0, *wr = r->rel_w + i0;
+        img_tonemap_n(pa, sa, n);
+        for (size_t i = 0; i < n; i++) {
+            double d = (double)pa[i] - pb[i], dd = d * d, ds = (double)sa[i] - sb[i];
+            se += dd;
+            rel += dd * wr[i];
             se_srgb += ds * ds;
         }
-        /* Rec. 709 weights on the encoded values (luma). */
-        ya[p] = v3_luminance(v3(sa[0], sa[1], sa[2]));
-        yb[p] = v3_luminance(v3(sb[0], sb[1], sb[2]));
+        if (ya)   /* Rec. 709 weights on the encoded values (luma). */
+            for (size_t p = 0; p < n / 3; p++)
+                ya[i0 / 3 + p] = v3_luminance(v3(sa[3 * p], sa[3 * p + 1], sa[3 * p + 2]));
     }
     double nv = 3.0 * (double)npx;
     double mse_srgb = se_srgb / nv;
     out->rmse = sqrt(se / nv);
     out->rel_mse = rel / nv;
     out->psnr = mse_srgb > 0.0 ? 10.0 * log10(1.0 / mse_srgb) : INFINITY;
-    out->ssim = ssim_planes(ya, yb, w, h, ox, oy);
-    free(ya); free(yb); free(ox); free(oy);
+    out->ssim = ya ? ssim_planes(ya, r->luma, w, h, ox, oy) : NAN;
+    free(sa); free(ya); free(ox); free(oy);
     return CT_OK;
+}
+
+int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct_error *err)
+{
+    if (!a || !ref || !a->px || !ref->px || a->width < 1 || a->height < 1)
+        return ct_fail(err, CT_EINVAL, "metrics: empty image");
+    if (a->width != ref->width || a->height != ref->height)
+        return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs reference %dx%d", a->width,
+                       a->height, ref->width, ref->height);
+    metrics_ref *r;
+    int rc = metrics_ref_new(ref, &r, err);
+    if (rc) return rc;
+    rc = metrics_compare_ref(a, r, METRICS_SSIM, out, err);
+    metrics_ref_free(r);
+    return rc;
 }
 
 static double px_mean(const ct_image *img, int x, int y)

@@ -17,6 +17,22 @@ typedef struct img_metrics {
 /* Compares a against reference ref; the sizes must match. */
 int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct_error *err);
 
+/* A reference prepared once for comparing many images with it (a
+ * display's frames, a run's checkpoints): its checks, tone mapping and
+ * luminance are done in metrics_ref_new, so a comparison tone-maps one
+ * image, not two. It keeps a pointer to ref: ref must outlive it. */
+typedef struct metrics_ref metrics_ref;
+
+int metrics_ref_new(const ct_image *ref, metrics_ref **out, ct_error *err);
+void metrics_ref_free(metrics_ref *r);
+
+/* What metrics_compare_ref computes: SSIM costs as much as the rest. */
+enum { METRICS_NO_SSIM = 0, METRICS_SSIM = 1 };
+
+/* metrics_compare against a prepared reference; with METRICS_NO_SSIM,
+ * out->ssim is NaN. */
+int metrics_compare_ref(const ct_image *a, const metrics_ref *ref, int what, img_metrics *out, ct_error *err);
+
 /* Region means: a bias that the whole image's error hides under noise
  * shows in the means of blocks, whose noise falls with their pixel count.
  * A block (block x block pixels; partial blocks at the right and bottom

@@ -42,6 +42,7 @@ struct disp_capture {
     char ref_dir[2048];
     bool has_ref;
     ct_image ref_one;   /* one reference for every frame (ref_dir unused) */
+    metrics_ref *ref_prep; /* ref_one prepared: a frame's comparison tone-maps only the frame */
     bool images;
     float exposure;
     char *csv;          /* rows so far */
@@ -66,8 +67,9 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
     struct stat st;
     if (ref && stat(ref, &st) == 0 && S_ISREG(st.st_mode)) {
         /* One image: a still view's converged reference. */
-        if ((rc = img_read_exr(ref, &c->ref_one, err))) {
+        if ((rc = img_read_exr(ref, &c->ref_one, err)) || (rc = metrics_ref_new(&c->ref_one, &c->ref_prep, err))) {
             ct_error_prefix(err, "reference");
+            img_free(&c->ref_one);
             free(c);
             return rc;
         }
@@ -83,6 +85,7 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
     if (pthread_create(&c->writer, NULL, writer_main, c)) {
         pthread_mutex_destroy(&c->mu);
         pthread_cond_destroy(&c->cv);
+        metrics_ref_free(c->ref_prep);
         img_free(&c->ref_one);
         free(c);
         return ct_fail(err, CT_ESYS, "cannot start the frame writer thread");
@@ -154,8 +157,13 @@ static int write_frame(disp_capture *c, const disp_frame_info *fi, const float *
                 return rc;
             }
         }
+        /* The writer shares the display's cores: the CSV has no SSIM
+         * column, so none is computed. */
         img_metrics m;
-        rc = metrics_compare(&img, &ref, &m, err);
+        metrics_ref *prep = c->ref_prep;
+        rc = prep ? 0 : metrics_ref_new(&ref, &prep, err);
+        if (!rc) rc = metrics_compare_ref(&img, prep, METRICS_NO_SSIM, &m, err);
+        if (prep != c->ref_prep) metrics_ref_free(prep);
         if (!c->ref_one.px) img_free(&ref);
         if (rc) {
             ct_error_prefix(err, path);
@@ -258,6 +266,7 @@ int disp_capture_close(disp_capture *c, ct_error *err)
     pthread_mutex_destroy(&c->mu);
     pthread_cond_destroy(&c->cv);
     for (int i = 0; i < SLOTS; i++) free(c->jobs[i].rgb);
+    metrics_ref_free(c->ref_prep);
     img_free(&c->ref_one);
     free(c->csv);
     free(c);

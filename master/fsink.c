@@ -22,6 +22,7 @@ struct fsink {
     const ctex_hit *hits;
     int spp;               /* hits per pixel */
     ct_image ref;          /* the phase's reference (px NULL when none) */
+    metrics_ref *ref_prep; /* ref prepared for the phase's checkpoints */
     ct_image comp, hq, aux;
     uint8_t *covered;      /* pixel has a sample of the current phase */
     char phase[32], prefix[32];
@@ -60,6 +61,7 @@ void fsink_free(fsink *k)
 {
     if (!k) return;
     if (k->csv) fs_atomic_abort(&k->csv_at);
+    metrics_ref_free(k->ref_prep);
     img_free(&k->ref);
     img_free(&k->comp);
     img_free(&k->hq);
@@ -163,7 +165,7 @@ static int checkpoint(fsink *k, sess *s, const char *phase, const char *stem, lo
         if ((rc = write_samples(k, sstem, err))) return rc;
     }
     img_metrics m = {NAN, NAN, NAN, NAN};
-    if (k->ref.px && (rc = metrics_compare(&k->comp, &k->ref, &m, err))) return rc;
+    if (k->ref_prep && (rc = metrics_compare_ref(&k->comp, k->ref_prep, METRICS_SSIM, &m, err))) return rc;
     double vr, vp;
     vs_samples(k, &vr, &vp);
     ctex_stats st = ctex_get_stats(c);
@@ -230,6 +232,8 @@ int fsink_phase(fsink *k, const char *phase, const char *prefix, const ctex_hit 
     k->spp = spp;
     k->done = 0;
     memset(k->covered, 0, (size_t)k->c.width * (size_t)k->c.height);
+    metrics_ref_free(k->ref_prep);
+    k->ref_prep = NULL;
     img_free(&k->ref);
     if (!ref) return CT_OK;
     int rc = img_read_exr(ref, &k->ref, err);
@@ -237,7 +241,8 @@ int fsink_phase(fsink *k, const char *phase, const char *prefix, const ctex_hit 
     if (k->ref.width != k->c.width || k->ref.height != k->c.height)
         return ct_fail(err, CT_EINVAL, "%s is %dx%d, the run is %dx%d", ref, k->ref.width, k->ref.height, k->c.width,
                        k->c.height);
-    return CT_OK;
+    if ((rc = metrics_ref_new(&k->ref, &k->ref_prep, err))) ct_error_prefix(err, ref);
+    return rc;
 }
 
 int fsink_snapshot(fsink *k, sess *s, const char *name, ct_error *err)

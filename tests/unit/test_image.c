@@ -569,6 +569,34 @@ Test(image, tonemap_values)
     }
 }
 
+Test(image, tonemap_n_matches_tonemap)
+{
+    /* Every float from 2^-12 to 2 in steps of 2^-8 of an octave (the whole
+     * curve, both sides of the table's 2^-9 and of 0.0031308), then the
+     * special values; in place as well. */
+    static float in[20000], out[20000];
+    size_t n = 0;
+    for (uint32_t bits = 0x39800000u; bits <= 0x40000000u && n < 19990; bits += 1u << 15) {
+        float v;
+        memcpy(&v, &bits, sizeof v);
+        in[n++] = v;
+    }
+    const float special[] = {0.0f, -0.0f, -1.0f, NAN, INFINITY, -INFINITY, 1.0f, 0.0031308f, 0.99999994f, 1e-30f};
+    for (size_t i = 0; i < sizeof special / sizeof *special; i++) in[n++] = special[i];
+    img_tonemap_n(in, out, n);
+    float worst = 0.0f;
+    for (size_t i = 0; i < n; i++) {
+        float want = img_tonemap(in[i], 0.0f), d = fabsf(out[i] - want);
+        cr_assert(d <= 2e-7f, "value %.9g: %.9g vs img_tonemap %.9g", (double)in[i], (double)out[i], (double)want);
+        if (d > worst) worst = d;
+        if (i && in[i] > in[i - 1] && in[i] > 0.0f) cr_assert_geq(out[i], out[i - 1], "monotonic at %.9g", (double)in[i]);
+    }
+    cr_log_info("tonemap_n: %zu values, largest difference %.3g", n, (double)worst);
+    memcpy(out, in, n * sizeof *in);
+    img_tonemap_n(out, out, n);
+    for (size_t i = 0; i < n; i++) cr_assert(fabsf(out[i] - img_tonemap(in[i], 0.0f)) <= 2e-7f);
+}
+
 Test(image, png_tone_mapping_roundtrip)
 {
     ct_image a, b;

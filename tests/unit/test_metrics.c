@@ -190,6 +190,52 @@ Test(metrics, non_finite_is_an_error)
     img_free(&b);
 }
 
+Test(metrics, prepared_reference_gives_the_same_metrics)
+{
+    /* Noise over a gradient: the prepared reference's metrics equal
+     * metrics_compare's, for several images against one reference; without
+     * SSIM the rest is unchanged and ssim is NaN. */
+    int w = 70, h = 41;   /* rows not a multiple of the comparison's row chunk */
+    ct_image ref = make(w, h, 0, 0, 0), a = make(w, h, 0, 0, 0);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            float v = 0.002f + 1.2f * (float)(x * y) / (float)(w * h);
+            img_set(&ref, x, y, v3(v, 0.5f * v, 0.25f + 0.5f * v));
+        }
+    metrics_ref *r;
+    ct_error err;
+    cr_assert_eq(metrics_ref_new(&ref, &r, &err), 0, "%s", err.msg);
+    for (int k = 0; k < 3; k++) {
+        ct_rng g = rng_make(11, (uint64_t)k, 0, 0);
+        for (size_t i = 0; i < (size_t)w * h * 3; i++) a.px[i] = ref.px[i] + 0.05f * (float)k * (rng_float(&g) - 0.4f);
+        img_metrics m = compare_ok(&a, &ref), p, q;
+        cr_assert_eq(metrics_compare_ref(&a, r, METRICS_SSIM, &p, &err), 0, "%s", err.msg);
+        cr_assert_eq(metrics_compare_ref(&a, r, METRICS_NO_SSIM, &q, &err), 0, "%s", err.msg);
+        cr_assert_float_eq(p.rmse, m.rmse, 1e-12);
+        cr_assert_float_eq(p.rel_mse, m.rel_mse, 1e-9 * m.rel_mse + 1e-15);
+        if (k) cr_assert_float_eq(p.psnr, m.psnr, 1e-9);
+        else cr_assert(isinf(p.psnr) && isinf(m.psnr));
+        cr_assert_float_eq(p.ssim, m.ssim, 1e-12);
+        cr_assert_eq(q.rmse, p.rmse);
+        cr_assert_eq(q.psnr, p.psnr);
+        cr_assert(isnan(q.ssim));
+    }
+    ct_image small = make(w - 1, h, 0, 0, 0);
+    img_metrics m;
+    cr_assert_eq(metrics_compare_ref(&small, r, METRICS_NO_SSIM, &m, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "sizes differ") != NULL, "%s", err.msg);
+    img_set(&a, 1, 2, v3(NAN, 0, 0));
+    cr_assert_eq(metrics_compare_ref(&a, r, METRICS_NO_SSIM, &m, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "(1, 2)") != NULL, "%s", err.msg);
+    metrics_ref_free(r);
+    img_set(&ref, 3, 4, v3(0, INFINITY, 0));
+    cr_assert_eq(metrics_ref_new(&ref, &r, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "reference") != NULL && strstr(err.msg, "(3, 4)") != NULL, "%s", err.msg);
+    img_free(&small);
+    img_free(&a);
+    img_free(&ref);
+}
+
 static img_regions regions_ok(const ct_image *a, const ct_image *ref, const ct_image *planes, const ct_image *flat,
                               double flat_ratio, int block)
 {
