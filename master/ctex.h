@@ -175,15 +175,20 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
  * splatted. */
 size_t ctex_insert_par(ctex *c, ct_pool *pool, const ct_sample *s, size_t n, ctex_insert_info *info);
 
-/* Refinement samples as ctex_refine, with their pixel means dl[i], grouped
- * the same way. */
-size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl, size_t n, ctex_insert_info *info);
+/* Refinement samples as ctex_refine, the pixel's sample count of s[i] in
+ * n_px[i], grouped the same way. */
+size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t *n_px, size_t n,
+                       ctex_insert_info *info);
 
-/* A refinement sample (docs/sampling.md, "Refinement"): its texel takes dl,
- * the mean correction of its pixel's samples, instead of a splat; info as
- * ctex_insert (E against what was displayed before). Returns 1 when
- * written, 0 when dropped. */
-int ctex_refine(ctex *c, const ct_sample *s, vec3 dl, ctex_insert_info *info);
+/* A refinement sample (docs/sampling.md, "Refinement"), its pixel's n_px-th
+ * (n_px >= 2): instead of a splat, the texels the display reads for its
+ * pixel move towards its correction L_hq - L_base as a running mean in
+ * which the first pass's value there counts as (2 - m) / m samples, m the
+ * texture's mixing weight (docs/textures.md, "Mixing": the first pass's
+ * mixed value is worth that many samples; 1 unmixed). info as ctex_insert
+ * (E against what was displayed before). Returns 1 when written, 0 when
+ * dropped. */
+int ctex_refine(ctex *c, const ct_sample *s, uint16_t n_px, ctex_insert_info *info);
 
 /* The correction the display shows at world point p on mesh triangle tri of
  * scene part `node` (tri = UINT32_MAX when unknown; only parts split into

@@ -205,10 +205,11 @@ static bool texel_of_ray(const ctex *c, const ctex_tex *t, vec3 p, float x, floa
     return isfinite(*tx) && isfinite(*ty);
 }
 
-/* Writes refinement sample s's pixel mean dl on texture id. */
-static int refine_at(ctex *c, const ct_sample *s, int32_t id, vec3 dl, ctex_insert_info *info)
+/* Writes refinement sample s, its pixel's n_px-th, on texture id. */
+static int refine_at(ctex *c, const ct_sample *s, int32_t id, uint16_t n_px, ctex_insert_info *info)
 {
     int ci, cj;
+    vec3 dl = v3_sub(s->l_hq, s->l_base);
     if (locate_at(c, s, id, info, &ci, &cj) < 0 || !v3_finite(dl)) return 0;
     ctex_tex *t = &c->slots[id].t;
     /* The texels the display reads for this pixel: those whose centres lie
@@ -233,14 +234,23 @@ static int refine_at(ctex *c, const ct_sample *s, int32_t id, vec3 dl, ctex_inse
         e = e < cj - 4 ? cj - 4 : (e > cj ? cj : e);
         f = f > cj + 4 ? cj + 4 : (f < cj ? cj : f);
     }
-    ctex_tex_refine(t, a < 0 ? 0 : a, e < 0 ? 0 : e, b >= t->w ? t->w - 1 : b, f >= t->h ? t->h - 1 : f, cj, dl);
+    /* The first pass's value is the prior: with mixing weight m it is a
+     * running average of about (2 - m) / m samples (docs/textures.md,
+     * "Mixing"), less noisy than the pixel's first few samples, which it
+     * replaced when the pixel's plain mean was written here (a still
+     * view's PSNR then fell for a while after full coverage); the pixel's
+     * samples outweigh it as they come. */
+    float m = c->slots[id].mix;
+    float prior = m > 0.0f ? (2.0f - m) / m : 1.0f;
+    float w = 1.0f / (prior + (float)(n_px < 2 ? 2 : n_px) - 1.0f);
+    ctex_tex_refine(t, a < 0 ? 0 : a, e < 0 ? 0 : e, b >= t->w ? t->w - 1 : b, f >= t->h ? t->h - 1 : f, cj, dl, w);
     return 1;
 }
 
-int ctex_refine(ctex *c, const ct_sample *s, vec3 dl, ctex_insert_info *info)
+int ctex_refine(ctex *c, const ct_sample *s, uint16_t n_px, ctex_insert_info *info)
 {
     int32_t id = owner(c, s, info);
-    int ok = id >= 0 && refine_at(c, s, id, dl, info);
+    int ok = id >= 0 && refine_at(c, s, id, n_px, info);
     if (ok) c->st.inserted++;
     else c->st.dropped++;
     return ok;
@@ -293,7 +303,7 @@ enum { PAR_MIN_SAMPLES = 1024 };   /* fewer samples are splatted by the calling 
 typedef struct par_job {
     ctex *c;
     const ct_sample *s;
-    const vec3 *dl;            /* refinement: the pixel means; NULL: splats */
+    const uint16_t *n_px;      /* refinement: the samples' pixel counts; NULL: splats */
     ctex_insert_info *info;
     size_t n;
 } par_job;
@@ -329,7 +339,7 @@ static void group_task(void *ctx, int worker, size_t task)
     for (uint32_t k = 0; k < n; k++) {
         uint32_t i = ix[k];
         if (k + AHEAD < n) prefetch_sample(c, &j->s[ix[k + AHEAD]], (int32_t)id, &hint[(k + AHEAD) % (2 * AHEAD)]);
-        if (j->dl) done += (uint32_t)refine_at(c, &j->s[i], (int32_t)id, j->dl[i], &j->info[i]);
+        if (j->n_px) done += (uint32_t)refine_at(c, &j->s[i], (int32_t)id, j->n_px[i], &j->info[i]);
         else done += (uint32_t)insert_at(c, &j->s[i], (int32_t)id, &j->info[i], &hint[k % (2 * AHEAD)], 1);
     }
     c->par_done[id] = done;
@@ -371,17 +381,19 @@ static int by_key(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl, size_t n, ctex_insert_info *info)
+static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t *n_px, size_t n,
+                      ctex_insert_info *info)
 {
     if (n == 0) return 0;
     if (par_scratch(c, n)) {
         /* without scratch memory: one sample at a time (resolution changes
          * then come at once, as with ctex_insert) */
         size_t done = 0;
-        for (size_t i = 0; i < n; i++) done += (size_t)(dl ? ctex_refine(c, &s[i], dl[i], &info[i]) : ctex_insert(c, &s[i], &info[i]));
+        for (size_t i = 0; i < n; i++)
+            done += (size_t)(n_px ? ctex_refine(c, &s[i], n_px[i], &info[i]) : ctex_insert(c, &s[i], &info[i]));
         return done;
     }
-    par_job j = {c, s, dl, info, n};
+    par_job j = {c, s, n_px, info, n};
     pool_run(pool, (n + OWNER_TASK - 1) / OWNER_TASK, owner_task, &j);
     /* group the samples by texture (a counting sort keeps their order) */
     memset(c->par_count, 0, c->nslots * sizeof *c->par_count);
@@ -419,7 +431,7 @@ static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl
     }
     c->st.inserted += done;
     c->st.dropped += dropped;
-    if (!dl) apply_resizes(c, pool);
+    if (!n_px) apply_resizes(c, pool);
     return done;
 }
 
@@ -428,7 +440,8 @@ size_t ctex_insert_par(ctex *c, ct_pool *pool, const ct_sample *s, size_t n, cte
     return run_par(c, pool, s, NULL, n, info);
 }
 
-size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *dl, size_t n, ctex_insert_info *info)
+size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t *n_px, size_t n,
+                       ctex_insert_info *info)
 {
-    return run_par(c, pool, s, dl, n, info);
+    return run_par(c, pool, s, n_px, n, info);
 }

@@ -198,14 +198,20 @@ static inline void grow_dirty(ctex_tex *t, int ci, int cj, int ex, int ey)
     ctex_dirty_mark(&t->d, x0, y0, x1, y1, cj);
 }
 
-void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value)
+void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value, float w)
 {
     ctex_tex_keep_base(t);
     for (int y = y0; y <= y1; y++)
         for (int x = x0; x <= x1; x++) {
             ctex_texel *p = ctex_tex_at(t, x, y);
             float v = ctex_tex_v(t, p);
-            ctex_texel_set(t, p, value, v > t->vmax ? v : t->vmax);
+            vec3 to = value;
+            if (ctex_texel_valid(p)) {
+                float o[4];
+                ctex_texel_rgbx(p, o);
+                to = v3(o[0] + w * (value.x - o[0]), o[1] + w * (value.y - o[1]), o[2] + w * (value.z - o[2]));
+            }
+            ctex_texel_set(t, p, to, v > t->vmax ? v : t->vmax);
         }
     ctex_dirty_mark(&t->d, x0, y0, x1 + 1, y1 + 1, cy);
 }

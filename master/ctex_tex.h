@@ -171,12 +171,14 @@ void ctex_tex_release(ctex_tex *t);
  * the texels it visited unsent (ctex_dirty_mark). */
 int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r);
 
-/* Sets the texels [x0, x1] x [y0, y1] (inclusive, inside the texture) to
- * value (refinement: the mean of a pixel's samples, written where the
- * display reads that pixel), at least as valid as a new sample's centre,
- * and marks them unsent, counting one sample in texel row cy. No rings: the
- * Voronoi cells around keep their owners. */
-void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value);
+/* Moves the texels [x0, x1] x [y0, y1] (inclusive, inside the texture) by
+ * w towards value (refinement: a further sample of a pixel, written where
+ * the display reads that pixel: each texel a running mean in which its
+ * value before counts as 1 / w - 1 samples; an empty texel takes value),
+ * at least as valid as a new sample's centre, and marks them unsent,
+ * counting one sample in texel row cy. No rings: the Voronoi cells around
+ * keep their owners. */
+void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 value, float w);
 
 /* Anisotropic splats: ex in (CTEX_ANISO_ISO, 1 / CTEX_ANISO_ISO) splats
  * square rings; ex is clamped to [1 / CTEX_ANISO_MAX, CTEX_ANISO_MAX]. */

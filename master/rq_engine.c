@@ -597,3 +597,9 @@ vec3 rq_pixel_mean(const rq_engine *e, float px, float py)
     int64_t p = pixel_of(e, px, py);
     return p < 0 ? v3s(0.0f) : rq_refine_mean(&e->ref, (uint32_t)p);
 }
+
+uint16_t rq_pixel_samples(const rq_engine *e, float px, float py)
+{
+    int64_t p = pixel_of(e, px, py);
+    return p < 0 ? 0 : rq_refine_samples(&e->ref, (uint32_t)p);
+}

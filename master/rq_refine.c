@@ -265,6 +265,12 @@ bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio)
     return false;
 }
 
+uint16_t rq_refine_samples(const rq_refine *r, uint32_t p)
+{
+    if (!r->px || p >= r->npx || r->px[p].tag != r->tag) return 0;
+    return r->px[p].n;
+}
+
 vec3 rq_refine_mean(const rq_refine *r, uint32_t p)
 {
     if (!r->px || p >= r->npx || r->px[p].tag != r->tag) return v3s(0.0f);

@@ -12,7 +12,8 @@
  * variance is shrunk towards its neighbours' where theirs is larger (a few
  * samples that agree by chance prove nothing beside noisy ones); pixels
  * under the threshold get no more.
- * The master writes a pixel's mean into its texel (ctex_refine). Pixel state
+ * The master moves the pixel's texels towards each further sample
+ * (ctex_refine, with the pixel's count from rq_refine_samples). Pixel state
  * carries the epoch it belongs to, so a camera change costs nothing.
  * Owns the rq_refine_ prefix; internal to the request queue (rq_engine.c). */
 #ifndef CT_MASTER_RQ_REFINE_H
@@ -82,6 +83,9 @@ bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio);
 
 /* The mean dL of pixel p (zero without samples). */
 vec3 rq_refine_mean(const rq_refine *r, uint32_t p);
+
+/* Pixel p's samples in this epoch (those on another node included). */
+uint16_t rq_refine_samples(const rq_refine *r, uint32_t p);
 
 /* The priority pixel p's next sample would have: the uncertainty of its
  * mean as a viewer sees it, in display units at exposure 0 (linear

@@ -45,7 +45,7 @@ typedef enum rq_norm {
 enum {
     RQ_REPORT_STALE    = 1,  /* the sample belongs to an older epoch: ignored */
     RQ_REPORT_MISMATCH = 2,  /* hit node != shown node */
-    RQ_REPORT_REFINE   = 4   /* a refinement sample in its pixel's mean (rq_pixel_mean): write it */
+    RQ_REPORT_REFINE   = 4   /* a refinement sample in its pixel's mean: write it (ctex_refine) */
 };
 
 /* Every tunable parameter, with its default (rq_options_default). */
@@ -146,13 +146,16 @@ void rq_report_prefetch(const rq_engine *e, const ct_sample *s);
 int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *err);
 
 /* Whether outstanding request id is a refinement request (its sample is not
- * splatted: the caller writes the pixel's mean, rq_pixel_mean, after
- * rq_report when that says RQ_REPORT_REFINE). */
+ * splatted: the caller writes it into its pixel's texels, ctex_refine with
+ * rq_pixel_samples, after rq_report when that says RQ_REPORT_REFINE). */
 bool rq_refines(const rq_engine *e, uint64_t id);
 
 /* The mean correction dL of the samples of the pixel at image position
  * (px, py) in the current view (docs/sampling.md, "Refinement"). */
 vec3 rq_pixel_mean(const rq_engine *e, float px, float py);
+
+/* How many samples the pixel at (px, py) has had in the current view. */
+uint16_t rq_pixel_samples(const rq_engine *e, float px, float py);
 
 /* Fills *st. */
 void rq_stats_get(const rq_engine *e, rq_stats *st);

@@ -48,7 +48,7 @@ struct sess {
     /* the refinement and late samples of the chunk classified last */
     ct_sample *refine, *write;           /* write: the refinement samples that write their pixel's mean */
     ct_sample *late;                     /* of an older view, view-independent */
-    vec3 *means;
+    uint16_t *npx;   /* the refinement writes' pixel sample counts */
     uint32_t nr, nl;
     ctex_insert_info *info;              /* refinement writes and late splats */
 };
@@ -91,9 +91,9 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
     s->refine = malloc(SESS_CHUNK * sizeof *s->refine);
     s->late = malloc(SESS_CHUNK * sizeof *s->late);
     s->write = malloc(SESS_CHUNK * sizeof *s->write);
-    s->means = malloc(SESS_CHUNK * sizeof *s->means);
+    s->npx = malloc(SESS_CHUNK * sizeof *s->npx);
     s->info = malloc(SESS_CHUNK * sizeof *s->info);
-    int rc = s->ch[0].splat && s->ch[0].info && s->ch[1].splat && s->ch[1].info && s->refine && s->late && s->write && s->means && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
+    int rc = s->ch[0].splat && s->ch[0].info && s->ch[1].splat && s->ch[1].info && s->refine && s->late && s->write && s->npx && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
     if (!rc) rc = pool_new(threads, &s->pool, err);
     if (!rc) rc = ctex_new(c->mesh, c->mats, c->nmats, &s->ctex_opt, &s->tex, err);
     if (rc) {
@@ -119,7 +119,7 @@ void sess_free(sess *s)
     free(s->refine);
     free(s->late);
     free(s->write);
-    free(s->means);
+    free(s->npx);
     free(s->info);
     free(s);
 }
@@ -330,11 +330,11 @@ static void refine_and_late(sess *s, ct_error *err)
          * written (rq_refine.h) */
         if (rc & RQ_REPORT_REFINE) {
             s->write[nw] = *x;
-            s->means[nw++] = rq_pixel_mean(s->rq, x->px, x->py);
+            s->npx[nw++] = rq_pixel_samples(s->rq, x->px, x->py);
         }
     }
     s->nr = kept;
-    ctex_refine_par(s->tex, s->pool, s->write, s->means, nw, s->info);
+    ctex_refine_par(s->tex, s->pool, s->write, s->npx, nw, s->info);
     const ctex_insert_info unwritten = {.tex = -1};
     for (uint32_t j = 0, w = 0; j < kept; j++) {
         bool written = w < nw && s->write[w].request_id == s->refine[j].request_id;

@@ -490,6 +490,7 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
         tcx_scene t;
         ctex_options o = ctex_options_default();
         o.eps = 0.0f;
+        o.mix = 1.0f;   /* plain Voronoi cells: the refinement's arithmetic below */
         if (pass == 1) o.keep_deg = 0.0f;
         const int W = 96, H = 64;
         ctex *c = tcx_front_engine(&t, o, W, H);
@@ -525,16 +526,31 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
             ct_sample r = tcx_sample(box, p, v3s(0.0f), v3s(0.0f));
             r.px = px;
             r.py = py;
-            cr_assert_eq(ctex_refine(c, &r, v3s(-0.25f), &info), 1);
+            r.l_hq = v3s(-0.25f);   /* its correction: -0.25 */
             ctex_tex *tx = ctex_visible_texture(c, (uint32_t)id);
             float u, v;
             cr_assert(tx && ctex_tex_project(tx, p, &u, &v));
-            vec3 refined = ctex_texel_rgb(ctex_tex_at(tx, (int)(u * (float)tx->w), (int)(v * (float)tx->h)));
-            cr_assert_float_eq(refined.x, -0.25f, 0.01f, "refinement wrote elsewhere: %g at p's texel", (double)refined.x);
+            const ctex_texel *at = ctex_tex_at(tx, (int)(u * (float)tx->w), (int)(v * (float)tx->h));
+            size_t ntx = (size_t)tx->w * (size_t)tx->h;
+            float *old = malloc(ntx * sizeof *old);
+            for (int y = 0; y < tx->h; y++)
+                for (int x = 0; x < tx->w; x++) old[(size_t)y * tx->w + x] = ctex_texel_rgb(ctex_tex_at(tx, x, y)).x;
+            /* the pixel's second sample: a running mean in which the first
+             * pass's value counts as (2 - m) / m = 1 sample here (mix 1) */
+            float c1 = ctex_texel_rgb(at).x;
+            cr_assert_eq(ctex_refine(c, &r, 2, &info), 1);
+            float c2 = ctex_texel_rgb(at).x;
+            cr_assert_float_eq(c2, 0.5f * (c1 - 0.25f), 0.01f, "refinement wrote elsewhere: %g -> %g at p's texel",
+                               (double)c1, (double)c2);
+            cr_assert_eq(ctex_refine(c, &r, 3, &info), 1);
+            float c3 = ctex_texel_rgb(at).x;
+            cr_assert_float_eq(c3, c2 + (-0.25f - c2) / 3.0f, 0.01f, "third: %g -> %g", (double)c2, (double)c3);
             /* and only there: one pixel covers about a texel of this texture */
             int written = 0;
             for (int y = 0; y < tx->h; y++)
-                for (int x = 0; x < tx->w; x++) written += fabsf(ctex_texel_rgb(ctex_tex_at(tx, x, y)).x + 0.25f) < 0.01f;
+                for (int x = 0; x < tx->w; x++) written += ctex_texel_rgb(ctex_tex_at(tx, x, y)).x != old[(size_t)y * tx->w + x];
+            free(old);
+            cr_assert_geq(written, 1);
             cr_assert_leq(written, 4, "one pixel's refinement wrote %d texels of a %dx%d texture", written, tx->w, tx->h);
             /* a turn of more than 20 degrees around the node: the new view's projector */
             ct_camera side = cam_look_at(v3(9.0f, 4.0f, 9.0f), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f);
@@ -720,4 +736,49 @@ Test(ctex_engine, resolution_reversals_back_off)
         cr_assert_eq(gaps[k], want, "reversal %d after %d samples, expected %d", k, gaps[k], want);
     }
     rtex_close(&r);
+}
+
+/* Refinement past full coverage (docs/sampling.md): a pixel's further
+ * samples move its texels as a running mean in which the first pass's
+ * (mixed) value counts as (2 - m) / m samples, m the mixing weight (a
+ * diffuse node: the --mix option), so the value goes from the first pass's
+ * towards the mean of the pixel's samples, never back to one sample's
+ * noise. */
+Test(ctex_engine, refinement_keeps_the_first_pass_value_as_a_prior)
+{
+    tcx_scene t;
+    ctex_options o = ctex_options_default();
+    o.eps = 0.0f;
+    const int W = 96, H = 64;
+    ctex *c = tcx_front_engine(&t, o, W, H);
+    uint32_t box = (uint32_t)t.box[1];
+    int32_t id = ctex_owner(c, box, UINT32_MAX, v3s(0.0f));
+    cr_assert_geq(id, 0);
+    vec3 p = v3(0.1f, 0.6f, 0.5f);   /* on the box's front face */
+    ct_sample s = tcx_sample(box, p, v3s(1.0f), v3s(0.0f));
+    ctex_insert_info info;
+    cr_assert_eq(ctex_insert(c, &s, &info), 1);
+    ctex_tex *tx = ctex_visible_texture(c, (uint32_t)id);
+    float u, v;
+    cr_assert(tx && ctex_tex_project(tx, p, &u, &v));
+    const ctex_texel *at = ctex_tex_at(tx, (int)(u * (float)tx->w), (int)(v * (float)tx->h));
+    const float t0 = ctex_texel_rgb(at).x;
+    cr_assert_float_eq(t0, 1.0f, 0.01f);
+    ct_camera cam = tcx_front_cam();
+    float px, py;
+    cr_assert(cam_project(&cam, W, H, p, &px, &py, NULL));
+    ct_sample r = tcx_sample(box, p, v3s(-0.25f), v3s(0.0f));
+    r.px = px;
+    r.py = py;
+    const float prior = (2.0f - o.mix) / o.mix;   /* the box is diffuse: m = --mix */
+    for (uint16_t n = 2; n <= 60; n++) {
+        cr_assert_eq(ctex_refine(c, &r, n, &info), 1);
+        float want = (prior * t0 + (float)(n - 1) * -0.25f) / (prior + (float)(n - 1));
+        float got = ctex_texel_rgb(at).x;
+        cr_assert_float_eq(got, want, 0.005f + 0.002f * fabsf(want), "sample %u: %g, want %g", n, (double)got,
+                           (double)want);
+    }
+    cr_assert_lt(fabsf(ctex_texel_rgb(at).x + 0.25f), 0.15f, "60 samples of -0.25 outweigh the prior");
+    ctex_free(c);
+    tcx_release(&t);
 }
