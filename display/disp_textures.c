@@ -54,17 +54,18 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
         return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, width,
                        height, (int)max);
     disp_texture *x = find(t, id);
-    /* An object-local texture the master resized (§3.6) keeps its
-     * projection, so its old texels, scaled, are the best picture of the new
-     * ones until their patches arrive: without them the object's correction
-     * vanished for the updates that resend a large texture (a 2048² one is
-     * tens of MB). Camera-local ones are re-allocated when reprojected, with
-     * a projection of their own: zeroed. */
+    /* A texture the master resized (§3.6) keeps its projection, so its old
+     * texels, scaled, are the best picture of the new ones until their
+     * patches arrive: without them the node's correction vanished for the
+     * updates that resend a large texture (a 2048² one is tens of MB), a
+     * flash of the bare radiosity on a still view. A camera-local texture
+     * is also re-allocated when it is reprojected for a new view: the
+     * PROJECTION that follows then differs from the one its texels were
+     * made for, and disp_textures_set_projection zeroes it. */
     unsigned old_tex = 0;
     int ow = 0, oh = 0;
     bool old_neg = false;
-    if (x && x->kind == DISP_PROJ_OBJECT_PARALLEL && kind == DISP_PROJ_OBJECT_PARALLEL && x->nonzero &&
-        (x->width != width || x->height != height)) {
+    if (x && x->kind == kind && x->nonzero && x->has_proj && (x->width != width || x->height != height)) {
         old_tex = x->gl_tex;
         ow = x->width;
         oh = x->height;
@@ -129,6 +130,8 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     /* scaled texels are the old ones (which were non-zero) */
     x->negative = scaled && old_neg;
     x->nonzero = scaled;
+    x->scaled_only = scaled;
+    x->scaled_proj = x->proj;
     if (st != GL_FRAMEBUFFER_COMPLETE)
         return ct_fail(err, CT_ESYS, "texture %u: cannot clear a %dx%d RGBA16F texture (0x%04x)", id, width,
                        height, (unsigned)st);
@@ -149,9 +152,20 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
         for (int c = 0; c < 4; c++)
             if (!isfinite(world_to_tex->m[r][c]))
                 return ct_fail(err, CT_ERANGE, "texture %u: projection is not finite", id);
+    if (x->scaled_only && memcmp(&x->scaled_proj, world_to_tex, sizeof *world_to_tex) != 0) {
+        /* re-created for another view: the scaled texels belong to the old one */
+        x->scaled_only = false;
+        x->nonzero = x->negative = false;
+        gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, x->gl_tex, 0);
+        gl.ClearColor(0, 0, 0, 0);
+        gl.Clear(GL_COLOR_BUFFER_BIT);
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    }
     x->proj = *world_to_tex;
     x->has_proj = true;
-    return CT_OK;
+    return gl_check("texture projection", err);
 }
 
 static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, const void *rgb,
@@ -165,6 +179,7 @@ static int patch(disp_textures *t, uint32_t id, int x, int y, int w, int h, cons
     gl.BindTexture(GL_TEXTURE_2D, d->gl_tex);
     gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
     gl.TexSubImage2D(GL_TEXTURE_2D, 0, x, y, w, h, format, type, rgb);
+    d->scaled_only = false;   /* texels for its projection now */
     d->negative = d->negative || negative;
     d->nonzero = d->nonzero || nonzero;
     return gl_check("texture patch", err);

@@ -35,6 +35,9 @@ typedef struct disp_texture {
     bool negative;                 /* some texel was negative since allocation */
     bool nonzero;                  /* some texel was non-zero since allocation (else
                                     * the texture corrects nothing and is not drawn) */
+    bool scaled_only;              /* holds only a resize's scaled old texels, made for
+                                    * scaled_proj: zeroed if another projection comes */
+    mat4 scaled_proj;
 } disp_texture;
 
 typedef struct disp_textures disp_textures;
@@ -45,9 +48,13 @@ int disp_textures_new(disp_textures **out, ct_error *err);
 /* Deletes every texture and the table. NULL is fine. */
 void disp_textures_free(disp_textures *t);
 
-/* Creates (or re-creates, zeroed) texture id of width x height covering the
+/* Creates (or re-creates) texture id of width x height covering the
  * triangle range of `node`, projected the given way; a re-created id keeps
- * its projection (a resize does not move it). Needs a current context. */
+ * its projection (a resize does not move it). A new texture is zeroed; a
+ * re-created one of the same kind and another size starts as its old
+ * texels scaled, zeroed after all if a different projection follows before
+ * any patch (a camera-local texture re-created for a new view, not
+ * resized). Needs a current context. */
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
                         uint32_t tri_end, int width, int height, disp_proj_kind kind,
                         ct_error *err);

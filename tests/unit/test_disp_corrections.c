@@ -495,7 +495,7 @@ Test(disp_corrections, sample_points_in_the_samples_view)
  * GPU), also after a re-allocation at its size of a texture that held
  * values; an object-local one the master resized starts as its old texels
  * scaled (so its correction does not vanish while the new texels stream),
- * a camera-local one as zeros. */
+ * one re-created as another kind as zeros. */
 Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
 {
     fx_box_nodes nd = box_nodes();
@@ -639,4 +639,64 @@ Test(disp_corrections, kept_base_follows_changed_texels)
     free(other);
     free(f.tex[0].rgb);
     free(f.tex[1].rgb);
+}
+
+/* A camera-local texture the master resized keeps its projector too: it
+ * starts as its old texels scaled; one re-created for a new view (another
+ * PROJECTION follows, before any patch) starts as zeros, also when that
+ * PROJECTION comes in a later update than its allocation. */
+Test(disp_corrections, camera_local_resized_scaled_reprojected_zero)
+{
+    fx_box_nodes nd = box_nodes();
+    ct_error err;
+    rig rg;
+    rig_open(&rg, NULL);
+    disp_session *s = rg.s;
+    mat4 p = wall_proj(-1, -1, 2, 2), q = wall_proj(-1, -1, 3, 3);
+    ct_camera cam = fx_box_camera();
+    size_t n = (size_t)W * H * 3;
+    float *rad = malloc(n * sizeof *rad), *scaled = malloc(n * sizeof *scaled), *full = malloc(n * sizeof *full);
+    float *half = malloc((size_t)64 * 32 * 3 * sizeof *half);
+    for (int i = 0; i < 64 * 32 * 3; i++) half[i] = 0.5f;
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false};
+    disp_render_stats st;
+    rig_render(&rg, &cam, &o, NULL, NULL, rad);
+    o.view = DISP_VIEW_FULL;
+    for (int late = 0; late < 2; late++) {
+        cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 32, 16, DISP_PROJ_CAMERA_PERSPECTIVE, &err), 0, "%s", err.msg);
+        cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0, "%s", err.msg);
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 32, 16, half, &err), 0, "%s", err.msg);
+        /* resized (§3.6): the same projection follows */
+        cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 48, 24, DISP_PROJ_CAMERA_PERSPECTIVE, &err), 0, "%s", err.msg);
+        cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0, "%s", err.msg);
+        rig_render(&rg, &cam, &o, &st, NULL, scaled);
+        cr_expect_eq(st.textures_drawn, 1u, "the resized camera-local texture was not drawn");
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 48, 24, half, &err), 0, "%s", err.msg);
+        rig_render(&rg, &cam, &o, &st, NULL, full);
+        double mx, mean;
+        fx_diff(scaled, full, n, &mx, &mean);
+        cr_expect_lt(mx, 1e-3, "the scaled old texels differ from the new ones by %g", mx);
+        fx_diff(scaled, rad, n, &mx, &mean);
+        cr_expect_gt(mx, 0.1, "the resized texture corrected nothing (max %g)", mx);
+        /* re-created for another view: another projection, at once or in a
+         * later update (drawn in between with the old one) */
+        cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 64, 32, DISP_PROJ_CAMERA_PERSPECTIVE, &err), 0, "%s", err.msg);
+        if (late) rig_render(&rg, &cam, &o, &st, NULL, full);
+        cr_assert_eq(disp_session_tex_projection(s, 1, &q, &err), 0, "%s", err.msg);
+        cr_assert_not(disp_textures_find(disp_session_textures(s), 1)->nonzero, "late %d: kept the old view's texels", late);
+        rig_render(&rg, &cam, &o, &st, NULL, full);
+        cr_expect_eq(st.textures_drawn, 0u);
+        cr_expect_eq(memcmp(full, rad, n * sizeof *full), 0, "late %d: the reprojected texture changed pixels", late);
+        /* patched under the new projection, a later projection change is
+         * the master's (texels kept, as before) */
+        cr_assert_eq(disp_session_tex_patch_float(s, 1, 0, 0, 64, 32, half, &err), 0, "%s", err.msg);
+        cr_assert_eq(disp_session_tex_projection(s, 1, &p, &err), 0, "%s", err.msg);
+        cr_assert(disp_textures_find(disp_session_textures(s), 1)->nonzero);
+        cr_assert_eq(disp_session_tex_free(s, 1, &err), 0, "%s", err.msg);
+    }
+    free(half);
+    free(full);
+    free(scaled);
+    free(rad);
+    rig_close(&rg);
 }
