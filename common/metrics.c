@@ -172,6 +172,7 @@ int metrics_compare_ref(const ct_image *a, const metrics_ref *r, int what, img_m
 
 int metrics_compare(const ct_image *a, const ct_image *ref, img_metrics *out, ct_error *err)
 {
+    /* Sizes checked first: a mismatch must not tone-map the reference for nothing. */
     if (!a || !ref || !a->px || !ref->px || a->width < 1 || a->height < 1)
         return ct_fail(err, CT_EINVAL, "metrics: empty image");
     if (a->width != ref->width || a->height != ref->height)

@@ -43,6 +43,28 @@ static disp_texture *find(const disp_textures *t, uint32_t id)
 
 const disp_texture *disp_textures_find(const disp_textures *t, uint32_t id) { return find(t, id); }
 
+/* Texture tex as the colour target of the clearing framebuffer (bound as
+ * GL_FRAMEBUFFER); its completeness. target_detach undoes it. */
+static GLenum target_attach(disp_textures *t, unsigned tex)
+{
+    if (!t->clear_fbo) gl.GenFramebuffers(1, &t->clear_fbo);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+    return gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+}
+
+static void target_zero(void)
+{
+    gl.ClearColor(0, 0, 0, 0);
+    gl.Clear(GL_COLOR_BUFFER_BIT);
+}
+
+static void target_detach(void)
+{
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+}
+
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
                         uint32_t tri_end, int width, int height, disp_proj_kind kind,
                         ct_error *err)
@@ -102,10 +124,7 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, NULL);
     /* Zeroed contents: a fresh texture corrects nothing; a resized one
      * starts as its old texels scaled (bilinear, texel centres). */
-    if (!t->clear_fbo) gl.GenFramebuffers(1, &t->clear_fbo);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
-    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, x->gl_tex, 0);
-    GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    GLenum st = target_attach(t, x->gl_tex);
     bool scaled = false;
     if (st == GL_FRAMEBUFFER_COMPLETE && old_tex) {
         if (!t->read_fbo) gl.GenFramebuffers(1, &t->read_fbo);
@@ -120,12 +139,8 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
         gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
         gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
     }
-    if (st == GL_FRAMEBUFFER_COMPLETE && !scaled) {
-        gl.ClearColor(0, 0, 0, 0);
-        gl.Clear(GL_COLOR_BUFFER_BIT);
-    }
-    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (st == GL_FRAMEBUFFER_COMPLETE && !scaled) target_zero();
+    target_detach();
     if (old_tex) gl.DeleteTextures(1, &old_tex);
     /* scaled texels are the old ones (which were non-zero) */
     x->negative = scaled && old_neg;
@@ -156,12 +171,8 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
         /* re-created for another view: the scaled texels belong to the old one */
         x->scaled_only = false;
         x->nonzero = x->negative = false;
-        gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
-        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, x->gl_tex, 0);
-        gl.ClearColor(0, 0, 0, 0);
-        gl.Clear(GL_COLOR_BUFFER_BIT);
-        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
-        gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+        if (target_attach(t, x->gl_tex) == GL_FRAMEBUFFER_COMPLETE) target_zero();
+        target_detach();
     }
     x->proj = *world_to_tex;
     x->has_proj = true;

@@ -426,8 +426,8 @@ int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_
         if (in_mean < 0) return in_mean;
     }
     if (refine) {
-        /* Its pixel's mean goes into the texture (not for a sample on
-         * another node than the pixel's: that mean is not its node's); no
+        /* The sample goes into its pixel's texels (not one on another
+         * node than the pixel's: those texels are not its node's); no
          * children (the pixel is the domain), and the significant samples
          * are the view's first ones. */
         if (!hit) e->ref.samples++;

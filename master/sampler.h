@@ -151,7 +151,10 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
 bool rq_refines(const rq_engine *e, uint64_t id);
 
 /* The mean correction dL of the samples of the pixel at image position
- * (px, py) in the current view (docs/sampling.md, "Refinement"). */
+ * (px, py) in the current view (docs/sampling.md, "Refinement"): the
+ * queue's own estimate, whose uncertainty sets the pixel's priority. The
+ * texels are not set to it (ctex_refine starts from the first pass's
+ * value); tests read it to check the queue. */
 vec3 rq_pixel_mean(const rq_engine *e, float px, float py);
 
 /* How many samples the pixel at (px, py) has had in the current view. */

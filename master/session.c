@@ -46,7 +46,7 @@ struct sess {
      * queue hears of one while the next is splatted (sess_insert). */
     chunk ch[2];
     /* the refinement and late samples of the chunk classified last */
-    ct_sample *refine, *write;           /* write: the refinement samples that write their pixel's mean */
+    ct_sample *refine, *write;           /* write: the refinement samples that move their pixel's texels */
     ct_sample *late;                     /* of an older view, view-independent */
     uint16_t *npx;   /* the refinement writes' pixel sample counts */
     uint32_t nr, nl;
@@ -311,7 +311,7 @@ static void report_task(void *ctx)
 }
 
 /* The rest of a chunk after its report: the refinement samples (reported,
- * and those the queue takes into their pixel's mean write it), then the
+ * and those the queue takes into their pixel's mean move its texels), then the
  * late ones (splatted, never reported: their requests belong to a view the
  * queue has left). */
 static void refine_and_late(sess *s, ct_error *err)

@@ -10,8 +10,8 @@
  * texture (ctex_insert_par), and then reported to the request queue one by
  * one in their order with the errors the splats measured; refinement
  * samples (docs/sampling.md) are not splatted: after the others they are
- * reported, and those the queue takes into their pixel's mean write it
- * (ctex_refine_par). So the textures and the queue depend on the order of the
+ * reported, and those the queue takes into their pixel's mean move its
+ * texels (ctex_refine_par). So the textures and the queue depend on the order of the
  * samples and never on the number of threads: lockstep rounds, inserted in
  * request-id order, give the same frames for any number of tracer ranks and
  * master threads. A sample of an older view (the camera moved on while it
