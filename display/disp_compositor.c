@@ -8,13 +8,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "display/disp_tiles.h"
 #include "display/gl_shaders.h"
 #include "display/gl_target.h"
 
 typedef struct mesh_prog {
     GLuint id;
     GLint u_mvp, u_texproj, u_rad_scale, u_color, u_tex[GL_ONE_PASS_MAX_TEX];
-    GLint u_eye, u_transmission, u_ior;
+    GLint u_eye, u_transmission, u_ior, u_tri_base;
 } mesh_prog;
 
 struct disp_compositor {
@@ -25,11 +26,22 @@ struct disp_compositor {
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
     gl_target base;      /* radiosity + glass of base_cam, no corrections (made on first use) */
     bool base_ok;        /* base holds base_cam's view of scene base_scene */
+    GLuint gbuf;         /* base's second colour attachment: triangle index, world position */
+    bool base_gbuf;      /* gbuf holds the base's surfaces (else corrections go over the mesh) */
+    disp_tiles *tiles;   /* the base's triangle indices per tile (gbuf's first channel) */
+    float *tri_img;      /* that channel read back, width x height */
+    disp_rect *rects;    /* one texture's tiles, disp_tiles_cover's output */
+    float *quads;        /* the screen pass's vertices (NDC x, y), all textures */
+    size_t quads_cap;
+    uint32_t *quad_range;   /* per texture: first vertex and count in quads */
+    size_t quad_range_cap;
+    GLuint sc_vao, sc_vbo;
     ct_camera base_cam, last_cam;
     uint64_t base_scene, last_scene;   /* disp_scene_serial; 0: none */
     mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
     mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
-    GLuint tonemap, points_world, flat_screen;
+    GLuint tonemap, points_world, flat_screen, screen_corr;
+    GLint sc_texproj, sc_tris;
     GLint pw_mvp, pw_eye, pw_pull, pw_point, pw_color, fs_color;
     GLuint pw_vao, pw_vbo;
     uint32_t npoints;    /* sample points in pw_vbo */
@@ -74,6 +86,7 @@ static int build_mesh_prog(mesh_prog *p, int pass, int ntex, ct_error *err)
     p->u_eye = gl.GetUniformLocation(p->id, "u_eye");
     p->u_transmission = gl.GetUniformLocation(p->id, "u_transmission");
     p->u_ior = gl.GetUniformLocation(p->id, "u_ior");
+    p->u_tri_base = gl.GetUniformLocation(p->id, "u_tri_base");
     gl.UseProgram(p->id);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++) {
         char u[16];
@@ -109,6 +122,10 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     if (!rc)
         rc = gl_program_build("points-world", gl_src_points_world_vs, gl_src_points_fs, NULL, &c->points_world, err);
     if (!rc) rc = gl_program_build("flat-screen", gl_src_screen_vs, gl_src_points_fs, NULL, &c->flat_screen, err);
+    if (!rc)
+        rc = gl_program_build("screen-corrections", gl_src_quads_vs, gl_src_screen_corr_fs, NULL, &c->screen_corr,
+                              err);
+    if (!rc) rc = disp_tiles_new(&c->tiles, err);
     if (rc) {
         disp_compositor_free(c);
         return rc;
@@ -122,6 +139,12 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     c->pw_point = gl.GetUniformLocation(c->points_world, "u_point");
     c->pw_color = gl.GetUniformLocation(c->points_world, "u_color");
     c->fs_color = gl.GetUniformLocation(c->flat_screen, "u_color");
+    c->sc_texproj = gl.GetUniformLocation(c->screen_corr, "u_texproj0");
+    c->sc_tris = gl.GetUniformLocation(c->screen_corr, "u_tris");
+    gl.UseProgram(c->screen_corr);
+    gl.Uniform1i(gl.GetUniformLocation(c->screen_corr, "u_gbuf"), 1);
+    gl.Uniform1i(gl.GetUniformLocation(c->screen_corr, "u_tex0"), 0);
+    gl.UseProgram(0);
     gl.GenVertexArrays(1, &c->pw_vao);
     gl.GenBuffers(1, &c->pw_vbo);
     gl.BindVertexArray(c->pw_vao);
@@ -130,6 +153,14 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), (const void *)0);
     gl.BindVertexArray(0);
     gl.GenVertexArrays(1, &c->empty_vao);
+    gl.GenVertexArrays(1, &c->sc_vao);
+    gl.GenBuffers(1, &c->sc_vbo);
+    gl.BindVertexArray(c->sc_vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, c->sc_vbo);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), (const void *)0);
+    gl.BindVertexArray(0);
+    gl.BindBuffer(GL_ARRAY_BUFFER, 0);
     rc = gl_check("compositor set-up", err);
     if (rc) {
         disp_compositor_free(c);
@@ -146,6 +177,7 @@ void disp_compositor_free(disp_compositor *c)
     gl_target_free(&c->res);
     gl_target_free(&c->ldr);
     gl_target_free(&c->base);
+    if (c->gbuf) gl.DeleteTextures(1, &c->gbuf);
     for (int p = 0; p < GL_PASS_COUNT; p++)
         if (c->mesh[p].id) gl.DeleteProgram(c->mesh[p].id);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++)
@@ -153,9 +185,17 @@ void disp_compositor_free(disp_compositor *c)
     if (c->tonemap) gl.DeleteProgram(c->tonemap);
     if (c->points_world) gl.DeleteProgram(c->points_world);
     if (c->flat_screen) gl.DeleteProgram(c->flat_screen);
+    if (c->screen_corr) gl.DeleteProgram(c->screen_corr);
     if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
     if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
+    if (c->sc_vao) gl.DeleteVertexArrays(1, &c->sc_vao);
+    if (c->sc_vbo) gl.DeleteBuffers(1, &c->sc_vbo);
+    disp_tiles_free(c->tiles);
+    free(c->tri_img);
+    free(c->rects);
+    free(c->quads);
+    free(c->quad_range);
     free(c->bounds);
     free(c->seg_tex);
     free(c->segs);
@@ -527,11 +567,14 @@ static void late_corrections(disp_compositor *c, const disp_scene *s, size_t nse
  * corrections land on the nearest glass and not on what shows through it
  * (the samples there hit the glass). */
 static void glass_passes(disp_compositor *c, const disp_scene *s, const float *mvp, const ct_camera *cam,
-                         bool multiply, disp_render_stats *st)
+                         bool multiply, bool gbuf, disp_render_stats *st)
 {
     uint32_t ng;
     const disp_glass *g = disp_scene_glass(s, &ng);
     if (!ng) return;
+    /* The multiplying pass writes no surface: the position buffer keeps
+     * what lies behind until the depth pass puts the glass there. */
+    if (gbuf) gl.ColorMaski(1, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
     if (multiply) {
         const mesh_prog *p = &c->mesh[GL_PASS_GLASS];
         use_mesh(p, mvp, 1.0f);
@@ -550,8 +593,11 @@ static void glass_passes(disp_compositor *c, const disp_scene *s, const float *m
         gl.DepthMask(GL_TRUE);
     }
     gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-    use_mesh(&c->mesh[GL_PASS_RAD], mvp, 0.0f);
+    const mesh_prog *p = &c->mesh[gbuf ? GL_PASS_GBUF : GL_PASS_RAD];
+    if (gbuf) gl.ColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    use_mesh(p, mvp, 0.0f);
     for (uint32_t i = 0; i < ng; i++) {
+        if (gbuf) gl.Uniform1i(p->u_tri_base, (GLint)g[i].begin);
         disp_scene_draw(s, g[i].begin, g[i].end);
         st->draws++;
     }
@@ -637,17 +683,112 @@ static void clear_target(const gl_target *t)
 }
 
 /* Pass 1 of the 3-pass mode: the opaque segments' radiosity, then the glass
- * (multiplied over what it covers, and its depth). */
+ * (multiplied over what it covers, and its depth). With gbuf (the kept
+ * base), every surface left in front also goes into the position buffer. */
 static void radiosity_pass(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
-                           const ct_camera *cam, float rad_scale, disp_render_stats *st)
+                           const ct_camera *cam, float rad_scale, bool gbuf, disp_render_stats *st)
 {
-    use_mesh(&c->mesh[GL_PASS_RAD], mvp, rad_scale);
+    const mesh_prog *p = &c->mesh[gbuf ? GL_PASS_GBUF : GL_PASS_RAD];
+    use_mesh(p, mvp, rad_scale);
     for (size_t k = 0; k < nseg; k++) {
         if (c->segs[k].glass) continue;
+        if (gbuf) gl.Uniform1i(p->u_tri_base, (GLint)c->segs[k].b);
         disp_scene_draw(s, c->segs[k].b, c->segs[k].e);
         st->draws++;
     }
-    glass_passes(c, s, mvp, cam, rad_scale > 0.0f, st);
+    glass_passes(c, s, mvp, cam, rad_scale > 0.0f, gbuf, st);
+}
+
+/* The kept base's position buffer: an RGBA32F texture (positions to the
+ * float's precision whatever --fbo says; triangle indices exact up to
+ * 2^24) as the base's second colour attachment. */
+static int gbuf_attach(disp_compositor *c, ct_error *err)
+{
+    gl.GenTextures(1, &c->gbuf);
+    gl.BindTexture(GL_TEXTURE_2D, c->gbuf);
+    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, c->width, c->height, 0, GL_RGBA, GL_FLOAT, NULL);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl.BindTexture(GL_TEXTURE_2D, 0);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, c->base.fbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, c->gbuf, 0);
+    GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (st != GL_FRAMEBUFFER_COMPLETE)
+        return ct_fail(err, CT_ESYS, "kept base with a position buffer %dx%d incomplete: 0x%04x", c->width,
+                       c->height, (unsigned)st);
+    size_t npx = (size_t)c->width * (size_t)c->height;
+    size_t ntiles = (size_t)((c->width + DISP_TILE - 1) / DISP_TILE) * (size_t)((c->height + DISP_TILE - 1) / DISP_TILE);
+    c->tri_img = malloc(npx * sizeof *c->tri_img);
+    c->rects = malloc(ntiles * sizeof *c->rects);
+    if (!c->tri_img || !c->rects) return ct_fail(err, CT_ENOMEM, "out of memory for the tile index");
+    return gl_check("position buffer creation", err);
+}
+
+/* The corrections over a kept base in screen space: per texture, the
+ * tiles (disp_tiles.h) inside its node's projected bounds that show one of
+ * the node's triangles, whose fragments look the kept surface up
+ * (gl_src_screen_corr_fs) and add the texture's value where that surface
+ * is one of the node's triangles. Over the mesh (late_corrections) every
+ * textured triangle is sent again each frame, which on a CPU rasteriser is
+ * most of a still frame's cost; here a texture costs six vertices a run of
+ * tiles and one fetch per pixel of its tiles. Each pixel gets the
+ * corrections of the one surface the base shows there (the depth test's
+ * winner), as the one pass gives them. */
+static int screen_corrections(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex, uint32_t n,
+                              const mat4 *mvp, disp_render_stats *st, ct_error *err)
+{
+    if (!n) return CT_OK;
+    int rc = grow((void **)&c->quad_range, &c->quad_range_cap, 2 * (size_t)n, sizeof *c->quad_range, err);
+    if (rc) return rc;
+    float w = (float)c->width, h = (float)c->height;
+    size_t nv = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        const disp_texture *x = tex[i];
+        px_rect r = screen_rect(c, mvp, disp_scene_node_bounds(s, x->node));
+        size_t nr = rect_empty(r) ? 0
+                                  : disp_tiles_cover(c->tiles, x->tri_begin, x->tri_end,
+                                                     (disp_rect){r.x0, r.y0, r.x1, r.y1}, c->rects);
+        if ((rc = grow((void **)&c->quads, &c->quads_cap, 2 * nv + 12 * nr, sizeof *c->quads, err))) return rc;
+        c->quad_range[2 * i] = (uint32_t)nv;
+        for (size_t k = 0; k < nr; k++) {
+            st->screen_px += (uint64_t)(c->rects[k].x1 - c->rects[k].x0) * (uint64_t)(c->rects[k].y1 - c->rects[k].y0);
+            float x0 = 2.0f * (float)c->rects[k].x0 / w - 1.0f, x1 = 2.0f * (float)c->rects[k].x1 / w - 1.0f;
+            float y0 = 2.0f * (float)c->rects[k].y0 / h - 1.0f, y1 = 2.0f * (float)c->rects[k].y1 / h - 1.0f;
+            const float v[12] = {x0, y0, x1, y0, x1, y1, x0, y0, x1, y1, x0, y1};
+            memcpy(c->quads + 2 * nv, v, sizeof v);
+            nv += 6;
+        }
+        c->quad_range[2 * i + 1] = (uint32_t)nv - c->quad_range[2 * i];
+    }
+    if (!nv) return CT_OK;
+    gl.BindBuffer(GL_ARRAY_BUFFER, c->sc_vbo);
+    gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(2 * nv * sizeof *c->quads), c->quads, GL_STREAM_DRAW);
+    gl.BindBuffer(GL_ARRAY_BUFFER, 0);
+    gl.Disable(GL_DEPTH_TEST);
+    gl.Enable(GL_BLEND);
+    gl.BlendEquation(GL_FUNC_ADD);
+    gl.BlendFunc(GL_ONE, GL_ONE);
+    gl.UseProgram(c->screen_corr);
+    gl.ActiveTexture(GL_TEXTURE1);
+    gl.BindTexture(GL_TEXTURE_2D, c->gbuf);
+    gl.ActiveTexture(GL_TEXTURE0);
+    gl.BindVertexArray(c->sc_vao);
+    for (uint32_t i = 0; i < n; i++) {
+        if (!c->quad_range[2 * i + 1]) continue;
+        const disp_texture *x = tex[i];
+        gl.UniformMatrix4fv(c->sc_texproj, 1, GL_TRUE, &x->proj.m[0][0]);
+        gl.Uniform2f(c->sc_tris, (float)x->tri_begin, (float)x->tri_end);
+        gl.BindTexture(GL_TEXTURE_2D, x->gl_tex);
+        gl.DrawArrays(GL_TRIANGLES, (GLint)c->quad_range[2 * i], (GLsizei)c->quad_range[2 * i + 1]);
+        st->draws++;
+    }
+    gl.ActiveTexture(GL_TEXTURE1);
+    gl.BindTexture(GL_TEXTURE_2D, 0);
+    gl.ActiveTexture(GL_TEXTURE0);
+    gl.Disable(GL_BLEND);
+    gl.Enable(GL_DEPTH_TEST);
+    return CT_OK;
 }
 
 /* Puts the radiosity and glass of cam into the float target from the kept
@@ -657,18 +798,40 @@ static void radiosity_pass(disp_compositor *c, const disp_scene *s, size_t nseg,
  * depth the base left (so they land where pass 1's surfaces are, as in
  * passes 2 and 3). */
 static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
-                            const ct_camera *cam, disp_render_stats *st, ct_error *err)
+                            const ct_camera *cam, bool gbuf, disp_render_stats *st, ct_error *err)
 {
     uint64_t serial = disp_scene_serial(s);
-    if (!c->base_ok || c->base_scene != serial || !cam_same(&c->base_cam, cam)) {
+    if (!c->base_ok || c->base_scene != serial || !cam_same(&c->base_cam, cam) || c->base_gbuf != gbuf) {
         if (!c->base.fbo) {
             int rc = gl_target_init(&c->base, c->width, c->height, c->hdr.format, true, c->samples, err);
             if (rc) return rc;
         }
+        if (gbuf && !c->gbuf) {
+            int rc = gbuf_attach(c, err);
+            if (rc) return rc;
+        }
         clear_target(&c->base);
+        static const GLenum both[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+        gl.DrawBuffers(gbuf ? 2 : 1, both);
+        if (gbuf) {
+            static const GLfloat none[4] = {-1.0f, 0.0f, 0.0f, 0.0f};   /* triangle index -1: background */
+            gl.ClearBufferfv(GL_COLOR, 1, none);
+        }
         disp_scene_bind(s);
-        radiosity_pass(c, s, nseg, mvp, cam, 1.0f, st);
+        radiosity_pass(c, s, nseg, mvp, cam, 1.0f, gbuf, st);
+        if (gbuf) {
+            /* Once per kept view: which triangles each tile shows. */
+            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, c->base.fbo);
+            gl.ReadBuffer(GL_COLOR_ATTACHMENT1);
+            gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
+            gl.ReadPixels(0, 0, c->width, c->height, GL_RED, GL_FLOAT, c->tri_img);
+            gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+            int rc = disp_tiles_set(c->tiles, c->tri_img, c->width, c->height, err);
+            if (rc) return rc;
+        }
         c->base_ok = true;
+        c->base_gbuf = gbuf;
         c->base_cam = *cam;
         c->base_scene = serial;
     } else {
@@ -684,7 +847,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
                            const ct_camera *cam, const disp_render_opts *o,
                            disp_render_stats *stats, ct_error *err)
 {
-    disp_render_stats st = {0, 0, false, false};
+    disp_render_stats st = {0};
     if (o->passes != 1 && o->passes != 3)
         return ct_fail(err, CT_EINVAL, "passes must be 1 or 3, not %d", o->passes);
     float zn, zf;
@@ -731,18 +894,23 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     size_t nseg = 0;
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && reuse) {
-        rc = base_into_target(c, s, nseg, &mvp.m[0][0], cam, &st, err);
-        if (!rc && o->passes == 1) late_corrections(c, s, nseg, &mvp.m[0][0], true, &st);
+        /* Triangle indices travel as floats: exact below 2^24. */
+        bool screen = o->passes == 1 && !o->mesh_corrections && c->samples == 1 &&
+                      disp_scene_ntris(s) <= (1u << 24);
+        rc = base_into_target(c, s, nseg, &mvp.m[0][0], cam, screen, &st, err);
+        st.screen_pass = screen;
+        if (!rc && screen) rc = screen_corrections(c, s, tex, n, &mvp, &st, err);
+        else if (!rc && o->passes == 1) late_corrections(c, s, nseg, &mvp.m[0][0], true, &st);
         else if (!rc) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
     } else if (!rc && corrections && o->passes == 1) {
         one_pass(c, s, nseg, &mvp.m[0][0], rad_scale, &st);
         if (n) uncorrect_behind_glass(c, s, nseg, &mvp, rad_scale, &st);
-        glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, &st);
+        glass_passes(c, s, &mvp.m[0][0], cam, rad_scale > 0.0f, false, &st);
         late_corrections(c, s, nseg, &mvp.m[0][0], false, &st);
     } else if (!rc) {
         /* Pass 1 (glass after the opaque surfaces), then (with corrections)
          * passes 2 and 3. */
-        radiosity_pass(c, s, nseg, &mvp.m[0][0], cam, rad_scale, &st);
+        radiosity_pass(c, s, nseg, &mvp.m[0][0], cam, rad_scale, false, &st);
         if (corrections) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
     }
     if (!rc && o->view == DISP_VIEW_ASSIGNMENT && n) {

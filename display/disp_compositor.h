@@ -46,6 +46,7 @@ typedef struct disp_render_opts {
     float exposure;       /* stops: displayed = linear * 2^exposure */
     bool all_positive;    /* the master says no correction is negative: no pass 3 */
     bool full_redraw;     /* draw the radiosity anew even when the camera did not move */
+    bool mesh_corrections;   /* over a kept base, draw the corrections over the mesh, not in screen space */
 } disp_render_opts;
 
 /* What the last render drew. */
@@ -54,6 +55,8 @@ typedef struct disp_render_stats {
     uint32_t textures_drawn;  /* textures with a projection that were applied */
     bool pass3;               /* the subtractive pass ran */
     bool base_reused;         /* radiosity and glass came from the kept base */
+    bool screen_pass;         /* the corrections over it were drawn in screen space */
+    uint64_t screen_px;       /* pixels that pass drew, all textures together */
 } disp_render_stats;
 
 typedef struct disp_compositor disp_compositor;

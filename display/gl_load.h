@@ -32,6 +32,9 @@
     X(PFNGLDEPTHFUNCPROC, DepthFunc)                                              \
     X(PFNGLDEPTHMASKPROC, DepthMask)                                              \
     X(PFNGLCOLORMASKPROC, ColorMask)                                              \
+    X(PFNGLCOLORMASKIPROC, ColorMaski)                                            \
+    X(PFNGLDRAWBUFFERSPROC, DrawBuffers)                                          \
+    X(PFNGLCLEARBUFFERFVPROC, ClearBufferfv)                                      \
     X(PFNGLSTENCILFUNCPROC, StencilFunc)                                          \
     X(PFNGLSTENCILOPPROC, StencilOp)                                              \
     X(PFNGLSCISSORPROC, Scissor)                                                  \

@@ -52,7 +52,11 @@ const char *const gl_src_mesh_fs =
     "uniform sampler2D u_tex1;\n"
     "uniform sampler2D u_tex2;\n"
     "uniform sampler2D u_tex3;\n"
+    "uniform int u_tri_base;\n"
     "out vec4 o_color;\n"
+    "#if PASS == 6\n"
+    "layout(location = 1) out vec4 o_gbuf;\n"
+    "#endif\n"
     "vec3 corr(sampler2D s, vec4 t, out bool inside) {\n"
     "    vec2 tc = t.xy / t.w;\n"
     "    inside = t.w > 0.0 && all(greaterThanEqual(tc, vec2(0.0))) &&\n"
@@ -72,6 +76,9 @@ const char *const gl_src_mesh_fs =
     "    bool in0, in1, in2, in3;\n"
     "#if PASS == 0\n"
     "    o_color = vec4(u_rad_scale * v_rad, 1.0);\n"
+    "#elif PASS == 6\n"
+    "    o_color = vec4(u_rad_scale * v_rad, 1.0);\n"
+    "    o_gbuf = vec4(float(u_tri_base + gl_PrimitiveID), v_pos);\n"
     "#elif PASS == 1\n"
     "    vec3 c = corr(u_tex0, v_tex0, in0);\n"
     "    if (!in0) discard;\n"
@@ -101,6 +108,31 @@ const char *const gl_src_mesh_fs =
     "#else\n"
     "    o_color = vec4(u_color, 1.0);\n"
     "#endif\n"
+    "}\n";
+
+const char *const gl_src_quads_vs =
+    "layout(location = 0) in vec2 a_ndc;\n"
+    "void main() { gl_Position = vec4(a_ndc, 0.0, 1.0); }\n";
+
+/* The kept surface's world position (g.yzw) gives the texture coordinate the mesh
+ * passes interpolate (t = M p is linear in p), so a pixel gets the same
+ * lookup as over the mesh, without sending the node's triangles again.
+ * The triangle index stands for the node: a subtree is one contiguous
+ * range of the sorted triangles. Background pixels hold index (g.x) -1. */
+const char *const gl_src_screen_corr_fs =
+    "uniform sampler2D u_gbuf;\n"
+    "uniform sampler2D u_tex0;\n"
+    "uniform mat4 u_texproj0;\n"
+    "uniform vec2 u_tris;\n"
+    "out vec4 o_color;\n"
+    "void main() {\n"
+    "    vec4 g = texelFetch(u_gbuf, ivec2(gl_FragCoord.xy), 0);\n"
+    "    if (g.x < u_tris.x || g.x >= u_tris.y) discard;\n"
+    "    vec4 t = u_texproj0 * vec4(g.yzw, 1.0);\n"
+    "    vec2 tc = t.xy / t.w;\n"
+    "    if (!(t.w > 0.0 && all(greaterThanEqual(tc, vec2(0.0))) && all(lessThanEqual(tc, vec2(1.0)))))\n"
+    "        discard;\n"
+    "    o_color = vec4(textureLod(u_tex0, tc, 0.0).rgb, 0.0);\n"
     "}\n";
 
 const char *const gl_src_screen_vs =

@@ -15,7 +15,9 @@ typedef enum gl_mesh_pass {
     GL_PASS_ONE  = 3,   /* one pass: radiosity + signed corrections of NTEX (1..4) textures */
     GL_PASS_FLAT = 4,   /* flat colour u_color (texture assignment view) */
     GL_PASS_GLASS = 5,  /* see-through glass: u_transmission * (1 - F), a multiplicative blend */
-    GL_PASS_COUNT = 6
+    GL_PASS_GBUF = 6,   /* pass 1 into the kept base: radiosity, and at location 1 the sorted
+                           triangle index (u_tri_base + gl_PrimitiveID) and world position */
+    GL_PASS_COUNT = 7
 } gl_mesh_pass;
 
 /* Textures the one-pass program samples at once. */
@@ -28,6 +30,12 @@ extern const char *const gl_src_mesh_vs;
 /* Fragment shader of the mesh passes, specialised by "#define PASS n" (and
  * "#define NTEX n" for GL_PASS_ONE). */
 extern const char *const gl_src_mesh_fs;
+/* Screen-space triangles: a_ndc (location 0), normalized device x, y. */
+extern const char *const gl_src_quads_vs;
+/* Adds texture u_tex0's correction (through u_texproj0) at the pixels whose
+ * kept surface (u_gbuf, from GL_PASS_GBUF) is one of triangles
+ * [u_tris.x, u_tris.y). */
+extern const char *const gl_src_screen_corr_fs;
 /* A full-screen triangle (no attributes) with v_uv in [0,1]^2. */
 extern const char *const gl_src_screen_vs;
 /* Exposure and sRGB encoding of the float image (u_mode 0), or the signed

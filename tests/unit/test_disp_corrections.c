@@ -202,7 +202,7 @@ static void check_expected(fx_setup *f, int passes, const char *what)
     float *exp = malloc((size_t)W * H * 3 * sizeof *exp);
     bool *use = malloc((size_t)W * H * sizeof *use);
     expected(&ref, &m, f, exp, use);
-    disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false};
+    disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false, false};
     const gl_backend_kind kinds[2] = {GL_BACKEND_OSMESA, GL_BACKEND_EGL};
     for (int k = 0; k < 2; k++) {
         fx_frame fr;
@@ -265,12 +265,46 @@ static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, 
     rig rg;
     rig_open(&rg, f);
     ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false, false};
     rig_render(&rg, &cam, &o, st1, one, lin1);
     o.passes = 3;
     o.full_redraw = true;   /* the same camera again: all three passes, not the kept base */
     rig_render(&rg, &cam, &o, st3, three, lin3);
     rig_close(&rg);
+}
+
+/* The third frame of one camera: the corrections over the kept base, in
+ * screen space (the default) or over the mesh (mesh_corrections). */
+static void render_kept(fx_setup *f, bool all_positive, bool mesh, float *lin, disp_render_stats *st)
+{
+    rig rg;
+    rig_open(&rg, f);
+    ct_camera cam = fx_box_camera();
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false, mesh};
+    for (int i = 0; i < 3; i++) rig_render(&rg, &cam, &o, st, NULL, i == 2 ? lin : NULL);
+    rig_close(&rg);
+}
+
+/* The kept base's two ways of adding corrections against the 1-pass frame
+ * drawn at once (lin1): stacked textures (more than 4 on a node), mixed
+ * signs and nested nodes all go through the screen pass's per-texture
+ * rectangles. */
+static void compare_kept(fx_setup *f, bool all_positive, const float *lin1, const char *what)
+{
+    size_t n = (size_t)W * H * 3;
+    float *lk = malloc(n * sizeof *lk);
+    for (int mesh = 0; mesh < 2; mesh++) {
+        disp_render_stats st;
+        render_kept(f, all_positive, mesh, lk, &st);
+        double mx, mean;
+        fx_diff(lk, lin1, n, &mx, &mean);
+        printf("metric: %s: kept base, corrections %s, vs 1-pass drawn at once: linear max %.2e, mean %.2e; %u "
+               "draws\n", what, mesh ? "over the mesh" : "in screen space", mx, mean, st.draws);
+        cr_expect(st.base_reused, "%s: the third frame reuses the base", what);
+        cr_expect_eq(st.screen_pass, !mesh, "%s: screen pass %s", what, st.screen_pass ? "ran" : "did not run");
+        cr_expect_leq(mx, 1e-5, "%s: kept base (%s) differs by %.3e", what, mesh ? "mesh" : "screen", mx);
+    }
+    free(lk);
 }
 
 static void compare_passes(fx_setup *f, bool all_positive, bool expect_pass3, const char *what)
@@ -294,6 +328,7 @@ static void compare_passes(fx_setup *f, bool all_positive, bool expect_pass3, co
     cr_expect_leq(dmax, 1, "%s: 1-pass and 3-pass differ by %d/255", what, dmax);
     cr_expect_leq(mx, 1e-5, "%s: linear difference %.3e", what, mx);
     cr_expect_eq(s3.pass3, expect_pass3, "%s: pass 3 %s", what, s3.pass3 ? "ran" : "skipped");
+    compare_kept(f, all_positive, l1, what);
     free(one); free(three); free(l1); free(l3);
 }
 
@@ -350,7 +385,7 @@ Test(disp_corrections, debug_views)
     size_t n = (size_t)W * H;
     float *lin = malloc(n * 3 * sizeof *lin);
     uint8_t *disp = malloc(n * 3);
-    disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false, false};
+    disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false, false, false};
 
     /* Corrections only: 0.5 + 0.5 * value, no sRGB; grey where none. */
     rig_render(&rg, &cam, &o, NULL, disp, NULL);
@@ -437,7 +472,7 @@ Test(disp_corrections, sample_points_in_the_samples_view)
     size_t n = (size_t)W * H;
     uint8_t *disp = malloc(n * 3);
     float *lin = malloc(n * 3 * sizeof *lin), *full = malloc(n * 3 * sizeof *full);
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, false};
     rig_render(&rg, &cam, &o, NULL, NULL, full);
     size_t at[3];
     for (int i = 0; i < 3; i++) {
@@ -509,7 +544,7 @@ Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
     ct_camera cam = fx_box_camera();
     size_t n = (size_t)W * H * 3;
     float *full = malloc(n * sizeof *full), *rad = malloc(n * sizeof *rad);
-    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false};
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
     rig_render(&rg, &cam, &o, NULL, NULL, rad);
     o.view = DISP_VIEW_FULL;
     /* Rounds: fresh 64x64; re-allocated at the same size after holding
@@ -592,7 +627,7 @@ Test(disp_corrections, kept_base_follows_changed_texels)
         rig rg;
         rig_open(&rg, &f);
         ct_camera cam = fx_box_camera();
-        disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false};
+        disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false, false};
         disp_render_stats st;
         rig_render(&rg, &cam, &o, &st, NULL, NULL);
         cr_expect_not(st.base_reused, "the first frame has no base");
@@ -602,6 +637,7 @@ Test(disp_corrections, kept_base_follows_changed_texels)
         cr_assert_eq(disp_session_tex_patch_float(rg.s, 1, 0, 0, 8, 8, other, &err), 0, "%s", err.msg);
         rig_render(&rg, &cam, &o, &st, NULL, kept);
         cr_expect(st.base_reused, "%d-pass: the third frame of the same camera reuses the base", passes);
+        cr_expect_eq(st.screen_pass, passes == 1, "%d-pass: corrections in screen space only in 1-pass mode", passes);
         o.full_redraw = true;
         rig_render(&rg, &cam, &o, &st, NULL, fresh);
         cr_expect_not(st.base_reused, "--full-redraw draws everything");
@@ -627,7 +663,7 @@ Test(disp_corrections, kept_base_follows_changed_texels)
         rig rg;
         rig_open(&rg, &f);
         ct_camera cam = fx_box_camera();
-        disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, true};
+        disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, true, false};
         rig_render(&rg, &cam, &o, NULL, NULL, fresh);
         rig_close(&rg);
         double mx, mean;
@@ -658,7 +694,7 @@ Test(disp_corrections, camera_local_resized_scaled_reprojected_zero)
     float *rad = malloc(n * sizeof *rad), *scaled = malloc(n * sizeof *scaled), *full = malloc(n * sizeof *full);
     float *half = malloc((size_t)64 * 32 * 3 * sizeof *half);
     for (int i = 0; i < 64 * 32 * 3; i++) half[i] = 0.5f;
-    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false};
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
     disp_render_stats st;
     rig_render(&rg, &cam, &o, NULL, NULL, rad);
     o.view = DISP_VIEW_FULL;

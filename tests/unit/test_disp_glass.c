@@ -175,7 +175,7 @@ static void check_frames(const base_image *b, glass_setup *f, disp_view view, co
      * camera, corrections over the kept base */
     for (int run = 0; run < 4; run++) {
         int passes = run % 2 ? 3 : 1, frames = run < 2 ? 1 : 3;
-        disp_render_opts o = {passes, view, 0.0f, false, false};
+        disp_render_opts o = {passes, view, 0.0f, false, false, false};
         fx_frame fr;
         char msg[256];
         cr_assert_eq(fx_render_frames(GL_BACKEND_EGL, W, H, &cam, &o, frames, setup, f, &fr, msg, sizeof msg), 0,
