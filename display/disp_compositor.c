@@ -837,7 +837,10 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
     } else {
         st->base_reused = true;
     }
-    gl_target_copy(&c->base, &c->hdr);
+    /* The screen pass needs no depth: its surfaces come from the position
+     * buffer (and on llvmpipe the depth and stencil are a third of the
+     * copy's bytes). The samples view is not drawn over a kept base. */
+    gl_target_copy(&c->base, &c->hdr, !gbuf);
     frame_state();
     disp_scene_bind(s);
     return CT_OK;

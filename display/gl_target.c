@@ -74,11 +74,12 @@ void gl_target_free(gl_target *t)
     memset(t, 0, sizeof *t);
 }
 
-void gl_target_copy(const gl_target *src, const gl_target *dst)
+void gl_target_copy(const gl_target *src, const gl_target *dst, bool depth)
 {
     gl.BindFramebuffer(GL_READ_FRAMEBUFFER, src->fbo);
     gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, dst->fbo);
-    GLbitfield what = GL_COLOR_BUFFER_BIT | (src->depth && dst->depth ? GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT : 0);
+    GLbitfield what = GL_COLOR_BUFFER_BIT;
+    if (depth && src->depth && dst->depth) what |= GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT;
     gl.BlitFramebuffer(0, 0, src->width, src->height, 0, 0, dst->width, dst->height, what, GL_NEAREST);
     gl_target_bind(dst, 0, 0);
 }

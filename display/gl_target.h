@@ -33,9 +33,9 @@ void gl_target_resolve(const gl_target *src, const gl_target *dst);
 /* Deletes the GL objects and zeroes t. */
 void gl_target_free(gl_target *t);
 
-/* Copies src's colour, depth and stencil into dst (same size, formats and
- * samples) and leaves dst bound for drawing. */
-void gl_target_copy(const gl_target *src, const gl_target *dst);
+/* Copies src's colour, and with depth its depth and stencil, into dst
+ * (same size, formats and samples) and leaves dst bound for drawing. */
+void gl_target_copy(const gl_target *src, const gl_target *dst, bool depth);
 
 /* Binds t for drawing (or the default framebuffer when t is NULL) and sets
  * the viewport to its size (w, h for the default framebuffer). */
