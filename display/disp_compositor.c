@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "display/disp_tiles.h"
+#include "display/disp_screen.h"
 #include "display/gl_shaders.h"
 #include "display/gl_target.h"
 
@@ -26,22 +26,15 @@ struct disp_compositor {
     gl_target ldr;       /* tone-mapped 8-bit image (headless "screen") */
     gl_target base;      /* radiosity + glass of base_cam, no corrections (made on first use) */
     bool base_ok;        /* base holds base_cam's view of scene base_scene */
-    GLuint gbuf;         /* base's second colour attachment: triangle index, world position */
-    bool base_gbuf;      /* gbuf holds the base's surfaces (else corrections go over the mesh) */
-    disp_tiles *tiles;   /* the base's triangle indices per tile (gbuf's first channel) */
-    float *tri_img;      /* that channel read back, width x height */
-    disp_rect *rects;    /* one texture's tiles, disp_tiles_cover's output */
-    float *quads;        /* the screen pass's vertices (NDC x, y), all textures */
-    size_t quads_cap;
-    uint32_t *quad_range;   /* per texture: first vertex and count in quads */
-    size_t quad_range_cap;
-    GLuint sc_vao, sc_vbo;
+    disp_screen *screen; /* the base's surfaces and the screen pass (one sample a pixel only) */
+    bool base_gbuf;      /* the base holds its surfaces (else corrections go over the mesh) */
+    disp_rect *within;   /* per drawn texture: its node's projected bounds */
+    size_t within_cap;
     ct_camera base_cam, last_cam;
     uint64_t base_scene, last_scene;   /* disp_scene_serial; 0: none */
     mesh_prog mesh[GL_PASS_COUNT];   /* GL_PASS_ONE's slot unused: see one[] */
     mesh_prog one[GL_ONE_PASS_MAX_TEX];   /* one-pass programs for 1..4 textures */
-    GLuint tonemap, points_world, flat_screen, screen_corr;
-    GLint sc_texproj, sc_tris;
+    GLuint tonemap, points_world, flat_screen;
     GLint pw_mvp, pw_eye, pw_pull, pw_point, pw_color, fs_color;
     GLuint pw_vao, pw_vbo;
     uint32_t npoints;    /* sample points in pw_vbo */
@@ -122,10 +115,7 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     if (!rc)
         rc = gl_program_build("points-world", gl_src_points_world_vs, gl_src_points_fs, NULL, &c->points_world, err);
     if (!rc) rc = gl_program_build("flat-screen", gl_src_screen_vs, gl_src_points_fs, NULL, &c->flat_screen, err);
-    if (!rc)
-        rc = gl_program_build("screen-corrections", gl_src_quads_vs, gl_src_screen_corr_fs, NULL, &c->screen_corr,
-                              err);
-    if (!rc) rc = disp_tiles_new(&c->tiles, err);
+    if (!rc && c->samples == 1) rc = disp_screen_new(width, height, &c->screen, err);
     if (rc) {
         disp_compositor_free(c);
         return rc;
@@ -139,12 +129,6 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     c->pw_point = gl.GetUniformLocation(c->points_world, "u_point");
     c->pw_color = gl.GetUniformLocation(c->points_world, "u_color");
     c->fs_color = gl.GetUniformLocation(c->flat_screen, "u_color");
-    c->sc_texproj = gl.GetUniformLocation(c->screen_corr, "u_texproj0");
-    c->sc_tris = gl.GetUniformLocation(c->screen_corr, "u_tris");
-    gl.UseProgram(c->screen_corr);
-    gl.Uniform1i(gl.GetUniformLocation(c->screen_corr, "u_gbuf"), 1);
-    gl.Uniform1i(gl.GetUniformLocation(c->screen_corr, "u_tex0"), 0);
-    gl.UseProgram(0);
     gl.GenVertexArrays(1, &c->pw_vao);
     gl.GenBuffers(1, &c->pw_vbo);
     gl.BindVertexArray(c->pw_vao);
@@ -153,14 +137,6 @@ int disp_compositor_new(int width, int height, unsigned float_format, int sample
     gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), (const void *)0);
     gl.BindVertexArray(0);
     gl.GenVertexArrays(1, &c->empty_vao);
-    gl.GenVertexArrays(1, &c->sc_vao);
-    gl.GenBuffers(1, &c->sc_vbo);
-    gl.BindVertexArray(c->sc_vao);
-    gl.BindBuffer(GL_ARRAY_BUFFER, c->sc_vbo);
-    gl.EnableVertexAttribArray(0);
-    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), (const void *)0);
-    gl.BindVertexArray(0);
-    gl.BindBuffer(GL_ARRAY_BUFFER, 0);
     rc = gl_check("compositor set-up", err);
     if (rc) {
         disp_compositor_free(c);
@@ -177,7 +153,8 @@ void disp_compositor_free(disp_compositor *c)
     gl_target_free(&c->res);
     gl_target_free(&c->ldr);
     gl_target_free(&c->base);
-    if (c->gbuf) gl.DeleteTextures(1, &c->gbuf);
+    disp_screen_free(c->screen);
+    free(c->within);
     for (int p = 0; p < GL_PASS_COUNT; p++)
         if (c->mesh[p].id) gl.DeleteProgram(c->mesh[p].id);
     for (int k = 0; k < GL_ONE_PASS_MAX_TEX; k++)
@@ -185,17 +162,9 @@ void disp_compositor_free(disp_compositor *c)
     if (c->tonemap) gl.DeleteProgram(c->tonemap);
     if (c->points_world) gl.DeleteProgram(c->points_world);
     if (c->flat_screen) gl.DeleteProgram(c->flat_screen);
-    if (c->screen_corr) gl.DeleteProgram(c->screen_corr);
     if (c->pw_vao) gl.DeleteVertexArrays(1, &c->pw_vao);
     if (c->pw_vbo) gl.DeleteBuffers(1, &c->pw_vbo);
     if (c->empty_vao) gl.DeleteVertexArrays(1, &c->empty_vao);
-    if (c->sc_vao) gl.DeleteVertexArrays(1, &c->sc_vao);
-    if (c->sc_vbo) gl.DeleteBuffers(1, &c->sc_vbo);
-    disp_tiles_free(c->tiles);
-    free(c->tri_img);
-    free(c->rects);
-    free(c->quads);
-    free(c->quad_range);
     free(c->bounds);
     free(c->seg_tex);
     free(c->segs);
@@ -699,96 +668,18 @@ static void radiosity_pass(disp_compositor *c, const disp_scene *s, size_t nseg,
     glass_passes(c, s, mvp, cam, rad_scale > 0.0f, gbuf, st);
 }
 
-/* The kept base's position buffer: an RGBA32F texture (positions to the
- * float's precision whatever --fbo says; triangle indices exact up to
- * 2^24) as the base's second colour attachment. */
-static int gbuf_attach(disp_compositor *c, ct_error *err)
-{
-    gl.GenTextures(1, &c->gbuf);
-    gl.BindTexture(GL_TEXTURE_2D, c->gbuf);
-    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, c->width, c->height, 0, GL_RGBA, GL_FLOAT, NULL);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    gl.BindTexture(GL_TEXTURE_2D, 0);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, c->base.fbo);
-    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, c->gbuf, 0);
-    GLenum st = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
-    if (st != GL_FRAMEBUFFER_COMPLETE)
-        return ct_fail(err, CT_ESYS, "kept base with a position buffer %dx%d incomplete: 0x%04x", c->width,
-                       c->height, (unsigned)st);
-    size_t npx = (size_t)c->width * (size_t)c->height;
-    size_t ntiles = (size_t)((c->width + DISP_TILE - 1) / DISP_TILE) * (size_t)((c->height + DISP_TILE - 1) / DISP_TILE);
-    c->tri_img = malloc(npx * sizeof *c->tri_img);
-    c->rects = malloc(ntiles * sizeof *c->rects);
-    if (!c->tri_img || !c->rects) return ct_fail(err, CT_ENOMEM, "out of memory for the tile index");
-    return gl_check("position buffer creation", err);
-}
-
-/* The corrections over a kept base in screen space: per texture, the
- * tiles (disp_tiles.h) inside its node's projected bounds that show one of
- * the node's triangles, whose fragments look the kept surface up
- * (gl_src_screen_corr_fs) and add the texture's value where that surface
- * is one of the node's triangles. Over the mesh (late_corrections) every
- * textured triangle is sent again each frame, which on a CPU rasteriser is
- * most of a still frame's cost; here a texture costs six vertices a run of
- * tiles and one fetch per pixel of its tiles. Each pixel gets the
- * corrections of the one surface the base shows there (the depth test's
- * winner), as the one pass gives them. */
+/* The corrections over a kept base in screen space (disp_screen.h), each
+ * texture within its node's projected bounds. */
 static int screen_corrections(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex, uint32_t n,
                               const mat4 *mvp, disp_render_stats *st, ct_error *err)
 {
-    if (!n) return CT_OK;
-    int rc = grow((void **)&c->quad_range, &c->quad_range_cap, 2 * (size_t)n, sizeof *c->quad_range, err);
+    int rc = grow((void **)&c->within, &c->within_cap, n, sizeof *c->within, err);
     if (rc) return rc;
-    float w = (float)c->width, h = (float)c->height;
-    size_t nv = 0;
     for (uint32_t i = 0; i < n; i++) {
-        const disp_texture *x = tex[i];
-        px_rect r = screen_rect(c, mvp, disp_scene_node_bounds(s, x->node));
-        size_t nr = rect_empty(r) ? 0
-                                  : disp_tiles_cover(c->tiles, x->tri_begin, x->tri_end,
-                                                     (disp_rect){r.x0, r.y0, r.x1, r.y1}, c->rects);
-        if ((rc = grow((void **)&c->quads, &c->quads_cap, 2 * nv + 12 * nr, sizeof *c->quads, err))) return rc;
-        c->quad_range[2 * i] = (uint32_t)nv;
-        for (size_t k = 0; k < nr; k++) {
-            st->screen_px += (uint64_t)(c->rects[k].x1 - c->rects[k].x0) * (uint64_t)(c->rects[k].y1 - c->rects[k].y0);
-            float x0 = 2.0f * (float)c->rects[k].x0 / w - 1.0f, x1 = 2.0f * (float)c->rects[k].x1 / w - 1.0f;
-            float y0 = 2.0f * (float)c->rects[k].y0 / h - 1.0f, y1 = 2.0f * (float)c->rects[k].y1 / h - 1.0f;
-            const float v[12] = {x0, y0, x1, y0, x1, y1, x0, y0, x1, y1, x0, y1};
-            memcpy(c->quads + 2 * nv, v, sizeof v);
-            nv += 6;
-        }
-        c->quad_range[2 * i + 1] = (uint32_t)nv - c->quad_range[2 * i];
+        px_rect r = screen_rect(c, mvp, disp_scene_node_bounds(s, tex[i]->node));
+        c->within[i] = (disp_rect){r.x0, r.y0, r.x1, r.y1};
     }
-    if (!nv) return CT_OK;
-    gl.BindBuffer(GL_ARRAY_BUFFER, c->sc_vbo);
-    gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(2 * nv * sizeof *c->quads), c->quads, GL_STREAM_DRAW);
-    gl.BindBuffer(GL_ARRAY_BUFFER, 0);
-    gl.Disable(GL_DEPTH_TEST);
-    gl.Enable(GL_BLEND);
-    gl.BlendEquation(GL_FUNC_ADD);
-    gl.BlendFunc(GL_ONE, GL_ONE);
-    gl.UseProgram(c->screen_corr);
-    gl.ActiveTexture(GL_TEXTURE1);
-    gl.BindTexture(GL_TEXTURE_2D, c->gbuf);
-    gl.ActiveTexture(GL_TEXTURE0);
-    gl.BindVertexArray(c->sc_vao);
-    for (uint32_t i = 0; i < n; i++) {
-        if (!c->quad_range[2 * i + 1]) continue;
-        const disp_texture *x = tex[i];
-        gl.UniformMatrix4fv(c->sc_texproj, 1, GL_TRUE, &x->proj.m[0][0]);
-        gl.Uniform2f(c->sc_tris, (float)x->tri_begin, (float)x->tri_end);
-        gl.BindTexture(GL_TEXTURE_2D, x->gl_tex);
-        gl.DrawArrays(GL_TRIANGLES, (GLint)c->quad_range[2 * i], (GLsizei)c->quad_range[2 * i + 1]);
-        st->draws++;
-    }
-    gl.ActiveTexture(GL_TEXTURE1);
-    gl.BindTexture(GL_TEXTURE_2D, 0);
-    gl.ActiveTexture(GL_TEXTURE0);
-    gl.Disable(GL_BLEND);
-    gl.Enable(GL_DEPTH_TEST);
-    return CT_OK;
+    return disp_screen_draw(c->screen, tex, c->within, n, &st->draws, &st->screen_px, err);
 }
 
 /* Puts the radiosity and glass of cam into the float target from the kept
@@ -806,8 +697,8 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
             int rc = gl_target_init(&c->base, c->width, c->height, c->hdr.format, true, c->samples, err);
             if (rc) return rc;
         }
-        if (gbuf && !c->gbuf) {
-            int rc = gbuf_attach(c, err);
+        if (gbuf) {
+            int rc = disp_screen_attach(c->screen, c->base.fbo, err);
             if (rc) return rc;
         }
         clear_target(&c->base);
@@ -821,13 +712,7 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
         radiosity_pass(c, s, nseg, mvp, cam, 1.0f, gbuf, st);
         if (gbuf) {
             /* Once per kept view: which triangles each tile shows. */
-            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, c->base.fbo);
-            gl.ReadBuffer(GL_COLOR_ATTACHMENT1);
-            gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
-            gl.ReadPixels(0, 0, c->width, c->height, GL_RED, GL_FLOAT, c->tri_img);
-            gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-            int rc = disp_tiles_set(c->tiles, c->tri_img, c->width, c->height, err);
+            int rc = disp_screen_index(c->screen, c->base.fbo, err);
             if (rc) return rc;
         }
         c->base_ok = true;
@@ -898,8 +783,7 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && reuse) {
         /* Triangle indices travel as floats: exact below 2^24. */
-        bool screen = o->passes == 1 && !o->mesh_corrections && c->samples == 1 &&
-                      disp_scene_ntris(s) <= (1u << 24);
+        bool screen = o->passes == 1 && !o->mesh_corrections && c->screen && disp_scene_ntris(s) <= (1u << 24);
         rc = base_into_target(c, s, nseg, &mvp.m[0][0], cam, screen, &st, err);
         st.screen_pass = screen;
         if (!rc && screen) rc = screen_corrections(c, s, tex, n, &mvp, &st, err);
