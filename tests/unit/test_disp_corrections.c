@@ -299,9 +299,14 @@ static void compare_kept(fx_setup *f, bool all_positive, const float *lin1, cons
         double mx, mean;
         fx_diff(lk, lin1, n, &mx, &mean);
         printf("metric: %s: kept base, corrections %s, vs 1-pass drawn at once: linear max %.2e, mean %.2e; %u "
-               "draws\n", what, mesh ? "over the mesh" : "in screen space", mx, mean, st.draws);
+               "draws, %llu pixels in screen space\n", what, mesh ? "over the mesh" : "in screen space", mx, mean,
+               st.draws, (unsigned long long)st.screen_px);
         cr_expect(st.base_reused, "%s: the third frame reuses the base", what);
         cr_expect_eq(st.screen_pass, !mesh, "%s: screen pass %s", what, st.screen_pass ? "ran" : "did not run");
+        if (!mesh)
+            cr_expect(st.screen_px > 0 && st.screen_px <= (uint64_t)W * H * f->ntex,
+                      "%s: the screen pass drew %llu pixels for %d textures", what,
+                      (unsigned long long)st.screen_px, f->ntex);
         cr_expect_leq(mx, 1e-5, "%s: kept base (%s) differs by %.3e", what, mesh ? "mesh" : "screen", mx);
     }
     free(lk);
