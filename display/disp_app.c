@@ -330,6 +330,9 @@ static int run(app *a, ct_error *err)
                                     disp_session_textures(a->session), &cam, &a->ropts, &rs, err);
         if (!rc) rc = disp_compositor_present(a->comp, &a->ropts, window, in.fb_width, in.fb_height, err);
         if (rc) break;
+        a->kept_frames += rs.base_reused;
+        a->screen_frames += rs.screen_pass;
+        a->screen_px += rs.screen_px;
         disp_session_frame_drawn(a->session);
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
@@ -384,6 +387,12 @@ static int run(app *a, ct_error *err)
         printf("display: per frame besides drawing: %.1f ms waiting for lockstep frames, %.1f ms taking what "
                "arrived (texel uploads), %.1f ms capturing\n",
                1000.0 * a->t_wait / k, 1000.0 * a->t_take / k, 1000.0 * a->t_capture / k);
+    if (a->kept_frames)
+        printf("display: %llu of %u frames reused a still camera's kept base; %llu drew the corrections in screen "
+               "space, %.2f screens of tiles a frame\n",
+               (unsigned long long)a->kept_frames, k, (unsigned long long)a->screen_frames,
+               a->screen_frames ? (double)a->screen_px / (double)a->screen_frames / ((double)o->width * o->height)
+                                : 0.0);
     if (a->t_idle > 0.05)
         printf("display: nothing new to draw for %.1f s of %.1f s (no frame drawn then)\n", a->t_idle, total);
     if (a->t_held > 0.05)

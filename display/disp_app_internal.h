@@ -38,6 +38,8 @@ typedef struct app {
     double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
     double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
     double t_held;                /* seconds new texels waited for --texel-fps / --texel-cpu */
+    uint64_t kept_frames;         /* frames that reused a kept base */
+    uint64_t screen_frames, screen_px;   /* frames with the corrections in screen space, the pixels they drew */
     bool hold_texels;             /* the inbox is not taken: texel redraws are held back */
     disp_scene_cache *cache;
     double retry_at, backoff;     /* next reconnection attempt, its delay */
