@@ -6,7 +6,9 @@
  * corrections are positive), or all of it in one shader pass (--passes 1).
  * A camera drawn again (streamed texels under a still view) starts from a
  * copy of its radiosity and glass kept from its first repeat (the base),
- * so only the corrections are drawn anew (docs/display.md, "Still views").
+ * so only the corrections are drawn anew; in 1-pass mode in screen space
+ * from the surfaces the base keeps per pixel (disp_screen.h; docs/display.md,
+ * "Still views").
  * Then exposure and sRGB tone mapping to the window or to an 8-bit target,
  * plus the debug views (radiosity only, corrections only, texture
  * assignment as in the paper's Fig. 5, sample positions as in Fig. 7). */
