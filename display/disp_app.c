@@ -429,7 +429,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     a.o = o;
     a.ropts.passes = o->passes;
     a.ropts.full_redraw = o->full_redraw;
-    a.ropts.mesh_corrections = o->mesh_corrections;
+    a.ropts.kept = (disp_kept_corr)o->kept_corrections;
     a.ropts.view = o->view;
     a.ropts.exposure = o->exposure;
     int status = DISP_EXIT_ERROR;

@@ -58,7 +58,7 @@ typedef struct disp_app_opts {
     double texel_fps;             /* new texels alone redraw a view at most this often (0: no limit) */
     double texel_cpu;             /* and use at most this many cores doing so (0: no limit) */
     bool full_redraw;             /* no kept base: a still camera's radiosity drawn every frame */
-    bool mesh_corrections;        /* corrections over a kept base drawn over the mesh, not in screen space */
+    int kept_corrections;         /* disp_kept_corr: how the corrections go over a kept base */
     uint32_t sample_frames;       /* the samples view shows the points of this many frames */
     uint32_t sample_max;          /* and keeps at most this many points */
     volatile int *stop;           /* set (by a signal handler) to end the run in order; NULL: none */

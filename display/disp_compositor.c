@@ -668,10 +668,21 @@ static void radiosity_pass(disp_compositor *c, const disp_scene *s, size_t nseg,
     glass_passes(c, s, mvp, cam, rad_scale > 0.0f, gbuf, st);
 }
 
-/* The corrections over a kept base in screen space (disp_screen.h), each
- * texture within its node's projected bounds. */
-static int screen_corrections(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex, uint32_t n,
-                              const mat4 *mvp, disp_render_stats *st, ct_error *err)
+/* Plans the corrections over a kept base in screen space (disp_screen.h),
+ * each texture within its node's projected bounds, and says whether to
+ * draw them so: on a CPU rasteriser the screen pass costs per pixel it
+ * covers (a fetch of the kept surface and a projection besides the
+ * lookup: about 21-25 ns of CPU a pixel on llvmpipe), the mesh path per
+ * textured triangle sent again (about 0.44 us) and per textured pixel
+ * (about 16 ns). With the screen pass's pixels about 1.3 times the
+ * textured ones, the screen pass wins once the textured triangles are
+ * about 1/50 of its pixels: the radiosity meshes of table and office (70
+ * and 60 thousand textured triangles against 1.3-1.4 million pixels at
+ * 1024x1024), not the Cornell stand-in of 3,086 triangles, where it cost
+ * 37.5 against 26.9 CPU ms a still frame (docs/display.md, "Still views"). */
+static int plan_screen(disp_compositor *c, const disp_scene *s, const disp_texture *const *tex, uint32_t n,
+                       size_t nseg, const mat4 *mvp, disp_kept_corr kept, bool *use, disp_render_stats *st,
+                       ct_error *err)
 {
     int rc = grow((void **)&c->within, &c->within_cap, n, sizeof *c->within, err);
     if (rc) return rc;
@@ -679,17 +690,25 @@ static int screen_corrections(disp_compositor *c, const disp_scene *s, const dis
         px_rect r = screen_rect(c, mvp, disp_scene_node_bounds(s, tex[i]->node));
         c->within[i] = (disp_rect){r.x0, r.y0, r.x1, r.y1};
     }
-    return disp_screen_draw(c->screen, tex, c->within, n, &st->draws, &st->screen_px, err);
+    uint64_t px = 0;
+    if ((rc = disp_screen_plan(c->screen, tex, c->within, n, &px, err))) return rc;
+    uint64_t tris = 0;
+    for (size_t k = 0; k < nseg; k++)
+        if (c->segs[k].m) tris += c->segs[k].e - c->segs[k].b;
+    *use = kept == DISP_KEPT_SCREEN || (kept == DISP_KEPT_AUTO && 50 * tris >= px);
+    if (*use) st->screen_px = px;
+    return CT_OK;
 }
 
-/* Puts the radiosity and glass of cam into the float target from the kept
- * base, drawing the base first when it holds another view. Radiosity and
- * glass do not change with the texels, and they are most of a frame's cost
- * on a CPU rasteriser; the corrections then go over the copy with the
- * depth the base left (so they land where pass 1's surfaces are, as in
- * passes 2 and 3). */
-static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
-                            const ct_camera *cam, bool gbuf, disp_render_stats *st, ct_error *err)
+/* Makes the kept base hold the radiosity and glass of cam (with gbuf also
+ * the surface each pixel shows), drawing it when it holds another view.
+ * Radiosity and glass do not change with the texels, and they are most of
+ * a frame's cost on a CPU rasteriser; the frame then starts from a copy of
+ * the base, and the corrections over the mesh go over it with the depth
+ * the base left (so they land where pass 1's surfaces are, as in passes 2
+ * and 3). */
+static int base_ready(disp_compositor *c, const disp_scene *s, size_t nseg, const float *mvp,
+                      const ct_camera *cam, bool gbuf, disp_render_stats *st, ct_error *err)
 {
     uint64_t serial = disp_scene_serial(s);
     if (!c->base_ok || c->base_scene != serial || !cam_same(&c->base_cam, cam) || c->base_gbuf != gbuf) {
@@ -722,12 +741,6 @@ static int base_into_target(disp_compositor *c, const disp_scene *s, size_t nseg
     } else {
         st->base_reused = true;
     }
-    /* The screen pass needs no depth: its surfaces come from the position
-     * buffer (and on llvmpipe the depth and stencil are a third of the
-     * copy's bytes). The samples view is not drawn over a kept base. */
-    gl_target_copy(&c->base, &c->hdr, !gbuf);
-    frame_state();
-    disp_scene_bind(s);
     return CT_OK;
 }
 
@@ -782,11 +795,23 @@ int disp_compositor_render(disp_compositor *c, const disp_scene *s, const disp_t
     size_t nseg = 0;
     rc = build_segments(c, s, tex, n, cam, &nseg, err);
     if (!rc && reuse) {
-        /* Triangle indices travel as floats: exact below 2^24. */
-        bool screen = o->passes == 1 && !o->mesh_corrections && c->screen && disp_scene_ntris(s) <= (1u << 24);
-        rc = base_into_target(c, s, nseg, &mvp.m[0][0], cam, screen, &st, err);
+        /* The base keeps its surfaces whenever the screen pass may be
+         * used (triangle indices travel as floats: exact below 2^24);
+         * each frame then takes the cheaper way. */
+        bool gbuf = o->passes == 1 && o->kept != DISP_KEPT_MESH && c->screen && disp_scene_ntris(s) <= (1u << 24);
+        bool screen = false;
+        rc = base_ready(c, s, nseg, &mvp.m[0][0], cam, gbuf, &st, err);
+        if (!rc && gbuf) rc = plan_screen(c, s, tex, n, nseg, &mvp, o->kept, &screen, &st, err);
+        if (!rc) {
+            /* The screen pass needs no depth: its surfaces come from the
+             * position buffer (and on llvmpipe the depth and stencil are a
+             * third of the copy's bytes). */
+            gl_target_copy(&c->base, &c->hdr, !screen);
+            frame_state();
+            disp_scene_bind(s);
+        }
         st.screen_pass = screen;
-        if (!rc && screen) rc = screen_corrections(c, s, tex, n, &mvp, &st, err);
+        if (!rc && screen) rc = disp_screen_draw(c->screen, tex, n, &st.draws, err);
         else if (!rc && o->passes == 1) late_corrections(c, s, nseg, &mvp.m[0][0], true, &st);
         else if (!rc) correction_passes(c, s, tex, n, &mvp.m[0][0], o->all_positive, &st);
     } else if (!rc && corrections && o->passes == 1) {

@@ -32,6 +32,17 @@ typedef enum disp_view {
     DISP_VIEW_COUNT       = 5
 } disp_view;
 
+/* How a still view's corrections are drawn over its kept base (1-pass
+ * mode): in screen space from the surfaces the base keeps (disp_screen.h),
+ * over the mesh's triangles, or whichever costs less on a CPU rasteriser
+ * (screen space when the textured triangles are at least 1/50 of the
+ * pixels the screen pass would draw; docs/display.md, "Still views"). */
+typedef enum disp_kept_corr {
+    DISP_KEPT_AUTO   = 0,
+    DISP_KEPT_SCREEN = 1,
+    DISP_KEPT_MESH   = 2
+} disp_kept_corr;
+
 /* Name of a view ("full", "radiosity", ...). */
 const char *disp_view_name(disp_view v);
 
@@ -48,7 +59,7 @@ typedef struct disp_render_opts {
     float exposure;       /* stops: displayed = linear * 2^exposure */
     bool all_positive;    /* the master says no correction is negative: no pass 3 */
     bool full_redraw;     /* draw the radiosity anew even when the camera did not move */
-    bool mesh_corrections;   /* over a kept base, draw the corrections over the mesh, not in screen space */
+    disp_kept_corr kept;  /* how the corrections go over a kept base */
 } disp_render_opts;
 
 /* What the last render drew. */

@@ -18,6 +18,7 @@ struct disp_screen {
     size_t verts_cap;
     uint32_t *range;          /* per texture: first vertex, count */
     size_t range_cap;
+    size_t nv;                /* vertices planned */
 };
 
 static int grow(void **p, size_t *cap, size_t need, size_t elem, ct_error *err)
@@ -124,9 +125,11 @@ int disp_screen_index(disp_screen *p, GLuint fbo, ct_error *err)
     return rc ? rc : disp_tiles_set(p->tiles, p->tri_img, p->w, p->h, err);
 }
 
-int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, const disp_rect *within, uint32_t n,
-                     uint32_t *draws, uint64_t *px, ct_error *err)
+int disp_screen_plan(disp_screen *p, const disp_texture *const *tex, const disp_rect *within, uint32_t n,
+                     uint64_t *px, ct_error *err)
 {
+    *px = 0;
+    p->nv = 0;
     if (!n || !p->gbuf) return CT_OK;
     int rc = grow((void **)&p->range, &p->range_cap, 2 * (size_t)n, sizeof *p->range, err);
     if (rc) return rc;
@@ -147,7 +150,14 @@ int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, const disp_
         }
         p->range[2 * i + 1] = (uint32_t)nv - p->range[2 * i];
     }
-    if (!nv) return CT_OK;
+    p->nv = nv;
+    return CT_OK;
+}
+
+int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, uint32_t n, uint32_t *draws, ct_error *err)
+{
+    size_t nv = p->nv;
+    if (!n || !nv || n > p->range_cap / 2) return CT_OK;
     gl.BindBuffer(GL_ARRAY_BUFFER, p->vbo);
     gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(2 * nv * sizeof *p->verts), p->verts, GL_STREAM_DRAW);
     gl.BindBuffer(GL_ARRAY_BUFFER, 0);

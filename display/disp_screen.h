@@ -38,11 +38,16 @@ int disp_screen_attach(disp_screen *p, GLuint fbo, ct_error *err);
  * indexes them per tile. */
 int disp_screen_index(disp_screen *p, GLuint fbo, ct_error *err);
 
-/* Adds the corrections of the n textures to the bound target (blending,
- * no depth test), texture i only inside within[i] (its node's projected
- * bounds, pixels, GL window coordinates). Counts the draws and the pixels
- * drawn into *draws and *px. */
-int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, const disp_rect *within, uint32_t n,
-                     uint32_t *draws, uint64_t *px, ct_error *err);
+/* Plans the corrections of the n textures, texture i only inside
+ * within[i] (its node's projected bounds, pixels, GL window coordinates):
+ * the tiles that show its node. *px: the pixels the draw would cover (what
+ * it costs on a CPU rasteriser; the compositor weighs it against the
+ * triangles the mesh path would send). */
+int disp_screen_plan(disp_screen *p, const disp_texture *const *tex, const disp_rect *within, uint32_t n,
+                     uint64_t *px, ct_error *err);
+
+/* Adds the planned corrections of the same n textures to the bound target
+ * (blending, no depth test); counts the draws into *draws. */
+int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, uint32_t n, uint32_t *draws, ct_error *err);
 
 #endif

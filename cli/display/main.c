@@ -113,9 +113,9 @@ static const optab RUN_OPTS[] = {
     {"full-redraw", 0, OPTAB_FLAG, OF(o.full_redraw), 0, 0, NULL, NULL,
      "draw a still camera's radiosity every frame (else it is kept from the second frame on and only the "
      "corrections are redrawn)", NULL},
-    {"mesh-corrections", 0, OPTAB_FLAG, OF(o.mesh_corrections), 0, 0, NULL, NULL,
-     "over a kept base, draw the corrections over the mesh's triangles (else in screen space from the base's "
-     "kept surface positions; 1-pass, one sample a pixel)", NULL},
+    {"kept-corrections", 0, OPTAB_CHOICE, OF(o.kept_corrections), 0, 0, NULL, "auto|screen|mesh",
+     "a still view's corrections over its kept base (1-pass, one sample a pixel): in screen space from the "
+     "surfaces the base keeps, over the mesh's triangles, or whichever costs less (docs/display.md)", NULL},
     {"texel-fps", 0, OPTAB_DOUBLE, OF(o.texel_fps), 0, 1000, NULL, "F",
      "redraw a view for new texels alone at most F times a second; a moving camera is drawn at once (0: whenever "
      "they arrive). On a host shared with tracer ranks, what the display does not draw the tracers trace "

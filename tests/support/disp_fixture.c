@@ -481,7 +481,7 @@ int fx_render_session(disp_session *s, int width, int height, uint8_t *out, ct_e
     int rc = disp_compositor_new(width, height, 0, 1, &c, err);
     if (rc) return rc;
     ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, DISP_KEPT_AUTO};
     rc = disp_compositor_render(c, disp_session_scene_of(s), disp_session_textures(s), &cam, &o, NULL, err);
     if (!rc) rc = disp_compositor_present(c, &o, false, width, height, err);
     if (!rc) disp_compositor_read_display(c, out);

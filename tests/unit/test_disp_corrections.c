@@ -202,7 +202,7 @@ static void check_expected(fx_setup *f, int passes, const char *what)
     float *exp = malloc((size_t)W * H * 3 * sizeof *exp);
     bool *use = malloc((size_t)W * H * sizeof *use);
     expected(&ref, &m, f, exp, use);
-    disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false, false};
+    disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false, DISP_KEPT_AUTO};
     const gl_backend_kind kinds[2] = {GL_BACKEND_OSMESA, GL_BACKEND_EGL};
     for (int k = 0; k < 2; k++) {
         fx_frame fr;
@@ -265,7 +265,7 @@ static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, 
     rig rg;
     rig_open(&rg, f);
     ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false, DISP_KEPT_AUTO};
     rig_render(&rg, &cam, &o, st1, one, lin1);
     o.passes = 3;
     o.full_redraw = true;   /* the same camera again: all three passes, not the kept base */
@@ -274,40 +274,45 @@ static void render_both(fx_setup *f, uint8_t *one, uint8_t *three, float *lin1, 
 }
 
 /* The third frame of one camera: the corrections over the kept base, in
- * screen space (the default) or over the mesh (mesh_corrections). */
-static void render_kept(fx_setup *f, bool all_positive, bool mesh, float *lin, disp_render_stats *st)
+ * screen space, over the mesh, or whichever the compositor picks. */
+static void render_kept(fx_setup *f, bool all_positive, disp_kept_corr kept, float *lin, disp_render_stats *st)
 {
     rig rg;
     rig_open(&rg, f);
     ct_camera cam = fx_box_camera();
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false, mesh};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.5f, all_positive, false, kept};
     for (int i = 0; i < 3; i++) rig_render(&rg, &cam, &o, st, NULL, i == 2 ? lin : NULL);
     rig_close(&rg);
 }
 
-/* The kept base's two ways of adding corrections against the 1-pass frame
+/* The kept base's ways of adding corrections against the 1-pass frame
  * drawn at once (lin1): stacked textures (more than 4 on a node), mixed
  * signs and nested nodes all go through the screen pass's per-texture
- * rectangles. */
+ * tiles. The box has 174 triangles, far fewer than a 50th of the pixels
+ * the screen pass would draw, so the automatic choice is the mesh. */
 static void compare_kept(fx_setup *f, bool all_positive, const float *lin1, const char *what)
 {
     size_t n = (size_t)W * H * 3;
     float *lk = malloc(n * sizeof *lk);
-    for (int mesh = 0; mesh < 2; mesh++) {
+    static const disp_kept_corr modes[] = {DISP_KEPT_SCREEN, DISP_KEPT_MESH, DISP_KEPT_AUTO};
+    static const char *const names[] = {"in screen space", "over the mesh", "chosen (auto)"};
+    for (int m = 0; m < 3; m++) {
         disp_render_stats st;
-        render_kept(f, all_positive, mesh, lk, &st);
+        render_kept(f, all_positive, modes[m], lk, &st);
         double mx, mean;
         fx_diff(lk, lin1, n, &mx, &mean);
         printf("metric: %s: kept base, corrections %s, vs 1-pass drawn at once: linear max %.2e, mean %.2e; %u "
-               "draws, %llu pixels in screen space\n", what, mesh ? "over the mesh" : "in screen space", mx, mean,
-               st.draws, (unsigned long long)st.screen_px);
+               "draws, %llu pixels in screen space\n", what, names[m], mx, mean, st.draws,
+               (unsigned long long)st.screen_px);
+        bool screen = modes[m] == DISP_KEPT_SCREEN;
         cr_expect(st.base_reused, "%s: the third frame reuses the base", what);
-        cr_expect_eq(st.screen_pass, !mesh, "%s: screen pass %s", what, st.screen_pass ? "ran" : "did not run");
-        if (!mesh)
+        cr_expect_eq(st.screen_pass, screen, "%s, %s: screen pass %s", what, names[m],
+                     st.screen_pass ? "ran" : "did not run");
+        if (screen)
             cr_expect(st.screen_px > 0 && st.screen_px <= (uint64_t)W * H * f->ntex,
                       "%s: the screen pass drew %llu pixels for %d textures", what,
                       (unsigned long long)st.screen_px, f->ntex);
-        cr_expect_leq(mx, 1e-5, "%s: kept base (%s) differs by %.3e", what, mesh ? "mesh" : "screen", mx);
+        cr_expect_leq(mx, 1e-5, "%s: kept base (%s) differs by %.3e", what, names[m], mx);
     }
     free(lk);
 }
@@ -390,7 +395,7 @@ Test(disp_corrections, debug_views)
     size_t n = (size_t)W * H;
     float *lin = malloc(n * 3 * sizeof *lin);
     uint8_t *disp = malloc(n * 3);
-    disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false, false, false};
+    disp_render_opts o = {1, DISP_VIEW_CORRECTIONS, 0.0f, false, false, DISP_KEPT_AUTO};
 
     /* Corrections only: 0.5 + 0.5 * value, no sRGB; grey where none. */
     rig_render(&rg, &cam, &o, NULL, disp, NULL);
@@ -477,7 +482,7 @@ Test(disp_corrections, sample_points_in_the_samples_view)
     size_t n = (size_t)W * H;
     uint8_t *disp = malloc(n * 3);
     float *lin = malloc(n * 3 * sizeof *lin), *full = malloc(n * 3 * sizeof *full);
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, DISP_KEPT_AUTO};
     rig_render(&rg, &cam, &o, NULL, NULL, full);
     size_t at[3];
     for (int i = 0; i < 3; i++) {
@@ -549,7 +554,7 @@ Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
     ct_camera cam = fx_box_camera();
     size_t n = (size_t)W * H * 3;
     float *full = malloc(n * sizeof *full), *rad = malloc(n * sizeof *rad);
-    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
     rig_render(&rg, &cam, &o, NULL, NULL, rad);
     o.view = DISP_VIEW_FULL;
     /* Rounds: fresh 64x64; re-allocated at the same size after holding
@@ -632,7 +637,7 @@ Test(disp_corrections, kept_base_follows_changed_texels)
         rig rg;
         rig_open(&rg, &f);
         ct_camera cam = fx_box_camera();
-        disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false, false};
+        disp_render_opts o = {passes, DISP_VIEW_FULL, 0.0f, false, false, DISP_KEPT_SCREEN};
         disp_render_stats st;
         rig_render(&rg, &cam, &o, &st, NULL, NULL);
         cr_expect_not(st.base_reused, "the first frame has no base");
@@ -668,7 +673,7 @@ Test(disp_corrections, kept_base_follows_changed_texels)
         rig rg;
         rig_open(&rg, &f);
         ct_camera cam = fx_box_camera();
-        disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, true, false};
+        disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, true, DISP_KEPT_AUTO};
         rig_render(&rg, &cam, &o, NULL, NULL, fresh);
         rig_close(&rg);
         double mx, mean;
@@ -699,7 +704,7 @@ Test(disp_corrections, camera_local_resized_scaled_reprojected_zero)
     float *rad = malloc(n * sizeof *rad), *scaled = malloc(n * sizeof *scaled), *full = malloc(n * sizeof *full);
     float *half = malloc((size_t)64 * 32 * 3 * sizeof *half);
     for (int i = 0; i < 64 * 32 * 3; i++) half[i] = 0.5f;
-    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
     disp_render_stats st;
     rig_render(&rg, &cam, &o, NULL, NULL, rad);
     o.view = DISP_VIEW_FULL;

@@ -172,10 +172,12 @@ static void check_frames(const base_image *b, glass_setup *f, disp_view view, co
     glass_nodes nd = scene_nodes();
     ct_camera cam = glass_camera();
     /* frames 1: everything drawn at once; 3: the third frame of the same
-     * camera, corrections over the kept base */
-    for (int run = 0; run < 4; run++) {
+     * camera, corrections over the kept base (1-pass: in screen space and
+     * over the mesh) */
+    for (int run = 0; run < 5; run++) {
         int passes = run % 2 ? 3 : 1, frames = run < 2 ? 1 : 3;
-        disp_render_opts o = {passes, view, 0.0f, false, false, false};
+        disp_kept_corr kept = run == 2 ? DISP_KEPT_SCREEN : run == 4 ? DISP_KEPT_MESH : DISP_KEPT_AUTO;
+        disp_render_opts o = {passes, view, 0.0f, false, false, kept};
         fx_frame fr;
         char msg[256];
         cr_assert_eq(fx_render_frames(GL_BACKEND_EGL, W, H, &cam, &o, frames, setup, f, &fr, msg, sizeof msg), 0,
@@ -192,8 +194,9 @@ static void check_frames(const base_image *b, glass_setup *f, disp_view view, co
             glass += glass_node(&nd, b->px[p].node);
             stacked += b->px[p].node == (uint32_t)nd.cube;
         }
-        printf("metric: %s, %d-pass, frame %d: max |GL - expected| %.2e over %d pixels (%d through glass, %d "
-               "through both), tolerance %.0e\n", what, passes, frames, mx, used, glass, stacked, TOL);
+        printf("metric: %s, %d-pass, frame %d%s: max |GL - expected| %.2e over %d pixels (%d through glass, %d "
+               "through both), tolerance %.0e\n", what, passes, frames,
+               run == 2 ? " (--kept-corrections screen)" : run == 4 ? " (--kept-corrections mesh)" : "", mx, used, glass, stacked, TOL);
         cr_expect_gt(glass, W * H / 4, "%s: only %d glass pixels comparable", what, glass);
         cr_expect_gt(stacked, 20, "%s: only %d pixels through both glasses", what, stacked);
         cr_expect_leq(mx, TOL, "%s, %d-pass, frame %d: max error %.3e", what, passes, frames, mx);

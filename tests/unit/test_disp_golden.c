@@ -63,7 +63,7 @@ Test(disp_golden, backends_match_software_gouraud)
     fx_ref ref;
     ct_error err;
     cr_assert_eq(fx_box_reference(W, H, &m, NULL, &cam, &ref, &err), 0, "%s", err.msg);
-    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
+    disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
     fx_frame osm, egl;
     char msg[256];
     cr_assert_eq(fx_render(GL_BACKEND_OSMESA, W, H, &cam, &o, setup_box, NULL, &osm, msg, sizeof msg), 0,
@@ -151,7 +151,7 @@ static void layered(layers l)
     char msg[256];
     if (!l.reversed) setenv("CORRTEX_GL_REVERSED_Z", "0", 1);
     for (int passes = 1; passes <= 3; passes += 2) {
-        disp_render_opts o = {passes, passes == 1 ? DISP_VIEW_FULL : DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
+        disp_render_opts o = {passes, passes == 1 ? DISP_VIEW_FULL : DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
         int rc = fx_render(GL_BACKEND_EGL, 32, 32, &cam, &o, setup_layers, &l, &f, msg, sizeof msg);
         if (rc && strstr(msg, "no clip control")) {
             unsetenv("CORRTEX_GL_REVERSED_Z");
@@ -194,7 +194,7 @@ Test(disp_golden, multisampling_averages_the_edges)
     enum { S = 4 };
     fx_ref fine;
     cr_assert_eq(fx_rasterise(&m, &cam, W * S, H * S, &fine), 0);
-    disp_render_opts o = {1, DISP_VIEW_RADIOSITY, 0.0f, false, false, false};
+    disp_render_opts o = {1, DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
     fx_frame one, ms;
     char msg[256];
     cr_assert_eq(fx_render_ms(GL_BACKEND_EGL, W, H, &cam, &o, 1, 1, setup_box, NULL, &one, msg, sizeof msg), 0,

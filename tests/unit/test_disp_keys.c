@@ -8,7 +8,7 @@
 
 Test(disp_keys, view_pass_and_exposure_keys)
 {
-    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, false};
+    disp_render_opts o = {1, DISP_VIEW_FULL, 0.0f, false, false, DISP_KEPT_AUTO};
     const disp_view views[5] = {DISP_VIEW_FULL, DISP_VIEW_RADIOSITY, DISP_VIEW_CORRECTIONS,
                                 DISP_VIEW_ASSIGNMENT, DISP_VIEW_SAMPLES};
     for (int k = 0; k < 5; k++) {

@@ -52,7 +52,7 @@ Test(disp_window, glfw_under_xvfb_matches_headless)
     pid_t x = fx_xvfb_start(msg, sizeof msg);
     cr_assert_gt(x, 0, "%s", msg);
     ct_camera cam = fx_box_camera();
-    disp_render_opts o = {3, DISP_VIEW_FULL, 0.3f, false, false, false};
+    disp_render_opts o = {3, DISP_VIEW_FULL, 0.3f, false, false, DISP_KEPT_AUTO};
     fx_frame win, osm;
     int rc = fx_render(GL_BACKEND_GLFW, W, H, &cam, &o, setup_box, NULL, &win, msg, sizeof msg);
     fx_xvfb_stop(x);
@@ -82,7 +82,7 @@ Test(disp_window, tone_mapping_matches_cpu)
     ct_camera cam = fx_box_camera();
     const float exposures[3] = {0.0f, 1.0f, -1.5f};
     for (int e = 0; e < 3; e++) {
-        disp_render_opts o = {1, DISP_VIEW_FULL, exposures[e], false, false, false};
+        disp_render_opts o = {1, DISP_VIEW_FULL, exposures[e], false, false, DISP_KEPT_AUTO};
         fx_frame f;
         char msg[256];
         cr_assert_eq(fx_render(GL_BACKEND_EGL, W, H, &cam, &o, setup_box, NULL, &f, msg, sizeof msg), 0, "%s", msg);
