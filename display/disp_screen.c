@@ -157,6 +157,7 @@ int disp_screen_plan(disp_screen *p, const disp_texture *const *tex, const disp_
 int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, uint32_t n, uint32_t *draws, ct_error *err)
 {
     size_t nv = p->nv;
+    p->nv = 0;   /* a plan is drawn once */
     if (!n || !nv || n > p->range_cap / 2) return CT_OK;
     gl.BindBuffer(GL_ARRAY_BUFFER, p->vbo);
     gl.BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(2 * nv * sizeof *p->verts), p->verts, GL_STREAM_DRAW);

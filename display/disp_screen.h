@@ -46,8 +46,9 @@ int disp_screen_index(disp_screen *p, GLuint fbo, ct_error *err);
 int disp_screen_plan(disp_screen *p, const disp_texture *const *tex, const disp_rect *within, uint32_t n,
                      uint64_t *px, ct_error *err);
 
-/* Adds the planned corrections of the same n textures to the bound target
- * (blending, no depth test); counts the draws into *draws. */
+/* Adds the corrections of the same n textures as the last plan to the
+ * bound target (blending, no depth test), once: a plan is drawn at most
+ * once. Counts the draws into *draws. */
 int disp_screen_draw(disp_screen *p, const disp_texture *const *tex, uint32_t n, uint32_t *draws, ct_error *err);
 
 #endif
