@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/grow.h"
 #include "display/disp_screen.h"
 #include "display/gl_shaders.h"
 #include "display/gl_target.h"
@@ -265,17 +266,6 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static int grow(void **p, size_t *cap, size_t need, size_t elem, ct_error *err)
-{
-    if (need <= *cap) return CT_OK;
-    size_t n = need < 64 ? 64 : 2 * need;
-    void *q = realloc(*p, n * elem);
-    if (!q) return ct_fail(err, CT_ENOMEM, "out of memory for %zu draw segments", n);
-    *p = q;
-    *cap = n;
-    return CT_OK;
-}
-
 /* Whether sorted triangle t lies in one of the ng glass runs (in order). */
 static bool in_glass(const disp_glass *g, uint32_t ng, uint32_t t)
 {
@@ -313,8 +303,8 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
     uint32_t ntris = disp_scene_ntris(s), ng;
     const disp_glass *glass = disp_scene_glass(s, &ng);
     size_t ends = 2 * (size_t)n + 2 * (size_t)ng;
-    int rc = grow((void **)&c->bounds, &c->bounds_cap, ends + 2, sizeof *c->bounds, err);
-    if (!rc) rc = grow((void **)&c->segs, &c->segs_cap, ends + 1, sizeof *c->segs, err);
+    int rc = ct_grow((void **)&c->bounds, &c->bounds_cap, ends + 2, sizeof *c->bounds, "draw segments", err);
+    if (!rc) rc = ct_grow((void **)&c->segs, &c->segs_cap, ends + 1, sizeof *c->segs, "draw segments", err);
     if (rc) return rc;
     size_t nb = 0;
     c->bounds[nb++] = 0;
@@ -335,7 +325,8 @@ static int build_segments(disp_compositor *c, const disp_scene *s, const disp_te
     for (size_t k = 0; k + 1 < nb; k++) {
         uint32_t b = c->bounds[k], e = c->bounds[k + 1];
         if (b == e) continue;
-        if ((rc = grow((void **)&c->seg_tex, &c->seg_tex_cap, used + n + 1, sizeof *c->seg_tex, err))) return rc;
+        rc = ct_grow((void **)&c->seg_tex, &c->seg_tex_cap, used + n + 1, sizeof *c->seg_tex, "draw segments", err);
+        if (rc) return rc;
         segment *g = &c->segs[ns++];
         g->first = (uint32_t)used;
         g->m = 0;
@@ -684,7 +675,7 @@ static int plan_screen(disp_compositor *c, const disp_scene *s, const disp_textu
                        size_t nseg, const mat4 *mvp, disp_kept_corr kept, bool *use, disp_render_stats *st,
                        ct_error *err)
 {
-    int rc = grow((void **)&c->within, &c->within_cap, n, sizeof *c->within, err);
+    int rc = ct_grow((void **)&c->within, &c->within_cap, n, sizeof *c->within, "texture rectangles", err);
     if (rc) return rc;
     for (uint32_t i = 0; i < n; i++) {
         px_rect r = screen_rect(c, mvp, disp_scene_node_bounds(s, tex[i]->node));

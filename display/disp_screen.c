@@ -5,10 +5,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/grow.h"
 #include "display/gl_shaders.h"
 
 struct disp_screen {
-    int w, h, tw, th;
+    int w, h;
     GLuint gbuf, vao, vbo, prog;
     GLint u_texproj, u_tris;
     disp_tiles *tiles;
@@ -21,17 +22,6 @@ struct disp_screen {
     size_t nv;                /* vertices planned */
 };
 
-static int grow(void **p, size_t *cap, size_t need, size_t elem, ct_error *err)
-{
-    if (need <= *cap) return CT_OK;
-    size_t n = need < 64 ? 64 : 2 * need;
-    void *q = realloc(*p, n * elem);
-    if (!q) return ct_fail(err, CT_ENOMEM, "out of memory for the screen pass (%zu entries)", n);
-    *p = q;
-    *cap = n;
-    return CT_OK;
-}
-
 int disp_screen_new(int width, int height, disp_screen **out, ct_error *err)
 {
     *out = NULL;
@@ -39,9 +29,7 @@ int disp_screen_new(int width, int height, disp_screen **out, ct_error *err)
     if (!p) return ct_fail(err, CT_ENOMEM, "out of memory for the screen pass");
     p->w = width;
     p->h = height;
-    p->tw = (width + DISP_TILE - 1) / DISP_TILE;
-    p->th = (height + DISP_TILE - 1) / DISP_TILE;
-    size_t ntiles = (size_t)p->tw * (size_t)p->th;
+    size_t ntiles = (size_t)((width + DISP_TILE - 1) / DISP_TILE) * (size_t)((height + DISP_TILE - 1) / DISP_TILE);
     int rc = disp_tiles_new(&p->tiles, err);
     if (!rc) {
         p->tri_img = malloc((size_t)width * (size_t)height * sizeof *p->tri_img);
@@ -131,13 +119,14 @@ int disp_screen_plan(disp_screen *p, const disp_texture *const *tex, const disp_
     *px = 0;
     p->nv = 0;
     if (!n || !p->gbuf) return CT_OK;
-    int rc = grow((void **)&p->range, &p->range_cap, 2 * (size_t)n, sizeof *p->range, err);
+    int rc = ct_grow((void **)&p->range, &p->range_cap, 2 * (size_t)n, sizeof *p->range, "texture draws", err);
     if (rc) return rc;
     float w = (float)p->w, h = (float)p->h;
     size_t nv = 0;
     for (uint32_t i = 0; i < n; i++) {
         size_t nr = disp_tiles_cover(p->tiles, tex[i]->tri_begin, tex[i]->tri_end, within[i], p->rects);
-        if ((rc = grow((void **)&p->verts, &p->verts_cap, 2 * nv + 12 * nr, sizeof *p->verts, err))) return rc;
+        rc = ct_grow((void **)&p->verts, &p->verts_cap, 2 * nv + 12 * nr, sizeof *p->verts, "screen pass vertices", err);
+        if (rc) return rc;
         p->range[2 * i] = (uint32_t)nv;
         for (size_t k = 0; k < nr; k++) {
             const disp_rect *r = &p->rects[k];

@@ -1,6 +1,8 @@
 /* disp_tiles.c: the kept base's per-tile triangle lists (disp_tiles.h). */
 #include "display/disp_tiles.h"
 
+#include "common/grow.h"
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -61,13 +63,8 @@ int disp_tiles_set(disp_tiles *t, const float *tri, int width, int height, ct_er
             size_t k = 0;
             for (size_t i = 0; i < n; i++)
                 if (!k || t->scratch[i] != t->scratch[k - 1]) t->scratch[k++] = t->scratch[i];
-            if (used + k > t->ids_cap) {
-                size_t cap = 2 * (used + k) + 1024;
-                uint32_t *ids = realloc(t->ids, cap * sizeof *ids);
-                if (!ids) return ct_fail(err, CT_ENOMEM, "out of memory for the tile index (%zu entries)", cap);
-                t->ids = ids;
-                t->ids_cap = cap;
-            }
+            int rc = ct_grow((void **)&t->ids, &t->ids_cap, used + k, sizeof *t->ids, "tile index entries", err);
+            if (rc) return rc;
             first[(size_t)ty * (size_t)tw + (size_t)tx] = (uint32_t)used;
             memcpy(t->ids + used, t->scratch, k * sizeof *t->ids);
             used += k;
@@ -119,9 +116,3 @@ size_t disp_tiles_cover(const disp_tiles *t, uint32_t b, uint32_t e, disp_rect w
 }
 
 size_t disp_tiles_max_rects(const disp_tiles *t) { return (size_t)t->tw * (size_t)t->th; }
-
-void disp_tiles_size(const disp_tiles *t, int *width, int *height)
-{
-    *width = t->w;
-    *height = t->h;
-}

@@ -46,7 +46,4 @@ size_t disp_tiles_cover(const disp_tiles *t, uint32_t b, uint32_t e, disp_rect w
 /* The most rectangles one disp_tiles_cover call can return. */
 size_t disp_tiles_max_rects(const disp_tiles *t);
 
-/* The image size indexed (0 x 0 before the first set). */
-void disp_tiles_size(const disp_tiles *t, int *width, int *height);
-
 #endif

@@ -74,11 +74,11 @@ const char *const gl_src_mesh_fs =
     "}\n"
     "void main() {\n"
     "    bool in0, in1, in2, in3;\n"
-    "#if PASS == 0\n"
+    "#if PASS == 0 || PASS == 6\n"
     "    o_color = vec4(u_rad_scale * v_rad, 1.0);\n"
-    "#elif PASS == 6\n"
-    "    o_color = vec4(u_rad_scale * v_rad, 1.0);\n"
+    "#if PASS == 6\n"
     "    o_gbuf = vec4(float(u_tri_base + gl_PrimitiveID), v_pos);\n"
+    "#endif\n"
     "#elif PASS == 1\n"
     "    vec3 c = corr(u_tex0, v_tex0, in0);\n"
     "    if (!in0) discard;\n"
@@ -114,11 +114,11 @@ const char *const gl_src_quads_vs =
     "layout(location = 0) in vec2 a_ndc;\n"
     "void main() { gl_Position = vec4(a_ndc, 0.0, 1.0); }\n";
 
-/* The kept surface's world position (g.yzw) gives the texture coordinate the mesh
- * passes interpolate (t = M p is linear in p), so a pixel gets the same
- * lookup as over the mesh, without sending the node's triangles again.
- * The triangle index stands for the node: a subtree is one contiguous
- * range of the sorted triangles. Background pixels hold index (g.x) -1. */
+/* The kept surface's world position (g.yzw) gives the texture coordinate
+ * the mesh passes interpolate (t = M p is linear in p), so a pixel gets
+ * the same lookup as over the mesh, without sending the node's triangles
+ * again. The triangle index (g.x) stands for the node: a subtree is one
+ * contiguous range of the sorted triangles. Background pixels hold -1. */
 const char *const gl_src_screen_corr_fs =
     "uniform sampler2D u_gbuf;\n"
     "uniform sampler2D u_tex0;\n"

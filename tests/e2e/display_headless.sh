@@ -68,6 +68,7 @@ bad "nope.json" --backend osmesa --scene "$tmp/nope.json"
 bad "--passes" --backend osmesa --scene "$SCENE" --passes 2
 bad "unknown option" --backend osmesa --scene "$SCENE" --bogus
 bad "backend" --backend vulkan --scene "$SCENE"
+bad "--kept-corrections" --backend osmesa --scene "$SCENE" --kept-corrections both
 bad "--msaa" --backend osmesa --scene "$SCENE" --msaa 65
 bad "--msaa" --backend osmesa --scene "$SCENE" --msaa -1
 bad "--msaa" --backend osmesa --scene "$SCENE" --msaa four
