@@ -501,6 +501,17 @@ int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *
     return 0;
 }
 
+uint64_t rq_view_bytes(int width, int height, const rq_options *o)
+{
+    uint64_t npx = (uint64_t)(width > 0 ? width : 0) * (uint64_t)(height > 0 ? height : 0);
+    uint64_t maxq = o->max_queue > 0 ? (uint64_t)o->max_queue : npx;
+    /* payload and free list at the cap; bucket entries up to twice theirs */
+    uint64_t b = maxq * (sizeof(rq_payload) + sizeof(uint32_t) + 2 * sizeof(rq_hent));
+    b += (npx + 63) / 64 * sizeof(uint64_t);
+    if (o->refine_error > 0.0f) b += npx * (sizeof(rq_pixel) + 2 * sizeof(rq_refine_ent));
+    return b;
+}
+
 int rq_new(rq_engine **out, int width, int height, const ct_camera *cam, const rq_options *opt,
            uint64_t seed, ct_error *err)
 {

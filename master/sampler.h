@@ -116,6 +116,13 @@ void rq_options_usage(FILE *f);
 /* Checks ranges; CT_EINVAL naming the first bad option. */
 int rq_options_check(const rq_options *o, ct_error *err);
 
+/* About the most bytes an engine holds for a width x height image under o:
+ * the request queue at its cap (one request a pixel, or --max-queue; its
+ * priority buckets grow by doubling), the sample mask and, when refining,
+ * the per-pixel records and their queue. What a view's size costs before
+ * anything is allocated (the master refuses views over its budget). */
+uint64_t rq_view_bytes(int width, int height, const rq_options *o);
+
 /* Creates an engine for a width x height image seen by cam at epoch 0 and
  * queues the initial grid. opt NULL = defaults. */
 int rq_new(rq_engine **out, int width, int height, const ct_camera *cam,

@@ -40,6 +40,7 @@ struct sess {
     bool shown_ok;         /* the map is of the current view */
     bool lockstep;
     double shown_rest;     /* seconds (sess_options.shown_rest_ms) */
+    double view_mem_mb;    /* sess_options.view_mem_mb; 0: no cap */
     double view_t;         /* when the current view was set */
     sess_counters n;
     /* Two chunks' splatted samples and what their splats measured: the
@@ -60,6 +61,9 @@ static const optab OPTS[] = {
     {"shown-rest-ms", 0, OPTAB_DOUBLE, OF(shown_rest_ms), 0, 60000, "250", "X",
      "running free, the shown-node map of a view (§3.7's node check) is drawn once the camera rested this long "
      "(ms); 0: with every view", NULL},
+    {"view-mem-mb", 0, OPTAB_DOUBLE, OF(view_mem_mb), 0, 1e9, "4096", "X",
+     "memory cap for a view's per-pixel state (request queue, refinement records, shown-node map), MiB: a larger "
+     "image is refused; 0: no cap", NULL},
 };
 #undef OF
 
@@ -81,6 +85,7 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
     s->mesh = c->mesh;
     s->n.all_positive = true;
     s->shown_rest = c->opt.shown_rest_ms / 1000.0;
+    s->view_mem_mb = c->opt.view_mem_mb;
     int threads = c->opt.threads > 0 ? c->opt.threads : pool_cpus();
     if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
     for (int i = 0; i < 2; i++) {
@@ -147,12 +152,31 @@ static int draw_shown(sess *s, ct_error *err)
     return CT_OK;
 }
 
+/* A display (or a command line) may ask for any image up to the protocol's
+ * 16384 x 16384, whose per-pixel state alone is some 30 GiB: refused before
+ * anything is allocated, with the old view kept, rather than left to grow
+ * until the host runs out of memory (the master goes on sampling a view
+ * after its display left). */
+static int view_fits(const sess *s, int width, int height, ct_error *err)
+{
+    uint64_t npx = (uint64_t)(width > 0 ? width : 0) * (uint64_t)(height > 0 ? height : 0);
+    uint64_t q = rq_view_bytes(width, height, &s->rq_opt);
+    uint64_t m = npx * sizeof *s->shown + shown_bytes(width, height, pool_threads(s->pool));
+    double mib = (double)(q + m) / 1048576.0;
+    if (!(s->view_mem_mb > 0.0) || mib <= s->view_mem_mb) return CT_OK;
+    return ct_fail(err, CT_ENOMEM,
+                   "a %dx%d view needs up to %.0f MiB (request queue and refinement %.0f, shown-node map %.0f), over "
+                   "--view-mem-mb %g",
+                   width, height, mib, (double)q / 1048576.0, (double)m / 1048576.0, s->view_mem_mb);
+}
+
 int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error *err)
 {
     if (sess_same_view(s, cam, width, height)) return 0;
     double t0 = ct_now();
     int rc;
     if (!s->rq || width != s->w || height != s->h) {
+        if ((rc = view_fits(s, width, height, err))) return rc;
         rq_free(s->rq);
         s->rq = NULL;
         s->have_view = false;   /* nothing is handed out until a camera is accepted */

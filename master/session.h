@@ -45,9 +45,10 @@
 typedef struct sess_options {
     int threads;           /* master threads inserting samples; 0: the cores this process may use */
     double shown_rest_ms;  /* running free, a view's shown-node map is drawn once it is this old; 0: at once */
+    double view_mem_mb;    /* a view whose per-pixel state may need more (MiB) is refused; 0: no cap */
 } sess_options;
 
-/* The option table (--master-threads, --shown-rest-ms). */
+/* The option table (--master-threads, --shown-rest-ms, --view-mem-mb). */
 const optab *sess_options_table(size_t *n);
 
 typedef struct sess_config {

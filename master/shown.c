@@ -209,6 +209,12 @@ static void merge_task(void *ctx, int worker, size_t task)
     }
 }
 
+uint64_t shown_bytes(int width, int height, int threads)
+{
+    uint64_t stride = (uint64_t)width * (uint64_t)height + LANES;
+    return stride * (uint64_t)(threads > 1 ? threads : 1) * (sizeof(float) + sizeof(uint32_t));
+}
+
 int shown_render(const ct_radmesh *m, const ct_camera *cam, int width, int height, ct_pool *pool, shown_buf **bp,
                  uint32_t none, uint32_t *out, ct_error *err)
 {

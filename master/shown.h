@@ -23,6 +23,10 @@ typedef struct shown_buf shown_buf;
 
 void shown_buf_free(shown_buf *b);
 
+/* The most bytes a shown_buf holds for a width x height view drawn on
+ * `threads` threads (a depth and a triangle plane a thread). */
+uint64_t shown_bytes(int width, int height, int threads);
+
 /* Writes into out[y * width + x] the tri_node of the triangle of m seen at
  * pixel (x, y)'s centre, or `none` where no triangle is (background). The
  * buffers in *b grow as needed (*b NULL at first). CT_ENOMEM. */

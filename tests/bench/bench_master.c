@@ -239,7 +239,7 @@ int main(int argc, char **argv)
     rq_options_default(&ro);
     ro.refine_error = 0.0f;   /* as corrtex converge recorded them */
     ctex_options co = ctex_options_default();
-    sess_config sc = {&mesh, scene ? scene->mats : NULL, scene ? scene->nmats : 0, &ro, &co, 1, {o.threads, 0.0}};
+    sess_config sc = {&mesh, scene ? scene->mats : NULL, scene ? scene->nmats : 0, &ro, &co, 1, {o.threads, 0.0, 0.0}};
     if (!rc) rc = sess_new(&sc, &b.s, &err);
     if (!rc) rc = tport_replay_new(rec, nrec, 1, &port, &err);
     /* a generous send timeout: on a loaded machine the display child may

@@ -4,7 +4,10 @@
 # z = -1e19 (a tracer used to abort inside Embree and take the job with it)
 # and a zero orientation quaternion (NaN rays) are refused with ERROR
 # PROTOCOL naming the problem; an eye at the edge of the range (-1e9) is
-# traced. The job goes on: a display then gets its frame, and SIGTERM ends
+# traced. A camera of the protocol's largest image (16384 x 16384), whose
+# per-pixel state would take some 30 GiB, is refused with ERROR LIMIT naming
+# what it needs and --view-mem-mb before anything is allocated (the master
+# used to take it and grow towards the host's memory). The job goes on: a display then gets its frame, and SIGTERM ends
 # the job with status 0.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
@@ -14,7 +17,7 @@ cornell_args
 master_start job 2 "${CORNELL[@]}" --listen "unix:$tmp/r.sock"
 master_wait_listen job || finish
 
-# raw_camera NAME WANT_RC EX EY EZ QW QX QY QZ FOV: logged, output in $tmp/NAME.out.
+# raw_camera NAME WANT_RC EX EY EZ QW QX QY QZ FOV [W H]: logged, output in $tmp/NAME.out.
 raw_camera() {
   local name=$1 want=$2; shift 2
   log_cmd "$raw" "$ADDR" - "$@"
@@ -29,6 +32,9 @@ grep -q '^ERROR 1: .*CAMERA eye coordinate -1e+19 outside' "$tmp/far.out" || fai
 raw_camera zero_quat 0 278 273 -800 0 0 0 0 0.7
 grep -q '^ERROR 1: .*CAMERA orientation is not a unit quaternion' "$tmp/zero_quat.out" ||
   fail "no ERROR PROTOCOL naming the orientation"
+raw_camera huge 0 278 273 -800 0 0 1 0 0.7 16384 16384
+grep -q '^ERROR 6: camera refused: a 16384x16384 view needs up to [0-9]* MiB .*over --view-mem-mb 4096' "$tmp/huge.out" ||
+  fail "no ERROR LIMIT naming the view's memory"
 raw_camera edge 1 278 273 -1e9 0 0 1 0 0.7
 grep -qx 'FRAME' "$tmp/edge.out" || fail "a camera at the edge of the range was not traced"
 

@@ -4,7 +4,8 @@
  * (lockstep, 100 samples a frame) and then one CAMERA frame written byte by
  * byte with the floats of the command line, which wire_encode would refuse
  * to send, and reports what the master answers:
- *   raw_camera ADDR TOKEN_FILE|- EX EY EZ QW QX QY QZ FOV_RADIANS
+ *   raw_camera ADDR TOKEN_FILE|- EX EY EZ QW QX QY QZ FOV_RADIANS [WIDTH HEIGHT]
+ * (the image 16 x 16 unless WIDTH and HEIGHT say otherwise)
  * prints "ERROR <code>: <text>", "FRAME" (the master traced the camera) or
  * "closed: <why>"; exit status 0 after an ERROR, 1 after a FRAME or a
  * closed connection, 2 on bad usage or when it cannot connect. */
@@ -26,10 +27,12 @@ static void put_f32(uint8_t *p, float f)
 
 int main(int argc, char **argv)
 {
-    if (argc != 11) {
-        fprintf(stderr, "usage: raw_camera ADDR TOKEN_FILE|- EX EY EZ QW QX QY QZ FOV_RADIANS\n");
+    if (argc != 11 && argc != 13) {
+        fprintf(stderr, "usage: raw_camera ADDR TOKEN_FILE|- EX EY EZ QW QX QY QZ FOV_RADIANS [WIDTH HEIGHT]\n");
         return 2;
     }
+    uint32_t width = argc == 13 ? (uint32_t)strtoul(argv[11], NULL, 10) : 16;
+    uint32_t height = argc == 13 ? (uint32_t)strtoul(argv[12], NULL, 10) : 16;
     float f[8];
     for (int i = 0; i < 8; i++) f[i] = strtof(argv[3 + i], NULL);
     auth_token tok;
@@ -54,7 +57,7 @@ int main(int argc, char **argv)
     /* A valid CAMERA from the encoder, then its camera bytes replaced: eye at
      * body offset 12, orientation at 24, fov at 40 (docs/protocol.md). */
     m = (wire_msg){.type = WIRE_CAMERA};
-    m.u.camera = (wire_camera){.epoch = 1, .width = 16, .height = 16,
+    m.u.camera = (wire_camera){.epoch = 1, .width = width, .height = height,
                                .cam = {.eye = v3s(0), .orient = {1, 0, 0, 0}, .fov_y = 1.0f}};
     wire_buf b = {0};
     if (wire_encode(&m, &b, &err)) {

@@ -89,7 +89,7 @@ static void run_loop(ct_scene *s, ct_radmesh *m, trc_tracer *tr, const ct_camera
     rq_options ro;
     rq_options_default(&ro);
     ro.refine_error = 0.0f;   /* as corrtex converge: one sample per pixel at most */
-    sess_config sc = {m, s->mats, s->nmats, &ro, &co, 1, {1, 0.0}};
+    sess_config sc = {m, s->mats, s->nmats, &ro, &co, 1, {1, 0.0, 0.0}};
     sess *ss = NULL;
     cr_assert_eq(sess_new(&sc, &ss, &err), 0, "%s", err.msg);
     tport *port = NULL;

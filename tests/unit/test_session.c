@@ -61,7 +61,7 @@ static sess *new_session(const ct_radmesh *m, int threads)
     rq_options ro;
     rq_options_default(&ro);
     ctex_options co = ctex_options_default();
-    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, {threads, 0.0}};
+    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, {threads, 0.0, 0.0}};
     sess *s = NULL;
     cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
     cr_assert_eq(sess_threads(s), threads);
@@ -111,7 +111,7 @@ Test(session, shown_map_waits_for_a_resting_camera)
     rq_options ro;
     rq_options_default(&ro);
     ctex_options co = ctex_options_default();
-    sess_config c = {&mesh, scene->mats, scene->nmats, &ro, &co, 1, {1, 60.0}};
+    sess_config c = {&mesh, scene->mats, scene->nmats, &ro, &co, 1, {1, 60.0, 0.0}};
     sess *s = NULL;
     cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
     cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
@@ -131,6 +131,35 @@ Test(session, shown_map_waits_for_a_resting_camera)
     moved.eye.x += 0.01f;
     cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
     cr_assert_not_null(sess_shown(s), "lockstep: the view came without its map");
+    sess_free(s);
+}
+
+/* A view whose per-pixel state would take more than --view-mem-mb is
+ * refused before anything is allocated, naming what it needs; the view
+ * before it stays (same size, same camera). */
+Test(session, view_over_the_memory_cap_refused)
+{
+    rq_options ro;
+    rq_options_default(&ro);
+    ctex_options co = ctex_options_default();
+    sess_config c = {&mesh, scene->mats, scene->nmats, &ro, &co, 1, {1, 0.0, 8.0}};
+    sess *s = NULL;
+    cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
+    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
+    uint64_t need = rq_view_bytes(1024, 1024, &ro);
+    cr_assert_gt(need, 8u << 20, "a 1024x1024 queue is said to need only %llu bytes", (unsigned long long)need);
+    cr_assert_gt(rq_view_bytes(2048, 2048, &ro), 3 * need, "the need does not grow with the pixels");
+    ct_camera moved = cam;
+    moved.eye.x += 0.01f;
+    int rc = sess_set_view(s, &moved, 1024, 1024, &err);
+    printf("metric: 1024x1024 under an 8 MiB cap: %s\n", err.msg);
+    cr_assert_eq(rc, CT_ENOMEM, "a view over the cap was taken (%d)", rc);
+    cr_expect(strstr(err.msg, "1024x1024") && strstr(err.msg, "--view-mem-mb 8"), "the refusal says little: %s",
+              err.msg);
+    cr_expect(sess_same_view(s, &cam, W, H), "the view before the refused one is gone");
+    ct_request req[4];
+    int n = sess_next(s, req, 4, &err);
+    cr_expect_gt(n, 0, "no requests of the kept view (%d: %s)", n, err.msg);
     sess_free(s);
 }
 
