@@ -24,7 +24,7 @@ typedef struct shown_buf shown_buf;
 void shown_buf_free(shown_buf *b);
 
 /* The most bytes a shown_buf holds for a width x height view drawn on
- * `threads` threads (a depth and a triangle plane a thread). */
+ * `threads` threads (a depth and a triangle plane a thread, at most 4). */
 uint64_t shown_bytes(int width, int height, int threads);
 
 /* Writes into out[y * width + x] the tri_node of the triangle of m seen at

@@ -18,6 +18,7 @@
 #include "common/timer.h"
 #include "master/drive.h"
 #include "master/session.h"
+#include "master/shown.h"
 #include "master/sink.h"
 #include "tracer/tport_local.h"
 #include "tracer/tracer.h"
@@ -86,7 +87,10 @@ Test(session, shown_map_is_the_item_buffer)
 {
     static uint32_t traced[W * H], first[W * H];
     traced_nodes(traced);
-    for (int threads = 1; threads <= 3; threads++) {
+    /* 6 threads: more than the item buffer's planes (4) */
+    static const int counts[] = {1, 2, 3, 6};
+    for (size_t k = 0; k < sizeof counts / sizeof *counts; k++) {
+        int threads = counts[k];
         sess *s = new_session(&mesh, threads);
         cr_assert_null(sess_shown(s));
         cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
@@ -102,6 +106,8 @@ Test(session, shown_map_is_the_item_buffer)
         else cr_assert_arr_eq(shown, first, sizeof first, "%d threads drew another map than one", threads);
         sess_free(s);
     }
+    cr_expect_eq(shown_bytes(W, H, 6), shown_bytes(W, H, 4), "the item buffer grows past 4 planes");
+    cr_expect_gt(shown_bytes(W, H, 4), shown_bytes(W, H, 1));
 }
 
 /* Running free with a rest time, a new view's map waits until the view is
