@@ -153,7 +153,7 @@ static int draw_shown(sess *s, ct_error *err)
 }
 
 /* A display (or a command line) may ask for any image up to the protocol's
- * 16384 x 16384, whose per-pixel state alone is some 30 GiB: refused before
+ * 16384 x 16384, whose per-pixel state alone is some 32 GiB: refused before
  * anything is allocated, with the old view kept, rather than left to grow
  * until the host runs out of memory (the master goes on sampling a view
  * after its display left). */
