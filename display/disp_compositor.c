@@ -868,54 +868,37 @@ int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, bool 
     return gl_check("tone mapping", err);
 }
 
-void disp_compositor_read_linear(disp_compositor *c, float *rgb)
+/* GL reads rows bottom first; images keep row 0 at the top. In place (the
+ * readers used to take a second, RGBA copy of the image: 16 MiB a frame at
+ * 1024² for the linear one, and a zeroed image when that allocation failed). */
+static void flip_rows(void *img, size_t row_bytes, int h)
 {
-    size_t w = (size_t)c->width, h = (size_t)c->height;
-    float *rgba = malloc(w * h * 4 * sizeof *rgba);
-    if (!rgba) {
-        memset(rgb, 0, w * h * 3 * sizeof *rgb);
-        return;
-    }
-    gl_target_read_f32(shown(c), rgba);
-    for (size_t y = 0; y < h; y++)
-        for (size_t x = 0; x < w; x++) {
-            const float *src = rgba + 4 * ((h - 1 - y) * w + x);
-            float *dst = rgb + 3 * (y * w + x);
-            dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+    uint8_t *p = img, tmp[256];
+    for (int y = 0; y < h / 2; y++) {
+        uint8_t *a = p + (size_t)y * row_bytes, *b = p + (size_t)(h - 1 - y) * row_bytes;
+        for (size_t o = 0; o < row_bytes; o += sizeof tmp) {
+            size_t n = row_bytes - o < sizeof tmp ? row_bytes - o : sizeof tmp;
+            memcpy(tmp, a + o, n);
+            memcpy(a + o, b + o, n);
+            memcpy(b + o, tmp, n);
         }
-    free(rgba);
+    }
 }
 
-static void flip_rgb(const uint8_t *rgba, int w, int h, uint8_t *rgb)
+void disp_compositor_read_linear(disp_compositor *c, float *rgb)
 {
-    for (size_t y = 0; y < (size_t)h; y++)
-        for (size_t x = 0; x < (size_t)w; x++) {
-            const uint8_t *src = rgba + 4 * (((size_t)h - 1 - y) * (size_t)w + x);
-            uint8_t *dst = rgb + 3 * (y * (size_t)w + x);
-            dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
-        }
+    gl_target_read_f32(shown(c), rgb);
+    flip_rows(rgb, 3 * sizeof *rgb * (size_t)c->width, c->height);
 }
 
 void disp_compositor_read_display(disp_compositor *c, uint8_t *rgb)
 {
-    uint8_t *rgba = malloc((size_t)c->width * (size_t)c->height * 4);
-    if (!rgba) {
-        memset(rgb, 0, (size_t)c->width * (size_t)c->height * 3);
-        return;
-    }
-    gl_target_read_u8(&c->ldr, 0, 0, rgba);
-    flip_rgb(rgba, c->width, c->height, rgb);
-    free(rgba);
+    gl_target_read_u8(&c->ldr, 0, 0, rgb);
+    flip_rows(rgb, 3 * (size_t)c->width, c->height);
 }
 
 void disp_compositor_read_window(int win_w, int win_h, uint8_t *rgb)
 {
-    uint8_t *rgba = malloc((size_t)win_w * (size_t)win_h * 4);
-    if (!rgba) {
-        memset(rgb, 0, (size_t)win_w * (size_t)win_h * 3);
-        return;
-    }
-    gl_target_read_u8(NULL, win_w, win_h, rgba);
-    flip_rgb(rgba, win_w, win_h, rgb);
-    free(rgba);
+    gl_target_read_u8(NULL, win_w, win_h, rgb);
+    flip_rows(rgb, 3 * (size_t)win_w, win_h);
 }

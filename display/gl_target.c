@@ -94,16 +94,16 @@ void gl_target_bind(const gl_target *t, int w, int h)
     gl.Viewport(0, 0, w, h);
 }
 
-void gl_target_read_f32(const gl_target *t, float *rgba)
+void gl_target_read_f32(const gl_target *t, float *rgb)
 {
     gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t->fbo);
     gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
     gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
-    gl.ReadPixels(0, 0, t->width, t->height, GL_RGBA, GL_FLOAT, rgba);
+    gl.ReadPixels(0, 0, t->width, t->height, GL_RGB, GL_FLOAT, rgb);
     gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
 }
 
-void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgba)
+void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgb)
 {
     gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t ? t->fbo : 0);
     gl.ReadBuffer(t ? GL_COLOR_ATTACHMENT0 : GL_BACK);
@@ -112,6 +112,6 @@ void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgba)
         h = t->height;
     }
     gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
-    gl.ReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, rgba);
+    gl.ReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE, rgb);
     gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
 }

@@ -41,11 +41,12 @@ void gl_target_copy(const gl_target *src, const gl_target *dst, bool depth);
  * the viewport to its size (w, h for the default framebuffer). */
 void gl_target_bind(const gl_target *t, int w, int h);
 
-/* Reads t's colour as RGBA floats (4 * width * height). */
-void gl_target_read_f32(const gl_target *t, float *rgba);
+/* Reads t's colour as RGB floats (3 * width * height, GL's row order:
+ * bottom row first). */
+void gl_target_read_f32(const gl_target *t, float *rgb);
 
 /* Reads the colour of t (or of the default framebuffer's back buffer when t
- * is NULL, size w x h) as RGBA bytes. */
-void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgba);
+ * is NULL, size w x h) as RGB bytes, rows packed, bottom row first. */
+void gl_target_read_u8(const gl_target *t, int w, int h, uint8_t *rgb);
 
 #endif
