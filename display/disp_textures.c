@@ -87,7 +87,11 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     unsigned old_tex = 0;
     int ow = 0, oh = 0;
     bool old_neg = false;
-    if (x && x->kind == kind && x->nonzero && x->has_proj && (x->width != width || x->height != height)) {
+    /* The same size too: the master halves what it sends of a texture once
+     * it is denser than the screen (its doubling then keeps the size the
+     * display has, docs/protocol.md), and the old texels are the new ones'
+     * best picture until they arrive. */
+    if (x && x->kind == kind && x->nonzero && x->has_proj) {
         old_tex = x->gl_tex;
         ow = x->width;
         oh = x->height;

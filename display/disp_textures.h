@@ -51,10 +51,10 @@ void disp_textures_free(disp_textures *t);
 /* Creates (or re-creates) texture id of width x height covering the
  * triangle range of `node`, projected the given way; a re-created id keeps
  * its projection (a resize does not move it). A new texture is zeroed; a
- * re-created one of the same kind and another size starts as its old
- * texels scaled, zeroed after all if a different projection follows before
- * any patch (a camera-local texture re-created for a new view, not
- * resized). Needs a current context. */
+ * re-created one of the same kind (of any size) starts as its old texels
+ * scaled, zeroed after all if a different projection follows before any
+ * patch (a camera-local texture re-created for a new view, not resized).
+ * Needs a current context. */
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
                         uint32_t tri_end, int width, int height, disp_proj_kind kind,
                         ct_error *err);

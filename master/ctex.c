@@ -366,6 +366,16 @@ int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int 
     return s->active ? 1 : 0;
 }
 
+bool ctex_texel_rate(const ctex *c, uint32_t tex, float *x, float *y)
+{
+    if (tex >= c->nslots || !c->slots[tex].live || !c->have_cam) return false;
+    const slot *s = &c->slots[tex];
+    if (s->max_w <= 0 || s->max_h <= 0 || s->max_w >= c->o.tex_max || s->max_h >= c->o.tex_max) return false;
+    *x = (float)s->t.w * c->o.tex_rate / (float)s->max_w;
+    *y = (float)s->t.h * c->o.tex_rate / (float)s->max_h;
+    return true;
+}
+
 float ctex_splat_ex(const ctex *c, uint32_t tex, vec3 p)
 {
     if (tex >= c->nslots || !c->slots[tex].live || !c->have_cam) return 1.0f;

@@ -264,6 +264,11 @@ int32_t ctex_owner(const ctex *c, uint32_t node, uint32_t tri, vec3 p);
 int ctex_texture_info(const ctex *c, uint32_t tex, uint32_t *hnode, int *w, int *h,
                       ctex_proj_kind *kind, mat4 *m, float *vmax);
 
+/* Texture tex's texels per screen pixel along each axis in the current view
+ * (its size against its §3.6 bound, tex-rate texels a pixel): false when
+ * that is not known (no view, not live, or a bound cut by --tex-max). */
+bool ctex_texel_rate(const ctex *c, uint32_t tex, float *x, float *y);
+
 /* The ex a sample at p on texture tex splats with (ctex_tex_splat_aniso;
  * docs/textures.md, "Anisotropic splats"): sqrt(s_y / s_x) for the texel at
  * p, s_x by s_y pixels in the current view, through ctex_aniso_ex (1: square

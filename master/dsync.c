@@ -8,6 +8,8 @@
 #include <tmmintrin.h>
 #endif
 
+#include "common/grow.h"
+#include "common/half.h"
 #include "master/ctex_tex.h"
 #include "proto/wire.h"
 
@@ -25,6 +27,11 @@ struct dsync {
     int cur_row;
     wire_scratch scratch;
     uint64_t patches, texel_bytes;
+    /* Per texture id, as announced in its last TEX_ALLOC to this display:
+     * 1 when it goes as 2 x 2 means, else 0 (fixed until the next ALLOC, so
+     * that its patches always fit the size the display has). */
+    uint8_t *shift;
+    size_t shift_cap;
 };
 
 void dsync_options_default(dsync_options *o, bool tcp)
@@ -34,6 +41,12 @@ void dsync_options_default(dsync_options *o, bool tcp)
      * UNIX socket, where copying is cheaper than compressing
      * (docs/protocol.md, "Flow control", measured). */
     o->encoding = tcp ? WIRE_PATCH_LZ4 : WIRE_PATCH_RAW;
+    /* Textures denser than the screen as 2 x 2 means: a quarter of their
+     * bytes, the same image; over a 100 Mbit/s link the lag's median fell
+     * from 1,022 to 361 ms. On a UNIX socket bytes cost little, and a display
+     * sharing the host spent what it saved on more frames (docs/protocol.md,
+     * "Texels at the display's rate"). */
+    o->display_rate = tcp ? 1.0f : 0.0f;
     o->window = 2;
     o->target_ms = 40.0;
     o->min_bytes = 64u << 10;
@@ -56,6 +69,7 @@ void dsync_free(dsync *d)
 {
     if (!d) return;
     wire_scratch_free(&d->scratch);
+    free(d->shift);
     free(d);
 }
 
@@ -99,20 +113,39 @@ static int send_proj(dsync *d, dsrv *ds, uint32_t tex, const mat4 *mat, ct_error
     return send(ds, &m, err);
 }
 
+/* Whether texture id goes to the display as 2 x 2 means: more texels than
+ * display_rate a screen pixel on both axes in the current view (§3.6 lets
+ * the master keep up to tex-rate, 2, for its splats; at the display a
+ * bilinear lookup at a pixel centre then reads about the mean of the 2 x 2
+ * texels under it anyway), and sides that halve exactly. */
+static int display_shift(const dsync *d, const ctex *tex, uint32_t id, int w, int h)
+{
+    float rx, ry;
+    if (!(d->o.display_rate > 0.0f) || ((w | h) & 1) || w < 2 || h < 2) return 0;
+    if (!ctex_texel_rate(tex, id, &rx, &ry)) return 0;
+    return rx > d->o.display_rate && ry > d->o.display_rate ? 1 : 0;
+}
+
 /* TEX_ALLOC names the texture's hierarchy node: the display's node table is
  * the texture hierarchy (the SCENE it got), so it draws the texture on
  * exactly the triangles of that node's subtree. A display creates the
  * texture anew on ALLOC, a resize included, and needs its projection again:
  * every ALLOC is followed by the texture's current projection (a later
- * PROJ event still comes after it and wins). */
+ * PROJ event still comes after it and wins). The size is the display's:
+ * halved when the texture goes as 2 x 2 means (display_shift, fixed until
+ * the texture's next ALLOC). */
 static int send_alloc(dsync *d, dsrv *ds, ctex *tex, uint32_t id, uint32_t hnode, int w, int h,
                       ctex_proj_kind kind, ct_error *err)
 {
+    int rc = ct_grow((void **)&d->shift, &d->shift_cap, (size_t)id + 1, 1, "display texture sizes", err);
+    if (rc) return rc;
+    int sh = display_shift(d, tex, id, w, h);
+    d->shift[id] = (uint8_t)sh;
     wire_msg m = {.type = WIRE_TEX_ALLOC};
-    m.u.tex_alloc = (wire_tex_alloc){id, hnode, (uint32_t)w, (uint32_t)h,
+    m.u.tex_alloc = (wire_tex_alloc){id, hnode, (uint32_t)(w >> sh), (uint32_t)(h >> sh),
                                      kind == CTEX_PROJ_OBJECT ? WIRE_PROJ_OBJECT_PARALLEL
                                                               : WIRE_PROJ_CAMERA_PERSPECTIVE};
-    int rc = send(ds, &m, err);
+    rc = send(ds, &m, err);
     mat4 pm;
     if (rc == 0 && ctex_texture_info(tex, id, NULL, NULL, NULL, NULL, &pm, NULL) >= 0)
         rc = send_proj(d, ds, id, &pm, err);
@@ -197,6 +230,31 @@ static void gather_row(void *ctx, uint32_t row, uint8_t *dst)
 #endif
 }
 
+/* One row of a patch of 2 x 2 means: display texel i of row `row` is the
+ * mean of master texels (2i, 2i + 1) x (2 row, 2 row + 1) from (x, y), each
+ * channel in float, rounded to half once. */
+static void gather_row_means(void *ctx, uint32_t row, uint8_t *dst)
+{
+    const gather *g = ctx;
+    const ctex_texel *a = ctex_tex_at(g->t, g->x, g->y + 2 * (int)row);
+    const ctex_texel *b = a + g->t->pitch;
+    for (int i = 0; i < g->w; i++, a += 2, b += 2, dst += 6) {
+        float f[4][4], m[4];
+        half4_to_float(a[0].c, f[0]);
+        half4_to_float(a[1].c, f[1]);
+        half4_to_float(b[0].c, f[2]);
+        half4_to_float(b[1].c, f[3]);
+        for (int c = 0; c < 3; c++) m[c] = 0.25f * ((f[0][c] + f[1][c]) + (f[2][c] + f[3][c]));
+        m[3] = 0.0f;
+        uint16_t hv[4];
+        float4_to_half(m, hv);
+        for (int c = 0; c < 3; c++) {
+            dst[2 * c] = (uint8_t)hv[c];
+            dst[2 * c + 1] = (uint8_t)(hv[c] >> 8);
+        }
+    }
+}
+
 /* Encodes the tiles [a, a + n) of tile row ty of texture id into the
  * display's queue and clears them. Returns the texel bytes, or negative. */
 static long send_run(dsync *d, dsrv *ds, uint32_t id, ctex_tex *t, int ty, int a, int n, uint32_t samples,
@@ -208,15 +266,19 @@ static long send_run(dsync *d, dsrv *ds, uint32_t id, ctex_tex *t, int ty, int a
     int w = (n << CTEX_TILE_SHIFT), h = CTEX_TILE;
     if (x + w > t->w) w = t->w - x;
     if (y + h > t->h) h = t->h - y;
-    wire_tex_patch p = {.tex = id, .x = (uint32_t)x, .y = (uint32_t)y, .w = (uint32_t)w, .h = (uint32_t)h,
-                        .encoding = d->o.encoding, .samples = samples, .stamp_us = t->d.row_t[ty]};
-    gather g = {t, x, y, w};
-    int rc = wire_encode_patch(&p, gather_row, &g, out, &d->scratch, err);
+    /* Tiles are 4 x 4 texels and a halved texture has even sides: a run
+     * halves exactly. */
+    int sh = id < d->shift_cap ? d->shift[id] : 0;
+    wire_tex_patch p = {.tex = id, .x = (uint32_t)(x >> sh), .y = (uint32_t)(y >> sh), .w = (uint32_t)(w >> sh),
+                        .h = (uint32_t)(h >> sh), .encoding = d->o.encoding, .samples = samples,
+                        .stamp_us = t->d.row_t[ty]};
+    gather g = {t, x, y, w >> sh};
+    int rc = wire_encode_patch(&p, sh ? gather_row_means : gather_row, &g, out, &d->scratch, err);
     if (rc) return rc;
     dsrv_commit(ds, 1);
     ctex_dirty_clear_run(&t->d, ty, a, n);
     d->patches++;
-    size_t bytes = (size_t)w * (size_t)h * 6;
+    size_t bytes = (size_t)p.w * (size_t)p.h * 6;
     d->texel_bytes += bytes;
     return (long)bytes;
 }

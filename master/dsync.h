@@ -26,6 +26,11 @@ typedef struct dsync_options {
     double target_ms;      /* an update holds what the display takes in about this long */
     size_t min_bytes;      /* bounds of an update's texel bytes (raw) */
     size_t max_bytes;
+    /* A texture with more texels than this per screen pixel on both axes
+     * (and even sides) goes to the display as the means of 2 x 2 texels
+     * (docs/protocol.md, "Texels at the display's rate"); 0: every texture
+     * as the master keeps it. */
+    float display_rate;
 } dsync_options;
 
 /* What was sent (dsync_stats). */
@@ -39,7 +44,8 @@ typedef struct dsync_stats {
 
 typedef struct dsync dsync;
 
-/* The defaults: LZ4 on TCP, raw on a UNIX socket (docs/protocol.md). */
+/* The defaults: LZ4 and at most one texel a screen pixel on TCP, raw and
+ * every texel on a UNIX socket (docs/protocol.md). */
 void dsync_options_default(dsync_options *o, bool tcp);
 
 int dsync_new(const dsync_options *o, dsync **out, ct_error *err);

@@ -19,6 +19,7 @@
 #define MAX_FRAMES_QUEUED 64
 
 static const int PATCH_ENC[] = {WIRE_PATCH_RAW, WIRE_PATCH_LZ4, -1};
+static const int DISPLAY_TEXELS[] = {0, 1, -1};
 
 #define OF(f) offsetof(sched_options, f)
 static const optab OPTS[] = {
@@ -36,6 +37,9 @@ static const optab OPTS[] = {
     {"queue-mb", 0, OPTAB_SIZE, OF(queue_mb), 1, 65536, "64", "N", "display send queue bound (MiB)", NULL},
     {"patch-encoding", 0, OPTAB_CHOICE, OF(patch_encoding), 0, 0, "auto", "raw|lz4|auto",
      "texels to the display: raw, lz4 or auto (raw on UNIX, lz4 on TCP)", PATCH_ENC},
+    {"display-texels", 0, OPTAB_CHOICE, OF(display_texels), 0, 0, "auto", "all|screen|auto",
+     "texels to the display: all, at most one a screen pixel (denser textures as means of 2x2), or auto (screen on "
+     "TCP, all on UNIX)", DISPLAY_TEXELS},
     {"exit-when-display-leaves", 0, OPTAB_FLAG, OF(exit_when_display_leaves), 0, 0, NULL, NULL,
      "end the job when the display disconnects (batch runs)", NULL},
 };
@@ -296,7 +300,7 @@ int sched_run(const sched_config *c, ct_error *err)
     if (!rc) rc = dsrv_new(&dc, &l.ds, err);
     if (!rc) {
         dsink_config kc = {l.ds, c->mesh, c->scene, c->opt.send_timeout_ms, c->opt.queue_mb << 20,
-                           c->opt.patch_encoding};
+                           c->opt.patch_encoding, c->opt.display_texels};
         rc = dsink_new(&kc, &l.dk, err);
     }
     if (!rc) {

@@ -33,6 +33,7 @@ typedef struct sched_options {
     int idle_ms;                /* poll timeout while there is nothing to do */
     size_t queue_mb;            /* display send queue bound, MiB */
     int patch_encoding;         /* TEX_PATCH texels: wire_patch_enc, or -1: by transport (dsync.h) */
+    int display_texels;         /* 1: at most one texel a screen pixel to the display, 0: all, -1: by transport (dsync.h) */
     bool exit_when_display_leaves;
 } sched_options;
 

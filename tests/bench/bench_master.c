@@ -244,7 +244,7 @@ int main(int argc, char **argv)
     if (!rc) rc = tport_replay_new(rec, nrec, 1, &port, &err);
     /* a generous send timeout: on a loaded machine the display child may
      * wait for a core */
-    dsink_config kc = {b.ds, &mesh, scene, 120000, (size_t)64 << 20, -1};
+    dsink_config kc = {b.ds, &mesh, scene, 120000, (size_t)64 << 20, -1, -1};
     if (!rc) rc = dsink_new(&kc, &b.dk, &err);
     drv_options dopt = {.window = 1, .batch_min = 1, .batch_max = 65536, .batch_ms = 20, .round = o.batch,
                         .pop_ahead = o.pop_ahead};

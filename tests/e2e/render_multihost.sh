@@ -64,7 +64,9 @@ K=1000
 PATHF=(--path "$root/scenes/cornell/walk.path" --frames 5)
 
 # One host: the comparison frames.
-master_start local 3 "${CORNELL[@]}" --listen "unix:$tmp/local.sock" --exit-when-display-leaves
+# Both jobs send the display at most one texel a pixel (TCP's default, not
+# a UNIX socket's): the display's textures must be the same to compare.
+master_start local 3 "${CORNELL[@]}" --listen "unix:$tmp/local.sock" --exit-when-display-leaves --display-texels screen
 master_wait_listen local || finish
 display_run local_display --connect "$ADDR" "${HEADLESS[@]}" --samples-per-frame $K "${PATHF[@]}" --out "$tmp/local"
 master_wait local 20 || fail "the one-host job did not end"
@@ -72,7 +74,8 @@ master_wait local 20 || fail "the one-host job did not end"
 # Two hosts. mpirun runs inside h1 (as the head node), the display inside d.
 MPIRUN_EXTRA="--host 10.77.0.1:1,10.77.0.2:2 --mca plm_rsh_agent $tmp/agent --mca btl tcp,self \
 --mca btl_tcp_if_include 10.77.0.0/24 --mca oob_tcp_if_include 10.77.0.0/24"
-mpi_cmd 3 "${CORNELL[@]}" --listen tcp:10.77.0.1:0 --token-file "$tmp/token" --exit-when-display-leaves --verbose
+mpi_cmd 3 "${CORNELL[@]}" --listen tcp:10.77.0.1:0 --token-file "$tmp/token" --exit-when-display-leaves --verbose \
+  --display-texels screen
 cmd=(ip netns exec "$(ns_of h1)" unshare --uts /bin/sh -c 'hostname h1; exec "$@"' sh env "${MPI_ENV[@]}" "${MPI_CMD[@]}")
 log_cmd "${cmd[@]}"
 "${cmd[@]}" >"$tmp/job.log" 2>&1 &

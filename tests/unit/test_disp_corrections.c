@@ -537,10 +537,11 @@ Test(disp_corrections, sample_points_in_the_samples_view)
 }
 
 /* A texture that got no patch corrects nothing (allocation zeroes it on the
- * GPU), also after a re-allocation at its size of a texture that held
- * values; an object-local one the master resized starts as its old texels
- * scaled (so its correction does not vanish while the new texels stream),
- * one re-created as another kind as zeros. */
+ * GPU), also after a re-allocation at its size as another kind of a
+ * texture that held values; an object-local one the master resized, or
+ * re-allocated at its size (the master halving what it sends of a texture
+ * that doubled, docs/protocol.md), starts as its old texels (scaled), so its
+ * correction does not vanish while the new texels stream. */
 Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
 {
     fx_box_nodes nd = box_nodes();
@@ -557,10 +558,11 @@ Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
     disp_render_opts o = {3, DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
     rig_render(&rg, &cam, &o, NULL, NULL, rad);
     o.view = DISP_VIEW_FULL;
-    /* Rounds: fresh 64x64; re-allocated at the same size after holding
-     * values; as a camera-local texture at 32x16 after holding values. */
+    /* Rounds: fresh 64x64; re-allocated at the same size as a camera-local
+     * texture after holding values; as an object-local one at 32x16 after
+     * holding values. */
     const int sizes[3][2] = {{64, 64}, {64, 64}, {32, 16}};
-    const disp_proj_kind kinds[3] = {DISP_PROJ_OBJECT_PARALLEL, DISP_PROJ_OBJECT_PARALLEL, DISP_PROJ_CAMERA_PERSPECTIVE};
+    const disp_proj_kind kinds[3] = {DISP_PROJ_OBJECT_PARALLEL, DISP_PROJ_CAMERA_PERSPECTIVE, DISP_PROJ_OBJECT_PARALLEL};
     for (int round = 0; round < 3; round++) {
         /* Never patched with a non-zero value: not drawn at all. */
         disp_render_stats st;
@@ -613,6 +615,13 @@ Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
     cr_expect_lt(mx, 1e-3, "the scaled old texels differ from the new ones by %g", mx);
     fx_diff(scaled, rad, n, &mx, &mean);
     cr_expect_gt(mx, 0.1, "the resized texture corrected nothing (max %g)", mx);
+    /* Re-allocated at its own size and kind: it keeps its texels. */
+    cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 48, 24, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    rig_render(&rg, &cam, &o, &st, NULL, scaled);
+    fx_diff(scaled, full, n, &mx, &mean);
+    printf("metric: object-local texture re-allocated at its size vs before: linear max %.2e\n", mx);
+    cr_expect_eq(st.textures_drawn, 1u, "the re-allocated texture was not drawn");
+    cr_expect_lt(mx, 1e-6, "a re-allocation at the same size changed the texels by %g", mx);
     free(half);
     free(scaled);
     free(full);

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "common/radmesh.h"
+#include "common/half.h"
 #include "common/rng.h"
 #include "common/timer.h"
 #include "master/ctex_tex.h"
@@ -199,24 +200,56 @@ static void insert(rig *r, int n, uint64_t seed)
     }
 }
 
-/* Every visible texture's texels, as halves, equal the display's copy. */
-static void expect_same(rig *r)
+/* The mean of master texels (2x, 2y) .. (2x + 1, 2y + 1) as the display
+ * gets it (dsync.c: per channel in float, one rounding to half). */
+static void mean_of_four(const ctex_tex *t, int x, int y, uint16_t out[3])
 {
-    int checked = 0;
+    float f[4][4], m[4] = {0};
+    half4_to_float(ctex_tex_at(t, 2 * x, 2 * y)->c, f[0]);
+    half4_to_float(ctex_tex_at(t, 2 * x + 1, 2 * y)->c, f[1]);
+    half4_to_float(ctex_tex_at(t, 2 * x, 2 * y + 1)->c, f[2]);
+    half4_to_float(ctex_tex_at(t, 2 * x + 1, 2 * y + 1)->c, f[3]);
+    for (int c = 0; c < 3; c++) m[c] = 0.25f * ((f[0][c] + f[1][c]) + (f[2][c] + f[3][c]));
+    uint16_t h[4];
+    float4_to_half(m, h);
+    memcpy(out, h, 3 * sizeof *out);
+}
+
+/* Every visible texture's texels, as halves, equal the display's copy: the
+ * master's own, or (a texture denser than the screen, sent at half size)
+ * the means of 2 x 2 of them. Returns how many went at half size. */
+static int expect_same(rig *r)
+{
+    int checked = 0, halved = 0;
     for (uint32_t id = 0; id < ctex_slot_count(r->tex); id++) {
         ctex_tex *t = ctex_visible_texture(r->tex, id);
         if (!t) continue;
         cr_assert_lt(id, MAXTEX);
         cr_assert_not_null(r->cp.tx[id], "texture %u never allocated on the display", id);
-        cr_assert_eq(r->cp.w[id], t->w);
-        cr_assert_eq(r->cp.h[id], t->h);
-        for (int y = 0; y < t->h; y++)
-            for (int x = 0; x < t->w; x++)
-                cr_assert_eq(memcmp(r->cp.tx[id] + 3 * ((size_t)y * (size_t)t->w + (size_t)x), ctex_tex_at(t, x, y)->c, 6),
-                             0, "texture %u texel %d,%d differs", id, x, y);
+        bool half = r->cp.w[id] != t->w;
+        if (half) {
+            halved++;
+            cr_assert(t->w % 2 == 0 && t->h % 2 == 0, "texture %u of %dx%d sent halved", id, t->w, t->h);
+            cr_assert_eq(r->cp.w[id], t->w / 2);
+            cr_assert_eq(r->cp.h[id], t->h / 2);
+            float rx, ry;
+            cr_assert(ctex_texel_rate(r->tex, id, &rx, &ry) && rx > 1.0f && ry > 1.0f,
+                      "texture %u sent halved at %g x %g texels a pixel", id, rx, ry);
+        } else {
+            cr_assert_eq(r->cp.h[id], t->h);
+        }
+        for (int y = 0; y < r->cp.h[id]; y++)
+            for (int x = 0; x < r->cp.w[id]; x++) {
+                uint16_t want[3];
+                if (half) mean_of_four(t, x, y, want);
+                else memcpy(want, ctex_tex_at(t, x, y)->c, sizeof want);
+                cr_assert_eq(memcmp(r->cp.tx[id] + 3 * ((size_t)y * (size_t)r->cp.w[id] + (size_t)x), want, 6), 0,
+                             "texture %u texel %d,%d differs", id, x, y);
+            }
         checked++;
     }
     cr_assert_gt(checked, 3);
+    return halved;
 }
 
 /* Updates until nothing is unsent and every update is acknowledged. */
@@ -361,4 +394,37 @@ Test(dsync, lockstep_sends_everything_at_once_and_bad_acks_are_refused)
     cr_assert_eq(dsync_ack(r.sync, 5, ct_now(), &err), CT_EPROTO);
     cr_assert(strstr(err.msg, "ACK of update 5"), "%s", err.msg);
     teardown(&r);
+}
+
+/* Textures denser than the screen go to the display as the means of 2 x 2
+ * texels (display_rate 1, the default on TCP; docs/protocol.md): a quarter
+ * of the bytes for them; with display_rate 0 (the default on a UNIX socket)
+ * every texel goes as it is. Both end equal to what the master holds
+ * (expect_same). */
+Test(dsync, dense_textures_go_at_the_screens_rate)
+{
+    uint64_t bytes[2];
+    int halved[2];
+    for (int k = 0; k < 2; k++) {
+        dsync_options o;
+        dsync_options_default(&o, k == 0);
+        o.encoding = WIRE_PATCH_RAW;   /* the rig's display copies raw texels */
+        cr_assert_eq(o.display_rate, k == 0 ? 1.0f : 0.0f, "the default by transport");
+        rig r;
+        setup(&r, &o);
+        /* dense enough that textures double past one texel a pixel */
+        for (int i = 0; i < 40; i++) {
+            insert(&r, 500, 900 + (uint64_t)i);
+            settle(&r);
+        }
+        halved[k] = expect_same(&r);
+        bytes[k] = r.cp.texel_bytes;
+        teardown(&r);
+    }
+    printf("metric: texel bytes to the display for the same samples: %llu at the screen's rate (%d textures "
+           "halved), %llu as the master keeps them\n",
+           (unsigned long long)bytes[0], halved[0], (unsigned long long)bytes[1]);
+    cr_assert_gt(halved[0], 0, "no texture went at half size");
+    cr_assert_eq(halved[1], 0, "display_rate 0 halved %d textures", halved[1]);
+    cr_expect_lt(bytes[0], bytes[1], "halving sent no fewer bytes");
 }
