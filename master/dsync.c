@@ -137,8 +137,10 @@ static int display_shift(const dsync *d, const ctex *tex, uint32_t id, int w, in
 static int send_alloc(dsync *d, dsrv *ds, ctex *tex, uint32_t id, uint32_t hnode, int w, int h,
                       ctex_proj_kind kind, ct_error *err)
 {
+    size_t had = d->shift_cap;
     int rc = ct_grow((void **)&d->shift, &d->shift_cap, (size_t)id + 1, 1, "display texture sizes", err);
     if (rc) return rc;
+    if (d->shift_cap > had) memset(d->shift + had, 0, d->shift_cap - had);   /* ids not announced yet: whole */
     int sh = display_shift(d, tex, id, w, h);
     d->shift[id] = (uint8_t)sh;
     wire_msg m = {.type = WIRE_TEX_ALLOC};
