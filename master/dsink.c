@@ -35,7 +35,7 @@ int dsink_new(const dsink_config *c, dsink **out, ct_error *err)
     dsync_options so;
     dsync_options_default(&so, strncmp(dsrv_addr(c->ds), "tcp:", 4) == 0);
     if (c->patch_encoding >= 0) so.encoding = (uint32_t)c->patch_encoding;
-    if (c->display_texels >= 0) so.display_rate = c->display_texels ? 1.0f : 0.0f;
+    if (c->display_texels >= 0) so.screen_rate = c->display_texels == 1;
     int rc = dsync_new(&so, &k->sync, err);
     if (rc) {
         free(k);

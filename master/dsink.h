@@ -29,7 +29,7 @@ typedef struct dsink_config {
     int send_timeout_ms;        /* a display whose full queue does not drain for this long is dropped */
     size_t queue_bytes;         /* the display's send queue bound; SAMPLES only while a quarter is free */
     int patch_encoding;         /* wire_patch_enc of TEX_PATCH, or -1: by transport (dsync.h) */
-    int display_texels;         /* 1: at most one texel a screen pixel (dsync_options.display_rate 1), 0: all, -1: by transport */
+    int display_texels;         /* 1: at most one texel a screen pixel (dsync_options.screen_rate), 0: all, -1: by transport */
 } dsink_config;
 
 typedef struct dsink dsink;

@@ -46,7 +46,7 @@ void dsync_options_default(dsync_options *o, bool tcp)
      * from 1,022 to 361 ms. On a UNIX socket bytes cost little, and a display
      * sharing the host spent what it saved on more frames (docs/protocol.md,
      * "Texels at the display's rate"). */
-    o->display_rate = tcp ? 1.0f : 0.0f;
+    o->screen_rate = tcp;
     o->window = 2;
     o->target_ms = 40.0;
     o->min_bytes = 64u << 10;
@@ -113,17 +113,17 @@ static int send_proj(dsync *d, dsrv *ds, uint32_t tex, const mat4 *mat, ct_error
     return send(ds, &m, err);
 }
 
-/* Whether texture id goes to the display as 2 x 2 means: more texels than
- * display_rate a screen pixel on both axes in the current view (§3.6 lets
+/* Whether texture id goes to the display as 2 x 2 means: more than one
+ * texel a screen pixel on both axes in the current view (§3.6 lets
  * the master keep up to tex-rate, 2, for its splats; at the display a
  * bilinear lookup at a pixel centre then reads about the mean of the 2 x 2
  * texels under it anyway), and sides that halve exactly. */
 static int display_shift(const dsync *d, const ctex *tex, uint32_t id, int w, int h)
 {
     float rx, ry;
-    if (!(d->o.display_rate > 0.0f) || ((w | h) & 1) || w < 2 || h < 2) return 0;
+    if (!d->o.screen_rate || ((w | h) & 1) || w < 2 || h < 2) return 0;
     if (!ctex_texel_rate(tex, id, &rx, &ry)) return 0;
-    return rx > d->o.display_rate && ry > d->o.display_rate ? 1 : 0;
+    return rx > 1.0f && ry > 1.0f ? 1 : 0;
 }
 
 /* TEX_ALLOC names the texture's hierarchy node: the display's node table is

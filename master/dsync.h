@@ -26,11 +26,11 @@ typedef struct dsync_options {
     double target_ms;      /* an update holds what the display takes in about this long */
     size_t min_bytes;      /* bounds of an update's texel bytes (raw) */
     size_t max_bytes;
-    /* A texture with more texels than this per screen pixel on both axes
-     * (and even sides) goes to the display as the means of 2 x 2 texels
-     * (docs/protocol.md, "Texels at the display's rate"); 0: every texture
-     * as the master keeps it. */
-    float display_rate;
+    /* A texture with more than one texel a screen pixel on both axes (and
+     * even sides) goes to the display as the means of 2 x 2 texels
+     * (docs/protocol.md, "Texels at the display's rate"); false: every
+     * texture as the master keeps it. */
+    bool screen_rate;
 } dsync_options;
 
 /* What was sent (dsync_stats). */

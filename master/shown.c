@@ -50,6 +50,8 @@ enum { VERTS_PER_TASK = 8192, ROWS_PER_TASK = 16, LANES = 8 };
  * on 64 threads) for a pass of tens of milliseconds. */
 enum { MAX_PLANES = 4 };
 
+static int planes_for(int threads) { return threads < 1 ? 1 : threads > MAX_PLANES ? MAX_PLANES : threads; }
+
 void shown_buf_free(shown_buf *b)
 {
     if (!b) return;
@@ -218,8 +220,7 @@ static void merge_task(void *ctx, int worker, size_t task)
 uint64_t shown_bytes(int width, int height, int threads)
 {
     uint64_t stride = (uint64_t)width * (uint64_t)height + LANES;
-    int planes = threads < 1 ? 1 : threads > MAX_PLANES ? MAX_PLANES : threads;
-    return stride * (uint64_t)planes * (sizeof(float) + sizeof(uint32_t));
+    return stride * (uint64_t)planes_for(threads) * (sizeof(float) + sizeof(uint32_t));
 }
 
 int shown_render(const ct_radmesh *m, const ct_camera *cam, int width, int height, ct_pool *pool, shown_buf **bp,
@@ -228,8 +229,7 @@ int shown_render(const ct_radmesh *m, const ct_camera *cam, int width, int heigh
     if (!*bp && !(*bp = calloc(1, sizeof **bp))) return ct_fail(err, CT_ENOMEM, "out of memory for the item buffer");
     shown_buf *b = *bp;
     job j = {.m = m, .b = b, .w = width, .h = height, .npx = (size_t)width * (size_t)height,
-             .ntasks = pool_threads(pool), .eye = cam->eye, .none = none, .out = out};
-    if (j.ntasks > MAX_PLANES) j.ntasks = MAX_PLANES;
+             .ntasks = planes_for(pool_threads(pool)), .eye = cam->eye, .none = none, .out = out};
     if (m->ntris < (uint32_t)j.ntasks * 64u) j.ntasks = 1;   /* not worth a plane each */
     if (b->mesh != m) {
         bounds3 bb = b3_empty();

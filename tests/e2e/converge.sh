@@ -81,6 +81,8 @@ run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --keep-projector-d
 expect_error "--keep-projector-deg: '91' is not a number in \[0, 90\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --shown-rest-ms -1 --quiet
 expect_error "--shown-rest-ms: '-1' is not a number in \[0, 60000\]"
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --view-mem-mb -5 --quiet
+expect_error "--view-mem-mb: '-5' is not a number in \[0, 1e+09\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --aa 5 --quiet

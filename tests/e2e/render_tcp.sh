@@ -26,6 +26,12 @@ master_start badind 2 "${CORNELL[@]}" --indirect photons
 master_wait badind 30 || fail "the job with a bad --indirect did not end"
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --indirect photons, expected 2"
 grep -q -- "--indirect: 'photons' is not one of mesh|gather" "$tmp/badind.log" || { fail "bad --indirect not named"; master_log badind; }
+# The same for the display side's options.
+master_start badtex 2 "${CORNELL[@]}" --display-texels half
+master_wait badtex 30 || fail "the job with a bad --display-texels did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --display-texels half, expected 2"
+grep -q -- "--display-texels: 'half' is not one of all|screen|auto" "$tmp/badtex.log" ||
+  { fail "bad --display-texels not named"; master_log badtex; }
 
 master_start job 3 "${CORNELL[@]}" --listen tcp:127.0.0.1:0 --token-file "$tmp/token" --exit-when-display-leaves
 master_wait_listen job || finish

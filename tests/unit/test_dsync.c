@@ -397,8 +397,8 @@ Test(dsync, lockstep_sends_everything_at_once_and_bad_acks_are_refused)
 }
 
 /* Textures denser than the screen go to the display as the means of 2 x 2
- * texels (display_rate 1, the default on TCP; docs/protocol.md): a quarter
- * of the bytes for them; with display_rate 0 (the default on a UNIX socket)
+ * texels (screen_rate, the default on TCP; docs/protocol.md): a quarter
+ * of the bytes for them; without it (the default on a UNIX socket)
  * every texel goes as it is. Both end equal to what the master holds
  * (expect_same). */
 Test(dsync, dense_textures_go_at_the_screens_rate)
@@ -409,7 +409,7 @@ Test(dsync, dense_textures_go_at_the_screens_rate)
         dsync_options o;
         dsync_options_default(&o, k == 0);
         o.encoding = WIRE_PATCH_RAW;   /* the rig's display copies raw texels */
-        cr_assert_eq(o.display_rate, k == 0 ? 1.0f : 0.0f, "the default by transport");
+        cr_assert_eq(o.screen_rate, k == 0, "the default by transport");
         rig r;
         setup(&r, &o);
         /* dense enough that textures double past one texel a pixel */
@@ -425,6 +425,6 @@ Test(dsync, dense_textures_go_at_the_screens_rate)
            "halved), %llu as the master keeps them\n",
            (unsigned long long)bytes[0], halved[0], (unsigned long long)bytes[1]);
     cr_assert_gt(halved[0], 0, "no texture went at half size");
-    cr_assert_eq(halved[1], 0, "display_rate 0 halved %d textures", halved[1]);
+    cr_assert_eq(halved[1], 0, "without screen_rate %d textures were halved", halved[1]);
     cr_expect_lt(bytes[0], bytes[1], "halving sent no fewer bytes");
 }

@@ -57,14 +57,21 @@ static void teardown(void)
 
 TestSuite(session, .init = setup, .fini = teardown, .timeout = 120);
 
-static sess *new_session(const ct_radmesh *m, int threads)
+/* A session of mesh m with the default queue and texture options. */
+static sess *open_session(const ct_radmesh *m, sess_options so)
 {
     rq_options ro;
     rq_options_default(&ro);
     ctex_options co = ctex_options_default();
-    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, {threads, 0.0, 0.0}};
+    sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, so};
     sess *s = NULL;
     cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
+    return s;
+}
+
+static sess *new_session(const ct_radmesh *m, int threads)
+{
+    sess *s = open_session(m, (sess_options){threads, 0.0, 0.0});
     cr_assert_eq(sess_threads(s), threads);
     return s;
 }
@@ -114,12 +121,7 @@ Test(session, shown_map_is_the_item_buffer)
  * that old and samples go in; lockstep draws it with the view. */
 Test(session, shown_map_waits_for_a_resting_camera)
 {
-    rq_options ro;
-    rq_options_default(&ro);
-    ctex_options co = ctex_options_default();
-    sess_config c = {&mesh, scene->mats, scene->nmats, &ro, &co, 1, {1, 60.0, 0.0}};
-    sess *s = NULL;
-    cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
+    sess *s = open_session(&mesh, (sess_options){1, 60.0, 0.0});
     cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
     cr_assert_null(sess_shown(s), "the map is drawn before the camera rested");
     cr_assert_eq(sess_insert(s, NULL, 0, NULL, &err), 0, "%s", err.msg);
@@ -145,13 +147,10 @@ Test(session, shown_map_waits_for_a_resting_camera)
  * before it stays (same size, same camera). */
 Test(session, view_over_the_memory_cap_refused)
 {
+    sess *s = open_session(&mesh, (sess_options){1, 0.0, 8.0});
+    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
     rq_options ro;
     rq_options_default(&ro);
-    ctex_options co = ctex_options_default();
-    sess_config c = {&mesh, scene->mats, scene->nmats, &ro, &co, 1, {1, 0.0, 8.0}};
-    sess *s = NULL;
-    cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
-    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
     uint64_t need = rq_view_bytes(1024, 1024, &ro);
     cr_assert_gt(need, 8u << 20, "a 1024x1024 queue is said to need only %llu bytes", (unsigned long long)need);
     cr_assert_gt(rq_view_bytes(2048, 2048, &ro), 3 * need, "the need does not grow with the pixels");
