@@ -454,7 +454,10 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     }
     rc = load_solution(&a, err);
     if (rc && rc != CT_ENOMEM && rc != CT_ESYS) status = DISP_EXIT_USAGE;
-    if (!rc) rc = gl_backend_open(o->backend, o->width, o->height, "corrtex", o->vsync, &a.backend, err);
+    if (!rc) {
+        rc = gl_backend_open(o->backend, o->width, o->height, "corrtex", o->vsync, &a.backend, err);
+        if (rc == CT_EINVAL) status = DISP_EXIT_USAGE;   /* e.g. a malformed CORRTEX_EGL_DEVICE */
+    }
     int samples = 1;
     if (!rc) {
         samples = msaa_samples(o->msaa);

@@ -8,6 +8,15 @@ BIN=${CORRTEX_BIN:-bin}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 fail=0
 run() { echo "+ $*"; "$@"; }
+# bad WANT ARGS...: exit 2 and one error line that mentions WANT.
+bad() {
+  local want=$1; shift
+  timeout 20 "$BIN/corrtex-display" "$@" >"$tmp/o" 2>"$tmp/e"; rc=$?
+  echo "+ $BIN/corrtex-display $*  -> exit $rc: $(cat "$tmp/e")"
+  [[ $rc -eq 2 ]] || { echo "FAIL: exit $rc, want 2"; fail=1; }
+  [[ $(grep -c "^error" "$tmp/e") -eq 1 ]] || { echo "FAIL: want exactly one error line"; fail=1; }
+  grep -q -- "$want" "$tmp/e" || { echo "FAIL: error does not mention '$want'"; fail=1; }
+}
 SCENE=tests/data/scenes/mini.json
 PATHF=tests/data/scenes/mini.path
 COMMON=(--scene "$SCENE" --path "$PATHF" --frames 4 --width 64 --height 48 --synthetic 6 --quiet)
@@ -33,6 +42,27 @@ r=$(max_rmse "$tmp/egl/frames.csv")
 echo "metric: egl vs osmesa frames: max RMSE $r (tolerance 1e-3)"
 awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: egl differs from osmesa"; fail=1; }
 
+# EGL through an EGL device (EGL_EXT_platform_device; here Mesa's software
+# device) rather than the surfaceless platform: the path a GPU server
+# without X takes (docs/display.md, "Backends"); the same frames.
+CORRTEX_EGL_DEVICE=0 "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --out "$tmp/egldev" --reference "$tmp/osm" \
+  >"$tmp/egldev.log" 2>&1; rc=$?
+if grep -q "lists 0 devices" "$tmp/egldev.log"; then
+  echo "skip: EGL lists no devices here"
+elif [[ $rc -ne 0 ]]; then
+  cat "$tmp/egldev.log"; echo "FAIL: egl device run"; fail=1
+else
+  r=$(max_rmse "$tmp/egldev/frames.csv")
+  echo "metric: egl device 0 vs osmesa frames: max RMSE $r (tolerance 1e-3)"
+  awk -v r="$r" 'BEGIN { exit !(r <= 1e-3) }' || { echo "FAIL: egl device differs from osmesa"; fail=1; }
+fi
+# A device EGL does not list, and a malformed index: one error line each.
+CORRTEX_EGL_DEVICE=15 "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --out "$tmp/egl15" >"$tmp/o" 2>"$tmp/e"; rc=$?
+echo "+ CORRTEX_EGL_DEVICE=15 corrtex-display --backend egl  -> exit $rc: $(cat "$tmp/e")"
+[[ $rc -ne 0 && $(grep -c "^error" "$tmp/e") -eq 1 ]] && grep -q "CORRTEX_EGL_DEVICE=15, but EGL lists" "$tmp/e" ||
+  { echo "FAIL: want one error line naming the device count"; fail=1; }
+CORRTEX_EGL_DEVICE=gpu0 bad "CORRTEX_EGL_DEVICE='gpu0' is not a device index" --backend egl "${COMMON[@]}" --out "$tmp/eglbad"
+
 # Three passes against one pass.
 run "$BIN/corrtex-display" --backend egl "${COMMON[@]}" --passes 3 --out "$tmp/p3" --reference "$tmp/osm" || { echo "FAIL: 3-pass run"; exit 1; }
 r=$(max_rmse "$tmp/p3/frames.csv")
@@ -56,14 +86,6 @@ else
 fi
 
 # Bad input: exit 2 and one error line naming the problem.
-bad() { # expected-substring args...
-  local want=$1; shift
-  timeout 20 "$BIN/corrtex-display" "$@" >"$tmp/o" 2>"$tmp/e"; rc=$?
-  echo "+ $BIN/corrtex-display $*  -> exit $rc: $(cat "$tmp/e")"
-  [[ $rc -eq 2 ]] || { echo "FAIL: exit $rc, want 2"; fail=1; }
-  [[ $(grep -c "^error" "$tmp/e") -eq 1 ]] || { echo "FAIL: want exactly one error line"; fail=1; }
-  grep -q -- "$want" "$tmp/e" || { echo "FAIL: error does not mention '$want'"; fail=1; }
-}
 bad "nope.json" --backend osmesa --scene "$tmp/nope.json"
 bad "--passes" --backend osmesa --scene "$SCENE" --passes 2
 bad "unknown option" --backend osmesa --scene "$SCENE" --bogus
