@@ -69,7 +69,8 @@ static const optab INPUT_OPTS[] = {
 
 static const optab VIEW_OPTS[] = {
     {"backend", 0, OPTAB_CHOICE, OF(backend), 0, 0, NULL, "glfw|egl|osmesa",
-     "a window, or headless (default: glfw when $DISPLAY is set, else egl)", BACKENDS},
+     "a window, or headless (default: glfw when $DISPLAY is set, else egl: a GPU's EGL device, else the "
+     "surfaceless platform; $CORRTEX_EGL_DEVICE=N takes device N)", BACKENDS},
     {"width", 0, OPTAB_INT, OF(o.width), 1, 16384, NULL, "W", "image width", NULL},
     {"height", 0, OPTAB_INT, OF(o.height), 1, 16384, NULL, "H", "image height", NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(o.exposure), -30, 30, NULL, "STOPS", "displayed = linear * 2^STOPS", NULL},
