@@ -1,8 +1,8 @@
 /* gl_backend.h: where the GL 3.3 core context comes from. Three backends
  * behind one interface: a GLFW window (interactive, needs an X or Wayland
  * display), EGL (headless: a GPU's EGL device, else the surfaceless
- * platform; gl_backend_egl.c) and OSMesa (headless, software). Opening a backend makes its context current
- * and fills the gl_load.h table from it. Headless backends have no default
+ * platform; gl_backend_egl.c) and OSMesa (headless, software). Opening a
+ * backend makes its context current and fills the gl_load.h table from it. Headless backends have no default
  * framebuffer worth drawing to: the compositor renders into its own FBOs. */
 #ifndef CT_GL_BACKEND_H
 #define CT_GL_BACKEND_H

@@ -119,6 +119,7 @@ typedef struct devices {
 static void list_devices(const char *client, devices *d)
 {
     d->n = 0;
+    d->query_string = NULL;
     if (!has_ext(client, "EGL_EXT_device_enumeration") || !has_ext(client, "EGL_EXT_platform_device")) return;
     PFNEGLQUERYDEVICESEXTPROC query = (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
     d->query_string = (PFNEGLQUERYDEVICESTRINGEXTPROC)eglGetProcAddress("eglQueryDeviceStringEXT");
@@ -132,9 +133,22 @@ static bool is_software(const devices *d, int i)
 
 static bool try_device(egl_state *s, const devices *d, int i, char *why, size_t why_size)
 {
-    if (!make_current(s, eglGetPlatformDisplay(EGL_PLATFORM_DEVICE_EXT, d->dev[i], NULL), why, why_size)) return false;
-    ct_info(COMP, "egl: device %d of %d (%s)", i, (int)d->n, is_software(d, i) ? "software" : "hardware");
+    const char *kind = is_software(d, i) ? "software" : "hardware";
+    if (!make_current(s, eglGetPlatformDisplay(EGL_PLATFORM_DEVICE_EXT, d->dev[i], NULL), why, why_size)) {
+        ct_info(COMP, "egl: device %d of %d (%s): %s", i, (int)d->n, kind, why);
+        return false;
+    }
+    ct_info(COMP, "egl: device %d of %d (%s)", i, (int)d->n, kind);
     return true;
+}
+
+/* The listed devices that are (or are not) software, in order, until one
+ * gives a context. */
+static bool try_devices(egl_state *s, const devices *d, bool software, char *why, size_t why_size)
+{
+    for (int i = 0; i < d->n; i++)
+        if (is_software(d, i) == software && try_device(s, d, i, why, why_size)) return true;
+    return false;
 }
 
 /* CORRTEX_EGL_DEVICE: -1 when unset, else the index; false when malformed. */
@@ -159,16 +173,16 @@ int gl_backend_open_egl(gl_backend *b, ct_error *err)
     s->ctx = EGL_NO_CONTEXT;
     b->state = s;
     b->ops = &egl_ops;
-    const char *client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-    devices d;
-    list_devices(client, &d);
-    char why[160] = "";
     int want;
     if (!chosen_device(&want)) {
         egl_close(b);
         return ct_fail(err, CT_EINVAL, "egl: CORRTEX_EGL_DEVICE='%s' is not a device index (0 to %d)",
                        getenv("CORRTEX_EGL_DEVICE"), MAX_DEVICES - 1);
     }
+    const char *client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+    devices d;
+    list_devices(client, &d);
+    char why[160] = "";
     bool ok = false;
     if (want >= 0) {
         if (want >= d.n) {
@@ -182,18 +196,13 @@ int gl_backend_open_egl(gl_backend *b, ct_error *err)
             return ct_fail(err, CT_ESYS, "egl: device %d: %s", want, why);
         }
     }
-    for (int i = 0; !ok && i < d.n; i++)
-        if (!is_software(&d, i)) {
-            ok = try_device(s, &d, i, why, sizeof why);
-            if (!ok) ct_info(COMP, "egl: device %d of %d (hardware): %s", i, (int)d.n, why);
-        }
+    if (!ok) ok = try_devices(s, &d, false, why, sizeof why);
     if (!ok && has_ext(client, "EGL_MESA_platform_surfaceless")) {
         ok = make_current(s, eglGetPlatformDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL), why,
                           sizeof why);
         if (ok) ct_info(COMP, "egl: the surfaceless platform");
     }
-    for (int i = 0; !ok && i < d.n; i++)
-        if (is_software(&d, i)) ok = try_device(s, &d, i, why, sizeof why);
+    if (!ok) ok = try_devices(s, &d, true, why, sizeof why);
     if (!ok) {
         egl_close(b);
         if (!why[0])
