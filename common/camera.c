@@ -73,15 +73,20 @@ mat4 cam_proj(const ct_camera *c, int width, int height, float znear, float zfar
     return m4_perspective(c->fov_y, (float)width / (float)height, znear, zfar);
 }
 
+void cam_rays_init(cam_rays *p, const ct_camera *c, int width, int height)
+{
+    p->th = tanf(0.5f * c->fov_y);
+    p->tw = p->th * (float)width / (float)height;
+    p->w = (float)width;
+    p->h = (float)height;
+    cam_axes(c, &p->r, &p->u, &p->f);
+}
+
 vec3 cam_ray_dir(const ct_camera *c, int width, int height, float px, float py)
 {
-    float th = tanf(0.5f * c->fov_y);
-    float tw = th * (float)width / (float)height;
-    float sx = (2.0f * px / (float)width - 1.0f) * tw;
-    float sy = (1.0f - 2.0f * py / (float)height) * th;
-    vec3 r, u, f;
-    cam_axes(c, &r, &u, &f);
-    return v3_norm(v3_add(f, v3_add(v3_scale(r, sx), v3_scale(u, sy))));
+    cam_rays p;
+    cam_rays_init(&p, c, width, height);
+    return cam_rays_dir(&p, px, py);
 }
 
 bool cam_project(const ct_camera *c, int width, int height, vec3 p, float *px, float *py,

@@ -43,6 +43,25 @@ mat4 cam_proj(const ct_camera *c, int width, int height, float znear, float zfar
 /* Unit world direction of the primary ray through image position (px, py). */
 vec3 cam_ray_dir(const ct_camera *c, int width, int height, float px, float py);
 
+/* A camera's axes and tangents for a width x height image, computed once
+ * (cam_rays_init) for many rays: cam_rays_dir does cam_ray_dir's arithmetic
+ * (the same results, bit for bit) without its tangent and axes per ray,
+ * which were most of a ray's cost where the master maps pixels to texels. */
+typedef struct cam_rays {
+    vec3 r, u, f;
+    float th, tw;
+    float w, h;
+} cam_rays;
+
+void cam_rays_init(cam_rays *p, const ct_camera *c, int width, int height);
+
+static inline vec3 cam_rays_dir(const cam_rays *p, float px, float py)
+{
+    float sx = (2.0f * px / p->w - 1.0f) * p->tw;
+    float sy = (1.0f - 2.0f * py / p->h) * p->th;
+    return v3_norm(v3_add(p->f, v3_add(v3_scale(p->r, sx), v3_scale(p->u, sy))));
+}
+
 /* Projects world point p to image position (px, py) and its eye-space depth
  * along the view direction; false when p is behind the eye (depth <= 0). */
 bool cam_project(const ct_camera *c, int width, int height, vec3 p, float *px, float *py,

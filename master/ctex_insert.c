@@ -187,12 +187,12 @@ static int insert_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *
  * an object-local one its plane through p (normal t->n). */
 static bool texel_of_ray(const ctex *c, const ctex_tex *t, vec3 p, float x, float y, float *tx, float *ty)
 {
-    vec3 d = cam_ray_dir(&c->cam, c->W, c->H, x, y);
+    vec3 d = cam_rays_dir(&c->rays, x, y);
     vec3 q = v3_add(c->cam.eye, d);
     if (t->kind == CTEX_PROJ_CAMERA && !v3_is_zero(v3_sub(t->cam.eye, c->cam.eye))) {
-        float dz = v3_dot(d, c->fwd);
+        float dz = v3_dot(d, c->rays.f);
         if (!(dz > 1e-6f)) return false;
-        q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), c->fwd) / dz);
+        q = v3_madd(c->cam.eye, d, v3_dot(v3_sub(p, c->cam.eye), c->rays.f) / dz);
     } else if (t->kind == CTEX_PROJ_OBJECT) {
         float dn = v3_dot(d, t->n);
         if (!(fabsf(dn) > 1e-6f)) return false;

@@ -47,8 +47,8 @@ struct ctex {
     int have_cam;
     ct_camera cam;
     int W, H;
-    float tw, th, fpx;     /* tan half-angles and focal length in pixels */
-    vec3 right, up, fwd;
+    cam_rays rays;         /* cam's axes (r, u, f) and tan half-angles (tw, th) for W x H */
+    float fpx;             /* focal length in pixels */
     float znear;
     uint32_t epoch;
     size_t bytes;
@@ -121,9 +121,9 @@ static inline int32_t ctex_owner_of(const ctex *c, uint32_t node, uint32_t tri, 
  * up to a factor that is the same for every d at e): its squared length. */
 static inline float ctex_screen_len2(const ctex *c, vec3 e, float z, vec3 d)
 {
-    float dz = v3_dot(d, c->fwd);
-    float dx = z * v3_dot(d, c->right) - v3_dot(e, c->right) * dz;
-    float dy = z * v3_dot(d, c->up) - v3_dot(e, c->up) * dz;
+    float dz = v3_dot(d, c->rays.f);
+    float dx = z * v3_dot(d, c->rays.r) - v3_dot(e, c->rays.r) * dz;
+    float dy = z * v3_dot(d, c->rays.u) - v3_dot(e, c->rays.u) * dz;
     return dx * dx + dy * dy;
 }
 
@@ -142,7 +142,7 @@ static inline float ctex_splat_ex_at(const ctex *c, const ctex_tex *t, vec3 p)
         r4 = q * q;
     } else {
         vec3 e = v3_sub(p, c->cam.eye);
-        float z = v3_dot(e, c->fwd);
+        float z = v3_dot(e, c->rays.f);
         if (!(z > c->znear)) return 1.0f;
         float lx = ctex_screen_len2(c, e, z, v3_scale(t->t, 1.0f / (float)t->w));
         float ly = ctex_screen_len2(c, e, z, v3_scale(t->b, 1.0f / (float)t->h));

@@ -27,27 +27,27 @@ static void view_node(const ctex *c, const ctex_hnode *n, nview *v)
     for (int i = 0; i < 8; i++) {
         vec3 d = v3_sub(b3_corner(n->bounds, i), c->cam.eye);
         P[i] = d;
-        X[i] = v3_dot(d, c->right); Y[i] = v3_dot(d, c->up); Z[i] = v3_dot(d, c->fwd);
+        X[i] = v3_dot(d, c->rays.r); Y[i] = v3_dot(d, c->rays.u); Z[i] = v3_dot(d, c->rays.f);
         zmin = fminf(zmin, Z[i]); zmax = fmaxf(zmax, Z[i]);
     }
     (void)P;
     v->zmin = zmin; v->zmax = zmax;
-    v->zc = v3_dot(v3_sub(b3_center(n->bounds), c->cam.eye), c->fwd);
+    v->zc = v3_dot(v3_sub(b3_center(n->bounds), c->cam.eye), c->rays.f);
     /* frustum culling: all corners outside one plane */
     int out_l = 1, out_r = 1, out_b = 1, out_t = 1;
     for (int i = 0; i < 8; i++) {
-        if (X[i] >= -Z[i] * c->tw) out_l = 0;
-        if (X[i] <= Z[i] * c->tw) out_r = 0;
-        if (Y[i] >= -Z[i] * c->th) out_b = 0;
-        if (Y[i] <= Z[i] * c->th) out_t = 0;
+        if (X[i] >= -Z[i] * c->rays.tw) out_l = 0;
+        if (X[i] <= Z[i] * c->rays.tw) out_r = 0;
+        if (Y[i] >= -Z[i] * c->rays.th) out_b = 0;
+        if (Y[i] <= Z[i] * c->rays.th) out_t = 0;
     }
     if (zmax < c->znear || out_l || out_r || out_b || out_t) return;
     /* the box clipped by the near plane, projected: its bounding rectangle */
     float x0 = INFINITY, y0 = INFINITY, x1 = -INFINITY, y1 = -INFINITY;
     float zn = c->znear;
 #define ADDPT(xx, yy, zz) do { \
-        float px_ = 0.5f * (float)c->W * (1.0f + (xx) / ((zz) * c->tw)); \
-        float py_ = 0.5f * (float)c->H * (1.0f - (yy) / ((zz) * c->th)); \
+        float px_ = 0.5f * (float)c->W * (1.0f + (xx) / ((zz) * c->rays.tw)); \
+        float py_ = 0.5f * (float)c->H * (1.0f - (yy) / ((zz) * c->rays.th)); \
         x0 = fminf(x0, px_); x1 = fmaxf(x1, px_); y0 = fminf(y0, py_); y1 = fmaxf(y1, py_); \
     } while (0)
     for (int i = 0; i < 8; i++)
@@ -131,8 +131,8 @@ static void make_projection(ctex *c, uint32_t hnode, ctex_tex *t, float *pxw, fl
     float dx = t->x1 - t->x0, dy = t->y1 - t->y0;
     /* rows in eye space (x_e, y_e, z_e, 1), camera looking down -z */
     mat4 e = m4_identity();
-    float rx[4] = {0.5f * W / c->tw, 0.0f, -0.5f * W + t->x0, 0.0f};
-    float ry[4] = {0.0f, -0.5f * H / c->th, -0.5f * H + t->y0, 0.0f};
+    float rx[4] = {0.5f * W / c->rays.tw, 0.0f, -0.5f * W + t->x0, 0.0f};
+    float ry[4] = {0.0f, -0.5f * H / c->rays.th, -0.5f * H + t->y0, 0.0f};
     for (int k = 0; k < 4; k++) {
         e.m[0][k] = rx[k] / dx;
         e.m[1][k] = ry[k] / dy;
@@ -461,10 +461,8 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
     c->cam = *cam;
     c->W = width;
     c->H = height;
-    c->th = tanf(0.5f * cam->fov_y);
-    c->tw = c->th * (float)width / (float)height;
-    c->fpx = 0.5f * (float)height / c->th;
-    cam_axes(cam, &c->right, &c->up, &c->fwd);
+    cam_rays_init(&c->rays, cam, width, height);
+    c->fpx = 0.5f * (float)height / c->rays.th;
     c->have_cam = 1;
     c->epoch++;
     (void)had;

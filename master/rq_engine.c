@@ -387,7 +387,16 @@ void rq_report_prefetch(const rq_engine *e, const ct_sample *s)
     if (id >= e->fl_lo && id < e->next_id) __builtin_prefetch(&e->fl[id & (e->fl_cap - 1)], 1, 1);
     if (e->ref.px) {
         int64_t p = pixel_of(e, s->px, s->py);
-        if (p >= 0 && (size_t)p < e->ref.npx) __builtin_prefetch(&e->ref.px[p], 1, 1);
+        if (p >= 0 && (size_t)p < e->ref.npx) {
+            __builtin_prefetch(&e->ref.px[p], 1, 1);
+            /* the rows above and below: a refined pixel's priority reads
+             * its neighbours' records (rq_refine.c) */
+            if (e->ref.active) {
+                size_t w = (size_t)e->ref.w;
+                if ((size_t)p >= w) __builtin_prefetch(&e->ref.px[(size_t)p - w], 0, 3);
+                if ((size_t)p + w < e->ref.npx) __builtin_prefetch(&e->ref.px[(size_t)p + w], 0, 3);
+            }
+        }
     }
 }
 
@@ -508,7 +517,7 @@ uint64_t rq_view_bytes(int width, int height, const rq_options *o)
     /* payload and free list at the cap; bucket entries up to twice theirs */
     uint64_t b = maxq * (sizeof(rq_payload) + sizeof(uint32_t) + 2 * sizeof(rq_hent));
     b += (npx + 63) / 64 * sizeof(uint64_t);
-    if (o->refine_error > 0.0f) b += npx * (sizeof(rq_pixel) + 2 * sizeof(rq_refine_ent));
+    if (o->refine_error > 0.0f) b += npx * (sizeof(rq_pixel) + 2 * sizeof(rq_hent));
     return b;
 }
 

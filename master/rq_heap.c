@@ -6,10 +6,18 @@
 #include "master/rq_heap.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 static inline int bucket_of(uint64_t key)
 {
     return (int)(key >> RQ_BUCKET_SHIFT);
+}
+
+/* The (empty) buckets. */
+static int buckets_init(rq_heap *h)
+{
+    h->b = calloc(RQ_BUCKETS, sizeof *h->b);
+    return h->b ? 0 : CT_ENOMEM;
 }
 
 /* The highest non-empty bucket at or below b, -1 when none. */
@@ -72,8 +80,7 @@ int rq_heap_init(rq_heap *h, size_t initial_cap, size_t max_items, ct_error *err
     if (initial_cap < 16) initial_cap = 16;
     if (max_items && initial_cap > max_items) initial_cap = max_items;
     h->max = max_items;
-    h->b = calloc(RQ_BUCKETS, sizeof *h->b);
-    if (!h->b || payload_room(h, initial_cap) != 0) {
+    if (buckets_init(h) != 0 || payload_room(h, initial_cap) != 0) {
         rq_heap_free(h);
         return ct_fail(err, CT_ENOMEM, "request queue: cannot allocate %zu items", initial_cap);
     }
@@ -101,25 +108,19 @@ void rq_heap_clear(rq_heap *h)
     h->n = h->hw = h->nfree = 0;
 }
 
-int rq_heap_push(rq_heap *h, const rq_item *it)
+int rq_heap_init_keys(rq_heap *h, size_t max_items, ct_error *err)
 {
-    if (h->n == h->cap) {
-        if (h->max && h->cap >= h->max) return CT_ENOMEM;
-        size_t ncap = h->cap * 2;
-        if (h->max && ncap > h->max) ncap = h->max;
-        if (payload_room(h, ncap) != 0) return CT_ENOMEM;
-    }
-    uint64_t key = it->key;
-    int bi = bucket_of(key);
-    rq_bucket *k = &h->b[bi];
-    if (bucket_room(h, k) != 0) return CT_ENOMEM;
-    uint32_t slot = h->nfree ? h->freel[--h->nfree] : (uint32_t)h->hw++;
-    rq_payload *p = &h->pl[slot];
-    p->parent = it->parent;
-    p->px = it->px;
-    p->py = it->py;
-    p->radius = it->radius;
-    p->kind = it->kind;
+    memset(h, 0, sizeof *h);
+    h->top = -1;
+    h->max = max_items > UINT32_MAX ? UINT32_MAX : max_items;
+    if (buckets_init(h) != 0)
+        return ct_fail(err, CT_ENOMEM, "request queue: cannot allocate its buckets");
+    return 0;
+}
+
+/* Enters (key, slot, tag) into its bucket, which has room. */
+static void insert(rq_heap *h, rq_bucket *k, int bi, uint64_t key, uint32_t slot, uint32_t tag)
+{
     rq_hent *a = k->a;
     size_t i = k->n++;
     /* Sift up: move parents down until the new key fits. */
@@ -131,10 +132,41 @@ int rq_heap_push(rq_heap *h, const rq_item *it)
     }
     a[i].key = key;
     a[i].slot = slot;
-    a[i].tag = it->tag;
+    a[i].tag = tag;
     h->n++;
     h->used[bi >> 6] |= (uint64_t)1 << (bi & 63);
     if (bi > h->top) h->top = bi;
+}
+
+int rq_heap_push(rq_heap *h, const rq_item *it)
+{
+    if (h->n == h->cap) {
+        if (h->max && h->cap >= h->max) return CT_ENOMEM;
+        size_t ncap = h->cap * 2;
+        if (h->max && ncap > h->max) ncap = h->max;
+        if (payload_room(h, ncap) != 0) return CT_ENOMEM;
+    }
+    int bi = bucket_of(it->key);
+    rq_bucket *k = &h->b[bi];
+    if (bucket_room(h, k) != 0) return CT_ENOMEM;
+    uint32_t slot = h->nfree ? h->freel[--h->nfree] : (uint32_t)h->hw++;
+    rq_payload *p = &h->pl[slot];
+    p->parent = it->parent;
+    p->px = it->px;
+    p->py = it->py;
+    p->radius = it->radius;
+    p->kind = it->kind;
+    insert(h, k, bi, it->key, slot, it->tag);
+    return 0;
+}
+
+int rq_heap_push_key(rq_heap *h, uint64_t key, uint32_t tag, uint32_t aux)
+{
+    if ((h->max && h->n >= h->max) || h->n >= UINT32_MAX) return CT_ENOMEM;
+    int bi = bucket_of(key);
+    rq_bucket *k = &h->b[bi];
+    if (bucket_room(h, k) != 0) return CT_ENOMEM;
+    insert(h, k, bi, key, aux, tag);
     return 0;
 }
 
@@ -143,7 +175,7 @@ static void remove_top(rq_heap *h)
 {
     rq_bucket *k = &h->b[h->top];
     rq_hent *a = k->a;
-    h->freel[h->nfree++] = a[0].slot;
+    if (h->pl) h->freel[h->nfree++] = a[0].slot;
     h->n--;
     size_t n = --k->n;
     if (n == 0) {
@@ -210,4 +242,15 @@ bool rq_heap_pop(rq_heap *h, rq_item *out)
 void rq_heap_drop(rq_heap *h)
 {
     if (h->n) remove_top(h);
+}
+
+bool rq_heap_pop_key(rq_heap *h, uint64_t *key, uint32_t *tag, uint32_t *aux)
+{
+    if (h->n == 0) return false;
+    const rq_hent *top = &h->b[h->top].a[0];
+    *key = top->key;
+    *tag = top->tag;
+    *aux = top->slot;
+    remove_top(h);
+    return true;
 }

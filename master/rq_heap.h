@@ -51,7 +51,7 @@ typedef struct rq_item {
  * touched again. */
 typedef struct rq_hent {
     uint64_t key;
-    uint32_t slot;
+    uint32_t slot;      /* payload slot; a keys-only heap: the caller's aux value */
     uint32_t tag;
 } rq_hent;
 
@@ -76,7 +76,7 @@ typedef struct rq_heap {
     rq_bucket *b;                       /* RQ_BUCKETS */
     uint64_t used[RQ_BUCKETS / 64];     /* non-empty buckets */
     int top;                            /* the highest non-empty bucket, -1 when empty */
-    rq_payload *pl;     /* payload slots */
+    rq_payload *pl;     /* payload slots; NULL: a keys-only heap */
     uint32_t *freel;    /* stack of free slots below hw */
     size_t nfree;
     size_t hw;          /* slots ever used since the last clear */
@@ -125,6 +125,19 @@ bool rq_heap_pop(rq_heap *h, rq_item *out);
 /* Removes the highest item without reading it (its payload's cache line
  * stays cold); nothing when empty. */
 void rq_heap_drop(rq_heap *h);
+
+/* A keys-only heap: entries of (key, tag, aux) and no payload pool, for a
+ * queue whose items fit in the entry (the refinement's pixels,
+ * rq_refine.h); the same buckets, order and cap. */
+int rq_heap_init_keys(rq_heap *h, size_t max_items, ct_error *err);
+
+/* Queues (key, tag, aux) on a keys-only heap: 0, or CT_ENOMEM at the cap
+ * or when growing failed (the heap is then unchanged). */
+int rq_heap_push_key(rq_heap *h, uint64_t key, uint32_t tag, uint32_t aux);
+
+/* Removes the highest entry of a keys-only heap into *key, *tag, *aux;
+ * false when empty. */
+bool rq_heap_pop_key(rq_heap *h, uint64_t *key, uint32_t *tag, uint32_t *aux);
 
 /* The highest item's tag; the heap must not be empty. */
 static inline uint32_t rq_heap_top_tag(const rq_heap *h) { return h->b[h->top].a[0].tag; }

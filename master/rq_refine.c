@@ -20,6 +20,11 @@ int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, 
     r->px_bytes = npx * sizeof *r->px;
     r->px = ct_huge_zalloc(r->px_bytes);
     if (!r->px) return ct_fail(err, CT_ENOMEM, "sampler: out of memory for the refinement of %zu pixels", npx);
+    if (rq_heap_init_keys(&r->q, 0, err)) {
+        ct_huge_zfree(r->px, r->px_bytes);
+        r->px = NULL;
+        return CT_ENOMEM;
+    }
     r->npx = npx;
     r->tag = 1;
     r->threshold = threshold;
@@ -30,7 +35,7 @@ int rq_refine_init(rq_refine *r, int w, int h, float threshold, uint16_t max_n, 
 void rq_refine_free(rq_refine *r)
 {
     ct_huge_zfree(r->px, r->px_bytes);
-    free(r->heap);
+    rq_heap_free(&r->q);
     memset(r, 0, sizeof *r);
 }
 
@@ -43,7 +48,8 @@ void rq_refine_epoch(rq_refine *r)
         r->tag = 1;
     }
     r->active = false;
-    r->hn = 0;
+    rq_heap_clear(&r->q);
+    r->seq = 0;
     r->top = 0.0f;
     r->samples = 0;
 }
@@ -126,56 +132,15 @@ static float contrast(const rq_refine *r, uint32_t p)
     return n ? fabsf(lum_of(&r->px[p]) - m) : 0.0f;
 }
 
-/* --- the heap ------------------------------------------------------------------- */
-
-static void sift_up(rq_refine_ent *h, size_t i)
-{
-    rq_refine_ent e = h[i];
-    while (i > 0) {
-        size_t p = (i - 1) / 2;
-        if (!(h[p].prio < e.prio)) break;
-        h[i] = h[p];
-        i = p;
-    }
-    h[i] = e;
-}
-
-static void sift_down(rq_refine_ent *h, size_t n, size_t i)
-{
-    rq_refine_ent e = h[i];
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n) break;
-        if (c + 1 < n && h[c].prio < h[c + 1].prio) c++;
-        if (!(e.prio < h[c].prio)) break;
-        h[i] = h[c];
-        i = c;
-    }
-    h[i] = e;
-}
-
-static int grow(rq_refine *r, size_t need, ct_error *err)
-{
-    if (need <= r->hcap) return 0;
-    size_t cap = r->hcap ? r->hcap : 4096;
-    while (cap < need) cap *= 2;
-    rq_refine_ent *h = realloc(r->heap, cap * sizeof *h);
-    if (!h) return ct_fail(err, CT_ENOMEM, "sampler: out of memory for %zu pixels to refine", cap);
-    r->heap = h;
-    r->hcap = cap;
-    return 0;
-}
-
 /* Queues pixel p when it may take another sample. */
 static int queue(rq_refine *r, uint32_t p, ct_error *err)
 {
     const rq_pixel *x = &r->px[p];
     float prio = rq_refine_priority(r, p);
     if (x->n >= r->max_n || !(prio > r->threshold)) return 0;
-    int rc = grow(r, r->hn + 1, err);
-    if (rc) return rc;
-    r->heap[r->hn] = (rq_refine_ent){prio, p, x->n};
-    sift_up(r->heap, r->hn++);
+    if (rq_heap_push_key(&r->q, rq_key(prio, r->seq), p, x->n))
+        return ct_fail(err, CT_ENOMEM, "sampler: out of memory for %zu pixels to refine", r->q.n + 1);
+    r->seq++;
     return 0;
 }
 
@@ -227,7 +192,8 @@ int rq_refine_start(rq_refine *r, ct_error *err)
 {
     if (!r->px || r->active) return 0;
     r->active = true;
-    r->hn = 0;
+    rq_heap_clear(&r->q);
+    r->seq = 0;
     /* Every pixel has its first sample now (or it is in flight): the
      * neighbours' contrast is known. */
     for (size_t p = 0; p < r->npx; p++) {
@@ -239,27 +205,25 @@ int rq_refine_start(rq_refine *r, ct_error *err)
     for (size_t p = 0; p < r->npx; p++) {
         const rq_pixel *x = &r->px[p];
         if (x->tag != r->tag || x->n == 0) continue;
-        float prio = rq_refine_priority(r, (uint32_t)p);
-        if (x->n >= r->max_n || !(prio > r->threshold)) continue;
-        int rc = grow(r, r->hn + 1, err);
+        int rc = queue(r, (uint32_t)p, err);
         if (rc) return rc;
-        r->heap[r->hn++] = (rq_refine_ent){prio, (uint32_t)p, x->n};
     }
-    for (size_t i = r->hn / 2; i-- > 0;) sift_down(r->heap, r->hn, i);
     return 0;
 }
 
 bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio)
 {
-    while (r->hn) {
-        rq_refine_ent e = r->heap[0];
-        r->heap[0] = r->heap[--r->hn];
-        if (r->hn) sift_down(r->heap, r->hn, 0);
-        const rq_pixel *x = &r->px[e.pixel];
-        if (x->tag != r->tag || x->n != e.n) continue;   /* queued again since */
-        *p = e.pixel;
-        *prio = e.prio;
-        r->top = e.prio;
+    uint64_t key;
+    uint32_t pixel, n;
+    while (rq_heap_pop_key(&r->q, &key, &pixel, &n)) {
+        const rq_pixel *x = &r->px[pixel];
+        if (x->tag != r->tag || x->n != n) continue;   /* queued again since */
+        /* the next pixel's record, read by the next call (a batch pops
+         * thousands in a row, each one a miss over the view's records) */
+        if (r->q.n) __builtin_prefetch(&r->px[rq_heap_top_tag(&r->q)], 0, 1);
+        *p = pixel;
+        *prio = rq_key_priority(key);
+        r->top = *prio;
         return true;
     }
     return false;

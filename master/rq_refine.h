@@ -25,6 +25,7 @@
 
 #include "common/error.h"
 #include "common/vecmath.h"
+#include "master/rq_heap.h"
 
 /* One pixel's samples in the current epoch. */
 typedef struct rq_pixel {
@@ -37,13 +38,6 @@ typedef struct rq_pixel {
     uint16_t tag;       /* the refine epoch it belongs to */
 } rq_pixel;
 
-/* A pixel waiting for a further sample. */
-typedef struct rq_refine_ent {
-    float prio;
-    uint32_t pixel;
-    uint16_t n;         /* its sample count when queued (stale when it differs) */
-} rq_refine_ent;
-
 typedef struct rq_refine {
     rq_pixel *px;           /* npx records, mapped (px_bytes) */
     size_t npx, px_bytes;
@@ -52,8 +46,14 @@ typedef struct rq_refine {
     bool active;            /* every pixel was handed out: refining */
     float threshold;        /* no more samples for a pixel under this priority */
     uint16_t max_n;         /* nor for one with this many */
-    rq_refine_ent *heap;    /* max-heap on prio */
-    size_t hn, hcap;
+    /* Pixels waiting for a further sample: key = rq_key(priority, seq),
+     * tag = the pixel, aux = its sample count when queued (stale when it
+     * differs). Buckets of 4-ary heaps (rq_heap.h), not one binary heap:
+     * a master fed a few hundred thousand refinement samples a second
+     * spent a fifth of its time in this queue's sift-downs, a cache miss a
+     * level over a million pixels (docs/sampling.md, "Refinement"). */
+    rq_heap q;
+    uint32_t seq;           /* pushes this epoch (ties: first queued first) */
     float top;              /* priority of the last pixel handed out (the largest left) */
     uint64_t samples;       /* refinement samples reported, this epoch */
 } rq_refine;

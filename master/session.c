@@ -342,6 +342,11 @@ static void refine_and_late(sess *s, ct_error *err)
 {
     uint32_t kept = 0, nw = 0;
     for (uint32_t j = 0; j < s->nr; j++) {
+        /* as report_task: refinement picks pixels all over the view */
+        if (j + 8 < s->nr) {
+            prefetch_shown(s, &s->refine[j + 8]);
+            rq_report_prefetch(s->rq, &s->refine[j + 8]);
+        }
         ct_sample *x = &s->refine[j];
         x->epoch = s->rq_epoch;
         int rc = rq_report(s->rq, x, v3s(0.0f), shown_at(s, x), err);

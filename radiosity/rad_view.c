@@ -50,13 +50,15 @@ static void view_row(void *arg, int worker, size_t row)
     int m = 1;
     while (m * m < j->spp) m++;
     ct_rng g = rng_make(0x76696577u, (uint64_t)y, 0, 0);
+    cam_rays cr;
+    cam_rays_init(&cr, j->cam, W, H);
     for (int x = 0; x < W; x++) {
         vec3 sum = v3s(0.0f), key = v3s(0.0f);
         int same = 1;
         for (int s = 0; s < j->spp; s++) {
             float px = (float)x + (j->spp == 1 ? 0.5f : ((float)(s % m) + rng_float(&g)) / (float)m);
             float py = (float)y + (j->spp == 1 ? 0.5f : ((float)((s / m) % m) + rng_float(&g)) / (float)m);
-            vec3 d = cam_ray_dir(j->cam, W, H, px, py);
+            vec3 d = cam_rays_dir(&cr, px, py);
             struct RTCIntersectContext ctx;
             rtcInitIntersectContext(&ctx);
             struct RTCRayHit rh;

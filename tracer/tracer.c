@@ -196,30 +196,9 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->st = st;
 }
 
-/* A view's camera axes and tangents, computed once per batch; cam_dir then
- * does exactly cam_ray_dir's arithmetic (same results, bit for bit). */
-typedef struct view_pre {
-    vec3 r, u, f;
-    float th, tw;
-} view_pre;
-
-static void view_prepare(const trc_view *v, view_pre *p)
-{
-    p->th = tanf(0.5f * v->cam.fov_y);
-    p->tw = p->th * (float)v->width / (float)v->height;
-    cam_axes(&v->cam, &p->r, &p->u, &p->f);
-}
-
-static vec3 cam_dir(const view_pre *p, const trc_view *v, float px, float py)
-{
-    float sx = (2.0f * px / (float)v->width - 1.0f) * p->tw;
-    float sy = (1.0f - 2.0f * py / (float)v->height) * p->th;
-    return v3_norm(v3_add(p->f, v3_add(v3_scale(p->r, sx), v3_scale(p->u, sy))));
-}
-
 /* The primary part of a record, first half: request fields and the primary
  * ray (its hit record's load started). */
-static bool primary_start(integ_ctx *c, const trc_view *v, const view_pre *vp, const ct_request *r,
+static bool primary_start(integ_ctx *c, const trc_view *v, const cam_rays *vp, const ct_request *r,
                           ct_sample *out, emb_hit *h, vec3 *d)
 {
     memset(out, 0, sizeof *out);
@@ -231,7 +210,7 @@ static bool primary_start(integ_ctx *c, const trc_view *v, const view_pre *vp, c
     out->tri = UINT32_MAX;
     /* A position that is not a number has no ray: a miss, not an Embree query. */
     if (!isfinite(r->px) || !isfinite(r->py)) return false;
-    *d = cam_dir(vp, v, r->px, r->py);
+    *d = cam_rays_dir(vp, r->px, r->py);
     return integ_primary_start(c, v->cam.eye, *d, h);
 }
 
@@ -256,7 +235,7 @@ static void primary_finish(const trc_tracer *t, integ_ctx *c, emb_hit *h, vec3 d
 }
 
 /* Both halves: the primary part of a record: request fields, hit, L_base. */
-static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const view_pre *vp,
+static bool primary(const trc_tracer *t, integ_ctx *c, const trc_view *v, const cam_rays *vp,
                     const ct_request *r, ct_sample *out, integ_surf *s, vec3 *d)
 {
     emb_hit h;
@@ -273,8 +252,8 @@ void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, si
 {
     integ_ctx c;
     init_ctx(t, &c, st);
-    view_pre vp;
-    view_prepare(v, &vp);
+    cam_rays vp;
+    cam_rays_init(&vp, &v->cam, v->width, v->height);
     unsigned fpu = fpu_enter();
     /* First the primary rays of up to PRIMARY_BATCH requests, then their
      * hit records (whose loads the first loop started), then their shading:
@@ -324,8 +303,8 @@ void trc_trace_primary(const trc_tracer *t, const trc_view *v, const ct_request 
 {
     integ_ctx c;
     init_ctx(t, &c, st);
-    view_pre vp;
-    view_prepare(v, &vp);
+    cam_rays vp;
+    cam_rays_init(&vp, &v->cam, v->width, v->height);
     unsigned fpu = fpu_enter();
     for (size_t i = 0; i < n; i++) {
         integ_surf s;

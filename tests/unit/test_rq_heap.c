@@ -161,6 +161,56 @@ Test(rq_heap, buckets_split_octaves_and_keep_one_order)
     rq_heap_free(&h);
 }
 
+Test(rq_heap, keys_only_heap_orders_and_carries_tag_and_aux)
+{
+    rq_heap h;
+    ct_error err;
+    cr_assert_eq(rq_heap_init_keys(&h, 0, &err), 0);
+    cr_assert_null(h.pl, "no payload pool");
+    enum { N = 30000 };
+    ref *r = malloc(N * sizeof *r);
+    ct_rng g = rng_make(5, 0, 0, 0);
+    uint32_t seq = 0, popped = 0;
+    /* pushes and pops interleaved, as refinement requeues a pixel after each
+     * sample: a reference list sorted at every pop is the oracle */
+    size_t nr = 0;
+    for (int step = 0; step < 3 * N; step++) {
+        if (nr < N && (nr == 0 || rng_below(&g, 3) != 0)) {
+            float p = (float)rng_below(&g, 40) * 0.125f;
+            r[nr++] = (ref){p, seq};
+            cr_assert_eq(rq_heap_push_key(&h, rq_key(p, seq), seq ^ 0xabcdu, seq * 3u), 0);
+            seq++;
+        } else {
+            qsort(r, nr, sizeof *r, cmp_ref);
+            uint64_t key;
+            uint32_t tag, aux;
+            cr_assert(rq_heap_pop_key(&h, &key, &tag, &aux));
+            cr_assert_eq(rq_key_priority(key), r[0].prio, "pop %u: priority", popped);
+            cr_assert_eq(tag, r[0].seq ^ 0xabcdu, "pop %u: tag", popped);
+            cr_assert_eq(aux, r[0].seq * 3u, "pop %u: aux", popped);
+            memmove(r, r + 1, (nr - 1) * sizeof *r);
+            nr--;
+            popped++;
+        }
+    }
+    cr_assert_eq(h.n, nr);
+    rq_heap_clear(&h);
+    uint64_t key;
+    uint32_t tag, aux;
+    cr_assert_not(rq_heap_pop_key(&h, &key, &tag, &aux), "empty after a clear");
+    rq_heap_free(&h);
+
+    /* a cap refuses and keeps what is queued */
+    cr_assert_eq(rq_heap_init_keys(&h, 3, &err), 0);
+    for (uint32_t i = 0; i < 3; i++) cr_assert_eq(rq_heap_push_key(&h, rq_key(1.0f + (float)i, i), i, i), 0);
+    cr_assert_eq(rq_heap_push_key(&h, rq_key(9.0f, 3), 3, 3), CT_ENOMEM);
+    cr_assert(rq_heap_pop_key(&h, &key, &tag, &aux));
+    cr_assert_eq(tag, 2u, "the highest of the three");
+    cr_assert_eq(rq_heap_push_key(&h, rq_key(9.0f, 3), 3, 3), 0, "room again after a pop");
+    free(r);
+    rq_heap_free(&h);
+}
+
 Test(rq_mask, test_set_counts_each_pixel_once)
 {
     rq_mask m;
