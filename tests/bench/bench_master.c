@@ -44,7 +44,7 @@
 typedef struct opts {
     const char *camera, *record;
     int width, height, threads, batch;
-    float stand_in;
+    float stand_in, refine_error;
     bool header;
     bool pop_ahead;
 } opts;
@@ -60,6 +60,8 @@ static const optab OPTS[] = {
     {"batch", 0, OPTAB_INT, OF(batch), 1, 65536, "256", "B", "the recording run's --batch (a round)", NULL},
     {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
      "the recording run's --pop-ahead (each round popped ahead of the last one's reports)", NULL},
+    {"refine-error", 0, OPTAB_FLOAT, OF(refine_error), 0, 1e6, "0", "E",
+     "the recording run's --refine-error (refinement past full coverage recorded too)", NULL},
     {"header", 0, OPTAB_FLAG, OF(header), 0, 0, NULL, NULL, "print the table header first", NULL},
 };
 #undef OF
@@ -237,7 +239,7 @@ int main(int argc, char **argv)
     }
     rq_options ro;
     rq_options_default(&ro);
-    ro.refine_error = 0.0f;   /* as corrtex converge recorded them */
+    ro.refine_error = o.refine_error;   /* as corrtex converge recorded them */
     ctex_options co = ctex_options_default();
     sess_config sc = {&mesh, scene ? scene->mats : NULL, scene ? scene->nmats : 0, &ro, &co, 1, {o.threads, 0.0, 0.0}};
     if (!rc) rc = sess_new(&sc, &b.s, &err);
@@ -266,7 +268,9 @@ int main(int argc, char **argv)
            t_ahead0 = sess_get_counters(b.s).t_ahead;
     if (!rc) {
         drv_set_lockstep(b.d, true);
-        drv_begin_frame(b.d, UINT32_MAX);
+        /* a recording past full coverage ends where it ends, not when the
+         * queue runs dry (refinement would not) */
+        drv_begin_frame(b.d, o.refine_error > 0.0f && nrec < UINT32_MAX ? (uint32_t)nrec : UINT32_MAX);
     }
     double t_disp = 0, t_drv = 0;   /* per-stage seconds (the session counts its own) */
     while (!rc && drv_in_frame(b.d)) {
