@@ -389,12 +389,15 @@ void rq_report_prefetch(const rq_engine *e, const ct_sample *s)
         int64_t p = pixel_of(e, s->px, s->py);
         if (p >= 0 && (size_t)p < e->ref.npx) {
             __builtin_prefetch(&e->ref.px[p], 1, 1);
-            /* the rows above and below: a refined pixel's priority reads
-             * its neighbours' records (rq_refine.c) */
+            /* its four neighbours: a refined pixel's priority reads their
+             * records (rq_refine.c); the left or right one lies on the next
+             * cache line, the others rows away */
             if (e->ref.active) {
-                size_t w = (size_t)e->ref.w;
-                if ((size_t)p >= w) __builtin_prefetch(&e->ref.px[(size_t)p - w], 0, 3);
-                if ((size_t)p + w < e->ref.npx) __builtin_prefetch(&e->ref.px[(size_t)p + w], 0, 3);
+                size_t w = (size_t)e->ref.w, q = (size_t)p;
+                if (q >= 1) __builtin_prefetch(&e->ref.px[q - 1], 0, 3);
+                if (q + 1 < e->ref.npx) __builtin_prefetch(&e->ref.px[q + 1], 0, 3);
+                if (q >= w) __builtin_prefetch(&e->ref.px[q - w], 0, 3);
+                if (q + w < e->ref.npx) __builtin_prefetch(&e->ref.px[q + w], 0, 3);
             }
         }
     }
