@@ -11,13 +11,20 @@
 
 #define COMPONENT "master"
 
-/* One chunk's samples to splat, and the report of them to the queue as a
- * side job of the pool (report_task). */
+/* One chunk's samples: those to splat, and the report of them to the queue
+ * as a side job of the pool (report_task); its refinement samples, those of
+ * them that move their pixel's texels and their pixels' sample counts
+ * (refine_report), and its late samples (refine_write). */
 typedef struct chunk {
     sess *s;
     ct_sample *splat;
     ctex_insert_info *info;
     uint32_t m;
+    ct_sample *refine, *write;   /* write: the refinement samples that move their pixel's texels */
+    ct_sample *late;             /* of an older view, view-independent */
+    uint16_t *npx;               /* the writes' pixel sample counts */
+    ctex_insert_info *winfo;     /* refinement writes and late splats */
+    uint32_t nr, nw, nl;
     ct_error err;        /* the side job's own: the caller's may be in use */
 } chunk;
 
@@ -43,15 +50,9 @@ struct sess {
     double view_mem_mb;    /* sess_options.view_mem_mb; 0: no cap */
     double view_t;         /* when the current view was set */
     sess_counters n;
-    /* Two chunks' splatted samples and what their splats measured: the
-     * queue hears of one while the next is splatted (sess_insert). */
+    /* Two chunks: the queue hears of one while the next is splatted, or
+     * while the texels of the one before move (sess_insert). */
     chunk ch[2];
-    /* the refinement and late samples of the chunk classified last */
-    ct_sample *refine, *write;           /* write: the refinement samples that move their pixel's texels */
-    ct_sample *late;                     /* of an older view, view-independent */
-    uint16_t *npx;   /* the refinement writes' pixel sample counts */
-    uint32_t nr, nl;
-    ctex_insert_info *info;              /* refinement writes and late splats */
 };
 
 #define OF(f) offsetof(sess_options, f)
@@ -88,17 +89,20 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
     s->view_mem_mb = c->opt.view_mem_mb;
     int threads = c->opt.threads > 0 ? c->opt.threads : pool_cpus();
     if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
+    bool ok = true;
     for (int i = 0; i < 2; i++) {
-        s->ch[i].s = s;
-        s->ch[i].splat = malloc(SESS_CHUNK * sizeof *s->ch[i].splat);
-        s->ch[i].info = malloc(SESS_CHUNK * sizeof *s->ch[i].info);
+        chunk *h = &s->ch[i];
+        h->s = s;
+        h->splat = malloc(SESS_CHUNK * sizeof *h->splat);
+        h->info = malloc(SESS_CHUNK * sizeof *h->info);
+        h->refine = malloc(SESS_CHUNK * sizeof *h->refine);
+        h->write = malloc(SESS_CHUNK * sizeof *h->write);
+        h->late = malloc(SESS_CHUNK * sizeof *h->late);
+        h->npx = malloc(SESS_CHUNK * sizeof *h->npx);
+        h->winfo = malloc(SESS_CHUNK * sizeof *h->winfo);
+        ok = ok && h->splat && h->info && h->refine && h->write && h->late && h->npx && h->winfo;
     }
-    s->refine = malloc(SESS_CHUNK * sizeof *s->refine);
-    s->late = malloc(SESS_CHUNK * sizeof *s->late);
-    s->write = malloc(SESS_CHUNK * sizeof *s->write);
-    s->npx = malloc(SESS_CHUNK * sizeof *s->npx);
-    s->info = malloc(SESS_CHUNK * sizeof *s->info);
-    int rc = s->ch[0].splat && s->ch[0].info && s->ch[1].splat && s->ch[1].info && s->refine && s->late && s->write && s->npx && s->info ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
+    int rc = ok ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
     if (!rc) rc = pool_new(threads, &s->pool, err);
     if (!rc) rc = ctex_new(c->mesh, c->mats, c->nmats, &s->ctex_opt, &s->tex, err);
     if (rc) {
@@ -118,14 +122,15 @@ void sess_free(sess *s)
     shown_buf_free(s->sb);
     free(s->shown);
     for (int i = 0; i < 2; i++) {
-        free(s->ch[i].splat);
-        free(s->ch[i].info);
+        chunk *c = &s->ch[i];
+        free(c->splat);
+        free(c->info);
+        free(c->refine);
+        free(c->write);
+        free(c->late);
+        free(c->npx);
+        free(c->winfo);
     }
-    free(s->refine);
-    free(s->late);
-    free(s->write);
-    free(s->npx);
-    free(s->info);
     free(s);
 }
 
@@ -291,25 +296,26 @@ static void rejected(sess *s, const ct_sample *x, ct_error *err)
     s->n.rejected++;
 }
 
-/* Sorts a chunk (at most SESS_CHUNK samples) into c's samples to splat
- * and the session's refinement and late ones. Reads the queue (which
- * requests refine), so it runs before an earlier chunk's report starts. */
+/* Sorts a chunk (at most SESS_CHUNK samples) into c's samples to splat,
+ * its refinement and its late ones. Reads the queue (which requests
+ * refine), so it runs before an earlier chunk's report starts. */
 static void classify(sess *s, chunk *c, const ct_sample *smp, uint32_t n)
 {
     uint32_t m = 0, nr = 0, nl = 0;
     for (uint32_t i = 0; i < n; i++) {
         if (smp[i].epoch != s->epoch) {
-            if (ctex_view_independent(s->tex, &smp[i])) s->late[nl++] = smp[i];
+            if (ctex_view_independent(s->tex, &smp[i])) c->late[nl++] = smp[i];
             else s->n.stale++;
         } else if (rq_refines(s->rq, smp[i].request_id)) {
-            s->refine[nr++] = smp[i];
+            c->refine[nr++] = smp[i];
         } else {
             c->splat[m++] = smp[i];
         }
     }
     c->m = m;
-    s->nr = nr;
-    s->nl = nl;
+    c->nr = nr;
+    c->nw = 0;
+    c->nl = nl;
 }
 
 /* Reports a chunk's splatted samples to the queue, in their order, with the
@@ -334,59 +340,68 @@ static void report_task(void *ctx)
     }
 }
 
-/* The rest of a chunk after its report: the refinement samples (reported,
- * and those the queue takes into their pixel's mean move its texels), then the
- * late ones (splatted, never reported: their requests belong to a view the
- * queue has left). */
-static void refine_and_late(sess *s, ct_error *err)
+/* Reports a chunk's refinement samples to the queue, in their order, and
+ * lists those the queue takes into their pixel's mean, with the pixel's
+ * sample count then (a sample on another node than its pixel's first is
+ * counted, not written: rq_refine.h). Touches the queue and the chunk,
+ * never the textures: it runs beside the chunk before's texel writes. */
+static void refine_report(chunk *c)
 {
+    sess *s = c->s;
     uint32_t kept = 0, nw = 0;
-    for (uint32_t j = 0; j < s->nr; j++) {
+    for (uint32_t j = 0; j < c->nr; j++) {
         /* as report_task: refinement picks pixels all over the view */
-        if (j + 8 < s->nr) {
-            prefetch_shown(s, &s->refine[j + 8]);
-            rq_report_prefetch(s->rq, &s->refine[j + 8]);
+        if (j + 8 < c->nr) {
+            prefetch_shown(s, &c->refine[j + 8]);
+            rq_report_prefetch(s->rq, &c->refine[j + 8]);
         }
-        ct_sample *x = &s->refine[j];
+        ct_sample *x = &c->refine[j];
         x->epoch = s->rq_epoch;
-        int rc = rq_report(s->rq, x, v3s(0.0f), shown_at(s, x), err);
+        int rc = rq_report(s->rq, x, v3s(0.0f), shown_at(s, x), &c->err);
         if (rc < 0) {
-            rejected(s, x, err);
+            rejected(s, x, &c->err);
             continue;
         }
-        s->refine[kept++] = *x;
-        /* a sample on another node than its pixel's first is counted, not
-         * written (rq_refine.h) */
+        c->refine[kept++] = *x;
         if (rc & RQ_REPORT_REFINE) {
-            s->write[nw] = *x;
-            s->npx[nw++] = rq_pixel_samples(s->rq, x->px, x->py);
+            c->write[nw] = *x;
+            c->npx[nw++] = rq_pixel_samples(s->rq, x->px, x->py);
         }
     }
-    s->nr = kept;
-    ctex_refine_par(s->tex, s->pool, s->write, s->npx, nw, s->info);
+    c->nr = kept;
+    c->nw = nw;
+}
+
+/* The texels of a chunk after its reports: the refinement writes, then the
+ * late samples (splatted, never reported: their requests belong to a view
+ * the queue has left). Touches the textures and the counters, never the
+ * queue. */
+static void refine_write(sess *s, chunk *c)
+{
+    ctex_refine_par(s->tex, s->pool, c->write, c->npx, c->nw, c->winfo);
     const ctex_insert_info unwritten = {.tex = -1};
-    for (uint32_t j = 0, w = 0; j < kept; j++) {
-        bool written = w < nw && s->write[w].request_id == s->refine[j].request_id;
-        count(s, &s->refine[j], written ? &s->info[w++] : &unwritten);
+    for (uint32_t j = 0, w = 0; j < c->nr; j++) {
+        bool written = w < c->nw && c->write[w].request_id == c->refine[j].request_id;
+        count(s, &c->refine[j], written ? &c->winfo[w++] : &unwritten);
     }
-    if (s->nl) {
-        ctex_insert_par(s->tex, s->pool, s->late, s->nl, s->info);
-        for (uint32_t j = 0; j < s->nl; j++) {
-            if (s->info[j].tex < 0) {
+    if (c->nl) {
+        ctex_insert_par(s->tex, s->pool, c->late, c->nl, c->winfo);
+        for (uint32_t j = 0; j < c->nl; j++) {
+            if (c->winfo[j].tex < 0) {
                 s->n.stale++;
                 continue;
             }
-            count(s, &s->late[j], &s->info[j]);
+            count(s, &c->late[j], &c->winfo[j]);
             s->n.late++;
         }
     }
 }
 
-static void to_sink(const sess *s, const chunk *c, uint32_t nr, const sink *k)
+static void to_sink(const chunk *c, const sink *k)
 {
     if (!k || !k->samples) return;
     if (c->m) k->samples(k->user, c->splat, c->m);
-    if (nr) k->samples(k->user, s->refine, nr);
+    if (c->nr) k->samples(k->user, c->refine, c->nr);
 }
 
 /* Requests popped ahead of a batch's reports (sess_insert_next), in one
@@ -419,10 +434,13 @@ static void pop_portion(next_job *j, uint32_t i)
     j->dt += ct_now() - t0;
 }
 
-/* What the side thread does beside a chunk's splats: the report of the
- * chunk before (if any), then the next portion of the pops (if any). */
+/* What the side thread does beside a chunk's splats or the texel writes of
+ * the chunk before: the report of the chunk before (if any), or the
+ * refinement reports of the chunk (if any), then the next portion of the
+ * pops (if any). */
 typedef struct side_job {
     chunk *report;
+    chunk *refine;
     next_job *ahead;
     uint32_t portion;
 } side_job;
@@ -431,52 +449,76 @@ static void side_task(void *ctx)
 {
     side_job *j = ctx;
     if (j->report) report_task(j->report);
+    if (j->refine) refine_report(j->refine);
     pop_portion(j->ahead, j->portion);
 }
 
-/* Classifies and splats chunk c while the side job runs beside it (none
+/* Splats chunk c (classified) while the side job runs beside it (none
  * when it has nothing to do). */
-static void splat_beside(sess *s, chunk *c, const ct_sample *smp, uint32_t n, side_job *sj)
+static void splat_beside(sess *s, chunk *c, side_job *sj)
 {
-    classify(s, c, smp, n);
-    bool side = sj->report || sj->ahead;
+    bool side = sj->report || sj->refine || sj->ahead;
     if (side) pool_side(s->pool, side_task, sj);
     ctex_insert_par(s->tex, s->pool, c->splat, c->m, c->info);
     if (side) pool_side_wait(s->pool);
 }
 
 /* The chunks in order: each is classified and splatted, then reported
- * (refinement and late samples after). When a chunk has neither, its
- * report runs on another thread (a side job of the pool) while the next
- * chunk is classified and splatted, and so does each portion of the pops
- * ahead: the queue's operations come in one fixed order (classify chunk
- * c + 1, report chunk c, pop portion c + 1), so do the textures' (the
- * report and the pops read no texel, the splats no queue state), and the
- * result does not depend on the threads. */
-static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink *k, next_job *ahead,
-                          ct_error *err)
+ * (its refinement samples after its splatted ones), then its texels move
+ * (refinement writes, late samples). The queue's work and the textures'
+ * overlap where they can: a chunk's report runs on another thread (a side
+ * job of the pool) while the next chunk is splatted when it has no texels
+ * to move after it; a chunk of refinement samples alone (a still view past
+ * full coverage) is reported while the chunk before moves its texels; each
+ * portion of the pops ahead follows on the side thread. The queue's
+ * operations come in one fixed order (classify chunk c + 1, the reports,
+ * pop portion c + 1), so do the textures' (the reports and the pops read no
+ * texel, the texel work no queue state), and the result does not depend on
+ * the threads. */
+static void insert_chunks(sess *s, const ct_sample *smp, uint32_t n, const sink *k, next_job *ahead)
 {
     uint32_t nchunks = (n + SESS_CHUNK - 1) / SESS_CHUNK;
     if (ahead) ahead->parts = nchunks;
     chunk *cur = &s->ch[0];
-    side_job sj = {NULL, ahead, 0};
-    splat_beside(s, cur, smp, n < SESS_CHUNK ? n : SESS_CHUNK, &sj);
+    classify(s, cur, smp, n < SESS_CHUNK ? n : SESS_CHUNK);
+    side_job sj = {NULL, NULL, ahead, 0};
+    splat_beside(s, cur, &sj);
+    bool reported = false;   /* cur's reports ran beside the chunk before's texels */
     for (uint32_t c = 0; c < nchunks; c++) {
         chunk *nxt = cur == &s->ch[0] ? &s->ch[1] : &s->ch[0];
         uint32_t at = (c + 1) * SESS_CHUNK, nn = c + 1 < nchunks ? (n - at < SESS_CHUNK ? n - at : SESS_CHUNK) : 0;
-        /* a chunk with refinement or late samples writes texels after its
-         * report: it is reported here, before the next chunk's splats */
-        bool beside = nn && s->nr == 0 && s->nl == 0;
-        if (!beside) {
+        bool done = reported;
+        reported = false;
+        if (nn) classify(s, nxt, smp + at, nn);
+        if (nn && cur->nr == 0 && cur->nl == 0) {
+            /* nothing to write after its report: reported beside the next
+             * chunk's splats */
+            sj = (side_job){cur, NULL, ahead, c + 1};
+            splat_beside(s, nxt, &sj);
+            to_sink(cur, k);
+            cur = nxt;
+            continue;
+        }
+        if (!done) {
             report_task(cur);
-            refine_and_late(s, err);
-            to_sink(s, cur, s->nr, k);   /* before classify overwrites the refinement samples */
+            refine_report(cur);
         }
-        if (nn) {
-            sj = (side_job){beside ? cur : NULL, ahead, c + 1};
-            splat_beside(s, nxt, smp + at, nn, &sj);
+        if (nn && nxt->m == 0 && nxt->nl == 0) {
+            /* refinement alone next: its reports beside these texels */
+            sj = (side_job){NULL, nxt, ahead, c + 1};
+            pool_side(s->pool, side_task, &sj);
+            refine_write(s, cur);
+            pool_side_wait(s->pool);
+            reported = true;
+            to_sink(cur, k);
+        } else {
+            refine_write(s, cur);
+            to_sink(cur, k);
+            if (nn) {
+                sj = (side_job){NULL, NULL, ahead, c + 1};
+                splat_beside(s, nxt, &sj);
+            }
         }
-        if (beside) to_sink(s, cur, 0, k);
         cur = nxt;
     }
 }
@@ -496,7 +538,7 @@ int sess_insert_next(sess *s, const ct_sample *smp, uint32_t n, const sink *k, c
     }
     ctex_set_clock(s->tex, ct_now_us());
     next_job ahead = {s, out, want, 1, 0, 0.0, {0}};
-    if (n) insert_chunks(s, smp, n, k, want ? &ahead : NULL, err);
+    if (n) insert_chunks(s, smp, n, k, want ? &ahead : NULL);
     else if (want) pop_portion(&ahead, 0);
     s->n.t_ahead += ahead.dt;
     s->n.t_texture += ct_now() - t0;

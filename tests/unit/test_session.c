@@ -360,9 +360,10 @@ Test(session, live_and_offline_give_the_same_textures)
 
 /* Rounds larger than a chunk (SESS_CHUNK): a chunk's report to the queue
  * runs beside the next chunk's splats on two or more threads, in order on
- * one; the first pass, then refinement past full coverage (chunks with
- * refinement samples take the serial path), give the same textures, queue
- * and samples for 1, 2 and 3 master threads. */
+ * one; past full coverage a chunk of refinement samples alone is reported
+ * beside the texel writes of the chunk before. The first pass, then
+ * refinement (4096 pixels, then some 6,000 refinement samples), give the
+ * same textures, queue and samples for 1, 2 and 3 master threads. */
 Test(session, chunks_reported_beside_splats_same_for_any_threads)
 {
     static const uint32_t K[] = {3500, 3500, 3000};
