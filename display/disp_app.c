@@ -326,9 +326,13 @@ static int run(app *a, ct_error *err)
                 a->points_uploaded = true;
             }
         }
+        disp_gpu_time_begin(a->gt, DISP_GT_DRAW);
         rc = disp_compositor_render(a->comp, disp_session_scene_of(a->session),
                                     disp_session_textures(a->session), &cam, &a->ropts, &rs, err);
+        disp_gpu_time_end(a->gt);
+        disp_gpu_time_begin(a->gt, DISP_GT_PRESENT);
         if (!rc) rc = disp_compositor_present(a->comp, &a->ropts, window, in.fb_width, in.fb_height, err);
+        disp_gpu_time_end(a->gt);
         if (rc) break;
         a->kept_frames += rs.base_reused;
         a->screen_frames += rs.screen_pass;
@@ -336,6 +340,7 @@ static int run(app *a, ct_error *err)
         disp_session_frame_drawn(a->session);
         if (window) gl_backend_present(a->backend);
         else gl.Finish();
+        disp_gpu_time_poll(a->gt);
         app_count_lag(a);
         /* (not the first frame's: compiling the shaders is paid once, and
          * at 0.05 cores its 160 ms under the sanitizers held the view for
@@ -387,6 +392,15 @@ static int run(app *a, ct_error *err)
         printf("display: per frame besides drawing: %.1f ms waiting for lockstep frames, %.1f ms taking what "
                "arrived (texel uploads), %.1f ms capturing\n",
                1000.0 * a->t_wait / k, 1000.0 * a->t_take / k, 1000.0 * a->t_capture / k);
+    if (k > 0 && a->gt) {
+        double ms[DISP_GT_STAGES];
+        uint64_t nt[DISP_GT_STAGES], untimed;
+        disp_gpu_time_totals(a->gt, ms, nt, &untimed);
+        printf("display: GPU time per frame (timer queries): %.2f ms taking in texels (%llu takes), %.2f ms drawing, "
+               "%.2f ms tone mapping and presenting%s\n",
+               ms[DISP_GT_TAKE] / k, (unsigned long long)nt[DISP_GT_TAKE], ms[DISP_GT_DRAW] / k,
+               ms[DISP_GT_PRESENT] / k, untimed ? " (some stages untimed)" : "");
+    }
     if (a->kept_frames)
         printf("display: %llu of %u frames reused a still camera's kept base; %llu drew the corrections in screen "
                "space, %.2f screens of tiles a frame\n",
@@ -475,6 +489,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         ct_error_clear(err);
         rc = disp_compositor_new(o->width, o->height, o->float_format, 1, &a.comp, err);
     }
+    if (!rc) rc = disp_gpu_time_new(&a.gt, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
         GLint max = 0;
@@ -527,6 +542,7 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     disp_inbox_free(a.inbox);
     free(a.lag);
     disp_scene_cache_free(a.cache);
+    disp_gpu_time_free(a.gt);
     disp_compositor_free(a.comp);
     disp_session_free(a.session);
     gl_backend_close(a.backend);

@@ -82,7 +82,12 @@ static int take_inbox(app *a, ct_error *err)
 {
     if (!a->inbox || a->hold_texels) return CT_OK;
     double t0 = ct_now();
+    /* (an idle display takes its inbox every few ms: only takes that
+     * upload something are timed on the GPU) */
+    bool timed = a->gt && disp_inbox_pending(a->inbox);
+    if (timed) disp_gpu_time_begin(a->gt, DISP_GT_TAKE);
     int rc = disp_inbox_apply(a->inbox, a->session, &a->took, err);
+    if (timed) disp_gpu_time_end(a->gt);
     a->t_take += ct_now() - t0;
     return rc;
 }

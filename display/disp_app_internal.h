@@ -13,6 +13,7 @@
 #include "display/disp_capture.h"
 #include "display/disp_client.h"
 #include "display/disp_inbox.h"
+#include "display/disp_gpu_time.h"
 #include "display/disp_lag.h"
 #include "display/disp_session.h"
 
@@ -35,6 +36,7 @@ typedef struct app {
     disp_inbox *inbox;            /* what its thread received, applied before each frame */
     disp_inbox_took took;         /* what the frame being drawn took from it */
     disp_lag *lag;                /* insertion at the master -> presented frame */
+    disp_gpu_time *gt;            /* GPU time of taking in texels, drawing, presenting */
     double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
     double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
     double t_held;                /* seconds new texels waited for --texel-fps / --texel-cpu */

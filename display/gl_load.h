@@ -98,7 +98,13 @@
     X(PFNGLRENDERBUFFERSTORAGEMULTISAMPLEPROC, RenderbufferStorageMultisample)    \
     X(PFNGLDELETERENDERBUFFERSPROC, DeleteRenderbuffers)                          \
     X(PFNGLDRAWARRAYSPROC, DrawArrays)                                            \
-    X(PFNGLDRAWELEMENTSPROC, DrawElements)
+    X(PFNGLDRAWELEMENTSPROC, DrawElements)                                        \
+    X(PFNGLGENQUERIESPROC, GenQueries)                                            \
+    X(PFNGLDELETEQUERIESPROC, DeleteQueries)                                      \
+    X(PFNGLBEGINQUERYPROC, BeginQuery)                                            \
+    X(PFNGLENDQUERYPROC, EndQuery)                                                \
+    X(PFNGLGETQUERYOBJECTIVPROC, GetQueryObjectiv)                                \
+    X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)
 
 typedef struct gl_api {
 #define GL_LOAD_MEMBER(type, name) type name;

@@ -3,7 +3,10 @@
  * the 4-ary heap (rq_heap.c), the pixel bitmask (rq_mask.c), a ring of the
  * in-flight requests indexed by id, and a min-heap of the n_sig most
  * significant samples; buffers only grow (doubling) and every growth is
- * counted in rq_stats.allocations. */
+ * counted in rq_stats.allocations. Over 600 lines on purpose: the pops,
+ * the reports and the camera changes all work on the same in-flight ring,
+ * mask, significant set and refinement records, whose invariants are read
+ * together; split, each part would need the engine's private struct. */
 #include <math.h>
 #include <stdbool.h>
 #include <stdlib.h>
