@@ -396,9 +396,10 @@ static int run(app *a, ct_error *err)
         double ms[DISP_GT_STAGES];
         uint64_t nt[DISP_GT_STAGES], untimed;
         disp_gpu_time_totals(a->gt, ms, nt, &untimed);
-        printf("display: GPU time per frame (timer queries): %.2f ms taking in texels (%llu takes), %.2f ms drawing, "
-               "%.2f ms tone mapping and presenting%s\n",
-               ms[DISP_GT_TAKE] / k, (unsigned long long)nt[DISP_GT_TAKE], ms[DISP_GT_DRAW] / k,
+        printf("display: GPU time per frame (timer queries): %.2f ms taking in texels (%llu takes, %.0f uploads of "
+               "%.0f texels a frame), %.2f ms drawing, %.2f ms tone mapping and presenting%s\n",
+               ms[DISP_GT_TAKE] / k, (unsigned long long)nt[DISP_GT_TAKE], (double)a->uploads / k,
+               a->uploads ? (double)a->uploaded / (double)a->uploads : 0.0, ms[DISP_GT_DRAW] / k,
                ms[DISP_GT_PRESENT] / k, untimed ? " (some stages untimed)" : "");
     }
     if (a->kept_frames)

@@ -89,6 +89,8 @@ static int take_inbox(app *a, ct_error *err)
     int rc = disp_inbox_apply(a->inbox, a->session, &a->took, err);
     if (timed) disp_gpu_time_end(a->gt);
     a->t_take += ct_now() - t0;
+    a->uploads += a->took.uploads;
+    a->uploaded += a->took.texels;
     return rc;
 }
 

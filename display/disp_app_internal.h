@@ -38,6 +38,7 @@ typedef struct app {
     disp_lag *lag;                /* insertion at the master -> presented frame */
     disp_gpu_time *gt;            /* GPU time of taking in texels, drawing, presenting */
     double t_take, t_wait, t_capture; /* seconds taking the inbox, waiting for lockstep frames, capturing */
+    uint64_t uploads, uploaded;   /* texture upload calls and the texels they carried, all takes */
     double t_idle;                /* seconds with nothing new to draw (no frame drawn) */
     double t_held;                /* seconds new texels waited for --texel-fps / --texel-cpu */
     uint64_t kept_frames;         /* frames that reused a kept base */

@@ -615,6 +615,7 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
             const upload *u = &b->ups[i];
             rc = disp_session_tex_upload(s, u->id, u->x, u->y, u->w, u->h, u->off, u->negative, u->nonzero, err);
             took->texels += (uint64_t)u->w * (uint64_t)u->h;
+            took->uploads++;
         }
         gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
     }

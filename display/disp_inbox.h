@@ -40,6 +40,7 @@ typedef struct disp_inbox_stamp {
 /* What a frame took out of the inbox. */
 typedef struct disp_inbox_took {
     uint64_t texels, patches;    /* uploaded / received since the last take */
+    uint64_t uploads;            /* texture uploads (glTexSubImage2D calls) that made them */
     uint32_t nstamps;            /* stamps of the patches now on the textures */
     const disp_inbox_stamp *stamps;
 } disp_inbox_took;

@@ -114,6 +114,8 @@ Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
     /* 16 x 12 texels are 2 x 2 tiles of 8: two runs of two tiles, one upload each */
     cr_expect_eq(cnt.patches, 2u, "%llu uploads", (unsigned long long)cnt.patches);
     cr_expect_eq(cnt.texels, 16u * 12u);
+    cr_expect_eq(took.uploads, 2u, "the take counts its uploads");
+    cr_expect_eq(took.texels, 16u * 12u);
     cr_expect_eq(took.patches, 3u, "patches received");
     cr_expect_eq(took.nstamps, 2u, "stamps of patches that carry samples");
     cr_expect_eq(took.stamps[0].stamp_us, 1000u);
