@@ -425,14 +425,16 @@ static int run(app *a, ct_error *err)
  * rasteriser pays for every sample with CPU the tracers on the same host
  * would use (docs/display.md, "Antialiasing"), so auto is 1 there and 4 on
  * a GPU; more than the context allows is cut to what it allows. */
+static bool soft_renderer(void)
+{
+    const char *r = (const char *)gl.GetString(GL_RENDERER);
+    return r && (strstr(r, "llvmpipe") || strstr(r, "softpipe") || strstr(r, "swrast") || strstr(r, "SWR"));
+}
+
 static int msaa_samples(int want)
 {
     int max = gl_target_max_samples();
-    if (want == 0) {
-        const char *r = (const char *)gl.GetString(GL_RENDERER);
-        bool soft = r && (strstr(r, "llvmpipe") || strstr(r, "softpipe") || strstr(r, "swrast") || strstr(r, "SWR"));
-        return soft ? 1 : (4 < max ? 4 : max);
-    }
+    if (want == 0) return soft_renderer() ? 1 : (4 < max ? 4 : max);
     if (want > max) ct_warn(COMP, "--msaa %d: the GL context allows %d samples a pixel; using %d", want, max, max);
     return want < max ? want : max;
 }
@@ -490,7 +492,12 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         ct_error_clear(err);
         rc = disp_compositor_new(o->width, o->height, o->float_format, 1, &a.comp, err);
     }
-    if (!rc) rc = disp_gpu_time_new(&a.gt, err);
+    /* The stages' GPU time: on a software rasteriser it is the CPU time the
+     * frame line reports already, and llvmpipe's queries cost frames (3-6 %
+     * fewer streaming table at 1024x1024, two interleaved pairs), so auto
+     * leaves them off there. */
+    if (!rc && (o->gpu_times == DISP_GPU_TIMES_ON || (o->gpu_times == DISP_GPU_TIMES_AUTO && !soft_renderer())))
+        rc = disp_gpu_time_new(&a.gt, err);
     if (!rc && a.have_mesh) rc = disp_session_scene(a.session, &a.mesh, err);
     if (!rc && o->connect) {
         GLint max = 0;

@@ -22,6 +22,9 @@ enum {
     DISP_EXIT_LOST  = 3    /* the master connection was lost and --reconnect is off */
 };
 
+/* --gpu-times: auto = on hardware GL, not on a software rasteriser. */
+enum { DISP_GPU_TIMES_AUTO, DISP_GPU_TIMES_ON, DISP_GPU_TIMES_OFF };
+
 typedef struct disp_app_opts {
     gl_backend_kind backend;
     int width, height;
@@ -59,6 +62,7 @@ typedef struct disp_app_opts {
     double texel_cpu;             /* and use at most this many cores doing so (0: no limit) */
     bool full_redraw;             /* no kept base: a still camera's radiosity drawn every frame */
     int kept_corrections;         /* disp_kept_corr: how the corrections go over a kept base */
+    int gpu_times;                /* DISP_GPU_TIMES_*: time the stages with GL timer queries */
     uint32_t sample_frames;       /* the samples view shows the points of this many frames */
     uint32_t sample_max;          /* and keeps at most this many points */
     volatile int *stop;           /* set (by a signal handler) to end the run in order; NULL: none */

@@ -15,6 +15,16 @@
  * arrive as runs of them, so uploads follow the same runs. */
 #define TS_SHIFT 3
 #define TS (1 << TS_SHIFT)
+/* Runs of changed tiles in a row of tiles at most this many unchanged tiles
+ * apart go up as one upload (the unchanged tiles' texels with them, the
+ * inbox's copy holds them too): streaming table at 1024x1024, 2,200-2,600
+ * uploads of 220-260 texels a frame became 1,180-1,420 of 450-510 (25 %
+ * more bytes); llvmpipe drew as many frames or up to 8 % more (interleaved
+ * pairs), and a GPU driver pays per call (docs/display.md, "Where a frame's
+ * time goes"). Wider gaps (8, 16 tiles) carried up to 70 % more bytes and
+ * the lag grew (median 90 -> 430-490 ms at 16, when the upload buffer was
+ * still sized for the changed tiles alone). */
+#define UPLOAD_GAP_TILES 4
 /* Bytes per texel in the upload buffer: RGBA halves, the textures' own
  * format, so the driver copies instead of converting (llvmpipe converts RGB
  * to RGBA16F through floats, texel by texel). The inbox's copy stays RGB. */
@@ -456,6 +466,44 @@ static void rgb_to_rgba(uint8_t *dst, const uint16_t *src, int n)
     }
 }
 
+/* The run of marked tiles of a row at or after `from`, merged with the
+ * runs after it that begin at most UPLOAD_GAP_TILES unmarked tiles later;
+ * *len 0 when none. */
+static int next_upload_run(const uint64_t *row, int n, int from, int *len)
+{
+    int a = bitrow_next_run(row, n, from, len);
+    while (*len) {
+        int l2, a2 = bitrow_next_run(row, n, a + *len, &l2);
+        if (!l2 || a2 - (a + *len) > UPLOAD_GAP_TILES) break;
+        *len = a2 + l2 - a;
+    }
+    return a;
+}
+
+/* Under the lock: the bytes the marked runs take in the upload buffer as
+ * collect_uploads merges them, at most DISP_INBOX_FRAME_BYTES. */
+static size_t upload_bytes(const disp_inbox *b)
+{
+    size_t sum = 0;
+    for (uint32_t i = 0; i < b->ntex && sum < DISP_INBOX_FRAME_BYTES; i++) {
+        const ib_tex *t = &b->tex[i];
+        /* (a fresh texture gets its GL texture in the same take) */
+        if (!t->live || !t->dirty) continue;
+        for (int ty = 0; ty < t->th && sum < DISP_INBOX_FRAME_BYTES; ty++) {
+            const uint64_t *row = t->bits + (size_t)ty * (size_t)t->words;
+            int h = (ty << TS_SHIFT) + TS > t->h ? t->h - (ty << TS_SHIFT) : TS;
+            int len, a = next_upload_run(row, t->tw, 0, &len);
+            while (len) {
+                int x = a << TS_SHIFT, w = len << TS_SHIFT;
+                if (x + w > t->w) w = t->w - x;
+                sum += (size_t)w * (size_t)h * UP_BPT;
+                a = next_upload_run(row, t->tw, a + len, &len);
+            }
+        }
+    }
+    return sum < DISP_INBOX_FRAME_BYTES ? sum : DISP_INBOX_FRAME_BYTES;
+}
+
 /* Under the lock: copies marked runs into dst (cap bytes), making the
  * upload list; what does not fit stays marked. */
 static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
@@ -468,12 +516,19 @@ static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
         bool left = false;
         for (int ty = 0; ty < t->th; ty++) {
             uint64_t *row = t->bits + (size_t)ty * (size_t)t->words;
-            int len, a = bitrow_next_run(row, t->tw, 0, &len);
+            int len, a = next_upload_run(row, t->tw, 0, &len);
             while (len) {
                 int x = a << TS_SHIFT, y = ty << TS_SHIFT, w = len << TS_SHIFT, h = TS;
                 if (x + w > t->w) w = t->w - x;
                 if (y + h > t->h) h = t->h - y;
                 size_t bytes = (size_t)w * (size_t)h * UP_BPT;
+                if (off + bytes > cap) {
+                    /* merged, it does not fit: its first run alone may */
+                    a = bitrow_next_run(row, t->tw, a, &len);
+                    w = len << TS_SHIFT;
+                    if (x + w > t->w) w = t->w - x;
+                    bytes = (size_t)w * (size_t)h * UP_BPT;
+                }
                 if (off + bytes > cap ||
                     !grow((void **)&b->ups, &b->cap_ups, b->nups + 1, sizeof *b->ups)) {
                     left = true;
@@ -485,7 +540,7 @@ static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
                 b->ups[b->nups++] = (upload){t->id, x, y, w, h, off, t->negative, t->nonzero};
                 off += bytes;
                 bitrow_clear(row, a, len);
-                a = bitrow_next_run(row, t->tw, a + len, &len);
+                a = next_upload_run(row, t->tw, a + len, &len);
             }
             if (left) break;
         }
@@ -529,7 +584,7 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
      * frame. Changed tiles go into it orphaned each frame, so the driver
      * never waits for the previous frame's upload. */
     pthread_mutex_lock(&b->mu);
-    size_t want = b->dirty_bytes < DISP_INBOX_FRAME_BYTES ? b->dirty_bytes : DISP_INBOX_FRAME_BYTES;
+    size_t want = upload_bytes(b);
     pthread_mutex_unlock(&b->mu);
     uint8_t *dst = NULL;
     if (want) {

@@ -117,6 +117,9 @@ static const optab RUN_OPTS[] = {
     {"kept-corrections", 0, OPTAB_CHOICE, OF(o.kept_corrections), 0, 0, NULL, "auto|screen|mesh",
      "a still view's corrections over its kept base (1-pass, one sample a pixel): in screen space from the "
      "surfaces the base keeps, over the mesh's triangles, or whichever costs less (docs/display.md)", NULL},
+    {"gpu-times", 0, OPTAB_CHOICE, OF(o.gpu_times), 0, 0, NULL, "auto|on|off",
+     "time taking in texels, drawing and presenting on the GPU (GL timer queries) and print it per frame at the "
+     "end; auto: on hardware GL, not on a software rasteriser, whose queries cost frames (docs/display.md)", NULL},
     {"texel-fps", 0, OPTAB_DOUBLE, OF(o.texel_fps), 0, 1000, NULL, "F",
      "redraw a view for new texels alone at most F times a second; a moving camera is drawn at once (0: whenever "
      "they arrive). On a host shared with tracer ranks, what the display does not draw the tracers trace "

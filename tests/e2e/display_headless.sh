@@ -21,7 +21,20 @@ SCENE=tests/data/scenes/mini.json
 PATHF=tests/data/scenes/mini.path
 COMMON=(--scene "$SCENE" --path "$PATHF" --frames 4 --width 64 --height 48 --synthetic 6 --quiet)
 
-run "$BIN/corrtex-display" --backend osmesa "${COMMON[@]}" --out "$tmp/osm" || { echo "FAIL: osmesa run"; exit 1; }
+run "$BIN/corrtex-display" --backend osmesa "${COMMON[@]}" --out "$tmp/osm" >"$tmp/osm.log" || { echo "FAIL: osmesa run"; exit 1; }
+# GPU timers: off by default on a software rasteriser, on when asked, and the
+# frames the same either way
+grep -q "GPU time per frame" "$tmp/osm.log" && { echo "FAIL: --gpu-times auto timed a software rasteriser"; fail=1; }
+run "$BIN/corrtex-display" --backend osmesa "${COMMON[@]}" --gpu-times on --out "$tmp/osmgt" >"$tmp/osmgt.log" ||
+  { echo "FAIL: osmesa run with --gpu-times on"; fail=1; }
+gl=$(grep "GPU time per frame" "$tmp/osmgt.log")
+echo "  $gl"
+[[ $gl =~ ([0-9.]+)\ ms\ drawing ]] && awk -v d="${BASH_REMATCH[1]}" 'BEGIN { exit !(d > 0) }' ||
+  { echo "FAIL: --gpu-times on printed no drawing time"; fail=1; }
+for k in 0 1 2 3; do
+  f=$(printf 'frame_%05d.exr' "$k")
+  cmp -s "$tmp/osm/$f" "$tmp/osmgt/$f" || { echo "FAIL: $f differs with --gpu-times on"; fail=1; }
+done
 for k in 0 1 2 3; do
   for ext in exr png; do
     f=$(printf '%s/osm/frame_%05d.%s' "$tmp" "$k" "$ext")
@@ -91,6 +104,7 @@ bad "--passes" --backend osmesa --scene "$SCENE" --passes 2
 bad "unknown option" --backend osmesa --scene "$SCENE" --bogus
 bad "backend" --backend vulkan --scene "$SCENE"
 bad "--kept-corrections" --backend osmesa --scene "$SCENE" --kept-corrections both
+bad "--gpu-times" --backend osmesa --scene "$SCENE" --gpu-times sometimes
 bad "--msaa" --backend osmesa --scene "$SCENE" --msaa 65
 bad "--msaa" --backend osmesa --scene "$SCENE" --msaa -1
 bad "--msaa" --backend osmesa --scene "$SCENE" --msaa four

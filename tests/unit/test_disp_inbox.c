@@ -144,6 +144,60 @@ Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
     rig_close(&r);
 }
 
+/* Runs of changed tiles at most UPLOAD_GAP_TILES (4) unchanged tiles apart
+ * in a row of tiles go up as one upload, the unchanged tiles between them
+ * with the texels they hold; five apart, as two. */
+Test(disp_inbox, close_runs_of_a_tile_row_are_one_upload)
+{
+    ct_error err;
+    rig r;
+    rig_open(&r);
+    ct_radmesh copy;
+    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
+    disp_inbox_scene(r.in, &copy);
+    enum { TW = 128, TH = 8 };   /* one row of 16 tiles of 8 x 8 */
+    cr_assert_eq(disp_inbox_tex_alloc(r.in, 2, r.nd.back, TW, TH, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    mat4 p = wall_proj();
+    cr_assert_eq(disp_inbox_tex_projection(r.in, 2, &p, &err), 0);
+    static uint16_t all[TW * TH * 3], t0[8 * 8 * 3], t5[8 * 8 * 3], t11[8 * 8 * 3];
+    fill(all, TW * TH * 3, 0.05f, 0.002f);
+    fill(t0, 8 * 8 * 3, 0.4f, 0.01f);
+    fill(t5, 8 * 8 * 3, -0.3f, 0.01f);
+    fill(t11, 8 * 8 * 3, 0.2f, -0.01f);
+    cr_assert_eq(disp_inbox_tex_patch(r.in, 2, 0, 0, TW, TH, all, 100, 1, &err), 0);
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_apply(r.in, r.s, &took, &err), 0, "%s", err.msg);
+    cr_expect_eq(took.uploads, 1u, "the whole row of tiles: one run");
+    /* tiles 0 and 5 (four unchanged between), 11 (five after 5) */
+    cr_assert_eq(disp_inbox_tex_patch(r.in, 2, 0, 0, 8, 8, t0, 200, 1, &err), 0);
+    cr_assert_eq(disp_inbox_tex_patch(r.in, 2, 40, 0, 8, 8, t5, 300, 1, &err), 0);
+    cr_assert_eq(disp_inbox_tex_patch(r.in, 2, 88, 0, 8, 8, t11, 400, 1, &err), 0);
+    cr_assert_eq(disp_inbox_apply(r.in, r.s, &took, &err), 0, "%s", err.msg);
+    cr_expect_eq(took.uploads, 2u, "tiles 0-5 and tile 11: %llu uploads, %llu texels", (unsigned long long)took.uploads, (unsigned long long)took.texels);
+    cr_expect_eq(took.texels, (uint64_t)(6 * 64 + 64), "tiles 1-4 went up with 0 and 5");
+    /* the image is the one of the texels patched directly */
+    static uint16_t want[TW * TH * 3];
+    memcpy(want, all, sizeof want);
+    for (int y = 0; y < 8; y++) {
+        memcpy(want + 3 * (y * TW + 0), t0 + 3 * y * 8, 8 * 6);
+        memcpy(want + 3 * (y * TW + 40), t5 + 3 * y * 8, 8 * 6);
+        memcpy(want + 3 * (y * TW + 88), t11 + 3 * y * 8, 8 * 6);
+    }
+    disp_session *direct = NULL;
+    cr_assert_eq(disp_session_new(&direct, &err), 0);
+    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
+    cr_assert_eq(disp_session_tex_alloc(direct, 2, r.nd.back, TW, TH, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(direct, 2, &p, &err), 0);
+    cr_assert_eq(disp_session_tex_patch(direct, 2, 0, 0, TW, TH, want, &err), 0);
+    static uint8_t got[W * H * 3], ref[W * H * 3];
+    render(r.s, got);
+    render(direct, ref);
+    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "the merged uploads' image differs from direct patches");
+    disp_session_free(direct);
+    rmesh_free(&r.mesh);
+    rig_close(&r);
+}
+
 Test(disp_inbox, a_frame_is_ready_once_its_texels_are_on_the_textures)
 {
     ct_error err;
