@@ -480,6 +480,18 @@ static int next_upload_run(const uint64_t *row, int n, int from, int *len)
     return a;
 }
 
+/* The texels of tiles [a, a + len) of tile row ty of t (the last row and
+ * column of tiles cut at the texture's edge); their bytes in the upload
+ * buffer. */
+static size_t run_rect(const ib_tex *t, int ty, int a, int len, int *x, int *y, int *w, int *h)
+{
+    *x = a << TS_SHIFT;
+    *y = ty << TS_SHIFT;
+    *w = *x + (len << TS_SHIFT) > t->w ? t->w - *x : len << TS_SHIFT;
+    *h = *y + TS > t->h ? t->h - *y : TS;
+    return (size_t)*w * (size_t)*h * UP_BPT;
+}
+
 /* Under the lock: the bytes the marked runs take in the upload buffer as
  * collect_uploads merges them, at most DISP_INBOX_FRAME_BYTES. */
 static size_t upload_bytes(const disp_inbox *b)
@@ -491,14 +503,8 @@ static size_t upload_bytes(const disp_inbox *b)
         if (!t->live || !t->dirty) continue;
         for (int ty = 0; ty < t->th && sum < DISP_INBOX_FRAME_BYTES; ty++) {
             const uint64_t *row = t->bits + (size_t)ty * (size_t)t->words;
-            int h = (ty << TS_SHIFT) + TS > t->h ? t->h - (ty << TS_SHIFT) : TS;
-            int len, a = next_upload_run(row, t->tw, 0, &len);
-            while (len) {
-                int x = a << TS_SHIFT, w = len << TS_SHIFT;
-                if (x + w > t->w) w = t->w - x;
-                sum += (size_t)w * (size_t)h * UP_BPT;
-                a = next_upload_run(row, t->tw, a + len, &len);
-            }
+            int len, x, y, w, h, a = next_upload_run(row, t->tw, 0, &len);
+            for (; len; a = next_upload_run(row, t->tw, a + len, &len)) sum += run_rect(t, ty, a, len, &x, &y, &w, &h);
         }
     }
     return sum < DISP_INBOX_FRAME_BYTES ? sum : DISP_INBOX_FRAME_BYTES;
@@ -518,16 +524,12 @@ static void collect_uploads(disp_inbox *b, uint8_t *dst, size_t cap)
             uint64_t *row = t->bits + (size_t)ty * (size_t)t->words;
             int len, a = next_upload_run(row, t->tw, 0, &len);
             while (len) {
-                int x = a << TS_SHIFT, y = ty << TS_SHIFT, w = len << TS_SHIFT, h = TS;
-                if (x + w > t->w) w = t->w - x;
-                if (y + h > t->h) h = t->h - y;
-                size_t bytes = (size_t)w * (size_t)h * UP_BPT;
+                int x, y, w, h;
+                size_t bytes = run_rect(t, ty, a, len, &x, &y, &w, &h);
                 if (off + bytes > cap) {
                     /* merged, it does not fit: its first run alone may */
                     a = bitrow_next_run(row, t->tw, a, &len);
-                    w = len << TS_SHIFT;
-                    if (x + w > t->w) w = t->w - x;
-                    bytes = (size_t)w * (size_t)h * UP_BPT;
+                    bytes = run_rect(t, ty, a, len, &x, &y, &w, &h);
                 }
                 if (off + bytes > cap ||
                     !grow((void **)&b->ups, &b->cap_ups, b->nups + 1, sizeof *b->ups)) {
