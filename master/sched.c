@@ -40,6 +40,11 @@ static const optab OPTS[] = {
     {"display-texels", 0, OPTAB_CHOICE, OF(display_texels), 0, 0, "auto", "all|screen|auto",
      "texels to the display: all, at most one a screen pixel (denser textures as means of 2x2), or auto (screen on "
      "TCP, all on UNIX)", DISPLAY_TEXELS},
+    {"view-ms", 0, OPTAB_DOUBLE, OF(view_ms), 0, 10000, "50", "X",
+     "free-running: shortest interval between two camera changes (ms); a newer camera waits until then", NULL},
+    {"view-share", 0, OPTAB_DOUBLE, OF(view_share), 0.01, 1, "0.25", "X",
+     "free-running: the most of the master's time camera changes may take; a newer camera waits until then (1: "
+     "every camera at once)", NULL},
     {"exit-when-display-leaves", 0, OPTAB_FLAG, OF(exit_when_display_leaves), 0, 0, NULL, NULL,
      "end the job when the display disconnects (batch runs)", NULL},
 };
@@ -62,6 +67,9 @@ typedef struct loop {
     uint32_t K;
     wire_camera frames[MAX_FRAMES_QUEUED];   /* lockstep frame requests */
     int fr_head, fr_n;
+    wire_camera next_view;   /* free running: the newest camera, waiting for view_ready */
+    bool view_waits;
+    double view_ready;       /* when the next camera change may start */
     double view_t0;
     bool view_covered;
     double covered_logged;   /* when a coverage line was last logged at info level */
@@ -110,14 +118,36 @@ static int start_frame(loop *l, ct_error *err)
     return 1;
 }
 
+/* Free running: the newest camera that arrived, at most every --view-ms
+ * and once camera changes have had no more than their share of the
+ * master's time. A display moving its camera sends one a frame (60-144 a
+ * second, hundreds without vsync); each change costs the master its queue,
+ * the textures' assignment and reprojection, and stops the tracers'
+ * batches: taken one by one at 60 a second, nearly every traced sample was
+ * stale (docs/distributed.md, "Camera changes"). So the next change waits
+ * view_ms after this one started, and t (1 - share) / share after a change
+ * that took t; the cameras that arrive meanwhile replace each other, and
+ * the newest is taken when the time is up. */
+static int take_view(loop *l, ct_error *err)
+{
+    if (!l->view_waits || l->lockstep || !dsrv_has_display(l->ds)) {
+        l->view_waits = false;
+        return 0;
+    }
+    double t0 = ct_now();
+    if (t0 < l->view_ready) return 0;
+    l->view_waits = false;
+    int rc = camera_or_drop(l, &l->next_view, err);
+    double t1 = ct_now(), share = l->c->opt.view_share;
+    double by_cost = t1 + (t1 - t0) * (1.0 - share) / share, by_interval = t0 + l->c->opt.view_ms / 1000.0;
+    l->view_ready = by_cost > by_interval ? by_cost : by_interval;
+    return rc;
+}
+
 static int handle_display(loop *l, int *leave, ct_error *err)
 {
     dsrv_event ev;
     int rc;
-    /* Free-running: of the cameras that arrived since the last turn only the
-     * newest matters (each change costs an assignment pass). */
-    wire_camera latest;
-    int have_latest = 0;
     while (dsrv_next_event(l->ds, &ev)) {
         switch (ev.kind) {
         case DSRV_EV_CONNECTED:
@@ -129,6 +159,7 @@ static int handle_display(loop *l, int *leave, ct_error *err)
                 dsink_orphan_frame(l->dk);
             }
             l->lockstep = ev.msg.u.settings.samples_per_frame > 0;
+            l->view_waits = false;
             l->K = ev.msg.u.settings.samples_per_frame;
             drv_set_lockstep(l->d, l->lockstep);
             l->fr_n = 0;
@@ -155,20 +186,19 @@ static int handle_display(loop *l, int *leave, ct_error *err)
                 l->frames[(l->fr_head + l->fr_n) % MAX_FRAMES_QUEUED] = ev.msg.u.camera;
                 l->fr_n++;
             } else {
-                latest = ev.msg.u.camera;
-                have_latest = 1;
+                l->next_view = ev.msg.u.camera;
+                l->view_waits = true;
             }
             break;
         case DSRV_EV_DISCONNECTED:
             l->fr_n = 0;   /* frames asked for by a display that left */
             dsink_disconnected(l->dk);
-            have_latest = 0;
+            l->view_waits = false;
             if (l->c->opt.exit_when_display_leaves) *leave = 1;
             break;
         }
     }
-    if (have_latest && dsrv_has_display(l->ds) && !l->lockstep) return camera_or_drop(l, &latest, err);
-    return 0;
+    return take_view(l, err);
 }
 
 static void stats(loop *l, double now)
@@ -250,7 +280,8 @@ static int turn(loop *l, int *busy, int *leave, ct_error *err)
     else if (l->lockstep && dsrv_has_display(l->ds)) l->t_render_wait += t1 - t0;
     /* Samples that arrived go in before a camera that came with them
      * changes the view: they belong to the view they were traced for. */
-    int early = drv_receive(l->d, !dsrv_view_pending(l->ds), err);
+    bool view_next = (dsrv_view_pending(l->ds) || l->view_waits) && (l->lockstep || t1 >= l->view_ready);
+    int early = drv_receive(l->d, !view_next, err);
     if (early < 0) return early;
     if ((rc = handle_display(l, leave, err))) return rc;
     int got = drv_step(l->d, err);

@@ -34,6 +34,8 @@ typedef struct sched_options {
     size_t queue_mb;            /* display send queue bound, MiB */
     int patch_encoding;         /* TEX_PATCH texels: wire_patch_enc, or -1: by transport (dsync.h) */
     int display_texels;         /* 1: at most one texel a screen pixel to the display, 0: all, -1: by transport (dsync.h) */
+    double view_ms;             /* free running: shortest interval between two camera changes */
+    double view_share;          /* free running: the most of the master's time camera changes may take */
     bool exit_when_display_leaves;
 } sched_options;
 

@@ -75,13 +75,16 @@ static uint64_t trace_threads(ct_pool *pool, const trank_config *c, const trc_vi
 typedef int (*slice_fn)(void *ctx, ct_error *err);
 
 /* Traces req[0..n) in slices of SLICE, asking `between` after each; 1 when
- * done, 0 when stopped, negative on failure. *rays accumulates. */
+ * done, 0 when stopped, negative on failure. *rays accumulates; *done is
+ * the requests traced (out[0..*done)). */
 static int trace_slices(ct_pool *pool, const trank_config *c, const trc_view *v, const ct_request *req, size_t n,
-                        ct_sample *out, slice_fn between, void *ctx, uint64_t *rays, ct_error *err)
+                        ct_sample *out, slice_fn between, void *ctx, uint64_t *rays, size_t *done, ct_error *err)
 {
+    *done = 0;
     for (size_t a = 0; a < n; a += SLICE) {
         size_t m = n - a < SLICE ? n - a : SLICE;
         *rays += trace_threads(pool, c, v, req + a, m, out + a);
+        *done = a + m;
         if (a + m < n) {
             int go = between(ctx, err);
             if (go <= 0) return go;
@@ -91,16 +94,19 @@ static int trace_slices(ct_pool *pool, const trank_config *c, const trc_view *v,
 }
 
 /* Traces a batch in screen order (screen_order.h: table at 1024^2 traced
- * 5 % more samples a second this way) and answers in request order.
- * Without memory for the permutation the batch goes as it came. Returns as
- * trace_slices. */
+ * 5 % more samples a second this way) and answers in request order; a
+ * batch stopped part way leaves its traced samples in out[0..*done), in the
+ * order traced. Without memory for the permutation the batch goes as it
+ * came. Returns as trace_slices. */
 static int trace_batch(ct_pool *pool, const trank_config *c, so_batch *o, const trc_view *v,
                        const ct_request *req, size_t n, ct_sample *out, slice_fn between, void *ctx, uint64_t *rays,
-                       ct_error *err)
+                       size_t *done, ct_error *err)
 {
-    if (so_batch_order(o, req, n) != CT_OK) return trace_slices(pool, c, v, req, n, out, between, ctx, rays, err);
-    int rc = trace_slices(pool, c, v, o->req, n, o->out, between, ctx, rays, err);
+    if (so_batch_order(o, req, n) != CT_OK)
+        return trace_slices(pool, c, v, req, n, out, between, ctx, rays, done, err);
+    int rc = trace_slices(pool, c, v, o->req, n, o->out, between, ctx, rays, done, err);
     if (rc > 0) so_batch_scatter(o, n, out);
+    else if (rc == 0) memcpy(out, o->out, *done * sizeof *out);
     return rc;
 }
 
@@ -247,14 +253,26 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
             trc_view v = {.cam = h.cam, .width = (int)h.width, .height = (int)h.height};
             double t0 = ct_now();
             in.batch_epoch = h.epoch;
-            rc = trace_batch(pool, c, &order, &v, reqs, count, samples, between_slices, &in, &st->rays, err);
+            size_t done = 0;
+            rc = trace_batch(pool, c, &order, &v, reqs, count, samples, between_slices, &in, &st->rays, &done, err);
             st->busy_s += ct_now() - t0;
             if (rc < 0) goto out;
             if (rc > 0) {
                 st->samples += count;
                 nout = count;
             } else {
-                st->stale_batches++;   /* stopped: the camera moved on, or the job ends */
+                /* Stopped: the camera moved on, or the job ends. On a camera
+                 * change what was traced goes back all the same: the master
+                 * keeps the samples whose radiance does not depend on the
+                 * view (late samples) and drops the others. A display
+                 * moving its camera every frame changes the view faster than
+                 * a batch takes: answered empty, nearly all tracing was lost
+                 * (docs/distributed.md, "Camera changes"). */
+                st->stale_batches++;
+                if (!in.shutdown && !(c->stop && *c->stop)) {
+                    st->samples += done;
+                    nout = (uint32_t)done;
+                }
             }
             rc = 0;
         }

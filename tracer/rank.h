@@ -3,7 +3,9 @@
  * traces them with the per-sample API (tracer.h), optionally on several
  * threads, and sends the sample batches back. Camera changes raise the
  * rank's epoch; queued batches of older epochs are answered empty without
- * tracing, so a camera change reaches the rank within one batch. Owns the
+ * tracing, and the batch being traced stops at its next slice and answers
+ * with the samples traced so far, so a camera change reaches the rank
+ * within one slice and no traced sample is thrown away. Owns the
  * trank_ prefix. docs/distributed.md describes the loop. */
 #ifndef CT_TRACER_RANK_H
 #define CT_TRACER_RANK_H
@@ -23,7 +25,7 @@ typedef struct trank_config {
 
 typedef struct trank_stats {
     uint64_t batches;           /* request batches answered */
-    uint64_t stale_batches;     /* answered empty: their epoch was old */
+    uint64_t stale_batches;     /* of an old epoch: answered empty, or with what was traced when stopped */
     uint64_t samples;           /* samples traced */
     uint64_t rays;              /* rays traced (primary, secondary and shadow) */
     double busy_s;              /* seconds spent tracing */

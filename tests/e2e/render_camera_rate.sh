@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# A display that moves its camera faster than any screen refreshes
+# (tests/tools/camera_flood: 1000 cameras a second for 3 s, every texture
+# update acknowledged) against the Cornell box with one tracer rank
+# (docs/distributed.md, "Camera changes"):
+# - by default the master takes a new camera at most every --view-ms (50):
+#   at most 3 / 0.05 + 2 views, and the job still inserts samples (before,
+#   every camera was a view change, each stopping the tracer's batch, and
+#   the job inserted next to nothing: table 1024^2 at 60 cameras a second,
+#   411-1,492 samples a second against 52,000-58,000 now);
+# - with --view-ms 0 --view-share 1 it takes nearly every camera, and the
+#   tracer answers each stopped batch with the samples it traced, which go
+#   in where their surface is diffuse (late samples: the whole box is);
+# - with --view-ms 0 --view-share 0.01 (views of 1024 x 1024) camera
+#   changes take about 1 % of the master's time (at most 1.5 % of the
+#   flood, plus one change) and it takes at most half of the cameras;
+# - the job then still serves a display (a frame of the still view), and
+#   bad values of both options end the job with status 2 and one line
+#   naming the option.
+source "$(dirname "$0")/lib/mpi.sh"
+flood="$root/${CORRTEX_BUILD:-build/release}/tools/camera_flood"
+need_programs "$flood"
+cornell_args
+CAM=(278 273 -800 278 273 0 39.3)
+T=3
+
+# flood NAME SIZE ARGS...: a job with ARGS, flooded for T s with SIZE x SIZE
+# views; sets VIEWS, VIEW_MS, INSERTED, LATE (the master's stats-line
+# differences over the flood) and CAMERAS (sent).
+flood() {
+  local name=$1 size=$2; shift 2
+  master_start "$name" 2 "${CORNELL[@]}" --listen "unix:$tmp/$name.sock" --stats-s 0.25 "$@"
+  master_wait_listen "$name" || return 1
+  sleep 0.6
+  local before after
+  before=$(grep 'master: stats:' "$tmp/$name.log" | tail -n 1)
+  log_cmd "$flood" "$ADDR" - "$size" "$size" 1000 "$T" "${CAM[@]}"
+  "$flood" "$ADDR" - "$size" "$size" 1000 "$T" "${CAM[@]}" >"$tmp/$name-flood.out" 2>&1 ||
+    { fail "$name: camera_flood: $(cat "$tmp/$name-flood.out")"; return 1; }
+  after=$(grep 'master: stats:' "$tmp/$name.log" | tail -n 1)
+  CAMERAS=$(sed -n 's/^cameras \([0-9]*\) .*/\1/p' "$tmp/$name-flood.out")
+  # "total N (... L late), S stale, ... views V (X ms in all"
+  local re='s/.*, total \([0-9]*\) ([^)]* \([0-9]*\) late), [0-9]* stale,.* views \([0-9]*\) (\([0-9.]*\) ms in all.*/\1 \2 \3 \4/p'
+  local n0 l0 v0 m0 n1 l1 v1 m1
+  read -r n0 l0 v0 m0 <<<"$(sed -n "$re" <<<"$before")"
+  read -r n1 l1 v1 m1 <<<"$(sed -n "$re" <<<"$after")"
+  [[ -n ${n1:-} ]] || { fail "$name: no stats line after the flood"; return 1; }
+  INSERTED=$((n1 - ${n0:-0})) LATE=$((l1 - ${l0:-0})) VIEWS=$((v1 - ${v0:-0}))
+  VIEW_MS=$(awk -v a="${m0:-0}" -v b="$m1" 'BEGIN { printf "%.1f", b - a }')
+  echo "metric: $name: $CAMERAS cameras in $T s, the master took $VIEWS ($VIEW_MS ms in all), inserted $INSERTED samples ($LATE late)"
+}
+
+if flood paced 128; then
+  ((CAMERAS >= 1000)) || fail "paced: the flood sent only $CAMERAS cameras in $T s"
+  ((VIEWS <= T * 20 + 2)) || fail "paced: the master took $VIEWS camera changes in $T s (--view-ms 50: at most $((T * 20 + 2)))"
+  ((VIEWS >= 10)) || fail "paced: the master took only $VIEWS camera changes in $T s (it must follow the camera)"
+  ((INSERTED >= 1000)) || fail "paced: only $INSERTED samples inserted while the camera moved"
+  # The job goes on and serves a still view.
+  display_run still --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278,273,0,39.3 --frames 1 --out "$tmp/still"
+  ((DISPLAY_RC == 0)) || fail "paced: a display after the flood exited $DISPLAY_RC"
+  [[ -f $tmp/still/frame_00000.exr ]] || fail "paced: no frame after the flood"
+  master_term paced
+fi
+
+if flood every 128 --view-ms 0 --view-share 1; then
+  ((VIEWS * 2 >= CAMERAS)) || fail "every: the master took $VIEWS of $CAMERAS cameras (at least half)"
+  # 18,000-22,000 here; 3,400 when a stopped batch was answered empty
+  ((LATE >= 6000)) || fail "every: only $LATE samples of views left went in (a stopped batch answers with what it traced)"
+  master_term every
+fi
+
+# Views of 1024 x 1024, whose changes cost the master some 40 us here (its
+# queue is per pixel), 3-4 % of its time when it takes every camera: at 1 %
+# it takes about every third.
+if flood share 1024 --view-ms 0 --view-share 0.01; then
+  awk -v ms="$VIEW_MS" -v v="$VIEWS" -v T="$T" 'BEGIN { exit !(v > 0 && ms <= 0.015 * T * 1000 + ms / v) }' ||
+    fail "share: camera changes took $VIEW_MS ms of $T s in $VIEWS changes (--view-share 0.01)"
+  ((VIEWS * 2 <= CAMERAS)) || fail "share: the master took $VIEWS of $CAMERAS cameras (--view-share 0.01 paces them)"
+  master_term share
+fi
+
+# Bad values: one line naming the option, exit 2, before any work.
+i=0
+for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5"; do
+  i=$((i + 1))
+  # shellcheck disable=SC2086
+  master_start "bad$i" 2 "${CORNELL[@]}" $bad
+  master_wait "bad$i" 30 || fail "$bad: the job did not end"
+  echo "  $bad: exit $MASTER_RC: $(grep -m 1 '^error' "$tmp/bad$i.log")"
+  ((MASTER_RC == 2)) || fail "$bad: exit status $MASTER_RC, expected 2"
+  (($(grep -c -- "${bad%% *}" "$tmp/bad$i.log") == 1)) || { fail "$bad: not one line naming the option"; master_log "bad$i"; }
+done
+finish

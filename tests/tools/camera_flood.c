@@ -1,0 +1,126 @@
+/* camera_flood.c: a display that moves its camera faster than any screen
+ * refreshes (built with the unit tests; run by tests/e2e/render_camera_rate.sh
+ * and scripts/bench-walk --camera-hz). A display sends a CAMERA each frame
+ * it draws while the view moves, and a GPU display without vsync draws
+ * hundreds of frames a second; every new view costs the master a change of
+ * its queue and textures (docs/distributed.md, "Camera changes"). This one
+ * connects and authenticates as corrtex-display does (proto/chan.h), runs
+ * free (SETTINGS with no samples per frame), sends CAMERA messages at RATE a
+ * second for SECONDS, each a little turned from the last (the eye fixed, the
+ * view swinging by up to 2 degrees about the direction from EYE to TARGET),
+ * and takes in what the master sends as a display does, acknowledging every
+ * texture update (SYNC) at once:
+ *   camera_flood ADDR TOKEN_FILE|- WIDTH HEIGHT RATE SECONDS EX EY EZ TX TY TZ [FOV_DEG]
+ * prints "cameras N updates U bytes B" and exits 0; 1 when the master
+ * closes the connection or answers with ERROR (printed), 2 on bad usage or
+ * when it cannot connect. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/camera.h"
+#include "common/timer.h"
+#include "proto/auth.h"
+#include "proto/chan.h"
+#include "proto/wire.h"
+
+static int fail(const char *what, const ct_error *err)
+{
+    fprintf(stderr, "camera_flood: %s: %s\n", what, err->msg);
+    return 1;
+}
+
+static bool number(const char *s, double lo, double hi, double *out)
+{
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v >= lo && v <= hi)) return false;
+    *out = v;
+    return true;
+}
+
+int main(int argc, char **argv)
+{
+    double v[11] = {0};
+    double fov = 50.0;
+    bool ok = argc == 13 || argc == 14;
+    static const double lo[11] = {1, 1, 0.1, 0.1, -1e6, -1e6, -1e6, -1e6, -1e6, -1e6, 0};
+    static const double hi[11] = {16384, 16384, 100000, 3600, 1e6, 1e6, 1e6, 1e6, 1e6, 1e6, 0};
+    for (int i = 0; ok && i < 10; i++) ok = number(argv[3 + i], lo[i], hi[i], &v[i]);
+    if (ok && argc == 14) ok = number(argv[13], 1, 170, &fov);
+    if (!ok) {
+        fprintf(stderr, "usage: camera_flood ADDR TOKEN_FILE|- WIDTH HEIGHT RATE SECONDS EX EY EZ TX TY TZ [FOV_DEG]\n");
+        return 2;
+    }
+    auth_token tok;
+    bool have = strcmp(argv[2], "-") != 0;
+    ct_error err;
+    if (have && auth_token_load(argv[2], &tok, &err)) {
+        fprintf(stderr, "camera_flood: %s\n", err.msg);
+        return 2;
+    }
+    chan_config cfg = {.role = AUTH_ROLE_DISPLAY, .token = have ? &tok : NULL};
+    chan *c;
+    if (chan_connect(argv[1], &cfg, 5000, &c, &err)) {
+        fprintf(stderr, "camera_flood: %s\n", err.msg);
+        return 2;
+    }
+    wire_msg m = {.type = WIRE_SETTINGS};
+    if (chan_send(c, &m, &err) || chan_flush(c, 5000, &err)) return fail("settings", &err);
+
+    vec3 eye = v3((float)v[4], (float)v[5], (float)v[6]), target = v3((float)v[7], (float)v[8], (float)v[9]);
+    vec3 d = v3_sub(target, eye);
+    float dist = v3_len(d), yaw0 = atan2f(d.x, -d.z), pitch = asinf(d.y / (dist > 0 ? dist : 1.0f));
+    double t0 = ct_now(), period = 1.0 / v[2], next = t0;
+    uint64_t cameras = 0, updates = 0, bytes = 0;
+    uint32_t epoch = 0;
+    while (ct_now() - t0 < v[3]) {
+        double now = ct_now();
+        if (now >= next) {
+            /* a swing of +-2 degrees a second: every camera differs */
+            float yaw = yaw0 + 0.0349f * sinf((float)(6.2832 * (now - t0)));
+            vec3 dir = v3(sinf(yaw) * cosf(pitch), sinf(pitch), -cosf(yaw) * cosf(pitch));
+            m = (wire_msg){.type = WIRE_CAMERA};
+            m.u.camera = (wire_camera){.epoch = ++epoch, .width = (uint32_t)v[0], .height = (uint32_t)v[1],
+                                       .cam = cam_look_at(eye, v3_add(eye, dir), v3(0, 1, 0), (float)fov)};
+            int q = chan_send(c, &m, &err);
+            if (q < 0) return fail("camera", &err);
+            if (q == 0) cameras++;   /* else the queue is full: the master is not reading */
+            if (chan_pump(c, &err)) return fail("sending", &err);
+            next += period;
+            if (next < now) next = now;   /* behind: no burst to catch up */
+        }
+        /* take in what arrived until the next camera is due */
+        int wait_ms = (int)((next - ct_now()) * 1000.0);
+        int rc = chan_recv_wait(c, &m, wait_ms < 0 ? 0 : wait_ms, &err);
+        if (rc < 0) {
+            printf("closed: %s\n", err.msg);
+            chan_free(c);
+            return 1;
+        }
+        for (; rc == WIRE_OK; rc = chan_recv(c, &m, &err)) {
+            if (m.type == WIRE_ERROR) {
+                printf("ERROR %u: %s\n", m.u.error.code, m.u.error.text);
+                chan_free(c);
+                return 1;
+            }
+            if (m.type == WIRE_TEX_PATCH) bytes += (uint64_t)m.u.tex_patch.w * m.u.tex_patch.h * 6u;
+            if (m.type == WIRE_SYNC) {
+                updates++;
+                wire_msg a = {.type = WIRE_ACK};
+                a.u.ack.seq = m.u.sync.seq;
+                if (chan_send(c, &a, &err) < 0 || chan_pump(c, &err)) return fail("ack", &err);
+            }
+        }
+        if (rc < 0) {
+            printf("closed: %s\n", err.msg);
+            chan_free(c);
+            return 1;
+        }
+    }
+    printf("cameras %llu updates %llu bytes %llu\n", (unsigned long long)cameras, (unsigned long long)updates,
+           (unsigned long long)bytes);
+    chan_free(c);
+    return 0;
+}
