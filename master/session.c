@@ -28,6 +28,8 @@ typedef struct chunk {
     ct_error err;        /* the side job's own: the caller's may be in use */
 } chunk;
 
+enum { SESS_EYES = 16 };
+
 struct sess {
     rq_options rq_opt;
     ctex_options ctex_opt;
@@ -49,6 +51,11 @@ struct sess {
     double shown_rest;     /* seconds (sess_options.shown_rest_ms) */
     double view_mem_mb;    /* sess_options.view_mem_mb; 0: no cap */
     double view_t;         /* when the current view was set */
+    /* The eyes of the last views, by epoch (slot epoch % EYES): a sample
+     * of a view the camera left, traced from where the eye is now, is one
+     * of this view (classify). */
+    vec3 eye[SESS_EYES];
+    uint32_t eye_epoch[SESS_EYES];
     sess_counters n;
     /* Two chunks: the queue hears of one while the next is splatted, or
      * while the texels of the one before move (sess_insert). */
@@ -213,6 +220,8 @@ int sess_set_view(sess *s, const ct_camera *cam, int width, int height, ct_error
     if ((s->lockstep || !(s->shown_rest > 0.0)) && (rc = draw_shown(s, err))) return rc;
     s->have_view = true;
     s->epoch++;
+    s->eye[s->epoch % SESS_EYES] = cam->eye;
+    s->eye_epoch[s->epoch % SESS_EYES] = s->epoch;
     s->n.views++;
     s->n.t_view += ct_now() - t0;
     s->n.t_texture += ct_now() - t0;
@@ -296,15 +305,28 @@ static void rejected(sess *s, const ct_sample *x, ct_error *err)
     s->n.rejected++;
 }
 
+/* Whether a sample of an earlier view was traced from where the eye is now:
+ * the radiance a surface sends to the eye depends on the eye's position,
+ * not on where the camera looks, so a camera that only turned leaves the
+ * samples of its earlier views exact, glossy ones too. */
+static bool same_eye(const sess *s, uint32_t epoch)
+{
+    uint32_t k = epoch % SESS_EYES;
+    const vec3 e = s->eye[k], c = s->cam.eye;
+    return s->eye_epoch[k] == epoch && e.x == c.x && e.y == c.y && e.z == c.z;
+}
+
 /* Sorts a chunk (at most SESS_CHUNK samples) into c's samples to splat,
- * its refinement and its late ones. Reads the queue (which requests
- * refine), so it runs before an earlier chunk's report starts. */
+ * its refinement and its late ones (a view the camera left: those on
+ * diffuse surfaces or traced from the eye's position now; the others are
+ * stale). Reads the queue (which requests refine), so it runs before an
+ * earlier chunk's report starts. */
 static void classify(sess *s, chunk *c, const ct_sample *smp, uint32_t n)
 {
     uint32_t m = 0, nr = 0, nl = 0;
     for (uint32_t i = 0; i < n; i++) {
         if (smp[i].epoch != s->epoch) {
-            if (ctex_view_independent(s->tex, &smp[i])) c->late[nl++] = smp[i];
+            if (same_eye(s, smp[i].epoch) || ctex_view_independent(s->tex, &smp[i])) c->late[nl++] = smp[i];
             else s->n.stale++;
         } else if (rq_refines(s->rq, smp[i].request_id)) {
             c->refine[nr++] = smp[i];

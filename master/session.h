@@ -16,9 +16,10 @@
  * request-id order, give the same frames for any number of tracer ranks and
  * master threads. A sample of an older view (the camera moved on while it
  * was traced) is *late*: the queue never hears of it, but where its surface
- * is diffuse (ctex_view_independent) it is still splatted into the current
- * view's textures after the chunk's others; elsewhere it is stale and
- * dropped. A sink (sink.h) hears of every sample of the current view that
+ * is diffuse (ctex_view_independent), or where the eye has not moved since
+ * (a camera that only turned: the radiance toward the eye is the same), it
+ * is still splatted into the current view's textures after the chunk's
+ * others; elsewhere it is stale and dropped. A sink (sink.h) hears of every sample of the current view that
  * went in. Owns the sess_ prefix. */
 #ifndef CT_MASTER_SESSION_H
 #define CT_MASTER_SESSION_H
@@ -65,7 +66,7 @@ typedef struct sess_config {
 typedef struct sess_counters {
     uint64_t inserted;     /* samples inserted (splatted or not) */
     uint64_t no_texture;   /* ... of them without a texture (a miss, culled, off its texture) */
-    uint64_t late;         /* samples of an older view splatted all the same (diffuse surfaces; counted in inserted) */
+    uint64_t late;         /* samples of an older view splatted all the same (diffuse surfaces, or the same eye; counted in inserted) */
     uint64_t stale;        /* samples of an older view, ignored (a view-dependent surface, or no texture now) */
     uint64_t rejected;     /* samples the request queue refused (logged) */
     bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */

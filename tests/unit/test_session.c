@@ -579,3 +579,47 @@ Test(session, late_samples_on_diffuse_surfaces_go_in)
     cr_assert_eq(checked, 20, "only %d of 20 late samples' points show a correction", checked);
     sess_free(s);
 }
+
+/* A camera that only turned: the eye is where it was, so the radiance each
+ * sample carries toward it is unchanged, and the samples of the view it
+ * left go in on glossy and mirror surfaces too (late); only misses stay
+ * out. Once the eye moves, the samples of the views before are stale
+ * again but on diffuse surfaces. */
+Test(session, late_samples_from_the_same_eye_go_in)
+{
+    sess *s = new_session(&mesh, 1);
+    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
+    static ct_request req[W * H];
+    static ct_sample smp[W * H];
+    int k = sess_next(s, req, W * H, &err);
+    cr_assert_gt(k, 0, "%s", err.msg);
+    trc_view v = {cam, W, H};
+    trc_trace_par(tracer, NULL, &v, req, (size_t)k, smp, true, NULL);
+    uint32_t hits = 0, diffuse = 0;
+    for (int i = 0; i < k; i++) {
+        hits += (smp[i].flags & CT_SAMPLE_HIT) != 0;
+        diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
+    }
+    cr_assert(diffuse < hits, "%u of %u hits on diffuse surfaces: no glossy ones to test", diffuse, hits);
+    /* turn by a degree about the vertical: same eye */
+    ct_camera turned = cam;
+    turned.orient = q_normalize(q_mul(q_axis_angle(v3(0, 1, 0), 0.0175f), cam.orient));
+    cr_assert_eq(sess_set_view(s, &turned, W, H, &err), 1, "%s", err.msg);
+    cr_assert_eq(sess_insert(s, smp, (uint32_t)k, NULL, &err), 0, "%s", err.msg);
+    sess_counters n = sess_get_counters(s);
+    cr_assert_eq(n.late + n.stale, (uint64_t)k);
+    /* every hit but those on parts the turned view does not texture */
+    cr_assert_gt(n.late, diffuse, "late %llu: no more than the %u diffuse", (unsigned long long)n.late, diffuse);
+    cr_assert_geq(n.late, hits * 9 / 10, "%llu of %u hits went in", (unsigned long long)n.late, hits);
+    /* then the eye moves: the same samples (two views back) are stale
+     * unless diffuse */
+    ct_camera moved = turned;
+    moved.eye.x += 0.02f;
+    cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
+    cr_assert_eq(sess_insert(s, smp, (uint32_t)k, NULL, &err), 0, "%s", err.msg);
+    sess_counters m = sess_get_counters(s);
+    cr_assert_leq(m.late - n.late, diffuse, "%llu late from a moved eye, %u diffuse", (unsigned long long)(m.late - n.late),
+                  diffuse);
+    cr_assert_geq(m.stale - n.stale, (uint64_t)(hits - diffuse));
+    sess_free(s);
+}
