@@ -534,20 +534,29 @@ Test(session, mismatch_children_where_another_node_is_shown)
     free(cut.tri_mat);
 }
 
+/* A session on the camera and its first batch traced into smp (W x H at
+ * most); *k the samples. */
+static sess *first_batch_traced(ct_sample *smp, int *k)
+{
+    sess *s = new_session(&mesh, 1);
+    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
+    static ct_request req[W * H];
+    *k = sess_next(s, req, W * H, &err);
+    cr_assert_gt(*k, 0, "%s", err.msg);
+    trc_view v = {cam, W, H};
+    trc_trace_par(tracer, NULL, &v, req, (size_t)*k, smp, true, NULL);
+    return s;
+}
+
 /* Samples traced for a view the camera has left: those on diffuse surfaces
  * are splatted into the new view's textures (late), the others (the
  * mirror and glass spheres, misses) are dropped (stale); the request queue
  * hears of none of them. */
 Test(session, late_samples_on_diffuse_surfaces_go_in)
 {
-    sess *s = new_session(&mesh, 1);
-    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
-    static ct_request req[W * H];
     static ct_sample smp[W * H];
-    int k = sess_next(s, req, W * H, &err);
-    cr_assert_gt(k, 0, "%s", err.msg);
-    trc_view v = {cam, W, H};
-    trc_trace_par(tracer, NULL, &v, req, (size_t)k, smp, true, NULL);
+    int k;
+    sess *s = first_batch_traced(smp, &k);
     uint32_t diffuse = 0;
     for (int i = 0; i < k; i++) diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
     cr_assert(diffuse > 0 && diffuse < (uint32_t)k, "%u of %d samples on diffuse surfaces", diffuse, k);
@@ -587,14 +596,9 @@ Test(session, late_samples_on_diffuse_surfaces_go_in)
  * again but on diffuse surfaces. */
 Test(session, late_samples_from_the_same_eye_go_in)
 {
-    sess *s = new_session(&mesh, 1);
-    cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
-    static ct_request req[W * H];
     static ct_sample smp[W * H];
-    int k = sess_next(s, req, W * H, &err);
-    cr_assert_gt(k, 0, "%s", err.msg);
-    trc_view v = {cam, W, H};
-    trc_trace_par(tracer, NULL, &v, req, (size_t)k, smp, true, NULL);
+    int k;
+    sess *s = first_batch_traced(smp, &k);
     uint32_t hits = 0, diffuse = 0;
     for (int i = 0; i < k; i++) {
         hits += (smp[i].flags & CT_SAMPLE_HIT) != 0;
