@@ -9,9 +9,11 @@
  * second for SECONDS, each a little turned from the last (the view swinging
  * by up to 2 degrees a second about the direction from EYE to TARGET; the
  * eye fixed, or with EYE_SWING > 0 swinging sideways by up to that many
- * scene units, as a walker sways), and takes in what the master sends as a
- * display does, acknowledging every texture update (SYNC) at once:
- *   camera_flood ADDR TOKEN_FILE|- WIDTH HEIGHT RATE SECONDS EX EY EZ TX TY TZ [FOV_DEG [EYE_SWING]]
+ * scene units, as a walker sways; with ALT_WIDTH every other camera is
+ * ALT_WIDTH wide, a new image size each time), and takes in what the
+ * master sends as a display does, acknowledging every texture update
+ * (SYNC) at once:
+ *   camera_flood ADDR TOKEN_FILE|- WIDTH HEIGHT RATE SECONDS EX EY EZ TX TY TZ [FOV_DEG [EYE_SWING [ALT_WIDTH]]]
  * prints "cameras N updates U bytes B" and exits 0; 1 when the master
  * closes the connection or answers with ERROR (printed), 2 on bad usage or
  * when it cannot connect. */
@@ -44,16 +46,17 @@ static bool number(const char *s, double lo, double hi, double *out)
 int main(int argc, char **argv)
 {
     double v[10] = {0};
-    double fov = 50.0, swing = 0.0;
-    bool ok = argc >= 13 && argc <= 15;
+    double fov = 50.0, swing = 0.0, alt = 0.0;
+    bool ok = argc >= 13 && argc <= 16;
     static const double lo[10] = {1, 1, 0.1, 0.1, -1e6, -1e6, -1e6, -1e6, -1e6, -1e6};
     static const double hi[10] = {16384, 16384, 100000, 3600, 1e6, 1e6, 1e6, 1e6, 1e6, 1e6};
     for (int i = 0; ok && i < 10; i++) ok = number(argv[3 + i], lo[i], hi[i], &v[i]);
     if (ok && argc >= 14) ok = number(argv[13], 1, 170, &fov);
-    if (ok && argc == 15) ok = number(argv[14], 0, 1e6, &swing);
+    if (ok && argc >= 15) ok = number(argv[14], 0, 1e6, &swing);
+    if (ok && argc == 16) ok = number(argv[15], 1, 16384, &alt);
     if (!ok) {
         fprintf(stderr, "usage: camera_flood ADDR TOKEN_FILE|- WIDTH HEIGHT RATE SECONDS EX EY EZ TX TY TZ [FOV_DEG "
-                        "[EYE_SWING]]\n");
+                        "[EYE_SWING [ALT_WIDTH]]]\n");
         return 2;
     }
     auth_token tok;
@@ -89,7 +92,9 @@ int main(int argc, char **argv)
             vec3 dir = v3(sinf(yaw) * cosf(pitch), sinf(pitch), -cosf(yaw) * cosf(pitch));
             vec3 at = v3_add(eye, v3_scale(v3(cosf(yaw0), 0.0f, sinf(yaw0)), (float)swing * cosf(ph)));
             m = (wire_msg){.type = WIRE_CAMERA};
-            m.u.camera = (wire_camera){.epoch = ++epoch, .width = (uint32_t)v[0], .height = (uint32_t)v[1],
+            epoch++;
+            uint32_t w = alt > 0 && (epoch & 1) ? (uint32_t)alt : (uint32_t)v[0];
+            m.u.camera = (wire_camera){.epoch = epoch, .width = w, .height = (uint32_t)v[1],
                                        .cam = cam_look_at(at, v3_add(at, dir), v3(0, 1, 0), (float)fov)};
             int q = chan_send(c, &m, &err);
             if (q < 0) return fail("camera", &err);
