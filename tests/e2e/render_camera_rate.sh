@@ -17,7 +17,7 @@
 # - a new image size with every other camera is paced the same;
 # - the job then still serves a display (a frame of the still view), and
 #   bad values of both options end the job with status 2 and one line
-#   naming the option.
+#   naming the option, as scripts/bench-camera-rate's bad arguments do.
 source "$(dirname "$0")/lib/mpi.sh"
 flood="$root/${CORRTEX_BUILD:-build/release}/tools/camera_flood"
 need_programs "$flood"
@@ -102,5 +102,14 @@ for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5"; 
   echo "  $bad: exit $MASTER_RC: $(grep -m 1 '^error' "$tmp/bad$i.log")"
   ((MASTER_RC == 2)) || fail "$bad: exit status $MASTER_RC, expected 2"
   (($(grep -c -- "${bad%% *}" "$tmp/bad$i.log") == 1)) || { fail "$bad: not one line naming the option"; master_log "bad$i"; }
+done
+# The benchmark's own bad arguments: one line, exit 2, nothing run.
+for bad in "--motions run" "--rates fast" "--bogus"; do
+  # shellcheck disable=SC2086
+  "$root/scripts/bench-camera-rate" $bad >"$tmp/badb.out" 2>&1
+  rc=$?
+  echo "  bench-camera-rate $bad: exit $rc: $(head -n 1 "$tmp/badb.out")"
+  ((rc == 2)) || fail "bench-camera-rate $bad: exit status $rc, expected 2"
+  (($(wc -l <"$tmp/badb.out") == 1)) || fail "bench-camera-rate $bad: $(wc -l <"$tmp/badb.out") lines of output, expected 1"
 done
 finish
