@@ -17,6 +17,7 @@
 
 #define COMPONENT "master"
 #define MAX_FRAMES_QUEUED 64
+#define MAX_VIEW_WAIT_S 1.0   /* the longest a camera change's cost holds the next (take_view) */
 
 static const int PATCH_ENC[] = {WIRE_PATCH_RAW, WIRE_PATCH_LZ4, -1};
 static const int DISPLAY_TEXELS[] = {0, 1, -1};
@@ -42,7 +43,7 @@ static const optab OPTS[] = {
      "TCP, all on UNIX)", DISPLAY_TEXELS},
     {"view-ms", 0, OPTAB_DOUBLE, OF(view_ms), 0, 10000, "50", "X",
      "free-running: shortest interval between two camera changes (ms); a newer camera waits until then", NULL},
-    {"view-share", 0, OPTAB_DOUBLE, OF(view_share), 0.01, 1, "0.25", "X",
+    {"view-share", 0, OPTAB_DOUBLE, OF(view_share), 0.0001, 1, "0.25", "X",
      "free-running: the most of the master's time camera changes may take; a newer camera waits until then (1: "
      "every camera at once)", NULL},
     {"exit-when-display-leaves", 0, OPTAB_FLAG, OF(exit_when_display_leaves), 0, 0, NULL, NULL,
@@ -126,8 +127,8 @@ static int start_frame(loop *l, ct_error *err)
  * batches: taken one by one at 60 a second, nearly every traced sample was
  * stale (docs/distributed.md, "Camera changes"). So the next change waits
  * view_ms after this one started, and t (1 - share) / share after a change
- * that took t; the cameras that arrive meanwhile replace each other, and
- * the newest is taken when the time is up. */
+ * that took t (a second at most); the cameras that arrive meanwhile
+ * replace each other, and the newest is taken when the time is up. */
 static int take_view(loop *l, ct_error *err)
 {
     if (!l->view_waits || l->lockstep || !dsrv_has_display(l->ds)) {
@@ -139,7 +140,11 @@ static int take_view(loop *l, ct_error *err)
     l->view_waits = false;
     int rc = camera_or_drop(l, &l->next_view, err);
     double t1 = ct_now(), share = l->c->opt.view_share;
-    double by_cost = t1 + (t1 - t0) * (1.0 - share) / share, by_interval = t0 + l->c->opt.view_ms / 1000.0;
+    /* A rare costly change (a new image size of many megapixels) holds the
+     * camera for a second at most: the user is still moving it. */
+    double wait = (t1 - t0) * (1.0 - share) / share;
+    double by_cost = t1 + (wait < MAX_VIEW_WAIT_S ? wait : MAX_VIEW_WAIT_S);
+    double by_interval = t0 + l->c->opt.view_ms / 1000.0;
     l->view_ready = by_cost > by_interval ? by_cost : by_interval;
     return rc;
 }
@@ -160,6 +165,7 @@ static int handle_display(loop *l, int *leave, ct_error *err)
             }
             l->lockstep = ev.msg.u.settings.samples_per_frame > 0;
             l->view_waits = false;
+            l->view_ready = 0.0;   /* a new display's first camera goes in at once */
             l->K = ev.msg.u.settings.samples_per_frame;
             drv_set_lockstep(l->d, l->lockstep);
             l->fr_n = 0;

@@ -8,13 +8,15 @@
 #   every camera was a view change, each stopping the tracer's batch, and
 #   the job inserted next to nothing: table 1024^2 at 60 cameras a second,
 #   411-1,492 samples a second against 52,000-58,000 now);
-# - with --view-ms 0 --view-share 1 it takes nearly every camera, and the
-#   tracer answers each stopped batch with the samples it traced, which go
-#   in where their surface is diffuse (late samples: the whole box is);
+# - with --view-ms 0 --view-share 1 (200 cameras a second) it takes nearly
+#   every camera, and the tracer answers each stopped batch with the
+#   samples it traced, which go in where their surface is diffuse (late
+#   samples: the whole box is);
 # - with --view-ms 0 --view-share 0.01 (views of 1024 x 1024) camera
 #   changes take about 1 % of the master's time (at most 1.5 % of the
 #   flood, plus one change) and it takes at most half of the cameras;
-# - a new image size with every other camera is paced the same;
+# - a new image size with every other camera is paced the same, and a
+#   costly change holds the next for a second at most;
 # - the job then still serves a display (a frame of the still view), and
 #   bad values of both options end the job with status 2 and one line
 #   naming the option, as scripts/bench-camera-rate's bad arguments do.
@@ -23,10 +25,11 @@ flood="$root/${CORRTEX_BUILD:-build/release}/tools/camera_flood"
 need_programs "$flood"
 cornell_args
 CAM=(278 273 -800 278 273 0 39.3)
-T=3
+T=3 RATE=1000
 
-# flood NAME SIZE ALT ARGS...: a job with ARGS, flooded for T s with SIZE x
-# SIZE views (every other one ALT wide when ALT > 0); sets VIEWS, VIEW_MS,
+# flood NAME SIZE ALT ARGS...: a job with ARGS, flooded for T s at RATE
+# cameras a second with SIZE x SIZE views (every other one ALT wide when
+# ALT > 0); sets VIEWS, VIEW_MS,
 # INSERTED, LATE (the master's stats-line differences over the flood) and
 # CAMERAS (sent).
 flood() {
@@ -38,8 +41,8 @@ flood() {
   sleep 0.6
   local before after
   before=$(grep 'master: stats:' "$tmp/$name.log" | tail -n 1)
-  log_cmd "$flood" "$ADDR" - "$size" "$size" 1000 "$T" "${CAM[@]}" "${extra[@]}"
-  "$flood" "$ADDR" - "$size" "$size" 1000 "$T" "${CAM[@]}" "${extra[@]}" >"$tmp/$name-flood.out" 2>&1 ||
+  log_cmd "$flood" "$ADDR" - "$size" "$size" "$RATE" "$T" "${CAM[@]}" "${extra[@]}"
+  "$flood" "$ADDR" - "$size" "$size" "$RATE" "$T" "${CAM[@]}" "${extra[@]}" >"$tmp/$name-flood.out" 2>&1 ||
     { fail "$name: camera_flood: $(cat "$tmp/$name-flood.out")"; return 1; }
   after=$(grep 'master: stats:' "$tmp/$name.log" | tail -n 1)
   CAMERAS=$(sed -n 's/^cameras \([0-9]*\) .*/\1/p' "$tmp/$name-flood.out")
@@ -51,7 +54,7 @@ flood() {
   [[ -n ${n1:-} ]] || { fail "$name: no stats line after the flood"; return 1; }
   INSERTED=$((n1 - ${n0:-0})) LATE=$((l1 - ${l0:-0})) VIEWS=$((v1 - ${v0:-0}))
   VIEW_MS=$(awk -v a="${m0:-0}" -v b="$m1" 'BEGIN { printf "%.1f", b - a }')
-  echo "metric: $name: $CAMERAS cameras in $T s, the master took $VIEWS ($VIEW_MS ms in all), inserted $INSERTED samples ($LATE late)"
+  echo "metric: $name: $CAMERAS cameras in $T s ($RATE a second), the master took $VIEWS ($VIEW_MS ms in all), inserted $INSERTED samples ($LATE late)"
 }
 
 if flood paced 128 0; then
@@ -66,11 +69,13 @@ if flood paced 128 0; then
   master_term paced
 fi
 
-if flood every 128 0 --view-ms 0 --view-share 1; then
+# 200 cameras a second: a view every 5 ms, shorter than a batch (20 ms), so
+# every batch is stopped part way.
+if RATE=200 flood every 128 0 --view-ms 0 --view-share 1; then
   ((VIEWS * 2 >= CAMERAS)) || fail "every: the master took $VIEWS of $CAMERAS cameras (at least half)"
-  # 18,000-27,000 here (9,600-16,000 under the sanitizers); 3,400 when a
-  # stopped batch was answered empty
-  ((LATE >= 5000)) || fail "every: only $LATE samples of views left went in (a stopped batch answers with what it traced)"
+  # 76,000-105,000 here, 36,000 under the sanitizers; 1,300 when a stopped
+  # batch was answered empty
+  ((LATE >= 15000)) || fail "every: only $LATE samples of views left went in (a stopped batch answers with what it traced)"
   master_term every
 fi
 
@@ -90,6 +95,15 @@ if flood sizes 256 128; then
   ((VIEWS <= T * 20 + 2)) || fail "sizes: the master took $VIEWS camera changes in $T s (at most $((T * 20 + 2)))"
   ((INSERTED >= 1000)) || fail "sizes: only $INSERTED samples inserted while the image size kept changing"
   master_term sizes
+fi
+
+# A costly change holds the next for a second at most: at 0.01 % of the
+# master's time a change to a 2048 x 2048 view (0.7-3 ms here, more under
+# the sanitizers) would hold the camera for 7-30 s; a view every second or
+# so instead: 5 in 5 s (without the bound: 2 in 3 s).
+if T=5 flood capped 2048 64 --view-ms 0 --view-share 0.0001; then
+  ((VIEWS >= 4)) || fail "capped: the master took $VIEWS camera changes in 5 s (a costly change holds the next 1 s at most)"
+  master_term capped
 fi
 
 # Bad values: one line naming the option, exit 2, before any work.
