@@ -24,9 +24,7 @@
 
 #include "common/camera.h"
 #include "common/timer.h"
-#include "proto/auth.h"
-#include "proto/chan.h"
-#include "proto/wire.h"
+#include "tests/tools/tool_display.h"
 
 static int fail(const char *what, const ct_error *err)
 {
@@ -59,21 +57,10 @@ int main(int argc, char **argv)
                         "[EYE_SWING [ALT_WIDTH]]]\n");
         return 2;
     }
-    auth_token tok;
-    bool have = strcmp(argv[2], "-") != 0;
+    chan *c = tool_display_connect("camera_flood", argv[1], argv[2], 0);
+    if (!c) return 2;
     ct_error err;
-    if (have && auth_token_load(argv[2], &tok, &err)) {
-        fprintf(stderr, "camera_flood: %s\n", err.msg);
-        return 2;
-    }
-    chan_config cfg = {.role = AUTH_ROLE_DISPLAY, .token = have ? &tok : NULL};
-    chan *c;
-    if (chan_connect(argv[1], &cfg, 5000, &c, &err)) {
-        fprintf(stderr, "camera_flood: %s\n", err.msg);
-        return 2;
-    }
-    wire_msg m = {.type = WIRE_SETTINGS};
-    if (chan_send(c, &m, &err) || chan_flush(c, 5000, &err)) return fail("settings", &err);
+    wire_msg m;
 
     vec3 eye = v3((float)v[4], (float)v[5], (float)v[6]), target = v3((float)v[7], (float)v[8], (float)v[9]);
     vec3 d = v3_sub(target, eye);

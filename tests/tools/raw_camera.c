@@ -13,10 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "proto/auth.h"
-#include "proto/chan.h"
-#include "proto/wire.h"
 #include "proto/xport.h"
+#include "tests/tools/tool_display.h"
 
 static void put_f32(uint8_t *p, float f)
 {
@@ -35,25 +33,10 @@ int main(int argc, char **argv)
     uint32_t height = argc == 13 ? (uint32_t)strtoul(argv[12], NULL, 10) : 16;
     float f[8];
     for (int i = 0; i < 8; i++) f[i] = strtof(argv[3 + i], NULL);
-    auth_token tok;
-    bool have = strcmp(argv[2], "-") != 0;
+    chan *c = tool_display_connect("raw_camera", argv[1], argv[2], 100);
+    if (!c) return 2;
     ct_error err;
-    if (have && auth_token_load(argv[2], &tok, &err)) {
-        fprintf(stderr, "raw_camera: %s\n", err.msg);
-        return 2;
-    }
-    chan_config cfg = {.role = AUTH_ROLE_DISPLAY, .token = have ? &tok : NULL};
-    chan *c;
-    if (chan_connect(argv[1], &cfg, 5000, &c, &err)) {
-        fprintf(stderr, "raw_camera: %s\n", err.msg);
-        return 2;
-    }
-    wire_msg m = {.type = WIRE_SETTINGS};
-    m.u.settings.samples_per_frame = 100;
-    if (chan_send(c, &m, &err) || chan_flush(c, 5000, &err)) {
-        fprintf(stderr, "raw_camera: %s\n", err.msg);
-        return 2;
-    }
+    wire_msg m;
     /* A valid CAMERA from the encoder, then its camera bytes replaced: eye at
      * body offset 12, orientation at 24, fov at 40 (docs/protocol.md). */
     m = (wire_msg){.type = WIRE_CAMERA};
