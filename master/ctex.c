@@ -52,6 +52,10 @@ static const optab OPTS[] = {
      NULL},
     {"age-brdf", 0, OPTAB_FLOAT, OF(age_brdf), 0, 1e9, "10", "X",
      "aging weight of BRDF change: texture sizes per radian at glossiness 1 (§3.5)", NULL},
+    {"late-deg", 0, OPTAB_FLOAT, OF(late_deg), 0, 180, "10", "X",
+     "a glossy sample traced from an eye the camera has left goes in aged by §3.5's BRDF term while its viewing "
+     "direction turned by at most this many degrees times its glossiness, else it is dropped; 0 = only from "
+     "the eye's position now", NULL},
     {"resample-age", 0, OPTAB_FLOAT, OF(resample_age), 0, 1e9, "1", "X",
      "validity (texels) a resampled texel loses to fresh samples", NULL},
     {"keep-projector-deg", 0, OPTAB_FLOAT, OF(keep_deg), 0, 90, "20", "X",

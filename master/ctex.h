@@ -53,6 +53,7 @@ typedef struct ctex_options {
     double mem_mb;        /* memory cap for all texels, MiB */
     float age_flow;       /* §3.5: weight of the texture-flow term (camera-local) */
     float age_brdf;       /* §3.5: weight of the BRDF term, texture sizes per radian at glossiness 1 */
+    float late_deg;       /* glossy late samples whose view direction turned more (degrees x gloss) are dropped */
     float resample_age;   /* validity (texels) a resampled texel loses against fresh samples */
     float keep_deg;       /* camera-local textures keep their projector up to this view angle change; 0 = never */
     float bvh_mat_weight; /* BVH: cost factor for groups that mix materials */
@@ -174,6 +175,19 @@ int ctex_insert(ctex *c, const ct_sample *s, ctex_insert_info *info);
  * caller's alone); with n = 1 it is ctex_insert's. Returns how many were
  * splatted. */
 size_t ctex_insert_par(ctex *c, ct_pool *pool, const ct_sample *s, size_t n, ctex_insert_info *info);
+
+/* Late samples (traced for views the camera has left; the request queue
+ * never hears of them) as ctex_insert_par, s[i] traced from eyes[i]: as if
+ * it had gone in when traced and aged since by §3.5's BRDF term (the
+ * glossiness of its surface x the change of the viewing direction at its
+ * hit), so that it fills where its texture has nothing as fresh and never
+ * covers a newer sample (ctex_tex_splat_late); one that needs no aging (a
+ * diffuse surface, an unmoved eye) goes in as a new one. Those whose
+ * viewing direction turned by more than late_deg x their glossiness, and
+ * those that found their centre texel fresher, are not written (info tex
+ * -1). Returns how many were. */
+size_t ctex_insert_late_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *eyes, size_t n,
+                            ctex_insert_info *info);
 
 /* Refinement samples as ctex_refine, the pixel's sample count of s[i] in
  * n_px[i], grouped the same way. */

@@ -1,6 +1,7 @@
 /* ctex_insert.c: sample insertion (§3.4) with the §3.6 resolution changes
  * it triggers, one sample at a time (ctex_insert) or partitioned by texture
  * over the thread pool (ctex_insert_par), and the refinement writes. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -180,6 +181,54 @@ static int insert_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *
     return 1;
 }
 
+/* §3.5's BRDF term for late sample s on texture id, traced from eye e0:
+ * its surface's glossiness x the change of the viewing direction at its
+ * hit, in texels of the texture as age() measures a camera change
+ * (ctex_view.c). 0 for a diffuse surface or an unmoved eye; INFINITY past
+ * --late-deg (the sample is dropped). */
+static float late_age(const ctex *c, const ct_sample *s, int32_t id, vec3 e0)
+{
+    vec3 e1 = c->cam.eye;
+    if (!c->have_cam || (e0.x == e1.x && e0.y == e1.y && e0.z == e1.z)) return 0.0f;
+    int32_t l = ctex_leaf_of_hit(c, s->node, s->tri, s->hit);
+    float gloss = l >= 0 ? c->h.nodes[c->h.leaf_node[l]].gloss : 1.0f;
+    if (!(gloss > 0.0f)) return 0.0f;
+    vec3 d0 = v3_sub(s->hit, e0), d1 = v3_sub(s->hit, e1);
+    if (!(v3_len2(d0) > 0.0f && v3_len2(d1) > 0.0f)) return INFINITY;
+    /* atan2 of |sin| and cos: exact for the small turns of a walk, where
+     * acos of a dot product rounds to 0 below about a thousandth of a radian */
+    float ang = atan2f(v3_len(v3_cross(d0, d1)), v3_dot(d0, d1));
+    if (!(gloss * ang <= c->o.late_deg * (float)(M_PI / 180.0))) return INFINITY;
+    const ctex_tex *t = &c->slots[id].t;
+    return c->o.age_brdf * gloss * ang * (float)(t->w > t->h ? t->w : t->h);
+}
+
+/* Splats late sample s, traced from eye e0, into texture id (its owner): as
+ * insert_at while its age is 0; else aged (ctex_tex_splat_late), mixed
+ * with a texel only as old as it (ctex_tex_mix_aged), and with no say in
+ * the resolution (its radius measures the gaps between fresher samples,
+ * not the density). 1 when it wrote texels. */
+static int late_at(ctex *c, const ct_sample *s, int32_t id, vec3 e0, ctex_insert_info *info, const ex_hint *hint,
+                   int defer)
+{
+    float age = late_age(c, s, id, e0);
+    if (age == 0.0f) return insert_at(c, s, id, info, hint, defer);
+    int ci, cj;
+    if (!(age < INFINITY) || locate_at(c, s, id, info, &ci, &cj) < 0) return 0;
+    ctex_tex *t = &c->slots[id].t;
+    float ex = 1.0f;
+    if (c->o.splat_aniso)
+        ex = hint && hint->id == id && hint->w == t->w && hint->h == t->h ? hint->ex : ctex_splat_ex_at(c, t, s->hit);
+    vec3 dl = ctex_tex_mix_aged(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius, age);
+    int r = ctex_tex_splat_late(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex, age);
+    if (r < 0) {
+        info->tex = -1;
+        return 0;
+    }
+    info->radius = r;
+    return 1;
+}
+
 /* Texture position (in texels) of the point the ray through image position
  * (x, y) meets on texture t: a camera-local texture projected from the
  * current eye maps rays to positions; one that kept the projector of an
@@ -304,6 +353,7 @@ typedef struct par_job {
     ctex *c;
     const ct_sample *s;
     const uint16_t *n_px;      /* refinement: the samples' pixel counts; NULL: splats */
+    const vec3 *eyes;          /* late samples: the eyes they were traced from; NULL: new ones */
     ctex_insert_info *info;
     size_t n;
 } par_job;
@@ -340,6 +390,8 @@ static void group_task(void *ctx, int worker, size_t task)
         uint32_t i = ix[k];
         if (k + AHEAD < n) prefetch_sample(c, &j->s[ix[k + AHEAD]], (int32_t)id, &hint[(k + AHEAD) % (2 * AHEAD)]);
         if (j->n_px) done += (uint32_t)refine_at(c, &j->s[i], (int32_t)id, j->n_px[i], &j->info[i]);
+        else if (j->eyes)
+            done += (uint32_t)late_at(c, &j->s[i], (int32_t)id, j->eyes[i], &j->info[i], &hint[k % (2 * AHEAD)], 1);
         else done += (uint32_t)insert_at(c, &j->s[i], (int32_t)id, &j->info[i], &hint[k % (2 * AHEAD)], 1);
     }
     c->par_done[id] = done;
@@ -381,7 +433,7 @@ static int by_key(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t *n_px, size_t n,
+static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t *n_px, const vec3 *eyes, size_t n,
                       ctex_insert_info *info)
 {
     if (n == 0) return 0;
@@ -389,11 +441,21 @@ static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t
         /* without scratch memory: one sample at a time (resolution changes
          * then come at once, as with ctex_insert) */
         size_t done = 0;
-        for (size_t i = 0; i < n; i++)
-            done += (size_t)(n_px ? ctex_refine(c, &s[i], n_px[i], &info[i]) : ctex_insert(c, &s[i], &info[i]));
+        for (size_t i = 0; i < n; i++) {
+            int ok;
+            if (n_px) ok = ctex_refine(c, &s[i], n_px[i], &info[i]);
+            else if (!eyes) ok = ctex_insert(c, &s[i], &info[i]);
+            else {
+                int32_t id = owner(c, &s[i], &info[i]);
+                ok = id >= 0 && late_at(c, &s[i], id, eyes[i], &info[i], NULL, 0);
+                if (ok) c->st.inserted++;
+                else c->st.dropped++;
+            }
+            done += (size_t)ok;
+        }
         return done;
     }
-    par_job j = {c, s, n_px, info, n};
+    par_job j = {c, s, n_px, eyes, info, n};
     pool_run(pool, (n + OWNER_TASK - 1) / OWNER_TASK, owner_task, &j);
     /* group the samples by texture (a counting sort keeps their order) */
     memset(c->par_count, 0, c->nslots * sizeof *c->par_count);
@@ -437,11 +499,17 @@ static size_t run_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t
 
 size_t ctex_insert_par(ctex *c, ct_pool *pool, const ct_sample *s, size_t n, ctex_insert_info *info)
 {
-    return run_par(c, pool, s, NULL, n, info);
+    return run_par(c, pool, s, NULL, NULL, n, info);
+}
+
+size_t ctex_insert_late_par(ctex *c, ct_pool *pool, const ct_sample *s, const vec3 *eyes, size_t n,
+                            ctex_insert_info *info)
+{
+    return run_par(c, pool, s, NULL, eyes, n, info);
 }
 
 size_t ctex_refine_par(ctex *c, ct_pool *pool, const ct_sample *s, const uint16_t *n_px, size_t n,
                        ctex_insert_info *info)
 {
-    return run_par(c, pool, s, n_px, n, info);
+    return run_par(c, pool, s, n_px, NULL, n, info);
 }

@@ -172,20 +172,25 @@ static inline int put(ctex_texel *x, int32_t vn, const splat_val *sv)
     return 0;
 }
 
-/* A splat's start: sv from the value, the centre texel (which always takes
- * the newest sample) written at v_max's step, which it returns. */
+/* A splat's start: sv from the value, the centre texel written at the step
+ * of v_max - age, which it returns. A new sample (age 0) always takes its
+ * centre; an aged one (a late sample, ctex_tex_splat_late) only where the
+ * centre is not more valid, else nothing is written and it returns
+ * SPLAT_LOST. */
+#define SPLAT_LOST INT32_MIN
 static inline __attribute__((always_inline)) int32_t splat_centre(ctex_tex *t, int ci, int cj, vec3 val, float blend,
-                                                                  splat_val *sv)
+                                                                  float age, splat_val *sv)
 {
     ctex_tex_keep_base(t);
+    const int32_t qmax = ctex_tex_q(t, t->vmax - age);
+    ctex_texel *c = ctex_tex_at(t, ci, cj);
+    if (age > 0.0f && c->q > qmax) return SPLAT_LOST;
     ctex_texel h;
     ctex_texel_set(t, &h, val, 0.0f);
     h.q = 0;
     memcpy(&sv->rgb, &h, sizeof sv->rgb);
     sv->f4 = texel4(&h);   /* q = 0: the fourth lane is 0 */
     sv->blend = blend < 0.0f ? 0.0f : blend;
-    const int32_t qmax = ctex_tex_q(t, t->vmax);
-    ctex_texel *c = ctex_tex_at(t, ci, cj);
     store(c, sv->rgb, c->q > qmax ? c->q : qmax);
     return qmax;
 }
@@ -216,14 +221,18 @@ void ctex_tex_refine(ctex_tex *t, int x0, int y0, int x1, int y1, int cy, vec3 v
     ctex_dirty_mark(&t->d, x0, y0, x1 + 1, y1 + 1, cy);
 }
 
-int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
+/* ctex_tex_splat with the centre at v_max - age (0: a new sample); -1 when
+ * an aged splat lost its centre (nothing written). */
+static inline __attribute__((always_inline)) int splat_iso(ctex_tex *t, int ci, int cj, vec3 val, float blend,
+                                                           int max_r, float age)
 {
     const int W = t->w, H = t->h;
     const size_t P = (size_t)t->pitch;
     ctex_texel *T = t->tx;
     splat_val sv;
     /* validity steps: v_max's, and ring k's v_max - k (§3.4) */
-    const int32_t qmax = splat_centre(t, ci, cj, val, blend, &sv);
+    const int32_t qmax = splat_centre(t, ci, cj, val, blend, age, &sv);
+    if (qmax == SPLAT_LOST) return -1;
     ctex_texel *c = T + (size_t)cj * P + (size_t)ci;
     int r = 0, k = 1;
     /* The largest ring that still has a texel inside the texture. */
@@ -278,6 +287,11 @@ dirty:;
     return r;
 }
 
+int ctex_tex_splat(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r)
+{
+    return splat_iso(t, ci, cj, val, blend, max_r, 0.0f);
+}
+
 /* Prefetches the rows ring k adds above and below ring k - 1's rectangle
  * (py rows either side of cj), for writing: prefetch_ring's counterpart. */
 static inline __attribute__((always_inline)) void prefetch_bands(const ctex_tex *t, int ci, int cj, float ex, int k,
@@ -295,16 +309,19 @@ static inline __attribute__((always_inline)) void prefetch_bands(const ctex_tex 
         }
 }
 
-int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r, float ex)
+/* ctex_tex_splat_aniso with the centre at v_max - age, as splat_iso. */
+static inline __attribute__((always_inline)) int splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend,
+                                                             int max_r, float ex, float age)
 {
     ex = ctex_aniso_ex(ex);
-    if (ex == 1.0f) return ctex_tex_splat(t, ci, cj, val, blend, max_r);
+    if (ex == 1.0f) return splat_iso(t, ci, cj, val, blend, max_r, age);
     /* locals: the texel stores could alias t's fields */
     const int W = t->w, H = t->h;
     const size_t P = (size_t)t->pitch;
     ctex_texel *const T = t->tx;
     splat_val sv;
-    const int32_t qmax = splat_centre(t, ci, cj, val, blend, &sv);
+    const int32_t qmax = splat_centre(t, ci, cj, val, blend, age, &sv);
+    if (qmax == SPLAT_LOST) return -1;
     /* Ring k: the texels of its rectangle outside ring k - 1's; one of the
      * two extents grows by at least one texel a ring (ex ey = 1). */
     const int reachx = ci > W - 1 - ci ? ci : W - 1 - ci;
@@ -359,6 +376,16 @@ int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int
      * been blended). */
     grow_dirty(t, ci, cj, px, py);
     return r;
+}
+
+int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r, float ex)
+{
+    return splat_aniso(t, ci, cj, val, blend, max_r, ex, 0.0f);
+}
+
+int ctex_tex_splat_late(ctex_tex *t, int ci, int cj, vec3 val, float blend, int max_r, float ex, float age)
+{
+    return splat_aniso(t, ci, cj, val, blend, max_r, ex, age > 0.0f ? age : 0.0f);
 }
 
 vec3 ctex_tex_unproject(const ctex_tex *t, float u, float v)

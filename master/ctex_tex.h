@@ -214,21 +214,38 @@ static inline void ctex_aniso_ring(float ex, int k, int *xk, int *yk)
  * near 1 (ctex_aniso_ex) splats square rings (ctex_tex_splat). */
 int ctex_tex_splat_aniso(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r, float ex);
 
+/* A late sample's splat (traced from an eye the camera has left,
+ * ctex_insert_late_par): ctex_tex_splat_aniso as if the sample had gone in
+ * when it was traced and aged since, its centre at v_max - age and ring k
+ * at v_max - age - k; it takes the centre only where that texel is not
+ * more valid, so it fills where the texture has nothing as fresh and never
+ * covers a newer sample. -1 when it lost its centre (nothing written),
+ * else the splat radius. age 0: ctex_tex_splat_aniso. */
+int ctex_tex_splat_late(ctex_tex *t, int ci, int cj, vec3 value, float blend, int max_r, float ex, float age);
+
 /* The value a sample of correction `value` landing on texel (ci, cj) splats
  * (docs/textures.md, "Mixing"): the texel's correction moved by the
  * fraction `mix` towards value when the texel holds one whose validity is
  * at most `radius` texels below v_max (its sample is that near and the
  * texture has not aged past it since); value itself otherwise, and always
  * for mix >= 1. Single samples are noisy estimates; mixing neighbours
- * averages the noise out where the correction is smooth. */
-static inline vec3 ctex_tex_mix(const ctex_tex *t, int ci, int cj, vec3 value, float mix, float radius)
+ * averages the noise out where the correction is smooth. ctex_tex_mix_aged:
+ * for a late sample aged by `age` texels (ctex_tex_splat_late), whose
+ * validity is v_max - age: the texel's distance is measured from there. */
+static inline vec3 ctex_tex_mix_aged(const ctex_tex *t, int ci, int cj, vec3 value, float mix, float radius,
+                                     float age)
 {
     if (!(mix < 1.0f)) return value;
     const ctex_texel *x = ctex_tex_at(t, ci, cj);
-    if (!ctex_texel_valid(x) || !(t->vmax - ctex_tex_v(t, x) <= radius)) return value;
+    if (!ctex_texel_valid(x) || !(t->vmax - age - ctex_tex_v(t, x) <= radius)) return value;
     float o[4];
     ctex_texel_rgbx(x, o);
     return v3(o[0] + mix * (value.x - o[0]), o[1] + mix * (value.y - o[1]), o[2] + mix * (value.z - o[2]));
+}
+
+static inline vec3 ctex_tex_mix(const ctex_tex *t, int ci, int cj, vec3 value, float mix, float radius)
+{
+    return ctex_tex_mix_aged(t, ci, cj, value, mix, radius, 0.0f);
 }
 
 /* Bilinear correction at texture position (u, v), clamp-to-edge (GL_LINEAR). */

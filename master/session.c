@@ -21,7 +21,8 @@ typedef struct chunk {
     ctex_insert_info *info;
     uint32_t m;
     ct_sample *refine, *write;   /* write: the refinement samples that move their pixel's texels */
-    ct_sample *late;             /* of an older view, view-independent */
+    ct_sample *late;             /* of an older view: diffuse, or traced from an eye of the last views */
+    vec3 *late_eye;              /* the eye each late one was traced from */
     uint16_t *npx;               /* the writes' pixel sample counts */
     ctex_insert_info *winfo;     /* refinement writes and late splats */
     uint32_t nr, nw, nl;
@@ -52,8 +53,8 @@ struct sess {
     double view_mem_mb;    /* sess_options.view_mem_mb; 0: no cap */
     double view_t;         /* when the current view was set */
     /* The eyes of the last views, by epoch (slot epoch % EYES): a sample
-     * of a view the camera left, traced from where the eye is now, is one
-     * of this view (classify). */
+     * of a view the camera left goes in aged by how far its viewing
+     * direction turned since (classify, ctex_insert_late_par). */
     vec3 eye[SESS_EYES];
     uint32_t eye_epoch[SESS_EYES];
     sess_counters n;
@@ -105,9 +106,10 @@ int sess_new(const sess_config *c, sess **out, ct_error *err)
         h->refine = malloc(SESS_CHUNK * sizeof *h->refine);
         h->write = malloc(SESS_CHUNK * sizeof *h->write);
         h->late = malloc(SESS_CHUNK * sizeof *h->late);
+        h->late_eye = malloc(SESS_CHUNK * sizeof *h->late_eye);
         h->npx = malloc(SESS_CHUNK * sizeof *h->npx);
         h->winfo = malloc(SESS_CHUNK * sizeof *h->winfo);
-        ok = ok && h->splat && h->info && h->refine && h->write && h->late && h->npx && h->winfo;
+        ok = ok && h->splat && h->info && h->refine && h->write && h->late && h->late_eye && h->npx && h->winfo;
     }
     int rc = ok ? CT_OK : ct_fail(err, CT_ENOMEM, "master: out of memory");
     if (!rc) rc = pool_new(threads, &s->pool, err);
@@ -135,6 +137,7 @@ void sess_free(sess *s)
         free(c->refine);
         free(c->write);
         free(c->late);
+        free(c->late_eye);
         free(c->npx);
         free(c->winfo);
     }
@@ -305,29 +308,36 @@ static void rejected(sess *s, const ct_sample *x, ct_error *err)
     s->n.rejected++;
 }
 
-/* Whether a sample of an earlier view was traced from where the eye is now:
- * the radiance a surface sends to the eye depends on the eye's position,
- * not on where the camera looks, so a camera that only turned leaves the
- * samples of its earlier views exact, glossy ones too. */
-static bool same_eye(const sess *s, uint32_t epoch)
+/* The eye a sample of epoch `epoch` was traced from, if that view is one
+ * of the last SESS_EYES. The radiance a surface sends toward the eye
+ * depends on the eye's position, not on where the camera looks: a sample
+ * from where the eye is now is exact (a camera that only turned), glossy
+ * ones too; from elsewhere it is as stale as a texel aged since. */
+static bool eye_of(const sess *s, uint32_t epoch, vec3 *eye)
 {
     uint32_t k = epoch % SESS_EYES;
-    const vec3 e = s->eye[k], c = s->cam.eye;
-    return s->eye_epoch[k] == epoch && e.x == c.x && e.y == c.y && e.z == c.z;
+    if (s->eye_epoch[k] != epoch) return false;
+    *eye = s->eye[k];
+    return true;
 }
 
 /* Sorts a chunk (at most SESS_CHUNK samples) into c's samples to splat,
  * its refinement and its late ones (a view the camera left: those on
- * diffuse surfaces or traced from the eye's position now; the others are
- * stale). Reads the queue (which requests refine), so it runs before an
- * earlier chunk's report starts. */
+ * diffuse surfaces, and those traced from the eye of one of the last
+ * views, which go in aged; the others are stale). Reads the queue (which
+ * requests refine), so it runs before an earlier chunk's report starts. */
 static void classify(sess *s, chunk *c, const ct_sample *smp, uint32_t n)
 {
     uint32_t m = 0, nr = 0, nl = 0;
     for (uint32_t i = 0; i < n; i++) {
         if (smp[i].epoch != s->epoch) {
-            if (same_eye(s, smp[i].epoch) || ctex_view_independent(s->tex, &smp[i])) c->late[nl++] = smp[i];
-            else s->n.stale++;
+            vec3 e = s->cam.eye;   /* a diffuse one's: it needs no aging */
+            if (eye_of(s, smp[i].epoch, &e) || ctex_view_independent(s->tex, &smp[i])) {
+                c->late_eye[nl] = e;
+                c->late[nl++] = smp[i];
+            } else {
+                s->n.stale++;
+            }
         } else if (rq_refines(s->rq, smp[i].request_id)) {
             c->refine[nr++] = smp[i];
         } else {
@@ -407,7 +417,7 @@ static void refine_write(sess *s, chunk *c)
         count(s, &c->refine[j], written ? &c->winfo[w++] : &unwritten);
     }
     if (c->nl) {
-        ctex_insert_par(s->tex, s->pool, c->late, c->nl, c->winfo);
+        ctex_insert_late_par(s->tex, s->pool, c->late, c->late_eye, c->nl, c->winfo);
         for (uint32_t j = 0; j < c->nl; j++) {
             if (c->winfo[j].tex < 0) {
                 s->n.stale++;

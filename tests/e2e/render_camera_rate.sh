@@ -108,7 +108,7 @@ fi
 
 # Bad values: one line naming the option, exit 2, before any work.
 i=0
-for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5"; do
+for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5" "--late-deg 181"; do
   i=$((i + 1))
   # shellcheck disable=SC2086
   master_start "bad$i" 2 "${CORNELL[@]}" $bad
@@ -118,7 +118,7 @@ for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5"; 
   (($(grep -c -- "${bad%% *}" "$tmp/bad$i.log") == 1)) || { fail "$bad: not one line naming the option"; master_log "bad$i"; }
 done
 # The benchmark's own bad arguments: one line, exit 2, nothing run.
-for bad in "--motions run" "--rates fast" "--bogus"; do
+for bad in "--motions run" "--rates fast" "--settings fast" "--bogus"; do
   # shellcheck disable=SC2086
   "$root/scripts/bench-camera-rate" $bad >"$tmp/badb.out" 2>&1
   rc=$?

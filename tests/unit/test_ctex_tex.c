@@ -269,6 +269,68 @@ Test(ctex_tex, newer_sample_wins_after_aging)
     ctex_tex_release(&t);
 }
 
+/* A late sample aged by `age` texels (ctex_tex_splat_late) splats as if it
+ * had gone in `age` texels of aging ago: it takes the texels whose
+ * validity is below v_max - age - k (empty ones, and those far from every
+ * fresher sample), never a fresh sample's own; on a centre texel fresher
+ * than it, it writes nothing. Age 0 is a new sample's splat. */
+Test(ctex_tex, late_sample_fills_gaps_never_covers_fresher)
+{
+    const int W = 48, H = 16;
+    ctex_tex t = {0}, u = {0};
+    cr_assert_eq(ctex_tex_init(&t, W, H, NULL), 0);
+    cr_assert_eq(ctex_tex_init(&u, W, H, NULL), 0);
+    ctex_tex_splat(&t, 10, 8, v3(1, 0, 0), 0.0f, 0);
+    const float age = 6.0f;
+    int r = ctex_tex_splat_late(&t, 30, 8, v3(2, 0, 0), 0.0f, 0, 1.0f, age);
+    cr_assert_geq(r, 0, "the late sample lost its centre");
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            /* the fresh sample's validity -d0, the late one's -age - d1 */
+            float v0 = -(float)cheb(x, y, 10, 8), v1 = -age - (float)cheb(x, y, 30, 8);
+            cr_assert_eq(R(&t, x, y), (v1 > v0 || (x == 30 && y == 8)) ? 2.0f : 1.0f, "texel (%d,%d)", x, y);
+        }
+    /* it keeps fewer texels than a new sample at 30 would (their tie would
+     * be at 20): the fresh one's share grew by age / 2 texels */
+    cr_assert_eq(R(&t, 24, 8), 2.0f);
+    cr_assert_eq(R(&t, 23, 8), 1.0f, "texel 23: 7 + 6 of age from the late sample, 13 from the fresh one (a tie)");
+    /* on the fresh sample's own texel it writes nothing */
+    cr_assert_eq(ctex_tex_splat_late(&t, 11, 8, v3(5, 0, 0), 0.0f, 0, 1.0f, age), -1);
+    cr_assert_eq(R(&t, 11, 8), 1.0f);
+    cr_assert_eq(R(&t, 10, 8), 1.0f);
+    /* age 0: the same as a new sample's splat, texel for texel */
+    ctex_tex_splat(&u, 10, 8, v3(1, 0, 0), 0.0f, 0);
+    ctex_tex_splat(&u, 30, 8, v3(2, 0, 0), 0.0f, 0);
+    ctex_tex w = {0};
+    cr_assert_eq(ctex_tex_init(&w, W, H, NULL), 0);
+    ctex_tex_splat(&w, 10, 8, v3(1, 0, 0), 0.0f, 0);
+    ctex_tex_splat_late(&w, 30, 8, v3(2, 0, 0), 0.0f, 0, 1.0f, 0.0f);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            cr_assert_eq(R(&w, x, y), R(&u, x, y), "texel (%d,%d)", x, y);
+            cr_assert_eq(V(&w, x, y), V(&u, x, y), "texel (%d,%d)", x, y);
+        }
+    ctex_tex_release(&t);
+    ctex_tex_release(&u);
+    ctex_tex_release(&w);
+}
+
+/* A late sample mixes (ctex_tex_mix_aged) only with a texel about as old as
+ * it: the radius counts from its own validity, v_max - age. */
+Test(ctex_tex, late_sample_mixes_from_its_own_validity)
+{
+    ctex_tex t = {0};
+    cr_assert_eq(ctex_tex_init(&t, 48, 8, NULL), 0);
+    ctex_tex_splat(&t, 4, 4, v3(1.0f, 1.0f, 1.0f), 0.0f, 0);   /* floods the texture */
+    vec3 b = v3(3.0f, 3.0f, 3.0f);
+    /* 30 texels from the sample: too far for a new one at radius 16, near
+     * enough for one aged by 20 */
+    cr_assert_eq(ctex_tex_mix(&t, 34, 4, b, 0.5f, 16.0f).x, 3.0f);
+    cr_assert_float_eq(ctex_tex_mix_aged(&t, 34, 4, b, 0.5f, 16.0f, 20.0f).x, 2.0f, 1e-6);
+    cr_assert_eq(ctex_tex_mix_aged(&t, 44, 4, b, 0.5f, 16.0f, 20.0f).x, 3.0f, "40 texels: 20 past its validity");
+    ctex_tex_release(&t);
+}
+
 /* Noise-aware splatting: a sample moves the correction it lands on by
  * `mix` towards its own value, but only a fresh correction of a sample
  * within `radius` texels (validity), never an empty texel, and not at all

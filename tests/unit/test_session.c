@@ -57,16 +57,22 @@ static void teardown(void)
 
 TestSuite(session, .init = setup, .fini = teardown, .timeout = 120);
 
-/* A session of mesh m with the default queue and texture options. */
-static sess *open_session(const ct_radmesh *m, sess_options so)
+/* A session of mesh m with the default queue options and texture options
+ * co. */
+static sess *open_session_co(const ct_radmesh *m, sess_options so, ctex_options co)
 {
     rq_options ro;
     rq_options_default(&ro);
-    ctex_options co = ctex_options_default();
     sess_config c = {m, scene->mats, scene->nmats, &ro, &co, 1, so};
     sess *s = NULL;
     cr_assert_eq(sess_new(&c, &s, &err), 0, "%s", err.msg);
     return s;
+}
+
+/* A session of mesh m with the default queue and texture options. */
+static sess *open_session(const ct_radmesh *m, sess_options so)
+{
+    return open_session_co(m, so, ctex_options_default());
 }
 
 static sess *new_session(const ct_radmesh *m, int threads)
@@ -534,11 +540,11 @@ Test(session, mismatch_children_where_another_node_is_shown)
     free(cut.tri_mat);
 }
 
-/* A session on the camera and its first batch traced into smp (W x H at
- * most); *k the samples. */
-static sess *first_batch_traced(ct_sample *smp, int *k)
+/* A session (texture options co) on the camera and its first batch traced
+ * into smp (W x H at most); *k the samples. */
+static sess *first_batch_traced_co(ct_sample *smp, int *k, ctex_options co)
 {
-    sess *s = new_session(&mesh, 1);
+    sess *s = open_session_co(&mesh, (sess_options){1, 0.0, 0.0}, co);
     cr_assert_eq(sess_set_view(s, &cam, W, H, &err), 1, "%s", err.msg);
     static ct_request req[W * H];
     *k = sess_next(s, req, W * H, &err);
@@ -548,15 +554,22 @@ static sess *first_batch_traced(ct_sample *smp, int *k)
     return s;
 }
 
+static sess *first_batch_traced(ct_sample *smp, int *k)
+{
+    return first_batch_traced_co(smp, k, ctex_options_default());
+}
+
 /* Samples traced for a view the camera has left: those on diffuse surfaces
  * are splatted into the new view's textures (late), the others (the
- * mirror and glass spheres, misses) are dropped (stale); the request queue
- * hears of none of them. */
+ * mirror and glass spheres with --late-deg 0, misses) are dropped (stale);
+ * the request queue hears of none of them. */
 Test(session, late_samples_on_diffuse_surfaces_go_in)
 {
     static ct_sample smp[W * H];
     int k;
-    sess *s = first_batch_traced(smp, &k);
+    ctex_options co = ctex_options_default();
+    co.late_deg = 0.0f;   /* glossy ones from a moved eye: late_glossy_samples_go_in_aged_from_a_near_eye */
+    sess *s = first_batch_traced_co(smp, &k, co);
     uint32_t diffuse = 0;
     for (int i = 0; i < k; i++) diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
     cr_assert(diffuse > 0 && diffuse < (uint32_t)k, "%u of %d samples on diffuse surfaces", diffuse, k);
@@ -591,9 +604,8 @@ Test(session, late_samples_on_diffuse_surfaces_go_in)
 
 /* A camera that only turned: the eye is where it was, so the radiance each
  * sample carries toward it is unchanged, and the samples of the view it
- * left go in on glossy and mirror surfaces too (late); only misses stay
- * out. Once the eye moves, the samples of the views before are stale
- * again but on diffuse surfaces. */
+ * left go in on glossy and mirror surfaces too (late, not aged); only
+ * misses stay out. */
 Test(session, late_samples_from_the_same_eye_go_in)
 {
     static ct_sample smp[W * H];
@@ -615,15 +627,50 @@ Test(session, late_samples_from_the_same_eye_go_in)
     /* every hit but those on parts the turned view does not texture */
     cr_assert_gt(n.late, diffuse, "late %llu: no more than the %u diffuse", (unsigned long long)n.late, diffuse);
     cr_assert_geq(n.late, hits * 9 / 10, "%llu of %u hits went in", (unsigned long long)n.late, hits);
-    /* then the eye moves: the same samples (two views back) are stale
-     * unless diffuse */
-    ct_camera moved = turned;
-    moved.eye.x += 0.02f;
-    cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
-    cr_assert_eq(sess_insert(s, smp, (uint32_t)k, NULL, &err), 0, "%s", err.msg);
-    sess_counters m = sess_get_counters(s);
-    cr_assert_leq(m.late - n.late, diffuse, "%llu late from a moved eye, %u diffuse", (unsigned long long)(m.late - n.late),
-                  diffuse);
-    cr_assert_geq(m.stale - n.stale, (uint64_t)(hits - diffuse));
     sess_free(s);
+}
+
+/* Late samples traced from an eye the camera has left (master/ctex.h,
+ * ctex_insert_late_par): glossy ones go in aged while their viewing
+ * direction turned by at most --late-deg x their glossiness (here a step
+ * of 5 mm in a scene 550 mm wide, seen from 800 mm: a third of a degree),
+ * and are stale past it (a step of 400 mm: the spheres are seen some 20
+ * degrees apart) or with --late-deg 0; diffuse ones go in either way. */
+Test(session, late_glossy_samples_go_in_aged_from_a_near_eye)
+{
+    static ct_sample smp[W * H];
+    static const struct {
+        float step, late_deg;
+        bool glossy_in;
+    } cases[] = {{5.0f, 10.0f, true}, {400.0f, 10.0f, false}, {5.0f, 0.0f, false}};
+    for (size_t c = 0; c < sizeof cases / sizeof *cases; c++) {
+        ctex_options co = ctex_options_default();
+        co.late_deg = cases[c].late_deg;
+        int k;
+        sess *s = first_batch_traced_co(smp, &k, co);
+        uint32_t hits = 0, diffuse = 0;
+        for (int i = 0; i < k; i++) {
+            hits += (smp[i].flags & CT_SAMPLE_HIT) != 0;
+            diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
+        }
+        cr_assert(diffuse < hits, "%u of %u hits on diffuse surfaces: no glossy ones to test", diffuse, hits);
+        ct_camera moved = cam;
+        moved.eye.x += cases[c].step;
+        cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);
+        cr_assert_eq(sess_insert(s, smp, (uint32_t)k, NULL, &err), 0, "%s", err.msg);
+        sess_counters n = sess_get_counters(s);
+        cr_assert_eq(n.late + n.stale, (uint64_t)k);
+        cr_assert_eq(n.inserted, n.late);
+        if (cases[c].glossy_in) {
+            cr_assert_geq(n.late, hits * 9 / 10, "step %g: %llu of %u hits went in", (double)cases[c].step,
+                          (unsigned long long)n.late, hits);
+        } else {
+            cr_assert_leq(n.late, diffuse, "step %g, --late-deg %g: %llu late, %u diffuse", (double)cases[c].step,
+                          (double)cases[c].late_deg, (unsigned long long)n.late, diffuse);
+            /* (some diffuse parts leave the textures of a view 400 mm away) */
+            cr_assert_geq(n.late, diffuse / 2, "step %g: %llu of %u diffuse went in", (double)cases[c].step,
+                          (unsigned long long)n.late, diffuse);
+        }
+        sess_free(s);
+    }
 }
