@@ -43,6 +43,10 @@ static inline vec3 v3_norm(vec3 a)
     float l = v3_len(a);
     return l > 0.0f ? v3_scale(a, 1.0f / l) : a;
 }
+/* The angle (radians, [0, pi]) between a and b, neither of length 0: atan2
+ * of |sin| and cos, exact for small angles, which acos of the normalized
+ * dot product rounds to 0 or 3.5e-4 radians in floats. */
+static inline float v3_angle(vec3 a, vec3 b) { return atan2f(v3_len(v3_cross(a, b)), v3_dot(a, b)); }
 static inline vec3 v3_min(vec3 a, vec3 b) { return v3(fminf(a.x, b.x), fminf(a.y, b.y), fminf(a.z, b.z)); }
 static inline vec3 v3_max(vec3 a, vec3 b) { return v3(fmaxf(a.x, b.x), fmaxf(a.y, b.y), fmaxf(a.z, b.z)); }
 static inline vec3 v3_lerp(vec3 a, vec3 b, float t) { return v3_add(a, v3_scale(v3_sub(b, a), t)); }

@@ -195,9 +195,7 @@ static float late_age(const ctex *c, const ct_sample *s, int32_t id, vec3 e0)
     if (!(gloss > 0.0f)) return 0.0f;
     vec3 d0 = v3_sub(s->hit, e0), d1 = v3_sub(s->hit, e1);
     if (!(v3_len2(d0) > 0.0f && v3_len2(d1) > 0.0f)) return INFINITY;
-    /* atan2 of |sin| and cos: exact for the small turns of a walk, where
-     * acos of a dot product rounds to 0 below about a thousandth of a radian */
-    float ang = atan2f(v3_len(v3_cross(d0, d1)), v3_dot(d0, d1));
+    float ang = v3_angle(d0, d1);
     if (!(gloss * ang <= c->o.late_deg * (float)(M_PI / 180.0))) return INFINITY;
     const ctex_tex *t = &c->slots[id].t;
     return c->o.age_brdf * gloss * ang * (float)(t->w > t->h ? t->w : t->h);

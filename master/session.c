@@ -1,4 +1,7 @@
-/* session.c: the master's engine (session.h). */
+/* session.c: the master's engine (session.h). About 600 lines: the sorting
+ * of a chunk (splats, refinement, late samples) and the side jobs that
+ * overlap its reports with the texel writes share the chunk's buffers and
+ * their ordering rules; split, each half would need the other's. */
 #include "master/session.h"
 
 #include <math.h>

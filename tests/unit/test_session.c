@@ -4,8 +4,10 @@
  * interactive image's item buffer; a live run (lockstep frames, two lanes,
  * two master threads) and an offline one (checkpoints, one lane, one
  * thread) of the same requests give the same textures; samples that hit
- * another node than the one shown get mismatch children. Cornell at 64x64
- * with the radiosity stand-in. */
+ * another node than the one shown get mismatch children; samples of views
+ * the camera left go in late (diffuse, same eye, aged). Cornell at 64x64
+ * with the radiosity stand-in. Over 600 lines: one module's tests, sharing
+ * the scene, tracer and port set up once. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdlib.h>

@@ -279,3 +279,19 @@ Test(vecmath, bounds)
     cr_assert_float_eq(b3_extent(rb).y, sqrtf(2.0f), 1e-6);
     cr_assert_float_eq(b3_extent(rb).z, 1.0f, 1e-6);
 }
+
+/* v3_angle holds small angles, which acos of the normalized dot product
+ * rounds to 0 or 3.5e-4 radians (aging and late samples rest on it:
+ * master/ctex_view.c, master/ctex_insert.c), and the large ones. */
+Test(vecmath, angle_exact_for_small_turns)
+{
+    const float small[] = {1e-6f, 1e-5f, 1e-4f, 3e-4f};
+    for (size_t i = 0; i < sizeof small / sizeof *small; i++) {
+        vec3 a = v3(0.0f, 0.0f, 3.0f), b = v3(3.0f * sinf(small[i]), 0.0f, 3.0f * cosf(small[i]));
+        float got = v3_angle(a, b);
+        cr_assert_float_eq(got, small[i], small[i] * 1e-3f, "angle %g: %g", (double)small[i], (double)got);
+    }
+    cr_assert_float_eq(v3_angle(v3(1, 0, 0), v3(0, 2, 0)), (float)(M_PI / 2), 1e-6f);
+    cr_assert_float_eq(v3_angle(v3(1, 0, 0), v3(-1, 0, 0)), (float)M_PI, 1e-6f);
+    cr_assert_eq(v3_angle(v3(1, 2, 3), v3(2, 4, 6)), 0.0f);
+}
