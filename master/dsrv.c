@@ -496,11 +496,12 @@ int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued)
     return 0;
 }
 
-void dsrv_drop(dsrv *s, uint32_t code, const char *text)
+bool dsrv_drop(dsrv *s, uint32_t code, const char *text)
 {
-    if (!s->disp) return;
-    chan_send_error(s->disp, code, text, 500);
+    if (!s->disp) return false;
+    bool told = chan_send_error(s->disp, code, text, 500) == 0;
     close_display(s, text);
+    return told;
 }
 
 void dsrv_bye(dsrv *s, uint32_t reason, int timeout_ms)

@@ -107,8 +107,10 @@ size_t dsrv_queued(const dsrv *s);
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);
 
-/* Drops the display after a best-effort ERROR (code, text). */
-void dsrv_drop(dsrv *s, uint32_t code, const char *text);
+/* Drops the display after a best-effort ERROR (code, text); true when the
+ * ERROR went out whole (chan_send_error), false when not or when no display
+ * was there. */
+bool dsrv_drop(dsrv *s, uint32_t code, const char *text);
 
 /* Sends BYE (reason) to the display and flushes within timeout_ms. */
 void dsrv_bye(dsrv *s, uint32_t reason, int timeout_ms);

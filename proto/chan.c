@@ -276,29 +276,39 @@ void chan_commit(chan *c, uint64_t frames)
     xport_queue_commit(c->q, frames);
 }
 
-void chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms)
+int chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms)
 {
     wire_msg m;
     wire_buf b = {0};
     wire_make_error(&m, code, text);
     if (c->closed || wire_encode(&m, &b, NULL) != 0) {
         wire_buf_free(&b);
-        return;
+        return -1;
     }
     /* Written directly, after the rest of a frame that is half sent, so
-     * framing stays intact and the ERROR comes early. */
+     * framing stays intact and the ERROR comes early; when that rest does
+     * not go out in time, the ERROR would land inside the frame: not sent. */
+    int rc = 0;
     if (c->ready) {
         size_t left = xport_queue_partial(c->q);
         struct iovec iov[1];
-        if (left && xport_queue_iov(c->q, iov, 1) == 1 && iov[0].iov_len >= left &&
-            xport_write_all(c->conn, iov[0].iov_base, left, timeout_ms, NULL) == 0)
-            xport_queue_advance(c->q, left);
+        if (left) {
+            rc = xport_queue_iov(c->q, iov, 1) == 1 && iov[0].iov_len >= left &&
+                         xport_write_all(c->conn, iov[0].iov_base, left, timeout_ms, NULL) == 0
+                     ? 0
+                     : -1;
+            if (!rc) xport_queue_advance(c->q, left);
+        }
     } else if (c->hs) {
         wire_buf *o = auth_hs_output(c->hs);
-        if (o->len && xport_write_all(c->conn, o->data, o->len, timeout_ms, NULL) == 0) wire_buf_consume(o, o->len);
+        if (o->len) {
+            rc = xport_write_all(c->conn, o->data, o->len, timeout_ms, NULL) == 0 ? 0 : -1;
+            if (!rc) wire_buf_consume(o, o->len);
+        }
     }
-    xport_write_all(c->conn, b.data, b.len, timeout_ms, NULL);
+    if (!rc) rc = xport_write_all(c->conn, b.data, b.len, timeout_ms, NULL) == 0 ? 0 : -1;
     wire_buf_free(&b);
+    return rc;
 }
 
 short chan_events(const chan *c)

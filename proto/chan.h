@@ -69,8 +69,11 @@ int chan_send(chan *c, const wire_msg *m, ct_error *err);
 wire_buf *chan_tail(chan *c, ct_error *err);
 void chan_commit(chan *c, uint64_t frames);
 
-/* Sends an ERROR (best effort, within timeout_ms) before the caller closes. */
-void chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms);
+/* Sends an ERROR (best effort, within timeout_ms) before the caller closes:
+ * 0 when it went out whole, -1 when not (the rest of a half-sent frame or
+ * the ERROR itself did not fit the peer's socket in time; then nothing of
+ * it was written inside a frame). */
+int chan_send_error(chan *c, uint32_t code, const char *text, int timeout_ms);
 
 /* poll() events the channel waits for: POLLIN, plus POLLOUT while bytes are queued. */
 short chan_events(const chan *c);

@@ -19,8 +19,13 @@ grep -q 'rank 1 .*exited on signal 9' "$tmp/job.log" || fail "mpirun did not nam
 # call at that moment it dies before it can tell the display. Then the display
 # still says clearly that the connection to the master was lost. Either way
 # the display's last error line names the master's address.
-if grep -q 'signal 15: shutting down' "$tmp/job.log"; then
-  grep -q 'MPI job is ending' "$tmp/display.log" || fail "the master shut down but the display did not show its message"
+# The master also says whether its warning went out: a display still
+# reading a full socket of texels for half a second is not told (seen once
+# under the sanitizers).
+if grep -q 'told the display the job is ending' "$tmp/job.log"; then
+  grep -q 'MPI job is ending' "$tmp/display.log" || fail "the master told the display but the display did not show its message"
+elif grep -q 'signal 15: shutting down' "$tmp/job.log"; then
+  echo "note: the master shut down but could not tell the display (its socket stayed full)"
 else
   echo "note: the master was killed by mpirun before it could warn the display"
 fi

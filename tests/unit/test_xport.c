@@ -734,6 +734,44 @@ Test(queue, a_display_that_stops_reading_fills_the_bounded_queue)
     free_chans(&p, l);
 }
 
+Test(queue, an_error_never_lands_inside_a_half_sent_frame)
+{
+    /* A display that stopped reading, its socket full, a TEX_PATCH half in
+     * it: an ERROR written now would land inside that frame. The master's
+     * chan_send_error gives up (-1) and writes none of it; once the display
+     * reads again, every patch arrives whole and in order. */
+    char spec[128];
+    pair p;
+    xport_listener *l;
+    ready_unix_chans(spec, sizeof spec, &p, &l);
+    ct_error err = {{0}};
+    static uint16_t s[64 * 64 * 3];
+    const int n = 200;   /* 4.9 MB: far over a socket's buffer */
+    for (int i = 1; i <= n; i++) {
+        wire_msg m = patch(1, 0, 0, 64, 64, (float)i, s);
+        cr_assert_eq(chan_send(p.m, &m, &err), 0, "%s", err.msg);
+        chan_pump(p.m, &err);
+    }
+    cr_assert_eq(chan_send_error(p.m, WIRE_ERR_INTERNAL, "the job is ending", 50), -1);
+    int got = 0;
+    for (int t = 0; t < 200000 && got < n; t++) {
+        cr_assert_geq(chan_pump(p.m, &err), 0, "%s", err.msg);
+        cr_assert_geq(chan_pump(p.d, &err), 0, "%s", err.msg);
+        wire_msg m;
+        int rc;
+        while ((rc = chan_recv(p.d, &m, &err)) == WIRE_OK) {
+            cr_assert_eq(m.type, WIRE_TEX_PATCH, "message %d: type %u", got + 1, (unsigned)m.type);
+            got++;
+            cr_assert_eq(wire_half_to_float(m.u.tex_patch.texels[0]), (float)got, "patch %d out of order", got);
+        }
+        cr_assert_geq(rc, 0, "%s", err.msg);
+    }
+    cr_assert_eq(got, n);
+    /* with the socket drained the ERROR goes out whole */
+    cr_assert_eq(chan_send_error(p.m, WIRE_ERR_INTERNAL, "the job is ending", 500), 0);
+    free_chans(&p, l);
+}
+
 /* --- blocking helpers: a master thread and a display using chan_connect ------------- */
 
 #include <pthread.h>
@@ -854,7 +892,7 @@ Test(xport, oversized_frame_after_handshake)
     snprintf(want, sizeof want, "%s (pid %d): SCENE_CHUNK body length 2147483647 over the limit %zu", spec,
              (int)getpid(), wire_max_body(WIRE_SCENE_CHUNK));
     cr_assert_str_eq(err.msg, want);
-    chan_send_error(m, WIRE_ERR_PROTOCOL, err.msg, 500);
+    cr_assert_eq(chan_send_error(m, WIRE_ERR_PROTOCOL, err.msg, 500), 0);
     /* The raw client reads our HELLO, then the ERROR with the reason. */
     uint8_t buf[1024];
     size_t got = read_hello_and_frame(cli, buf, sizeof buf);
