@@ -561,6 +561,18 @@ static sess *first_batch_traced(ct_sample *smp, int *k)
     return first_batch_traced_co(smp, k, ctex_options_default());
 }
 
+/* The hits among k samples and those of them on diffuse surfaces; some
+ * must be glossy. */
+static void count_hits(sess *s, const ct_sample *smp, int k, uint32_t *hits, uint32_t *diffuse)
+{
+    *hits = *diffuse = 0;
+    for (int i = 0; i < k; i++) {
+        *hits += (smp[i].flags & CT_SAMPLE_HIT) != 0;
+        *diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
+    }
+    cr_assert(*diffuse < *hits, "%u of %u hits on diffuse surfaces: no glossy ones to test", *diffuse, *hits);
+}
+
 /* Samples traced for a view the camera has left: those on diffuse surfaces
  * are splatted into the new view's textures (late), the others (the
  * mirror and glass spheres with --late-deg 0, misses) are dropped (stale);
@@ -613,12 +625,8 @@ Test(session, late_samples_from_the_same_eye_go_in)
     static ct_sample smp[W * H];
     int k;
     sess *s = first_batch_traced(smp, &k);
-    uint32_t hits = 0, diffuse = 0;
-    for (int i = 0; i < k; i++) {
-        hits += (smp[i].flags & CT_SAMPLE_HIT) != 0;
-        diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
-    }
-    cr_assert(diffuse < hits, "%u of %u hits on diffuse surfaces: no glossy ones to test", diffuse, hits);
+    uint32_t hits, diffuse;
+    count_hits(s, smp, k, &hits, &diffuse);
     /* turn by a degree about the vertical: same eye */
     ct_camera turned = cam;
     turned.orient = q_normalize(q_mul(q_axis_angle(v3(0, 1, 0), 0.0175f), cam.orient));
@@ -650,12 +658,8 @@ Test(session, late_glossy_samples_go_in_aged_from_a_near_eye)
         co.late_deg = cases[c].late_deg;
         int k;
         sess *s = first_batch_traced_co(smp, &k, co);
-        uint32_t hits = 0, diffuse = 0;
-        for (int i = 0; i < k; i++) {
-            hits += (smp[i].flags & CT_SAMPLE_HIT) != 0;
-            diffuse += ctex_view_independent(sess_textures(s), &smp[i]);
-        }
-        cr_assert(diffuse < hits, "%u of %u hits on diffuse surfaces: no glossy ones to test", diffuse, hits);
+        uint32_t hits, diffuse;
+        count_hits(s, smp, k, &hits, &diffuse);
         ct_camera moved = cam;
         moved.eye.x += cases[c].step;
         cr_assert_eq(sess_set_view(s, &moved, W, H, &err), 1, "%s", err.msg);

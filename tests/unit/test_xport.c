@@ -697,6 +697,28 @@ Test(queue, bounded)
     xport_queue_free(q);
 }
 
+/* Pumps both ends until the display has received `sent` patches, each a
+ * whole TEX_PATCH whose first texel is its number (mod 2048), in order. */
+static void receive_patches_in_order(pair *p, int sent)
+{
+    ct_error err = {{0}};
+    int got = 0;
+    for (int t = 0; t < 200000 && got < sent; t++) {
+        cr_assert_geq(chan_pump(p->m, &err), 0, "%s", err.msg);
+        cr_assert_geq(chan_pump(p->d, &err), 0, "%s", err.msg);
+        wire_msg m;
+        int rc;
+        while ((rc = chan_recv(p->d, &m, &err)) == WIRE_OK) {
+            cr_assert_eq(m.type, WIRE_TEX_PATCH, "message %d: type %u", got + 1, (unsigned)m.type);
+            got++;
+            cr_assert_eq(wire_half_to_float(m.u.tex_patch.texels[0]), (float)(got % 2048), "patch %d out of order",
+                         got);
+        }
+        cr_assert_geq(rc, 0, "%s", err.msg);
+    }
+    cr_assert_eq(got, sent);
+}
+
 Test(queue, a_display_that_stops_reading_fills_the_bounded_queue)
 {
     /* Over a socket: the kernel buffer fills, then the queue, whose bound
@@ -718,19 +740,7 @@ Test(queue, a_display_that_stops_reading_fills_the_bounded_queue)
     }
     cr_assert(full, "the queue (64 MiB) never filled");
     cr_assert_leq(chan_queue_stats(p.m).bytes, CHAN_DEFAULT_QUEUE_BYTES);
-    int got = 0;
-    float last = 0;
-    for (int t = 0; t < 200000 && got < sent; t++) {
-        chan_pump(p.m, &err);
-        chan_pump(p.d, &err);
-        wire_msg m;
-        while (chan_recv(p.d, &m, &err) == WIRE_OK) {
-            got++;
-            last = wire_half_to_float(m.u.tex_patch.texels[0]);
-            cr_assert_eq(last, (float)(got % 2048), "patch %d out of order", got);
-        }
-    }
-    cr_assert_eq(got, sent);
+    receive_patches_in_order(&p, sent);
     free_chans(&p, l);
 }
 
@@ -753,20 +763,7 @@ Test(queue, an_error_never_lands_inside_a_half_sent_frame)
         chan_pump(p.m, &err);
     }
     cr_assert_eq(chan_send_error(p.m, WIRE_ERR_INTERNAL, "the job is ending", 50), -1);
-    int got = 0;
-    for (int t = 0; t < 200000 && got < n; t++) {
-        cr_assert_geq(chan_pump(p.m, &err), 0, "%s", err.msg);
-        cr_assert_geq(chan_pump(p.d, &err), 0, "%s", err.msg);
-        wire_msg m;
-        int rc;
-        while ((rc = chan_recv(p.d, &m, &err)) == WIRE_OK) {
-            cr_assert_eq(m.type, WIRE_TEX_PATCH, "message %d: type %u", got + 1, (unsigned)m.type);
-            got++;
-            cr_assert_eq(wire_half_to_float(m.u.tex_patch.texels[0]), (float)got, "patch %d out of order", got);
-        }
-        cr_assert_geq(rc, 0, "%s", err.msg);
-    }
-    cr_assert_eq(got, n);
+    receive_patches_in_order(&p, n);
     /* with the socket drained the ERROR goes out whole */
     cr_assert_eq(chan_send_error(p.m, WIRE_ERR_INTERNAL, "the job is ending", 500), 0);
     free_chans(&p, l);
