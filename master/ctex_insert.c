@@ -162,18 +162,24 @@ static int32_t locate_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_in
     return id;
 }
 
+/* The ex of sample s's splat on texture t (slot id): from hint when that
+ * was computed on the same texture at the same size (bit for bit what
+ * ctex_splat_ex_at gives here); 1 (square rings) without --splat-aniso. */
+static float splat_ex(const ctex *c, const ctex_tex *t, int32_t id, const ct_sample *s, const ex_hint *hint)
+{
+    if (!c->o.splat_aniso) return 1.0f;
+    return hint && hint->id == id && hint->w == t->w && hint->h == t->h ? hint->ex : ctex_splat_ex_at(c, t, s->hit);
+}
+
 /* Splats sample s into texture id (its owner); 1 when splatted, 0 when it
- * lies off the texture. ex comes from hint when that was computed on the
- * same texture at the same size (bit for bit what splat_ex gives here). */
+ * lies off the texture (ex: splat_ex). */
 static int insert_at(ctex *c, const ct_sample *s, int32_t id, ctex_insert_info *info, const ex_hint *hint, int defer)
 {
     int ci, cj;
     if (locate_at(c, s, id, info, &ci, &cj) < 0) return 0;
     ctex_tex *t = &c->slots[id].t;
     vec3 dl = ctex_tex_mix(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius);
-    float ex = 1.0f;
-    if (c->o.splat_aniso)
-        ex = hint && hint->id == id && hint->w == t->w && hint->h == t->h ? hint->ex : ctex_splat_ex_at(c, t, s->hit);
+    float ex = splat_ex(c, t, id, s, hint);
     int r = ex == 1.0f ? ctex_tex_splat(t, ci, cj, dl, c->o.blend, c->o.splat_max)
                        : ctex_tex_splat_aniso(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex);
     info->radius = r;
@@ -197,8 +203,7 @@ static float late_age(const ctex *c, const ct_sample *s, int32_t id, vec3 e0)
     if (!(v3_len2(d0) > 0.0f && v3_len2(d1) > 0.0f)) return INFINITY;
     float ang = v3_angle(d0, d1);
     if (!(gloss * ang <= c->o.late_deg * (float)(M_PI / 180.0))) return INFINITY;
-    const ctex_tex *t = &c->slots[id].t;
-    return c->o.age_brdf * gloss * ang * (float)(t->w > t->h ? t->w : t->h);
+    return ctex_brdf_age(c, &c->slots[id].t, gloss, ang);
 }
 
 /* Splats late sample s, traced from eye e0, into texture id (its owner): as
@@ -214,9 +219,7 @@ static int late_at(ctex *c, const ct_sample *s, int32_t id, vec3 e0, ctex_insert
     int ci, cj;
     if (!(age < INFINITY) || locate_at(c, s, id, info, &ci, &cj) < 0) return 0;
     ctex_tex *t = &c->slots[id].t;
-    float ex = 1.0f;
-    if (c->o.splat_aniso)
-        ex = hint && hint->id == id && hint->w == t->w && hint->h == t->h ? hint->ex : ctex_splat_ex_at(c, t, s->hit);
+    float ex = splat_ex(c, t, id, s, hint);
     vec3 dl = ctex_tex_mix_aged(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius, age);
     int r = ctex_tex_splat_late(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex, age);
     if (r < 0) {

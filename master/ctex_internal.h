@@ -86,6 +86,15 @@ int ctex_make_room(ctex *c, size_t need);
  * insertion: only notes it). ctex_insert.c. */
 void ctex_adapt_resolution(ctex *c, uint32_t id, int r, int defer);
 
+/* §3.5's BRDF term in texels of texture t: age_brdf x glossiness x the
+ * change of the viewing direction (radians) x the texture's longer side.
+ * Aging on a camera change (ctex_view.c) and a late sample's age
+ * (ctex_insert.c) both use it. */
+static inline float ctex_brdf_age(const ctex *c, const ctex_tex *t, float gloss, float ang)
+{
+    return c->o.age_brdf * gloss * ang * (float)(t->w > t->h ? t->w : t->h);
+}
+
 /* The leaf a hit belongs to: its part's leaf, or for a part split into
  * clusters the leaf of its triangle (or, when the triangle is unknown, the
  * cluster whose bounds are nearest to the hit point). -1 when none. */

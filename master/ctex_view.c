@@ -239,7 +239,7 @@ static float age_offset(const ctex *c, const slot *s, vec3 e0)
          * (v3_angle: acos of the dot product rounded every step under
          * 3.5e-4 radians, a millimetre seen from 3 m, to 0 or 3.5e-4) */
         float ang = v3_angle(d0, d1);
-        off += c->o.age_brdf * n->gloss * ang * (float)(s->t.w > s->t.h ? s->t.w : s->t.h);
+        off += ctex_brdf_age(c, &s->t, n->gloss, ang);
     }
     if (s->t.kind == CTEX_PROJ_CAMERA) {
         /* texture flow: (depth range / distance) x camera motion in pixels,

@@ -263,9 +263,9 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
             } else {
                 /* Stopped: the camera moved on, or the job ends. On a camera
                  * change what was traced goes back all the same: the master
-                 * keeps the samples still right for the new view (late
-                 * samples: diffuse surfaces, or an eye that has not moved)
-                 * and drops the others. A display
+                 * keeps them (late samples: as new ones on diffuse
+                 * surfaces or from an unmoved eye, aged where glossy) unless
+                 * too stale, and drops the others. A display
                  * moving its camera every frame changes the view faster than
                  * a batch takes: answered empty, nearly all tracing was lost
                  * (docs/distributed.md, "Camera changes"). */

@@ -129,6 +129,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "error bench_late: --size takes 16-4096, --ref-spp and --unit positive values\n");
         return 2;
     }
+    if (b.late_deg != -1.0f && !(b.late_deg >= 0.0f && b.late_deg <= 180.0f)) {
+        fprintf(stderr, "error bench_late: --late-deg takes 0-180 degrees\n");
+        return 2;
+    }
     ct_error err;
     if (scene_load(pos[0], &b.scene, &err)) { fprintf(stderr, "error bench_late: %s\n", err.msg); return 1; }
     if (b.late_deg < 0.0f) b.late_deg = ctex_options_default().late_deg;

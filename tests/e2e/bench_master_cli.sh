@@ -3,8 +3,9 @@
 # scene: corrtex converge records the pixels and then refinement samples
 # (--refine-error), tests/bench/bench_master replays every one of them
 # (its row counts them all; the replay fails if the master hands out a
-# request the recording lacks); bad options of bench_master and of
-# scripts/bench-refine exit 2 with one error line.
+# request the recording lacks); tests/bench/bench_late prints its row; bad
+# options of bench_master, bench_late and scripts/bench-refine exit 2 with
+# one error line.
 source "$(dirname "$0")/lib/common.sh"
 cd "$root" || exit 1
 bench=${CORRTEX_BUILD:-build/release}/bench/bench_master
@@ -34,6 +35,19 @@ bad() {
 }
 bad "refine-error" "$bench" "${view[@]}" --record "$tmp/rec.srec" --refine-error -1
 bad "refine-error" "$bench" "${view[@]}" --record "$tmp/rec.srec" --refine-error often
+# tests/bench/bench_late (docs/textures.md, "Late samples"): one row a step,
+# and its bad arguments
+late=${CORRTEX_BUILD:-build/release}/bench/bench_late
+echo "+ $late tests/data/scenes/mini.json front - --size 16 --ref-spp 1 --steps 0.01"
+out=$("$late" tests/data/scenes/mini.json front - --size 16 --ref-spp 1 --steps 0.01 2>"$tmp/lerr") ||
+  { cat "$tmp/lerr"; fail "bench_late failed"; }
+echo "$out" | tail -n 1
+[[ $(grep -c '^| 0.01 |' <<<"$out") == 1 ]] || fail "bench_late printed no row for its step"
+bad "--size" "$late" tests/data/scenes/mini.json front - --size big
+bad "--size" "$late" tests/data/scenes/mini.json front - --size 8
+bad "--steps" "$late" tests/data/scenes/mini.json front - --steps "0.01 -1"
+bad "--late-deg" "$late" tests/data/scenes/mini.json front - --late-deg 200
+bad "usage" "$late" tests/data/scenes/mini.json front
 bad "--bogus" scripts/bench-refine --bogus
 bad "--size" scripts/bench-refine --size big
 ((fails)) && exit 1
