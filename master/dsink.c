@@ -36,6 +36,8 @@ int dsink_new(const dsink_config *c, dsink **out, ct_error *err)
     dsync_options_default(&so, strncmp(dsrv_addr(c->ds), "tcp:", 4) == 0);
     if (c->patch_encoding >= 0) so.encoding = (uint32_t)c->patch_encoding;
     if (c->display_texels >= 0) so.screen_rate = c->display_texels == 1;
+    so.interval_s = c->patch_s;
+    so.share = c->patch_share;
     int rc = dsync_new(&so, &k->sync, err);
     if (rc) {
         free(k);
@@ -198,9 +200,9 @@ int dsink_ack(dsink *k, uint64_t seq, ct_error *err)
     return dsync_ack(k->sync, seq, ct_now(), err);
 }
 
-bool dsink_can_update(const dsink *k)
+bool dsink_update_due(const dsink *k, double now)
 {
-    return dsync_can_send(k->sync);
+    return dsync_due(k->sync, now);
 }
 
 int dsink_update(dsink *k, sess *s, ct_error *err)

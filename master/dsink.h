@@ -30,6 +30,8 @@ typedef struct dsink_config {
     size_t queue_bytes;         /* the display's send queue bound; SAMPLES only while a quarter is free */
     int patch_encoding;         /* wire_patch_enc of TEX_PATCH, or -1: by transport (dsync.h) */
     int display_texels;         /* 1: at most one texel a screen pixel (dsync_options.screen_rate), 0: all, -1: by transport */
+    double patch_s;             /* free running: updates at most this often (s; dsync_options.interval_s) */
+    double patch_share;         /* and within this share of the master's time (dsync_options.share) */
 } dsink_config;
 
 typedef struct dsink dsink;
@@ -59,8 +61,9 @@ int dsink_ack(dsink *k, uint64_t seq, ct_error *err);
  * points collected before it). */
 int dsink_update(dsink *k, sess *s, ct_error *err);
 
-/* Whether a free-running update may be sent now. */
-bool dsink_can_update(const dsink *k);
+/* Whether a free-running update is due at `now` (ct_now's clock): the ACKs
+ * allow one and the pacing (patch_s, patch_share) has passed. */
+bool dsink_update_due(const dsink *k, double now);
 
 /* The frame in progress belongs to a display that left: it ends without
  * FRAME. */

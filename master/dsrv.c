@@ -35,6 +35,7 @@ struct dsrv {
     chan *disp;          /* the active display */
     char disp_peer[XPORT_ADDR_LEN];
     uint64_t sent_closed;   /* bytes sent on connections already closed */
+    double t_io;            /* seconds in the display's reads and writes */
     dsrv_event ev[MAX_EVENTS];
     int ev_head, ev_n;
     uint64_t evicted;       /* handshakes dropped for newcomers, not yet logged */
@@ -156,6 +157,11 @@ bool dsrv_has_display(const dsrv *s)
 const char *dsrv_peer(const dsrv *s)
 {
     return s->disp ? s->disp_peer : "";
+}
+
+double dsrv_io_seconds(const dsrv *s)
+{
+    return s->t_io;
 }
 
 uint64_t dsrv_bytes_sent(const dsrv *s)
@@ -405,7 +411,11 @@ int dsrv_step(dsrv *s, int timeout_ms, ct_error *err)
     log_evictions(s);
     for (int i = 0; i < s->npend;)
         if (!service_pending(s, i)) i++;
-    if (s->disp) service_display(s);
+    if (s->disp) {
+        double t0 = ct_now();
+        service_display(s);
+        s->t_io += ct_now() - t0;
+    }
     return 0;
 }
 

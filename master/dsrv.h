@@ -107,6 +107,10 @@ size_t dsrv_queued(const dsrv *s);
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);
 
+/* Seconds dsrv_step spent in the display's socket reads and writes since
+ * the start (not in waiting for it). */
+double dsrv_io_seconds(const dsrv *s);
+
 /* Drops the display after a best-effort ERROR (code, text); true when the
  * ERROR went out whole (chan_send_error), false when not or when no display
  * was there. */

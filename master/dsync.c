@@ -10,6 +10,7 @@
 
 #include "common/grow.h"
 #include "common/half.h"
+#include "common/timer.h"
 #include "master/ctex_tex.h"
 #include "proto/wire.h"
 
@@ -22,6 +23,8 @@ struct dsync {
     double sent_at[WINDOW_MAX];     /* by seq % WINDOW_MAX: when it was sent */
     size_t sent_bytes[WINDOW_MAX];  /* and its texel bytes */
     double rate;                    /* texel bytes/s acknowledged, smoothed (0: unknown) */
+    double next_due;                /* when the next free-running update may start (ct_now) */
+    double io_mark;                 /* dsrv_io_seconds at the last update (< 0: none yet) */
     size_t budget;
     uint32_t cur_tex;               /* where the next update resumes its scan */
     int cur_row;
@@ -51,10 +54,16 @@ void dsync_options_default(dsync_options *o, bool tcp)
     o->target_ms = 40.0;
     o->min_bytes = 64u << 10;
     o->max_bytes = 32u << 20;
+    o->interval_s = 0.010;
+    o->share = 0.25;
 }
 
 int dsync_new(const dsync_options *o, dsync **out, ct_error *err)
 {
+    *out = NULL;
+    if (!(o->share > 0.0 && o->share <= 1.0) || !(o->interval_s >= 0.0))
+        return ct_fail(err, CT_EINVAL, "display sync: update pacing out of range (interval %g s, share %g)",
+                       o->interval_s, o->share);
     dsync *d = calloc(1, sizeof *d);
     if (!d) return ct_fail(err, CT_ENOMEM, "display sync: out of memory");
     d->o = *o;
@@ -77,6 +86,8 @@ void dsync_reset(dsync *d)
 {
     d->seq = d->acked = 0;
     d->rate = 0.0;
+    d->next_due = 0.0;   /* a new display's first update goes at once */
+    d->io_mark = -1.0;
     /* A first update of 1 MiB: about 80 ms on a 100 Mbit/s link, a few
      * milliseconds on a UNIX socket; the rate measured from its ACK sizes
      * the next ones. */
@@ -90,6 +101,11 @@ void dsync_reset(dsync *d)
 void dsync_set_epoch(dsync *d, uint32_t epoch)
 {
     d->disp_epoch = epoch;
+}
+
+bool dsync_due(const dsync *d, double now)
+{
+    return now >= d->next_due && dsync_can_send(d);
 }
 
 bool dsync_can_send(const dsync *d)
@@ -334,6 +350,23 @@ static int send_tiles(dsync *d, dsrv *ds, ctex *tex, size_t budget, size_t *sent
 
 /* --- updates ---------------------------------------------------------------- */
 
+/* Why a share and not only an interval: a master that the tracers saturate
+ * splats every few milliseconds into tiles it sent a moment ago, and an
+ * update every 10 ms re-sent them again and again (the saturation replay in
+ * rounds of 256: 530 MB to the display where rounds of 4,096 sent 124 MB;
+ * docs/benchmarks.md, "Master: saturation"). Updates that cost little, as
+ * on a master with time to spare, still go every interval. An update's
+ * socket writes follow its encoding, so the writes counted with an update
+ * are mostly the previous one's bytes. */
+static void pace(dsync *d, dsrv *ds, double t0)
+{
+    double io = dsrv_io_seconds(ds), cost = ct_now() - t0;
+    if (d->io_mark >= 0.0 && io > d->io_mark) cost += io - d->io_mark;
+    d->io_mark = io;
+    double by_share = t0 + cost / d->o.share, by_interval = t0 + d->o.interval_s;
+    d->next_due = by_share > by_interval ? by_share : by_interval;
+}
+
 int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_error *err)
 {
     if (!dsrv_has_display(ds) || !dsync_can_send(d)) return 0;
@@ -351,6 +384,7 @@ int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_
     d->seq++;
     d->sent_at[d->seq % WINDOW_MAX] = now;
     d->sent_bytes[d->seq % WINDOW_MAX] = sent;
+    pace(d, ds, now);
     return 1;
 }
 

@@ -5,7 +5,8 @@
  * every texel goes out at most once per update), encoded straight into the
  * display's send queue, and closed by SYNC n. Free running, a new update is
  * made only while fewer than `window` are unacknowledged (the display ACKs
- * n once it has applied update n), and its size follows the rate at which
+ * n once it has applied update n), at most every interval and within a
+ * share of the master's time (dsync_due), and its size follows the rate at which
  * the display acknowledged the last ones: the display's pace sets what is
  * sent, never how fast the master samples. Lockstep frames take every
  * unsent tile before their FRAME. Owns the dsync_ prefix. */
@@ -31,6 +32,13 @@ typedef struct dsync_options {
      * (docs/protocol.md, "Texels at the display's rate"); false: every
      * texture as the master keeps it. */
     bool screen_rate;
+    /* Free running, the next update is due interval_s after the last one
+     * started and once the updates have had at most `share` (0-1] of the
+     * master's time: an update that cost t (its encoding and the socket
+     * writes since the one before) holds the next until t / share after its
+     * start (dsync_due). */
+    double interval_s;
+    double share;
 } dsync_options;
 
 /* What was sent (dsync_stats). */
@@ -45,9 +53,11 @@ typedef struct dsync_stats {
 typedef struct dsync dsync;
 
 /* The defaults: LZ4 and at most one texel a screen pixel on TCP, raw and
- * every texel on a UNIX socket (docs/protocol.md). */
+ * every texel on a UNIX socket (docs/protocol.md); an update at most every
+ * 10 ms and within a quarter of the master's time. */
 void dsync_options_default(dsync_options *o, bool tcp);
 
+/* CT_EINVAL for a share outside (0, 1] or a negative interval. */
 int dsync_new(const dsync_options *o, dsync **out, ct_error *err);
 void dsync_free(dsync *d);
 
@@ -64,9 +74,11 @@ int dsync_send_state(dsync *d, dsrv *ds, ctex *tex, uint32_t *ntex, ct_error *er
 void dsync_set_epoch(dsync *d, uint32_t epoch);
 
 /* Free running: when the window allows, sends one update (events, tiles
- * within the budget, SYNC) stamped `now_us` on the master's clock. Returns
- * 1 when one was sent, 0 when none was due, negative on failure (a display
- * that fails is dropped by dsrv, which is not a failure). */
+ * within the budget, SYNC) stamped `now_us` on the master's clock; `now` is
+ * ct_now() at the call (the pacing counts from it). Returns 1 when one was
+ * sent, 0 when none was due, negative on failure (a display that fails is
+ * dropped by dsrv, which is not a failure). The caller asks dsync_due
+ * first; this checks only the window. */
 int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_error *err);
 
 /* Lockstep: sends the events and every unsent tile now (no SYNC; FRAME
@@ -77,8 +89,12 @@ int dsync_flush_all(dsync *d, dsrv *ds, ctex *tex, uint32_t *patches, ct_error *
  * number never sent. */
 int dsync_ack(dsync *d, uint64_t seq, double now, ct_error *err);
 
-/* Whether an update may be sent now (free running). */
+/* Whether the window allows an update now (free running). */
 bool dsync_can_send(const dsync *d);
+
+/* Whether an update is due at `now` (ct_now's clock): the window allows
+ * one and the pacing of dsync_options (interval, share) has passed. */
+bool dsync_due(const dsync *d, double now);
 
 dsync_stats dsync_get_stats(const dsync *d);
 

@@ -26,6 +26,9 @@ static const int DISPLAY_TEXELS[] = {0, 1, -1};
 static const optab OPTS[] = {
     {"patch-ms", 0, OPTAB_DOUBLE, OF(patch_ms), 0, 10000, "10", "X",
      "free-running: shortest interval of texture updates to the display (ms)", NULL},
+    {"patch-share", 0, OPTAB_DOUBLE, OF(patch_share), 0.0001, 1, "0.25", "X",
+     "free-running: the most of the master's time texture updates may take; the next waits until then (1: every "
+     "--patch-ms)", NULL},
     {"stats-s", 0, OPTAB_DOUBLE, OF(stats_s), 0.05, 3600, "1", "X", "interval of the stats line and STATS message (s)",
      NULL},
     {"handshake-ms", 0, OPTAB_INT, OF(handshake_ms), 10, 600000, "5000", "N",
@@ -74,7 +77,7 @@ typedef struct loop {
     double view_t0;
     bool view_covered;
     double covered_logged;   /* when a coverage line was last logged at info level */
-    double t_tex, t_sample_wait, t_render_wait, t_mark, last_patch, last_stats, tex_mark;
+    double t_tex, t_sample_wait, t_render_wait, t_mark, last_stats, tex_mark;
     uint64_t bytes_mark;
     uint64_t *lane_mark;
 } loop;
@@ -312,10 +315,7 @@ static int turn(loop *l, int *busy, int *leave, ct_error *err)
                    now - l->view_t0, (unsigned long long)sess_get_counters(l->s).inserted);
         }
     }
-    if (!l->lockstep && now - l->last_patch >= o->patch_ms / 1000.0 && dsink_can_update(l->dk)) {
-        if ((rc = dsink_update(l->dk, l->s, err))) return rc;
-        l->last_patch = now;
-    }
+    if (!l->lockstep && dsink_update_due(l->dk, now) && (rc = dsink_update(l->dk, l->s, err))) return rc;
     if (now - l->last_stats >= o->stats_s) {
         stats(l, now);
         l->last_stats = now;
@@ -337,7 +337,8 @@ int sched_run(const sched_config *c, ct_error *err)
     if (!rc) rc = dsrv_new(&dc, &l.ds, err);
     if (!rc) {
         dsink_config kc = {l.ds, c->mesh, c->scene, c->opt.send_timeout_ms, c->opt.queue_mb << 20,
-                           c->opt.patch_encoding, c->opt.display_texels};
+                           c->opt.patch_encoding, c->opt.display_texels, c->opt.patch_ms / 1000.0,
+                           c->opt.patch_share};
         rc = dsink_new(&kc, &l.dk, err);
     }
     if (!rc) {
@@ -350,7 +351,7 @@ int sched_run(const sched_config *c, ct_error *err)
     /* A line scripts can wait for. */
     fprintf(stdout, "corrtex-render: listening on %s\n", dsrv_addr(l.ds));
     fflush(stdout);
-    l.t_mark = l.last_patch = l.last_stats = ct_now();
+    l.t_mark = l.last_stats = ct_now();
     int leave = 0, busy = 1;
     while (!leave && !(c->stop && *c->stop) && !(rc = turn(&l, &busy, &leave, err))) {
     }

@@ -26,6 +26,7 @@
 /* Tunables of the display side and the loop's pace (sched_options_table). */
 typedef struct sched_options {
     double patch_ms;            /* free-running: interval between texture updates to the display */
+    double patch_share;         /* free-running: the most of the master's time the updates may take */
     double stats_s;             /* interval of the stats line and STATS message */
     int handshake_ms;           /* a display must finish its handshake within this */
     int send_timeout_ms;        /* a display whose full queue does not drain for this long is dropped */

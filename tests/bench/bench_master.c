@@ -45,6 +45,7 @@ typedef struct opts {
     const char *camera, *record;
     int width, height, threads, batch;
     float stand_in, refine_error;
+    double patch_share;
     bool header;
     bool pop_ahead;
 } opts;
@@ -62,6 +63,8 @@ static const optab OPTS[] = {
      "the recording run's --pop-ahead (each round popped ahead of the last one's reports)", NULL},
     {"refine-error", 0, OPTAB_FLOAT, OF(refine_error), 0, 1e6, "0", "E",
      "the recording run's --refine-error (refinement past full coverage recorded too)", NULL},
+    {"patch-share", 0, OPTAB_DOUBLE, OF(patch_share), 0.0001, 1, "0.25", "X",
+     "corrtex-render's --patch-share (the most of the master's time texture updates may take)", NULL},
     {"header", 0, OPTAB_FLAG, OF(header), 0, 0, NULL, NULL, "print the table header first", NULL},
 };
 #undef OF
@@ -246,7 +249,7 @@ int main(int argc, char **argv)
     if (!rc) rc = tport_replay_new(rec, nrec, 1, &port, &err);
     /* a generous send timeout: on a loaded machine the display child may
      * wait for a core */
-    dsink_config kc = {b.ds, &mesh, scene, 120000, (size_t)64 << 20, -1, -1};
+    dsink_config kc = {b.ds, &mesh, scene, 120000, (size_t)64 << 20, -1, -1, 0.010, o.patch_share};
     if (!rc) rc = dsink_new(&kc, &b.dk, &err);
     drv_options dopt = {.window = 1, .batch_min = 1, .batch_max = 65536, .batch_ms = 20, .round = o.batch,
                         .pop_ahead = o.pop_ahead};
@@ -262,7 +265,7 @@ int main(int argc, char **argv)
         if (!rc) rc = dsrv_step(b.ds, 10, &err);
         if (!rc) rc = events(&b, &err);
     }
-    double t0 = ct_now(), c0 = cpu_s(), last_update = 0;
+    double t0 = ct_now(), c0 = cpu_s();
     uint64_t bytes0 = b.ds ? dsrv_bytes_sent(b.ds) : 0;
     double t_tex0 = sess_get_counters(b.s).t_texture, t_next0 = sess_get_counters(b.s).t_next,
            t_ahead0 = sess_get_counters(b.s).t_ahead;
@@ -281,11 +284,8 @@ int main(int argc, char **argv)
         if (!rc) rc = drv_step(b.d, &err) < 0 ? CT_EIO : 0;
         double now = ct_now();
         t_drv += now - m;
-        /* free-running updates at corrtex-render's --patch-ms, paced by the ACKs */
-        if (!rc && now - last_update >= 0.010 && dsink_can_update(b.dk)) {
-            rc = dsink_update(b.dk, b.s, &err);
-            last_update = now;
-        }
+        /* free-running updates paced as corrtex-render's (--patch-ms 10) and by the ACKs */
+        if (!rc && dsink_update_due(b.dk, now)) rc = dsink_update(b.dk, b.s, &err);
         t_disp += ct_now() - now + (m - a);
     }
     double wall = ct_now() - t0, cpu = cpu_s() - c0;

@@ -20,8 +20,9 @@
 # - a new image size with every other camera is paced the same, and a
 #   costly change holds the next for a second at most;
 # - the job then still serves a display (a frame of the still view), and
-#   bad values of both options end the job with status 2 and one line
-#   naming the option, as scripts/bench-camera-rate's bad arguments do.
+#   bad values of both options (and of --late-deg and --patch-share, the
+#   texture updates' share) end the job with status 2 and one line naming
+#   the option, as scripts/bench-camera-rate's bad arguments do.
 source "$(dirname "$0")/lib/mpi.sh"
 flood="$root/${CORRTEX_BUILD:-build/release}/tools/camera_flood"
 need_programs "$flood"
@@ -129,9 +130,11 @@ if T=5 flood capped 2048 64 --view-ms 0 --view-share 0.0001; then
   master_term capped
 fi
 
-# Bad values: one line naming the option, exit 2, before any work.
+# Bad values (the master's pacing of camera changes and of texture
+# updates): one line naming the option, exit 2, before any work.
 i=0
-for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5" "--late-deg 181"; do
+for bad in "--view-ms -1" "--view-ms soon" "--view-share 0" "--view-share 1.5" "--late-deg 181" "--patch-share 0" \
+  "--patch-share 2"; do
   i=$((i + 1))
   # shellcheck disable=SC2086
   master_start "bad$i" 2 "${CORNELL[@]}" $bad

@@ -4,7 +4,8 @@
  * samples are inserted meanwhile; texels changed several times between two
  * updates go out once (newest wins); an update holds about its budget and
  * the next one resumes where it stopped; lockstep sends everything at once;
- * an ACK of an update never sent is a protocol error. */
+ * an ACK of an update never sent is a protocol error; free-running updates
+ * keep to their interval and their share of the master's time. */
 #include <criterion/criterion.h>
 #include <poll.h>
 #include <pthread.h>
@@ -427,4 +428,72 @@ Test(dsync, dense_textures_go_at_the_screens_rate)
     cr_assert_gt(halved[0], 0, "no texture went at half size");
     cr_assert_eq(halved[1], 0, "without screen_rate %d textures were halved", halved[1]);
     cr_expect_lt(bytes[0], bytes[1], "halving sent no fewer bytes");
+}
+
+/* Free running, an update is due once the interval has passed and once the
+ * updates have had at most their share of the time: one that cost t (its
+ * encoding, and the display's socket reads and writes since the one
+ * before) holds the next until t / share after it started. Checked against
+ * bounds of that cost measured around the calls, so no sleep is needed. */
+Test(dsync, updates_keep_to_their_interval_and_share)
+{
+    dsync_options o;
+    dsync_options_default(&o, false);
+    cr_assert(o.interval_s > 0.0 && o.share > 0.0 && o.share < 1.0, "defaults: an interval and a share");
+    o.interval_s = 0.0;
+    o.share = 0.5;
+    rig r;
+    setup(&r, &o);
+    ct_error err;
+    cr_assert(dsync_due(r.sync, ct_now()), "a new display's first update goes at once");
+    insert(&r, 2000, 31);
+    double t0 = ct_now();
+    cr_assert_eq(dsync_update(r.sync, r.ds, r.tex, t0, ct_now_us(), &err), 1, "%s", err.msg);
+    double t1 = ct_now();
+    /* the first update's cost is its encoding, at most t1 - t0 */
+    cr_assert_not(dsync_due(r.sync, t0 + 0.999 * (t1 - t0)), "due before its cost / share");
+    cr_assert(dsync_due(r.sync, t0 + (t1 - t0) / o.share + 1e-9), "not due after the bound");
+    /* The socket's work counts with the next update. */
+    double io0 = dsrv_io_seconds(r.ds);
+    pump(&r, true, 20);
+    insert(&r, 5, 32);   /* a small update: most of its cost is the socket's */
+    double io1 = dsrv_io_seconds(r.ds);
+    cr_assert_gt(io1, io0, "the display's socket work is timed");
+    double t2 = ct_now();
+    cr_assert(dsync_due(r.sync, t2));
+    cr_assert_eq(dsync_update(r.sync, r.ds, r.tex, t2, ct_now_us(), &err), 1, "%s", err.msg);
+    double t3 = ct_now(), io2 = dsrv_io_seconds(r.ds);
+    printf("metric: second update: encoding at most %.0f us, socket %.0f us before it\n", 1e6 * (t3 - t2),
+           1e6 * (io1 - io0));
+    cr_assert_not(dsync_due(r.sync, t2 + 0.999 * (io1 - io0) / o.share), "the socket's time was not counted");
+    cr_assert(dsync_due(r.sync, t2 + (t3 - t2 + io2 - io0) / o.share + 1e-9), "not due after the bound");
+    /* Share 1 and an interval: the interval alone paces (the window allows
+     * two updates in flight). */
+    dsync_free(r.sync);
+    o.share = 1.0;
+    o.interval_s = 3600.0;
+    cr_assert_eq(dsync_new(&o, &r.sync, &err), 0, "%s", err.msg);
+    uint32_t ntex;
+    cr_assert_eq(dsync_send_state(r.sync, r.ds, r.tex, &ntex, &err), 0, "%s", err.msg);
+    double t4 = ct_now();
+    cr_assert_eq(dsync_update(r.sync, r.ds, r.tex, t4, ct_now_us(), &err), 1, "%s", err.msg);
+    cr_assert_not(dsync_due(r.sync, t4 + 3599.0));
+    cr_assert(dsync_due(r.sync, t4 + 3600.0));
+    teardown(&r);
+}
+
+Test(dsync, pacing_out_of_range_is_refused)
+{
+    const double bad[][2] = {{0.01, 0.0}, {0.01, 1.5}, {0.01, -0.25}, {-1.0, 0.25}};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        dsync_options o;
+        dsync_options_default(&o, false);
+        o.interval_s = bad[i][0];
+        o.share = bad[i][1];
+        dsync *d = (dsync *)1;
+        ct_error err;
+        cr_assert_eq(dsync_new(&o, &d, &err), CT_EINVAL, "interval %g share %g", bad[i][0], bad[i][1]);
+        cr_assert_null(d);
+        cr_assert(strstr(err.msg, "pacing"), "%s", err.msg);
+    }
 }
