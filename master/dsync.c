@@ -358,12 +358,17 @@ static int send_tiles(dsync *d, dsrv *ds, ctex *tex, size_t budget, size_t *sent
  * on a master with time to spare, still go every interval. An update's
  * socket writes follow its encoding, so the writes counted with an update
  * are mostly the previous one's bytes. */
+#define MAX_HOLD_S 1.0
 static void pace(dsync *d, dsrv *ds, double t0)
 {
     double io = dsrv_io_seconds(ds), cost = ct_now() - t0;
     if (d->io_mark >= 0.0 && io > d->io_mark) cost += io - d->io_mark;
     d->io_mark = io;
-    double by_share = t0 + cost / d->o.share, by_interval = t0 + d->o.interval_s;
+    /* A costly update (a new display's whole state, a slow socket) holds
+     * the next for a second at most: the display stays current. */
+    double hold = cost / d->o.share;
+    if (hold > MAX_HOLD_S) hold = MAX_HOLD_S;
+    double by_share = t0 + hold, by_interval = t0 + d->o.interval_s;
     d->next_due = by_share > by_interval ? by_share : by_interval;
 }
 

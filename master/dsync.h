@@ -36,7 +36,7 @@ typedef struct dsync_options {
      * started and once the updates have had at most `share` (0-1] of the
      * master's time: an update that cost t (its encoding and the socket
      * writes since the one before) holds the next until t / share after its
-     * start (dsync_due). */
+     * start, a second at most (dsync_due). */
     double interval_s;
     double share;
 } dsync_options;

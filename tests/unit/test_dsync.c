@@ -467,13 +467,24 @@ Test(dsync, updates_keep_to_their_interval_and_share)
            1e6 * (io1 - io0));
     cr_assert_not(dsync_due(r.sync, t2 + 0.999 * (io1 - io0) / o.share), "the socket's time was not counted");
     cr_assert(dsync_due(r.sync, t2 + (t3 - t2 + io2 - io0) / o.share + 1e-9), "not due after the bound");
+    /* The smallest share holds the next update a second at most. */
+    pump(&r, true, 20);
+    dsync_free(r.sync);
+    o.share = 1e-9;
+    cr_assert_eq(dsync_new(&o, &r.sync, &err), 0, "%s", err.msg);
+    uint32_t ntex;
+    cr_assert_eq(dsync_send_state(r.sync, r.ds, r.tex, &ntex, &err), 0, "%s", err.msg);
+    double t5 = ct_now();
+    cr_assert_eq(dsync_update(r.sync, r.ds, r.tex, t5, ct_now_us(), &err), 1, "%s", err.msg);
+    cr_assert_not(dsync_due(r.sync, t5 + 0.99));
+    cr_assert(dsync_due(r.sync, t5 + 1.0), "held past a second");
+    pump(&r, true, 20);
     /* Share 1 and an interval: the interval alone paces (the window allows
      * two updates in flight). */
     dsync_free(r.sync);
     o.share = 1.0;
     o.interval_s = 3600.0;
     cr_assert_eq(dsync_new(&o, &r.sync, &err), 0, "%s", err.msg);
-    uint32_t ntex;
     cr_assert_eq(dsync_send_state(r.sync, r.ds, r.tex, &ntex, &err), 0, "%s", err.msg);
     double t4 = ct_now();
     cr_assert_eq(dsync_update(r.sync, r.ds, r.tex, t4, ct_now_us(), &err), 1, "%s", err.msg);
