@@ -105,8 +105,12 @@ typedef struct ctex_insert_info {
     vec3 correction;   /* ΔL read at the hit before the splat (bilinear, as displayed) */
     vec3 error;        /* E = l_hq - (l_base + ΔL), §3.7 (ΔL = 0 when dropped) */
     int32_t tex;       /* texture it went into, -1 when dropped */
-    int radius;        /* splat radius r (texels) */
+    int radius;        /* splat radius r (texels); a late sample dropped for its turn: CTEX_LATE_TURNED */
 } ctex_insert_info;
+
+/* ctex_insert_info.radius of a late sample whose viewing direction turned
+ * by more than --late-deg times its glossiness (ctex_insert_late_par). */
+#define CTEX_LATE_TURNED (-1)
 
 /* A primary hit per pixel for the compositor: node = UINT32_MAX for a miss. */
 typedef struct ctex_hit {

@@ -217,7 +217,11 @@ static int late_at(ctex *c, const ct_sample *s, int32_t id, vec3 e0, ctex_insert
     float age = late_age(c, s, id, e0);
     if (age == 0.0f) return insert_at(c, s, id, info, hint, defer);
     int ci, cj;
-    if (!(age < INFINITY) || locate_at(c, s, id, info, &ci, &cj) < 0) return 0;
+    if (!(age < INFINITY)) {
+        info->radius = CTEX_LATE_TURNED;
+        return 0;
+    }
+    if (locate_at(c, s, id, info, &ci, &cj) < 0) return 0;
     ctex_tex *t = &c->slots[id].t;
     float ex = splat_ex(c, t, id, s, hint);
     vec3 dl = ctex_tex_mix_aged(t, ci, cj, v3_sub(s->l_hq, s->l_base), c->slots[id].mix, c->o.mix_radius, age);

@@ -424,6 +424,8 @@ static void refine_write(sess *s, chunk *c)
         for (uint32_t j = 0; j < c->nl; j++) {
             if (c->winfo[j].tex < 0) {
                 s->n.stale++;
+                if (c->winfo[j].radius == CTEX_LATE_TURNED) s->n.late_turned++;
+                else s->n.late_lost++;
                 continue;
             }
             count(s, &c->late[j], &c->winfo[j]);

@@ -637,6 +637,13 @@ Test(session, late_samples_from_the_same_eye_go_in)
     /* every hit but those on parts the turned view does not texture */
     cr_assert_gt(n.late, diffuse, "late %llu: no more than the %u diffuse", (unsigned long long)n.late, diffuse);
     cr_assert_geq(n.late, hits * 9 / 10, "%llu of %u hits went in", (unsigned long long)n.late, hits);
+    /* every sample of the view just left is kept as late and none has
+     * turned: the stale ones are those that wrote nothing, the misses among
+     * them */
+    cr_assert_eq(n.late_turned, 0u);
+    cr_assert_eq(n.late_lost, n.stale, "%llu of %llu stale wrote nothing", (unsigned long long)n.late_lost,
+                 (unsigned long long)n.stale);
+    cr_assert_geq(n.late_lost, (uint64_t)k - hits);
     sess_free(s);
 }
 
@@ -670,13 +677,25 @@ Test(session, late_glossy_samples_go_in_aged_from_a_near_eye)
         if (cases[c].glossy_in) {
             cr_assert_geq(n.late, hits * 9 / 10, "step %g: %llu of %u hits went in", (double)cases[c].step,
                           (unsigned long long)n.late, hits);
+            cr_assert_eq(n.late_turned, 0u, "step %g: %llu turned", (double)cases[c].step,
+                         (unsigned long long)n.late_turned);
         } else {
             cr_assert_leq(n.late, diffuse, "step %g, --late-deg %g: %llu late, %u diffuse", (double)cases[c].step,
                           (double)cases[c].late_deg, (unsigned long long)n.late, diffuse);
             /* (some diffuse parts leave the textures of a view 400 mm away) */
             cr_assert_geq(n.late, diffuse / 2, "step %g: %llu of %u diffuse went in", (double)cases[c].step,
                           (unsigned long long)n.late, diffuse);
+            /* the glossy ones were dropped, most for their turn */
+            printf("metric: step %g, --late-deg %g: %llu stale, %llu of them turned, %u glossy hits\n",
+                   (double)cases[c].step, (double)cases[c].late_deg, (unsigned long long)n.stale,
+                   (unsigned long long)n.late_turned, hits - diffuse);
+            cr_assert_leq(n.late_turned, hits - diffuse);
+            /* --late-deg 0: every glossy hit that has a texture turned; 400
+             * mm away, those turned past 10 degrees x their glossiness */
+            if (cases[c].late_deg == 0.0f) cr_assert_geq(n.late_turned, (hits - diffuse) * 9 / 10);
+            else cr_assert_gt(n.late_turned, 0u);
         }
+        cr_assert_eq(n.late_turned + n.late_lost, n.stale, "a view just left: every stale one was kept as late");
         sess_free(s);
     }
 }
