@@ -58,7 +58,12 @@ flood() {
   [[ -n ${n1:-} ]] || { fail "$name: no stats line after the flood"; return 1; }
   INSERTED=$((n1 - ${n0:-0})) LATE=$((l1 - ${l0:-0})) STALE=$((s1 - ${s0:-0})) VIEWS=$((v1 - ${v0:-0}))
   VIEW_MS=$(awk -v a="${m0:-0}" -v b="$m1" 'BEGIN { printf "%.1f", b - a }')
-  echo "metric: $name: $CAMERAS cameras in $T s ($RATE a second), the master took $VIEWS ($VIEW_MS ms in all), inserted $INSERTED samples ($LATE late), $STALE stale"
+  # of the stale, the glossy ones whose viewing direction turned too far
+  local tre='s/.* stale, \([0-9]*\) of them turned past --late-deg,.*/\1/p' t0 t1
+  t0=$(sed -n "$tre" <<<"$before") t1=$(sed -n "$tre" <<<"$after")
+  [[ -n $t1 ]] || { fail "$name: no turned count in the stats line"; return 1; }
+  TURNED=$((t1 - ${t0:-0}))
+  echo "metric: $name: $CAMERAS cameras in $T s ($RATE a second), the master took $VIEWS ($VIEW_MS ms in all), inserted $INSERTED samples ($LATE late), $STALE stale ($TURNED turned)"
 }
 
 if flood paced 128 0; then
@@ -88,7 +93,7 @@ fi
 # (docs/textures.md, "Late samples") where --late-deg 0 drops them as
 # stale, as the builds before session 43 did.
 if RATE=200 SWING=10 flood aged 128 0 --view-ms 0 --view-share 1; then
-  aged_late=$LATE aged_stale=$STALE
+  aged_late=$LATE aged_stale=$STALE aged_turned=$TURNED
   master_term aged
   if RATE=200 SWING=10 flood dropped 128 0 --view-ms 0 --view-share 1 --late-deg 0; then
     echo "metric: a swaying eye: stale $aged_stale of $((aged_late + aged_stale)) late samples aged, $STALE of $((LATE + STALE)) with --late-deg 0"
@@ -99,6 +104,10 @@ if RATE=200 SWING=10 flood aged 128 0 --view-ms 0 --view-share 1; then
     # they go in (9 %): at most three quarters as many stale per sample.
     ((aged_stale * 4 * (LATE + STALE) <= 3 * STALE * (aged_late + aged_stale))) ||
       fail "aged: $aged_stale of $((aged_late + aged_stale)) late samples stale, $STALE of $((LATE + STALE)) with --late-deg 0"
+    # The difference is the glossy samples: turned past --late-deg 0, and
+    # (a sway of a few hundredths of a degree) next to none past 10.
+    ((TURNED >= 500)) || fail "dropped: only $TURNED of $STALE stale samples counted as turned with --late-deg 0"
+    ((aged_turned * 20 <= TURNED)) || fail "aged: $aged_turned samples turned past --late-deg 10, $TURNED past 0"
     master_term dropped
   fi
 fi
