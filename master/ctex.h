@@ -105,12 +105,15 @@ typedef struct ctex_insert_info {
     vec3 correction;   /* ΔL read at the hit before the splat (bilinear, as displayed) */
     vec3 error;        /* E = l_hq - (l_base + ΔL), §3.7 (ΔL = 0 when dropped) */
     int32_t tex;       /* texture it went into, -1 when dropped */
-    int radius;        /* splat radius r (texels); a late sample dropped for its turn: CTEX_LATE_TURNED */
+    int radius;        /* splat radius r (texels); a late sample that wrote nothing: why (CTEX_LATE_*) */
 } ctex_insert_info;
 
-/* ctex_insert_info.radius of a late sample whose viewing direction turned
- * by more than --late-deg times its glossiness (ctex_insert_late_par). */
+/* ctex_insert_info.radius of a late sample that wrote nothing
+ * (ctex_insert_late_par): its viewing direction turned by more than
+ * --late-deg times its glossiness, or its centre texel holds a fresher
+ * sample; 0 when its hit has no texture now. */
 #define CTEX_LATE_TURNED (-1)
+#define CTEX_LATE_COVERED (-2)
 
 /* A primary hit per pixel for the compositor: node = UINT32_MAX for a miss. */
 typedef struct ctex_hit {

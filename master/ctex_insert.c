@@ -228,6 +228,7 @@ static int late_at(ctex *c, const ct_sample *s, int32_t id, vec3 e0, ctex_insert
     int r = ctex_tex_splat_late(t, ci, cj, dl, c->o.blend, c->o.splat_max, ex, age);
     if (r < 0) {
         info->tex = -1;
+        info->radius = CTEX_LATE_COVERED;
         return 0;
     }
     info->radius = r;

@@ -251,12 +251,12 @@ static void stats(loop *l, double now)
     /* Idle intervals only at debug level: a waiting master would fill the log. */
     ct_log(sum || bps > 0 ? CT_LOG_INFO : CT_LOG_DEBUG, COMPONENT,
            "stats: %.0f samples/s (%s), total %llu (%llu without texture, %llu late), %llu stale, %llu of them turned "
-           "past --late-deg, %llu unwritten, queue %llu, "
+           "past --late-deg, %llu under fresher texels, %llu off the textures, queue %llu, "
            "coverage %.1f%%%s, textures %u (%.1f MiB), display %.1f KB/s, render:sample:texture %.0f:%.0f:%.0f, busy "
            "%.0f%%, %d master thread%s, %llu node mismatches, views %llu (%.1f ms in all, %llu shown-node maps)%s",
            sum / dt, per_rank, (unsigned long long)n.inserted, (unsigned long long)n.no_texture,
            (unsigned long long)n.late, (unsigned long long)n.stale, (unsigned long long)n.late_turned,
-           (unsigned long long)n.late_lost,
+           (unsigned long long)n.late_covered, (unsigned long long)n.late_off,
            (unsigned long long)rs.queued,
            100.0 * rs.coverage, refining, ts.textures, ts.bytes / 1048576.0, bps / 1000.0, 100 * br, 100 * bs, 100 * bt, 100 * (tot > 1 ? 1 : tot),
            sess_threads(l->s), sess_threads(l->s) == 1 ? "" : "s", (unsigned long long)rs.mismatches,

@@ -424,8 +424,10 @@ static void refine_write(sess *s, chunk *c)
         for (uint32_t j = 0; j < c->nl; j++) {
             if (c->winfo[j].tex < 0) {
                 s->n.stale++;
-                if (c->winfo[j].radius == CTEX_LATE_TURNED) s->n.late_turned++;
-                else s->n.late_lost++;
+                int why = c->winfo[j].radius;
+                if (why == CTEX_LATE_TURNED) s->n.late_turned++;
+                else if (why == CTEX_LATE_COVERED) s->n.late_covered++;
+                else s->n.late_off++;
                 continue;
             }
             count(s, &c->late[j], &c->winfo[j]);

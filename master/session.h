@@ -67,9 +67,10 @@ typedef struct sess_counters {
     uint64_t inserted;     /* samples inserted (splatted or not) */
     uint64_t no_texture;   /* ... of them without a texture (a miss, culled, off its texture) */
     uint64_t late;         /* samples of an older view splatted all the same (diffuse surfaces, the same eye, or aged; counted in inserted) */
-    uint64_t stale;        /* samples of an older view, ignored (too old a view, late_turned, late_lost) */
+    uint64_t stale;        /* samples of an older view, ignored (too old a view, or the three below) */
     uint64_t late_turned;  /* ... of them glossy, their viewing direction turned past --late-deg x glossiness */
-    uint64_t late_lost;    /* ... of them writing nothing: no texture at their hit now (misses too), or a fresher texel at their centre */
+    uint64_t late_covered; /* ... of them finding a fresher sample's texel at their centre */
+    uint64_t late_off;     /* ... of them with no texture at their hit now (misses, parts this view does not texture) */
     uint64_t rejected;     /* samples the request queue refused (logged) */
     bool all_positive;     /* every correction so far was >= 0 (the display may skip pass 3) */
     double t_texture;      /* seconds in insertion and view changes */
