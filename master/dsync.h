@@ -6,9 +6,9 @@
  * display's send queue, and closed by SYNC n. Free running, a new update is
  * made only while fewer than `window` are unacknowledged (the display ACKs
  * n once it has applied update n), at most every interval and within a
- * share of the master's time (dsync_due), and its size follows the rate at which
- * the display acknowledged the last ones: the display's pace sets what is
- * sent, never how fast the master samples. Lockstep frames take every
+ * share of the master's time (dsync_due), and its size follows the rate at
+ * which the display acknowledged the last ones: the display's pace sets
+ * what is sent, never how fast the master samples. Lockstep frames take every
  * unsent tile before their FRAME. Owns the dsync_ prefix. */
 #ifndef CT_MASTER_DSYNC_H
 #define CT_MASTER_DSYNC_H
