@@ -35,6 +35,7 @@ bad() {
 }
 bad "refine-error" "$bench" "${view[@]}" --record "$tmp/rec.srec" --refine-error -1
 bad "refine-error" "$bench" "${view[@]}" --record "$tmp/rec.srec" --refine-error often
+bad "patch-share" "$bench" "${view[@]}" --record "$tmp/rec.srec" --patch-share 0
 # tests/bench/bench_late (docs/textures.md, "Late samples"): one row a step,
 # and its bad arguments
 late=${CORRTEX_BUILD:-build/release}/bench/bench_late
