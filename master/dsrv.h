@@ -107,8 +107,8 @@ size_t dsrv_queued(const dsrv *s);
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);
 
-/* Seconds dsrv_step spent in the display's socket reads and writes since
- * the start (not in waiting for it). */
+/* CPU seconds dsrv_step spent in the display's socket reads and writes
+ * since the start (not in waiting for it). */
 double dsrv_io_seconds(const dsrv *s);
 
 /* Drops the display after a best-effort ERROR (code, text); true when the

@@ -34,9 +34,9 @@ typedef struct dsync_options {
     bool screen_rate;
     /* Free running, the next update is due interval_s after the last one
      * started and once the updates have had at most `share` (0-1] of the
-     * master's time: an update that cost t (its encoding and the socket
-     * writes since the one before) holds the next until t / share after its
-     * start, a second at most (dsync_due). */
+     * master's time: an update that cost t (the CPU time of its encoding
+     * and of the socket's reads and writes since the one before) holds the
+     * next until t / share after its start, a second at most (dsync_due). */
     double interval_s;
     double share;
 } dsync_options;
