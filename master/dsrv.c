@@ -412,14 +412,14 @@ int dsrv_step(dsrv *s, int timeout_ms, ct_error *err)
     log_evictions(s);
     for (int i = 0; i < s->npend;)
         if (!service_pending(s, i)) i++;
-    /* Timed (a system call each way) only when the socket had bytes to
-     * move: the master steps thousands of times a second, mostly idle. */
-    if (s->disp && di >= 0 && fds[di].revents) {
-        double t0 = ct_thread_cpu();
+    if (s->disp) {
+        /* Timed (a system call each way) only when the socket had bytes to
+         * move: the master steps thousands of times a second, mostly idle.
+         * (di < 0: the display was promoted from a handshake just now.) */
+        bool timed = di >= 0 && fds[di].revents;
+        double t0 = timed ? ct_thread_cpu() : 0.0;
         service_display(s);
-        s->t_io += ct_thread_cpu() - t0;
-    } else if (s->disp) {
-        service_display(s);
+        if (timed) s->t_io += ct_thread_cpu() - t0;
     }
     return 0;
 }
