@@ -71,6 +71,24 @@ int campath_from_keys(const campath_key *keys, int n, vec3 up, const char *origi
     return CT_OK;
 }
 
+/* The whitespace-separated numbers of s into v (at most max); -1 when a
+ * word is not a number or there are more than max (with sscanf a fov of
+ * 'abc' ended the scan and left the default fov in place). */
+static int numbers(const char *s, float *v, int max)
+{
+    int n = 0;
+    for (;;) {
+        while (isspace((unsigned char)*s)) s++;
+        if (!*s) return n;
+        if (n == max) return -1;
+        char *end;
+        v[n] = strtof(s, &end);   /* (nan and inf parse: validate() names them) */
+        if (end == s || (*end && !isspace((unsigned char)*end))) return -1;
+        n++;
+        s = end;
+    }
+}
+
 int campath_parse(const char *text, const char *origin, ct_campath *out, ct_error *err)
 {
     memset(out, 0, sizeof *out);
@@ -95,24 +113,27 @@ int campath_parse(const char *text, const char *origin, ct_campath *out, ct_erro
         while (isspace((unsigned char)*s)) s++;
         if (!*s) continue;
         if (strncmp(s, "up", 2) == 0 && isspace((unsigned char)s[2])) {
-            char extra[2];
-            if (sscanf(s + 2, "%f %f %f %1s", &up.x, &up.y, &up.z, extra) != 3) {
+            float u[3];
+            if (numbers(s + 2, u, 3) != 3) {
                 rc = ct_fail(err, CT_EPARSE, "%s:%d: expected 'up ux uy uz'", origin, lineno);
                 break;
             }
+            up = v3(u[0], u[1], u[2]);
             up_line = lineno;
             continue;
         }
         campath_key k;
-        char extra[2];
-        k.fov_deg = 45.0f;
-        int got = sscanf(s, "%f %f %f %f %f %f %f %f %1s", &k.t, &k.eye.x, &k.eye.y, &k.eye.z,
-                         &k.target.x, &k.target.y, &k.target.z, &k.fov_deg, extra);
+        float f[8];
+        int got = numbers(s, f, 8);
         if (got != 7 && got != 8) {
             rc = ct_fail(err, CT_EPARSE,
                          "%s:%d: expected 't ex ey ez tx ty tz [fov]' (7 or 8 numbers)", origin, lineno);
             break;
         }
+        k.t = f[0];
+        k.eye = v3(f[1], f[2], f[3]);
+        k.target = v3(f[4], f[5], f[6]);
+        k.fov_deg = got == 8 ? f[7] : 45.0f;
         if (n >= CAMPATH_MAX_KEYS) {
             rc = ct_fail(err, CT_ERANGE, "%s: more than %d keyframes", origin, CAMPATH_MAX_KEYS);
             break;
@@ -138,8 +159,14 @@ int campath_parse(const char *text, const char *origin, ct_campath *out, ct_erro
 int campath_load(const char *path, ct_campath *out, ct_error *err)
 {
     char *text;
-    int rc = fs_read_all(path, CAMPATH_MAX_BYTES, &text, NULL, err);
+    size_t len;
+    int rc = fs_read_all(path, CAMPATH_MAX_BYTES, &text, &len, err);
     if (rc) return rc;
+    /* a NUL would end the text early: what follows it would go unread */
+    if (memchr(text, '\0', len)) {
+        free(text);
+        return ct_fail(err, CT_EPARSE, "%s: contains a NUL byte (not a text file?)", path);
+    }
     rc = campath_parse(text, path, out, err);
     free(text);
     return rc;

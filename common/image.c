@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -596,4 +597,12 @@ int img_read_png(const char *path, ct_image *img, ct_error *err)
     for (size_t i = 0; i < n; i++) img->px[i] = lut[buf[i]];
     free(buf);
     return CT_OK;
+}
+
+img_file_kind img_file_kind_of(const char *path)
+{
+    size_t n = strlen(path);
+    if (n > 4 && !strcasecmp(path + n - 4, ".exr")) return IMG_FILE_EXR;
+    if (n > 4 && !strcasecmp(path + n - 4, ".png")) return IMG_FILE_PNG;
+    return IMG_FILE_OTHER;
 }

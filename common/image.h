@@ -57,6 +57,12 @@ void img_tonemap_n(const float *linear, float *out, size_t n);
  * above): how much a linear error moves what a viewer sees there. */
 float img_tonemap_slope(float linear);
 
+/* The image format a file name asks for by its extension (any case):
+ * IMG_FILE_EXR (.exr), IMG_FILE_PNG (.png), else IMG_FILE_OTHER. The tools
+ * check it before they work, so that x.png never holds an EXR. */
+typedef enum img_file_kind { IMG_FILE_OTHER = 0, IMG_FILE_EXR, IMG_FILE_PNG } img_file_kind;
+img_file_kind img_file_kind_of(const char *path);
+
 /* Writes an 8-bit sRGB PNG of img scaled by 2^exposure, atomically. */
 int img_write_png(const char *path, const ct_image *img, float exposure, ct_error *err);
 

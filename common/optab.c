@@ -33,8 +33,13 @@ static int whole(const optab *r, void *base, const char *v, ct_error *err)
     if (r->type == OPTAB_LONG) *(long *)field(base, r) = (long)s;
     else *(int *)field(base, r) = (int)s;
     return 1;
-bad:
-    return ct_fail(err, CT_EINVAL, "--%s: '%s' is not an integer in [%.17g, %.17g]", r->name, v, r->lo, r->hi);
+bad:;
+    /* integers as integers: 2^64 - 1 printed as a double read 1.8446744073709552e+19 */
+    char lo[32], hi[32];
+    snprintf(lo, sizeof lo, "%.0f", r->lo);
+    if (r->hi >= 18446744073709551615.0) snprintf(hi, sizeof hi, "18446744073709551615");
+    else snprintf(hi, sizeof hi, "%.0f", r->hi);
+    return ct_fail(err, CT_EINVAL, "--%s: '%s' is not an integer in [%s, %s]", r->name, v, lo, hi);
 }
 
 /* The k-th word of "a|b|c" and its length in *len, or NULL past the last. */

@@ -2,6 +2,7 @@
  * (assimp). The format is specified in docs/scene-format.md. Over 600 lines
  * on purpose: one parser of one file format, every key checked where it is
  * read, with the error naming the file and the key. */
+#include "common/mesh_precheck.h"
 #include "common/fsutil.h"
 #include "common/hash.h"
 #include "common/log.h"
@@ -124,6 +125,16 @@ static int check_albedo(loader *L, vec3 c, const char *ctx, const char *key)
     return CT_OK;
 }
 
+/* Emission above this is refused: with coordinates up to CT_COORD_MAX an
+ * emitter's power then stays finite in float (1e38 per channel passed the
+ * JSON checks, and the radiosity solve wrote an infinite mesh and image). */
+#define EMISSION_MAX 1e9f
+
+static bool emission_ok(vec3 e)
+{
+    return e.x >= 0 && e.y >= 0 && e.z >= 0 && e.x <= EMISSION_MAX && e.y <= EMISSION_MAX && e.z <= EMISSION_MAX;
+}
+
 /* --- materials ------------------------------------------------------------- */
 
 static int parse_material(loader *L, const cJSON *j, const char *name, scene_material *m)
@@ -142,6 +153,7 @@ static int parse_material(loader *L, const cJSON *j, const char *name, scene_mat
     if ((rc = get_vec3(L, j, "emission", ctx, 0, v3s(0), &m->emission))) return rc;
     if (m->emission.x < 0 || m->emission.y < 0 || m->emission.z < 0)
         return bad(L, ctx, "'emission' must not be negative");
+    if (!emission_ok(m->emission)) return bad(L, ctx, "'emission' above 1e9");
 
     const cJSON *phong = cJSON_GetObjectItemCaseSensitive(j, "phong");
     const cJSON *ward = cJSON_GetObjectItemCaseSensitive(j, "ward");
@@ -194,8 +206,11 @@ static int parse_material(loader *L, const cJSON *j, const char *name, scene_mat
     return CT_OK;
 }
 
-/* MTL (and other assimp formats) to corrtex materials; docs/scene-format.md. */
-static scene_material convert_ai_material(const struct aiMaterial *am, const char *name)
+/* MTL (and other assimp formats) to corrtex materials; docs/scene-format.md.
+ * A value that is not a finite number (Kd nan, Ke 1e39 past float's range)
+ * or an emission past EMISSION_MAX is an error naming file and material. */
+static int convert_ai_material(const struct aiMaterial *am, const char *name, const char *file, scene_material *out,
+                               ct_error *err)
 {
     scene_material m = scene_material_default(name);
     struct aiColor4D c;
@@ -211,6 +226,11 @@ static scene_material convert_ai_material(const struct aiMaterial *am, const cha
     aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ni, &one);
     one = 1;
     aiGetMaterialFloatArray(am, AI_MATKEY_OPACITY, &d, &one);
+    if (!v3_finite(kd) || !v3_finite(ks) || !v3_finite(ke) || !v3_finite(tf) || !isfinite(ns) || !isfinite(ni) ||
+        !isfinite(d))
+        return ct_fail(err, CT_EPARSE, "%s: material '%s' has a value that is not a finite number", file, name);
+    if (!emission_ok(v3_max(ke, v3s(0))))
+        return ct_fail(err, CT_EPARSE, "%s: material '%s': emission above %g", file, name, (double)EMISSION_MAX);
     int illum = -1;
     one = 1;
     aiGetMaterialIntegerArray(am, "$mat.illum", 0, 0, &illum, &one);
@@ -244,7 +264,8 @@ static scene_material convert_ai_material(const struct aiMaterial *am, const cha
         float dm = v3_maxc(m.diffuse);
         if (dm > 0.0f) m.diffuse = v3_scale(m.diffuse, room / dm);
     }
-    return m;
+    *out = m;
+    return CT_OK;
 }
 
 /* --- assimp file I/O hook: every file assimp reads goes into the hash ------ */
@@ -428,7 +449,9 @@ static int resolve_material(mesh_ctx *C, unsigned ai_index)
         snprintf(mname, sizeof mname, "material%u", ai_index);
     int idx = scene_find_material(C->L->s, mname);
     if (idx < 0) {
-        scene_material m = convert_ai_material(am, mname);
+        scene_material m;
+        int rc = convert_ai_material(am, mname, C->file, &m, C->L->err);
+        if (rc) return rc;
         idx = scene_add_material(C->L->s, &m, C->L->err);
     }
     if (idx >= 0) C->matmap[ai_index] = idx;
@@ -551,6 +574,7 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     size_t size;
     if ((rc = fs_open_regular(full, &probe, &size, L->err))) return rc;
     fclose(probe);
+    if ((rc = mesh_precheck(full, size, L->err))) return rc;
 
     struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
     const struct aiScene *ai = aiImportFileEx(full, aiProcess_ValidateDataStructure, &io);
@@ -630,6 +654,7 @@ static int import_lights(loader *L, const cJSON *lights)
             if ((rc = get_vec3(L, l, "emission", ctx, 1, v3s(0), &em))) return rc;
             if (em.x < 0 || em.y < 0 || em.z < 0 || v3_maxc(em) <= 0.0f)
                 return bad(L, ctx, "'emission' must be non-negative and not all zero");
+            if (!emission_ok(em)) return bad(L, ctx, "'emission' above 1e9");
             char mname[SCENE_NAME_LEN];
             snprintf(mname, sizeof mname, "light:%s", lname);
             scene_material m = scene_material_default(mname);
@@ -668,6 +693,14 @@ static int import_cameras(loader *L, const cJSON *cams)
         if ((rc = get_vec3(L, c, "target", ctx, 1, v3s(0), &target))) return rc;
         if ((rc = get_vec3(L, c, "up", ctx, 0, v3(0, 1, 0), &up))) return rc;
         if ((rc = get_num(L, c, "fov", ctx, 0, 45.0f, &fov))) return rc;
+        /* (a zero up, or one along the view, left the camera's roll to
+         * chance; scene_add_camera names eyes and targets out of range) */
+        vec3 view = v3_sub(target, eye);
+        if (v3_in_range(eye) && v3_in_range(target) &&
+            (!(v3_len2(up) > 0.0f) ||
+             (v3_len2(view) > 0.0f && !(v3_len2(v3_cross(v3_norm(view), v3_norm(up))) > 1e-12f))))
+            return ct_fail(L->err, CT_EPARSE, "%s: camera '%s': 'up' is zero or along the view direction", L->path,
+                           name);
         if ((rc = scene_add_camera(L->s, name, eye, target, up, fov, L->err))) {
             ct_error_prefix(L->err, L->path);
             return rc;

@@ -20,7 +20,7 @@ int app_try_connect(app *a, ct_error *err)
 {
     /* 3 s for connect + handshake: a master answers at once or not at all,
      * and a reconnecting display must not freeze for long. */
-    disp_client_opts co = {a->o->connect, a->o->token_file, (uint32_t)a->o->samples_per_frame, 3000};
+    disp_client_opts co = {a->o->connect, a->o->token_file, (uint32_t)a->o->samples_per_frame, 3000, 0};
     int rc = disp_client_connect(&co, a->cache, a->inbox, &a->client, err);
     if (rc) return rc;
     a->cam_sent = false;

@@ -41,7 +41,7 @@ struct disp_capture {
     char dir[2048];
     char ref_dir[2048];
     bool has_ref;
-    ct_image ref_one;   /* one reference for every frame (ref_dir unused) */
+    ct_image ref_one;   /* one reference for every frame (ref_dir: its file) */
     metrics_ref *ref_prep; /* ref_one prepared: a frame's comparison tone-maps only the frame */
     bool images;
     float exposure;
@@ -73,6 +73,7 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
             free(c);
             return rc;
         }
+        snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref);   /* (its name, for messages) */
         c->has_ref = true;
     } else if (ref) {
         snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref);
@@ -147,7 +148,7 @@ static int write_frame(disp_capture *c, const disp_frame_info *fi, const float *
         ct_image ref = {0, 0, NULL};
         if (c->ref_one.px) {
             ref = c->ref_one;
-            snprintf(path, sizeof path, "the reference image");
+            snprintf(path, sizeof path, "%s", c->ref_dir);
         } else {
             snprintf(name, sizeof name, "frame_%05u.exr", fi->frame);
             fs_join(c->ref_dir, name, path, sizeof path);

@@ -23,6 +23,11 @@
 #define PING_FIRST_US 100000u
 #define PING_EVERY_US 1000000u
 #define PING_QUICK 4
+/* A master that sends nothing this long (disp_client_opts.silent_ms), PONGs
+ * included, is taken for gone: one stopped in the middle of a message left a
+ * lockstep display waiting for good (a working master answers a PING within
+ * its loop's turn, and a busy queue still delivers bytes). */
+#define MASTER_SILENT_MS 30000
 
 struct disp_client {
     chan *ch;
@@ -34,6 +39,7 @@ struct disp_client {
     bool started;
     atomic_bool stop;
     int wake[2];                  /* the render thread writes a byte to wake the thread */
+    int silent_ms;                /* disp_client_opts.silent_ms */
     uint32_t epoch;               /* render thread only */
     bool lockstep;                /* every CAMERA asks for a frame */
     pthread_mutex_t mu;           /* guards what follows */
@@ -64,6 +70,7 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
     }
     c->wake[0] = c->wake[1] = -1;
     snprintf(c->addr, sizeof c->addr, "%s", o->addr);
+    c->silent_ms = o->silent_ms > 0 ? o->silent_ms : MASTER_SILENT_MS;
     c->cache = cache;
     c->inbox = inbox;
     pthread_mutex_init(&c->mu, NULL);
@@ -282,6 +289,9 @@ static int apply(disp_client *c, const wire_msg *m, ct_error *err)
     }
     case WIRE_TEX_FREE:
         return disp_inbox_tex_free(b, m->u.tex_free.tex, err);
+    case WIRE_TEX_RESIZE:
+        return disp_inbox_tex_resize(b, m->u.tex_resize.tex, (int)m->u.tex_resize.width,
+                                     (int)m->u.tex_resize.height, err);
     case WIRE_FRAME:
         disp_inbox_frame_end(b, m->u.frame.frame, m->u.frame.epoch, m->u.frame.samples,
                              (m->u.frame.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
@@ -333,10 +343,15 @@ static int receive(disp_client *c, ct_error *err)
         wire_msg m;
         int rc = chan_recv(c->ch, &m, err);
         if (rc == WIRE_NEED_MORE) return 0;
-        if (rc < 0) return rc;
+        if (rc < 0) {
+            /* A frame the decoder refused: the master hears why (a lost
+             * connection has nobody to tell). */
+            if (rc != CT_EIO) chan_send_error(c->ch, WIRE_ERR_PROTOCOL, err->msg, 200);
+            return rc;
+        }
         rc = apply(c, &m, err);
         if (!rc) continue;
-        if (m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) {
+        if ((m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) || m.type == WIRE_TEX_RESIZE) {
             /* Inbox errors do not know the peer: name it and the message. */
             char what[64];
             snprintf(what, sizeof what, "%s from %s", wire_type_name(m.type), c->addr);
@@ -372,7 +387,7 @@ static void *thread_main(void *arg)
     disp_client *c = arg;
     ct_error err;
     ct_error_clear(&err);
-    uint64_t next_ping = ct_now_us();
+    uint64_t next_ping = ct_now_us(), heard = next_ping, heard_rx = 0;
     int pings = 0, rc = 0;
     bool more = false;   /* the last pump read bytes nobody has decoded yet */
     while (!atomic_load(&c->stop)) {
@@ -405,6 +420,14 @@ static void *thread_main(void *arg)
         uint64_t rx2;
         chan_byte_counts(c->ch, &rx2, &tx);
         more = rx2 != rx;
+        if (rx2 != heard_rx) {
+            heard_rx = rx2;
+            heard = now;
+        } else if (now - heard > 1000u * (uint64_t)c->silent_ms) {
+            rc = ct_fail(&err, CT_EIO, "%s: the master sent nothing for %.1f s, not even a PONG", c->addr,
+                         c->silent_ms / 1000.0);
+            break;
+        }
     }
     if (rc) {
         pthread_mutex_lock(&c->mu);

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "common/bitrow.h"
+#include "display/disp_rescale.h"
 #include "display/gl_load.h"
 
 /* Tiles of changed texels, as on the master (master/ctex_dirty.h): patches
@@ -140,6 +141,44 @@ static void tex_release(disp_inbox *b, ib_tex *t)
     t->bits = NULL;
 }
 
+/* A CPU copy of w x h texels (zeroed when zero) and its tile marks, made
+ * before they replace a texture's. */
+typedef struct store {
+    uint16_t *tx;
+    uint64_t *bits;
+    int w, h, tw, th, words;
+} store;
+
+static int store_new(int w, int h, bool zero, store *st, ct_error *err)
+{
+    st->w = w;
+    st->h = h;
+    st->tw = (w + TS - 1) >> TS_SHIFT;
+    st->th = (h + TS - 1) >> TS_SHIFT;
+    st->words = bitrow_words(st->tw);
+    size_t n = (size_t)w * (size_t)h * 3;
+    st->tx = zero ? calloc(n, sizeof *st->tx) : malloc(n * sizeof *st->tx);
+    st->bits = calloc((size_t)st->th * (size_t)st->words, sizeof *st->bits);
+    if (st->tx && st->bits) return CT_OK;
+    free(st->tx);
+    free(st->bits);
+    return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
+}
+
+/* Puts st in place of what t held. */
+static void store_attach(disp_inbox *b, ib_tex *t, const store *st)
+{
+    tex_release(b, t);
+    t->w = st->w;
+    t->h = st->h;
+    t->tx = st->tx;
+    t->bits = st->bits;
+    t->tw = st->tw;
+    t->th = st->th;
+    t->words = st->words;
+    b->tex_bytes += (uint64_t)st->w * (uint64_t)st->h * 6;
+}
+
 static void drop_textures(disp_inbox *b)
 {
     for (uint32_t i = 0; i < b->ntex; i++) tex_release(b, &b->tex[i]);
@@ -217,41 +256,73 @@ int disp_inbox_tex_alloc(disp_inbox *b, uint32_t id, uint32_t node, int w, int h
                DISP_INBOX_MAX_BYTES) {
         rc = ct_fail(err, CT_ENOMEM, "texture %u: %dx%d texels would pass the display's %llu MiB", id, w, h,
                      (unsigned long long)(DISP_INBOX_MAX_BYTES >> 20));
+    } else if (!t && b->ntex >= 2 * b->nnodes + 1024) {
+        /* The master keeps a texture per hierarchy node at most (docs/
+         * textures.md); freed ones stay here until the next frame deletes
+         * them. Beyond that a master only makes the display slow: every
+         * message looks its texture up, every frame draws them. */
+        rc = ct_fail(err, CT_ERANGE, "texture %u: more than %u textures for a scene of %u nodes", id, b->ntex,
+                     b->nnodes);
     } else if (!t && !grow((void **)&b->tex, &b->cap, b->ntex + 1, sizeof *b->tex)) {
         rc = ct_fail(err, CT_ENOMEM, "out of memory for %u textures", b->ntex + 1);
     }
-    if (!rc) {
-        int tw = (w + TS - 1) >> TS_SHIFT, th = (h + TS - 1) >> TS_SHIFT, words = bitrow_words(tw);
-        uint16_t *tx = calloc((size_t)w * (size_t)h * 3, sizeof *tx);
-        uint64_t *bits = calloc((size_t)th * (size_t)words, sizeof *bits);
-        if (!tx || !bits) {
-            free(tx);
-            free(bits);
-            rc = ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", w, h);
-        } else {
-            if (!t) {
-                t = &b->tex[b->ntex++];
-                memset(t, 0, sizeof *t);
-                t->id = id;
-                t->proj = m4_identity();
-            } else {
-                tex_release(b, t);
-            }
-            /* A new texture's texels are zero, as its GL texture will be:
-             * nothing to upload until a patch arrives. A re-allocated id
-             * keeps its projection (a resize does not move it). */
-            t->node = node;
-            t->w = w;
-            t->h = h;
-            t->kind = kind;
-            t->tx = tx;
-            t->bits = bits;
-            t->tw = tw;
-            t->th = th;
-            t->words = words;
-            t->live = t->fresh = true;
-            t->negative = t->nonzero = t->dirty = false;
-            b->tex_bytes += bytes;
+    store st;
+    if (!rc && !(rc = store_new(w, h, true, &st, err))) {
+        if (!t) {
+            t = &b->tex[b->ntex++];
+            memset(t, 0, sizeof *t);
+            t->id = id;
+            t->proj = m4_identity();
+        }
+        /* A new texture's texels are zero, as its GL texture will be:
+         * nothing to upload until a patch arrives. A re-allocated id keeps
+         * its projection (a resize does not move it). */
+        store_attach(b, t, &st);
+        t->node = node;
+        t->kind = kind;
+        t->live = t->fresh = true;
+        t->negative = t->nonzero = t->dirty = false;
+    }
+    pthread_mutex_unlock(&b->mu);
+    return rc;
+}
+
+int disp_inbox_tex_resize(disp_inbox *b, uint32_t id, int w, int h, ct_error *err)
+{
+    if (w < 1 || h < 1 || w > b->max_tex || h > b->max_tex)
+        return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, w, h, b->max_tex);
+    int rc = CT_OK;
+    pthread_mutex_lock(&b->mu);
+    ib_tex *t = find(b, id);
+    uint64_t bytes = (uint64_t)w * (uint64_t)h * 6;
+    if (!t || !t->live) {
+        rc = ct_fail(err, CT_EPROTO, "resize of unknown texture %u", id);
+    } else if (!disp_rescale_exact(t->w, t->h, w, h)) {
+        rc = ct_fail(err, CT_EPROTO, "texture %u: %dx%d -> %dx%d is no exact resize", id, t->w, t->h, w, h);
+    } else if (b->tex_bytes - (uint64_t)t->w * (uint64_t)t->h * 6 + bytes > DISP_INBOX_MAX_BYTES) {
+        rc = ct_fail(err, CT_ENOMEM, "texture %u: %dx%d texels would pass the display's %llu MiB", id, w, h,
+                     (unsigned long long)(DISP_INBOX_MAX_BYTES >> 20));
+    } else {
+        store st;
+        bool neg = false, nz = false;
+        /* Computed here, on the connection thread: the render thread only
+         * uploads. The new GL texture (fresh) takes every tile. */
+        if (!(rc = store_new(w, h, false, &st, err)) &&
+            (rc = disp_rescale(t->tx, t->w, t->h, st.tx, w, h, &neg, &nz))) {
+            free(st.tx);
+            free(st.bits);
+            rc = ct_fail(err, CT_ENOMEM, "out of memory to resize texture %u", id);
+        }
+        if (!rc) {
+            store_attach(b, t, &st);
+            t->fresh = true;
+            /* (or the old texture's: the GPU keeps its scaled texels until
+             * the upload replaces them, disp_textures.h) */
+            t->negative |= neg;
+            t->nonzero |= nz;
+            for (int ty = 0; ty < st.th; ty++) bitrow_set(st.bits + (size_t)ty * (size_t)st.words, 0, st.tw - 1);
+            t->dirty = true;
+            b->dirty_bytes += (size_t)st.tw * TS * UP_BPT * (size_t)st.th * TS;
         }
     }
     pthread_mutex_unlock(&b->mu);

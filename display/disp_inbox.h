@@ -72,6 +72,10 @@ void disp_inbox_scene(disp_inbox *b, ct_radmesh *m);
 int disp_inbox_tex_alloc(disp_inbox *b, uint32_t id, uint32_t node, int w, int h, disp_proj_kind kind,
                          ct_error *err);
 int disp_inbox_tex_projection(disp_inbox *b, uint32_t id, const mat4 *world_to_tex, ct_error *err);
+/* TEX_RESIZE: the live texture id at an exact new size, its texels computed
+ * from the copy here (disp_rescale.h); every tile goes up with the next
+ * frame. */
+int disp_inbox_tex_resize(disp_inbox *b, uint32_t id, int w, int h, ct_error *err);
 /* TEX_PATCH: rgb holds w*h*3 halves; stamp and samples feed the lag
  * statistics. */
 int disp_inbox_tex_patch(disp_inbox *b, uint32_t id, int x, int y, int w, int h, const uint16_t *rgb,

@@ -123,6 +123,20 @@ void ctex_ev_alloc(ctex *c, uint32_t id)
     }
 }
 
+void ctex_ev_resized(ctex *c, uint32_t id, int ow, int oh)
+{
+    slot *s = &c->slots[id];
+    if (!ctex_tex_exact_resize(ow, oh, s->t.w, s->t.h)) {
+        ctex_ev_alloc(c, id);
+        return;
+    }
+    ctex_event *e = ctex_ev_push(c, CTEX_EV_RESIZE, id);
+    if (e) {
+        e->node = s->hnode; e->proj = s->t.kind; e->w = s->t.w; e->h = s->t.h;
+        e->ow = ow; e->oh = oh;
+    }
+}
+
 void ctex_ev_proj(ctex *c, uint32_t id)
 {
     ctex_event *e = ctex_ev_push(c, CTEX_EV_PROJ, id);

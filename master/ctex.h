@@ -84,19 +84,25 @@ typedef enum ctex_proj_kind {
  * after its FREE. ALLOC of a live id is a resize. Texels are not events:
  * each texture marks the ones the display has not received
  * (ctex_visible_texture, master/ctex_dirty.h); every texel of an ALLOC'ed
- * texture is marked. */
+ * texture is marked. RESIZE is an exact resize (ctex_tex_exact_resize) of
+ * a live texture from ow x oh: only the tiles computed from unsent texels
+ * are marked, the display computes the rest from the texels it has; a
+ * display that cannot (it got the texture at another size) needs the
+ * texture as an ALLOC, all of it marked (master/dsync.c). */
 typedef enum ctex_event_kind {
-    CTEX_EV_ALLOC = 1,   /* tex, node, kind, w, h */
-    CTEX_EV_PROJ  = 2,   /* tex, matrix */
-    CTEX_EV_FREE  = 4    /* tex */
+    CTEX_EV_ALLOC  = 1,   /* tex, node, kind, w, h */
+    CTEX_EV_PROJ   = 2,   /* tex, matrix */
+    CTEX_EV_FREE   = 4,   /* tex */
+    CTEX_EV_RESIZE = 8    /* tex, node, kind, w, h, ow, oh */
 } ctex_event_kind;
 
 typedef struct ctex_event {
     ctex_event_kind kind;
     uint32_t tex;
-    uint32_t node;        /* hierarchy node (ALLOC) */
-    ctex_proj_kind proj;  /* ALLOC */
-    int w, h;             /* ALLOC: the size */
+    uint32_t node;        /* hierarchy node (ALLOC, RESIZE) */
+    ctex_proj_kind proj;  /* ALLOC, RESIZE */
+    int w, h;             /* ALLOC, RESIZE: the size */
+    int ow, oh;           /* RESIZE: the size before */
     mat4 m;               /* PROJ: world -> texture */
 } ctex_event;
 

@@ -35,6 +35,59 @@ int ctex_dirty_reset(ctex_dirty *d, int w, int h, ct_error *err)
     return CT_OK;
 }
 
+/* The new texels [*lo, *hi] computed from old texels [a, b] of an axis of
+ * n texels resized to nn (kept, doubled or halved). */
+static void axis_span(int n, int nn, int a, int b, int *lo, int *hi)
+{
+    if (nn == n) {
+        *lo = a, *hi = b;
+    } else if (nn > n) {
+        /* new texel 2i + 1 reads i + 1, 2i + 2 reads i - 1... and i itself */
+        *lo = 2 * a - 1 < 0 ? 0 : 2 * a - 1;
+        *hi = 2 * b + 2 > nn - 1 ? nn - 1 : 2 * b + 2;
+    } else {
+        *lo = a / 2, *hi = b / 2;
+    }
+}
+
+int ctex_dirty_rescale(ctex_dirty *d, int w, int h, int nw, int nh, ct_error *err)
+{
+    if (!d->bits) return ctex_dirty_reset(d, nw, nh, err);
+    ctex_dirty o = *d;
+    d->bits = NULL;
+    d->row_t = NULL;
+    d->row_n = NULL;
+    d->tw = d->th = 0;
+    int rc = ctex_dirty_reset(d, nw, nh, err);
+    if (rc) {
+        *d = o;
+        return rc;
+    }
+    ctex_dirty_clear_all(d);
+    for (int ty = 0; ty < o.th; ty++) {
+        if (o.row_n[ty]) {
+            /* the samples' centres lie in the old row, not in a neighbour's reach */
+            int y = ty << CTEX_TILE_SHIFT, ny = nh == h ? y : (nh > h ? 2 * y : y / 2);
+            d->row_n[ny >> CTEX_TILE_SHIFT] += o.row_n[ty];
+        }
+        if (!o.row_t[ty]) continue;
+        int y0, y1, len;
+        int yb = (ty << CTEX_TILE_SHIFT) + CTEX_TILE - 1;
+        axis_span(h, nh, ty << CTEX_TILE_SHIFT, yb < h - 1 ? yb : h - 1, &y0, &y1);
+        for (int a = ctex_dirty_next_run(&o, ty, 0, &len); len; a = ctex_dirty_next_run(&o, ty, a + len, &len)) {
+            int xb = ((a + len) << CTEX_TILE_SHIFT) - 1, x0, x1;
+            axis_span(w, nw, a << CTEX_TILE_SHIFT, xb < w - 1 ? xb : w - 1, &x0, &x1);
+            for (int ny = y0 >> CTEX_TILE_SHIFT; ny <= y1 >> CTEX_TILE_SHIFT; ny++) {
+                bitrow_set(d->bits + (size_t)ny * (size_t)d->words, x0 >> CTEX_TILE_SHIFT, x1 >> CTEX_TILE_SHIFT);
+                if (!d->row_t[ny] || o.row_t[ty] < d->row_t[ny]) d->row_t[ny] = o.row_t[ty];
+                d->any = true;
+            }
+        }
+    }
+    ctex_dirty_free(&o);
+    return CT_OK;
+}
+
 void ctex_dirty_free(ctex_dirty *d)
 {
     free(d->bits);

@@ -38,6 +38,15 @@ typedef struct ctex_dirty {
  * a resize: every texel is new); the sample counts carry over. */
 int ctex_dirty_reset(ctex_dirty *d, int w, int h, ct_error *err);
 
+/* The maps of a w x h texture for its exact resize to nw x nh (each axis
+ * kept, doubled or halved, as ctex_tex_resize makes it): a new tile is
+ * marked when a texel it is computed from was (a doubling reads the old
+ * texel under a new one and its neighbour towards the new centre, a halving
+ * the 2 x 2 block), with the oldest stamp of those rows; the sample counts
+ * go to the row that holds their old row. The display computes every other
+ * texel itself from what it has (TEX_RESIZE, docs/protocol.md). */
+int ctex_dirty_rescale(ctex_dirty *d, int w, int h, int nw, int nh, ct_error *err);
+
 /* Frees the maps (clock stays). */
 void ctex_dirty_free(ctex_dirty *d);
 

@@ -24,6 +24,7 @@ static void resize(ctex *c, uint32_t id, int nw, int nh, ct_pool *pool)
 {
     ctex_tex *t = &c->slots[id].t;
     size_t ob = ctex_tex_bytes(t->w, t->h);
+    const int ow = t->w, oh = t->h;
     int dir = nw > t->w || nh > t->h ? 1 : -1;
     ct_debug("ctex", "texture %u: %dx%d -> %dx%d (mean splat radius %.2f over %u samples)", id, t->w, t->h, nw, nh,
              (double)t->mean_r, t->since_resize);
@@ -36,7 +37,7 @@ static void resize(ctex *c, uint32_t id, int nw, int nh, ct_pool *pool)
     t->n_sum = 0;
     t->since_resize = 0;
     c->st.resizes++;
-    ctex_ev_alloc(c, id);
+    ctex_ev_resized(c, id, ow, oh);
 }
 
 /* The mean of t's radii since its last change or aging; the running mean

@@ -73,6 +73,8 @@ ctex_event *ctex_ev_push(ctex *c, ctex_event_kind kind, uint32_t tex);
 /* ALLOC (with the texture's node, kind and size) and PROJECTION of slot id. */
 void ctex_ev_alloc(ctex *c, uint32_t id);
 void ctex_ev_proj(ctex *c, uint32_t id);
+/* After slot id's resize from ow x oh: RESIZE when it was exact, else ALLOC. */
+void ctex_ev_resized(ctex *c, uint32_t id, int ow, int oh);
 
 /* Frees slot id's texels (FREE when the display has it). */
 void ctex_destroy_slot(ctex *c, uint32_t id);

@@ -363,12 +363,13 @@ static int reproject(ctex *c, uint32_t id, bool *moved, ct_error *err)
         if (t->w > s->max_w || t->h > s->max_h) {
             *moved = true;
             int nw = t->w > s->max_w ? s->max_w : t->w, nh = t->h > s->max_h ? s->max_h : t->h;
+            const int ow = t->w, oh = t->h;
             size_t ob = ctex_tex_bytes(t->w, t->h);
             int rc = ctex_tex_resize(t, nw, nh, err);
             if (rc) return rc;
             c->bytes = c->bytes - ob + ctex_tex_bytes(nw, nh);
             c->st.resizes++;
-            if (s->active) ctex_ev_alloc(c, id);
+            if (s->active) ctex_ev_resized(c, id, ow, oh);
         }
         return CT_OK;
     }

@@ -185,6 +185,12 @@ int dsink_connected(dsink *k, sess *s, const wire_settings *set, ct_error *err)
 
 void dsink_disconnected(dsink *k)
 {
+    dsync_stats st = dsync_get_stats(k->sync);
+    ct_info(COMPONENT, "texels to displays so far: %llu patches, %.1f MB; %llu exact resizes the display computed "
+            "(%.1f million texels, only their changed tiles sent), %llu sent whole (the display had them as 2 x 2 "
+            "means)",
+            (unsigned long long)st.patches, (double)st.texel_bytes / 1e6, (unsigned long long)st.resized,
+            (double)st.resized_texels / 1e6, (unsigned long long)st.resized_whole);
     dsync_reset(k->sync);
 }
 
@@ -200,8 +206,19 @@ int dsink_ack(dsink *k, uint64_t seq, ct_error *err)
     return dsync_ack(k->sync, seq, ct_now(), err);
 }
 
-bool dsink_update_due(const dsink *k, double now)
+bool dsink_update_due(dsink *k, double now)
 {
+    if (!dsrv_has_display(k->c.ds)) return false;
+    double stalled = dsync_stalled_s(k->sync, k->c.ds, now);
+    if (stalled * 1000.0 > (double)k->c.send_timeout_ms) {
+        /* Stopped, hung, or reading nothing: the slot is free for another. */
+        char why[CT_ERROR_LEN];
+        snprintf(why, sizeof why, "the display took nothing and acknowledged nothing for %.1f s (--send-timeout-ms)",
+                 stalled);
+        ct_warn(COMPONENT, "dropped display %s: %s", dsrv_peer(k->c.ds), why);
+        dsrv_drop(k->c.ds, WIRE_ERR_LIMIT, why);
+        return false;
+    }
     return dsync_due(k->sync, now);
 }
 

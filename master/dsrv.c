@@ -98,8 +98,16 @@ int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
 static void add_event(dsrv *s, dsrv_event_kind kind, const wire_msg *m, const char *text)
 {
     if (s->ev_n == MAX_EVENTS) {
-        /* Only cameras and ACKs can pile up; the oldest is the least useful
-         * (an ACK covers every update before it). */
+        /* (service_display stops reading before this.) Never a connection's
+         * start or end: the oldest message goes, else the oldest event. */
+        int drop = 0;
+        for (int k = 0; k < s->ev_n; k++)
+            if (s->ev[(s->ev_head + k) % MAX_EVENTS].kind == DSRV_EV_MESSAGE) {
+                drop = k;
+                break;
+            }
+        for (int k = drop; k > 0; k--)
+            s->ev[(s->ev_head + k) % MAX_EVENTS] = s->ev[(s->ev_head + k - 1) % MAX_EVENTS];
         s->ev_head = (s->ev_head + 1) % MAX_EVENTS;
         s->ev_n--;
     }
@@ -336,6 +344,11 @@ static void service_display(dsrv *s)
         return;
     }
     for (;;) {
+        /* A display that sends faster than the master takes its events
+         * waits in its socket: its CAMERAs and ACKs are not dropped, nor
+         * the CONNECTED event a burst right after SETTINGS would push out
+         * (one event is kept free for a DISCONNECTED). */
+        if (s->ev_n >= MAX_EVENTS - 1) return;
         wire_msg m;
         int rc = chan_recv(s->disp, &m, &e);
         if (rc == WIRE_NEED_MORE) return;
@@ -357,7 +370,13 @@ static void service_display(dsrv *s)
             add_event(s, DSRV_EV_MESSAGE, &m, NULL);
             break;
         case WIRE_PING: {
-            /* With our clock: the display estimates its offset (lag stats). */
+            /* With our clock: the display estimates its offset (lag stats).
+             * Not behind a quarter of the queue's bound: a PONG queued behind
+             * megabytes tells the display no round trip worth having, and a
+             * display that pings without reading would fill the queue until
+             * the next control message waits for room, stalling the loop. */
+            size_t bound = s->cfg.queue_bytes ? s->cfg.queue_bytes : CHAN_DEFAULT_QUEUE_BYTES;
+            if (chan_queue_stats(s->disp).bytes > bound / 4) break;
             wire_msg pong = m;
             pong.type = WIRE_PONG;
             pong.u.ping.clock_us = ct_now_us();
@@ -495,6 +514,11 @@ void dsrv_commit(dsrv *s, uint64_t frames)
 size_t dsrv_queued(const dsrv *s)
 {
     return s->disp ? chan_queue_stats(s->disp).bytes : 0;
+}
+
+uint64_t dsrv_written(const dsrv *s)
+{
+    return s->disp ? chan_queue_stats(s->disp).written : 0;
 }
 
 int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued)

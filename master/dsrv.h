@@ -103,6 +103,8 @@ void dsrv_commit(dsrv *s, uint64_t frames);
 
 /* Bytes queued to the display and not yet written (0 without a display). */
 size_t dsrv_queued(const dsrv *s);
+/* Bytes written to the display's socket since it connected (0: none). */
+uint64_t dsrv_written(const dsrv *s);
 
 /* Bytes sent to displays since the start. */
 uint64_t dsrv_bytes_sent(const dsrv *s);

@@ -16,11 +16,22 @@
 
 #define WINDOW_MAX 16
 
+/* A texture as the display has it, from its last TEX_ALLOC or TEX_RESIZE. */
+typedef struct shown {
+    int w, h;        /* the master's size then (0: the display has no such texture) */
+    uint8_t shift;   /* 1: it goes as 2 x 2 means (fixed until the next ALLOC, so
+                      * that its patches always fit the size the display has) */
+} shown;
+
 struct dsync {
     dsync_options o;
     uint32_t disp_epoch;            /* the display's epoch of the current camera */
     uint64_t seq, acked;            /* last SYNC sent, last acknowledged */
     double sent_at[WINDOW_MAX];     /* by seq % WINDOW_MAX: when it was sent */
+    double in_socket_at[WINDOW_MAX]; /* and when its SYNC was seen written (< 0: not yet) */
+    uint64_t w_mark;                /* bytes written to the display when last seen... */
+    double w_time;                  /* ...and since when (< 0: not seen yet) */
+    double checked;                 /* the last dsync_stalled_s */
     size_t sent_bytes[WINDOW_MAX];  /* and its texel bytes */
     double rate;                    /* texel bytes/s acknowledged, smoothed (0: unknown) */
     double next_due;                /* when the next free-running update may start (ct_now) */
@@ -30,11 +41,10 @@ struct dsync {
     int cur_row;
     wire_scratch scratch;
     uint64_t patches, texel_bytes;
-    /* Per texture id, as announced in its last TEX_ALLOC to this display:
-     * 1 when it goes as 2 x 2 means, else 0 (fixed until the next ALLOC, so
-     * that its patches always fit the size the display has). */
-    uint8_t *shift;
-    size_t shift_cap;
+    uint64_t resized, resized_texels, resized_whole;
+    /* Per texture id, what this display has: */
+    shown *shown;
+    size_t shown_cap;
 };
 
 void dsync_options_default(dsync_options *o, bool tcp)
@@ -78,7 +88,7 @@ void dsync_free(dsync *d)
 {
     if (!d) return;
     wire_scratch_free(&d->scratch);
-    free(d->shift);
+    free(d->shown);
     free(d);
 }
 
@@ -96,6 +106,9 @@ void dsync_reset(dsync *d)
     if (d->budget > d->o.max_bytes) d->budget = d->o.max_bytes;
     d->cur_tex = 0;
     d->cur_row = 0;
+    d->w_mark = 0;
+    d->w_time = -1.0;
+    if (d->shown) memset(d->shown, 0, d->shown_cap * sizeof *d->shown);   /* a new display has none */
 }
 
 void dsync_set_epoch(dsync *d, uint32_t epoch)
@@ -111,6 +124,27 @@ bool dsync_due(const dsync *d, double now)
 bool dsync_can_send(const dsync *d)
 {
     return d->seq - d->acked < (uint64_t)d->o.window;
+}
+
+double dsync_stalled_s(dsync *d, dsrv *ds, double now)
+{
+    uint64_t w = dsrv_written(ds);
+    /* A master that did not look for a while (a long view change) cannot
+     * tell whether the display was stuck meanwhile: the clocks start again. */
+    bool gap = d->w_time >= 0.0 && now - d->checked > 1.0;
+    d->checked = now;
+    if (w != d->w_mark || d->w_time < 0.0 || gap) {
+        d->w_mark = w;
+        d->w_time = now;
+    }
+    for (int k = 0; gap && k < WINDOW_MAX; k++)
+        if (d->in_socket_at[k] >= 0.0) d->in_socket_at[k] = now;
+    if (dsrv_queued(ds) > 0) return now - d->w_time;
+    if (d->seq == d->acked) return 0.0;
+    /* everything written: the oldest unacknowledged SYNC is in the socket */
+    size_t k = (size_t)((d->acked + 1) % WINDOW_MAX);
+    if (d->in_socket_at[k] < 0.0) d->in_socket_at[k] = now;
+    return now - d->in_socket_at[k];
 }
 
 /* --- events ----------------------------------------------------------------- */
@@ -142,6 +176,15 @@ static int display_shift(const dsync *d, const ctex *tex, uint32_t id, int w, in
     return rx > 1.0f && ry > 1.0f ? 1 : 0;
 }
 
+static shown *shown_at(dsync *d, uint32_t id, ct_error *err)
+{
+    size_t had = d->shown_cap;
+    if (ct_grow((void **)&d->shown, &d->shown_cap, (size_t)id + 1, sizeof *d->shown, "display texture sizes", err))
+        return NULL;
+    if (d->shown_cap > had) memset(d->shown + had, 0, (d->shown_cap - had) * sizeof *d->shown);
+    return &d->shown[id];
+}
+
 /* TEX_ALLOC names the texture's hierarchy node: the display's node table is
  * the texture hierarchy (the SCENE it got), so it draws the texture on
  * exactly the triangles of that node's subtree. A display creates the
@@ -153,21 +196,42 @@ static int display_shift(const dsync *d, const ctex *tex, uint32_t id, int w, in
 static int send_alloc(dsync *d, dsrv *ds, ctex *tex, uint32_t id, uint32_t hnode, int w, int h,
                       ctex_proj_kind kind, ct_error *err)
 {
-    size_t had = d->shift_cap;
-    int rc = ct_grow((void **)&d->shift, &d->shift_cap, (size_t)id + 1, 1, "display texture sizes", err);
-    if (rc) return rc;
-    if (d->shift_cap > had) memset(d->shift + had, 0, d->shift_cap - had);   /* ids not announced yet: whole */
-    int sh = display_shift(d, tex, id, w, h);
-    d->shift[id] = (uint8_t)sh;
+    shown *sh = shown_at(d, id, err);
+    if (!sh) return CT_ENOMEM;
+    int sf = display_shift(d, tex, id, w, h);
+    *sh = (shown){w, h, (uint8_t)sf};
     wire_msg m = {.type = WIRE_TEX_ALLOC};
-    m.u.tex_alloc = (wire_tex_alloc){id, hnode, (uint32_t)(w >> sh), (uint32_t)(h >> sh),
+    m.u.tex_alloc = (wire_tex_alloc){id, hnode, (uint32_t)(w >> sf), (uint32_t)(h >> sf),
                                      kind == CTEX_PROJ_OBJECT ? WIRE_PROJ_OBJECT_PARALLEL
                                                               : WIRE_PROJ_CAMERA_PERSPECTIVE};
-    rc = send(ds, &m, err);
+    int rc = send(ds, &m, err);
     mat4 pm;
     if (rc == 0 && ctex_texture_info(tex, id, NULL, NULL, NULL, NULL, &pm, NULL) >= 0)
         rc = send_proj(d, ds, id, &pm, err);
     return rc;
+}
+
+/* An exact resize: TEX_RESIZE when the display has the texture at the size
+ * it was resized from, whole texels both then and now, so that it computes
+ * the new texels the master has not marked (ctex_dirty_rescale) from its
+ * own; otherwise an ALLOC with every tile marked. */
+static int send_resize(dsync *d, dsrv *ds, ctex *tex, const ctex_event *e, ct_error *err)
+{
+    shown *sh = shown_at(d, e->tex, err);
+    if (!sh) return CT_ENOMEM;
+    if (sh->w == e->ow && sh->h == e->oh && !sh->shift && !display_shift(d, tex, e->tex, e->w, e->h)) {
+        sh->w = e->w;
+        sh->h = e->h;
+        wire_msg m = {.type = WIRE_TEX_RESIZE};
+        m.u.tex_resize = (wire_tex_resize){e->tex, (uint32_t)e->w, (uint32_t)e->h};
+        d->resized++;
+        d->resized_texels += (uint64_t)e->w * (uint64_t)e->h;
+        return send(ds, &m, err);
+    }
+    ctex_tex *t = ctex_visible_texture(tex, e->tex);
+    if (t) ctex_dirty_mark_all(&t->d);
+    d->resized_whole++;
+    return send_alloc(d, ds, tex, e->tex, e->node, e->w, e->h, e->proj, err);
 }
 
 static int send_events(dsync *d, dsrv *ds, ctex *tex, ct_error *err)
@@ -180,8 +244,10 @@ static int send_events(dsync *d, dsrv *ds, ctex *tex, ct_error *err)
         wire_msg m;
         switch (e->kind) {
         case CTEX_EV_ALLOC: rc = send_alloc(d, ds, tex, e->tex, e->node, e->w, e->h, e->proj, err); break;
+        case CTEX_EV_RESIZE: rc = send_resize(d, ds, tex, e, err); break;
         case CTEX_EV_PROJ: rc = send_proj(d, ds, e->tex, &e->m, err); break;
         case CTEX_EV_FREE:
+            if (e->tex < d->shown_cap) d->shown[e->tex] = (shown){0, 0, 0};
             memset(&m, 0, sizeof m);
             m.type = WIRE_TEX_FREE;
             m.u.tex_free.tex = e->tex;
@@ -221,6 +287,24 @@ typedef struct gather {
     int x, y, w;
 } gather;
 
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+/* The display tells an empty texel from a valid one by its bits
+ * (TEX_RESIZE, display/disp_rescale.h): a valid zero goes as -0, an empty
+ * texel as +0 whatever it holds. Rare; a texel checked as one 8-byte word. */
+_Static_assert(sizeof(ctex_texel) == 8, "a texel is three halves and its validity");
+static inline void wire_texel_fix(const ctex_texel *p, uint8_t *dst)
+{
+    uint64_t v;
+    memcpy(&v, p, sizeof v);
+    const uint64_t rgb = v & 0xffffffffffffull;
+    const bool empty = (uint16_t)(v >> 48) == (uint16_t)CTEX_Q_EMPTY;
+    if (empty ? rgb != 0 : rgb == 0) {
+        memset(dst, 0, 6);
+        if (!empty) dst[1] = 0x80;   /* -0 in red, little-endian */
+    }
+}
+#endif
+
 /* One row of a patch: each 8-byte texel's three halves, little-endian. */
 static void gather_row(void *ctx, uint32_t row, uint8_t *dst)
 {
@@ -234,17 +318,27 @@ static void gather_row(void *ctx, uint32_t row, uint8_t *dst)
     int i = 0;
 #if defined(__SSSE3__)
     const __m128i pack = _mm_setr_epi8(0, 1, 2, 3, 4, 5, 8, 9, 10, 11, 12, 13, -1, -1, -1, -1);
-    for (; i + 3 <= g->w; i += 2, dst += 12)
+    for (; i + 3 <= g->w; i += 2, dst += 12) {
         _mm_storeu_si128((__m128i *)(void *)dst,
                          _mm_shuffle_epi8(_mm_loadu_si128((const __m128i *)(const void *)(p + i)), pack));
+        wire_texel_fix(p + i, dst);
+        wire_texel_fix(p + i + 1, dst + 6);
+    }
 #endif
-    for (; i < g->w; i++, dst += 6) memcpy(dst, p[i].c, 6);
+    for (; i < g->w; i++, dst += 6) {
+        memcpy(dst, p[i].c, 6);
+        wire_texel_fix(p + i, dst);
+    }
 #else
-    for (int i = 0; i < g->w; i++, dst += 6)
-        for (int c = 0; c < 3; c++) {
-            dst[2 * c] = (uint8_t)p[i].c[c];
-            dst[2 * c + 1] = (uint8_t)(p[i].c[c] >> 8);
+    for (int i = 0; i < g->w; i++, dst += 6) {
+        uint16_t c[3] = {p[i].c[0], p[i].c[1], p[i].c[2]};
+        if (!ctex_texel_valid(p + i)) c[0] = c[1] = c[2] = 0;
+        else if (!(c[0] | c[1] | c[2])) c[0] = 0x8000u;
+        for (int k = 0; k < 3; k++) {
+            dst[2 * k] = (uint8_t)c[k];
+            dst[2 * k + 1] = (uint8_t)(c[k] >> 8);
         }
+    }
 #endif
 }
 
@@ -286,7 +380,7 @@ static long send_run(dsync *d, dsrv *ds, uint32_t id, ctex_tex *t, int ty, int a
     if (y + h > t->h) h = t->h - y;
     /* Tiles are 4 x 4 texels and a halved texture has even sides: a run
      * halves exactly. */
-    int sh = id < d->shift_cap ? d->shift[id] : 0;
+    int sh = id < d->shown_cap ? d->shown[id].shift : 0;
     wire_tex_patch p = {.tex = id, .x = (uint32_t)(x >> sh), .y = (uint32_t)(y >> sh), .w = (uint32_t)(w >> sh),
                         .h = (uint32_t)(h >> sh), .encoding = d->o.encoding, .samples = samples,
                         .stamp_us = t->d.row_t[ty]};
@@ -393,6 +487,7 @@ int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_
     if ((rc = send(ds, &m, err))) return rc;
     d->seq++;
     d->sent_at[d->seq % WINDOW_MAX] = now;
+    d->in_socket_at[d->seq % WINDOW_MAX] = -1.0;
     d->sent_bytes[d->seq % WINDOW_MAX] = sent;
     pace(d, ds, now, cpu0);
     return 1;
@@ -435,6 +530,8 @@ int dsync_ack(dsync *d, uint64_t seq, double now, ct_error *err)
 
 dsync_stats dsync_get_stats(const dsync *d)
 {
-    dsync_stats s = {d->seq, d->acked, d->patches, d->texel_bytes, d->budget, d->rate};
+    dsync_stats s = {d->seq,     d->acked,          d->patches,       d->texel_bytes,
+                     d->resized, d->resized_texels, d->resized_whole, d->budget,
+                     d->rate};
     return s;
 }

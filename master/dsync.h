@@ -46,6 +46,9 @@ typedef struct dsync_stats {
     uint64_t updates, acked;   /* SYNCs sent / acknowledged on this connection */
     uint64_t patches;          /* TEX_PATCH messages since the start */
     uint64_t texel_bytes;      /* their raw texel bytes */
+    uint64_t resized;          /* TEX_RESIZEs: exact resizes the display computed... */
+    uint64_t resized_texels;   /* ...and their texels, which went unsent */
+    uint64_t resized_whole;    /* exact resizes sent as TEX_ALLOC, all their tiles (2 x 2 means) */
     size_t budget;             /* texel bytes of the next update */
     double rate;               /* texel bytes/s the display acknowledged (smoothed) */
 } dsync_stats;
@@ -91,6 +94,15 @@ int dsync_ack(dsync *d, uint64_t seq, double now, ct_error *err);
 
 /* Whether the window allows an update now (free running). */
 bool dsync_can_send(const dsync *d);
+
+/* How long the display has looked stuck (0: it has not): bytes waited in
+ * its queue and none were written for this long, or an update's SYNC went
+ * into its socket this long ago and is not acknowledged. Flow control sends
+ * a display that stopped reading nothing more, so the full queue by which
+ * dsrv_send finds a stuck display never comes (master/dsink.c drops it).
+ * A slow link still writes; the clock of an update starts when its last
+ * byte left the queue. Call it every turn (it notes the progress). */
+double dsync_stalled_s(dsync *d, dsrv *ds, double now);
 
 /* Whether an update is due at `now` (ct_now's clock): the window allows
  * one and the pacing of dsync_options (interval, share) has passed. */

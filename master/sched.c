@@ -175,8 +175,10 @@ static int handle_display(loop *l, int *leave, ct_error *err)
             if ((rc = dsink_connected(l->dk, l->s, &ev.msg.u.settings, err))) return rc;
             break;
         case DSRV_EV_MESSAGE:
+            if (!dsrv_has_display(l->ds)) break;   /* the rest of a display dropped above */
             if (ev.msg.type == WIRE_ACK) {
                 if (dsink_ack(l->dk, ev.msg.u.ack.seq, err)) {
+                    ct_warn(COMPONENT, "dropped display %s: %s", dsrv_peer(l->ds), err->msg);
                     dsrv_drop(l->ds, WIRE_ERR_PROTOCOL, err->msg);
                     ct_error_clear(err);
                 }
@@ -184,11 +186,14 @@ static int handle_display(loop *l, int *leave, ct_error *err)
             }
             if (ev.msg.type != WIRE_CAMERA) break;
             if (ev.msg.u.camera.width == 0 || ev.msg.u.camera.height == 0) {
+                ct_warn(COMPONENT, "dropped display %s: CAMERA with an empty image size", dsrv_peer(l->ds));
                 dsrv_drop(l->ds, WIRE_ERR_PROTOCOL, "CAMERA with an empty image size");
                 break;
             }
             if (l->lockstep) {
                 if (l->fr_n == MAX_FRAMES_QUEUED) {
+                    ct_warn(COMPONENT, "dropped display %s: more than 64 lockstep frames requested ahead",
+                            dsrv_peer(l->ds));
                     dsrv_drop(l->ds, WIRE_ERR_LIMIT, "more than 64 lockstep frames requested ahead");
                     break;
                 }

@@ -18,8 +18,9 @@
 #include "common/radmesh.h"
 #include "common/vecmath.h"
 
-#define WIRE_VERSION        4u          /* 2: SAMPLES; 3: the scene's material table; 4: raw or LZ4 patches
-                                           with stamps, SYNC/ACK flow control, PONG clock, CAMERA from the master */
+#define WIRE_VERSION        5u          /* 2: SAMPLES; 3: the scene's material table; 4: raw or LZ4 patches
+                                           with stamps, SYNC/ACK flow control, PONG clock, CAMERA from the master;
+                                           5: TEX_RESIZE, valid zero texels sent as -0 */
 #define WIRE_HEADER_SIZE    8u          /* u16 type, u16 flags (0), u32 body length */
 #define WIRE_HASH_SIZE      32u         /* BLAKE2b-256 content hash of a SCENE payload */
 #define WIRE_MAC_SIZE       32u         /* HMAC-SHA256 */
@@ -58,7 +59,8 @@ typedef enum wire_type {
     WIRE_SAMPLES        = 17,  /* master -> display: hit points of inserted samples (droppable) */
     WIRE_SYNC           = 18,  /* master -> display: end of texture update n (free running) */
     WIRE_ACK            = 19,  /* display -> master: every update up to n is applied */
-    WIRE_TYPE_COUNT     = 20
+    WIRE_TEX_RESIZE     = 20,  /* master -> display: an exact resolution change the display derives */
+    WIRE_TYPE_COUNT     = 21
 } wire_type;
 
 /* Texture projection kinds (§3.2), u32 on the wire. */
@@ -152,6 +154,13 @@ typedef struct wire_tex_free {
     uint32_t tex;
 } wire_tex_free;
 
+/* Each side kept, doubled or halved (odd sides round up), not both kept:
+ * the display computes the new texels from its own (docs/protocol.md). */
+typedef struct wire_tex_resize {
+    uint32_t tex;
+    uint32_t width, height;  /* the new size in texels */
+} wire_tex_resize;
+
 typedef struct wire_tex_patch {
     uint32_t tex;
     uint32_t x, y, w, h;       /* texel rectangle, inside the texture */
@@ -226,6 +235,7 @@ typedef struct wire_msg {
         wire_tex_alloc tex_alloc;
         wire_tex_projection tex_projection;
         wire_tex_free tex_free;
+        wire_tex_resize tex_resize;
         wire_tex_patch tex_patch;
         wire_frame frame;
         wire_stats stats;

@@ -22,6 +22,7 @@
 #define SZ_TEX_ALLOC   20u
 #define SZ_TEX_PROJ    72u
 #define SZ_TEX_FREE    4u
+#define SZ_TEX_RESIZE  12u
 #define SZ_FRAME       24u
 #define SZ_STATS       56u
 #define SZ_PING        8u
@@ -107,6 +108,7 @@ const char *wire_type_name(unsigned type)
         [WIRE_TEX_FREE] = "TEX_FREE", [WIRE_TEX_PATCH] = "TEX_PATCH", [WIRE_FRAME] = "FRAME",
         [WIRE_STATS] = "STATS", [WIRE_ERROR] = "ERROR", [WIRE_PING] = "PING", [WIRE_PONG] = "PONG",
         [WIRE_BYE] = "BYE", [WIRE_SAMPLES] = "SAMPLES", [WIRE_SYNC] = "SYNC", [WIRE_ACK] = "ACK",
+        [WIRE_TEX_RESIZE] = "TEX_RESIZE",
     };
     if (type >= WIRE_TYPE_COUNT || !names[type]) return "?";
     return names[type];
@@ -124,6 +126,7 @@ static size_t fixed_size(unsigned type)
     case WIRE_TEX_ALLOC: return SZ_TEX_ALLOC;
     case WIRE_TEX_PROJECTION: return SZ_TEX_PROJ;
     case WIRE_TEX_FREE: return SZ_TEX_FREE;
+    case WIRE_TEX_RESIZE: return SZ_TEX_RESIZE;
     case WIRE_FRAME: return SZ_FRAME;
     case WIRE_STATS: return SZ_STATS;
     case WIRE_PING: return SZ_PING;
@@ -230,6 +233,14 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
             return ct_fail(err, CT_EPROTO, "%s: TEX_ALLOC size %ux%u out of range", who, a->width, a->height);
         if (a->proj != WIRE_PROJ_OBJECT_PARALLEL && a->proj != WIRE_PROJ_CAMERA_PERSPECTIVE)
             return ct_fail(err, CT_EPROTO, "%s: TEX_ALLOC projection kind %u unknown", who, a->proj);
+        return 0;
+    }
+    case WIRE_TEX_RESIZE: {
+        /* (whether it is an exact change of the texture's size, the
+         * receiver checks: it knows the size) */
+        const wire_tex_resize *r = &m->u.tex_resize;
+        if (r->width == 0 || r->height == 0 || r->width > WIRE_TEX_MAX_DIM || r->height > WIRE_TEX_MAX_DIM)
+            return ct_fail(err, CT_EPROTO, "%s: TEX_RESIZE size %ux%u out of range", who, r->width, r->height);
         return 0;
     }
     case WIRE_TEX_PROJECTION:
@@ -376,6 +387,11 @@ int wire_encode(const wire_msg *m, wire_buf *out, ct_error *err)
         for (int i = 0; i < 16; i++) ww_f32(&w, m->u.tex_projection.world_to_tex.m[i / 4][i % 4]);
         break;
     case WIRE_TEX_FREE: ww_u32(&w, m->u.tex_free.tex); break;
+    case WIRE_TEX_RESIZE:
+        ww_u32(&w, m->u.tex_resize.tex);
+        ww_u32(&w, m->u.tex_resize.width);
+        ww_u32(&w, m->u.tex_resize.height);
+        break;
     case WIRE_FRAME:
         ww_u64(&w, m->u.frame.frame);
         ww_u32(&w, m->u.frame.epoch);
@@ -581,6 +597,11 @@ int wire_decode_body(unsigned type, const uint8_t *body, size_t len, const char 
         for (int i = 0; i < 16; i++) out->u.tex_projection.world_to_tex.m[i / 4][i % 4] = wr_f32(&r);
         break;
     case WIRE_TEX_FREE: out->u.tex_free.tex = wr_u32(&r); break;
+    case WIRE_TEX_RESIZE:
+        out->u.tex_resize.tex = wr_u32(&r);
+        out->u.tex_resize.width = wr_u32(&r);
+        out->u.tex_resize.height = wr_u32(&r);
+        break;
     case WIRE_TEX_PATCH: {
         wire_tex_patch *p = &out->u.tex_patch;
         p->tex = wr_u32(&r);

@@ -84,7 +84,7 @@ static const optab OPTS[] = {
      "replay all samples into a fresh engine and print the insertion rate (one thread, CPU time)", NULL},
     {"insert-runs", 0, OPTAB_INT, OF(insert_runs), 1, 1000, "1", "N", "replays for --time-insert; the median is reported",
      NULL},
-    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "warnings and errors only", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "warnings and errors only", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
 };
 #undef OF

@@ -9,6 +9,23 @@
 #include "common/optab.h"
 #include "common/scene.h"
 
+/* Names come from the scene's files: a control character (an escape
+ * sequence in a name) is printed as '?', not sent to the terminal. Four
+ * buffers in turn, so that one printf can show four names. */
+static const char *shown(const char *name)
+{
+    static char buf[4][256];
+    static int k;
+    char *o = buf[k = (k + 1) & 3];
+    size_t n = 0;
+    for (; name[n] && n + 1 < sizeof buf[0]; n++) {
+        unsigned char c = (unsigned char)name[n];
+        o[n] = c < 0x20 || c == 0x7f ? '?' : (char)c;
+    }
+    o[n] = '\0';
+    return o;
+}
+
 static const char *const KINDS[] = {"diffuse", "phong", "ward", "mirror", "dielectric", "emissive"};
 #define NKINDS ((int)(sizeof KINDS / sizeof KINDS[0]))
 
@@ -43,8 +60,8 @@ static void print_tree(const ct_scene *s, uint32_t n, int depth)
 {
     static const char *const kind[] = {"root", "file", "group", "part"};
     const scene_node *nd = &s->nodes[n];
-    printf("%*s%s [%s] %u triangles", 2 * depth, "", nd->name, kind[nd->kind], nd->tri_end - nd->tri_begin);
-    if (nd->kind == SCENE_NODE_PART) printf(", material %s", s->mats[nd->material].name);
+    printf("%*s%s [%s] %u triangles", 2 * depth, "", shown(nd->name), kind[nd->kind], nd->tri_end - nd->tri_begin);
+    if (nd->kind == SCENE_NODE_PART) printf(", material %s", shown(s->mats[nd->material].name));
     printf("\n");
     for (uint32_t c = scene_first_child(s, n); c < nd->node_end; c = scene_next_sibling(s, c))
         print_tree(s, c, depth + 1);
@@ -125,7 +142,7 @@ int cmd_info(int argc, char **argv)
         free(txt);
         cJSON_Delete(o);
     } else {
-        printf("scene       %s (%s)\n", s->name, s->source);
+        printf("scene       %s (%s)\n", shown(s->name), shown(s->source));
         printf("nodes       %u (%u files, %u groups, %u parts)\n", s->nnodes, by_kind[1], by_kind[2], by_kind[3]);
         printf("primitives  %u (%u quads)\n", s->nprims, s->nquads);
         printf("triangles   %u (%u vertices, %u degenerate dropped)\n", s->ntris, s->nverts, s->dropped_degenerate);
@@ -133,10 +150,10 @@ int cmd_info(int argc, char **argv)
         for (int j = 0; j < NKINDS; j++) printf(" %d %s%s", kinds[j], KINDS[j], j + 1 < NKINDS ? "," : "\n");
         printf("emitters    %u triangles\n", s->nemitters);
         printf("cameras     %u:", s->ncams);
-        for (uint32_t i = 0; i < s->ncams; i++) printf(" %s", s->cams[i].name);
+        for (uint32_t i = 0; i < s->ncams; i++) printf(" %s", shown(s->cams[i].name));
         printf("\npaths       %u:", s->npaths);
         for (uint32_t i = 0; i < s->npaths; i++)
-            printf(" %s (%d keys, %.1f s)", s->paths[i].name, s->paths[i].nkeys, (double)campath_duration(&s->paths[i]));
+            printf(" %s (%d keys, %.1f s)", shown(s->paths[i].name), s->paths[i].nkeys, (double)campath_duration(&s->paths[i]));
         printf("\nbounds      [%g %g %g] .. [%g %g %g]\n", (double)s->bounds.lo.x, (double)s->bounds.lo.y,
                (double)s->bounds.lo.z, (double)s->bounds.hi.x, (double)s->bounds.hi.y, (double)s->bounds.hi.z);
         if (opt.tree) print_tree(s, 0, 0);

@@ -181,7 +181,7 @@ static int build(const montage_opts *o, const char *const *files, int nfiles, ct
         img_free(&img);
         long lab = label_of(files[idx]);
         if (!o->no_labels && lab >= 0) draw_label(&sheet, x0, y0, lab, lscale);
-        ct_progress(COMPONENT, (double)(k + 1) / n, 0, "tile %d/%d", k + 1, n);
+        if (k + 1 < n) ct_progress(COMPONENT, (double)(k + 1) / n, 0, "tile %d/%d", k + 1, n);   /* the last: below */
     }
     if (!rc) ct_progress(COMPONENT, 1.0, 1, "tile %d/%d", n, n);
     img_free(&first);
@@ -205,6 +205,8 @@ int cmd_montage(int argc, char **argv)
     if (rc == 1) usage(stdout);
     else if (rc) ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
     else if (!o.out) ct_log(CT_LOG_ERROR, COMPONENT, "no output file: give -o SHEET.png (try --help)");
+    else if (img_file_kind_of(o.out) != IMG_FILE_PNG)
+        ct_log(CT_LOG_ERROR, COMPONENT, "-o %s: the sheet is written as PNG: give a name ending in .png", o.out);
     else if (!npos) ct_log(CT_LOG_ERROR, COMPONENT, "no input images (try --help)");
     else if (build(&o, pos, npos, &err)) ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
     else rc = 1;

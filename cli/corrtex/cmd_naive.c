@@ -217,7 +217,7 @@ static int run(const naive_opts *o, ct_error *err)
             have_path = !rc;
         }
     }
-    if (!rc) rc = trc_new(scene, &mesh, &o->trc, &trc, err);
+    if (!rc && (rc = trc_new(scene, &mesh, &o->trc, &trc, err)) == CT_ESTALE) ct_error_prefix(err, o->mesh);
     if (!rc) rc = fs_mkdirs(o->out, err);
     if (!rc) rc = img_alloc(&r.img, o->width, o->height, err);
     r.o = o;

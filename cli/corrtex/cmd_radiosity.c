@@ -71,7 +71,7 @@ static const optab OPTS[] = {
     {"image-planes", 0, OPTAB_STRING, OF(planes), 0, 0, NULL, "FILE",
      "also write FILE.exr: per pixel the plane its samples hit (0 at edges between surfaces; corrtex compare "
      "--planes)", NULL},
-    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
 };
 #undef OF
@@ -122,6 +122,15 @@ int cmd_radiosity(int argc, char **argv)
     }
     if (rad_params_check(&p, &err) != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
+        return 2;
+    }
+    if (image && img_file_kind_of(image) == IMG_FILE_OTHER) {
+        ct_log(CT_LOG_ERROR, "corrtex radiosity", "--image %s: give a name ending in .exr (linear) or .png (sRGB)",
+               image);
+        return 2;
+    }
+    if (planes && img_file_kind_of(planes) != IMG_FILE_EXR) {
+        ct_log(CT_LOG_ERROR, "corrtex radiosity", "--image-planes %s: give a name ending in .exr", planes);
         return 2;
     }
     /* Fail on an unwritable output now, not after a long solve. */
@@ -177,9 +186,8 @@ int cmd_radiosity(int argc, char **argv)
                                  k ? RAD_VIEW_PLANES : o.image_direct ? RAD_VIEW_DIRECT : RAD_VIEW_TOTAL, p.threads,
                                  &img, &err);
         if (!rc) {
-            size_t n = strlen(path);
-            rc = !k && n > 4 && strcmp(path + n - 4, ".png") == 0 ? img_write_png(path, &img, 0.0f, &err)
-                                                                  : img_write_exr(path, &img, IMG_FLOAT, &err);
+            rc = img_file_kind_of(path) == IMG_FILE_PNG ? img_write_png(path, &img, 0.0f, &err)
+                                                        : img_write_exr(path, &img, IMG_FLOAT, &err);
         }
         img_free(&img);
         if (rc) {

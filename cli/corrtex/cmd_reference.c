@@ -63,7 +63,7 @@ static const optab OPTS[] = {
     {"raw-cap", 0, OPTAB_LONG, OF(raw_cap), 1, 100000000, "2000000", "N", "", NULL},
     {"bench-runs", 0, OPTAB_INT, OF(bench_runs), 1, 20, "2", "R", "", NULL},
     {"out", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "OUT", "", NULL},
-    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "", NULL},
 };
 #undef OF
@@ -187,10 +187,14 @@ static int parse_args(int argc, char **argv, ref_args *a)
     if (!a->width || !a->height) return bad("missing --width or --height%s%s", "", ""), -1;
     if (!a->spp) return bad("missing --spp%s%s", "", ""), -1;
     if (a->trc.mode < 0) return bad("missing --mode (path, drt, reuse-diffuse)%s%s", "", ""), -1;
-    if (!a->out) return bad("missing -o OUT%s%s", "", ""), -1;
+    if (!a->out || !*a->out) return bad("missing -o OUT%s%s", "", ""), -1;
     if (a->camera && a->path) return bad("--camera and --path exclude each other%s%s", "", ""), -1;
     if (!a->path && (a->frame >= 0 || a->frames >= 0)) return bad("--frame/--frames need --path%s%s", "", ""), -1;
     if (a->path && a->frames < 0) return bad("--path needs --frames N (the path's frame count)%s%s", "", ""), -1;
+    /* one image (no --frames, or --frame K): an EXR file; else a folder */
+    if ((a->frames < 0 || a->frame >= 0) && img_file_kind_of(a->out) != IMG_FILE_EXR)
+        return bad("-o %s: the image is written as OpenEXR: give a name ending in .exr (--png writes an 8-bit copy "
+                   "beside it)%s", a->out, ""), -1;
     if (a->frame >= 0 && a->frame >= a->frames) {
         char f[32], n[32];
         snprintf(f, sizeof f, "%d", a->frame);
@@ -332,7 +336,10 @@ int cmd_reference(int argc, char **argv)
         ct_warn(CMD, "stand-in radiosity (L_e + rho_d * %g): throughput and tests only, not a reference",
                 (double)a.stand_in);
     }
-    if ((rc = trc_new(s, have_rad ? &rad : NULL, &to, &t, &err))) goto fail;
+    if ((rc = trc_new(s, have_rad ? &rad : NULL, &to, &t, &err))) {
+        if (rc == CT_ESTALE && a.radmesh) ct_error_prefix(&err, a.radmesh);   /* another scene's mesh */
+        goto fail;
+    }
     ct_info(CMD, "%s: %u triangles, %u lights; Embree scene built in %.2f s", a.scene, s->ntris, s->nemitters,
             ct_now() - tb);
     uint32_t nem;

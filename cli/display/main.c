@@ -130,7 +130,7 @@ static const optab RUN_OPTS[] = {
 };
 
 static const optab LOG_OPTS[] = {
-    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "warnings and errors only", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "warnings and errors only", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
 };
 #undef OF
@@ -198,8 +198,12 @@ static int parse_camera(const char *s, ct_camera *cam)
         if (*end != ',') break;
         p = end + 1;
     }
-    if ((n != 6 && n != 7) || *p != '\0' || !(v[6] > 1 && v[6] < 179)) {
+    if ((n != 6 && n != 7) || *p != '\0') {
         ct_log(CT_LOG_ERROR, COMP, "--camera: '%s' is not EX,EY,EZ,TX,TY,TZ[,FOV]", s);
+        return -1;
+    }
+    if (!(v[6] > 1 && v[6] < 179)) {
+        ct_log(CT_LOG_ERROR, COMP, "--camera: '%s': the field of view %g is outside (1, 179) degrees", s, (double)v[6]);
         return -1;
     }
     vec3 eye = v3(v[0], v[1], v[2]), target = v3(v[3], v[4], v[5]);

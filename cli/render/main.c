@@ -87,7 +87,7 @@ static const optab TRACER_OPTS[] = {
      "longest sleep of an idle tracer between probes (0 spins)", NULL},
 };
 static const optab LOG_OPTS[] = {
-    {"quiet", 0, OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+    {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
 };
 #undef OF
@@ -324,6 +324,7 @@ static int run_tracer(const opts *o, int rank, ct_error *err)
     trc_cli_apply(&o->trc, &to);
     to.seed = o->seed;
     if (rc == 0) rc = trc_new(scene, &mesh, &to, &t, err);
+    if (rc == CT_ESTALE && o->mesh) ct_error_prefix(err, o->mesh);   /* (it does not belong to the scene) */
     if (rc) ct_log(CT_LOG_ERROR, PROG, "tracer rank %d on %s: %s", rank, host, err->msg);
     int bad = rc ? 1 : 0;
     ct_error e;

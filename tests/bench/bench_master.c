@@ -33,6 +33,7 @@
 #include "common/radmesh.h"
 #include "common/scene.h"
 #include "common/timer.h"
+#include "display/disp_rescale.h"
 #include "master/drive.h"
 #include "master/dsink.h"
 #include "master/dsrv.h"
@@ -121,6 +122,28 @@ static int consume(const char *addr, const ct_camera *cam, int w, int h)
             x->w = m.u.tex_alloc.width;
             x->h = m.u.tex_alloc.height;
             x->texels = calloc((size_t)x->w * x->h * 3, sizeof *x->texels);
+        } else if (m.type == WIRE_TEX_RESIZE && m.u.tex_resize.tex < (1u << 16)) {
+            /* as a display does it: computed from the texels here */
+            tex *x = &t[m.u.tex_resize.tex];
+            int nw = (int)m.u.tex_resize.width, nh = (int)m.u.tex_resize.height;
+            uint16_t *n = x->texels && disp_rescale_exact((int)x->w, (int)x->h, nw, nh)
+                              ? malloc((size_t)nw * (size_t)nh * 3 * sizeof *n)
+                              : NULL;
+            if (!n) {
+                fprintf(stderr, "bench_master display: a resize of texture %u it cannot follow\n",
+                        m.u.tex_resize.tex);
+                break;
+            }
+            bool neg, nz;
+            if (disp_rescale(x->texels, (int)x->w, (int)x->h, n, nw, nh, &neg, &nz)) {
+                fprintf(stderr, "bench_master display: out of memory\n");
+                free(n);
+                break;
+            }
+            free(x->texels);
+            x->texels = n;
+            x->w = (uint32_t)nw;
+            x->h = (uint32_t)nh;
         } else if (m.type == WIRE_TEX_FREE && m.u.tex_free.tex < (1u << 16)) {
             free(t[m.u.tex_free.tex].texels);
             t[m.u.tex_free.tex].texels = NULL;

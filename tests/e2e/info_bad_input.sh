@@ -57,7 +57,38 @@ echo "+ $BIN/corrtex info $tmp/lines.json  -> exit $rc: $(cat "$tmp/e")"
 [[ $rc -eq 0 ]] || { echo "FAIL: lines.json: exit $rc, want 0"; fail=1; }
 grep -q '^warn scene: .*lines.obj: no triangles' "$tmp/e" || { echo "FAIL: no warning naming lines.obj"; fail=1; }
 check "$tmp/far_cam.json" "far_cam.json: camera 'c': eye or target outside the coordinate range"
+printf '{"meshes":[{"file":"ok.obj"}],"cameras":[{"name":"c","eye":[0,1,5],"target":[0,0,0],"up":[0,0,0]}]}' > "$tmp/up_zero.json"
+printf '{"meshes":[{"file":"ok.obj"}],"cameras":[{"name":"c","eye":[0,5,0],"target":[0,0,0],"up":[0,2,0]}]}' > "$tmp/up_along.json"
+check "$tmp/up_zero.json" "up_zero.json: camera 'c': 'up' is zero or along the view direction"
+check "$tmp/up_along.json" "up_along.json: camera 'c': 'up' is zero or along the view direction"
 check "$tmp/far_light.json" "far_light.json: lights\[0\]: corner 1 at (1e+30, 2, 0) is outside the coordinate range"
+# PLY headers promising more than the file holds: assimp reserved what they
+# said (two billion vertices in a 200-byte file took memory without bound
+# and never finished); a true header loads.
+printf 'ply\nformat ascii 1.0\nelement vertex 2000000000\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$tmp/huge.ply"
+printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 2000000000\nproperty list uchar int vertex_indices\nend_header\n' > "$tmp/hugeface.ply"
+head -c 36 /dev/zero >> "$tmp/hugeface.ply"
+printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$tmp/ok.ply"
+for f in huge hugeface ok; do printf '{"meshes":[{"file":"%s.ply"}]}' "$f" > "$tmp/$f-ply.json"; done
+t0=$(date +%s)
+check "$tmp/huge-ply.json" "huge.ply: the PLY header promises 2000000000 vertex (at least 12000000000 bytes) but the file has 26 bytes after its header"
+check "$tmp/hugeface-ply.json" "hugeface.ply: the PLY header promises 2000000000 face after the elements before"
+(($(date +%s) - t0 <= 5)) || { echo "FAIL: the PLY headers took $(($(date +%s) - t0)) s"; fail=1; }
+"$BIN/corrtex" info "$tmp/ok-ply.json" >"$tmp/o" 2>"$tmp/e" || { echo "FAIL: a true PLY file: $(cat "$tmp/e")"; fail=1; }
+# Emission an emitter's power overflows float with (the radiosity solve wrote
+# an infinite mesh and exited 0), and MTL values that are not finite.
+printf '{"meshes":[{"file":"ok.obj","material":"l"}],"materials":{"l":{"emission":[1e38,1e38,1e38]}}}' > "$tmp/hot.json"
+printf '{"meshes":[{"file":"ok.obj"}],"lights":[{"type":"quad","corner":[0,2,0],"edge1":[1,0,0],"edge2":[0,0,1],"emission":[2e9,1,1]}]}' > "$tmp/hot_light.json"
+printf 'newmtl foo\nKd nan 1 1\n' > "$tmp/nan.mtl"
+printf 'newmtl foo\nKd 0.5 0.5 0.5\nKe 1e39 1 1\n' > "$tmp/inf.mtl"
+for m in nan inf; do
+  printf 'mtllib %s.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl foo\nf 1 2 3\n' "$m" > "$tmp/$m-mtl.obj"
+  printf '{"meshes":[{"file":"%s-mtl.obj"}]}' "$m" > "$tmp/$m-mtl.json"
+done
+check "$tmp/hot.json" "hot.json: material 'l': 'emission' above 1e9"
+check "$tmp/hot_light.json" "hot_light.json: lights\[0\]: 'emission' above 1e9"
+check "$tmp/nan-mtl.json" "nan-mtl.obj: material 'foo' has a value that is not a finite number"
+check "$tmp/inf-mtl.json" "inf-mtl.obj: material 'foo' has a value that is not a finite number"
 for cmd in "reference --width 8 --height 8 --spp 1 --mode path -o $tmp/far.exr" "radiosity -o $tmp/far.ctmesh --image $tmp/far.png"; do
   "$BIN/corrtex" ${cmd%% *} "$tmp/far_cam.json" ${cmd#* } >"$tmp/o" 2>"$tmp/e"; rc=$?
   echo "+ $BIN/corrtex ${cmd%% *} $tmp/far_cam.json ${cmd#* } -> exit $rc: $(cat "$tmp/e")"

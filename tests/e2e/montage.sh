@@ -43,6 +43,7 @@ bad "missing.exr" -o "$tmp/x.png" "$tmp/missing.exr"
 bad "not a .png or .exr" -o "$tmp/x.png" "$root/tests/data/scenes/mini.json"
 bad "aspect" -o "$tmp/x.png" "$data/compare-ref.exr" "$tmp/b.png"
 bad "--tile" -o "$tmp/x.png" --tile 3 "$data/compare-ref.exr"
+bad "-o $tmp/x.exr: the sheet is written as PNG" -o "$tmp/x.exr" "$data/compare-ref.exr"
 [[ ! -e $tmp/x.png ]] || fail "a sheet was written despite an error"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: montage sizes, identity tile, --max-tiles, errors"

@@ -73,6 +73,9 @@ check 2 "\-\-dim-floor: '1.5'" "$scene" -o "$tmp/x.ctmesh" --dim-floor 1.5
 check 2 "cannot create" "$scene" -o "$tmp/no/such/dir/x.ctmesh" --error 1e-2
 check 2 "cannot create" "$scene" -o "$tmp/x.ctmesh" --image-planes "$tmp/no/such/dir/p.exr" --error 1e-2
 check 2 "no camera named 'nope'" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/x.png" --camera nope
+# An image name the format does not match (a .jpg got EXR bytes), refused before the solve.
+check 2 "\-\-image $tmp/v.jpg: give a name ending in .exr (linear) or .png (sRGB)" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/v.jpg"
+check 2 "\-\-image-planes $tmp/p.png: give a name ending in .exr" "$scene" -o "$tmp/x.ctmesh" --image-planes "$tmp/p.png"
 check 1 "memory cap of 16 MB" "$scene" -o "$tmp/x.ctmesh" --error 1e-9 --min-area 1e-12 --memory-cap 16
 [[ -e $tmp/x.ctmesh ]] && { echo "FAIL: a failed run left an output"; fail=1; }
 # corrtex-render's solver options go through the same checks (a singleton

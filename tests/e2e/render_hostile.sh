@@ -32,7 +32,7 @@ hostile() {   # NAME: one hostile peer over bash's /dev/tcp
     garbage) exec 5<>"/dev/tcp/127.0.0.1/$port"; printf 'GET / HTTP/1.1\r\nHost: corrtex\r\n\r\n' >&5; sleep 3 ;;
     oversize)
       exec 5<>"/dev/tcp/127.0.0.1/$port"
-      printf '\x89CTX\r\n\x1a\n\x04\x00\x02\x00corrtex-proto-1\x00\x00\x00\x00\x00AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA' >&5
+      printf '\x89CTX\r\n\x1a\n\x05\x00\x02\x00corrtex-proto-1\x00\x00\x00\x00\x00AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA' >&5
       printf '\x01\x00\x00\x00\xff\xff\xff\x7f' >&5; sleep 3 ;;
     slow)
       exec 5<>"/dev/tcp/127.0.0.1/$port"

@@ -81,5 +81,21 @@ grep -q "radiosity: checking the cache" "$tmp/walk2.out" || fail "the second wal
 grep -q '^| radiosity_s | [0-9.]* (the cache was up to date) |$' "$out2/report.md" 2>/dev/null ||
   fail "the second report does not say the cache was up to date: $(grep radiosity_s "$out2/report.md" 2>/dev/null)"
 no_strays "after the second walk"
+# A path file the display refuses (a word where the fov goes): the launcher
+# says so at once and exits 2; it used to wait 15 s for the job and report
+# the job's end before the display's reason.
+printf '0 278 273 -800 278 273 0 39.3\n1 278 273 -700 278 273 0 abc\n' >"$tmp/bad.path"
+cmd=("$walk" cornell --path "$tmp/bad.path" --frames 2 --samples-per-frame $spf --width $w --height $w --ranks 2
+     --listen "unix:$sock" --out "$tmp/walk3" --radiosity-cache "$tmp/cornell.ctmesh"
+     --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240)
+log_cmd "${cmd[@]}"
+t0=$(date +%s)
+(cd "$root" && env -u DISPLAY XDG_CACHE_HOME="$tmp/xdg" "${cmd[@]}") >"$tmp/walk3.out" 2>&1; rc=$?
+sed 's/^/  walk3: /' "$tmp/walk3.out" | tail -n 6
+((rc == 2)) || fail "a path file the display refuses: exit status $rc, want 2"
+grep -q "the display refused its input: error .*bad.path:2: expected 't ex ey ez tx ty tz \[fov\]'" "$tmp/walk3.out" ||
+  fail "the launcher did not name the display's reason"
+(($(date +%s) - t0 < 15)) || fail "the launcher took $(($(date +%s) - t0)) s to give up"
+no_strays "after the refused path"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: walk of $n frames with report; nothing left behind"

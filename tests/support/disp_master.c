@@ -130,6 +130,16 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
         m.type = WIRE_BYE;
         m.u.bye.reason = WIRE_BYE_DONE;
         send_all(c, &m);
+    } else if (end == FXM_END_STALL) {
+        wire_buf b = {0};
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_PATCH;
+        m.u.tex_patch = (wire_tex_patch){.tex = 5, .x = 0, .y = 0, .w = 8, .h = 3, .texels = half};
+        if (wire_encode(&m, &b, &err) || write(chan_fd(c), b.data, 10) != 10) return 60;
+        wire_buf_free(&b);
+        usleep(5000000);
+        chan_free(c);
+        return 0;
     } else if (end == FXM_END_BAD) {
         memset(&m, 0, sizeof m);
         m.type = WIRE_TEX_PATCH;

@@ -23,8 +23,10 @@ typedef enum fxm_end {
     FXM_END_ROUNDS = 4,  /* FXM_ROUNDS lockstep rounds: each CAMERA is answered with a
                           * 1024x1024 texture in 32x32 patches (6 MiB, many reads) and
                           * the next FRAME */
-    FXM_END_CAMERAS = 5  /* read until the display's BYE; succeed when the last CAMERA
+    FXM_END_CAMERAS = 5, /* read until the display's BYE; succeed when the last CAMERA
                           * before it has eye.x == FXM_LAST_X */
+    FXM_END_STALL = 6    /* send 10 bytes of a TEX_PATCH frame, then nothing (no PONG
+                          * either) for 5 s */
 } fxm_end;
 
 #define FXM_ROUNDS 30

@@ -147,6 +147,10 @@ size_t fx_messages(wire_msg *out)
     m = &out[n++];
     m->type = WIRE_SAMPLES;   /* no points: only the drop count */
     m->u.samples = (wire_samples){.epoch = 18, .count = 0, .dropped = 3, .xyz = fx_points};
+
+    m = &out[n++];
+    m->type = WIRE_TEX_RESIZE;
+    m->u.tex_resize = (wire_tex_resize){.tex = 42, .width = 512, .height = 128};
     return n;
 }
 

@@ -12,7 +12,7 @@
 #include "proto/auth.h"
 #include "proto/wire.h"
 
-#define FX_NMSG 25
+#define FX_NMSG 26
 
 /* Fills out[] with FX_NMSG valid messages covering every type (patches and
  * chunks point to static storage); returns the count. */

@@ -170,6 +170,12 @@ Test(campath, parse_errors_name_the_line)
     expect_error("# c\n\n0 0 0 5 0 0 0 45 9\n", CT_EPARSE, "bad.path:3:", NULL);
     expect_error("0 0 0 5 zero 0 0\n", CT_EPARSE, "bad.path:1:", NULL);
     expect_error("up 0 1\n", CT_EPARSE, "bad.path:1:", "up");
+    /* A word that is not a number where the fov goes (sscanf stopped there
+     * and the default fov was used), and words after it. */
+    expect_error("0 0 0 5 0 0 0\n1 1 0 5 0 0 0 abc\n", CT_EPARSE, "bad.path:2:", "7 or 8 numbers");
+    expect_error("0 0 0 5 0 0 0 39.3abc\n", CT_EPARSE, "bad.path:1:", "7 or 8 numbers");
+    expect_error("0 0 0 5 0 0 0 abc def ghi\n", CT_EPARSE, "bad.path:1:", "7 or 8 numbers");
+    expect_error("up 0 1 0 x\n0 0 0 5 0 0 0\n", CT_EPARSE, "bad.path:1:", "up");
     /* Times must increase strictly. */
     expect_error("0 0 0 5 0 0 0\n# gap\n2 1 0 5 0 0 0\n2 2 0 5 0 0 0\n", CT_EINVAL, "bad.path:4:", "time");
     expect_error("3 0 0 5 0 0 0\n1 1 0 5 0 0 0\n", CT_EINVAL, "bad.path:2:", "time");
@@ -184,6 +190,22 @@ Test(campath, parse_errors_name_the_line)
     expect_error("0 0 0 5 0 0 0\n1 0 0 -1e19 0 0 0\n", CT_ERANGE, "bad.path:2:", "outside the coordinate range");
     expect_error("0 0 0 5 0 2e9 0\n", CT_ERANGE, "bad.path:1:", "eye or target");
     expect_error("up 0 0 0\n0 0 0 5 0 0 0\n", CT_EINVAL, "bad.path", "up");
+}
+
+/* A NUL byte would end the text where it stands: what follows went unread. */
+Test(campath, load_refuses_a_nul_byte)
+{
+    char path[] = "/tmp/ct-test-campath-nul-XXXXXX";
+    int fd = mkstemp(path);
+    cr_assert_geq(fd, 0);
+    static const char text[] = "0 0 0 5 0 0 0\n\0garbage\n1 1 0 5 0 0 0\n";
+    cr_assert_eq(write(fd, text, sizeof text - 1), (ssize_t)(sizeof text - 1));
+    close(fd);
+    ct_campath p;
+    ct_error err;
+    cr_assert_eq(campath_load(path, &p, &err), CT_EPARSE);
+    cr_assert(strstr(err.msg, "contains a NUL byte") != NULL, "%s", err.msg);
+    unlink(path);
 }
 
 Test(campath, load_missing_file)

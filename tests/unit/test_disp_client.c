@@ -95,7 +95,7 @@ static void run_display(fxm_peer *p, uint32_t k, int expect_end_rc, bool expect_
     cr_assert_eq(disp_scene_cache_new(NULL, 0, &cache, &err), 0);
     disp_inbox *in = new_inbox();
     disp_client *c = NULL;
-    disp_client_opts o = {p->addr, token_file, k, 5000};
+    disp_client_opts o = {p->addr, token_file, k, 5000, 0};
     cr_assert_eq(disp_client_connect(&o, cache, in, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0, "%s", err.msg);
@@ -164,7 +164,7 @@ Test(disp_client, no_master_is_an_error)
 {
     ct_error err;
     disp_client *c = NULL;
-    disp_client_opts o = {"unix:/nonexistent-dir/sock", NULL, 0, 1000};
+    disp_client_opts o = {"unix:/nonexistent-dir/sock", NULL, 0, 1000, 0};
     disp_inbox *in = new_inbox();
     int rc = disp_client_connect(&o, NULL, in, &c, &err);
     disp_inbox_free(in);
@@ -206,7 +206,7 @@ Test(disp_client, tcp_with_a_wrong_token_fails)
     write_token(tf, sizeof tf, "another-token-of-sufficient-length");
     ct_error err;
     disp_client *c = NULL;
-    disp_client_opts o = {p.addr, tf, 0, 5000};
+    disp_client_opts o = {p.addr, tf, 0, 5000, 0};
     disp_inbox *in = new_inbox();
     int rc = disp_client_connect(&o, NULL, in, &c, &err);
     disp_inbox_free(in);
@@ -227,7 +227,7 @@ static uint64_t session_bytes(disp_scene_cache *cache)
     cr_assert_eq(disp_session_new(&s, &err), 0);
     disp_inbox *in = new_inbox();
     disp_client *c = NULL;
-    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    disp_client_opts o = {p.addr, NULL, 0, 5000, 0};
     cr_assert_eq(disp_client_connect(&o, cache, in, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
@@ -297,7 +297,7 @@ static void rig_open(rig *r, fxm_end end)
     cr_assert_eq(fxm_start(&r->p, end, 0, W, H), 0, "%s", r->p.msg);
     cr_assert_eq(disp_session_new(&r->s, &err), 0);
     r->in = new_inbox();
-    disp_client_opts o = {r->p.addr, NULL, 0, 5000};
+    disp_client_opts o = {r->p.addr, NULL, 0, 5000, 0};
     cr_assert_eq(disp_client_connect(&o, NULL, r->in, &r->c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     cr_assert_eq(disp_client_send_camera(r->c, &cam, W, H, &err), 0);
@@ -313,6 +313,32 @@ static int rig_close(rig *r)
     disp_session_free(r->s);
     gl_backend_close(r->b);
     return st;
+}
+
+/* A master that stops in the middle of a message, PONGs and all: the
+ * display gives up after silent_ms with a line that says so (a lockstep
+ * display used to wait for good). */
+Test(disp_client, a_master_that_stalls_mid_message_is_given_up)
+{
+    ct_error err;
+    fxm_peer p;
+    memset(&p, 0, sizeof p);
+    cr_assert_eq(fxm_start(&p, FXM_END_STALL, 0, W, H), 0, "%s", p.msg);
+    disp_inbox *in = new_inbox();
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000, 1000};
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    double t0 = ct_now();
+    int rc = 0;
+    while (!(rc = disp_client_status(c, &err)) && ct_now() - t0 < 4.0) usleep(10000);
+    printf("stalled master: %s after %.1f s\n", err.msg, ct_now() - t0);
+    cr_expect_eq(rc, CT_EIO);
+    cr_expect(strstr(err.msg, "the master sent nothing for 1.0 s, not even a PONG") != NULL, "%s", err.msg);
+    disp_client_close(c);
+    disp_inbox_free(in);
+    cr_expect_eq(fxm_stop(&p), 0);
 }
 
 Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
@@ -380,7 +406,7 @@ Test(disp_client, free_running_cameras_never_pile_up)
     cr_assert_eq(fxm_start(&p, FXM_END_CAMERAS, 0, W, H), 0, "%s", p.msg);
     disp_inbox *in = new_inbox();
     disp_client *c = NULL;
-    disp_client_opts o = {p.addr, NULL, 0, 5000};
+    disp_client_opts o = {p.addr, NULL, 0, 5000, 0};
     cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
     ct_camera cam = fx_box_camera();
     for (int i = 0; i < 5000; i++) {

@@ -6,7 +6,8 @@
  * textures; a texture freed and allocated again between two frames starts
  * from zero at its new size; stamps reach the frame that shows them;
  * messages that do not fit are refused with their reason; the lag
- * histogram's quantiles; resizes racing the frames that take them; every
+ * histogram's quantiles; an exact resize (TEX_RESIZE) computed from the
+ * inbox's copy and uploaded whole; resizes racing the frames that take them; every
  * kind of message in random order racing frames that draw them. */
 #include <criterion/criterion.h>
 #include <pthread.h>
@@ -18,6 +19,7 @@
 
 #include "display/disp_inbox.h"
 #include "display/disp_lag.h"
+#include "display/disp_rescale.h"
 #include "tests/support/disp_fixture.h"
 
 #define W 64
@@ -271,6 +273,58 @@ Test(disp_inbox, freed_and_allocated_again_between_frames_starts_from_zero)
     rig_close(&r);
 }
 
+/* TEX_RESIZE: the inbox computes the new texels from its copy
+ * (disp_rescale.h) and the next frame uploads all of them: the image is the
+ * one of the same texels patched into a texture of the new size. */
+Test(disp_inbox, an_exact_resize_is_computed_here_and_uploaded_whole)
+{
+    ct_error err;
+    rig r;
+    rig_open(&r);
+    disp_inbox *in = r.in;
+    fx_box_nodes nd = r.nd;
+    ct_radmesh copy;
+    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
+    disp_inbox_scene(in, &copy);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    mat4 p = wall_proj();
+    cr_assert_eq(disp_inbox_tex_projection(in, 5, &p, &err), 0);
+    static uint16_t a[16 * 12 * 3], want[32 * 24 * 3];
+    fill(a, 16 * 12 * 3, 0.1f, 0.01f);
+    for (int i = 0; i < 16 * 12; i += 5) a[3 * i] = a[3 * i + 1] = a[3 * i + 2] = 0;   /* empty texels */
+    cr_assert_eq(disp_inbox_tex_patch(in, 5, 0, 0, 16, 12, a, 1000, 7, &err), 0);
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_apply(in, r.s, &took, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_inbox_tex_resize(in, 5, 32, 24, &err), 0, "%s", err.msg);
+    cr_assert_eq(disp_inbox_apply(in, r.s, &took, &err), 0, "%s", err.msg);
+    cr_expect_eq(took.texels, 32u * 24u, "the whole resized texture goes up: %llu texels",
+                 (unsigned long long)took.texels);
+    bool neg, nz;
+    cr_assert_eq(disp_rescale(a, 16, 12, want, 32, 24, &neg, &nz), 0);
+    disp_session *direct = NULL;
+    cr_assert_eq(disp_session_new(&direct, &err), 0);
+    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
+    cr_assert_eq(disp_session_tex_alloc(direct, 5, nd.back, 32, 24, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
+    cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 32, 24, want, &err), 0);
+    static uint8_t got[W * H * 3], ref[W * H * 3];
+    render(r.s, got);
+    render(direct, ref);
+    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "the resized texture's image differs from its texels patched");
+    /* a patch at the new size fits; what is no exact resize does not */
+    cr_expect_eq(disp_inbox_tex_patch(in, 5, 28, 20, 4, 4, a, 0, 0, &err), 0, "%s", err.msg);
+    cr_expect_eq(disp_inbox_tex_resize(in, 5, 48, 24, &err), CT_EPROTO);
+    cr_expect(strstr(err.msg, "32x24 -> 48x24 is no exact resize"), "%s", err.msg);
+    cr_expect_eq(disp_inbox_tex_resize(in, 6, 8, 8, &err), CT_EPROTO);
+    cr_expect(strstr(err.msg, "unknown texture 6"), "%s", err.msg);
+    cr_expect_eq(disp_inbox_tex_resize(in, 5, 64, 0, &err), CT_ERANGE);
+    cr_assert_eq(disp_inbox_tex_free(in, 5, &err), 0);
+    cr_expect_eq(disp_inbox_tex_resize(in, 5, 16, 12, &err), CT_EPROTO, "a freed texture");
+    disp_session_free(direct);
+    rmesh_free(&r.mesh);
+    rig_close(&r);
+}
+
 Test(disp_inbox, messages_that_do_not_fit_are_refused)
 {
     ct_error err;
@@ -297,6 +351,12 @@ Test(disp_inbox, messages_that_do_not_fit_are_refused)
     bad.m[1][2] = NAN;
     cr_expect_eq(disp_inbox_tex_projection(in, 1, &bad, &err), CT_ERANGE);
     cr_expect_eq(disp_inbox_tex_free(in, 3, &err), CT_EPROTO);
+    /* A texture per node at most, and the freed ones until a frame: past
+     * twice the nodes and 1,024 more, a master only slows the display. */
+    uint32_t id = 100, limit = 2 * nnodes + 1024, made = 1;
+    for (; made < limit; made++, id++) cr_assert_eq(disp_inbox_tex_alloc(in, id, 0, 1, 1, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_expect_eq(disp_inbox_tex_alloc(in, id, 0, 1, 1, DISP_PROJ_OBJECT_PARALLEL, &err), CT_ERANGE);
+    cr_expect(strstr(err.msg, "textures for a scene of"), "%s", err.msg);
     disp_inbox_free(in);
 }
 

@@ -4,8 +4,9 @@
  * refused with ERROR BUSY, and hostile peers (garbage, an oversized length,
  * a wrong token, a silent peer) dropped while the legitimate display goes on
  * undisturbed, and idle connections that cannot take the handshake slots
- * from a display. The server runs in its own thread, as in the master's
- * loop. */
+ * from a display; a burst of CAMERAs right after SETTINGS keeps every event;
+ * PINGs of a display that reads nothing do not fill the send queue. The
+ * server runs in its own thread, as in the master's loop. */
 #include <arpa/inet.h>
 #include <criterion/criterion.h>
 #include <errno.h>
@@ -50,14 +51,19 @@ static void *serve(void *arg)
     return NULL;
 }
 
-static void start(server *sv, const char *listen, const auth_token *tok, int handshake_ms)
+static void start_queue(server *sv, const char *listen, const auth_token *tok, int handshake_ms, size_t queue_bytes)
 {
     memset(sv, 0, sizeof *sv);
-    dsrv_config c = {.listen = listen, .token = tok, .handshake_timeout_ms = handshake_ms, .queue_bytes = 0};
+    dsrv_config c = {.listen = listen, .token = tok, .handshake_timeout_ms = handshake_ms, .queue_bytes = queue_bytes};
     ct_error err = {{0}};
     cr_assert_eq(dsrv_new(&c, &sv->s, &err), 0, "%s", err.msg);
     pthread_mutex_init(&sv->mu, NULL);
     cr_assert_eq(pthread_create(&sv->th, NULL, serve, sv), 0);
+}
+
+static void start(server *sv, const char *listen, const auth_token *tok, int handshake_ms)
+{
+    start_queue(sv, listen, tok, handshake_ms, 0);
 }
 
 static void stop(server *sv)
@@ -395,6 +401,110 @@ Test(dsrv, droppable_samples_under_back_pressure)
         cr_assert_eq(rc, WIRE_NEED_MORE, "%s", err.msg);
     }
     cr_expect_eq(got, 3, "%d messages arrived", got);
+    chan_free(d);
+    dsrv_free(sv.s);
+    pthread_mutex_destroy(&sv.mu);
+}
+
+/* SETTINGS and 100 CAMERAs in one write, while the master takes no events:
+ * the server stops reading the display before its event ring (64) is
+ * full, so the display's CONNECTED and every CAMERA arrive, in order (the
+ * ring used to drop its oldest event: the CONNECTED, and the display never
+ * got the scene). */
+Test(dsrv, a_burst_after_settings_keeps_every_event)
+{
+    char spec[128];
+    server sv;
+    sock_spec(spec, sizeof spec, "burst");
+    start(&sv, spec, NULL, 2000);
+    sv.hold = 1;
+    chan_config cc = {.role = AUTH_ROLE_DISPLAY};
+    chan *d = NULL;
+    ct_error err = {{0}};
+    cr_assert_eq(chan_connect(spec, &cc, 3000, &d, &err), 0, "%s", err.msg);
+    wire_msg m = {.type = WIRE_SETTINGS};
+    cr_assert_eq(chan_send(d, &m, &err), 0);
+    for (uint32_t i = 1; i <= 100; i++) {
+        wire_msg c = {.type = WIRE_CAMERA};
+        c.u.camera = (wire_camera){i, 64, 48, cam_look_at(v3(0, 0, 5), v3(0, 0, 0), v3(0, 1, 0), 45.0f)};
+        cr_assert_eq(chan_send(d, &c, &err), 0);
+    }
+    cr_assert_eq(chan_flush(d, 2000, &err), 0, "%s", err.msg);
+    usleep(300000);   /* the held server reads what it may */
+    sv.stop = 1;
+    pthread_join(sv.th, NULL);
+    int connected = 0, cameras = 0;
+    double end = ct_now() + 3.0;
+    while (cameras < 100 && ct_now() < end) {
+        dsrv_step(sv.s, 5, &err);
+        dsrv_event e;
+        while (dsrv_next_event(sv.s, &e)) {
+            if (e.kind == DSRV_EV_CONNECTED) {
+                cr_assert_eq(cameras, 0, "CONNECTED after a CAMERA");
+                connected++;
+                continue;
+            }
+            cr_assert_eq(e.kind, DSRV_EV_MESSAGE);
+            cr_assert_eq(e.msg.type, WIRE_CAMERA);
+            cr_assert_eq(e.msg.u.camera.epoch, (uint32_t)cameras + 1, "camera %u after %d", e.msg.u.camera.epoch,
+                         cameras);
+            cameras++;
+        }
+    }
+    cr_expect_eq(connected, 1, "the display's CONNECTED event was lost");
+    cr_expect_eq(cameras, 100, "%d of 100 cameras arrived", cameras);
+    chan_free(d);
+    dsrv_free(sv.s);
+    pthread_mutex_destroy(&sv.mu);
+}
+
+/* A display that sends PINGs and reads nothing: the server answers none
+ * behind a quarter of its queue's bound, so the queue does not fill and a
+ * control message after them is queued at once (the PONGs used to fill it,
+ * and the next STATS waited --send-timeout-ms for room, the master's whole
+ * loop with it). */
+Test(dsrv, pings_of_a_display_that_reads_nothing_do_not_fill_the_queue)
+{
+    char spec[128];
+    server sv;
+    sock_spec(spec, sizeof spec, "pings");
+    const size_t bound = 64u << 10;
+    start_queue(&sv, spec, NULL, 2000, bound);
+    chan *d = display(spec, NULL, 0);
+    dsrv_event e;
+    cr_assert_eq(wait_event(&sv, 0, &e), DSRV_EV_CONNECTED);
+    sv.stop = 1;
+    pthread_join(sv.th, NULL);
+    /* 20,000 PINGs (320 KB; their PONGs would be 480 KB), written raw:
+     * the chan would read while it flushes */
+    wire_buf b = {0};
+    ct_error err = {{0}};
+    for (uint64_t i = 0; i < 20000; i++) {
+        wire_msg p = {.type = WIRE_PING};
+        p.u.ping.token = i;
+        cr_assert_eq(wire_encode(&p, &b, &err), 0);
+    }
+    size_t off = 0, most = 0;
+    double end = ct_now() + 10.0;
+    while (off < b.len && ct_now() < end) {
+        ssize_t k = write(chan_fd(d), b.data + off, b.len - off);
+        if (k > 0) off += (size_t)k;
+        dsrv_step(sv.s, 1, &err);
+        dsrv_event ev;
+        while (dsrv_next_event(sv.s, &ev)) {
+        }
+        size_t q = dsrv_queued(sv.s);
+        if (q > most) most = q;
+    }
+    cr_assert_eq(off, b.len, "the server stopped reading the PINGs");
+    for (int i = 0; i < 50; i++) dsrv_step(sv.s, 1, &err);
+    cr_expect_leq(most, bound / 4 + 24, "%zu bytes queued (bound %zu)", most, bound);
+    wire_msg f = {.type = WIRE_TEX_FREE};
+    double t0 = ct_now();
+    cr_assert_eq(dsrv_send(sv.s, &f, 2000, &err), 0);
+    cr_expect_lt(ct_now() - t0, 0.1, "a control message waited %.2f s for room", ct_now() - t0);
+    cr_expect(dsrv_has_display(sv.s));
+    wire_buf_free(&b);
     chan_free(d);
     dsrv_free(sv.s);
     pthread_mutex_destroy(&sv.mu);

@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Displays that stay within the protocol and still used to stall the master
+# or hold its one display slot (tests/tools/stuck_display):
+# - a burst of 100 CAMERAs written with SETTINGS: the master's event ring
+#   (64) used to drop the display's CONNECTED event, so it never got the
+#   scene; now it does;
+# - a display that reads nothing after its CAMERA: flow control sends it
+#   nothing more, so the full send queue that drops a stuck display never
+#   came and it held the slot for good; now it is dropped after
+#   --send-timeout-ms with a log line naming it (and ERROR LIMIT, when the
+#   socket has room for it);
+# - a display that floods PINGs and reads nothing: the PONGs used to fill
+#   the send queue until the next STATS waited --send-timeout-ms for room,
+#   the whole loop with it; now the master answers no PING behind a quarter
+#   of its queue (tests/unit/test_dsrv.c) and drops the display the same way.
+# Then a real display gets its frame, and SIGTERM ends the job with status 0.
+source "$(dirname "$0")/lib/mpi.sh"
+need_programs
+stuck="$root/${CORRTEX_BUILD:-build/release}/tools/stuck_display"
+[[ -x $stuck ]] || { fail "missing $stuck (make unit-bins)"; finish; }
+cornell_args
+master_start job 2 "${CORNELL[@]}" --listen "unix:$tmp/s.sock" --send-timeout-ms 1500
+master_wait_listen job || finish
+
+# stuck NAME WANT_RC ARGS...: logged, output in $tmp/NAME.out.
+stuck() {
+  local name=$1 want=$2; shift 2
+  log_cmd "$stuck" "$ADDR" - "$@"
+  timeout 60 "$stuck" "$ADDR" - "$@" >"$tmp/$name.out" 2>&1
+  local rc=$?
+  sed "s/^/  $name: /" "$tmp/$name.out"
+  ((rc == want)) || fail "$name: exit status $rc, expected $want"
+}
+stuck burst 0 burst 100
+grep -qx 'scene after 100 cameras' "$tmp/burst.out" || fail "a display that sent 100 cameras at once got no scene"
+
+stuck noread 0 noread 4
+# (its ERROR may not get through: the scene's frames fill its socket)
+grep -q '^closed: ' "$tmp/noread.out" || fail "a display that read nothing was not dropped"
+grep -q 'dropped display .*took nothing and acknowledged nothing for [0-9.]* s' "$tmp/job.log" ||
+  fail "the master did not log the dropped display"
+
+stuck pingflood 0 pingflood 4
+(($(grep -c 'took nothing and acknowledged nothing' "$tmp/job.log") >= 2)) ||
+  fail "the PING-flooding display was not dropped"
+
+display_run display --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278,273,0,39.3 \
+  --samples-per-frame 500 --frames 1 --out "$tmp/out"
+((DISPLAY_RC == 0)) || fail "display exit status $DISPLAY_RC after the stuck displays"
+[[ -s $tmp/out/frame_00000.exr ]] || fail "no frame after the stuck displays"
+master_term job
+finish
