@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <stdbool.h>
 #include <string.h>
 
 static void *field(void *base, const optab *r)
@@ -231,19 +232,36 @@ int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char 
                 ct_error *err)
 {
     *npos = 0;
+    bool only_pos = false;   /* after "--" */
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
-        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) return 1;
-        if (a[0] != '-' || a[1] == 0) {
+        if (!only_pos && strcmp(a, "--") == 0) {
+            only_pos = true;
+            continue;
+        }
+        if (!only_pos && (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0)) return 1;
+        if (only_pos || a[0] != '-' || a[1] == 0) {
             if (*npos >= maxpos) return ct_fail(err, CT_EINVAL, "unexpected argument '%s' (try --help)", a);
             pos[(*npos)++] = a;
             continue;
         }
+        /* --name=value as well as --name value */
+        char name[80];
+        const char *eq = a[1] == '-' ? strchr(a, '=') : NULL;
+        if (eq && (size_t)(eq - a) < sizeof name) {
+            memcpy(name, a, (size_t)(eq - a));
+            name[eq - a] = '\0';
+        } else {
+            eq = NULL;
+        }
         int k = 0;
-        const optab *r = lookup(g, ng, a, &k);
-        if (!r) return ct_fail(err, CT_EINVAL, "unknown option '%s' (try --help)", a);
+        const optab *r = lookup(g, ng, eq ? name : a, &k);
+        if (!r) return ct_fail(err, CT_EINVAL, "unknown option '%s' (try --help)", eq ? name : a);
         const char *v = NULL;
-        if (r->type != OPTAB_FLAG) {
+        if (r->type == OPTAB_FLAG && eq) return ct_fail(err, CT_EINVAL, "option %s takes no value", name);
+        if (eq) {
+            v = eq + 1;
+        } else if (r->type != OPTAB_FLAG) {
             if (i + 1 >= argc) return ct_fail(err, CT_EINVAL, "option %s needs a value (try --help)", a);
             v = argv[++i];
         }

@@ -348,6 +348,27 @@ int disp_inbox_tex_projection(disp_inbox *b, uint32_t id, const mat4 *world_to_t
     return rc;
 }
 
+/* Stamps wait here until every marked tile has gone up; while uploads lag
+ * (a backlog past DISP_INBOX_FRAME_BYTES a frame) they would pile up, one
+ * a patch. Past MAX_STAMPS, neighbours merge: the older stamp and both
+ * counts, so a lag is never understated (it is an upper bound already:
+ * docs/display.md, "Lag"). */
+#define MAX_STAMPS 65536u
+static void merge_stamps(disp_inbox *b)
+{
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < b->nstamps; i += 2, k++) {
+        disp_inbox_stamp m = b->stamps[i];
+        if (i + 1 < b->nstamps) {
+            const disp_inbox_stamp *o = &b->stamps[i + 1];
+            if (o->stamp_us < m.stamp_us) m.stamp_us = o->stamp_us;
+            m.samples = m.samples > UINT32_MAX - o->samples ? UINT32_MAX : m.samples + o->samples;
+        }
+        b->stamps[k] = m;
+    }
+    b->nstamps = k;
+}
+
 int disp_inbox_tex_patch(disp_inbox *b, uint32_t id, int x, int y, int w, int h, const uint16_t *rgb,
                          uint64_t stamp_us, uint32_t samples, ct_error *err)
 {
@@ -380,6 +401,7 @@ int disp_inbox_tex_patch(disp_inbox *b, uint32_t id, int x, int y, int w, int h,
         b->dirty_bytes += (size_t)(e - a + 1) * TS * UP_BPT * (size_t)(((y + h - 1) >> TS_SHIFT) - (y >> TS_SHIFT) + 1) * TS;
         b->texels_in += (uint64_t)w * (uint64_t)h;
         b->patches_in++;
+        if (samples && b->nstamps == MAX_STAMPS) merge_stamps(b);
         if (samples && grow((void **)&b->stamps, &b->cap_stamps, b->nstamps + 1, sizeof *b->stamps))
             b->stamps[b->nstamps++] = (disp_inbox_stamp){stamp_us, samples};
     }

@@ -4,6 +4,7 @@
  * a peer that stalls or misbehaves costs the others nothing. */
 #include "master/dsrv.h"
 
+#include <errno.h>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -58,6 +59,22 @@ static int check_config(const dsrv_config *cfg, xport_addr *a, ct_error *err)
                        "%s: TCP needs a token (--token-file FILE or %s): without one anyone who reaches the port "
                        "could drive the master",
                        cfg->listen, AUTH_TOKEN_ENV);
+    if (a->kind == XPORT_UNIX) {
+        /* Checked before the solve and the tracers' start, so that a typo
+         * ends the job with one line instead of an abort after both. */
+        struct stat st;
+        if (lstat(a->path, &st) == 0 && !S_ISSOCK(st.st_mode))
+            return ct_fail(err, CT_EINVAL, "%s: %s exists and is not a socket", cfg->listen, a->path);
+        char dir[sizeof a->path];
+        snprintf(dir, sizeof dir, "%s", a->path);
+        char *slash = strrchr(dir, '/');
+        if (slash == dir) dir[1] = '\0';
+        else if (slash) *slash = '\0';
+        else snprintf(dir, sizeof dir, ".");
+        if (access(dir, W_OK | X_OK) != 0)
+            return ct_fail(err, CT_EINVAL, "%s: cannot create the socket in %s (%s)", cfg->listen, dir,
+                           strerror(errno));
+    }
     return 0;
 }
 

@@ -16,6 +16,13 @@ master_wait notoken 30 || fail "the job without a token did not end"
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC without a token, expected 2"
 grep -q 'TCP needs a token' "$tmp/notoken.log" || { fail "no reason given"; master_log notoken; }
 [[ ! -e $tmp/notoken.ctmesh ]] || fail "the radiosity was solved before the token was checked"
+# A UNIX socket in a folder that does not exist: one line and status 2
+# before the solve (it used to abort the job after it, under Open MPI's banner).
+master_start nodir 2 "${CORNELL[@]}" --listen "unix:$tmp/no/such/dir/s.sock" --rad-cache "$tmp/nodir.ctmesh"
+master_wait nodir 30 || fail "the job with a bad --listen did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with a bad --listen, expected 2"
+grep -q "cannot create the socket in $tmp/no/such/dir" "$tmp/nodir.log" || { fail "no reason given"; master_log nodir; }
+[[ ! -e $tmp/nodir.ctmesh ]] || fail "the radiosity was solved before --listen was checked"
 # An unknown option given last is unknown, not missing its value.
 master_start lastopt 2 "${CORNELL[@]}" --bogus
 master_wait lastopt 30 || fail "the job with an unknown option did not end"

@@ -26,6 +26,8 @@ check "no_such_scene_xyz" no_such_scene_xyz "${common[@]}"
 check "syntax.json:2:" "$tmp/syntax.json" "${common[@]}"
 check "absent.obj" "$tmp/nomesh.json" "${common[@]}"
 check "--ranks" "$root/tests/data/scenes/mini.json" --ranks 1 "${common[@]}"
+check "--width: '100000' is not an integer in [1, 16384]" "$root/tests/data/scenes/mini.json" "${common[@]}" --width=100000
+check "option --dry-run takes no value" "$root/tests/data/scenes/mini.json" "${common[@]}" --dry-run=1
 [[ ! -e $tmp/out-dir ]] || fail "an output folder was created for a broken scene"
 [[ ! -e $tmp/cache.ctmesh ]] || fail "a radiosity cache was written for a broken scene"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }

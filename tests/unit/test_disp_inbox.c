@@ -325,6 +325,41 @@ Test(disp_inbox, an_exact_resize_is_computed_here_and_uploaded_whole)
     rig_close(&r);
 }
 
+/* Stamps of patches that wait for their upload merge in pairs past 65,536
+ * (older stamp, summed samples): a backlog cannot grow the list without
+ * bound, and no sample or its oldest time is lost. */
+Test(disp_inbox, stamps_of_a_backlog_merge)
+{
+    ct_error err;
+    rig r;
+    rig_open(&r);
+    disp_inbox *in = r.in;
+    ct_radmesh copy;
+    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
+    disp_inbox_scene(in, &copy);
+    cr_assert_eq(disp_inbox_tex_alloc(in, 5, r.nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    static uint16_t a[3];
+    const uint32_t n = 200000;
+    uint64_t total = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        cr_assert_eq(disp_inbox_tex_patch(in, 5, (int)(i % 16), (int)(i / 16 % 12), 1, 1, a, 1000 + i, 1 + i % 3,
+                                          &err), 0);
+        total += 1 + i % 3;
+    }
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_apply(in, r.s, &took, &err), 0, "%s", err.msg);
+    cr_assert_leq(took.nstamps, 65536u + 1, "%u stamps kept", took.nstamps);
+    uint64_t got = 0, oldest = UINT64_MAX;
+    for (uint32_t i = 0; i < took.nstamps; i++) {
+        got += took.stamps[i].samples;
+        if (took.stamps[i].stamp_us < oldest) oldest = took.stamps[i].stamp_us;
+    }
+    cr_expect_eq(got, total, "samples %llu of %llu", (unsigned long long)got, (unsigned long long)total);
+    cr_expect_eq(oldest, 1000u);
+    rmesh_free(&r.mesh);
+    rig_close(&r);
+}
+
 Test(disp_inbox, messages_that_do_not_fit_are_refused)
 {
     ct_error err;

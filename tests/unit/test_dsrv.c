@@ -230,6 +230,29 @@ Test(dsrv, tcp_needs_a_token)
     cr_assert(strstr(err.msg, "TCP needs a token"), "%s", err.msg);
 }
 
+/* A UNIX address the socket cannot take is refused by the check the
+ * master runs before its solve and the tracers' start: a folder that does
+ * not exist, a path that is a file. */
+Test(dsrv, unix_addresses_checked_before_the_job)
+{
+    ct_error err = {{0}};
+    dsrv_config c = {.listen = "unix:/nonexistent-dir/x.sock"};
+    cr_assert_eq(dsrv_check_config(&c, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "cannot create the socket in /nonexistent-dir"), "%s", err.msg);
+    char path[] = "/tmp/ct-dsrv-file-XXXXXX";
+    int fd = mkstemp(path);
+    cr_assert_geq(fd, 0);
+    close(fd);
+    char spec[128];
+    snprintf(spec, sizeof spec, "unix:%s", path);
+    c.listen = spec;
+    cr_assert_eq(dsrv_check_config(&c, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "exists and is not a socket"), "%s", err.msg);
+    unlink(path);
+    c.listen = spec;   /* gone: fine */
+    cr_assert_eq(dsrv_check_config(&c, &err), 0, "%s", err.msg);
+}
+
 Test(dsrv, display_events_ping_and_busy)
 {
     char spec[128];

@@ -140,6 +140,22 @@ Test(optab, argv_parse)
     const char *badval[] = {"prog", "--count", "many"};
     cr_assert_eq(optab_parse(&g, 1, 3, (char **)badval, pos, 2, &np, &err), CT_EINVAL);
     cr_assert(strstr(err.msg, "--count: 'many' is not an integer"), "%s", err.msg);
+
+    /* --name=value, and "--" before arguments that look like options */
+    const char *eq[] = {"prog", "--count=7", "--rate=0.25", "--", "-file.json"};
+    cr_assert_eq(optab_parse(&g, 1, 5, (char **)eq, pos, 2, &np, &err), 0, "%s", err.msg);
+    cr_assert_eq(t.n, 7);
+    cr_assert_eq(t.x, 0.25f);
+    cr_assert_eq(np, 1);
+    cr_assert_str_eq(pos[0], "-file.json");
+    const char *flag_eq[] = {"prog", "--quick=1"};
+    cr_assert_eq(optab_parse(&g, 1, 2, (char **)flag_eq, pos, 2, &np, &err), CT_EINVAL);
+    cr_assert_str_eq(err.msg, "option --quick takes no value");
+    const char *unknown_eq[] = {"prog", "--bogus=3"};
+    cr_assert_eq(optab_parse(&g, 1, 2, (char **)unknown_eq, pos, 2, &np, &err), CT_EINVAL);
+    cr_assert_str_eq(err.msg, "unknown option '--bogus' (try --help)");
+    const char *range_eq[] = {"prog", "--count=-5"};
+    cr_assert_eq(optab_parse(&g, 1, 2, (char **)range_eq, pos, 2, &np, &err), CT_EINVAL);
 }
 
 /* A default that does not parse (or lies outside its range) is a broken table. */
