@@ -41,23 +41,16 @@ static int check(const char *path, const element *e, int n, unsigned long long a
             return ct_fail(err, CT_EPARSE,
                            "%s: the PLY header promises %llu %s%s (at least %llu bytes) but the file has %llu bytes "
                            "after its header",
-                           path, e[i].count, e[i].name, i ? " after the elements before" : "",
-                           need == UINT64_MAX ? UINT64_MAX : need, avail);
+                           path, e[i].count, e[i].name, i ? " after the elements before" : "", need, avail);
     }
     return CT_OK;
 }
 
-int mesh_precheck(const char *path, size_t size, ct_error *err)
+int mesh_precheck(FILE *f, const char *path, size_t size, ct_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) return CT_OK;   /* the importer reports it */
     char *h = malloc(HEADER_MAX + 1);
-    if (!h) {
-        fclose(f);
-        return ct_fail(err, CT_ENOMEM, "%s: out of memory", path);
-    }
+    if (!h) return ct_fail(err, CT_ENOMEM, "%s: out of memory", path);
     size_t got = fread(h, 1, HEADER_MAX, f);
-    fclose(f);
     h[got] = '\0';
     int rc = CT_OK;
     if (got < 4 || memcmp(h, "ply", 3) || (h[3] != '\n' && h[3] != '\r')) goto done;

@@ -9,11 +9,13 @@
 #define CT_COMMON_MESH_PRECHECK_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "common/error.h"
 
-/* CT_OK, or CT_EPARSE naming path and what its header promises beyond its
- * size bytes. Files that are not PLY pass. */
-int mesh_precheck(const char *path, size_t size, ct_error *err);
+/* Reads the start of f (the file path, open at its start, size bytes):
+ * CT_OK, or CT_EPARSE naming path and what its header promises beyond its
+ * size. Files that are not PLY pass. */
+int mesh_precheck(FILE *f, const char *path, size_t size, ct_error *err);
 
 #endif

@@ -2,10 +2,10 @@
  * (assimp). The format is specified in docs/scene-format.md. Over 600 lines
  * on purpose: one parser of one file format, every key checked where it is
  * read, with the error naming the file and the key. */
-#include "common/mesh_precheck.h"
 #include "common/fsutil.h"
 #include "common/hash.h"
 #include "common/log.h"
+#include "common/mesh_precheck.h"
 #include "common/scene.h"
 
 #include <assimp/cfileio.h>
@@ -573,8 +573,9 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     FILE *probe;
     size_t size;
     if ((rc = fs_open_regular(full, &probe, &size, L->err))) return rc;
+    rc = mesh_precheck(probe, full, size, L->err);
     fclose(probe);
-    if ((rc = mesh_precheck(full, size, L->err))) return rc;
+    if (rc) return rc;
 
     struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
     const struct aiScene *ai = aiImportFileEx(full, aiProcess_ValidateDataStructure, &io);

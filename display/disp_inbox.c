@@ -11,6 +11,7 @@
 #include "common/bitrow.h"
 #include "display/disp_rescale.h"
 #include "display/gl_load.h"
+#include "proto/wire.h"
 
 /* Tiles of changed texels, as on the master (master/ctex_dirty.h): patches
  * arrive as runs of them, so uploads follow the same runs. */
@@ -297,7 +298,7 @@ int disp_inbox_tex_resize(disp_inbox *b, uint32_t id, int w, int h, ct_error *er
     uint64_t bytes = (uint64_t)w * (uint64_t)h * 6;
     if (!t || !t->live) {
         rc = ct_fail(err, CT_EPROTO, "resize of unknown texture %u", id);
-    } else if (!disp_rescale_exact(t->w, t->h, w, h)) {
+    } else if (!wire_tex_resize_exact(t->w, t->h, w, h)) {
         rc = ct_fail(err, CT_EPROTO, "texture %u: %dx%d -> %dx%d is no exact resize", id, t->w, t->h, w, h);
     } else if (b->tex_bytes - (uint64_t)t->w * (uint64_t)t->h * 6 + bytes > DISP_INBOX_MAX_BYTES) {
         rc = ct_fail(err, CT_ENOMEM, "texture %u: %dx%d texels would pass the display's %llu MiB", id, w, h,

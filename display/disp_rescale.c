@@ -61,12 +61,6 @@ static int factor_down(int n, int nn)
     return nn == (n + 1) / 2 ? 2 : (nn == n ? 1 : 0);
 }
 
-bool disp_rescale_exact(int w, int h, int nw, int nh)
-{
-    if (w < 1 || h < 1 || (nw == w && nh == h)) return false;
-    return (factor_up(w, nw) && factor_up(h, nh)) || (factor_down(w, nw) && factor_down(h, nh));
-}
-
 /* A new texel with some of its four sources empty: the weights over the
  * valid ones (ws[k] > 0), in order; empty when none is. */
 static void doubled_partial(const float *const ps[4], const uint8_t ok[4], const float ws[4], float *c, uint8_t *vo)
@@ -88,6 +82,24 @@ static void doubled_partial(const float *const ps[4], const uint8_t ok[4], const
  * first computed as if every texel were valid, in plain loops over floats
  * the compiler vectorizes (left and right neighbours apart, then
  * interleaved), then the texels next to empty ones are done again. */
+/* Source rows, each converted once: row r in slot r % 3, so that a row
+ * and its neighbours above and below never share a slot. */
+typedef struct rows3 {
+    float *f[3];
+    uint8_t *v[3];
+    int have[3];
+} rows3;
+
+static int row_at(rows3 *r, const uint16_t *src, int w, int j)
+{
+    int k = j % 3;
+    if (r->have[k] != j) {
+        row_in(src, w, j, r->f[k], r->v[k]);
+        r->have[k] = j;
+    }
+    return k;
+}
+
 static void doubled(const uint16_t *src, int w, int h, uint16_t *dst, int nw, int fx, int fy, float *buf,
                     uint8_t *vb, bool *neg, bool *nz)
 {
@@ -95,15 +107,18 @@ static void doubled(const uint16_t *src, int w, int h, uint16_t *dst, int nw, in
     const float ws[4] = {(1.0f - wx1) * (1.0f - wy1), wx1 * (1.0f - wy1), (1.0f - wx1) * wy1, wx1 * wy1};
     const float w0 = ws[0], w1 = ws[1], w2 = ws[2], w3 = ws[3];
     const size_t n3 = 3 * (size_t)w;
-    float *f0 = buf, *f1 = f0 + n3, *fl = f1 + n3, *fr = fl + n3, *fo = fr + n3;
-    uint8_t *v0 = vb, *v1 = v0 + w, *vo = v1 + w;
+    rows3 r = {{buf, buf + n3, buf + 2 * n3}, {vb, vb + w, vb + 2 * (size_t)w}, {-1, -1, -1}};
+    float *fl = buf + 3 * n3, *fr = fl + n3, *fo = fr + n3;
+    uint8_t *vo = vb + 3 * (size_t)w;
     for (int j = 0; j < h; j++) {
-        row_in(src, w, j, f0, v0);
+        int k0 = row_at(&r, src, w, j);
+        const float *f0 = r.f[k0];
+        const uint8_t *v0 = r.v[k0];
         for (int b = 0; b < fy; b++) {
             int jn = fy == 1 ? j : (b ? (j + 1 < h ? j + 1 : j) : (j > 0 ? j - 1 : 0));
-            if (jn != j) row_in(src, w, jn, f1, v1);
-            const float *g1 = jn != j ? f1 : f0;
-            const uint8_t *u1 = jn != j ? v1 : v0;
+            int k1 = row_at(&r, src, w, jn);
+            const float *g1 = r.f[k1];
+            const uint8_t *u1 = r.v[k1];
             if (fx == 2) {
                 /* left neighbours (a = 0), the first texel its own */
                 for (size_t k = 0; k < 3 && k < n3; k++) fl[k] = w0 * f0[k] + w1 * f0[k] + w2 * g1[k] + w3 * g1[k];
@@ -171,10 +186,11 @@ static void halved(const uint16_t *src, int w, int h, uint16_t *dst, int nw, int
 int disp_rescale(const uint16_t *src, int w, int h, uint16_t *dst, int nw, int nh, bool *negative, bool *nonzero)
 {
     *negative = *nonzero = false;
-    /* rows of floats and validity: two read, two of neighbours, one written */
+    /* rows of floats and validity: three read, two of neighbours, one
+     * written (twice as wide) */
     size_t wide = (size_t)(w > nw ? w : nw);
-    float *buf = malloc(5 * 3 * wide * sizeof *buf);
-    uint8_t *vb = malloc(3 * wide);
+    float *buf = malloc(7 * 3 * wide * sizeof *buf);
+    uint8_t *vb = malloc(4 * wide);
     if (!buf || !vb) {
         free(buf);
         free(vb);

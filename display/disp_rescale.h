@@ -12,12 +12,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-/* Whether w x h -> nw x nh is an exact change: each side kept or doubled
- * (not both kept), else each side kept or halved (odd sides round up). */
-bool disp_rescale_exact(int w, int h, int nw, int nh);
-
 /* dst (nw*nh*3 halves, rows of nw) from src (w*h*3 halves, rows of w) for
- * an exact change (disp_rescale_exact). *negative / *nonzero: whether a new
+ * an exact change (wire_tex_resize_exact, proto/wire.h). *negative / *nonzero: whether a new
  * texel is below zero / not zero (as disp_textures wants them). CT_OK, or
  * CT_ENOMEM for its row buffers. */
 int disp_rescale(const uint16_t *src, int w, int h, uint16_t *dst, int nw, int nh, bool *negative, bool *nonzero);

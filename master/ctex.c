@@ -8,6 +8,7 @@
 #include "common/log.h"
 #include "common/optab.h"
 #include "master/ctex_internal.h"
+#include "proto/wire.h"
 
 #define OF(f) offsetof(ctex_options, f)
 static const optab OPTS[] = {
@@ -114,27 +115,28 @@ ctex_event *ctex_ev_push(ctex *c, ctex_event_kind kind, uint32_t tex)
     return e;
 }
 
-void ctex_ev_alloc(ctex *c, uint32_t id)
+/* ALLOC or RESIZE of slot id with its node, kind and size. */
+static ctex_event *ev_texture(ctex *c, ctex_event_kind kind, uint32_t id)
 {
-    slot *s = &c->slots[id];
-    ctex_event *e = ctex_ev_push(c, CTEX_EV_ALLOC, id);
+    const slot *s = &c->slots[id];
+    ctex_event *e = ctex_ev_push(c, kind, id);
     if (e) {
         e->node = s->hnode; e->proj = s->t.kind; e->w = s->t.w; e->h = s->t.h;
     }
+    return e;
+}
+
+void ctex_ev_alloc(ctex *c, uint32_t id)
+{
+    ev_texture(c, CTEX_EV_ALLOC, id);
 }
 
 void ctex_ev_resized(ctex *c, uint32_t id, int ow, int oh)
 {
-    slot *s = &c->slots[id];
-    if (!ctex_tex_exact_resize(ow, oh, s->t.w, s->t.h)) {
-        ctex_ev_alloc(c, id);
-        return;
-    }
-    ctex_event *e = ctex_ev_push(c, CTEX_EV_RESIZE, id);
-    if (e) {
-        e->node = s->hnode; e->proj = s->t.kind; e->w = s->t.w; e->h = s->t.h;
-        e->ow = ow; e->oh = oh;
-    }
+    const slot *s = &c->slots[id];
+    bool exact = wire_tex_resize_exact(ow, oh, s->t.w, s->t.h);
+    ctex_event *e = ev_texture(c, exact ? CTEX_EV_RESIZE : CTEX_EV_ALLOC, id);
+    if (e && exact) e->ow = ow, e->oh = oh;
 }
 
 void ctex_ev_proj(ctex *c, uint32_t id)

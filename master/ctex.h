@@ -84,7 +84,7 @@ typedef enum ctex_proj_kind {
  * after its FREE. ALLOC of a live id is a resize. Texels are not events:
  * each texture marks the ones the display has not received
  * (ctex_visible_texture, master/ctex_dirty.h); every texel of an ALLOC'ed
- * texture is marked. RESIZE is an exact resize (ctex_tex_exact_resize) of
+ * texture is marked. RESIZE is an exact resize (wire_tex_resize_exact) of
  * a live texture from ow x oh: only the tiles computed from unsent texels
  * are marked, the display computes the rest from the texels it has; a
  * display that cannot (it got the texture at another size) needs the

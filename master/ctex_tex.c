@@ -8,6 +8,7 @@
 
 #include "common/pool.h"
 #include "master/ctex_mem.h"
+#include "proto/wire.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -653,7 +654,7 @@ int ctex_tex_resize_on(ctex_tex *t, int nw, int nh, ct_pool *pool, ct_error *err
     const int npitch = ctex_tex_pitch(nw);
     ctex_texel *nt = alloc_texels(t, (size_t)npitch * (size_t)nh);
     if (!nt) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d texture", nw, nh);
-    if (ctex_tex_exact_resize(t->w, t->h, nw, nh) ? ctex_dirty_rescale(&t->d, t->w, t->h, nw, nh, err)
+    if (wire_tex_resize_exact(t->w, t->h, nw, nh) ? ctex_dirty_rescale(&t->d, t->w, t->h, nw, nh, err)
                                                   : ctex_dirty_reset(&t->d, nw, nh, err)) {
         ctex_mem_put(t->mem, nt, ctex_tex_bytes(nw, nh));
         return CT_ENOMEM;

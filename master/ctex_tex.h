@@ -302,22 +302,10 @@ static inline void ctex_tex_age(ctex_tex *t, float offset)
     ctex_tex_keep_base(t);
 }
 
-/* Whether w x h -> nw x nh is an exact resize: each axis kept or doubled
- * (not both kept), else each kept or halved (odd sizes round up). Its
- * texels have fixed weights, which the display can compute from its own
- * copy (display/disp_rescale.h, the same rule). */
-static inline bool ctex_tex_exact_resize(int w, int h, int nw, int nh)
-{
-    if (nw == w && nh == h) return false;
-    bool up = (nw == 2 * w || nw == w) && (nh == 2 * h || nh == h);
-    bool down = (nw == (w + 1) / 2 || nw == w) && (nh == (h + 1) / 2 || nh == h);
-    return up || down;
-}
-
 /* §3.6: changes the resolution to nw x nh: box filter (area average of valid
  * texels) when shrinking, bilinear when growing; validities are rescaled to
  * the new texel size relative to v_max. An exact resize
- * (ctex_tex_exact_resize) marks unsent the tiles whose texels were computed
+ * (wire_tex_resize_exact: the display follows it) marks unsent the tiles whose texels were computed
  * from unsent ones (ctex_dirty_rescale), any other the whole texture. */
 int ctex_tex_resize(ctex_tex *t, int nw, int nh, ct_error *err);
 

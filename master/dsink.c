@@ -206,19 +206,20 @@ int dsink_ack(dsink *k, uint64_t seq, ct_error *err)
     return dsync_ack(k->sync, seq, ct_now(), err);
 }
 
-bool dsink_update_due(dsink *k, double now)
+void dsink_drop_stalled(dsink *k, double now)
 {
-    if (!dsrv_has_display(k->c.ds)) return false;
+    if (!dsrv_has_display(k->c.ds)) return;
     double stalled = dsync_stalled_s(k->sync, k->c.ds, now);
-    if (stalled * 1000.0 > (double)k->c.send_timeout_ms) {
-        /* Stopped, hung, or reading nothing: the slot is free for another. */
-        char why[CT_ERROR_LEN];
-        snprintf(why, sizeof why, "the display took nothing and acknowledged nothing for %.1f s (--send-timeout-ms)",
-                 stalled);
-        ct_warn(COMPONENT, "dropped display %s: %s", dsrv_peer(k->c.ds), why);
-        dsrv_drop(k->c.ds, WIRE_ERR_LIMIT, why);
-        return false;
-    }
+    if (stalled * 1000.0 <= (double)k->c.send_timeout_ms) return;
+    /* Stopped, hung, or reading nothing: the slot is free for another. */
+    char why[CT_ERROR_LEN];
+    snprintf(why, sizeof why, "the display took nothing and acknowledged nothing for %.1f s (--send-timeout-ms)",
+             stalled);
+    dsrv_drop(k->c.ds, WIRE_ERR_LIMIT, why);
+}
+
+bool dsink_update_due(const dsink *k, double now)
+{
     return dsync_due(k->sync, now);
 }
 

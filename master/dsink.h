@@ -62,9 +62,12 @@ int dsink_ack(dsink *k, uint64_t seq, ct_error *err);
 int dsink_update(dsink *k, sess *s, ct_error *err);
 
 /* Whether a free-running update is due at `now` (ct_now's clock): the ACKs
- * allow one and the pacing (patch_s, patch_share) has passed. Drops a
- * display that looks stuck for send_timeout_ms (dsync_stalled_s). */
-bool dsink_update_due(dsink *k, double now);
+ * allow one and the pacing (patch_s, patch_share) has passed. */
+bool dsink_update_due(const dsink *k, double now);
+
+/* Free running, every turn: drops a display that has looked stuck for
+ * send_timeout_ms (dsync_stalled_s). */
+void dsink_drop_stalled(dsink *k, double now);
 
 /* The frame in progress belongs to a display that left: it ends without
  * FRAME. */

@@ -555,6 +555,8 @@ int dsrv_try_send(dsrv *s, const wire_msg *m, size_t max_queued)
 bool dsrv_drop(dsrv *s, uint32_t code, const char *text)
 {
     if (!s->disp) return false;
+    ct_log(code == WIRE_ERR_INTERNAL ? CT_LOG_INFO : CT_LOG_WARN, COMPONENT, "dropped display %s: %s", s->disp_peer,
+           text);
     bool told = chan_send_error(s->disp, code, text, 500) == 0;
     close_display(s, text);
     return told;

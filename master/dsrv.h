@@ -113,9 +113,11 @@ uint64_t dsrv_bytes_sent(const dsrv *s);
  * since the start (not in waiting for it). */
 double dsrv_io_seconds(const dsrv *s);
 
-/* Drops the display after a best-effort ERROR (code, text); true when the
- * ERROR went out whole (chan_send_error), false when not or when no display
- * was there. */
+/* Drops the display after a best-effort ERROR (code, text), with a log
+ * line naming it and the text (a warning; information for
+ * WIRE_ERR_INTERNAL, the master's own end, which its caller explains); true
+ * when the ERROR went out whole (chan_send_error), false when not or when
+ * no display was there. */
 bool dsrv_drop(dsrv *s, uint32_t code, const char *text);
 
 /* Sends BYE (reason) to the display and flushes within timeout_ms. */

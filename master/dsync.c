@@ -287,23 +287,15 @@ typedef struct gather {
     int x, y, w;
 } gather;
 
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-/* The display tells an empty texel from a valid one by its bits
- * (TEX_RESIZE, display/disp_rescale.h): a valid zero goes as -0, an empty
- * texel as +0 whatever it holds. Rare; a texel checked as one 8-byte word. */
-_Static_assert(sizeof(ctex_texel) == 8, "a texel is three halves and its validity");
-static inline void wire_texel_fix(const ctex_texel *p, uint8_t *dst)
+/* A texel's halves as TEX_PATCH carries them: the display tells an empty
+ * texel from a valid one by its bits (TEX_RESIZE, display/disp_rescale.h),
+ * so an empty texel goes as +0 whatever it holds and a valid zero as -0. */
+static inline void wire_halves(const ctex_texel *p, uint16_t c[3])
 {
-    uint64_t v;
-    memcpy(&v, p, sizeof v);
-    const uint64_t rgb = v & 0xffffffffffffull;
-    const bool empty = (uint16_t)(v >> 48) == (uint16_t)CTEX_Q_EMPTY;
-    if (empty ? rgb != 0 : rgb == 0) {
-        memset(dst, 0, 6);
-        if (!empty) dst[1] = 0x80;   /* -0 in red, little-endian */
-    }
+    c[0] = p->c[0], c[1] = p->c[1], c[2] = p->c[2];
+    if (!ctex_texel_valid(p)) c[0] = c[1] = c[2] = 0;
+    else if (!(c[0] | c[1] | c[2])) c[0] = 0x8000u;
 }
-#endif
 
 /* One row of a patch: each 8-byte texel's three halves, little-endian. */
 static void gather_row(void *ctx, uint32_t row, uint8_t *dst)
@@ -314,26 +306,28 @@ static void gather_row(void *ctx, uint32_t row, uint8_t *dst)
     /* The texel's halves are the wire's bytes already: 6 of its 8 (the
      * byte-wise loop below was a quarter of the master's time when the
      * display takes every update, bench_master); with SSSE3 two texels at
-     * a time, a 16-byte store of which the next one overwrites the last 4. */
+     * a time, a 16-byte store of which the next one overwrites the last 4.
+     * The texels wire_halves changes (empty ones, valid zeros) are rare and
+     * written again. */
     int i = 0;
 #if defined(__SSSE3__)
     const __m128i pack = _mm_setr_epi8(0, 1, 2, 3, 4, 5, 8, 9, 10, 11, 12, 13, -1, -1, -1, -1);
-    for (; i + 3 <= g->w; i += 2, dst += 12) {
-        _mm_storeu_si128((__m128i *)(void *)dst,
+    for (; i + 3 <= g->w; i += 2)
+        _mm_storeu_si128((__m128i *)(void *)(dst + 6 * (size_t)i),
                          _mm_shuffle_epi8(_mm_loadu_si128((const __m128i *)(const void *)(p + i)), pack));
-        wire_texel_fix(p + i, dst);
-        wire_texel_fix(p + i + 1, dst + 6);
-    }
 #endif
-    for (; i < g->w; i++, dst += 6) {
-        memcpy(dst, p[i].c, 6);
-        wire_texel_fix(p + i, dst);
+    for (; i < g->w; i++) memcpy(dst + 6 * (size_t)i, p[i].c, 6);
+    for (i = 0; i < g->w; i++) {
+        const uint16_t *c = p[i].c;
+        if (ctex_texel_valid(p + i) == ((c[0] | c[1] | c[2]) != 0)) continue;
+        uint16_t h[3];
+        wire_halves(p + i, h);
+        memcpy(dst + 6 * (size_t)i, h, 6);
     }
 #else
     for (int i = 0; i < g->w; i++, dst += 6) {
-        uint16_t c[3] = {p[i].c[0], p[i].c[1], p[i].c[2]};
-        if (!ctex_texel_valid(p + i)) c[0] = c[1] = c[2] = 0;
-        else if (!(c[0] | c[1] | c[2])) c[0] = 0x8000u;
+        uint16_t c[3];
+        wire_halves(p + i, c);
         for (int k = 0; k < 3; k++) {
             dst[2 * k] = (uint8_t)c[k];
             dst[2 * k + 1] = (uint8_t)(c[k] >> 8);

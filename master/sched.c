@@ -100,7 +100,6 @@ static int camera_or_drop(loop *l, const wire_camera *c, ct_error *err)
     if (rc >= 0 || rc == CT_EIO) return rc < 0 ? rc : 0;
     char why[CT_ERROR_LEN];
     snprintf(why, sizeof why, "camera refused: %s", err->msg);
-    ct_warn(COMPONENT, "display %s: %s", dsrv_peer(l->ds), why);
     dsrv_drop(l->ds, rc == CT_ENOMEM ? WIRE_ERR_LIMIT : WIRE_ERR_PROTOCOL, why);
     ct_error_clear(err);
     l->fr_n = 0;
@@ -178,7 +177,6 @@ static int handle_display(loop *l, int *leave, ct_error *err)
             if (!dsrv_has_display(l->ds)) break;   /* the rest of a display dropped above */
             if (ev.msg.type == WIRE_ACK) {
                 if (dsink_ack(l->dk, ev.msg.u.ack.seq, err)) {
-                    ct_warn(COMPONENT, "dropped display %s: %s", dsrv_peer(l->ds), err->msg);
                     dsrv_drop(l->ds, WIRE_ERR_PROTOCOL, err->msg);
                     ct_error_clear(err);
                 }
@@ -186,14 +184,11 @@ static int handle_display(loop *l, int *leave, ct_error *err)
             }
             if (ev.msg.type != WIRE_CAMERA) break;
             if (ev.msg.u.camera.width == 0 || ev.msg.u.camera.height == 0) {
-                ct_warn(COMPONENT, "dropped display %s: CAMERA with an empty image size", dsrv_peer(l->ds));
                 dsrv_drop(l->ds, WIRE_ERR_PROTOCOL, "CAMERA with an empty image size");
                 break;
             }
             if (l->lockstep) {
                 if (l->fr_n == MAX_FRAMES_QUEUED) {
-                    ct_warn(COMPONENT, "dropped display %s: more than 64 lockstep frames requested ahead",
-                            dsrv_peer(l->ds));
                     dsrv_drop(l->ds, WIRE_ERR_LIMIT, "more than 64 lockstep frames requested ahead");
                     break;
                 }
@@ -323,6 +318,7 @@ static int turn(loop *l, int *busy, int *leave, ct_error *err)
                    now - l->view_t0, (unsigned long long)sess_get_counters(l->s).inserted);
         }
     }
+    if (!l->lockstep) dsink_drop_stalled(l->dk, now);
     if (!l->lockstep && dsink_update_due(l->dk, now) && (rc = dsink_update(l->dk, l->s, err))) return rc;
     if (now - l->last_stats >= o->stats_s) {
         stats(l, now);

@@ -161,6 +161,19 @@ typedef struct wire_tex_resize {
     uint32_t width, height;  /* the new size in texels */
 } wire_tex_resize;
 
+/* Whether w x h -> nw x nh is an exact resize, the sizes a TEX_RESIZE may
+ * carry: each side kept or doubled (not both kept), else each kept or
+ * halved (odd sides round up). The master's resolution changes of this
+ * kind have fixed weights (master/ctex_tex.c), which the display computes
+ * from its own texels (display/disp_rescale.c). */
+static inline bool wire_tex_resize_exact(int w, int h, int nw, int nh)
+{
+    if (w < 1 || h < 1 || (nw == w && nh == h)) return false;
+    bool up = (nw == 2 * w || nw == w) && (nh == 2 * h || nh == h);
+    bool down = (nw == (w + 1) / 2 || nw == w) && (nh == (h + 1) / 2 || nh == h);
+    return up || down;
+}
+
 typedef struct wire_tex_patch {
     uint32_t tex;
     uint32_t x, y, w, h;       /* texel rectangle, inside the texture */

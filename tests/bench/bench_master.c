@@ -41,6 +41,7 @@
 #include "master/tport_replay.h"
 #include "proto/chan.h"
 #include "proto/srec.h"
+#include "proto/wire.h"
 
 typedef struct opts {
     const char *camera, *record;
@@ -126,7 +127,7 @@ static int consume(const char *addr, const ct_camera *cam, int w, int h)
             /* as a display does it: computed from the texels here */
             tex *x = &t[m.u.tex_resize.tex];
             int nw = (int)m.u.tex_resize.width, nh = (int)m.u.tex_resize.height;
-            uint16_t *n = x->texels && disp_rescale_exact((int)x->w, (int)x->h, nw, nh)
+            uint16_t *n = x->texels && wire_tex_resize_exact((int)x->w, (int)x->h, nw, nh)
                               ? malloc((size_t)nw * (size_t)nh * 3 * sizeof *n)
                               : NULL;
             if (!n) {

@@ -13,6 +13,7 @@
 #include "common/rng.h"
 #include "display/disp_rescale.h"
 #include "master/ctex_tex.h"
+#include "proto/wire.h"
 
 /* Random texels: a fifth empty, a tenth valid zeros (one channel or all),
  * the rest signed values over many magnitudes. */
@@ -76,8 +77,7 @@ static void expect_same(const ctex_tex *t, const uint16_t *d, const char *what)
 
 static void resize_both(ctex_tex *t, uint16_t **d, int nw, int nh, const char *what)
 {
-    cr_assert(disp_rescale_exact(t->w, t->h, nw, nh), "%s: %dx%d -> %dx%d", what, t->w, t->h, nw, nh);
-    cr_assert(ctex_tex_exact_resize(t->w, t->h, nw, nh));
+    cr_assert(wire_tex_resize_exact(t->w, t->h, nw, nh), "%s: %dx%d -> %dx%d", what, t->w, t->h, nw, nh);
     uint16_t *n = malloc((size_t)nw * (size_t)nh * 3 * sizeof *n);
     bool neg, nz;
     cr_assert_eq(disp_rescale(*d, t->w, t->h, n, nw, nh, &neg, &nz), 0);
@@ -112,19 +112,27 @@ Test(disp_rescale, chains_of_exact_resizes_match_the_master)
 
 Test(disp_rescale, only_exact_changes)
 {
-    cr_assert(disp_rescale_exact(4, 4, 8, 4));
-    cr_assert(disp_rescale_exact(5, 3, 3, 2));
-    cr_assert(disp_rescale_exact(1, 4, 1, 2));
-    cr_assert_not(disp_rescale_exact(4, 4, 4, 4));
-    cr_assert_not(disp_rescale_exact(4, 4, 8, 2));   /* one axis up, one down */
-    cr_assert_not(disp_rescale_exact(4, 4, 6, 4));
-    cr_assert_not(disp_rescale_exact(5, 4, 2, 4));
+    cr_assert(wire_tex_resize_exact(4, 4, 8, 4));
+    cr_assert(wire_tex_resize_exact(5, 3, 3, 2));
+    cr_assert(wire_tex_resize_exact(1, 4, 1, 2));
+    cr_assert_not(wire_tex_resize_exact(4, 4, 4, 4));
+    cr_assert_not(wire_tex_resize_exact(4, 4, 8, 2));   /* one axis up, one down */
+    cr_assert_not(wire_tex_resize_exact(4, 4, 6, 4));
+    cr_assert_not(wire_tex_resize_exact(5, 4, 2, 4));
+    /* against the rule spelled out: the new sides as factors of the old */
     for (int w = 1; w < 20; w++)
         for (int nw = 1; nw < 42; nw++)
             for (int h = 1; h < 6; h++)
-                for (int nh = 1; nh < 12; nh++)
-                    cr_assert_eq(disp_rescale_exact(w, h, nw, nh), ctex_tex_exact_resize(w, h, nw, nh),
-                                 "%dx%d -> %dx%d", w, h, nw, nh);
+                for (int nh = 1; nh < 12; nh++) {
+                    bool want = false;
+                    for (int fx = 1; fx <= 2; fx++)
+                        for (int fy = 1; fy <= 2; fy++) {
+                            want |= (fx > 1 || fy > 1) && nw == fx * w && nh == fy * h;
+                            want |= (fx > 1 || fy > 1) && nw == (w + fx - 1) / fx && nh == (h + fy - 1) / fy &&
+                                    (nw != w || nh != h);
+                        }
+                    cr_assert_eq(wire_tex_resize_exact(w, h, nw, nh), want, "%dx%d -> %dx%d", w, h, nw, nh);
+                }
 }
 
 /* Which old texels new texel (x, y) is computed from: the master's rule

@@ -15,8 +15,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "common/radmesh.h"
 #include "common/half.h"
+#include "common/radmesh.h"
 #include "common/rng.h"
 #include "common/timer.h"
 #include "display/disp_rescale.h"
@@ -24,6 +24,7 @@
 #include "master/dsrv.h"
 #include "master/dsync.h"
 #include "proto/chan.h"
+#include "proto/wire.h"
 #include "tests/support/testscenes.h"
 
 /* The display's copy: per texture id its size and halves. */
@@ -137,7 +138,7 @@ static int pump(rig *r, bool ack, int rounds)
                 int nw = (int)m.u.tex_resize.width, nh = (int)m.u.tex_resize.height;
                 cr_assert_lt(id, MAXTEX);
                 cr_assert_not_null(c->tx[id], "resize of unallocated texture %u", id);
-                cr_assert(disp_rescale_exact(c->w[id], c->h[id], nw, nh), "texture %u: %dx%d -> %dx%d", id, c->w[id],
+                cr_assert(wire_tex_resize_exact(c->w[id], c->h[id], nw, nh), "texture %u: %dx%d -> %dx%d", id, c->w[id],
                           c->h[id], nw, nh);
                 uint16_t *n = malloc((size_t)nw * (size_t)nh * 3 * sizeof *n);
                 bool neg, nz;
