@@ -194,6 +194,13 @@ $(BUILD)/tools/%: tests/tools/%.c $(LIB_proto) $(LIB_common)
 	@mkdir -p $(dir $@)
 	@[ "$(V)" = 1 ] || echo "  TOOL-LD $@"
 	$(Q)$(CC) $(CFLAGS) -o $@ $< $(LIB_proto) $(LIB_common) $(LDFLAGS_BASE) $(LIBS_PROTO) $(LIBS_COMMON)
+# tracer_script is a master scripted against a real tracer rank: it links
+# the tracer, Embree and MPI as well.
+$(BUILD)/tools/tracer_script: tests/tools/tracer_script.c $(LIB_tracer) $(LIB_proto) $(LIB_common)
+	@mkdir -p $(dir $@)
+	@[ "$(V)" = 1 ] || echo "  TOOL-LD $@"
+	$(Q)$(CC) $(CFLAGS) -o $@ $< $(LIB_tracer) $(LIB_proto) $(LIB_common) $(LDFLAGS_BASE) \
+	  $(LIBS_EMBREE) $(LIBS_MPI) $(LIBS_PROTO) $(LIBS_COMMON)
 
 setup:
 	@scripts/setup-deps

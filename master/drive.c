@@ -13,6 +13,7 @@ typedef struct lane {
     drv_lane pub;
     double sent_at[MAX_WINDOW];           /* send times of the batches in flight (FIFO) */
     unsigned char in_round[MAX_WINDOW];   /* whether each of them belongs to a lockstep round */
+    uint32_t epoch[MAX_WINDOW];           /* the view each of them was made for */
     int head;
     double last_reply;
 } lane;
@@ -33,6 +34,8 @@ struct drv {
     uint32_t round_n, round_cap;
     ct_request *reqs;
     uint32_t reqs_cap;
+    double view_at;        /* when the current view was taken */
+    double view_gap;       /* running mean of the time between views (0: one view so far) */
 };
 
 #define OF(f) offsetof(drv_options, f)
@@ -103,7 +106,14 @@ int drv_set_view(drv *d, const ct_camera *cam, int width, int height, ct_error *
 {
     int rc = sess_set_view(d->s, cam, width, height, err);
     if (rc <= 0) return rc;
-    /* Every lane hears of it: queued batches of older epochs are answered empty. */
+    double now = ct_now();
+    if (d->view_at > 0) {
+        double gap = now - d->view_at;
+        d->view_gap = d->view_gap > 0 ? 0.7 * d->view_gap + 0.3 * gap : gap;
+    }
+    d->view_at = now;
+    /* Every lane hears of it: once a batch of this view follows them, its
+     * batches of older views are answered at once (tracer/rank.h). */
     tport_view v = {sess_epoch(d->s), (uint32_t)width, (uint32_t)height, *cam};
     if (d->p->ops->view(d->p, &v, err)) return CT_EIO;
     return 1;
@@ -172,6 +182,7 @@ static int insert_next(drv *d, const ct_sample *smp, uint32_t n, uint32_t want, 
 static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, ct_error *err);
 static int submit_round(drv *d, uint32_t k, ct_error *err);
 static uint32_t batch_size(const drv *d, const lane *l);
+static bool lane_open(const drv *d, const lane *l);
 
 static int by_id(const void *a, const void *b)
 {
@@ -246,7 +257,7 @@ static int receive(drv *d, bool may_pop, ct_error *err)
             /* with pop_ahead, the lane's next batch is popped ahead of
              * this one's reports and goes back to it at once */
             uint32_t want = 0;
-            if (d->o.pop_ahead && may_pop && !d->lockstep && sess_has_view(d->s) && l->pub.inflight < d->o.window)
+            if (d->o.pop_ahead && may_pop && !d->lockstep && sess_has_view(d->s) && lane_open(d, l))
                 want = batch_size(d, l);
             int k;
             if ((rc = insert_next(d, r.samples, r.n, want, &k, err))) return rc;
@@ -254,6 +265,22 @@ static int receive(drv *d, bool may_pop, ct_error *err)
         }
     }
     return got < 0 ? got : any;
+}
+
+/* Whether lane l may take one more free-running batch: --window batches of
+ * the current view at most. Batches of views left do not count: the tracer
+ * answers them (empty, or what it traced of them) as soon as a newer batch
+ * has come, and until then it traces them rather than wait (tracer/rank.h).
+ * Counted against the window, they held the new view's first batch back
+ * until the tracer had finished one of them. The slot ring bounds the
+ * total. */
+static bool lane_open(const drv *d, const lane *l)
+{
+    if (l->pub.inflight >= MAX_WINDOW) return false;
+    uint32_t now = sess_epoch(d->s);
+    int current = 0;
+    for (int j = 0; j < l->pub.inflight; j++) current += l->epoch[(l->head + j) % MAX_WINDOW] == now;
+    return current < d->o.window;
 }
 
 static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, ct_error *err)
@@ -268,6 +295,7 @@ static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, 
     int slot = (l->head + l->pub.inflight) % MAX_WINDOW;
     l->sent_at[slot] = ct_now();
     l->in_round[slot] = (unsigned char)round;
+    l->epoch[slot] = v.epoch;
     l->pub.inflight++;
     return 0;
 }
@@ -278,9 +306,24 @@ static int next(drv *d, uint32_t n, ct_error *err)
     return rc ? rc : sess_next(d->s, d->reqs, n, err);
 }
 
+/* A lane's next free-running batch: --batch-ms of its tracing, and no more
+ * than a window's share of how long views last. A view that lasts less
+ * than the window's tracing leaves most of its batches to be answered
+ * (nearly) empty: the master popped, encoded and sent them for nothing, at
+ * 200 views a second most of its work (docs/distributed.md, "Camera
+ * changes"). How long the view lasts: the running mean of the intervals
+ * between views, or how long this one has lasted where longer (a camera
+ * that stopped). */
 static uint32_t batch_size(const drv *d, const lane *l)
 {
-    double b = l->pub.rate > 0 ? l->pub.rate * d->o.batch_ms / 1000.0 : d->o.batch_min;
+    double ms = d->o.batch_ms;
+    if (d->view_gap > 0) {
+        double life = ct_now() - d->view_at;
+        if (life < d->view_gap) life = d->view_gap;
+        double share = 1000.0 * life / d->o.window;
+        if (share < ms) ms = share;
+    }
+    double b = l->pub.rate > 0 ? l->pub.rate * ms / 1000.0 : d->o.batch_min;
     if (b < d->o.batch_min) b = d->o.batch_min;
     if (b > d->o.batch_max) b = d->o.batch_max;
     return (uint32_t)b;
@@ -301,7 +344,7 @@ static int feed_free(drv *d, ct_error *err)
         for (int j = 0; j < T; j++) {
             int i = (first + pass + j) % T;
             lane *l = &d->lanes[i];
-            if (l->pub.inflight >= d->o.window) continue;
+            if (!lane_open(d, l)) continue;
             int k = next(d, batch_size(d, l), err);
             if (k < 0) return k;
             if (k == 0) return any;   /* every pixel of this view is handed out */

@@ -4,10 +4,12 @@
  * (session.h) go out in batches, samples come back and go into the
  * session, and a sink (sink.h) hears of complete frames.
  *
- * Free running, every lane (tracer) keeps up to `window` batches in flight,
- * each of about `batch_ms` of its measured rate, handed out one per lane per
- * pass from a rotating lane so that none starves when the queue runs
- * short; samples go in as they come. A lockstep frame of K samples is taken
+ * Free running, every lane (tracer) keeps up to `window` batches of the
+ * current view in flight (those of views left do not count: a tracer
+ * answers them as soon as a newer one comes), each of about `batch_ms` of
+ * its measured rate but no more than a window's share of how long views
+ * last, handed out one per lane per pass from a rotating lane so that none
+ * starves when the queue runs short; samples go in as they come. A lockstep frame of K samples is taken
  * in rounds of `round` requests, split evenly over the lanes; a round's
  * samples go in only when all are back, sorted by request id, so a frame
  * does not depend on the number of lanes (nor, by the session's design, on

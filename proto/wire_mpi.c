@@ -146,24 +146,43 @@ int wire_mpi_encode_requests(const wire_mpi_requests *h, const ct_request *reqs,
     return 0;
 }
 
-int wire_mpi_decode_requests(const uint8_t *buf, size_t len, const char *peer, wire_mpi_requests *h,
-                             ct_request *reqs, uint32_t cap, uint32_t *count, ct_error *err)
+/* The header of a REQUESTS message (peeked: kind and exact size checked);
+ * *n its record count, r left at the first record. */
+static int requests_header(const uint8_t *buf, size_t len, const char *peer, wire_mpi_requests *h, uint32_t *n,
+                           wio_r *r, ct_error *err)
 {
     unsigned kind;
-    uint32_t n;
-    int rc = wire_mpi_peek(buf, len, peer, &kind, &n, err);
+    int rc = wire_mpi_peek(buf, len, peer, &kind, n, err);
     if (rc) return rc;
     if (kind != WIRE_MPI_REQUESTS)
         return ct_fail(err, CT_EPROTO, "%s: expected an MPI REQUESTS message, got %s", peer, kind_name(kind));
-    if (n > cap) return ct_fail(err, CT_EPROTO, "%s: MPI REQUESTS of %u records, room for %u", peer, n, cap);
-    wio_r r = {buf + WIRE_MPI_HEADER_SIZE, len - WIRE_MPI_HEADER_SIZE, false};
-    h->batch = wr_u64(&r);
-    h->epoch = wr_u32(&r);
-    h->width = wr_u32(&r);
-    h->height = wr_u32(&r);
-    h->cam = wr_camera(&r);
-    if (!cam_ok(h->width, h->height, &h->cam))
+    *r = (wio_r){buf + WIRE_MPI_HEADER_SIZE, len - WIRE_MPI_HEADER_SIZE, false};
+    h->batch = wr_u64(r);
+    h->epoch = wr_u32(r);
+    h->width = wr_u32(r);
+    h->height = wr_u32(r);
+    h->cam = wr_camera(r);
+    if (r->bad || !cam_ok(h->width, h->height, &h->cam))
         return ct_fail(err, CT_EPROTO, "%s: MPI REQUESTS has an invalid camera", peer);
+    return 0;
+}
+
+int wire_mpi_decode_requests_header(const uint8_t *buf, size_t len, const char *peer, wire_mpi_requests *h,
+                                    ct_error *err)
+{
+    uint32_t n;
+    wio_r r;
+    return requests_header(buf, len, peer, h, &n, &r, err);
+}
+
+int wire_mpi_decode_requests(const uint8_t *buf, size_t len, const char *peer, wire_mpi_requests *h,
+                             ct_request *reqs, uint32_t cap, uint32_t *count, ct_error *err)
+{
+    uint32_t n;
+    wio_r r;
+    int rc = requests_header(buf, len, peer, h, &n, &r, err);
+    if (rc) return rc;
+    if (n > cap) return ct_fail(err, CT_EPROTO, "%s: MPI REQUESTS of %u records, room for %u", peer, n, cap);
     for (uint32_t i = 0; i < n; i++) {
         ct_request *q = &reqs[i];
         q->id = wr_u64(&r);

@@ -84,6 +84,9 @@ size_t wire_mpi_samples_size(uint32_t count);
 /* Appends a request batch (count <= WIRE_MPI_MAX_BATCH). */
 int wire_mpi_encode_requests(const wire_mpi_requests *h, const ct_request *reqs, uint32_t count, wire_buf *out,
                              ct_error *err);
+/* Decodes the header of a request batch only (its size checked). */
+int wire_mpi_decode_requests_header(const uint8_t *buf, size_t len, const char *peer, wire_mpi_requests *h,
+                                    ct_error *err);
 /* Decodes a request batch into reqs (capacity cap records); *count set. */
 int wire_mpi_decode_requests(const uint8_t *buf, size_t len, const char *peer, wire_mpi_requests *h,
                              ct_request *reqs, uint32_t cap, uint32_t *count, ct_error *err);

@@ -3,10 +3,11 @@
  * camera and control messages act immediately; a batch is traced in slices
  * with the same intake between them (intake()), so that the previous
  * batch's samples leave while this one is traced (a large MPI message moves
- * only while both sides call MPI) and a camera change stops a batch whose
- * samples the master would drop. */
+ * only while both sides call MPI) and a batch of a newer view, once it has
+ * come, takes over within a slice. */
 #include "tracer/rank.h"
 
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,9 +27,10 @@ static const char PEER[] = "master (rank 0)";
 typedef struct fifo {
     wire_buf *items;
     size_t head, n, cap;
+    uint32_t newest;   /* epoch of the last batch pushed: the master sends epochs in order */
 } fifo;
 
-static int fifo_push(fifo *f, wire_buf *b, ct_error *err)
+static int fifo_push(fifo *f, wire_buf *b, uint32_t epoch, ct_error *err)
 {
     if (f->n == f->cap) {
         size_t cap = f->cap ? 2 * f->cap : 8;
@@ -43,6 +45,7 @@ static int fifo_push(fifo *f, wire_buf *b, ct_error *err)
     f->items[(f->head + f->n) % f->cap] = *b;
     memset(b, 0, sizeof *b);
     f->n++;
+    if (epoch > f->newest) f->newest = epoch;
     return 0;
 }
 
@@ -174,7 +177,9 @@ static int intake(intake_state *in, ct_error *err)
         uint32_t count = 0;
         if ((rc = wire_mpi_peek(in->msg->data, in->msg->len, PEER, &kind, &count, err)) < 0) return rc;
         if (kind == WIRE_MPI_REQUESTS) {
-            if ((rc = fifo_push(in->q, in->msg, err)) < 0) return rc;
+            wire_mpi_requests h;
+            if ((rc = wire_mpi_decode_requests_header(in->msg->data, in->msg->len, PEER, &h, err)) < 0) return rc;
+            if ((rc = fifo_push(in->q, in->msg, h.epoch, err)) < 0) return rc;
         } else if (kind == WIRE_MPI_CAMERA) {
             wire_mpi_camera cam;
             if ((rc = wire_mpi_decode_camera(in->msg->data, in->msg->len, PEER, &cam, err)) < 0) return rc;
@@ -192,14 +197,25 @@ static int intake(intake_state *in, ct_error *err)
     return mpil_progress(err) < 0 ? CT_EIO : 0;
 }
 
-/* Between slices: the intake; the batch goes on unless the camera moved on
- * (the master drops samples of older views) or the job ends. */
+/* Whether a batch of `epoch` gives way: the camera moved on and a batch of
+ * a newer view waits. Until that batch comes, the rank traces the old one
+ * rather than wait: what it traces goes in as late samples (diffuse
+ * surfaces, an unmoved eye) or aged, and a camera moving faster than the
+ * master's round trip kept the rank idle half the time (docs/
+ * distributed.md, "Camera changes"). */
+static bool gives_way(const intake_state *in, uint32_t epoch)
+{
+    return epoch < in->epoch && in->q->n > 0 && in->q->newest > epoch;
+}
+
+/* Between slices: the intake; the batch goes on unless it gives way or the
+ * job ends. */
 static int between_slices(void *ctx, ct_error *err)
 {
     intake_state *in = ctx;
     int rc = intake(in, err);
     if (rc < 0) return rc;
-    return !in->shutdown && !(in->c->stop && *in->c->stop) && in->batch_epoch >= in->epoch;
+    return !in->shutdown && !(in->c->stop && *in->c->stop) && !gives_way(in, in->batch_epoch);
 }
 
 int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
@@ -245,10 +261,11 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         wire_buf_free(&b);
         if (rc < 0) goto out;
         if (h.epoch > in.epoch) in.epoch = h.epoch;
+        st->requests += count;
         wire_mpi_samples sh = {.batch = h.batch, .rank = (uint32_t)c->rank};
         uint32_t nout = 0;
-        if (h.epoch < in.epoch) {
-            st->stale_batches++;   /* the camera moved on: answer empty */
+        if (gives_way(&in, h.epoch)) {
+            st->stale_batches++;   /* a newer view's batch waits behind it: answer empty */
         } else {
             trc_view v = {.cam = h.cam, .width = (int)h.width, .height = (int)h.height};
             double t0 = ct_now();
@@ -261,14 +278,15 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
                 st->samples += count;
                 nout = count;
             } else {
-                /* Stopped: the camera moved on, or the job ends. On a camera
-                 * change what was traced goes back all the same: the master
+                /* Stopped: a newer view's batch waits, or the job ends. What
+                 * was traced goes back all the same: the master
                  * keeps them (late samples: as new ones on diffuse
                  * surfaces or from an unmoved eye, aged where glossy) unless
                  * too stale, and drops the others. A display
                  * moving its camera every frame changes the view faster than
                  * a batch takes: answered empty, nearly all tracing was lost
-                 * (docs/distributed.md, "Camera changes"). */
+                 * (docs/distributed.md, "Camera changes"). The rest of the
+                 * batch is not traced: the newer view's requests come first. */
                 st->stale_batches++;
                 if (!in.shutdown && !(c->stop && *c->stop)) {
                     st->samples += done;
@@ -292,8 +310,11 @@ out:
     free(samples);
     so_batch_free(&order);
     if (rc == 0)
-        ct_debug(COMPONENT, "rank %d: %llu batches (%llu stale), %llu samples, %llu rays, %.2f s tracing", c->rank,
-                 (unsigned long long)st->batches, (unsigned long long)st->stale_batches,
-                 (unsigned long long)st->samples, (unsigned long long)st->rays, st->busy_s);
+        ct_debug(COMPONENT,
+                 "rank %d: %llu batches (%llu gave way to a newer view), %llu requests, %llu samples, %llu rays, "
+                 "%.2f s tracing",
+                 c->rank, (unsigned long long)st->batches, (unsigned long long)st->stale_batches,
+                 (unsigned long long)st->requests, (unsigned long long)st->samples, (unsigned long long)st->rays,
+                 st->busy_s);
     return rc;
 }

@@ -2,11 +2,13 @@
  * receives request batches from the master over MPI (proto/mpi_link.h),
  * traces them with the per-sample API (tracer.h), optionally on several
  * threads, and sends the sample batches back. Camera changes raise the
- * rank's epoch; queued batches of older epochs are answered empty without
- * tracing, and the batch being traced stops at its next slice and answers
- * with the samples traced so far, so a camera change reaches the rank
- * within one slice and no traced sample is thrown away. Owns the
- * trank_ prefix. docs/distributed.md describes the loop. */
+ * rank's epoch. Once a batch of the newer view has come, queued batches of
+ * older epochs are answered empty without tracing and the batch being
+ * traced stops at its next slice, answering with the samples traced so far:
+ * a new view's requests reach the tracing within one slice, no traced
+ * sample is thrown away, and the rank never waits idle while it holds
+ * requests of an older view. Owns the trank_ prefix. docs/distributed.md
+ * describes the loop. */
 #ifndef CT_TRACER_RANK_H
 #define CT_TRACER_RANK_H
 
@@ -25,7 +27,8 @@ typedef struct trank_config {
 
 typedef struct trank_stats {
     uint64_t batches;           /* request batches answered */
-    uint64_t stale_batches;     /* of an old epoch: answered empty, or with what was traced when stopped */
+    uint64_t stale_batches;     /* gave way to a newer view: answered empty, or with what was traced when stopped */
+    uint64_t requests;          /* requests received (those of batches that gave way partly untraced) */
     uint64_t samples;           /* samples traced */
     uint64_t rays;              /* rays traced (primary, secondary and shadow) */
     double busy_s;              /* seconds spent tracing */

@@ -465,6 +465,71 @@ Test(session, pop_ahead_running_free)
     stop(&r);
 }
 
+/* A tracer port that answers nothing: counts the batches handed to it for
+ * the newest view and in all. */
+typedef struct hold_port {
+    tport base;
+    uint32_t epoch, this_view, total;
+} hold_port;
+
+static int hold_view(tport *p, const tport_view *v, ct_error *e)
+{
+    (void)e;
+    hold_port *h = (hold_port *)p;
+    h->epoch = v->epoch;
+    h->this_view = 0;
+    return 0;
+}
+
+static int hold_submit(tport *p, int lane, uint64_t batch, const tport_view *v, const ct_request *r, uint32_t n,
+                       ct_error *e)
+{
+    (void)lane, (void)batch, (void)r, (void)n, (void)e;
+    hold_port *h = (hold_port *)p;
+    cr_assert_eq(v->epoch, h->epoch, "a batch for another view than the newest");
+    h->this_view++;
+    h->total++;
+    return 0;
+}
+
+static int hold_poll(tport *p, tport_reply *out, ct_error *e)
+{
+    (void)p, (void)out, (void)e;
+    return 0;
+}
+
+static void hold_close(tport *p, double wait_s)
+{
+    (void)p, (void)wait_s;
+}
+
+/* Running free, a new view gets its window of batches at once although the
+ * old view's are all still out (a tracer answers those as soon as a newer
+ * batch comes; counted, they held the new view back until one was traced),
+ * and the batches out stay within the 64 slots however many views pass. */
+Test(session, a_new_view_gets_its_window_while_old_batches_are_out)
+{
+    static const tport_ops HOLD_OPS = {hold_view, hold_submit, hold_poll, hold_close};
+    hold_port h = {.base = {&HOLD_OPS, 1}};
+    sess *s = new_session(&mesh, 1);
+    drv_options o = {.window = 3, .batch_min = 16, .batch_max = 4096, .batch_ms = 20, .round = 256};
+    drv *d = NULL;
+    cr_assert_eq(drv_new(s, &h.base, NULL, &o, &d, &err), 0, "%s", err.msg);
+    ct_camera moved = cam;
+    for (int v = 0; v < 40; v++) {
+        moved.eye.x = cam.eye.x + (float)v;
+        cr_assert_eq(drv_set_view(d, &moved, W, H, &err), 1, "%s", err.msg);
+        for (int i = 0; i < 3; i++) cr_assert_geq(drv_step(d, &err), 0, "%s", err.msg);
+        uint32_t want = v < 21 ? 3 : v == 21 ? 1 : 0;   /* 64 slots: 21 views of 3, then 1 */
+        cr_assert_eq(h.this_view, want, "view %d: %u batches handed out, expected %u (%u out in all)", v,
+                     h.this_view, want, h.total);
+        cr_assert_eq(drv_inflight(d), (int)h.total);
+    }
+    cr_assert_eq(h.total, 64u);
+    drv_free(d);
+    sess_free(s);
+}
+
 /* The mesh without one part: the interactive image shows the wall behind
  * the tall block where the tracer hits the block. */
 static uint32_t cut_part(const char *name, ct_radmesh *out)
