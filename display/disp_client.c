@@ -23,6 +23,7 @@
 #define PING_FIRST_US 100000u
 #define PING_EVERY_US 1000000u
 #define PING_QUICK 4
+#define READ_AFTER_SEND_FAILED_US 2000000u   /* see thread_main */
 /* A master that sends nothing this long (disp_client_opts.silent_ms), PONGs
  * included, is taken for gone: one stopped in the middle of a message left a
  * lockstep display waiting for good (a working master answers a PING within
@@ -390,9 +391,16 @@ static void *thread_main(void *arg)
     uint64_t next_ping = ct_now_us(), heard = next_ping, heard_rx = 0;
     int pings = 0, rc = 0;
     bool more = false;   /* the last pump read bytes nobody has decoded yet */
+    /* A send that failed: the master may have closed after an ERROR saying
+     * why, which is still to be read (ending at the failed send, the display
+     * reported a bare lost connection). Reading goes on, sending stops, until
+     * the read side ends or for a bounded while. */
+    int send_rc = 0;
+    ct_error send_err;
+    uint64_t read_until = 0;
     while (!atomic_load(&c->stop)) {
         uint64_t now = ct_now_us();
-        int timeout = more ? 0 : next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
+        int timeout = more ? 0 : send_rc ? 10 : next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
         struct pollfd p[2] = {{chan_fd(c->ch), chan_events(c->ch), 0}, {c->wake[0], POLLIN, 0}};
         poll(p, 2, timeout);
         if (p[1].revents & POLLIN) {
@@ -400,14 +408,25 @@ static void *thread_main(void *arg)
             while (read(c->wake[0], buf, sizeof buf) > 0) {
             }
         }
-        if ((rc = send_queued(c, &err))) break;
-        now = ct_now_us();
-        if (now >= next_ping) {
-            wire_msg m = {.type = WIRE_PING};
-            m.u.ping.token = now;
-            if ((rc = send_now(c, &m, &err))) break;
-            next_ping = now + (++pings < PING_QUICK ? PING_FIRST_US : PING_EVERY_US);
+        if (!send_rc) {
+            int src = send_queued(c, &send_err);
+            now = ct_now_us();
+            if (!src && now >= next_ping) {
+                wire_msg m = {.type = WIRE_PING};
+                m.u.ping.token = now;
+                src = send_now(c, &m, &send_err);
+                next_ping = now + (++pings < PING_QUICK ? PING_FIRST_US : PING_EVERY_US);
+            }
+            if (src) {
+                send_rc = src;
+                read_until = now + READ_AFTER_SEND_FAILED_US;
+            }
+        } else if (ct_now_us() > read_until) {
+            rc = send_rc;
+            err = send_err;
+            break;
         }
+        now = ct_now_us();
         if ((rc = chan_pump(c->ch, &err))) break;
         uint64_t rx, tx;
         chan_byte_counts(c->ch, &rx, &tx);

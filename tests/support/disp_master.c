@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -138,6 +139,18 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
         if (wire_encode(&m, &b, &err) || write(chan_fd(c), b.data, 10) != 10) return 60;
         wire_buf_free(&b);
         usleep(5000000);
+        chan_free(c);
+        return 0;
+    } else if (end == FXM_END_DEAF) {
+        /* As a master that is going away: the display's PINGs fail (EPIPE)
+         * before the ERROR saying why comes. */
+        if (shutdown(chan_fd(c), SHUT_RD)) return 70;
+        usleep(500000);
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_ERROR;
+        m.u.error.code = WIRE_ERR_INTERNAL;
+        snprintf(m.u.error.text, sizeof m.u.error.text, "%s", FXM_DEAF_TEXT);
+        if (send_all(c, &m)) return 71;
         chan_free(c);
         return 0;
     } else if (end == FXM_END_BAD) {

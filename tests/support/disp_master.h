@@ -25,12 +25,15 @@ typedef enum fxm_end {
                           * the next FRAME */
     FXM_END_CAMERAS = 5, /* read until the display's BYE; succeed when the last CAMERA
                           * before it has eye.x == FXM_LAST_X */
-    FXM_END_STALL = 6    /* send 10 bytes of a TEX_PATCH frame, then nothing (no PONG
+    FXM_END_STALL = 6,   /* send 10 bytes of a TEX_PATCH frame, then nothing (no PONG
                           * either) for 5 s */
+    FXM_END_DEAF = 7     /* stop reading (the display's next writes fail), 0.5 s
+                          * later send ERROR FXM_DEAF_TEXT and close */
 } fxm_end;
 
 #define FXM_ROUNDS 30
 #define FXM_LAST_X 42.0f
+#define FXM_DEAF_TEXT "the job is ending"
 
 typedef struct fxm_peer {
     pid_t pid;

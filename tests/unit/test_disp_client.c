@@ -341,6 +341,33 @@ Test(disp_client, a_master_that_stalls_mid_message_is_given_up)
     cr_expect_eq(fxm_stop(&p), 0);
 }
 
+/* A master that stops reading and then sends ERROR and closes (as
+ * corrtex-render does on SIGTERM): the display's PINGs fail before the
+ * ERROR comes, and it still reports the master's words (it used to end at
+ * the failed send with a bare lost connection). */
+Test(disp_client, the_masters_last_words_are_read_after_a_failed_send)
+{
+    ct_error err;
+    fxm_peer p;
+    memset(&p, 0, sizeof p);
+    cr_assert_eq(fxm_start(&p, FXM_END_DEAF, 0, W, H), 0, "%s", p.msg);
+    disp_inbox *in = new_inbox();
+    disp_client *c = NULL;
+    disp_client_opts o = {p.addr, NULL, 0, 5000, 0};
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    double t0 = ct_now();
+    int rc = 0;
+    while (!(rc = disp_client_status(c, &err)) && ct_now() - t0 < 5.0) usleep(10000);
+    printf("deaf master: %s after %.1f s\n", err.msg, ct_now() - t0);
+    cr_expect_eq(rc, CT_EPROTO, "%s", err.msg);
+    cr_expect(strstr(err.msg, "master reports an error: " FXM_DEAF_TEXT) != NULL, "%s", err.msg);
+    disp_client_close(c);
+    disp_inbox_free(in);
+    cr_expect_eq(fxm_stop(&p), 0);
+}
+
 Test(disp_client, a_message_that_does_not_fit_is_answered_with_error)
 {
     ct_error err;
