@@ -65,7 +65,7 @@ static const optab OPTS[] = {
      NULL},
     {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE.ctmesh",
      "radiosity cache: loaded when it holds this scene's solution, else solved (default parameters) and written "
-     "there (default: solve, no cache)", NULL},
+     "there; another scene's mesh is refused, not overwritten (default: solve, no cache)", NULL},
     {"stand-in", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, NULL, "A",
      "interactive solution: the constant stand-in (emission + diffuse x A per material) instead of radiosity "
      "(tests)", NULL},
@@ -362,7 +362,9 @@ static void rad_progress(void *user, double fraction, const char *what)
 /* The interactive solution: the constant stand-in when asked for (tests,
  * throughput), else hierarchical radiosity with default parameters, loaded
  * from or written to the cache file when one is given (stale caches are
- * recomputed). */
+ * recomputed). A cache file that holds another scene's mesh is refused, not
+ * solved over: it is that scene's (corrtex-render --mesh and reference
+ * --radmesh refuse it by the same check). */
 static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_radmesh *m, ct_error *err)
 {
     if (stand_in >= 0.0f) {
@@ -375,7 +377,18 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
     int from_cache = 0, rc;
     ct_error why;
     double t0 = ct_now();
-    if (cache)
+    if (cache && rmesh_load(cache, 0, m, &why) == CT_OK) {
+        if ((rc = rmesh_check_nodes(m, s, &why))) {
+            rmesh_free(m);
+            return ct_fail(err, rc, "%s: another scene's radiosity mesh (%s): not overwritten (give another --mesh)",
+                           cache, why.msg);
+        }
+        from_cache = m->scene_hash == rad_solution_hash(s, &p);
+        if (!from_cache) rmesh_free(m);
+    }
+    if (from_cache)
+        rc = CT_OK;
+    else if (cache)
         rc = rad_cached_solve(s, &p, cache, rad_progress, NULL, m, &st, &from_cache, &why, err);
     else
         rc = rad_solve(s, &p, rad_progress, NULL, m, &st, err);
