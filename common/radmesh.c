@@ -70,6 +70,17 @@ int rmesh_set_materials(ct_radmesh *m, const ct_scene *s, ct_error *err)
     return CT_OK;
 }
 
+int rmesh_check_nodes(const ct_radmesh *m, const ct_scene *s, ct_error *err)
+{
+    if (m->nnodes != s->nnodes)
+        return ct_fail(err, CT_ESTALE, "radiosity mesh has %u nodes, the scene %u", m->nnodes, s->nnodes);
+    for (uint32_t n = 0; n < m->nnodes; n++)
+        if (strcmp(m->nodes[n].name, s->nodes[n].name) != 0 || m->nodes[n].material != s->nodes[n].material)
+            return ct_fail(err, CT_ESTALE, "radiosity mesh node %u ('%s') does not match the scene's ('%s')", n,
+                           m->nodes[n].name, s->nodes[n].name);
+    return CT_OK;
+}
+
 int rmesh_from_scene(const ct_scene *s, vec3 ambient, ct_radmesh *m, ct_error *err)
 {
     /* Vertices are duplicated per triangle so each triangle can carry its own

@@ -114,6 +114,11 @@ static inline bool rmesh_is_glass(const ct_radmesh *m, uint32_t mat)
 /* Frees the arrays and zeroes the struct. */
 void rmesh_free(ct_radmesh *m);
 
+/* Whether m is a solution of scene s: the node tables agree (count, names,
+ * materials), or node ids and materials would refer to another scene's
+ * parts. CT_ESTALE naming the first difference otherwise. */
+int rmesh_check_nodes(const ct_radmesh *m, const ct_scene *s, ct_error *err);
+
 /* A mesh with the scene's own triangles and a constant radiance per vertex
  * taken from each material (emission + diffuse * ambient): a stand-in
  * interactive solution for tests and for runs before radiosity exists. */

@@ -27,6 +27,12 @@ typedef struct loader {
     char dir[4096];         /* its folder: relative paths start here */
     uint64_t hash;
     ct_error *err;
+    /* Files a mesh file names (an OBJ's mtllib) that assimp asked for while
+     * importing the current mesh entry: assimp goes on without one it cannot
+     * open, so the loader keeps the first failure to report it. */
+    const char *mesh_file;  /* the mesh file itself (assimp opens it too) */
+    ct_error unread;        /* the first companion that could not be read, "" if none */
+    int companions_read;    /* companions that could */
 } loader;
 
 /* --- JSON helpers ---------------------------------------------------------- */
@@ -312,7 +318,12 @@ static struct aiFile *mf_open(struct aiFileIO *io, const char *path, const char 
     char *data;
     size_t len;
     ct_error e;
-    if (fs_read_all(path, MESH_FILE_MAX, &data, &len, &e) != CT_OK) return NULL;
+    bool companion = !L->mesh_file || strcmp(path, L->mesh_file) != 0;
+    if (fs_read_all(path, MESH_FILE_MAX, &data, &len, &e) != CT_OK) {
+        if (companion && !L->unread.msg[0]) L->unread = e;
+        return NULL;
+    }
+    if (companion) L->companions_read++;
     L->hash = ct_hash_bytes(L->hash, data, len);
     struct aiFile *f = calloc(1, sizeof *f);
     mem_file *m = calloc(1, sizeof *m);
@@ -448,6 +459,13 @@ static int resolve_material(mesh_ctx *C, unsigned ai_index)
     else
         snprintf(mname, sizeof mname, "material%u", ai_index);
     int idx = scene_find_material(C->L->s, mname);
+    /* A material the file's library would define, when no library could be
+     * read: assimp made it up (grey diffuse), and the scene would be lit
+     * with it without a word. Assimp's own DefaultMaterial (faces before any
+     * usemtl) comes from no library. */
+    if (idx < 0 && C->L->unread.msg[0] && C->L->companions_read == 0 && strcmp(mname, AI_DEFAULT_MATERIAL_NAME) != 0)
+        return ct_fail(C->L->err, CT_EIO, "%s: material '%s': its library cannot be read (%s)", C->file, mname,
+                       C->L->unread.msg);
     if (idx < 0) {
         scene_material m;
         int rc = convert_ai_material(am, mname, C->file, &m, C->L->err);
@@ -498,7 +516,8 @@ static int import_node(mesh_ctx *C, const struct aiNode *an, mat4 parent_xf, int
     return CT_OK;
 }
 
-static int parse_transform(loader *L, const cJSON *entry, const char *ctx, mat4 *out)
+/* node: the file node's name, for messages. */
+static int parse_transform(loader *L, const cJSON *entry, const char *ctx, const char *node, mat4 *out)
 {
     const cJSON *t = cJSON_GetObjectItemCaseSensitive(entry, "transform");
     const cJSON *m = cJSON_GetObjectItemCaseSensitive(entry, "matrix");
@@ -508,6 +527,13 @@ static int parse_transform(loader *L, const cJSON *entry, const char *ctx, mat4 
     if (m) {
         float f[16];
         if ((rc = get_floats(L, m, "matrix", ctx, f, 16))) return rc;
+        /* Points are transformed as affine (m4_point): a projective bottom
+         * row was dropped without a word. */
+        if (f[12] != 0.0f || f[13] != 0.0f || f[14] != 0.0f || f[15] != 1.0f)
+            return ct_fail(L->err, CT_EPARSE,
+                           "%s: %s ('%s'): 'matrix' bottom row is (%g, %g, %g, %g), not (0, 0, 0, 1): projective "
+                           "transforms are not supported", L->path, ctx, node, (double)f[12], (double)f[13],
+                           (double)f[14], (double)f[15]);
         for (int i = 0; i < 16; i++) out->m[i / 4][i % 4] = f[i];
     } else if (t) {
         char c2[160];
@@ -560,8 +586,11 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     if ((rc = get_str(L, entry, "file", ctx, 1, &file))) return rc;
     if ((rc = get_str(L, entry, "name", ctx, 0, &name))) return rc;
     if ((rc = get_str(L, entry, "material", ctx, 0, &matname))) return rc;
+    char nodename[SCENE_NAME_LEN];
+    if (name) snprintf(nodename, sizeof nodename, "%s", name);
+    else basename_noext(file, nodename, sizeof nodename);
     mat4 xf;
-    if ((rc = parse_transform(L, entry, ctx, &xf))) return rc;
+    if ((rc = parse_transform(L, entry, ctx, nodename, &xf))) return rc;
     int forced = -1;
     if (matname && (forced = scene_find_material(L->s, matname)) < 0)
         return ct_fail(L->err, CT_EPARSE, "%s: %s: unknown material '%s'", L->path, ctx, matname);
@@ -578,7 +607,11 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     if (rc) return rc;
 
     struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
+    L->mesh_file = full;
+    ct_error_clear(&L->unread);
+    L->companions_read = 0;
     const struct aiScene *ai = aiImportFileEx(full, aiProcess_ValidateDataStructure, &io);
+    L->mesh_file = NULL;
     if (!ai) return ct_fail(L->err, CT_EPARSE, "%s: %s", full, aiGetErrorString());
     if (!ai->mRootNode || (ai->mFlags & AI_SCENE_FLAGS_INCOMPLETE)) {
         aiReleaseImport(ai);
@@ -587,9 +620,6 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     int *matmap = calloc(ai->mNumMaterials ? ai->mNumMaterials : 1, sizeof *matmap);
     if (!matmap) { aiReleaseImport(ai); return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", full); }
     for (unsigned i = 0; i < ai->mNumMaterials; i++) matmap[i] = forced;
-    char nodename[SCENE_NAME_LEN];
-    if (name) snprintf(nodename, sizeof nodename, "%s", name);
-    else basename_noext(file, nodename, sizeof nodename);
     uint32_t dropped_before = L->s->dropped_degenerate, tris_before = L->s->ntris;
     if (rc == CT_OK && (rc = scene_begin_node(L->s, nodename, SCENE_NODE_FILE, UINT32_MAX, L->err)) >= 0) {
         mesh_ctx C = {L, full, ai, matmap};
@@ -599,6 +629,9 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
     free(matmap);
     aiReleaseImport(ai);
     if (rc < 0) return rc;
+    /* Every material came from the scene (or a fallback library assimp
+     * found): the import is right, but the file names one that is gone. */
+    if (L->unread.msg[0]) ct_warn("scene", "%s: cannot read a file it names (%s)", full, L->unread.msg);
     uint32_t dropped = L->s->dropped_degenerate - dropped_before;
     if (dropped) ct_warn("scene", "%s: dropped %u degenerate triangle%s", full, dropped, dropped == 1 ? "" : "s");
     /* Likely the wrong file (points or lines only): say so rather than
@@ -821,6 +854,34 @@ static int check_duplicates(loader *L, const cJSON *j, const char *where)
     return CT_OK;
 }
 
+/* Warns once for each name that more than one file node (mesh entry, and
+ * the lights' node) carries. Nothing looks nodes up by name (programs
+ * address them by index; cameras and paths, which are looked up by name,
+ * refuse duplicates), so this is no error: placing one file twice without
+ * a "name" is fine, but `corrtex info --tree` cannot tell the two apart. */
+static int warn_duplicate_names(loader *L)
+{
+    const ct_scene *s = L->s;
+    size_t n = 0;
+    for (uint32_t i = 0; i < s->nnodes; i++) n += s->nodes[i].kind == SCENE_NODE_FILE;
+    if (n < 2) return CT_OK;
+    const char **names = malloc(n * sizeof *names);
+    if (!names) return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", L->path);
+    size_t k = 0;
+    for (uint32_t i = 0; i < s->nnodes; i++)
+        if (s->nodes[i].kind == SCENE_NODE_FILE) names[k++] = s->nodes[i].name;
+    qsort(names, n, sizeof *names, by_name);
+    for (size_t a = 0, b; a < n; a = b) {
+        for (b = a + 1; b < n && strcmp(names[a], names[b]) == 0; b++) {
+        }
+        if (b - a > 1)
+            ct_warn("scene", "%s: %zu meshes are named '%s': give each its own \"name\" to tell them apart", L->path,
+                    b - a, names[a]);
+    }
+    free(names);
+    return CT_OK;
+}
+
 static int load_json(loader *L, const char *text, size_t len)
 {
     const char *end = NULL;
@@ -883,6 +944,7 @@ static int load_json(loader *L, const char *text, size_t len)
     if (cams && (rc = import_cameras(L, cams))) goto done;
     const cJSON *paths = cJSON_GetObjectItemCaseSensitive(root, "paths");
     if (paths && (rc = import_paths(L, paths))) goto done;
+    rc = warn_duplicate_names(L);
 done:
     cJSON_Delete(root);
     return rc;

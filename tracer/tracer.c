@@ -121,16 +121,8 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
         return ct_fail(err, CT_EINVAL, "gather rays %d outside 1..4096", o->gather_rays);
     if (o->gather_direct != TRC_GATHER_DIRECT_MESH && o->gather_direct != TRC_GATHER_DIRECT_TRACE)
         return ct_fail(err, CT_EINVAL, "gather direct light %d unknown", (int)o->gather_direct);
-    if (rad && rad->nnodes != scene->nnodes)
-        return ct_fail(err, CT_ESTALE, "radiosity mesh has %u nodes, the scene %u", rad->nnodes,
-                       scene->nnodes);
-    /* The node tables must agree, or node ids and materials would refer to
-     * another scene's parts. */
-    for (uint32_t n = 0; rad && n < rad->nnodes; n++)
-        if (strcmp(rad->nodes[n].name, scene->nodes[n].name) != 0 ||
-            rad->nodes[n].material != scene->nodes[n].material)
-            return ct_fail(err, CT_ESTALE, "radiosity mesh node %u ('%s') does not match the scene's ('%s')", n,
-                           rad->nodes[n].name, scene->nodes[n].name);
+    int crc = rad ? rmesh_check_nodes(rad, scene, err) : CT_OK;
+    if (crc) return crc;
     trc_tracer *t = calloc(1, sizeof *t);
     if (!t) return ct_fail(err, CT_ENOMEM, "out of memory");
     t->opt = *o;

@@ -65,7 +65,7 @@ static const optab OPTS[] = {
      NULL},
     {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE.ctmesh",
      "radiosity cache: loaded when it holds this scene's solution, else solved (default parameters) and written "
-     "there (default: solve, no cache)", NULL},
+     "there, with a warning when it held another scene's (default: solve, no cache)", NULL},
     {"stand-in", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, NULL, "A",
      "interactive solution: the constant stand-in (emission + diffuse x A per material) instead of radiosity "
      "(tests)", NULL},
@@ -362,7 +362,9 @@ static void rad_progress(void *user, double fraction, const char *what)
 /* The interactive solution: the constant stand-in when asked for (tests,
  * throughput), else hierarchical radiosity with default parameters, loaded
  * from or written to the cache file when one is given (stale caches are
- * recomputed). */
+ * recomputed). A cache file whose node table is not this scene's is solved
+ * over with a warning naming it (corrtex-render --mesh and reference
+ * --radmesh, whose file is an input, refuse it by the same check). */
 static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_radmesh *m, ct_error *err)
 {
     if (stand_in >= 0.0f) {
@@ -375,7 +377,21 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
     int from_cache = 0, rc;
     ct_error why;
     double t0 = ct_now();
-    if (cache)
+    if (cache && rmesh_load(cache, 0, m, &why) == CT_OK) {
+        /* A node table that is not this scene's: another scene's cache, or
+         * this one's from before its meshes changed (which a refusal would
+         * make the user delete by hand). A cache either way, solved over,
+         * but said aloud: it used to be an info line. */
+        if (rmesh_check_nodes(m, s, &why))
+            ct_warn(COMPONENT, "%s: the radiosity mesh of another scene, or of this one before its meshes changed (%s): "
+                    "solving over it", cache, why.msg);
+        else
+            from_cache = m->scene_hash == rad_solution_hash(s, &p);
+        if (!from_cache) rmesh_free(m);
+    }
+    if (from_cache)
+        rc = CT_OK;
+    else if (cache)
         rc = rad_cached_solve(s, &p, cache, rad_progress, NULL, m, &st, &from_cache, &why, err);
     else
         rc = rad_solve(s, &p, rad_progress, NULL, m, &st, err);

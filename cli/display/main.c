@@ -90,7 +90,7 @@ static const optab VIEW_OPTS[] = {
     {"camera", 0, OPTAB_STRING, OF(camera), 0, 0, NULL, "EX,EY,EZ,TX,TY,TZ[,FOV]",
      "start camera: eye, target, vertical field of view in degrees (default 50)", NULL},
     {"camera-name", 0, OPTAB_STRING, OF(o.camera_name), 0, 0, NULL, "NAME",
-     "a named camera of --scene (default: its first one)", NULL},
+     "a named camera of --scene (default: its first one); only with --scene", NULL},
 };
 
 static const optab RUN_OPTS[] = {
@@ -256,6 +256,13 @@ int main(int argc, char **argv)
     int sources = (o.mesh != NULL) + (o.scene != NULL) + (o.connect != NULL);
     if (sources != 1) {
         ct_log(CT_LOG_ERROR, COMP, "give exactly one of --connect, --mesh or --scene (see --help)");
+        return DISP_EXIT_USAGE;
+    }
+    /* Only a scene file names cameras: a .ctmesh and the scene a master
+     * sends carry none, and the option used to be dropped without a word. */
+    if (o.camera_name && !o.scene) {
+        ct_log(CT_LOG_ERROR, COMP, "--camera-name needs --scene: %s names no cameras (give --camera EX,EY,EZ,TX,TY,TZ)",
+               o.mesh ? "a .ctmesh" : "the scene a master sends");
         return DISP_EXIT_USAGE;
     }
     if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {

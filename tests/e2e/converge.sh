@@ -106,5 +106,18 @@ run_corrtex 0 converge "$scene" --camera front --samples 200 --width 32 --height
 grep -q "cached" "$tmp/err" || fail "second --mesh run did not use the cache"
 cmp -s "$tmp/rad1/corrected_200.exr" "$tmp/rad2/corrected_200.exr" || fail "cached and solved runs differ"
 
+# A --mesh file that holds another scene's mesh (or this one's before its
+# meshes changed) is a cache all the same: solved over, with a warning
+# naming it (it was an info line), and the run's images are those of the
+# solved run above.
+run_corrtex 0 radiosity "$root/tests/data/scenes/mini.json" -o "$tmp/other.ctmesh" --error 0.1 --min-area 0.1 --quiet
+cp "$tmp/other.ctmesh" "$tmp/other.copy"
+run_corrtex 0 converge "$scene" --camera front --samples 200 --width 32 --height 32 --mesh "$tmp/other.ctmesh" \
+  --out "$tmp/rad3" --quiet
+grep -q "warn.*other.ctmesh: the radiosity mesh of another scene, or of this one before its meshes changed (radiosity mesh has [0-9]* nodes, the scene [0-9]*): solving over it" "$tmp/err" ||
+  fail "no warning naming another scene's mesh"
+cmp -s "$tmp/other.ctmesh" "$tmp/other.copy" && fail "another scene's mesh was not solved over"
+cmp -s "$tmp/rad1/corrected_200.exr" "$tmp/rad3/corrected_200.exr" || fail "the run over another scene's mesh differs from the solved run"
+
 if ((fails)); then echo "converge e2e: $fails failure(s)"; exit 1; fi
 echo "converge e2e: ok"

@@ -112,6 +112,12 @@ bad "exactly one" --backend osmesa
 printf '0 0 0 1 0 0 0\n0 1 1 1 0 0 0\n' >"$tmp/bad.path"
 bad "bad.path" --backend osmesa --scene "$SCENE" --path "$tmp/bad.path"
 bad "no camera named" --backend osmesa --scene "$SCENE" --camera-name nope
+# Only a scene file names cameras: with --mesh or --connect the option was
+# dropped without a word.
+bad "--camera-name needs --scene: a .ctmesh names no cameras" --backend osmesa --mesh "$tmp/none.ctmesh" \
+  --camera-name front
+bad "--camera-name needs --scene: the scene a master sends" --backend osmesa --connect "unix:$tmp/none.sock" \
+  --camera-name front
 bad "--sample-frames" --backend osmesa --scene "$SCENE" --sample-frames 0
 bad "--sample-max" --backend osmesa --scene "$SCENE" --sample-max abc
 bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5

@@ -56,6 +56,30 @@ printf '{"meshes":[{"file":"ok.obj"},{"file":"lines.obj"}]}' > "$tmp/lines.json"
 echo "+ $BIN/corrtex info $tmp/lines.json  -> exit $rc: $(cat "$tmp/e")"
 [[ $rc -eq 0 ]] || { echo "FAIL: lines.json: exit $rc, want 0"; fail=1; }
 grep -q '^warn scene: .*lines.obj: no triangles' "$tmp/e" || { echo "FAIL: no warning naming lines.obj"; fail=1; }
+# A projective 'matrix' (its bottom row was dropped without a word).
+printf '{"meshes":[{"file":"ok.obj","name":"tbl","matrix":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,0.5,1]}]}' > "$tmp/proj.json"
+check "$tmp/proj.json" "proj.json: meshes\[0\] ('tbl'): 'matrix' bottom row is (0, 0, 0.5, 1), not (0, 0, 0, 1)"
+# An OBJ whose material library is gone: an error when a material it uses
+# would take assimp's made-up values, a warning naming both files when the
+# scene defines it.
+printf 'mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl wood\nf 1 2 3\n' > "$tmp/nomtl.obj"
+printf '{"meshes":[{"file":"nomtl.obj"}]}' > "$tmp/nomtl.json"
+check "$tmp/nomtl.json" "nomtl.obj: material 'wood': its library cannot be read (.*gone.mtl: cannot open"
+printf '{"meshes":[{"file":"nomtl.obj"}],"materials":{"wood":{"diffuse":[0.5,0.4,0.3]}}}' > "$tmp/nomtl_def.json"
+# Two mesh entries with one name (the file placed twice, no "name"): loaded,
+# with one warning for the name.
+printf '{"meshes":[{"file":"ok.obj"},{"file":"ok.obj","matrix":[1,0,0,2,0,1,0,0,0,0,1,0,0,0,0,1]},{"file":"ok.obj","name":"ok"}]}' > "$tmp/twice.json"
+for f in nomtl_def twice; do
+  "$BIN/corrtex" info "$tmp/$f.json" >"$tmp/o" 2>"$tmp/e"; rc=$?
+  echo "+ $BIN/corrtex info $tmp/$f.json  -> exit $rc: $(cat "$tmp/e")"
+  [[ $rc -eq 0 ]] || { echo "FAIL: $f.json: exit $rc, want 0"; fail=1; }
+  [[ $(grep -c '^warn ' "$tmp/e") -eq 1 ]] || { echo "FAIL: $f.json: want exactly one warning"; fail=1; }
+done
+"$BIN/corrtex" info "$tmp/nomtl_def.json" 2>&1 >/dev/null |
+  grep -q '^warn scene: .*nomtl.obj: cannot read a file it names (.*gone.mtl: cannot open' ||
+  { echo "FAIL: no warning naming nomtl.obj and gone.mtl"; fail=1; }
+"$BIN/corrtex" info "$tmp/twice.json" 2>&1 >/dev/null |
+  grep -q "^warn scene: .*twice.json: 3 meshes are named 'ok'" || { echo "FAIL: no warning naming the name 'ok'"; fail=1; }
 check "$tmp/far_cam.json" "far_cam.json: camera 'c': eye or target outside the coordinate range"
 printf '{"meshes":[{"file":"ok.obj"}],"cameras":[{"name":"c","eye":[0,1,5],"target":[0,0,0],"up":[0,0,0]}]}' > "$tmp/up_zero.json"
 printf '{"meshes":[{"file":"ok.obj"}],"cameras":[{"name":"c","eye":[0,5,0],"target":[0,0,0],"up":[0,2,0]}]}' > "$tmp/up_along.json"

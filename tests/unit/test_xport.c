@@ -9,6 +9,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include "proto/chan.h"
@@ -492,6 +495,32 @@ Test(xport, listen_errors)
     snprintf(want, sizeof want, "%s: path exists and is not a socket", spec);
     cr_assert_str_eq(err.msg, want);
     unlink(spec + 5);
+}
+
+/* A master killed by SIGKILL (mpirun's escalation, `timeout -s KILL`)
+ * leaves its socket file behind; nothing accepts on it any more, and the
+ * next master on that path replaces it (docs/distributed.md). */
+Test(xport, stale_socket_replaced)
+{
+    char spec[128];
+    unix_spec(spec, sizeof spec);
+    struct sockaddr_un sa = {.sun_family = AF_UNIX};
+    snprintf(sa.sun_path, sizeof sa.sun_path, "%s", spec + 5);
+    int fd = socket(AF_UNIX, SOCK_STREAM, 0);
+    cr_assert_geq(fd, 0);
+    cr_assert_eq(bind(fd, (struct sockaddr *)&sa, sizeof sa), 0);
+    cr_assert_eq(listen(fd, 1), 0);
+    close(fd);   /* as a killed process: the file stays, nobody listens */
+    struct stat st;
+    cr_assert_eq(lstat(spec + 5, &st), 0);
+    xport_listener *l;
+    ct_error err;
+    cr_assert_eq(xport_listen(spec, &l, &err), 0, "%s", err.msg);
+    xport_conn *cli;
+    cr_assert_eq(xport_connect(spec, 2000, &cli, &err), 0, "%s", err.msg);
+    xport_close(cli);
+    xport_listener_close(l);
+    cr_expect_neq(lstat(spec + 5, &st), 0, "the socket file is left after the listener closed");
 }
 
 Test(xport, scene_over_a_socket)
