@@ -15,6 +15,7 @@
 #include <assimp/scene.h>
 #include <cJSON.h>
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -32,6 +33,7 @@ typedef struct loader {
      * open, so the loader keeps the first failure to report it. */
     const char *mesh_file;  /* the mesh file itself (assimp opens it too) */
     ct_error unread;        /* the first companion that could not be read, "" if none */
+    char unread_base[256];  /* its file name, '\\' read as '/' */
     int companions_read;    /* companions that could */
 } loader;
 
@@ -311,6 +313,16 @@ static enum aiReturn mf_seek(struct aiFile *f, size_t off, enum aiOrigin origin)
     return aiReturn_SUCCESS;
 }
 
+/* The file name of path, a Windows path's too (an OBJ exported there names
+ * `mtllib C:\\proj\\m.mtl`). */
+static void file_name_of(const char *path, char *out, size_t cap)
+{
+    const char *b = path;
+    for (const char *p = path; *p; p++)
+        if (*p == '/' || *p == '\\') b = p + 1;
+    snprintf(out, cap, "%s", b);
+}
+
 static struct aiFile *mf_open(struct aiFileIO *io, const char *path, const char *mode)
 {
     if (!mode || mode[0] != 'r') return NULL;
@@ -320,10 +332,20 @@ static struct aiFile *mf_open(struct aiFileIO *io, const char *path, const char 
     ct_error e;
     bool companion = !L->mesh_file || strcmp(path, L->mesh_file) != 0;
     if (fs_read_all(path, MESH_FILE_MAX, &data, &len, &e) != CT_OK) {
-        if (companion && !L->unread.msg[0]) L->unread = e;
+        if (companion && !L->unread.msg[0]) {
+            L->unread = e;
+            file_name_of(path, L->unread_base, sizeof L->unread_base);
+        }
         return NULL;
     }
-    if (companion) L->companions_read++;
+    if (companion) {
+        L->companions_read++;
+        /* assimp tries a library as named, then in the mesh's folder: found
+         * there, the first try was no missing file. */
+        char base[256];
+        file_name_of(path, base, sizeof base);
+        if (L->unread.msg[0] && strcmp(base, L->unread_base) == 0) ct_error_clear(&L->unread);
+    }
     L->hash = ct_hash_bytes(L->hash, data, len);
     struct aiFile *f = calloc(1, sizeof *f);
     mem_file *m = calloc(1, sizeof *m);
@@ -528,7 +550,13 @@ static int parse_transform(loader *L, const cJSON *entry, const char *ctx, const
         float f[16];
         if ((rc = get_floats(L, m, "matrix", ctx, f, 16))) return rc;
         /* Points are transformed as affine (m4_point): a projective bottom
-         * row was dropped without a word. */
+         * row was dropped without a word. Rounding noise of a computed
+         * matrix (an inverse, a product) is not projective: snapped. */
+        const float tol = 1e-6f;
+        if (fabsf(f[12]) <= tol && fabsf(f[13]) <= tol && fabsf(f[14]) <= tol && fabsf(f[15] - 1.0f) <= tol) {
+            f[12] = f[13] = f[14] = 0.0f;
+            f[15] = 1.0f;
+        }
         if (f[12] != 0.0f || f[13] != 0.0f || f[14] != 0.0f || f[15] != 1.0f)
             return ct_fail(L->err, CT_EPARSE,
                            "%s: %s ('%s'): 'matrix' bottom row is (%g, %g, %g, %g), not (0, 0, 0, 1): projective "
@@ -875,7 +903,7 @@ static int warn_duplicate_names(loader *L)
         for (b = a + 1; b < n && strcmp(names[a], names[b]) == 0; b++) {
         }
         if (b - a > 1)
-            ct_warn("scene", "%s: %zu meshes are named '%s': give each its own \"name\" to tell them apart", L->path,
+            ct_warn("scene", "%s: %zu nodes are named '%s': give each its own \"name\" to tell them apart", L->path,
                     b - a, names[a]);
     }
     free(names);

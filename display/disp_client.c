@@ -42,6 +42,13 @@ struct disp_client {
     int wake[2];                  /* the render thread writes a byte to wake the thread */
     int silent_ms;                /* disp_client_opts.silent_ms */
     uint32_t epoch;               /* render thread only */
+    /* A send that failed (thread only): the master may have closed after an
+     * ERROR saying why, which is still to be read; ending at the failed send,
+     * the display reported a bare lost connection. Sending stops, reading
+     * goes on until the read side ends, or until read_until. */
+    int send_rc;
+    ct_error send_err;
+    uint64_t read_until;
     bool lockstep;                /* every CAMERA asks for a frame */
     pthread_mutex_t mu;           /* guards what follows */
     wire_msg out[MAX_OUT];        /* CAMERA messages for the thread to send */
@@ -238,6 +245,18 @@ static int send_now(disp_client *c, const wire_msg *m, ct_error *err)
     return rc;
 }
 
+/* Sends m unless a send failed before; a failure is kept (send_rc), not
+ * returned: the reading goes on (see struct disp_client). */
+static void send_or_keep(disp_client *c, const wire_msg *m)
+{
+    if (c->send_rc) return;
+    int rc = send_now(c, m, &c->send_err);
+    if (rc) {
+        c->send_rc = rc;
+        c->read_until = ct_now_us() + READ_AFTER_SEND_FAILED_US;
+    }
+}
+
 /* A PONG: the master's clock at the middle of the round trip. */
 static void pong(disp_client *c, const wire_ping *p)
 {
@@ -301,7 +320,8 @@ static int apply(disp_client *c, const wire_msg *m, ct_error *err)
         /* Everything before it is in the inbox: the master may send more. */
         wire_msg a = {.type = WIRE_ACK};
         a.u.ack.seq = m->u.sync.seq;
-        return send_now(c, &a, err);
+        send_or_keep(c, &a);
+        return CT_OK;
     }
     case WIRE_SAMPLES:
         /* Points of an older camera still land on surfaces: keep them all. */
@@ -316,7 +336,8 @@ static int apply(disp_client *c, const wire_msg *m, ct_error *err)
         p.type = WIRE_PONG;
         p.u.ping.token = m->u.ping.token;
         p.u.ping.clock_us = ct_now_us();
-        return send_now(c, &p, err);
+        send_or_keep(c, &p);
+        return CT_OK;
     }
     case WIRE_PONG:
         pong(c, &m->u.ping);
@@ -368,7 +389,7 @@ static int receive(disp_client *c, ct_error *err)
 }
 
 /* Sends the cameras the render thread queued. */
-static int send_queued(disp_client *c, ct_error *err)
+static void send_queued(disp_client *c)
 {
     wire_msg out[MAX_OUT];
     pthread_mutex_lock(&c->mu);
@@ -376,11 +397,7 @@ static int send_queued(disp_client *c, ct_error *err)
     memcpy(out, c->out, (size_t)n * sizeof *out);
     c->nout = 0;
     pthread_mutex_unlock(&c->mu);
-    for (int i = 0; i < n; i++) {
-        int rc = send_now(c, &out[i], err);
-        if (rc) return rc;
-    }
-    return 0;
+    for (int i = 0; i < n; i++) send_or_keep(c, &out[i]);
 }
 
 static void *thread_main(void *arg)
@@ -391,16 +408,9 @@ static void *thread_main(void *arg)
     uint64_t next_ping = ct_now_us(), heard = next_ping, heard_rx = 0;
     int pings = 0, rc = 0;
     bool more = false;   /* the last pump read bytes nobody has decoded yet */
-    /* A send that failed: the master may have closed after an ERROR saying
-     * why, which is still to be read (ending at the failed send, the display
-     * reported a bare lost connection). Reading goes on, sending stops, until
-     * the read side ends or for a bounded while. */
-    int send_rc = 0;
-    ct_error send_err;
-    uint64_t read_until = 0;
     while (!atomic_load(&c->stop)) {
         uint64_t now = ct_now_us();
-        int timeout = more ? 0 : send_rc ? 10 : next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
+        int timeout = more ? 0 : c->send_rc ? 10 : next_ping > now ? (int)((next_ping - now) / 1000u) + 1 : 0;
         struct pollfd p[2] = {{chan_fd(c->ch), chan_events(c->ch), 0}, {c->wake[0], POLLIN, 0}};
         poll(p, 2, timeout);
         if (p[1].revents & POLLIN) {
@@ -408,25 +418,19 @@ static void *thread_main(void *arg)
             while (read(c->wake[0], buf, sizeof buf) > 0) {
             }
         }
-        if (!send_rc) {
-            int src = send_queued(c, &send_err);
-            now = ct_now_us();
-            if (!src && now >= next_ping) {
-                wire_msg m = {.type = WIRE_PING};
-                m.u.ping.token = now;
-                src = send_now(c, &m, &send_err);
-                next_ping = now + (++pings < PING_QUICK ? PING_FIRST_US : PING_EVERY_US);
-            }
-            if (src) {
-                send_rc = src;
-                read_until = now + READ_AFTER_SEND_FAILED_US;
-            }
-        } else if (ct_now_us() > read_until) {
-            rc = send_rc;
-            err = send_err;
+        send_queued(c);
+        now = ct_now_us();
+        if (!c->send_rc && now >= next_ping) {
+            wire_msg m = {.type = WIRE_PING};
+            m.u.ping.token = now;
+            send_or_keep(c, &m);
+            next_ping = now + (++pings < PING_QUICK ? PING_FIRST_US : PING_EVERY_US);
+        }
+        if (c->send_rc && now > c->read_until) {
+            rc = c->send_rc;
+            err = c->send_err;
             break;
         }
-        now = ct_now_us();
         if ((rc = chan_pump(c->ch, &err))) break;
         uint64_t rx, tx;
         chan_byte_counts(c->ch, &rx, &tx);
@@ -442,7 +446,7 @@ static void *thread_main(void *arg)
         if (rx2 != heard_rx) {
             heard_rx = rx2;
             heard = now;
-        } else if (now - heard > 1000u * (uint64_t)c->silent_ms) {
+        } else if (!c->send_rc && now - heard > 1000u * (uint64_t)c->silent_ms) {
             rc = ct_fail(&err, CT_EIO, "%s: the master sent nothing for %.1f s, not even a PONG", c->addr,
                          c->silent_ms / 1000.0);
             break;

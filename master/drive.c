@@ -40,7 +40,7 @@ struct drv {
 
 #define OF(f) offsetof(drv_options, f)
 static const optab OPTS[] = {
-    {"window", 0, OPTAB_INT, OF(window), 1, MAX_WINDOW, "3", "N", "request batches in flight per tracer", NULL},
+    {"window", 0, OPTAB_INT, OF(window), 1, MAX_WINDOW, "3", "N", "request batches of the current view in flight per tracer", NULL},
     {"batch-min", 0, OPTAB_INT, OF(batch_min), 1, WIRE_MPI_MAX_BATCH, "16", "N",
      "smallest free-running batch (requests)", NULL},
     {"batch-max", 0, OPTAB_INT, OF(batch_max), 1, WIRE_MPI_MAX_BATCH, "4096", "N",
@@ -285,13 +285,18 @@ static bool lane_open(const drv *d, const lane *l)
 
 static int submit(drv *d, int i, const ct_request *reqs, uint32_t n, int round, ct_error *err)
 {
+    lane *l = &d->lanes[i];
+    /* Free running, lane_open keeps a lane within its slots; a lockstep
+     * round goes out when nothing is (master/sched.c). A caller that broke
+     * that would overwrite the oldest batch's slot: refuse. */
+    if (l->pub.inflight >= MAX_WINDOW)
+        return ct_fail(err, CT_EINVAL, "master: tracer %d already has %d batches out", i + 1, MAX_WINDOW);
     ct_camera cam;
     int w, h;
     sess_view(d->s, &cam, &w, &h);
     tport_view v = {sess_epoch(d->s), (uint32_t)w, (uint32_t)h, cam};
     int rc = d->p->ops->submit(d->p, i, ++d->batch_id, &v, reqs, n, err);
     if (rc) return rc;
-    lane *l = &d->lanes[i];
     int slot = (l->head + l->pub.inflight) % MAX_WINDOW;
     l->sent_at[slot] = ct_now();
     l->in_round[slot] = (unsigned char)round;

@@ -180,6 +180,8 @@ static int intake(intake_state *in, ct_error *err)
             wire_mpi_requests h;
             if ((rc = wire_mpi_decode_requests_header(in->msg->data, in->msg->len, PEER, &h, err)) < 0) return rc;
             if ((rc = fifo_push(in->q, in->msg, h.epoch, err)) < 0) return rc;
+            /* a batch is made for a view its CAMERA announced; whichever came first */
+            if (h.epoch > in->epoch) in->epoch = h.epoch;
         } else if (kind == WIRE_MPI_CAMERA) {
             wire_mpi_camera cam;
             if ((rc = wire_mpi_decode_camera(in->msg->data, in->msg->len, PEER, &cam, err)) < 0) return rc;
@@ -247,8 +249,12 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         wire_buf b = fifo_pop(&q);
         unsigned kind = 0;
         uint32_t count = 0;
+        wire_mpi_requests h;
         rc = wire_mpi_peek(b.data, b.len, PEER, &kind, &count, err);
-        if (rc == 0 && count > cap) {
+        if (rc == 0) rc = wire_mpi_decode_requests_header(b.data, b.len, PEER, &h, err);
+        /* A batch that gives way is answered from its header alone. */
+        bool skip = rc == 0 && gives_way(&in, h.epoch);
+        if (rc == 0 && !skip && count > cap) {
             ct_request *r = realloc(reqs, count * sizeof *r);
             ct_sample *s = r ? realloc(samples, count * sizeof *s) : NULL;
             if (r) reqs = r;
@@ -256,15 +262,13 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
             if (!r || !s) rc = ct_fail(err, CT_ENOMEM, "tracer %d: out of memory for a batch of %u", c->rank, count);
             else cap = count;
         }
-        wire_mpi_requests h;
-        if (rc == 0) rc = wire_mpi_decode_requests(b.data, b.len, PEER, &h, reqs, cap, &count, err);
+        if (rc == 0 && !skip) rc = wire_mpi_decode_requests(b.data, b.len, PEER, &h, reqs, cap, &count, err);
         wire_buf_free(&b);
         if (rc < 0) goto out;
-        if (h.epoch > in.epoch) in.epoch = h.epoch;
         st->requests += count;
         wire_mpi_samples sh = {.batch = h.batch, .rank = (uint32_t)c->rank};
         uint32_t nout = 0;
-        if (gives_way(&in, h.epoch)) {
+        if (skip) {
             st->stale_batches++;   /* a newer view's batch waits behind it: answer empty */
         } else {
             trc_view v = {.cam = h.cam, .width = (int)h.width, .height = (int)h.height};

@@ -44,8 +44,9 @@ static int lport_submit(tport *p, int lane, uint64_t batch, const tport_view *v,
     uint32_t ns = 0;
     if (v->epoch > l->epoch) l->epoch = v->epoch;
     if (v->epoch == l->epoch && n > 0) {
-        /* a batch of an older epoch is answered empty: submits come in
-         * epoch order, so this view's batches are already on their way */
+        /* drv submits for the current view only, so this does not happen
+         * through it; a batch of a view left is answered empty, as a rank
+         * does once a newer batch is queued behind it */
         if (!(s = malloc((size_t)n * sizeof *s)))
             return ct_fail(err, CT_ENOMEM, "local tracer port: out of memory for %u samples", n);
         trc_view tv = {.cam = v->cam, .width = (int)v->width, .height = (int)v->height};

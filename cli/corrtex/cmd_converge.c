@@ -384,7 +384,7 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
          * but said aloud: it used to be an info line. */
         if (rmesh_check_nodes(m, s, &why))
             ct_warn(COMPONENT, "%s: the radiosity mesh of another scene, or of this one before its meshes changed (%s): "
-                    "solving over it", cache, why.msg);
+                    "solving over it (the file is replaced)", cache, why.msg);
         else
             from_cache = m->scene_hash == rad_solution_hash(s, &p);
         if (!from_cache) rmesh_free(m);

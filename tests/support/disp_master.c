@@ -143,9 +143,16 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
         return 0;
     } else if (end == FXM_END_DEAF) {
         /* As a master that is going away: the display's PINGs fail (EPIPE)
-         * before the ERROR saying why comes. */
+         * before the ERROR saying why comes, and so does the ACK of the
+         * SYNC just before it. */
         if (shutdown(chan_fd(c), SHUT_RD)) return 70;
         usleep(500000);
+        /* Both queued before one flush: the chan reads its own end of
+         * file (the shut read side) in the flush and sends nothing after. */
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_SYNC;
+        m.u.sync.seq = 1;
+        if (chan_send(c, &m, &err)) return 72;
         memset(&m, 0, sizeof m);
         m.type = WIRE_ERROR;
         m.u.error.code = WIRE_ERR_INTERNAL;

@@ -28,7 +28,7 @@ typedef enum fxm_end {
     FXM_END_STALL = 6,   /* send 10 bytes of a TEX_PATCH frame, then nothing (no PONG
                           * either) for 5 s */
     FXM_END_DEAF = 7     /* stop reading (the display's next writes fail), 0.5 s
-                          * later send ERROR FXM_DEAF_TEXT and close */
+                          * later send SYNC and ERROR FXM_DEAF_TEXT, and close */
 } fxm_end;
 
 #define FXM_ROUNDS 30

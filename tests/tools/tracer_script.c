@@ -149,6 +149,9 @@ static int tracer(const ct_scene *scene, ct_error *err)
     if (rc) return rc;
     trc_options to;
     trc_options_default(&to, TRC_MODE_DRT);
+    /* Costly samples (some 50 ms a batch here): a batch of view 2 must not
+     * be done before the master, busy on a loaded host, sends view 3's. */
+    to.shadow_rays = 16;
     trc_tracer *t = NULL;
     rc = trc_new(scene, &mesh, &to, &t, err);
     if (rc == 0) {

@@ -320,6 +320,7 @@ static int rig_close(rig *r)
  * 0 when it had not within 5 s. */
 static int ended_by(fxm_end end, int silent_ms, const char *what, ct_error *err)
 {
+    ct_error_clear(err);
     fxm_peer p;
     memset(&p, 0, sizeof p);
     cr_assert_eq(fxm_start(&p, end, 0, W, H), 0, "%s", p.msg);
@@ -349,10 +350,10 @@ Test(disp_client, a_master_that_stalls_mid_message_is_given_up)
     cr_expect(strstr(err.msg, "the master sent nothing for 1.0 s, not even a PONG") != NULL, "%s", err.msg);
 }
 
-/* A master that stops reading and then sends ERROR and closes (as
- * corrtex-render does on SIGTERM): the display's PINGs fail before the
- * ERROR comes, and it still reports the master's words (it used to end at
- * the failed send with a bare lost connection). */
+/* A master that stops reading and then sends SYNC, ERROR and closes (as
+ * corrtex-render does on SIGTERM): the display's PINGs and its ACK fail
+ * before the ERROR is read, and it still reports the master's words (it
+ * used to end at the failed send with a bare lost connection). */
 Test(disp_client, the_masters_last_words_are_read_after_a_failed_send)
 {
     ct_error err;

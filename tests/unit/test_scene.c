@@ -346,6 +346,11 @@ Test(scene_bad, projective_matrix)
                                                 "\"matrix\":[1,0,0,5, 0,1,0,0, 0,0,1,0, -0,0,0,1]}]}"));
     cr_expect_float_eq(s->bounds.lo.x, 5.0f, 1e-6);
     scene_free(s);
+    /* the rounding noise of a computed matrix is no projection */
+    s = load_ok(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\","
+                                      "\"matrix\":[1,0,0,5, 0,1,0,0, 0,0,1,0, 1e-17,-2e-9,0,1.0000001]}]}"));
+    cr_expect_float_eq(s->bounds.lo.x, 5.0f, 1e-6);
+    scene_free(s);
 }
 
 /* An OBJ whose mtllib cannot be read: assimp goes on with grey default
