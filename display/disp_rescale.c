@@ -76,12 +76,6 @@ static void doubled_partial(const float *const ps[4], const uint8_t ok[4], const
     for (int ch = 0; ch < 3; ch++) c[ch] = acc[ch] * inv;
 }
 
-/* New texel (fx i + a, fy j + b): bilinear at the new centre from texel
- * (i, j), its neighbour towards that centre on each doubled axis (clamped
- * to the edge) and the diagonal; weights over the valid ones. A row is
- * first computed as if every texel were valid, in plain loops over floats
- * the compiler vectorizes (left and right neighbours apart, then
- * interleaved), then the texels next to empty ones are done again. */
 /* Source rows, each converted once: row r in slot r % 3, so that a row
  * and its neighbours above and below never share a slot. */
 typedef struct rows3 {
@@ -100,6 +94,12 @@ static int row_at(rows3 *r, const uint16_t *src, int w, int j)
     return k;
 }
 
+/* New texel (fx i + a, fy j + b): bilinear at the new centre from texel
+ * (i, j), its neighbour towards that centre on each doubled axis (clamped
+ * to the edge) and the diagonal; weights over the valid ones. A row is
+ * first computed as if every texel were valid, in plain loops over floats
+ * the compiler vectorizes (left and right neighbours apart, then
+ * interleaved), then the texels next to empty ones are done again. */
 static void doubled(const uint16_t *src, int w, int h, uint16_t *dst, int nw, int fx, int fy, float *buf,
                     uint8_t *vb, bool *neg, bool *nz)
 {

@@ -40,7 +40,8 @@ struct drv {
 
 #define OF(f) offsetof(drv_options, f)
 static const optab OPTS[] = {
-    {"window", 0, OPTAB_INT, OF(window), 1, MAX_WINDOW, "3", "N", "request batches of the current view in flight per tracer", NULL},
+    {"window", 0, OPTAB_INT, OF(window), 1, MAX_WINDOW, "3", "N",
+     "request batches of the current view in flight per tracer", NULL},
     {"batch-min", 0, OPTAB_INT, OF(batch_min), 1, WIRE_MPI_MAX_BATCH, "16", "N",
      "smallest free-running batch (requests)", NULL},
     {"batch-max", 0, OPTAB_INT, OF(batch_max), 1, WIRE_MPI_MAX_BATCH, "4096", "N",

@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "common/fsutil.h"
 #include "common/log.h"
 #include "common/timer.h"
 #include "proto/chan.h"
@@ -66,11 +67,7 @@ static int check_config(const dsrv_config *cfg, xport_addr *a, ct_error *err)
         if (lstat(a->path, &st) == 0 && !S_ISSOCK(st.st_mode))
             return ct_fail(err, CT_EINVAL, "%s: %s exists and is not a socket", cfg->listen, a->path);
         char dir[sizeof a->path];
-        snprintf(dir, sizeof dir, "%s", a->path);
-        char *slash = strrchr(dir, '/');
-        if (slash == dir) dir[1] = '\0';
-        else if (slash) *slash = '\0';
-        else snprintf(dir, sizeof dir, ".");
+        fs_dirname(a->path, dir, sizeof dir);
         if (access(dir, W_OK | X_OK) != 0)
             return ct_fail(err, CT_EINVAL, "%s: cannot create the socket in %s (%s)", cfg->listen, dir,
                            strerror(errno));

@@ -24,17 +24,23 @@
 /* Who sent what a tracer decodes, for its error lines. */
 static const char PEER[] = "master (rank 0)";
 
+/* A queued request batch with what its header says of it. */
+typedef struct queued {
+    wire_buf b;
+    uint64_t batch;
+    uint32_t epoch;
+} queued;
+
 typedef struct fifo {
-    wire_buf *items;
+    queued *items;
     size_t head, n, cap;
-    uint32_t newest;   /* epoch of the last batch pushed: the master sends epochs in order */
 } fifo;
 
-static int fifo_push(fifo *f, wire_buf *b, uint32_t epoch, ct_error *err)
+static int fifo_push(fifo *f, wire_buf *b, const wire_mpi_requests *h, ct_error *err)
 {
     if (f->n == f->cap) {
         size_t cap = f->cap ? 2 * f->cap : 8;
-        wire_buf *p = malloc(cap * sizeof *p);
+        queued *p = malloc(cap * sizeof *p);
         if (!p) return ct_fail(err, CT_ENOMEM, "tracer: out of memory queueing request batches");
         for (size_t i = 0; i < f->n; i++) p[i] = f->items[(f->head + i) % f->cap];
         free(f->items);
@@ -42,26 +48,32 @@ static int fifo_push(fifo *f, wire_buf *b, uint32_t epoch, ct_error *err)
         f->cap = cap;
         f->head = 0;
     }
-    f->items[(f->head + f->n) % f->cap] = *b;
+    f->items[(f->head + f->n) % f->cap] = (queued){*b, h->batch, h->epoch};
     memset(b, 0, sizeof *b);
     f->n++;
-    if (epoch > f->newest) f->newest = epoch;
     return 0;
 }
 
-static wire_buf fifo_pop(fifo *f)
+static queued fifo_pop(fifo *f)
 {
-    wire_buf b = f->items[f->head];
+    queued q = f->items[f->head];
     f->head = (f->head + 1) % f->cap;
     f->n--;
-    return b;
+    return q;
+}
+
+/* The epoch of the last batch queued (f->n > 0): the newest, as the master
+ * sends epochs in order. */
+static uint32_t fifo_newest(const fifo *f)
+{
+    return f->items[(f->head + f->n - 1) % f->cap].epoch;
 }
 
 static void fifo_free(fifo *f)
 {
     while (f->n) {
-        wire_buf b = fifo_pop(f);
-        wire_buf_free(&b);
+        queued q = fifo_pop(f);
+        wire_buf_free(&q.b);
     }
     free(f->items);
 }
@@ -179,7 +191,7 @@ static int intake(intake_state *in, ct_error *err)
         if (kind == WIRE_MPI_REQUESTS) {
             wire_mpi_requests h;
             if ((rc = wire_mpi_decode_requests_header(in->msg->data, in->msg->len, PEER, &h, err)) < 0) return rc;
-            if ((rc = fifo_push(in->q, in->msg, h.epoch, err)) < 0) return rc;
+            if ((rc = fifo_push(in->q, in->msg, &h, err)) < 0) return rc;
             /* a batch is made for a view its CAMERA announced; whichever came first */
             if (h.epoch > in->epoch) in->epoch = h.epoch;
         } else if (kind == WIRE_MPI_CAMERA) {
@@ -207,7 +219,7 @@ static int intake(intake_state *in, ct_error *err)
  * distributed.md, "Camera changes"). */
 static bool gives_way(const intake_state *in, uint32_t epoch)
 {
-    return epoch < in->epoch && in->q->n > 0 && in->q->newest > epoch;
+    return epoch < in->epoch && in->q->n > 0 && fifo_newest(in->q) > epoch;
 }
 
 /* Between slices: the intake; the batch goes on unless it gives way or the
@@ -246,14 +258,14 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
             if (got < 0) { rc = got; goto out; }
             continue;
         }
-        wire_buf b = fifo_pop(&q);
+        queued qb = fifo_pop(&q);
+        wire_buf b = qb.b;
         unsigned kind = 0;
         uint32_t count = 0;
         wire_mpi_requests h;
+        /* A batch that gives way is answered from what its header said. */
+        bool skip = gives_way(&in, qb.epoch);
         rc = wire_mpi_peek(b.data, b.len, PEER, &kind, &count, err);
-        if (rc == 0) rc = wire_mpi_decode_requests_header(b.data, b.len, PEER, &h, err);
-        /* A batch that gives way is answered from its header alone. */
-        bool skip = rc == 0 && gives_way(&in, h.epoch);
         if (rc == 0 && !skip && count > cap) {
             ct_request *r = realloc(reqs, count * sizeof *r);
             ct_sample *s = r ? realloc(samples, count * sizeof *s) : NULL;
@@ -266,10 +278,10 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
         wire_buf_free(&b);
         if (rc < 0) goto out;
         st->requests += count;
-        wire_mpi_samples sh = {.batch = h.batch, .rank = (uint32_t)c->rank};
+        wire_mpi_samples sh = {.batch = qb.batch, .rank = (uint32_t)c->rank};
         uint32_t nout = 0;
         if (skip) {
-            st->stale_batches++;   /* a newer view's batch waits behind it: answer empty */
+            st->gave_way++;   /* a newer view's batch waits behind it: answer empty */
         } else {
             trc_view v = {.cam = h.cam, .width = (int)h.width, .height = (int)h.height};
             double t0 = ct_now();
@@ -291,7 +303,7 @@ int trank_run(const trank_config *c, trank_stats *st, ct_error *err)
                  * a batch takes: answered empty, nearly all tracing was lost
                  * (docs/distributed.md, "Camera changes"). The rest of the
                  * batch is not traced: the newer view's requests come first. */
-                st->stale_batches++;
+                st->gave_way++;
                 if (!in.shutdown && !(c->stop && *c->stop)) {
                     st->samples += done;
                     nout = (uint32_t)done;
@@ -317,7 +329,7 @@ out:
         ct_debug(COMPONENT,
                  "rank %d: %llu batches (%llu gave way to a newer view), %llu requests, %llu samples, %llu rays, "
                  "%.2f s tracing",
-                 c->rank, (unsigned long long)st->batches, (unsigned long long)st->stale_batches,
+                 c->rank, (unsigned long long)st->batches, (unsigned long long)st->gave_way,
                  (unsigned long long)st->requests, (unsigned long long)st->samples, (unsigned long long)st->rays,
                  st->busy_s);
     return rc;

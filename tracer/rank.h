@@ -27,7 +27,7 @@ typedef struct trank_config {
 
 typedef struct trank_stats {
     uint64_t batches;           /* request batches answered */
-    uint64_t stale_batches;     /* gave way to a newer view: answered empty, or with what was traced when stopped */
+    uint64_t gave_way;     /* gave way to a newer view: answered empty, or with what was traced when stopped */
     uint64_t requests;          /* requests received (those of batches that gave way partly untraced) */
     uint64_t samples;           /* samples traced */
     uint64_t rays;              /* rays traced (primary, secondary and shadow) */

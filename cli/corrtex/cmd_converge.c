@@ -374,10 +374,13 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
     rad_params p;
     rad_params_default(&p);
     rad_stats st;
-    int from_cache = 0, rc;
+    int from_cache = 0;
     ct_error why;
     double t0 = ct_now();
+    /* The cache is read once: why it cannot serve (missing, stale, another
+     * scene's) is known from that read. */
     if (cache && rmesh_load(cache, 0, m, &why) == CT_OK) {
+        uint64_t want = rad_solution_hash(s, &p);
         /* A node table that is not this scene's: another scene's cache, or
          * this one's from before its meshes changed (which a refusal would
          * make the user delete by hand). A cache either way, solved over,
@@ -385,17 +388,18 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
         if (rmesh_check_nodes(m, s, &why))
             ct_warn(COMPONENT, "%s: the radiosity mesh of another scene, or of this one before its meshes changed (%s): "
                     "solving over it (the file is replaced)", cache, why.msg);
+        else if (m->scene_hash == want)
+            from_cache = 1;
         else
-            from_cache = m->scene_hash == rad_solution_hash(s, &p);
+            ct_fail(&why, CT_ESTALE, "%s: stale cache (scene hash %016llx, expected %016llx)", cache,
+                    (unsigned long long)m->scene_hash, (unsigned long long)want);
         if (!from_cache) rmesh_free(m);
     }
-    if (from_cache)
-        rc = CT_OK;
-    else if (cache)
-        rc = rad_cached_solve(s, &p, cache, rad_progress, NULL, m, &st, &from_cache, &why, err);
-    else
-        rc = rad_solve(s, &p, rad_progress, NULL, m, &st, err);
-    if (rc) return rc;
+    if (!from_cache) {
+        int rc = rad_solve(s, &p, rad_progress, NULL, m, &st, err);
+        if (rc == 0 && cache && (rc = rmesh_save(m, cache, err))) rmesh_free(m);
+        if (rc) return rc;
+    }
     if (from_cache)
         ct_info(COMPONENT, "interactive solution: %s (%u triangles, cached)", cache, m->ntris);
     else if (cache)

@@ -108,6 +108,20 @@ Test(optab, values_set_and_checked)
     }
 }
 
+/* argv (NULL-terminated) refused with CT_EINVAL and, when msg is given,
+ * exactly that message. */
+static void refused(const optab_group *g, const char *const *argv, const char *msg)
+{
+    int argc = 0;
+    while (argv[argc]) argc++;
+    const char *pos[2];
+    int np = 0;
+    ct_error err;
+    ct_error_clear(&err);
+    cr_assert_eq(optab_parse(g, 1, argc, (char **)argv, pos, 2, &np, &err), CT_EINVAL, "%s", argv[1]);
+    if (msg) cr_assert_str_eq(err.msg, msg);
+}
+
 Test(optab, argv_parse)
 {
     toy t;
@@ -128,15 +142,9 @@ Test(optab, argv_parse)
     const char *help[] = {"prog", "--count", "2", "-h"};
     cr_assert_eq(optab_parse(&g, 1, 4, (char **)help, pos, 2, &np, &err), 1);
 
-    const char *unknown_last[] = {"prog", "--bogus"};
-    cr_assert_eq(optab_parse(&g, 1, 2, (char **)unknown_last, pos, 2, &np, &err), CT_EINVAL);
-    cr_assert_str_eq(err.msg, "unknown option '--bogus' (try --help)");
-    const char *missing[] = {"prog", "--count"};
-    cr_assert_eq(optab_parse(&g, 1, 2, (char **)missing, pos, 2, &np, &err), CT_EINVAL);
-    cr_assert_str_eq(err.msg, "option --count needs a value (try --help)");
-    const char *extra[] = {"prog", "a", "b", "c"};
-    cr_assert_eq(optab_parse(&g, 1, 4, (char **)extra, pos, 2, &np, &err), CT_EINVAL);
-    cr_assert_str_eq(err.msg, "unexpected argument 'c' (try --help)");
+    refused(&g, (const char *[]){"prog", "--bogus", NULL}, "unknown option '--bogus' (try --help)");
+    refused(&g, (const char *[]){"prog", "--count", NULL}, "option --count needs a value (try --help)");
+    refused(&g, (const char *[]){"prog", "a", "b", "c", NULL}, "unexpected argument 'c' (try --help)");
     const char *badval[] = {"prog", "--count", "many"};
     cr_assert_eq(optab_parse(&g, 1, 3, (char **)badval, pos, 2, &np, &err), CT_EINVAL);
     cr_assert(strstr(err.msg, "--count: 'many' is not an integer"), "%s", err.msg);
@@ -148,14 +156,9 @@ Test(optab, argv_parse)
     cr_assert_eq(t.x, 0.25f);
     cr_assert_eq(np, 1);
     cr_assert_str_eq(pos[0], "-file.json");
-    const char *flag_eq[] = {"prog", "--quick=1"};
-    cr_assert_eq(optab_parse(&g, 1, 2, (char **)flag_eq, pos, 2, &np, &err), CT_EINVAL);
-    cr_assert_str_eq(err.msg, "option --quick takes no value");
-    const char *unknown_eq[] = {"prog", "--bogus=3"};
-    cr_assert_eq(optab_parse(&g, 1, 2, (char **)unknown_eq, pos, 2, &np, &err), CT_EINVAL);
-    cr_assert_str_eq(err.msg, "unknown option '--bogus' (try --help)");
-    const char *range_eq[] = {"prog", "--count=-5"};
-    cr_assert_eq(optab_parse(&g, 1, 2, (char **)range_eq, pos, 2, &np, &err), CT_EINVAL);
+    refused(&g, (const char *[]){"prog", "--quick=1", NULL}, "option --quick takes no value");
+    refused(&g, (const char *[]){"prog", "--bogus=3", NULL}, "unknown option '--bogus' (try --help)");
+    refused(&g, (const char *[]){"prog", "--count=-5", NULL}, NULL);
 }
 
 /* A default that does not parse (or lies outside its range) is a broken table. */

@@ -896,6 +896,11 @@ Test(mpi, broken_messages)
     cr_assert_str_eq(err.msg, "rank 2: MPI CONTROL op 3 unknown");
     cr_assert_eq(wire_mpi_decode_requests(ctl, 32, "rank 2", &h, r, 4, &n, &err), CT_EPROTO);
     cr_assert_str_eq(err.msg, "rank 2: expected an MPI REQUESTS message, got CONTROL");
+    /* The header alone (a tracer queues batches by it) is checked the same way. */
+    cr_assert_eq(wire_mpi_decode_requests_header(b, 64, "rank 2", &h, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "rank 2: MPI REQUESTS of 2 records is 64 bytes, expected 132");
+    cr_assert_eq(wire_mpi_decode_requests_header(ctl, 32, "rank 2", &h, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "rank 2: expected an MPI REQUESTS message, got CONTROL");
     /* A request batch larger than the caller's array. */
     wire_buf seeds = {0};
     fx_fuzz_seeds("mpi", collect, &seeds);
@@ -903,6 +908,14 @@ Test(mpi, broken_messages)
     memcpy(&len, seeds.data, 4);
     cr_assert_eq(wire_mpi_decode_requests(seeds.data + 4, len, "rank 2", &h, r, 2, &n, &err), CT_EPROTO);
     cr_assert_str_eq(err.msg, "rank 2: MPI REQUESTS of 3 records, room for 2");
+    cr_assert_eq(wire_mpi_decode_requests_header(seeds.data + 4, len, "rank 2", &h, &err), 0, "%s", err.msg);
+    /* an image width of 0 (header offset 8 + batch 8 + epoch 4) */
+    uint32_t width;
+    memcpy(&width, seeds.data + 4 + 8 + 12, 4);
+    wio_put_u32(seeds.data + 4 + 8 + 12, 0);
+    cr_assert_eq(wire_mpi_decode_requests_header(seeds.data + 4, len, "rank 2", &h, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "rank 2: MPI REQUESTS has an invalid camera");
+    memcpy(seeds.data + 4 + 8 + 12, &width, 4);
     /* A NaN position in request 1 (record offset 8 + 52 + 36 + 20). */
     wio_put_u32(seeds.data + 4 + 8 + 52 + 36 + 20, 0x7fc00000u);
     cr_assert_eq(wire_mpi_decode_requests(seeds.data + 4, len, "rank 2", &h, r, 4, &n, &err), CT_EPROTO);
