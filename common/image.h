@@ -1,6 +1,7 @@
 /* image.h: linear RGB float images and their files. EXR through OpenEXR's C
  * API (OpenEXRCore; RGB half or float), PNG through libpng with exposure and
- * sRGB tone mapping. Rows are stored top to bottom. Writes are atomic. */
+ * sRGB tone mapping. Rows are stored top to bottom. Writes are atomic.
+ * image.c: memory, PNG and tone mapping; image_exr.c: EXR. */
 #ifndef CT_IMAGE_H
 #define CT_IMAGE_H
 

@@ -1,6 +1,6 @@
 /* (Over 600 lines: one module's tests, most of them files built byte by
  * byte.)
- * Unit tests of common/image.c: EXR round trips (float bit-exact, half within
+ * Unit tests of common/image.c and image_exr.c: EXR round trips (float bit-exact, half within
  * half precision), EXR files written directly through OpenEXRCore (uint
  * channels, tiles, extra channels, offset data windows, missing channels),
  * truncated and corrupted files, PNG tone mapping, atomic writes, and the
