@@ -2,6 +2,16 @@
 
 #include <stdio.h>
 
+bool cam_fov_valid(float fov_y)
+{
+    return fov_y >= CT_FOV_MIN && fov_y < CT_FOV_MAX;
+}
+
+bool cam_fov_deg_valid(float fov_deg)
+{
+    return fov_deg >= CT_FOV_DEG_MIN && fov_deg <= CT_FOV_DEG_MAX;
+}
+
 ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg)
 {
     vec3 f = v3_norm(v3_sub(target, eye));
@@ -34,8 +44,9 @@ bool cam_valid(const ct_camera *c, char *why, size_t cap)
         snprintf(why, cap, "has a non-finite value");
         return false;
     }
-    if (!(c->fov_y > 0.0f && c->fov_y < 3.14159f)) {
-        snprintf(why, cap, "field of view %g out of range", (double)c->fov_y);
+    if (!cam_fov_valid(c->fov_y)) {
+        snprintf(why, cap, "field of view %g out of range [%g, %g) radians", (double)c->fov_y, (double)CT_FOV_MIN,
+                 (double)CT_FOV_MAX);
         return false;
     }
     if (!v3_in_range(c->eye)) {

@@ -17,6 +17,30 @@ typedef struct ct_camera {
     float fov_y;   /* vertical field of view, radians */
 } ct_camera;
 
+/* The vertical field of view a camera may have, radians: [CT_FOV_MIN,
+ * CT_FOV_MAX). Below CT_FOV_MIN the master's texture projections, whose
+ * focal length is 1 / tan(fov / 2) pixels times world coordinates, left
+ * single precision (a CAMERA of 1e-33 radians gave texture matrices of
+ * infinities, and every display after it was dropped); at CT_FOV_MIN they
+ * stay some 10^13 below FLT_MAX for any image and eye the wire allows.
+ * Above CT_FOV_MAX tan(fov / 2) is no longer finite in single precision. */
+#define CT_FOV_MIN 1e-4f
+#define CT_FOV_MAX 3.14159f
+
+/* Scene cameras and camera path keys give the field of view in degrees:
+ * [CT_FOV_DEG_MIN, CT_FOV_DEG_MAX], inside the radians above, so every camera
+ * of a scene or path is one the wires carry (a scene camera of 179.9999
+ * degrees made the master's first CAMERA unsendable: no display could
+ * connect). */
+#define CT_FOV_DEG_MIN 0.01f
+#define CT_FOV_DEG_MAX 179.99f
+
+/* Whether fov_y (radians) is in [CT_FOV_MIN, CT_FOV_MAX) (false for NaN). */
+bool cam_fov_valid(float fov_y);
+
+/* Whether fov_deg (degrees) is in [CT_FOV_DEG_MIN, CT_FOV_DEG_MAX]. */
+bool cam_fov_deg_valid(float fov_deg);
+
 /* A camera at eye looking at target with the given up vector and vertical
  * field of view in degrees. */
 ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg);
@@ -25,7 +49,8 @@ ct_camera cam_look_at(vec3 eye, vec3 target, vec3 up, float fov_y_deg);
  * A drawn or sampled view is reused only for the very same camera. */
 bool cam_same(const ct_camera *a, const ct_camera *b);
 
-/* Whether c can be traced: every value finite, a field of view in (0, pi),
+/* Whether c can be traced: every value finite, a field of view in
+ * [CT_FOV_MIN, CT_FOV_MAX),
  * the eye within +-CT_COORD_MAX and a unit orientation (within 1e-3; a zero
  * or huge quaternion makes the rays NaN or infinite). When not, why gets
  * the problem ("eye coordinate -1e+19 outside +-1e+09"; may be NULL). */

@@ -29,8 +29,9 @@ static int validate(const campath_key *k, int n, vec3 up, const char *origin, co
         if (!v3_in_range(k[i].eye) || !v3_in_range(k[i].target))
             return ct_fail(err, CT_ERANGE, "%s: eye or target outside the coordinate range +-%g", where,
                            (double)CT_COORD_MAX);
-        if (!(k[i].fov_deg > 0.0f && k[i].fov_deg < 180.0f))
-            return ct_fail(err, CT_EINVAL, "%s: fov %g outside (0, 180)", where, (double)k[i].fov_deg);
+        if (!cam_fov_deg_valid(k[i].fov_deg))
+            return ct_fail(err, CT_EINVAL, "%s: fov %.7g outside [%g, %g] degrees", where, (double)k[i].fov_deg,
+                           (double)CT_FOV_DEG_MIN, (double)CT_FOV_DEG_MAX);
         if (v3_len2(v3_sub(k[i].target, k[i].eye)) <= 0.0f)
             return ct_fail(err, CT_EINVAL, "%s: eye equals target", where);
         if (i > 0 && !(k[i].t > k[i - 1].t))

@@ -97,6 +97,12 @@ static int set_row(const optab *r, void *base, const char *v, ct_error *err)
         return 1;
     }
     case OPTAB_STRING:
+        /* Every string option names a file, folder, address, camera or list:
+         * an empty one used to pass for none ("--token-file ''" served a
+         * UNIX socket without a token) or fail late and unclearly
+         * ("corrtex radiosity -o ''" solved, then ": cannot write"). */
+        if (!*v)
+            return ct_fail(err, CT_EINVAL, "--%s: the value is empty (give %s)", r->name, r->arg ? r->arg : "one");
         *(const char **)field(base, r) = v;
         return 1;
     default:
@@ -242,6 +248,8 @@ int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char 
         if (!only_pos && (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0)) return 1;
         if (only_pos || a[0] != '-' || a[1] == 0) {
             if (*npos >= maxpos) return ct_fail(err, CT_EINVAL, "unexpected argument '%s' (try --help)", a);
+            /* positional arguments are files: '' named none */
+            if (!*a) return ct_fail(err, CT_EINVAL, "an empty argument (try --help)");
             pos[(*npos)++] = a;
             continue;
         }

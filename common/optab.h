@@ -58,7 +58,8 @@ const optab *optab_find(const optab *t, size_t n, const char *name);
 
 /* Sets option `name` from value (NULL for a flag): 1 when it is one of the
  * table's, 0 when not, CT_EINVAL for a bad or missing value ("--tex-rate:
- * 'x' is not a number in [0.01, 64]"). */
+ * 'x' is not a number in [0.01, 64]"; an empty string is no value of any
+ * type). */
 int optab_set(const optab *t, size_t n, void *base, const char *name, const char *value, ct_error *err);
 
 /* One "  --name ARG   help (default X)" line per row. A row without a
@@ -69,7 +70,7 @@ void optab_usage(const optab *t, size_t n, const void *defaults, FILE *f);
 
 /* Parses argv[1 .. argc) against the groups, in order: "--name VALUE" (or
  * "-x VALUE"), flags, and up to maxpos positional arguments into pos[]
- * (*npos of them). "-h" and "--help" return 1 at once. An unknown option
+ * (*npos of them; an empty one is refused: they name files). "-h" and "--help" return 1 at once. An unknown option
  * is named as unknown, also when given last; a known one given last
  * without its value is reported as missing it. 0 or CT_EINVAL. */
 int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char **pos, int maxpos, int *npos,

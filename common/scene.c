@@ -363,9 +363,9 @@ int scene_add_camera(ct_scene *s, const char *name, vec3 eye, vec3 target, vec3 
                        (double)CT_COORD_MAX);
     if (v3_len2(v3_sub(target, eye)) <= 0.0f)
         return ct_fail(err, CT_EINVAL, "camera '%s': eye and target coincide", name);
-    if (!(fov_deg > 0.0f && fov_deg < 180.0f))
-        return ct_fail(err, CT_EINVAL, "camera '%s': fov %g outside (0, 180) degrees", name,
-                       (double)fov_deg);
+    if (!cam_fov_deg_valid(fov_deg))
+        return ct_fail(err, CT_EINVAL, "camera '%s': fov %.7g outside [%g, %g] degrees", name, (double)fov_deg,
+                       (double)CT_FOV_DEG_MIN, (double)CT_FOV_DEG_MAX);
     if (scene_find_camera(s, name) >= 0)
         return ct_fail(err, CT_EINVAL, "camera '%s' defined twice", name);
     void *q = realloc(s->cams, (size_t)(s->ncams + 1) * sizeof *s->cams);

@@ -457,7 +457,7 @@ int ctex_set_camera(ctex *c, const ct_camera *cam, int width, int height, ct_err
 {
     if (width < 1 || height < 1 || width > 65536 || height > 65536)
         return ct_fail(err, CT_EINVAL, "image size %dx%d out of range", width, height);
-    if (!v3_finite(cam->eye) || !(cam->fov_y > 0.0f && cam->fov_y < CT_PI))
+    if (!v3_finite(cam->eye) || !cam_fov_valid(cam->fov_y))
         return ct_fail(err, CT_EINVAL, "camera has a non-finite eye or a bad field of view");
     int had = c->have_cam;
     c->cam = *cam;

@@ -477,7 +477,7 @@ static bool camera_ok(const ct_camera *c)
            isfinite(c->orient.y) && isfinite(c->orient.z) &&
            (c->orient.w * c->orient.w + c->orient.x * c->orient.x + c->orient.y * c->orient.y +
             c->orient.z * c->orient.z) > 1e-12f &&
-           c->fov_y > 0.0f && c->fov_y < CT_PI;
+           cam_fov_valid(c->fov_y);
 }
 
 int rq_set_camera(rq_engine *e, const ct_camera *cam, uint32_t epoch, ct_error *err)

@@ -37,6 +37,7 @@
 #define WIRE_SCENE_MAX_NODES    (1u << 20)
 #define WIRE_SCENE_MAX_CHUNKS   1024u           /* = MAX_RAW / CHUNK_RAW */
 #define WIRE_SAMPLES_MAX_POINTS 65536u          /* world points in one SAMPLES */
+#define WIRE_SPF_MAX            (1u << 24)      /* SETTINGS samples per frame */
 
 /* Message types (u16 on the wire; explicit values, never reuse one). */
 typedef enum wire_type {

@@ -185,9 +185,9 @@ static int validate(const wire_msg *m, const char *who, ct_error *err)
     case WIRE_SETTINGS:
         if (m->u.settings.flags != 0)
             return ct_fail(err, CT_EPROTO, "%s: SETTINGS flags 0x%x unknown", who, m->u.settings.flags);
-        if (m->u.settings.samples_per_frame > (1u << 24))
+        if (m->u.settings.samples_per_frame > WIRE_SPF_MAX)
             return ct_fail(err, CT_EPROTO, "%s: SETTINGS samples per frame %u over the limit %u", who,
-                           m->u.settings.samples_per_frame, 1u << 24);
+                           m->u.settings.samples_per_frame, WIRE_SPF_MAX);
         return 0;
     case WIRE_SCENE_BEGIN: {
         const wire_scene_begin *b = &m->u.scene_begin;

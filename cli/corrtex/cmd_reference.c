@@ -374,6 +374,14 @@ int cmd_reference(int argc, char **argv)
     char outdir[4096];
     fs_dirname(a.out, outdir, sizeof outdir);
     if ((rc = fs_mkdirs(folder ? a.out : outdir, &err))) goto fail;
+    /* One image: fail on an output that cannot be written now, not after a
+     * render that may take hours (a folder named x.exr was refused only
+     * once the image was traced). */
+    if (!folder) {
+        char png[4096];
+        with_ext(a.out, ".png", png, sizeof png);
+        if ((rc = fs_output_check(a.out, &err)) || (a.png && (rc = fs_output_check(png, &err)))) goto fail;
+    }
     for (int k = first; k <= last; k++) {
         if (path) cam = campath_frame(path, k, a.frames);
         ro.epoch = (uint32_t)k;

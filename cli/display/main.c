@@ -10,6 +10,7 @@
 #include "common/optab.h"
 #include "display/disp_app.h"
 #include "display/gl_load.h"
+#include "proto/wire.h"
 
 #define COMP "corrtex-display"
 
@@ -53,7 +54,9 @@ static const optab INPUT_OPTS[] = {
     {"cache-max-mb", 0, OPTAB_U32, OF(o.cache_max_mb), 0, 1 << 24, NULL, "N",
      "MiB of scenes kept there at most, least recently used removed first (0: no bound)", NULL},
     {"no-cache", 0, OPTAB_FLAG, OF(no_cache), 0, 0, NULL, NULL, "keep the scene in memory only", NULL},
-    {"samples-per-frame", 0, OPTAB_INT, OF(o.samples_per_frame), 0, 100000000, NULL, "K",
+    /* the protocol's bound: above it the display used to start GL, connect,
+     * and only then fail to encode its SETTINGS (exit 3, not 2) */
+    {"samples-per-frame", 0, OPTAB_INT, OF(o.samples_per_frame), 0, WIRE_SPF_MAX, NULL, "K",
      "lockstep: the master inserts K samples per frame (0: free running)", NULL},
     {"mesh", 0, OPTAB_STRING, OF(o.mesh), 0, 0, NULL, "FILE.ctmesh",
      "a radiosity mesh cache (corrtex radiosity), no master", NULL},

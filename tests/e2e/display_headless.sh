@@ -121,6 +121,10 @@ bad "--camera-name needs --scene: the scene a master sends" --backend osmesa --c
 bad "--sample-frames" --backend osmesa --scene "$SCENE" --sample-frames 0
 bad "--sample-max" --backend osmesa --scene "$SCENE" --sample-max abc
 bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5
+# The protocol's bound on K: above it the display connected and then failed
+# to encode its SETTINGS (exit 3, "cannot connect").
+bad "--samples-per-frame: '16777217' is not an integer in \[0, 16777216\]" --backend osmesa \
+  --connect "unix:$tmp/none.sock" --samples-per-frame 16777217
 bad "--camera: '0,1,nan,0,0,0'" --backend osmesa --scene "$SCENE" --camera 0,1,nan,0,0,0
 bad "--camera: 'inf,1,4,0,0,0'" --backend osmesa --scene "$SCENE" --camera inf,1,4,0,0,0
 bad "must be finite and within +-1e+09" --backend osmesa --scene "$SCENE" --camera 0,1,-1e19,0,0,0

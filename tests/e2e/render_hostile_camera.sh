@@ -7,7 +7,10 @@
 # traced. A camera of the protocol's largest image (16384 x 16384), whose
 # per-pixel state would take some 30 GiB, is refused with ERROR LIMIT naming
 # what it needs and --view-mem-mb before anything is allocated (the master
-# used to take it and grow towards the host's memory). The job goes on: a display then gets its frame, and SIGTERM ends
+# used to take it and grow towards the host's memory). A field of view of
+# 1e-33 radians (inside the old (0, pi)) is refused with ERROR PROTOCOL: it
+# made the master's texture matrices infinite, and every display after it was
+# dropped without a word. The job goes on: a display then gets its frame, and SIGTERM ends
 # the job with status 0.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
@@ -35,6 +38,9 @@ grep -q '^ERROR 1: .*CAMERA orientation is not a unit quaternion' "$tmp/zero_qua
 raw_camera huge 0 278 273 -800 0 0 1 0 0.7 16384 16384
 grep -q '^ERROR 6: camera refused: a 16384x16384 view needs up to [0-9]* MiB .*over --view-mem-mb 4096' "$tmp/huge.out" ||
   fail "no ERROR LIMIT naming the view's memory"
+raw_camera tiny_fov 0 278 273 -800 0 0 1 0 1e-33 1 16384
+grep -q '^ERROR 1: .*CAMERA field of view 1e-33 out of range' "$tmp/tiny_fov.out" ||
+  fail "no ERROR PROTOCOL naming the field of view"
 raw_camera edge 1 278 273 -1e9 0 0 1 0 0.7
 grep -qx 'FRAME' "$tmp/edge.out" || fail "a camera at the edge of the range was not traced"
 

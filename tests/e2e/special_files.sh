@@ -5,7 +5,8 @@
 # hang the loader) with exit 2 and one line naming it; a 1 GiB sparse file as
 # --radmesh fails on its header without being read. Outputs: a FIFO with a
 # reader gets the same bytes a regular file would and stays a FIFO; a FIFO
-# without a reader and a folder are refused with one line; a character device
+# without a reader and a folder are refused with one line (a folder before a
+# reference image is traced, not after); a character device
 # (root only: mknod) is written to and stays a device (the old rename turned
 # it into a regular file, and /dev/null with it when run as root).
 source "$(dirname "$0")/lib/common.sh"
@@ -63,6 +64,17 @@ mkdir "$tmp/folder.ctmesh"
 expect_bad "folder as radiosity output" "folder.ctmesh: is a folder" \
   "$corrtex" radiosity "$tmp/mini.json" -o "$tmp/folder.ctmesh"
 [[ -d $tmp/folder.ctmesh ]] || fail "the output folder was replaced"
+# ... and before the render (it was found only once the image was traced:
+# a progress line came first)
+mkdir "$tmp/folder.exr" "$tmp/folder2.png"
+LOUD=(--width 8 --height 6 --spp 4 --mode path --threads 1)
+expect_bad "folder as reference output" "folder.exr: is a folder" \
+  "$corrtex" reference "$tmp/mini.json" "${LOUD[@]}" -o "$tmp/folder.exr"
+grep -q '^progress' "$tmp/e" && fail "the reference was traced before its output was refused"
+expect_bad "folder as reference --png output" "folder2.png: is a folder" \
+  "$corrtex" reference "$tmp/mini.json" "${LOUD[@]}" -o "$tmp/folder2.exr" --png
+grep -q '^progress' "$tmp/e" && fail "the reference was traced before its --png output was refused"
+[[ -e $tmp/folder2.exr ]] && fail "an EXR was written beside a --png output that cannot be"
 
 if mknod "$tmp/null.exr" c 1 3 2>/dev/null && mknod "$tmp/null.ctmesh" c 1 3 && mknod "$tmp/null.png" c 1 3; then
   run_corrtex 0 reference "$tmp/mini.json" "${REF[@]}" -o "$tmp/null.exr"

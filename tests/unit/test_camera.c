@@ -4,6 +4,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <string.h>
 
 #include "common/camera.h"
 #include "common/rng.h"
@@ -151,4 +152,31 @@ Test(camera, lerp_endpoints)
     /* Half way between -z and +x about the up axis. */
     cr_assert_float_eq(fh.x, sqrtf(0.5f), 1e-5);
     cr_assert_float_eq(fh.z, -sqrtf(0.5f), 1e-5);
+}
+
+/* The field of view's range: a CAMERA of 1e-33 radians was taken and made
+ * the master's texture matrices infinite (every later display was dropped),
+ * and a scene camera of 179.9999 degrees passed its loader but not the
+ * wire. Every field of view a scene or path may give is one cam_valid takes. */
+Test(camera, fov_range)
+{
+    ct_camera c = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 40.0f);
+    const float bad[] = {0.0f, 1e-33f, CT_FOV_MIN * 0.5f, CT_FOV_MAX, CT_PI, NAN};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        c.fov_y = bad[i];
+        char why[96] = "";
+        cr_expect_not(cam_valid(&c, why, sizeof why), "fov %g taken", (double)bad[i]);
+        if (isfinite(bad[i])) cr_expect(strstr(why, "field of view") != NULL, "%s", why);
+    }
+    c.fov_y = CT_FOV_MIN;
+    cr_expect(cam_valid(&c, NULL, 0));
+    const float deg[] = {CT_FOV_DEG_MIN, 1.0f, 90.0f, CT_FOV_DEG_MAX};
+    for (size_t i = 0; i < sizeof deg / sizeof deg[0]; i++) {
+        cr_expect(cam_fov_deg_valid(deg[i]));
+        ct_camera d = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), deg[i]);
+        cr_expect(cam_valid(&d, NULL, 0), "a %g degree camera is refused on the wire", (double)deg[i]);
+    }
+    cr_expect_not(cam_fov_deg_valid(179.9999f));
+    cr_expect_not(cam_fov_deg_valid(1e-30f));
+    cr_expect_not(cam_fov_deg_valid(NAN));
 }

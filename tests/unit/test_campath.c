@@ -184,6 +184,9 @@ Test(campath, parse_errors_name_the_line)
     expect_error("0 0 0 5 0 0 0 inf\n", CT_EINVAL, "bad.path:1:", "finite");
     /* Other invalid keys. */
     expect_error("0 0 0 5 0 0 0 180\n", CT_EINVAL, "bad.path:1:", "fov");
+    /* Fields of view the wires refuse: a path must give cameras a display may send. */
+    expect_error("0 0 0 5 0 0 0 179.9999\n", CT_EINVAL, "bad.path:1:", "fov 179.9999 outside");
+    expect_error("0 0 0 5 0 0 0 1e-30\n", CT_EINVAL, "bad.path:1:", "fov 1e-30 outside");
     expect_error("\n\n0 1 1 1 1 1 1\n", CT_EINVAL, "bad.path:3:", "eye equals target");
     expect_error("# only a comment\n", CT_EEMPTY, "bad.path", "no keyframes");
     /* Coordinates a ray can take (an eye at -1e19 aborted a tracer). */

@@ -97,6 +97,9 @@ Test(optab, values_set_and_checked)
         {"enc", "LZ4", "--enc: 'LZ4' is not one of raw|auto|lz4"},
         {"enc", "raw|auto", "--enc: 'raw|auto' is not one of raw|auto|lz4"},
         {"count", NULL, "option --count needs a value"},
+        /* an empty string names no file: it used to pass for none, or fail
+         * after the work ("corrtex radiosity -o ''") */
+        {"out", "", "--out: the value is empty (give DIR)"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         toy before = t;
@@ -159,6 +162,8 @@ Test(optab, argv_parse)
     refused(&g, (const char *[]){"prog", "--quick=1", NULL}, "option --quick takes no value");
     refused(&g, (const char *[]){"prog", "--bogus=3", NULL}, "unknown option '--bogus' (try --help)");
     refused(&g, (const char *[]){"prog", "--count=-5", NULL}, NULL);
+    refused(&g, (const char *[]){"prog", "--out=", NULL}, "--out: the value is empty (give DIR)");
+    refused(&g, (const char *[]){"prog", "", NULL}, "an empty argument (try --help)");
 }
 
 /* A default that does not parse (or lies outside its range) is a broken table. */

@@ -309,6 +309,10 @@ Test(scene_bad, wrong_types_and_values)
         {"{\"meshes\":[{\"file\":\"a.obj\",\"material\":\"nope\"}]}", "unknown material 'nope'"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,0,0],\"target\":[0,0,0]}]}", "coincide"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,0,1],\"target\":[0,0,0],\"fov\":200}]}", "fov"},
+        /* Inside (0, 180) but not a camera the wires carry (the master could
+         * not send its first CAMERA, so no display could connect). */
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,0,1],\"target\":[0,0,0],\"fov\":179.9999}]}", "fov 179.9999 outside"},
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"cameras\":[{\"name\":\"c\",\"eye\":[0,0,1],\"target\":[0,0,0],\"fov\":1e-30}]}", "fov 1e-30 outside"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"diffuse\":[2,0,0]}}}", "energy"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"diffuse\":[0.5,0.5]}}}", "array of 3"},
         {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"scale\":0}}]}", "zero"},

@@ -366,7 +366,8 @@ static const broken broken_frames[] = {
     {"CAMERA NaN", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, NAN32, ONE, ONE, ONE, ONE, ONE, ONE,
                     ONE}, 52, CT_EPROTO, "peer: CAMERA has a non-finite value"},
     {"CAMERA fov", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE, ONE, ONE, ONE, ONE, ONE,
-                    F32(0, 0, 0x80, 0xbf)}, 52, CT_EPROTO, "peer: CAMERA field of view -1 out of range"},
+                    F32(0, 0, 0x80, 0xbf)}, 52, CT_EPROTO,
+     "peer: CAMERA field of view -1 out of range [0.0001, 3.14159) radians"},
     /* An eye far outside the scene range made a tracer abort inside Embree. */
     {"CAMERA eye far away", {H(WIRE_CAMERA, 0, 44), 1, 0, 0, 0, 64, 0, 0, 0, 64, 0, 0, 0, ONE, ONE,
                              F32(0x23, 0xc7, 0x0a, 0xdf), ONE, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, ONE}, 52,
