@@ -63,6 +63,10 @@ static const optab OPTS[] = {
      "a camera-local texture keeps the projector it was made for (no resampling, nothing re-sent) while it covers "
      "the node's new view and the view direction to the node turned by at most this many degrees; 0 = resample on "
      "every camera change", NULL},
+    {"projector-margin", 0, OPTAB_FLOAT, OF(proj_margin), 0, 1, "0.125", "X",
+     "a camera-local texture made again because the camera moved reaches past the screen edges that cut its node "
+     "by up to this fraction of the screen (at most a quarter of what shows), so that the next small moves keep "
+     "its projector; 0 = the screen's edges", NULL},
     {"bvh-mat-weight", 0, OPTAB_FLOAT, OF(bvh_mat_weight), 0, 1e9, "1", "X",
      "BVH cost factor for groups mixing materials (§3.3)", NULL},
     {"cluster-tris", 0, OPTAB_INT, OF(cluster_tris), 0, 1e9, "4096", "N",

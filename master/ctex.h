@@ -56,6 +56,8 @@ typedef struct ctex_options {
     float late_deg;       /* glossy late samples whose view direction turned more (degrees x gloss) are dropped */
     float resample_age;   /* validity (texels) a resampled texel loses against fresh samples */
     float keep_deg;       /* camera-local textures keep their projector up to this view angle change; 0 = never */
+    float proj_margin;    /* a camera-local texture made again on a move reaches past cut screen edges by this
+                           * fraction of the screen; 0 = never */
     float bvh_mat_weight; /* BVH: cost factor for groups that mix materials */
     int cluster_tris;     /* parts with more triangles are split into clusters; 0 = never */
 } ctex_options;

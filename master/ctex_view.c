@@ -16,6 +16,7 @@ typedef struct nview {
     float zmin, zmax, zc;   /* depths of the bounds (and its centre) along the view */
     float ratio;            /* Δr / d */
     float x0, y0, x1, y1;   /* clipped pixel rectangle */
+    float ux0, uy0, ux1, uy1; /* the same before the screen's edges cut it */
 } nview;
 
 static void view_node(const ctex *c, const ctex_hnode *n, nview *v)
@@ -61,6 +62,7 @@ static void view_node(const ctex *c, const ctex_hnode *n, nview *v)
             ADDPT(X[i] + s * (X[j] - X[i]), Y[i] + s * (Y[j] - Y[i]), zn);
         }
 #undef ADDPT
+    v->ux0 = x0; v->uy0 = y0; v->ux1 = x1; v->uy1 = y1;
     x0 = fmaxf(x0, 0.0f); y0 = fmaxf(y0, 0.0f);
     x1 = fminf(x1, (float)c->W); y1 = fminf(y1, (float)c->H);
     if (!(x1 > x0) || !(y1 > y0)) return;
@@ -89,9 +91,33 @@ static void visit(ctex *c, uint32_t n)
     for (uint32_t ch = n + 1; ch < hn->end; ch = c->h.nodes[ch].end) visit(c, ch);
 }
 
+/* Widens a camera-local rectangle past the screen edges that cut the node,
+ * by --projector-margin of the screen at most, and never by more than a
+ * quarter of what shows along that axis: keep_projector wants half of a
+ * texture's area in view, and this leaves 0.8 of each axis. */
+static void widen(const ctex *c, nview *v)
+{
+    float share[2] = {v->x1 - v->x0, v->y1 - v->y0};
+    float screen[2] = {(float)c->W, (float)c->H};
+    float *lo[2] = {&v->x0, &v->y0}, *hi[2] = {&v->x1, &v->y1};
+    const float ulo[2] = {v->ux0, v->uy0}, uhi[2] = {v->ux1, v->uy1};
+    for (int a = 0; a < 2; a++) {
+        int cut = (ulo[a] < *lo[a]) + (uhi[a] > *hi[a]);
+        if (!cut) continue;
+        float m = fminf(c->o.proj_margin * screen[a], 0.25f * share[a] / (float)cut);
+        if (ulo[a] < *lo[a]) *lo[a] = fmaxf(ulo[a], *lo[a] - m);
+        if (uhi[a] > *hi[a]) *hi[a] = fminf(uhi[a], *hi[a] + m);
+    }
+}
+
 /* Sets the texture's projection for the current view (§3.2) and returns the
- * pixel extent of its domain (for resolution bounds). */
-static void make_projection(ctex *c, uint32_t hnode, ctex_tex *t, float *pxw, float *pxh)
+ * pixel extent of its domain (for resolution bounds). `margin`: a
+ * camera-local domain reaches past the screen's edges where they cut the
+ * node (widen), for a texture the camera's move made again: the next small
+ * moves then find the node's new rectangle inside it and keep its
+ * projector instead of resampling and re-sending it (docs/textures.md,
+ * "Projections"). */
+static void make_projection(ctex *c, uint32_t hnode, ctex_tex *t, bool margin, float *pxw, float *pxh)
 {
     const ctex_hnode *n = &c->h.nodes[hnode];
     nview v;
@@ -123,6 +149,7 @@ static void make_projection(ctex *c, uint32_t hnode, ctex_tex *t, float *pxw, fl
     t->cam = c->cam;
     t->cam_w = c->W; t->cam_h = c->H;
     if (!v.visible) { v.x0 = 0; v.y0 = 0; v.x1 = (float)c->W; v.y1 = (float)c->H; }
+    else if (margin && c->o.proj_margin > 0.0f) widen(c, &v);
     t->x0 = v.x0; t->y0 = v.y0; t->x1 = v.x1; t->y1 = v.y1;
     float zc = v.zc;
     float zlo = fmaxf(v.zmin, c->znear), zhi = fmaxf(v.zmax, zlo);
@@ -273,7 +300,7 @@ static float tex_rate_now(ctex *c, const slot *s)
     if (s->t.kind == CTEX_PROJ_CAMERA) return (float)s->t.w / fmaxf(s->t.x1 - s->t.x0, 1.0f);
     ctex_tex tmp = {0};
     float pxw, pxh;
-    make_projection(c, s->hnode, &tmp, &pxw, &pxh);
+    make_projection(c, s->hnode, &tmp, false, &pxw, &pxh);
     return (float)s->t.w / fmaxf(pxw, 1.0f);
 }
 
@@ -315,7 +342,7 @@ static bool keep_projector(ctex *c, slot *s)
     if (!(la > 0.0f && lb > 0.0f) || v3_dot(a, b) < la * lb * cosf(c->o.keep_deg * (CT_PI / 180.0f))) return false;
     ctex_tex nt = {0};
     float pxw, pxh;
-    make_projection(c, s->hnode, &nt, &pxw, &pxh);
+    make_projection(c, s->hnode, &nt, false, &pxw, &pxh);
     if (nt.kind != CTEX_PROJ_CAMERA) return false;
     /* the new rectangle's corners in the old texture (the extent on screen,
      * and the coverage test of a node that was not on screen whole) */
@@ -356,7 +383,9 @@ static int reproject(ctex *c, uint32_t id, bool *moved, ct_error *err)
     ctex_tex old = s->t;
     ctex_tex *t = &s->t;
     float pxw, pxh;
-    make_projection(c, s->hnode, t, &pxw, &pxh);
+    /* a camera-local texture the camera's move did not let keep its
+     * projector: the camera is moving, so the new one gets a margin */
+    make_projection(c, s->hnode, t, old.kind == CTEX_PROJ_CAMERA && c->o.keep_deg > 0.0f, &pxw, &pxh);
     size_bounds(c, pxw, pxh, &s->max_w, &s->max_h);
     if (t->kind == CTEX_PROJ_OBJECT && old.kind == CTEX_PROJ_OBJECT) {
         /* glued to the object: nothing moves; only the bounds may shrink it */
@@ -413,7 +442,7 @@ static int create_texture(ctex *c, uint32_t n, ct_error *err)
     s->hnode = n;
     s->mix = c->o.mix + (1.0f - c->o.mix) * c->h.nodes[n].gloss;
     float pxw, pxh;
-    make_projection(c, n, &s->t, &pxw, &pxh);
+    make_projection(c, n, &s->t, false, &pxw, &pxh);
     size_bounds(c, pxw, pxh, &s->max_w, &s->max_h);
     /* sources: ancestors and descendants with live textures */
     int ns = 0;

@@ -574,6 +574,60 @@ Test(ctex_engine, camera_local_keeps_its_projector_on_small_moves)
     }
 }
 
+/* A camera-local texture that a turn made again reaches past the screen
+ * edge that cuts its node (--projector-margin), so that the next small
+ * turns keep its projector and its texels; with no margin every turn that
+ * shows more of the node resamples it. */
+Test(ctex_engine, a_texture_a_turn_made_again_reaches_past_the_screen_edge)
+{
+    uint64_t resampled[2];
+    for (int pass = 0; pass < 2; pass++) {
+        tcx_scene t;
+        ctex_options o = ctex_options_default();
+        o.eps = 0.0f;
+        if (pass == 1) o.proj_margin = 0.0f;
+        const int W = 384, H = 256;
+        tcx_build(&t);
+        ctex *c = tcx_engine(&t, o);
+        uint32_t box = (uint32_t)t.box[0];
+        /* box 0 cut by the screen's left edge */
+        float tx = 5.2f;
+        ct_camera cam = cam_look_at(v3(0, 4, 14), v3(tx, 0.5f, 0), v3(0, 1, 0), 50.0f);
+        cr_assert_eq(ctex_set_camera(c, &cam, W, H, &err), 0, "%s", err.msg);
+        int32_t id = ctex_owner(c, box, UINT32_MAX, v3s(0.0f));
+        cr_assert_geq(id, 0);
+        ctex_tex *tex = ctex_visible_texture(c, (uint32_t)id);
+        cr_assert(tex && tex->kind == CTEX_PROJ_CAMERA);
+        cr_assert_eq(tex->x0, 0.0f, "box 0 is not cut by the left edge (x0 %g)", (double)tex->x0);
+        cr_assert_gt(tex->x1, 4.0f, "box 0 is off the screen");
+        ctex_stats st0 = ctex_get_stats(c);
+        int reached = 0;
+        /* turn left in steps of about 0.16 degrees, each showing more of it */
+        for (int k = 0; k < 12; k++) {
+            tx -= 0.04f;
+            cam = cam_look_at(v3(0, 4, 14), v3(tx, 0.5f, 0), v3(0, 1, 0), 50.0f);
+            cr_assert_eq(ctex_set_camera(c, &cam, W, H, &err), 0, "%s", err.msg);
+            cr_assert_eq(ctex_owner(c, box, UINT32_MAX, v3s(0.0f)), id);
+            tex = ctex_visible_texture(c, (uint32_t)id);
+            reached += tex->x0 < 0.0f;
+            /* a quarter more than shows at most: most of it stays in view */
+            cr_assert_geq(tex->x1 - fmaxf(tex->x0, 0.0f), 0.79f * (tex->x1 - tex->x0), "margin %g of %g px",
+                          (double)-tex->x0, (double)(tex->x1 - tex->x0));
+            if (pass == 1) cr_assert_geq(tex->x0, 0.0f, "--projector-margin 0 reached past the edge");
+        }
+        ctex_stats st1 = ctex_get_stats(c);
+        resampled[pass] = st1.resampled - st0.resampled;
+        if (pass == 0) cr_assert_gt(reached, 0, "no remade texture reached past the screen's edge");
+        cr_assert_eq(st1.resampled + st1.kept - st0.resampled - st0.kept >= 12, true);
+        ctex_free(c);
+        tcx_release(&t);
+    }
+    cr_log_info("12 small turns resampled box 0's texture %llu times with the margin, %llu without",
+                (unsigned long long)resampled[0], (unsigned long long)resampled[1]);
+    cr_assert_geq(resampled[1], 10, "without a margin only %llu of 12 turns resampled", (unsigned long long)resampled[1]);
+    cr_assert_leq(resampled[0], 4, "with the margin %llu of 12 turns resampled", (unsigned long long)resampled[0]);
+}
+
 static int tex_width(const ctex *c, uint32_t id)
 {
     int w, h;
