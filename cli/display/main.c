@@ -268,6 +268,23 @@ int main(int argc, char **argv)
                o.mesh ? "a .ctmesh" : "the scene a master sends");
         return DISP_EXIT_USAGE;
     }
+    /* The same for the options of a connection: dropped without a word,
+     * a --token-file meant for a master looked taken. */
+    if (!o.connect) {
+        disp_app_opts d;
+        disp_app_defaults(&d);
+        const char *only = o.token_file ? "--token-file"
+                           : o.reconnect ? "--reconnect"
+                           : o.samples_per_frame ? "--samples-per-frame"
+                           : c.no_cache ? "--no-cache"
+                           : c.o.cache_dir != (cache[0] ? cache : d.cache_dir) ? "--cache"
+                           : o.cache_max_mb != d.cache_max_mb ? "--cache-max-mb"
+                           : NULL;
+        if (only) {
+            ct_log(CT_LOG_ERROR, COMP, "%s needs --connect: %s has no master", only, o.mesh ? "--mesh" : "--scene");
+            return DISP_EXIT_USAGE;
+        }
+    }
     if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {
         ct_log(CT_LOG_ERROR, COMP, "--reference, --no-images and --out-every need --out");
         return DISP_EXIT_USAGE;

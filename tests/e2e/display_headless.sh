@@ -118,6 +118,15 @@ bad "--camera-name needs --scene: a .ctmesh names no cameras" --backend osmesa -
   --camera-name front
 bad "--camera-name needs --scene: the scene a master sends" --backend osmesa --connect "unix:$tmp/none.sock" \
   --camera-name front
+# The options of a connection without one: dropped without a word before
+# (a --token-file meant for a master looked taken).
+bad "--token-file needs --connect: --scene has no master" --backend osmesa --scene "$SCENE" \
+  --token-file "$tmp/token"
+bad "--reconnect needs --connect: --mesh has no master" --backend osmesa --mesh "$tmp/none.ctmesh" --reconnect
+bad "--samples-per-frame needs --connect" --backend osmesa --scene "$SCENE" --samples-per-frame 100
+bad "--cache needs --connect" --backend osmesa --scene "$SCENE" --cache "$tmp/cache"
+bad "--no-cache needs --connect" --backend osmesa --scene "$SCENE" --no-cache
+bad "--cache-max-mb needs --connect" --backend osmesa --scene "$SCENE" --cache-max-mb 5
 bad "--sample-frames" --backend osmesa --scene "$SCENE" --sample-frames 0
 bad "--sample-max" --backend osmesa --scene "$SCENE" --sample-max abc
 bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5
