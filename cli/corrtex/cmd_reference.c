@@ -218,6 +218,18 @@ static void with_ext(const char *path, const char *ext, char *out, size_t cap)
     snprintf(out + l, cap - l, "%s", ext);
 }
 
+/* Frame k's EXR: -o itself, or frame_NNNNN.exr in the folder -o names. */
+static void output_name(const ref_args *a, bool folder, int k, char *name, size_t cap)
+{
+    if (folder) {
+        char leaf[32];
+        snprintf(leaf, sizeof leaf, "frame_%05d.exr", k);
+        fs_join(a->out, leaf, name, cap);
+    } else {
+        snprintf(name, cap, "%s", a->out);
+    }
+}
+
 static int write_outputs(const ref_args *a, const char *exr, const ct_image *img, ct_error *err)
 {
     int rc = img_write_exr(exr, img, a->half ? IMG_HALF : IMG_FLOAT, err);
@@ -374,13 +386,15 @@ int cmd_reference(int argc, char **argv)
     char outdir[4096];
     fs_dirname(a.out, outdir, sizeof outdir);
     if ((rc = fs_mkdirs(folder ? a.out : outdir, &err))) goto fail;
-    /* One image: fail on an output that cannot be written now, not after a
-     * render that may take hours (a folder named x.exr was refused only
-     * once the image was traced). */
-    if (!folder) {
-        char png[4096];
-        with_ext(a.out, ".png", png, sizeof png);
-        if ((rc = fs_output_check(a.out, &err)) || (a.png && (rc = fs_output_check(png, &err)))) goto fail;
+    /* Fail on an output that cannot be written now, not after a render
+     * that may take hours (a folder named x.exr was refused only once the
+     * image was traced; a frame_00007.exr that is a folder, once the seven
+     * frames before it were). */
+    for (int k = first; k <= last; k++) {
+        char name[4096], png[4096];
+        output_name(&a, folder, k, name, sizeof name);
+        with_ext(name, ".png", png, sizeof png);
+        if ((rc = fs_output_check(name, &err)) || (a.png && (rc = fs_output_check(png, &err)))) goto fail;
     }
     for (int k = first; k <= last; k++) {
         if (path) cam = campath_frame(path, k, a.frames);
@@ -389,13 +403,7 @@ int cmd_reference(int argc, char **argv)
         if ((rc = render_image(t, &cam, &ro, img.px, &r, &err))) goto fail;
         add_result(&total, &r);
         char name[4096];
-        if (folder) {
-            char leaf[32];
-            snprintf(leaf, sizeof leaf, "frame_%05d.exr", k);
-            fs_join(a.out, leaf, name, sizeof name);
-        } else {
-            snprintf(name, sizeof name, "%s", a.out);
-        }
+        output_name(&a, folder, k, name, sizeof name);
         if ((rc = write_outputs(&a, name, &img, &err))) goto fail;
         ct_info(CMD, "wrote %s", name);
     }

@@ -6,7 +6,7 @@
 # --radmesh fails on its header without being read. Outputs: a FIFO with a
 # reader gets the same bytes a regular file would and stays a FIFO; a FIFO
 # without a reader and a folder are refused with one line (a folder before a
-# reference image is traced, not after); a character device
+# reference image or a path's frames are traced, not after); a character device
 # (root only: mknod) is written to and stays a device (the old rename turned
 # it into a regular file, and /dev/null with it when run as root).
 source "$(dirname "$0")/lib/common.sh"
@@ -75,6 +75,13 @@ expect_bad "folder as reference --png output" "folder2.png: is a folder" \
   "$corrtex" reference "$tmp/mini.json" "${LOUD[@]}" -o "$tmp/folder2.exr" --png
 grep -q '^progress' "$tmp/e" && fail "the reference was traced before its --png output was refused"
 [[ -e $tmp/folder2.exr ]] && fail "an EXR was written beside a --png output that cannot be"
+# a path's frames into a folder: frame 2 a folder was found once frames 0
+# and 1 were traced and written
+mkdir -p "$tmp/frames/frame_00002.exr"
+expect_bad "folder as a path frame" "frame_00002.exr: is a folder" \
+  "$corrtex" reference "$tmp/mini.json" "${LOUD[@]}" --path walk --frames 3 -o "$tmp/frames"
+grep -q '^progress' "$tmp/e" && fail "frames were traced before a frame's output was refused"
+[[ -e $tmp/frames/frame_00000.exr ]] && fail "frame 0 was written before frame 2's output was refused"
 
 if mknod "$tmp/null.exr" c 1 3 2>/dev/null && mknod "$tmp/null.ctmesh" c 1 3 && mknod "$tmp/null.png" c 1 3; then
   run_corrtex 0 reference "$tmp/mini.json" "${REF[@]}" -o "$tmp/null.exr"
