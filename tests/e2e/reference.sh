@@ -95,7 +95,7 @@ check "--sort-runs: '-1'" "$SCENE" "${common[@]}" --mode path --order shuffled -
 # The image is EXR: another name (x.png got EXR bytes) is refused before tracing.
 check "-o $tmp/x.png: the image is written as OpenEXR: give a name ending in .exr" "$SCENE" --width 8 --height 8 \
   --spp 1 --mode path -o "$tmp/x.png"
-check "missing -o OUT" "$SCENE" --width 8 --height 8 --spp 1 --mode path -o ""
+check "--out: the value is empty (give OUT)" "$SCENE" --width 8 --height 8 --spp 1 --mode path -o ""
 [[ ! -e $tmp/x.png ]] || die "a refused -o was written"
 [[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"
 exit $fail
