@@ -34,11 +34,12 @@ scripts/bench-camera-rate --quick >"$tmp/rate.log" 2>&1 || { cat "$tmp/rate.log"
 for m in "turn | every" "turn | default" "walk | every" "walk | default"; do
   row=$(grep -m1 "^| table | 128 | 200 | $m |" "$tmp/rate.log") || { fail "no bench-camera-rate row for $m"; continue; }
   echo "$row"
-  IFS='|' read -r _ _ _ _ _ _ cams views ins ratio _ <<<"$row"
+  IFS='|' read -r _ _ _ _ _ _ cams views ins ratio _ _ _ _ mbs _ <<<"$row"
   check "$m: cameras/s" "$cams" "$num"
   check "$m: views/s" "$views" "$num"
   check "$m: inserted/s" "$ins" "$num"
   check "$m: whole / part" "$ratio" "$num"
+  check "$m: MB/s to the display" "$mbs" "$num"
 done
 grep -q '^old$' "$tmp/b.md" || fail "--quick wrote the document"
 exit $((fails > 0))
