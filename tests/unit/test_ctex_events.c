@@ -178,6 +178,14 @@ Test(ctex_events, options_parse_and_reject)
     cr_assert_lt(ctex_options_parse(&o, "--splat-aniso", "0.5", &err), 0);
     cr_assert_eq(ctex_options_parse(&o, "--splat-aniso", "0", &err), 1);
     cr_assert_eq(o.splat_aniso, 0);
+    /* a margin is a fraction of the screen */
+    cr_assert_float_eq(o.proj_margin, 0.125f, 1e-7);
+    cr_assert_lt(ctex_options_parse(&o, "--projector-margin", "1.5", &err), 0);
+    cr_assert(strstr(err.msg, "--projector-margin") != NULL, "the error names the option: %s", err.msg);
+    cr_assert_lt(ctex_options_parse(&o, "--projector-margin", "-0.1", &err), 0);
+    cr_assert_lt(ctex_options_parse(&o, "--projector-margin", "nan", &err), 0);
+    cr_assert_eq(ctex_options_parse(&o, "--projector-margin", "0", &err), 1);
+    cr_assert_eq(o.proj_margin, 0.0f);
 }
 
 Test(ctex_events, bad_mesh_is_rejected)
