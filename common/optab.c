@@ -1,6 +1,7 @@
 /* optab.c: table-driven option parsing (optab.h). */
 #include "common/optab.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -19,6 +20,9 @@ static int whole(const optab *r, void *base, const char *v, ct_error *err)
 {
     char *end = NULL;
     errno = 0;
+    /* strtoull and strtoll skip leading blanks: "--frames ' 5'" is a quoting
+     * slip, not a number */
+    if (isspace((unsigned char)*v)) goto bad;
     if (r->lo >= 0) {
         unsigned long long u = strtoull(v, &end, 10);
         if (strchr(v, '-') || errno || end == v || *end || (double)u < r->lo || (double)u > r->hi) goto bad;
@@ -84,7 +88,7 @@ static int set_row(const optab *r, void *base, const char *v, ct_error *err)
         char *end = NULL;
         errno = 0;
         double x = strtod(v, &end);
-        if (errno || end == v || *end || !isfinite(x) || !(x >= r->lo && x <= r->hi))
+        if (isspace((unsigned char)*v) || errno || end == v || *end || !isfinite(x) || !(x >= r->lo && x <= r->hi))
             return ct_fail(err, CT_EINVAL, "--%s: '%s' is not a number in [%g, %g]", r->name, v, r->lo, r->hi);
         if (r->type == OPTAB_FLOAT) *(float *)field(base, r) = (float)x;
         else *(double *)field(base, r) = x;

@@ -123,6 +123,10 @@ static int write_csv(disp_capture *c, ct_error *err)
     return fs_atomic_commit(&a, err);
 }
 
+/* x with -0 as 0: a camera looking down an axis has quaternion parts of
+ * -0, which printed "-0" in frames.csv and made diffs of equal paths. */
+static double unsigned_zero(float x) { return (double)x + 0.0; }
+
 static int write_frame(disp_capture *c, const disp_frame_info *fi, const float *rgb, int width, int height,
                        ct_error *err)
 {
@@ -140,8 +144,9 @@ static int write_frame(disp_capture *c, const disp_frame_info *fi, const float *
 
     char row[768];
     int n = snprintf(row, sizeof row, "%u,%.6f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.3f,%llu,%llu,%llu,%u,%.6f",
-                     fi->frame, fi->time, fi->cam.eye.x, fi->cam.eye.y, fi->cam.eye.z,
-                     fi->cam.orient.w, fi->cam.orient.x, fi->cam.orient.y, fi->cam.orient.z,
+                     fi->frame, fi->time, unsigned_zero(fi->cam.eye.x), unsigned_zero(fi->cam.eye.y),
+                     unsigned_zero(fi->cam.eye.z), unsigned_zero(fi->cam.orient.w), unsigned_zero(fi->cam.orient.x),
+                     unsigned_zero(fi->cam.orient.y), unsigned_zero(fi->cam.orient.z),
                      fi->cam.fov_y * 180.0f / CT_PI, fi->frame_ms, (unsigned long long)fi->samples,
                      (unsigned long long)fi->texels, (unsigned long long)fi->bytes, fi->textures, fi->wall);
     if (c->has_ref) {

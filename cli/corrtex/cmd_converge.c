@@ -76,7 +76,7 @@ static const optab OPTS[] = {
     {"pop-ahead", 0, OPTAB_FLAG, OF(pop_ahead), 0, 0, NULL, NULL,
      "pop each batch's successor ahead of its reports (corrtex-render --pop-ahead; docs/sampling.md)", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, POOL_MAX_THREADS, "2", "T", "tracing threads", NULL},
-    {"seed", 0, OPTAB_U64, OF(seed), 0, 2147483647, "1", "S", "seed of the queue and the tracer", NULL},
+    {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "S", "seed of the queue and the tracer", NULL},
     {"exposure", 0, OPTAB_FLOAT, OF(exposure), -30, 30, "0", "E", "PNG exposure (stops)", NULL},
     {"record", 0, OPTAB_STRING, OF(record), 0, 0, NULL, "FILE",
      "write every sample to FILE (proto/srec.h), for scripts/bench-master --part saturation", NULL},

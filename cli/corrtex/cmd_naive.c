@@ -62,7 +62,7 @@ static const optab OPTS[] = {
     /* §5: 1024x1024 display */
     {"width", 0, OPTAB_INT, OF(width), 1, 16384, "1024", "W", "image width", NULL},
     {"height", 0, OPTAB_INT, OF(height), 1, 16384, "1024", "H", "image height", NULL},
-    {"seed", 0, OPTAB_U64, OF(seed), 0, 9.2e18, "1", "S", "random seed (pixel choice and tracing)", NULL},
+    {"seed", 0, OPTAB_U64, OF(seed), 0, 1.8446744073709552e19, "1", "S", "random seed (pixel choice and tracing)", NULL},
     {"threads", 0, OPTAB_INT, OF(threads), 1, MAX_THREADS, "1", "T", "worker threads", NULL},
     {"reference", 0, OPTAB_STRING, OF(ref), 0, 0, NULL, "DIR", "per-frame RMSE/PSNR/SSIM against DIR/frame_NNNNN.exr",
      NULL},

@@ -1,6 +1,6 @@
 /* The display's frame output: frames queued faster than they are written
  * all land, in order, with their rows (and reference errors) in
- * frames.csv; a frame that cannot be written is reported by a later call
+ * frames.csv (zeros unsigned); a frame that cannot be written is reported by a later call
  * and by close, naming the file. */
 #include <criterion/criterion.h>
 #include <math.h>
@@ -44,6 +44,9 @@ static disp_frame_info info(unsigned k)
     fi.frame = k;
     fi.time = 0.1 * k;
     fi.cam.orient.w = 1.0f;
+    /* a camera looking down an axis: zeros with the sign bit */
+    fi.cam.orient.x = -0.0f;
+    fi.cam.eye.y = -0.0f;
     fi.cam.fov_y = 1.0f;
     fi.samples = 1000u + k;
     fi.wall = 0.2 * k;
@@ -111,6 +114,7 @@ Test(disp_capture, every_queued_frame_is_written_in_order_with_its_error)
         unsigned frame = 0;
         cr_assert_eq(sscanf(line, "%u,", &frame), 1);
         cr_expect_eq(frame, rows, "rows in frame order");
+        cr_expect(!strstr(line, ",-0,"), "a signed zero printed as -0: %s", line);
         const char *p = line;
         for (int comma = 0; comma < 16; comma++) p = strchr(p, ',') + 1;
         double rmse = atof(p);

@@ -94,6 +94,11 @@ Test(optab, values_set_and_checked)
         {"rate", "0.001", "--rate: '0.001' is not a number in [0.01, 64]"},
         {"rate", "1e999", "--rate: '1e999' is not a number in [0.01, 64]"},
         {"ms", "5 ", "--ms: '5 ' is not a number in [0, 10000]"},
+        /* leading blanks too: strto* skip them, a quoting slip is no number */
+        {"ms", " 5", "--ms: ' 5' is not a number in [0, 10000]"},
+        {"count", " 5", "--count: ' 5' is not an integer in [1, 64]"},
+        {"seed", "\t7", "--seed: '\t7' is not an integer"},
+        {"big", " -1", "--big: ' -1' is not an integer"},
         {"enc", "LZ4", "--enc: 'LZ4' is not one of raw|auto|lz4"},
         {"enc", "raw|auto", "--enc: 'raw|auto' is not one of raw|auto|lz4"},
         {"count", NULL, "option --count needs a value"},
