@@ -112,8 +112,17 @@ master_wait() {
 # drain timeout (5 s); its last log lines are printed.
 master_term() {
   echo "+ kill -TERM <rank 0>"
-  local t0=$EPOCHREALTIME
-  kill -TERM "$(rank_pid "$1" 0)"
+  local t0=$EPOCHREALTIME pid
+  pid=$(rank_pid "$1" 0)
+  if [[ -z $pid ]]; then
+    # rank 0 ended before it was asked to: its log says why (on stderr,
+    # which a benchmark that hides this function's output still shows)
+    master_log "$1" | tail -n 20 >&2
+    master_wait "$1" 20 || true
+    fail "$1: rank 0 ended before SIGTERM (the job's exit status $MASTER_RC)" >&2
+    return 1
+  fi
+  kill -TERM "$pid"
   master_wait "$1" 20 || fail "$1: the job did not end"
   local dt
   dt=$(awk -v a="$t0" -v b="$EPOCHREALTIME" 'BEGIN { printf "%.1f", b - a }')
