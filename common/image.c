@@ -14,15 +14,22 @@
 #include <string.h>
 #include <strings.h>
 
+int img_size_check(int width, int height, ct_error *err)
+{
+    if (width < 1 || height < 1 || width > IMG_MAX_SIDE || height > IMG_MAX_SIDE)
+        return ct_fail(err, CT_ERANGE, "image size %dx%d outside 1..%d", width, height, IMG_MAX_SIDE);
+    if ((size_t)width * (size_t)height > IMG_MAX_PIXELS)
+        return ct_fail(err, CT_ERANGE, "image size %dx%d exceeds %zu pixels", width, height,
+                       IMG_MAX_PIXELS);
+    return CT_OK;
+}
+
 int img_alloc(ct_image *img, int width, int height, ct_error *err)
 {
     memset(img, 0, sizeof *img);
-    if (width < 1 || height < 1 || width > IMG_MAX_SIDE || height > IMG_MAX_SIDE)
-        return ct_fail(err, CT_ERANGE, "image size %dx%d outside 1..%d", width, height, IMG_MAX_SIDE);
+    int rc = img_size_check(width, height, err);
+    if (rc) return rc;
     size_t n = (size_t)width * (size_t)height;
-    if (n > IMG_MAX_PIXELS)
-        return ct_fail(err, CT_ERANGE, "image size %dx%d exceeds %zu pixels", width, height,
-                       IMG_MAX_PIXELS);
     img->px = calloc(n * 3, sizeof *img->px);
     if (!img->px) return ct_fail(err, CT_ENOMEM, "out of memory for a %dx%d image", width, height);
     img->width = width;

@@ -23,6 +23,10 @@ typedef enum img_pixel_type {
 /* Allocates a zeroed image (sides 1..65536, at most 2^28 pixels). */
 int img_alloc(ct_image *img, int width, int height, ct_error *err);
 
+/* CT_ERANGE with the reason when img_alloc would refuse width x height
+ * (the size a reader accepts too): for a program to say so before its work. */
+int img_size_check(int width, int height, ct_error *err);
+
 /* Frees the pixels and zeroes the struct. */
 void img_free(ct_image *img);
 

@@ -88,7 +88,7 @@ static void help(FILE *f)
         "                    --frame, renders all N frames into the folder OUT as\n"
         "                    frame_00000.exr, frame_00001.exr, ...\n"
         "  --frame K         render only frame K (0-based) of the N frames\n"
-        "  --width W, --height H   image size in pixels (1..65536; required)\n"
+        "  --width W, --height H   image size in pixels (1..65536, at most 2^28 in all; required)\n"
         "  --spp S           samples per pixel, jittered in the pixel (required)\n"
         "  --mode MODE       path | drt | reuse-diffuse (required)\n"
         "                      path: unbiased path tracing with next-event estimation and MIS\n"
@@ -304,6 +304,9 @@ int cmd_reference(int argc, char **argv)
     bool have_rad = false;
     int status = 2, rc;
 
+    /* an image no reader of ours would open again (16384 x 65536 traced
+     * for hours, then written as 6 GB nothing loads) is refused at once */
+    if ((rc = img_size_check(a.width, a.height, &err))) goto fail;
     if ((rc = scene_load(a.scene, &s, &err))) goto fail;
     if (a.path) {
         int pi = scene_find_path(s, a.path);
@@ -361,13 +364,7 @@ int cmd_reference(int argc, char **argv)
     if (gain > 0.0)
         ct_info(CMD, "%u emitters, picked %s (estimated gain of a per-point choice %.2f)", nem,
                 spatial ? "per shading point" : "by power", gain);
-    img.width = a.width;
-    img.height = a.height;
-    img.px = calloc((size_t)a.width * (size_t)a.height * 3, sizeof(float));
-    if (!img.px) {
-        ct_fail(&err, CT_ENOMEM, "out of memory for a %dx%d image", a.width, a.height);
-        goto fail;
-    }
+    if ((rc = img_alloc(&img, a.width, a.height, &err))) goto fail;
     render_options ro;
     render_options_default(&ro, a.width, a.height);
     ro.spp = a.spp;

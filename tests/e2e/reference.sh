@@ -95,6 +95,10 @@ check "--sort-runs: '-1'" "$SCENE" "${common[@]}" --mode path --order shuffled -
 # The image is EXR: another name (x.png got EXR bytes) is refused before tracing.
 check "-o $tmp/x.png: the image is written as OpenEXR: give a name ending in .exr" "$SCENE" --width 8 --height 8 \
   --spp 1 --mode path -o "$tmp/x.png"
+# Larger than any reader of ours opens (2^28 pixels): refused before the
+# scene loads, not allocated (12 GiB) and traced for hours.
+check "image size 16384x65536 exceeds 268435456 pixels" "$SCENE" --width 16384 --height 65536 --spp 1 --mode drt \
+  -o "$tmp/x.exr"
 check "--out: the value is empty (give OUT)" "$SCENE" --width 8 --height 8 --spp 1 --mode path -o ""
 [[ ! -e $tmp/x.png ]] || die "a refused -o was written"
 [[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"

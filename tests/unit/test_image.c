@@ -225,6 +225,12 @@ Test(image, alloc_validates_sizes)
     cr_assert_eq(img_alloc(&img, 65537, 1, &err), CT_ERANGE);
     cr_assert_eq(img_alloc(&img, 65536, 65536, &err), CT_ERANGE, "2^32 pixels must be refused");
     cr_assert(strstr(err.msg, "65536x65536") != NULL, "%s", err.msg);
+    /* the check alone, as corrtex reference makes it before tracing: the
+     * reader's bound (2^28 pixels) holds for what is made too */
+    cr_assert_eq(img_size_check(16384, 16384, &err), 0, "%s", err.msg);
+    cr_assert_eq(img_size_check(16384, 16385, &err), CT_ERANGE);
+    cr_assert(strstr(err.msg, "exceeds 268435456 pixels") != NULL, "%s", err.msg);
+    cr_assert_eq(img_size_check(1, 65537, &err), CT_ERANGE);
     cr_assert_eq(img_alloc(&img, 3, 2, &err), 0, "%s", err.msg);
     cr_assert_eq(img.width, 3);
     cr_assert_eq(img.height, 2);
