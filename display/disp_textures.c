@@ -65,6 +65,23 @@ static void target_detach(void)
     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
+/* Zeroes texture tex; its completeness as a colour target when that was
+ * needed. glClearTexImage where the context has it: no framebuffer change,
+ * which on llvmpipe flushes the drawing queued so far into a scene of its
+ * own (a camera change allocates dozens of textures), and whose fences are
+ * where Mesa 22.3's llvmpipe races (docs/display.md, "Known problems"). */
+static GLenum zero_texture(disp_textures *t, unsigned tex)
+{
+    if (gl.ClearTexImage) {
+        gl.ClearTexImage(tex, 0, GL_RGBA, GL_HALF_FLOAT, NULL);
+        return GL_FRAMEBUFFER_COMPLETE;
+    }
+    GLenum st = target_attach(t, tex);
+    if (st == GL_FRAMEBUFFER_COMPLETE) target_zero();
+    target_detach();
+    return st;
+}
+
 int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t tri_begin,
                         uint32_t tri_end, int width, int height, disp_proj_kind kind,
                         ct_error *err)
@@ -128,23 +145,28 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
     gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, width, height, 0, GL_RGB, GL_HALF_FLOAT, NULL);
     /* Zeroed contents: a fresh texture corrects nothing; a resized one
      * starts as its old texels scaled (bilinear, texel centres). */
-    GLenum st = target_attach(t, x->gl_tex);
+    GLenum st = GL_FRAMEBUFFER_COMPLETE;
     bool scaled = false;
-    if (st == GL_FRAMEBUFFER_COMPLETE && old_tex) {
-        if (!t->read_fbo) gl.GenFramebuffers(1, &t->read_fbo);
-        gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t->read_fbo);
-        gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, old_tex, 0);
-        if (gl.CheckFramebufferStatus(GL_READ_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE) {
-            gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, t->clear_fbo);
-            gl.BlitFramebuffer(0, 0, ow, oh, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_LINEAR);
-            scaled = true;
+    if (old_tex) {
+        st = target_attach(t, x->gl_tex);
+        if (st == GL_FRAMEBUFFER_COMPLETE) {
+            if (!t->read_fbo) gl.GenFramebuffers(1, &t->read_fbo);
+            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t->read_fbo);
+            gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, old_tex, 0);
+            if (gl.CheckFramebufferStatus(GL_READ_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE) {
+                gl.BindFramebuffer(GL_DRAW_FRAMEBUFFER, t->clear_fbo);
+                gl.BlitFramebuffer(0, 0, ow, oh, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+                scaled = true;
+            }
+            gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
+            gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+            gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+            if (!scaled) target_zero();
         }
-        gl.FramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, 0, 0);
-        gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-        gl.BindFramebuffer(GL_FRAMEBUFFER, t->clear_fbo);
+        target_detach();
+    } else {
+        st = zero_texture(t, x->gl_tex);
     }
-    if (st == GL_FRAMEBUFFER_COMPLETE && !scaled) target_zero();
-    target_detach();
     if (old_tex) gl.DeleteTextures(1, &old_tex);
     /* scaled texels are the old ones (which were non-zero) */
     x->negative = scaled && old_neg;
@@ -175,8 +197,7 @@ int disp_textures_set_projection(disp_textures *t, uint32_t id, const mat4 *worl
         /* re-created for another view: the scaled texels belong to the old one */
         x->scaled_only = false;
         x->nonzero = x->negative = false;
-        if (target_attach(t, x->gl_tex) == GL_FRAMEBUFFER_COMPLETE) target_zero();
-        target_detach();
+        zero_texture(t, x->gl_tex);
     }
     x->proj = *world_to_tex;
     x->has_proj = true;

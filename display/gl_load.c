@@ -28,13 +28,17 @@ int gl_load(gl_getproc_fn getproc, const char *backend, ct_error *err)
                        minor);
     /* Backends hand out pointers for names a context does not support, so
      * the version or the extension list decides, not the pointer. */
-    bool clip = major * 10 + minor >= 45;
+    bool clip = major * 10 + minor >= 45, clear_tex = major * 10 + minor >= 44;
     GLint next = 0;
     gl.GetIntegerv(GL_NUM_EXTENSIONS, &next);
-    for (GLint i = 0; i < next && !clip; i++) {
+    for (GLint i = 0; i < next && !(clip && clear_tex); i++) {
         const char *e = (const char *)gl.GetStringi(GL_EXTENSIONS, (GLuint)i);
-        clip = e && strcmp(e, "GL_ARB_clip_control") == 0;
+        clip = clip || (e && strcmp(e, "GL_ARB_clip_control") == 0);
+        clear_tex = clear_tex || (e && strcmp(e, "GL_ARB_clear_texture") == 0);
     }
+    const char *ct = getenv("CORRTEX_GL_CLEAR_TEXTURE");
+    if (clear_tex && !(ct && strcmp(ct, "0") == 0))
+        gl.ClearTexImage = (PFNGLCLEARTEXIMAGEPROC)getproc("glClearTexImage");
     const char *want = getenv("CORRTEX_GL_REVERSED_Z");
     if (clip && !(want && strcmp(want, "0") == 0)) gl.ClipControl = (PFNGLCLIPCONTROLPROC)getproc("glClipControl");
     if (gl.ClipControl) {

@@ -112,6 +112,11 @@ typedef struct gl_api {
 #undef GL_LOAD_MEMBER
     /* Optional (GL 4.5 or ARB_clip_control), NULL when the context lacks it. */
     PFNGLCLIPCONTROLPROC ClipControl;
+    /* Optional (GL 4.4 or ARB_clear_texture), NULL when the context lacks
+     * it: zeroes a new texture without binding it to a framebuffer (a
+     * software rasteriser flushes its queued drawing at every framebuffer
+     * change; docs/display.md, "Known problems"). */
+    PFNGLCLEARTEXIMAGEPROC ClearTexImage;
     /* Depth is "reversed": a [0, 1] clip range (glClipControl), a 32-bit
      * float depth buffer, 1 at the near plane, 0 at infinity, so depth
      * resolution is relative to the distance everywhere. Without clip

@@ -542,12 +542,29 @@ Test(disp_corrections, sample_points_in_the_samples_view)
  * re-allocated at its size (the master halving what it sends of a texture
  * that doubled, docs/protocol.md), starts as its old texels (scaled), so its
  * correction does not vanish while the new texels stream. */
-Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
+/* Both ways of zeroing a texture (display/disp_textures.c): glClearTexImage
+ * where the context has it, else a framebuffer clear (CORRTEX_GL_CLEAR_TEXTURE=0,
+ * read when the context's entry points are loaded). */
+static void zeroing_by(bool clear_texture)
+{
+    if (clear_texture) unsetenv("CORRTEX_GL_CLEAR_TEXTURE");
+    else setenv("CORRTEX_GL_CLEAR_TEXTURE", "0", 1);
+}
+
+static void zeroing_check(bool clear_texture)
+{
+    if (!clear_texture) cr_assert_null(gl.ClearTexImage, "CORRTEX_GL_CLEAR_TEXTURE=0 left glClearTexImage on");
+    else if (!gl.ClearTexImage) cr_log_warn("this context lacks glClearTexImage: the framebuffer clear was tested");
+}
+
+static void fresh_zero_resized_scaled(bool clear_texture)
 {
     fx_box_nodes nd = box_nodes();
     ct_error err;
     rig rg;
+    zeroing_by(clear_texture);
     rig_open(&rg, NULL);
+    zeroing_check(clear_texture);
     disp_session *s = rg.s;
     mat4 p = wall_proj(-1, -1, 2, 2);
     cr_assert_eq(disp_session_tex_alloc(s, 1, nd.back, 64, 64, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
@@ -629,6 +646,13 @@ Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled)
     rig_close(&rg);
 }
 
+Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled) { fresh_zero_resized_scaled(true); }
+
+Test(disp_corrections, fresh_textures_are_zero_resized_ones_scaled_framebuffer_clear)
+{
+    fresh_zero_resized_scaled(false);
+}
+
 /* A still camera's later frames start from the kept base (radiosity and
  * glass) and draw only the corrections: they equal a frame drawn anew,
  * also after texels changed in between; a moved camera draws anew. */
@@ -700,12 +724,14 @@ Test(disp_corrections, kept_base_follows_changed_texels)
  * starts as its old texels scaled; one re-created for a new view (another
  * PROJECTION follows, before any patch) starts as zeros, also when that
  * PROJECTION comes in a later update than its allocation. */
-Test(disp_corrections, camera_local_resized_scaled_reprojected_zero)
+static void camera_local_zero(bool clear_texture)
 {
     fx_box_nodes nd = box_nodes();
     ct_error err;
     rig rg;
+    zeroing_by(clear_texture);
     rig_open(&rg, NULL);
+    zeroing_check(clear_texture);
     disp_session *s = rg.s;
     mat4 p = wall_proj(-1, -1, 2, 2), q = wall_proj(-1, -1, 3, 3);
     ct_camera cam = fx_box_camera();
@@ -755,3 +781,7 @@ Test(disp_corrections, camera_local_resized_scaled_reprojected_zero)
     free(rad);
     rig_close(&rg);
 }
+
+Test(disp_corrections, camera_local_resized_scaled_reprojected_zero) { camera_local_zero(true); }
+
+Test(disp_corrections, camera_local_resized_scaled_reprojected_zero_framebuffer_clear) { camera_local_zero(false); }
