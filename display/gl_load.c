@@ -6,6 +6,14 @@
 
 gl_api gl;
 
+/* Whether the environment turns a GL feature off (NAME=0: the tests cover
+ * both paths). */
+static bool env_off(const char *name)
+{
+    const char *v = getenv(name);
+    return v && strcmp(v, "0") == 0;
+}
+
 int gl_load(gl_getproc_fn getproc, const char *backend, ct_error *err)
 {
     memset(&gl, 0, sizeof gl);
@@ -36,11 +44,9 @@ int gl_load(gl_getproc_fn getproc, const char *backend, ct_error *err)
         clip = clip || (e && strcmp(e, "GL_ARB_clip_control") == 0);
         clear_tex = clear_tex || (e && strcmp(e, "GL_ARB_clear_texture") == 0);
     }
-    const char *ct = getenv("CORRTEX_GL_CLEAR_TEXTURE");
-    if (clear_tex && !(ct && strcmp(ct, "0") == 0))
+    if (clear_tex && !env_off("CORRTEX_GL_CLEAR_TEXTURE"))
         gl.ClearTexImage = (PFNGLCLEARTEXIMAGEPROC)getproc("glClearTexImage");
-    const char *want = getenv("CORRTEX_GL_REVERSED_Z");
-    if (clip && !(want && strcmp(want, "0") == 0)) gl.ClipControl = (PFNGLCLIPCONTROLPROC)getproc("glClipControl");
+    if (clip && !env_off("CORRTEX_GL_REVERSED_Z")) gl.ClipControl = (PFNGLCLIPCONTROLPROC)getproc("glClipControl");
     if (gl.ClipControl) {
         gl.ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
         gl.reversed_z = true;
