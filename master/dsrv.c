@@ -36,6 +36,9 @@ struct dsrv {
     int npend;
     chan *disp;          /* the active display */
     char disp_peer[XPORT_ADDR_LEN];
+    bool disp_lockstep;     /* the display asked for frames (SETTINGS K > 0) */
+    bool cam_seen;          /* the display has sent a CAMERA: cam_epoch is its epoch */
+    uint32_t cam_epoch;
     uint64_t sent_closed;   /* bytes sent on connections already closed */
     double t_io;            /* CPU seconds in the display's reads and writes */
     dsrv_event ev[MAX_EVENTS];
@@ -326,6 +329,8 @@ static int service_pending(dsrv *s, int i)
             }
             s->disp = p->c;
             snprintf(s->disp_peer, sizeof s->disp_peer, "%s", chan_peer(p->c));
+            s->disp_lockstep = m.u.settings.samples_per_frame > 0;
+            s->cam_seen = false;
             s->pend[i] = s->pend[--s->npend];
             ct_info(COMPONENT, "display %s connected (%s)", s->disp_peer,
                     m.u.settings.samples_per_frame ? "lockstep" : "free-running");
@@ -347,6 +352,28 @@ static int service_pending(dsrv *s, int i)
         return 1;
     }
     return 0;
+}
+
+/* Epochs label what the master sends back (SAMPLES, FRAME, projections),
+ * so a display that reuses or reorders them would read old work as new:
+ * each CAMERA must be after the last (by one in lockstep, where every
+ * camera asks for a frame; free running a camera replaced before sending
+ * skips one). "After" in serial-number arithmetic, so a display running
+ * past 2^32 cameras wraps rather than ends. */
+static bool camera_in_order(dsrv *s, uint32_t epoch, char *why, size_t cap)
+{
+    if (s->cam_seen) {
+        uint32_t step = epoch - s->cam_epoch;
+        bool ok = s->disp_lockstep ? step == 1 : step != 0 && step < 0x80000000u;
+        if (!ok) {
+            snprintf(why, cap, "CAMERA epoch %u after epoch %u: epochs must increase%s", epoch, s->cam_epoch,
+                     s->disp_lockstep ? " by one in lockstep" : "");
+            return false;
+        }
+    }
+    s->cam_seen = true;
+    s->cam_epoch = epoch;
+    return true;
 }
 
 static void service_display(dsrv *s)
@@ -379,7 +406,17 @@ static void service_display(dsrv *s)
             return;
         }
         switch (m.type) {
-        case WIRE_CAMERA:
+        case WIRE_CAMERA: {
+            char why[CT_ERROR_LEN];
+            if (!camera_in_order(s, m.u.camera.epoch, why, sizeof why)) {
+                ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, why);
+                chan_send_error(s->disp, WIRE_ERR_PROTOCOL, why, 200);
+                close_display(s, why);
+                return;
+            }
+            add_event(s, DSRV_EV_MESSAGE, &m, NULL);
+            break;
+        }
         case WIRE_ACK:
             add_event(s, DSRV_EV_MESSAGE, &m, NULL);
             break;

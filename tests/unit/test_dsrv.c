@@ -5,7 +5,8 @@
  * a wrong token, a silent peer) dropped while the legitimate display goes on
  * undisturbed, and idle connections that cannot take the handshake slots
  * from a display; a burst of CAMERAs right after SETTINGS keeps every event;
- * PINGs of a display that reads nothing do not fill the send queue. The
+ * PINGs of a display that reads nothing do not fill the send queue; CAMERA
+ * epochs that do not increase (by one in lockstep) drop the display. The
  * server runs in its own thread, as in the master's loop. */
 #include <arpa/inet.h>
 #include <criterion/criterion.h>
@@ -357,6 +358,60 @@ Test(dsrv, hostile_peers_next_to_a_display)
     cr_assert_eq(e.msg.type, WIRE_CAMERA);
     chan_free(d);
     stop(&sv);
+}
+
+/* Sends CAMERAs with the given epochs; returns how many came out as
+ * events before the display was dropped (n when it was not), with the
+ * ERROR the display was told in *text. */
+static int cameras_until_dropped(uint32_t k, const char *tag, const uint32_t *epochs, int n, char *text, size_t cap)
+{
+    char spec[128];
+    server sv;
+    dsrv_event e;
+    chan *d = connected_display(&sv, spec, sizeof spec, tag, k, &e);
+    for (int i = 0; i < n; i++) send_camera(d, epochs[i]);
+    int taken = 0;
+    text[0] = 0;
+    for (int i = 1; i <= n; i++) {
+        int kind = wait_event(&sv, i, &e);
+        cr_assert_neq(kind, 0, "%s: no event %d", tag, i);
+        if (kind == DSRV_EV_DISCONNECTED) {
+            wire_msg r;
+            ct_error err = {{0}};
+            cr_assert_eq(chan_recv_wait(d, &r, 3000, &err), WIRE_OK, "%s: %s", tag, err.msg);
+            cr_assert_eq(r.type, WIRE_ERROR, "%s: got %s", tag, wire_type_name(r.type));
+            cr_assert_eq(r.u.error.code, (uint32_t)WIRE_ERR_PROTOCOL);
+            snprintf(text, cap, "%s", r.u.error.text);
+            cr_assert_str_eq(e.text, text);
+            break;
+        }
+        cr_assert_eq(e.msg.type, WIRE_CAMERA);
+        cr_assert_eq(e.msg.u.camera.epoch, epochs[i - 1]);
+        taken++;
+    }
+    chan_free(d);
+    stop(&sv);
+    return taken;
+}
+
+Test(dsrv, camera_epochs_must_increase)
+{
+    char text[CT_ERROR_LEN];
+    /* Free running: skips are fine (a replaced camera), and so is the wrap. */
+    const uint32_t skips[] = {0xfffffffdu, 0xffffffffu, 2, 5, 6};
+    cr_assert_eq(cameras_until_dropped(0, "ep-skip", skips, 5, text, sizeof text), 5, "dropped: %s", text);
+    const uint32_t again[] = {1, 2, 2};
+    cr_assert_eq(cameras_until_dropped(0, "ep-again", again, 3, text, sizeof text), 2);
+    cr_assert(strstr(text, "CAMERA epoch 2 after epoch 2: epochs must increase"), "%s", text);
+    const uint32_t back[] = {7, 3};
+    cr_assert_eq(cameras_until_dropped(0, "ep-back", back, 2, text, sizeof text), 1);
+    cr_assert(strstr(text, "CAMERA epoch 3 after epoch 7"), "%s", text);
+    /* Lockstep: every camera asks for a frame, so none may be skipped. */
+    const uint32_t step[] = {4, 5, 6};
+    cr_assert_eq(cameras_until_dropped(2, "ep-lock", step, 3, text, sizeof text), 3, "dropped: %s", text);
+    const uint32_t skip[] = {1, 2, 4};
+    cr_assert_eq(cameras_until_dropped(2, "ep-lskip", skip, 3, text, sizeof text), 2);
+    cr_assert(strstr(text, "CAMERA epoch 4 after epoch 2: epochs must increase by one in lockstep"), "%s", text);
 }
 
 Test(dsrv, oversized_frame_from_an_authenticated_display)
