@@ -2,7 +2,7 @@
 # linked from them, Criterion unit tests and end-to-end scripts.
 #   make                      release build of every program whose main exists
 #   make SANITIZE=address,undefined   the same under sanitizers (build/san)
-#   make test | test-asan | check-deps | bench | demo | install PREFIX=...
+#   make test | test-asan | check-deps | check-sizes | bench | demo | install PREFIX=...
 # `make test` and `make demo` run scripts/setup-deps first (idempotent).
 
 SHELL       := /bin/bash
@@ -106,7 +106,7 @@ TEST_SUPPORT := $(patsubst %.c,$(BUILD)/%.o,$(sort $(wildcard tests/support/*.c)
 
 ALL_LIBS := $(LIB_display) $(LIB_master) $(LIB_radiosity) $(LIB_tracer) $(LIB_proto) $(LIB_common)
 
-.PHONY: all test test-asan unit-bins e2e check-deps bench demo install man clean scenes fuzz setup
+.PHONY: all test test-asan unit-bins e2e check-deps check-sizes bench demo install man clean scenes fuzz setup
 .DEFAULT_GOAL := all
 
 all: $(PROGS) scenes
@@ -218,6 +218,9 @@ test-asan: setup
 
 check-deps:
 	@scripts/check-deps
+
+check-sizes:
+	@scripts/check-sizes
 
 bench: all
 	@for b in scripts/bench-*; do echo "== $$b"; $$b || exit 1; done
