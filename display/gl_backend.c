@@ -11,16 +11,6 @@ static const char *const names[] = {"glfw", "egl", "osmesa"};
 
 static void pin_driver_libraries(void);
 
-int gl_backend_parse(const char *name, gl_backend_kind *out, ct_error *err)
-{
-    for (int k = 0; k < 3; k++)
-        if (strcmp(name, names[k]) == 0) {
-            *out = (gl_backend_kind)k;
-            return CT_OK;
-        }
-    return ct_fail(err, CT_EINVAL, "unknown backend '%s' (glfw, egl or osmesa)", name);
-}
-
 const char *gl_backend_name(gl_backend_kind kind)
 {
     return (unsigned)kind < 3 ? names[kind] : "?";

@@ -44,9 +44,6 @@ typedef struct gl_input {
 
 typedef struct gl_backend gl_backend;
 
-/* Parses "glfw", "egl" or "osmesa". */
-int gl_backend_parse(const char *name, gl_backend_kind *out, ct_error *err);
-
 /* Name of a backend kind. */
 const char *gl_backend_name(gl_backend_kind kind);
 

@@ -329,11 +329,6 @@ const char *chan_peer(const chan *c)
     return xport_peer(c->conn);
 }
 
-bool chan_flushed(const chan *c)
-{
-    return xport_queue_empty(c->q);
-}
-
 xport_queue_stats chan_queue_stats(const chan *c)
 {
     return xport_queue_get_stats(c->q);

@@ -84,9 +84,6 @@ int chan_fd(const chan *c);
 /* The peer's address, for messages. */
 const char *chan_peer(const chan *c);
 
-/* Whether the send queue is drained. */
-bool chan_flushed(const chan *c);
-
 /* The send queue's counters. */
 xport_queue_stats chan_queue_stats(const chan *c);
 
