@@ -18,8 +18,11 @@ const char *gl_backend_name(gl_backend_kind kind)
 
 gl_backend_kind gl_backend_default(void)
 {
-    const char *d = getenv("DISPLAY"), *w = getenv("WAYLAND_DISPLAY");
-    return (d && *d) || (w && *w) ? GL_BACKEND_GLFW : GL_BACKEND_EGL;
+    /* Not $WAYLAND_DISPLAY: Debian's GLFW 3.3 (libglfw3) speaks X11 only,
+     * and a Wayland desktop runs X clients through XWayland, which sets
+     * $DISPLAY. */
+    const char *d = getenv("DISPLAY");
+    return d && *d ? GL_BACKEND_GLFW : GL_BACKEND_EGL;
 }
 
 int gl_backend_open(gl_backend_kind kind, int width, int height, const char *title, bool vsync,

@@ -47,7 +47,7 @@ typedef struct gl_backend gl_backend;
 /* Name of a backend kind. */
 const char *gl_backend_name(gl_backend_kind kind);
 
-/* glfw when $DISPLAY or $WAYLAND_DISPLAY is set, egl otherwise. */
+/* glfw when $DISPLAY is set, egl otherwise. */
 gl_backend_kind gl_backend_default(void);
 
 /* Creates the context (and window, for glfw, of width x height with the

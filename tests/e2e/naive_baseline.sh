@@ -4,7 +4,8 @@
 # radiosity alone (K = 0) and the point display are bit-identical for any
 # thread count; K samples do change the radiosity image; the error columns
 # against references exist; --hold keeps old samples (its frames differ from
-# fresh ones); bad input gives one error line and exit 2.
+# fresh ones); --path names the scene's path even beside a folder of that
+# name; bad input gives one error line and exit 2.
 source "$(dirname "$0")/lib/common.sh"
 c=$corrtex
 run() { echo "+ $*"; "$@"; }
@@ -23,7 +24,14 @@ run "$c" naive "${common[@]}" --samples-per-frame $k --threads 1 --reference "$t
 run "$c" naive "${common[@]}" --samples-per-frame $k --threads 2 --reference "$tmp/ref" -o "$tmp/nv2" || fail "K=$k, 2 threads: exit $?"
 run "$c" naive "${common[@]}" --samples-per-frame $k --hold --threads 2 -o "$tmp/hold" || fail "--hold: exit $?"
 
+# --path by the scene's name, from a folder holding a walk/ of an earlier run:
+# the name wins (it used to fail with "walk: is a folder"), the same frames
+mkdir -p "$tmp/cwd/walk"
+(cd "$tmp/cwd" && run "$c" naive "$scene" --mesh "$tmp/c.ctmesh" --path walk --frames $n --width $w --height $w -q \
+  --samples-per-frame 0 --threads 1 -o "$tmp/byname") || fail "--path walk beside a walk/ folder: exit $?"
 rmse() { "$c" compare "$1" "$2" --json | sed -nE 's/.*"rmse":([^,]+),.*/\1/p'; }
+[[ $(rmse "$tmp/byname/frame_00001.exr" "$tmp/rad1/frame_00001.exr") == 0 ]] || fail "--path walk differs from the walk's file"
+
 for ((f = 0; f < n; f++)); do
   fr=$(printf 'frame_%05d.exr' $f)
   for d in rad1 rad2 nv1 nv2 hold; do [[ -s $tmp/$d/$fr ]] || fail "missing $d/$fr"; done
@@ -54,7 +62,7 @@ bad() {  # bad WANT ARGS...
   grep -qF -- "$want" "$tmp/err" || fail "message lacks '$want': $*"
 }
 bad "--mesh" "$scene" --path "$pathf" -o "$tmp/x"
-bad "nope" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
+bad "--path nope: neither a path of" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
 bad "exceeds" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --samples-per-frame 65 -o "$tmp/x"
 bad "missing.ctmesh" "$scene" --mesh "$tmp/missing.ctmesh" --path "$pathf" -o "$tmp/x"
 # the tracer's option table, shared with corrtex-render and reference (tracer/trc_cli.h)
