@@ -212,6 +212,10 @@ void fs_dirname(const char *path, char *out, size_t cap)
 
 void fs_join(const char *dir, const char *name, char *out, size_t cap)
 {
-    if (name[0] == '/' || !dir || !dir[0]) snprintf(out, cap, "%s", name);
-    else snprintf(out, cap, "%s/%s", dir, name);
+    if (name[0] == '/' || !dir || !dir[0]) {
+        snprintf(out, cap, "%s", name);
+        return;
+    }
+    /* dir/ from a user's tab completion: one separator in what we print */
+    snprintf(out, cap, "%s%s%s", dir, dir[strlen(dir) - 1] == '/' ? "" : "/", name);
 }

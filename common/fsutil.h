@@ -50,7 +50,8 @@ int fs_mkdirs(const char *path, ct_error *err);
 /* Directory part of path ("." when none) into out. */
 void fs_dirname(const char *path, char *out, size_t cap);
 
-/* Joins dir and a relative name; an absolute name is copied as is. */
+/* Joins dir and a relative name with one '/' (dir may end in one); an
+ * absolute name is copied as is. */
 void fs_join(const char *dir, const char *name, char *out, size_t cap);
 
 #endif

@@ -531,12 +531,19 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
         if (rc) status = DISP_EXIT_USAGE;
     }
     if (!rc) {
-        if (gl_backend_is_window(a.backend)) fputs("H or F1 in the window prints the keys\n", stdout);
+        if (gl_backend_is_window(a.backend)) fputs("H, F1 or ? in the window prints the keys\n", stdout);
         rc = run(&a, err);
         if (rc == DISP_EXIT_LOST) status = DISP_EXIT_LOST;
         if (!rc && a.capture) {
             rc = disp_capture_close(a.capture, err);
             a.capture = NULL;
+        }
+        if (!rc && o->connect && !a.ever_connected) {
+            /* --reconnect kept trying until the run ended: it drew frames
+             * (and wrote them), but none of them is what was asked for. */
+            rc = ct_fail(err, CT_EIO, "never connected to %s (last: %s)", o->connect,
+                         a.last_cause.msg[0] ? a.last_cause.msg : "no answer");
+            status = DISP_EXIT_LOST;
         }
         if (!rc) status = DISP_EXIT_OK;
         else if (rc == CT_EPARSE || rc == CT_EINVAL || rc == CT_ESTALE) status = DISP_EXIT_USAGE;

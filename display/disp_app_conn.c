@@ -30,22 +30,32 @@ int app_try_connect(app *a, ct_error *err)
     return CT_OK;
 }
 
+/* The cause without the address in front (the transport names its peer,
+ * and the line below names it already). */
+static const char *without_addr(const char *msg, const char *addr)
+{
+    size_t n = strlen(addr);
+    return strncmp(msg, addr, n) == 0 && msg[n] == ':' && msg[n + 1] == ' ' ? msg + n + 2 : msg;
+}
+
 /* The connection failed or was lost: with --reconnect schedule a retry and
  * keep showing the last image; else fail with DISP_EXIT_LOST. */
 int app_connection_lost(app *a, ct_error *cause, double now, ct_error *err)
 {
     disp_client_close(a->client);
     a->client = NULL;
+    const char *why = without_addr(cause->msg, a->o->connect);
+    snprintf(a->last_cause.msg, sizeof a->last_cause.msg, "%s", why);
     if (!a->o->reconnect) {
         ct_fail(err, CT_EIO, a->ever_connected ? "connection to %s lost: %s" : "cannot connect to %s: %s",
-                a->o->connect, cause->msg);
+                a->o->connect, why);
         return DISP_EXIT_LOST;
     }
     if (a->backoff <= 0) a->backoff = BACKOFF_FIRST;
     a->retry_at = now + a->backoff;
     ct_warn(COMP, "%s %s: %s; retrying in %.1f s", a->ever_connected ? "connection lost to" : "cannot connect to",
-            a->o->connect, cause->msg, a->backoff);
-    snprintf(a->status, sizeof a->status, "CONNECTION LOST (%.60s), retrying", cause->msg);
+            a->o->connect, why, a->backoff);
+    snprintf(a->status, sizeof a->status, "CONNECTION LOST (%.60s), retrying", why);
     a->backoff = a->backoff * 2 > BACKOFF_MAX ? BACKOFF_MAX : a->backoff * 2;
     app_set_title(a, now, true);
     return CT_OK;

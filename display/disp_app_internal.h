@@ -48,6 +48,7 @@ typedef struct app {
     double retry_at, backoff;     /* next reconnection attempt, its delay */
     bool cam_sent;                /* last_cam went to this connection */
     bool ever_connected;
+    ct_error last_cause;          /* why the last connection attempt failed or ended */
     ct_camera last_cam;
     /* title statistics */
     double stat_t0;

@@ -145,7 +145,8 @@ static bool load(disp_scene_cache *c, const char *hex)
     c->size = size;
     memcpy(c->hash, h, WIRE_HASH_SIZE);
     touch(path);
-    ct_info(COMP, "scene cache: %s (%zu bytes)", path, size);
+    /* Only offered: the master sends its scene in full when it has another. */
+    ct_info(COMP, "scene cache: offering %s (%zu bytes) to the master", path, size);
     return true;
 }
 

@@ -35,5 +35,5 @@ const char *disp_keys_help(void)
            "  P  toggle 1-pass / 3-pass compositing\n"
            "  + / -  exposure up / down half a stop;  0  exposure 0\n"
            "  C  print the camera as a path keyframe line\n"
-           "  H or F1  this help;  Esc  quit\n";
+           "  H, F1 or ?  this help;  Esc  quit\n";
 }

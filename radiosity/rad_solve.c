@@ -7,6 +7,7 @@
  * and one order of steps, which one file keeps in view.) */
 #include "radiosity/rad_internal.h"
 
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -155,7 +156,13 @@ int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_p
         }
         return CT_OK;
     }
-    if (why) *why = load_err;
+    if (why) {
+        /* A first run has no cache: say so plainly, not as a failed open. */
+        if (access(cache_path, F_OK) != 0 && errno == ENOENT)
+            ct_fail(why, CT_OK, "no cached solution at %s yet", cache_path);
+        else
+            *why = load_err;
+    }
     int rc = rad_solve(s, p, progress, user, out, st, err);
     if (rc) return rc;
     rc = rmesh_save(out, cache_path, err);

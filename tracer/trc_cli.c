@@ -18,7 +18,7 @@ static const optab ROWS[] = {
      "drt: levels that split into B glossy rays (-1: the mode's, 1)", NULL},
     {"fresnel-depth", 0, OPTAB_INT, OF(fresnel_depth), -1, 1024, "-1", "F",
      "drt: levels that trace both the reflection and the refraction at glass; below, the stronger and the weaker "
-     "by chance (-1: the mode's, 3)", NULL},
+     "by chance (-1: the mode's, drt 3, path 1)", NULL},
     {"depth", 0, OPTAB_INT, OF(depth), -1, 1024, "-1", "D",
      "drt: recursion depth; path: maximum bounces (-1: the mode's, drt 8, path 64)", NULL},
     {"indirect", 0, OPTAB_CHOICE, OF(indirect), 0, 0, "gather", "mesh|gather",

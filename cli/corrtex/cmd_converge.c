@@ -56,7 +56,7 @@ static const optab OPTS[] = {
     {"width", 0, OPTAB_INT, OF(width), 1, 16384, "512", "W", "image width", NULL},
     {"height", 0, OPTAB_INT, OF(height), 1, 16384, "512", "H", "image height", NULL},
     {"reference", 0, OPTAB_STRING, OF(reference), 0, 0, NULL, "REF.exr", "reference for RMSE/PSNR/SSIM", NULL},
-    {"out", 0, OPTAB_STRING, OF(out), 0, 0, NULL, "DIR", "output folder (required)", NULL},
+    {"out", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "DIR", "output folder (required)", NULL},
     {"move-to", 0, OPTAB_STRING, OF(move_to), 0, 0, NULL, "NAME",
      "then move to this camera without updates (moved.exr) ...", NULL},
     {"samples-after", 0, OPTAB_STRING, OF(samples_after), 0, 0, NULL, "LIST",

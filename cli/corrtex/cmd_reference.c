@@ -143,7 +143,7 @@ static void help(FILE *f)
         "  --raw-cap N       rays logged per thread, a uniform random subset of all\n"
         "                    traced rays (default 2000000)\n"
         "  --bench-runs R    rounds of --raw-embree (default 2)\n"
-        "  -o OUT            output EXR file (folder with --frames and no --frame)\n"
+        "  -o, --out OUT     output EXR file (folder with --frames and no --frame)\n"
         "  --quiet, --verbose\n"
         "tracer version %d (changes when the images change: cached references carry it)\n",
         TRC_VERSION);

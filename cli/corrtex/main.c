@@ -27,7 +27,10 @@ static void usage(FILE *f)
 int main(int argc, char **argv)
 {
     if (argc < 2) {
-        usage(stderr);
+        /* Bad usage is one line everywhere (README.md); the list is --help's. */
+        fputs("error corrtex: missing COMMAND (", stderr);
+        for (const cli_command *c = cli_commands; c->name; c++) fprintf(stderr, "%s%s", c->name, c[1].name ? ", " : "");
+        fputs("; try corrtex --help)\n", stderr);
         return 2;
     }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "help") == 0) {

@@ -149,4 +149,13 @@ bad "fifo.token: token file is not a regular file" --backend osmesa --connect "u
 echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock  -> exit $rc: $(cat "$tmp/e")"
 [[ $rc -eq 3 ]] || { echo "FAIL: exit $rc, want 3"; fail=1; }
 [[ $(grep -c "^error" "$tmp/e") -eq 1 ]] && grep -q "none.sock" "$tmp/e" || { echo "FAIL: want one error line naming the socket"; fail=1; }
+grep -q "none.sock: .*none.sock" "$tmp/e" && { echo "FAIL: the address is named twice"; fail=1; }
+# With --reconnect, a run that ends before any connection got through is
+# not a success (it used to exit 0): exit 3, the address and the last reason.
+"$BIN/corrtex-display" --backend osmesa --connect "unix:$tmp/none.sock" --reconnect --seconds 1.5 --width 32 --height 32 \
+  >"$tmp/o" 2>"$tmp/e"; rc=$?
+echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock --reconnect --seconds 1.5 -> exit $rc: $(grep '^error' "$tmp/e")"
+[[ $rc -eq 3 ]] || { echo "FAIL: --reconnect, never connected: exit $rc, want 3"; fail=1; }
+grep -q "^error corrtex-display: never connected to unix:$tmp/none.sock (last: " "$tmp/e" ||
+  { echo "FAIL: --reconnect, never connected: no error line naming the address"; fail=1; }
 exit $fail

@@ -130,4 +130,8 @@ done
 "$BIN/corrtex" info >/dev/null 2>&1; [[ $? -eq 2 ]] || { echo "FAIL: no argument must exit 2"; fail=1; }
 "$BIN/corrtex" info --bogus x >/dev/null 2>&1; [[ $? -eq 2 ]] || { echo "FAIL: unknown option must exit 2"; fail=1; }
 "$BIN/corrtex" frobnicate >/dev/null 2>&1; [[ $? -eq 2 ]] || { echo "FAIL: unknown command must exit 2"; fail=1; }
+"$BIN/corrtex" >/dev/null 2>"$tmp/e"; rc=$?
+echo "+ $BIN/corrtex -> exit $rc: $(cat "$tmp/e")"
+[[ $rc -eq 2 && $(wc -l <"$tmp/e") -eq 1 ]] && grep -q '^error corrtex: missing COMMAND (info, ' "$tmp/e" \
+  || { echo "FAIL: no command must exit 2 with one line naming the commands"; fail=1; }
 exit $fail

@@ -5,7 +5,8 @@
 # writes the report. Checks: exit 0, both programs started and ended, one
 # frames.csv row and one PNG/EXR per frame, the samples per frame, report.md
 # with its plots and contact sheet, and nothing left behind (processes,
-# socket file).
+# socket file); a path file the display refuses and an option the MPI job
+# refuses both end the walk at once with status 2 and the reason.
 set -u
 source "$(dirname "$0")/lib/walk-common.bash"
 need_programs
@@ -97,5 +98,17 @@ grep -q "the display refused its input: error .*bad.path:2: expected 't ex ey ez
   fail "the launcher did not name the display's reason"
 (($(date +%s) - t0 < 15)) || fail "the launcher took $(($(date +%s) - t0)) s to give up"
 no_strays "after the refused path"
+# An option the MPI job refuses, passed through: exit 2 with the job's line
+# (mpirun passes its status 2 on; the launcher used to call it a failure, 1).
+cmd=("$walk" cornell --frames 2 --samples-per-frame $spf --width $w --height $w --ranks 2
+     --listen "unix:$sock" --out "$tmp/walk4" --radiosity-cache "$tmp/cornell.ctmesh"
+     --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240 --render-options "--bogus")
+log_cmd "${cmd[@]}"
+(cd "$root" && env -u DISPLAY XDG_CACHE_HOME="$tmp/xdg" "${cmd[@]}") >"$tmp/walk4.out" 2>&1; rc=$?
+sed 's/^/  walk4: /' "$tmp/walk4.out" | tail -n 4
+((rc == 2)) || fail "an option the job refuses: exit status $rc, want 2"
+grep -q "the MPI job refused its input: error corrtex-render: unknown option '--bogus'" "$tmp/walk4.out" ||
+  fail "the launcher did not name the job's reason"
+no_strays "after the refused option"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: walk of $n frames with report; nothing left behind"

@@ -2,7 +2,7 @@
  * or folder given as input fails at once (a FIFO used to block the open for
  * good), and outputs replace only regular files: a FIFO or character device
  * is written in place and stays what it was, a FIFO without a reader and a
- * folder are refused with one line. */
+ * folder are refused with one line; fs_join puts one separator. */
 #include <criterion/criterion.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -152,4 +152,21 @@ Test(fsutil, regular_output_is_replaced_atomically)
     cr_assert_str_eq(data, "new");
     free(data);
     cr_assert_eq(entries(), 1);
+}
+
+Test(fsutil, join_puts_one_separator)
+{
+    char out[64];
+    fs_join("ref", "frame_00000.exr", out, sizeof out);
+    cr_assert_str_eq(out, "ref/frame_00000.exr");
+    fs_join("ref/", "frame_00000.exr", out, sizeof out);
+    cr_assert_str_eq(out, "ref/frame_00000.exr");
+    fs_join("/", "x", out, sizeof out);
+    cr_assert_str_eq(out, "/x");
+    fs_join("", "x", out, sizeof out);
+    cr_assert_str_eq(out, "x");
+    fs_join("ref", "/abs/x", out, sizeof out);
+    cr_assert_str_eq(out, "/abs/x");
+    fs_join("a-long-folder-name", "frame.exr", out, 8);   /* cut, still a string */
+    cr_assert_str_eq(out, "a-long-");
 }
