@@ -189,6 +189,7 @@ int app_connection_step(app *a, const ct_camera *cam, const ct_camera *next, gl_
         gl_backend_poll(a->backend, in);
         if (!app_handle_keys(a, in)) return STEP_QUIT;
         if (o->max_seconds > 0 && ct_now() - t_start >= o->max_seconds) return STEP_QUIT;
+        if (o->stop && *o->stop) return STEP_QUIT;   /* SIGINT, SIGTERM: a master that never sends FRAME */
     }
     a->t_wait += ct_now() - w0 - (a->t_take - take0);
     if (a->client) {

@@ -24,10 +24,13 @@
 #define PING_EVERY_US 1000000u
 #define PING_QUICK 4
 #define READ_AFTER_SEND_FAILED_US 2000000u   /* see thread_main */
-/* A master that sends nothing this long (disp_client_opts.silent_ms), PONGs
- * included, is taken for gone: one stopped in the middle of a message left a
- * lockstep display waiting for good (a working master answers a PING within
- * its loop's turn, and a busy queue still delivers bytes). */
+/* A master that completes no message this long (disp_client_opts.silent_ms),
+ * PONGs included, is taken for gone: one stopped in the middle of a message
+ * left a lockstep display waiting for good (a working master answers a PING
+ * within its loop's turn, and a busy queue still delivers whole messages:
+ * the largest a master sends, a patch of one row of tiles of a 16384-texel
+ * texture, is 384 KiB, 3 s over 1 Mbit/s). Whole messages, not bytes: one
+ * byte a second kept a master that trickled a frame alive for good. */
 #define MASTER_SILENT_MS 30000
 
 struct disp_client {
@@ -42,6 +45,9 @@ struct disp_client {
     int wake[2];                  /* the render thread writes a byte to wake the thread */
     int silent_ms;                /* disp_client_opts.silent_ms */
     uint32_t epoch;               /* render thread only */
+    uint64_t msgs_in;             /* thread only: messages decoded */
+    bool frame_seen;              /* thread only: a FRAME arrived, frame_last is its number */
+    uint64_t frame_last;
     /* A send that failed (thread only): the master may have closed after an
      * ERROR saying why, which is still to be read; ending at the failed send,
      * the display reported a bare lost connection. Sending stops, reading
@@ -313,6 +319,13 @@ static int apply(disp_client *c, const wire_msg *m, ct_error *err)
         return disp_inbox_tex_resize(b, m->u.tex_resize.tex, (int)m->u.tex_resize.width,
                                      (int)m->u.tex_resize.height, err);
     case WIRE_FRAME:
+        /* A frame number that does not grow would never count as ready
+         * (disp_inbox_frame_ready): a lockstep display would wait for good. */
+        if (c->frame_seen && m->u.frame.frame <= c->frame_last)
+            return ct_fail(err, CT_EPROTO, "%s: FRAME %llu after FRAME %llu: frame numbers must increase", c->addr,
+                           (unsigned long long)m->u.frame.frame, (unsigned long long)c->frame_last);
+        c->frame_seen = true;
+        c->frame_last = m->u.frame.frame;
         disp_inbox_frame_end(b, m->u.frame.frame, m->u.frame.epoch, m->u.frame.samples,
                              (m->u.frame.flags & WIRE_FLAG_ALL_POSITIVE) != 0);
         return CT_OK;
@@ -361,7 +374,10 @@ static int apply(disp_client *c, const wire_msg *m, ct_error *err)
  * the connection (the master is told why when it is ours to tell). */
 static int receive(disp_client *c, ct_error *err)
 {
-    for (;;) {
+    /* The read buffer can hold hundreds of thousands of small messages, some
+     * costly (a TEX_RESIZE of a large texture): a display asked to stop must
+     * not work through them first. */
+    while (!atomic_load(&c->stop)) {
         wire_msg m;
         int rc = chan_recv(c->ch, &m, err);
         if (rc == WIRE_NEED_MORE) return 0;
@@ -371,6 +387,7 @@ static int receive(disp_client *c, ct_error *err)
             if (rc != CT_EIO) chan_send_error(c->ch, WIRE_ERR_PROTOCOL, err->msg, 200);
             return rc;
         }
+        c->msgs_in++;
         rc = apply(c, &m, err);
         if (!rc) continue;
         if ((m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) || m.type == WIRE_TEX_RESIZE) {
@@ -386,6 +403,7 @@ static int receive(disp_client *c, ct_error *err)
                             200);
         return rc;
     }
+    return 0;
 }
 
 /* Sends the cameras the render thread queued. */
@@ -405,7 +423,7 @@ static void *thread_main(void *arg)
     disp_client *c = arg;
     ct_error err;
     ct_error_clear(&err);
-    uint64_t next_ping = ct_now_us(), heard = next_ping, heard_rx = 0;
+    uint64_t next_ping = ct_now_us(), heard = next_ping, heard_msgs = 0;
     int pings = 0, rc = 0;
     bool more = false;   /* the last pump read bytes nobody has decoded yet */
     while (!atomic_load(&c->stop)) {
@@ -443,11 +461,11 @@ static void *thread_main(void *arg)
         uint64_t rx2;
         chan_byte_counts(c->ch, &rx2, &tx);
         more = rx2 != rx;
-        if (rx2 != heard_rx) {
-            heard_rx = rx2;
+        if (c->msgs_in != heard_msgs) {
+            heard_msgs = c->msgs_in;
             heard = now;
         } else if (!c->send_rc && now - heard > 1000u * (uint64_t)c->silent_ms) {
-            rc = ct_fail(&err, CT_EIO, "%s: the master sent nothing for %.1f s, not even a PONG", c->addr,
+            rc = ct_fail(&err, CT_EIO, "%s: the master completed no message for %.1f s, not even a PONG", c->addr,
                          c->silent_ms / 1000.0);
             break;
         }

@@ -292,7 +292,8 @@ int disp_inbox_tex_resize(disp_inbox *b, uint32_t id, int w, int h, ct_error *er
 {
     if (w < 1 || h < 1 || w > b->max_tex || h > b->max_tex)
         return ct_fail(err, CT_ERANGE, "texture %u: size %dx%d out of range 1..%d", id, w, h, b->max_tex);
-    int rc = CT_OK;
+    int rc = CT_OK, ow = 0, oh = 0;
+    const uint16_t *src = NULL;
     pthread_mutex_lock(&b->mu);
     ib_tex *t = find(b, id);
     uint64_t bytes = (uint64_t)w * (uint64_t)h * 6;
@@ -304,30 +305,38 @@ int disp_inbox_tex_resize(disp_inbox *b, uint32_t id, int w, int h, ct_error *er
         rc = ct_fail(err, CT_ENOMEM, "texture %u: %dx%d texels would pass the display's %llu MiB", id, w, h,
                      (unsigned long long)(DISP_INBOX_MAX_BYTES >> 20));
     } else {
-        store st;
-        bool neg = false, nz = false;
-        /* Computed here, on the connection thread: the render thread only
-         * uploads. The new GL texture (fresh) takes every tile. */
-        if (!(rc = store_new(w, h, false, &st, err)) &&
-            (rc = disp_rescale(t->tx, t->w, t->h, st.tx, w, h, &neg, &nz))) {
-            free(st.tx);
-            free(st.bits);
-            rc = ct_fail(err, CT_ENOMEM, "out of memory to resize texture %u", id);
-        }
-        if (!rc) {
-            store_attach(b, t, &st);
-            t->fresh = true;
-            /* (or the old texture's: the GPU keeps its scaled texels until
-             * the upload replaces them, disp_textures.h) */
-            t->negative |= neg;
-            t->nonzero |= nz;
-            for (int ty = 0; ty < st.th; ty++) bitrow_set(st.bits + (size_t)ty * (size_t)st.words, 0, st.tw - 1);
-            t->dirty = true;
-            b->dirty_bytes += (size_t)st.tw * TS * UP_BPT * (size_t)st.th * TS;
-        }
+        src = t->tx;
+        ow = t->w;
+        oh = t->h;
     }
     pthread_mutex_unlock(&b->mu);
-    return rc;
+    if (rc) return rc;
+    /* Computed here, on the connection thread, and outside the lock: a
+     * resize of a large texture takes most of a second, and the render
+     * thread must go on drawing (and see --seconds or a signal) meanwhile.
+     * src stays valid: only this thread replaces or frees a texture's copy. */
+    store st;
+    bool neg = false, nz = false;
+    if ((rc = store_new(w, h, false, &st, err))) return rc;
+    if (disp_rescale(src, ow, oh, st.tx, w, h, &neg, &nz)) {
+        free(st.tx);
+        free(st.bits);
+        return ct_fail(err, CT_ENOMEM, "out of memory to resize texture %u", id);
+    }
+    pthread_mutex_lock(&b->mu);
+    t = find(b, id);   /* (the render thread may have compacted the table) */
+    store_attach(b, t, &st);
+    /* The new GL texture (fresh) takes every tile (or the old texture's: the
+     * GPU keeps its scaled texels until the upload replaces them,
+     * disp_textures.h). */
+    t->fresh = true;
+    t->negative |= neg;
+    t->nonzero |= nz;
+    for (int ty = 0; ty < st.th; ty++) bitrow_set(st.bits + (size_t)ty * (size_t)st.words, 0, st.tw - 1);
+    t->dirty = true;
+    b->dirty_bytes += (size_t)st.tw * TS * UP_BPT * (size_t)st.th * TS;
+    pthread_mutex_unlock(&b->mu);
+    return CT_OK;
 }
 
 int disp_inbox_tex_projection(disp_inbox *b, uint32_t id, const mat4 *world_to_tex, ct_error *err)
@@ -373,14 +382,18 @@ static void merge_stamps(disp_inbox *b)
 int disp_inbox_tex_patch(disp_inbox *b, uint32_t id, int x, int y, int w, int h, const uint16_t *rgb,
                          uint64_t stamp_us, uint32_t samples, ct_error *err)
 {
-    /* Non-zero: any bit but the sign; negative: the sign and not -0. Found
-     * here, off the render thread. */
-    bool neg = false, nz = false;
+    /* Non-zero: any bit but the sign; negative: the sign and not -0;
+     * non-finite: an exponent of all ones (NaN, infinity), which the master
+     * never sends (it clamps to the largest half) and which would spread
+     * through the image as NaN pixels. Found here, off the render thread. */
+    bool neg = false, nz = false, nf = false;
     size_t n = w > 0 && h > 0 ? (size_t)w * (size_t)h * 3 : 0;
     for (size_t i = 0; i < n; i++) {
         nz |= (rgb[i] & 0x7fffu) != 0;
         neg |= (rgb[i] & 0x8000u) && (rgb[i] & 0x7fffu);
+        nf |= (rgb[i] & 0x7c00u) == 0x7c00u;
     }
+    if (nf) return ct_fail(err, CT_ERANGE, "texture %u: patch holds non-finite texels (NaN or infinity)", id);
     int rc = CT_OK;
     pthread_mutex_lock(&b->mu);
     ib_tex *t = find(b, id);

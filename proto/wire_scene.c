@@ -61,7 +61,10 @@ static int parse_payload(const uint8_t *raw, size_t size, const char *peer, ct_r
     if (wire_scene_payload_size(nv, nt, nn, nm) != size)
         return ct_fail(err, CT_EPROTO, "%s: scene payload is %zu bytes, its counts need %llu", peer, size,
                        (unsigned long long)wire_scene_payload_size(nv, nt, nn, nm));
-    if (nt > 0 && nn == 0) return ct_fail(err, CT_EPROTO, "%s: scene has triangles but no nodes", peer);
+    /* Nothing to draw or to correct: no master sends that (its scenes have
+     * triangles), and the display must not start a run on it. */
+    if (nv == 0 || nt == 0 || nn == 0)
+        return ct_fail(err, CT_EPROTO, "%s: scene is empty (%u vertices, %u triangles, %u nodes)", peer, nv, nt, nn);
     if (m) {
         int rc = rmesh_alloc(m, nv, nt, nn, err);
         if (rc) return rc;

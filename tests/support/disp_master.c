@@ -141,6 +141,46 @@ static int master(xport_listener *l, fxm_end end, uint32_t want_k, int w, int h,
         usleep(5000000);
         chan_free(c);
         return 0;
+    } else if (end == FXM_END_TRICKLE) {
+        wire_buf b = {0};
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_PATCH;
+        m.u.tex_patch = (wire_tex_patch){.tex = 5, .x = 0, .y = 0, .w = 8, .h = 3, .texels = half};
+        if (wire_encode(&m, &b, &err)) return 80;
+        for (size_t i = 0; i < b.len && i < 100; i++) {
+            if (send(chan_fd(c), b.data + i, 1, MSG_NOSIGNAL) != 1) break;   /* the display hung up */
+            usleep(50000);
+        }
+        wire_buf_free(&b);
+        chan_free(c);
+        return 0;
+    } else if (end == FXM_END_RESIZES) {
+        memset(&m, 0, sizeof m);
+        m.type = WIRE_TEX_ALLOC;
+        m.u.tex_alloc = (wire_tex_alloc){7, nd.back, 2048, 2048, WIRE_PROJ_OBJECT_PARALLEL};
+        if (chan_send(c, &m, &err)) return 100;
+        for (int i = 0; i < 1000; i++) {
+            memset(&m, 0, sizeof m);
+            m.type = WIRE_TEX_RESIZE;
+            m.u.tex_resize = (wire_tex_resize){7, i & 1 ? 2048u : 4096u, i & 1 ? 2048u : 4096u};
+            if (chan_send(c, &m, &err)) return 101;
+        }
+        if (chan_flush(c, 5000, &err)) return 102;
+        for (int i = 0; i < 100; i++) {
+            int rc = recv_wait(c, &m, 100, &err);
+            if (rc < 0 || (rc == WIRE_OK && (m.type == WIRE_BYE || m.type == WIRE_ERROR))) break;
+        }
+    } else if (end == FXM_END_FRAME_AGAIN) {
+        for (int i = 0; i < 2; i++) {
+            memset(&m, 0, sizeof m);
+            m.type = WIRE_FRAME;
+            m.u.frame = (wire_frame){5, epoch, 0, 123, 0};
+            if (send_all(c, &m)) return 90;
+        }
+        for (int i = 0; i < 50; i++) {
+            int rc = recv_wait(c, &m, 100, &err);
+            if (rc < 0 || (rc == WIRE_OK && (m.type == WIRE_BYE || m.type == WIRE_ERROR))) break;
+        }
     } else if (end == FXM_END_DEAF) {
         /* As a master that is going away: the display's PINGs fail (EPIPE)
          * before the ERROR saying why comes, and so does the ACK of the

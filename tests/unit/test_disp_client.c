@@ -3,7 +3,8 @@
  * scene, texture allocation / projection / patches and FRAME arrive through
  * the connection thread and the inbox and render exactly like the same
  * events applied directly; lockstep frames; a lost connection and an
- * orderly BYE are reported as such. */
+ * orderly BYE are reported as such; a master that stalls or trickles a
+ * message, or repeats a FRAME number, is given up with the reason. */
 #include <criterion/criterion.h>
 #include <poll.h>
 #include <signal.h>
@@ -347,7 +348,55 @@ Test(disp_client, a_master_that_stalls_mid_message_is_given_up)
 {
     ct_error err;
     cr_expect_eq(ended_by(FXM_END_STALL, 1000, "stalled master", &err), CT_EIO);
-    cr_expect(strstr(err.msg, "the master sent nothing for 1.0 s, not even a PONG") != NULL, "%s", err.msg);
+    cr_expect(strstr(err.msg, "the master completed no message for 1.0 s, not even a PONG") != NULL, "%s",
+              err.msg);
+}
+
+/* A master that trickles a message, a byte every 50 ms: bytes arrive, no
+ * message completes, and the display gives up as for silence (bytes used to
+ * count, and a byte a second kept it waiting for good). */
+Test(disp_client, a_master_that_trickles_a_message_is_given_up)
+{
+    ct_error err;
+    cr_expect_eq(ended_by(FXM_END_TRICKLE, 1000, "trickling master", &err), CT_EIO);
+    cr_expect(strstr(err.msg, "the master completed no message for 1.0 s, not even a PONG") != NULL, "%s",
+              err.msg);
+}
+
+/* A master that queues minutes of work (500 resizes of a 4096x4096
+ * texture, 20 bytes each): the display, asked to stop, stops within about
+ * one resize (its connection thread used to work through every message it
+ * had read before it looked). */
+Test(disp_client, a_display_asked_to_stop_does_not_finish_a_backlog_first, .timeout = 30)
+{
+    fxm_peer p;
+    memset(&p, 0, sizeof p);
+    cr_assert_eq(fxm_start(&p, FXM_END_RESIZES, 0, W, H), 0, "%s", p.msg);
+    disp_inbox *in = new_inbox();
+    disp_client *c = NULL;
+    ct_error err;
+    disp_client_opts o = {p.addr, NULL, 0, 5000, 0};
+    cr_assert_eq(disp_client_connect(&o, NULL, in, &c, &err), 0, "%s", err.msg);
+    ct_camera cam = fx_box_camera();
+    cr_assert_eq(disp_client_send_camera(c, &cam, W, H, &err), 0);
+    usleep(1500000);   /* the resizes arrive and the first ones are computed */
+    cr_assert_eq(disp_client_status(c, &err), 0, "the connection ended: %s", err.msg);
+    double t0 = ct_now();
+    disp_client_close(c);
+    double took = ct_now() - t0;
+    printf("closing with a backlog of resizes took %.2f s\n", took);
+    cr_expect_lt(took, 3.0, "closing took %.2f s", took);
+    disp_inbox_free(in);
+    cr_expect_eq(fxm_stop(&p), 0);
+}
+
+/* A FRAME number that does not grow would never make a frame ready: the
+ * display names the problem and ends (it used to wait for good). */
+Test(disp_client, a_frame_number_that_does_not_grow_ends_the_connection)
+{
+    ct_error err;
+    cr_expect_eq(ended_by(FXM_END_FRAME_AGAIN, 0, "frame again", &err), CT_EPROTO, "%s", err.msg);
+    cr_expect(strstr(err.msg, ": FRAME 5 after FRAME 5: frame numbers must increase") != NULL, "%s", err.msg);
 }
 
 /* A master that stops reading and then sends SYNC, ERROR and closes (as

@@ -382,6 +382,16 @@ Test(disp_inbox, messages_that_do_not_fit_are_refused)
     cr_expect(strstr(err.msg, "outside 4x4"), "%s", err.msg);
     cr_expect_eq(disp_inbox_tex_patch(in, 2, 0, 0, 1, 1, t, 0, 0, &err), CT_EPROTO);
     cr_expect(strstr(err.msg, "unknown texture 2"), "%s", err.msg);
+    /* NaN, +inf, -inf: pixels of NaN otherwise; the largest halves are fine */
+    const uint16_t nonfinite[3] = {0x7e00u, 0x7c00u, 0xfc00u};
+    for (int k = 0; k < 3; k++) {
+        uint16_t p[2 * 3] = {0x3c00u, 0, 0, 0, 0, 0};
+        p[3 + k] = nonfinite[k];
+        cr_expect_eq(disp_inbox_tex_patch(in, 1, 0, 0, 2, 1, p, 0, 0, &err), CT_ERANGE, "half %#x", nonfinite[k]);
+        cr_expect(strstr(err.msg, "texture 1: patch holds non-finite texels"), "%s", err.msg);
+    }
+    const uint16_t big[3] = {0x7bffu, 0xfbffu, 0x8000u};   /* 65504, -65504, -0 */
+    cr_expect_eq(disp_inbox_tex_patch(in, 1, 0, 0, 1, 1, big, 0, 0, &err), 0, "%s", err.msg);
     mat4 bad = m4_identity();
     bad.m[1][2] = NAN;
     cr_expect_eq(disp_inbox_tex_projection(in, 1, &bad, &err), CT_ERANGE);

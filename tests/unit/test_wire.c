@@ -560,6 +560,21 @@ Test(scene, hash_depends_on_content)
     rmesh_free(&m);
 }
 
+/* An empty scene (a well-formed header and nothing else, or vertices with
+ * no triangles) is refused with the peer's name, not left to the display's
+ * mesh check to report without it. */
+Test(scene, empty_payload_refused)
+{
+    uint8_t raw[24 + 4 * 12 * 2] = {0};
+    ct_radmesh r;
+    ct_error err = {{0}};
+    cr_assert_eq(wire_scene_parse(raw, 24, "master", &r, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "master: scene is empty (0 vertices, 0 triangles, 0 nodes)");
+    raw[0] = 2;   /* two vertices, all zero, no triangles */
+    cr_assert_eq(wire_scene_parse(raw, sizeof raw, "master", &r, &err), CT_EPROTO);
+    cr_assert_str_eq(err.msg, "master: scene is empty (2 vertices, 0 triangles, 0 nodes)");
+}
+
 /* Breaks the payload of a 4-quad mesh with f and expects the parse error. */
 static void broken_payload(void (*f)(uint8_t *raw), const char *want)
 {
