@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "common/bitrow.h"
+#include "common/idmap.h"
 #include "display/disp_rescale.h"
 #include "display/gl_load.h"
 #include "proto/wire.h"
@@ -82,6 +83,7 @@ struct disp_inbox {
     /* textures */
     ib_tex *tex;
     uint32_t ntex, cap;
+    ct_idmap ix;                   /* id -> index in tex: every message looks one up */
     uint64_t tex_bytes;            /* their CPU copies */
     size_t dirty_bytes;            /* marked for upload (an upper bound) */
     uint64_t texels_in, patches_in;
@@ -184,6 +186,7 @@ static void drop_textures(disp_inbox *b)
 {
     for (uint32_t i = 0; i < b->ntex; i++) tex_release(b, &b->tex[i]);
     b->ntex = 0;
+    idmap_clear(&b->ix);
     b->dirty_bytes = 0;
 }
 
@@ -193,6 +196,7 @@ void disp_inbox_free(disp_inbox *b)
     drop_textures(b);
     rmesh_free(&b->scene);
     free(b->tex);
+    idmap_free(&b->ix);
     free(b->stamps);
     free(b->taken);
     free(b->pts);
@@ -233,9 +237,8 @@ void disp_inbox_scene(disp_inbox *b, ct_radmesh *m)
 
 static ib_tex *find(disp_inbox *b, uint32_t id)
 {
-    for (uint32_t i = 0; i < b->ntex; i++)
-        if (b->tex[i].id == id) return &b->tex[i];
-    return NULL;
+    uint32_t i = idmap_get(&b->ix, id);
+    return i == IDMAP_NONE ? NULL : &b->tex[i];
 }
 
 int disp_inbox_tex_alloc(disp_inbox *b, uint32_t id, uint32_t node, int w, int h, disp_proj_kind kind,
@@ -268,7 +271,11 @@ int disp_inbox_tex_alloc(disp_inbox *b, uint32_t id, uint32_t node, int w, int h
         rc = ct_fail(err, CT_ENOMEM, "out of memory for %u textures", b->ntex + 1);
     }
     store st;
-    if (!rc && !(rc = store_new(w, h, true, &st, err))) {
+    if (!rc && !(rc = store_new(w, h, true, &st, err)) && !t && (rc = idmap_put(&b->ix, id, b->ntex, err))) {
+        free(st.tx);
+        free(st.bits);
+    }
+    if (!rc) {
         if (!t) {
             t = &b->tex[b->ntex++];
             memset(t, 0, sizeof *t);
@@ -555,10 +562,15 @@ static bool collect_ops(disp_inbox *b)
             if (!grow((void **)&b->ops, &b->cap_ops, b->nops + 1, sizeof *b->ops)) return false;
             b->ops[b->nops++] = o;
         }
-    /* Entries freed and deleted from GL are forgotten. */
+    /* Entries freed and deleted from GL are forgotten; the others' indices
+     * change (the map keeps its room: its puts here cannot fail). */
     uint32_t k = 0;
     for (uint32_t i = 0; i < b->ntex; i++)
         if (b->tex[i].live || b->tex[i].in_gl) b->tex[k++] = b->tex[i];
+    if (k != b->ntex) {
+        idmap_clear(&b->ix);
+        for (uint32_t i = 0; i < k; i++) idmap_put(&b->ix, b->tex[i].id, i, NULL);
+    }
     b->ntex = k;
     return true;
 }

@@ -3,11 +3,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/idmap.h"
 #include "display/gl_load.h"
 
 struct disp_textures {
     disp_texture *items;
     uint32_t count, cap;
+    ct_idmap ix;          /* id -> index in items: every upload looks one up */
     unsigned clear_fbo;   /* zeroes new textures on the GPU (no CPU buffer) */
     unsigned read_fbo;    /* the old texture of a resize, scaled into the new one */
 };
@@ -22,6 +24,7 @@ void disp_textures_clear(disp_textures *t)
 {
     for (uint32_t i = 0; i < t->count; i++) gl.DeleteTextures(1, &t->items[i].gl_tex);
     t->count = 0;
+    idmap_clear(&t->ix);
 }
 
 void disp_textures_free(disp_textures *t)
@@ -31,14 +34,14 @@ void disp_textures_free(disp_textures *t)
     if (t->clear_fbo) gl.DeleteFramebuffers(1, &t->clear_fbo);
     if (t->read_fbo) gl.DeleteFramebuffers(1, &t->read_fbo);
     free(t->items);
+    idmap_free(&t->ix);
     free(t);
 }
 
 static disp_texture *find(const disp_textures *t, uint32_t id)
 {
-    for (uint32_t i = 0; i < t->count; i++)
-        if (t->items[i].id == id) return &t->items[i];
-    return NULL;
+    uint32_t i = idmap_get(&t->ix, id);
+    return i == IDMAP_NONE ? NULL : &t->items[i];
 }
 
 const disp_texture *disp_textures_find(const disp_textures *t, uint32_t id) { return find(t, id); }
@@ -123,6 +126,8 @@ int disp_textures_alloc(disp_textures *t, uint32_t id, uint32_t node, uint32_t t
             t->items = n;
             t->cap = cap;
         }
+        int rc = idmap_put(&t->ix, id, t->count, err);
+        if (rc) return rc;
         x = &t->items[t->count++];
         memset(x, 0, sizeof *x);
         x->id = id;
@@ -257,7 +262,10 @@ int disp_textures_release(disp_textures *t, uint32_t id, ct_error *err)
     disp_texture *x = find(t, id);
     if (!x) return ct_fail(err, CT_EPROTO, "free of unknown texture %u", id);
     gl.DeleteTextures(1, &x->gl_tex);
+    idmap_del(&t->ix, id);
     *x = t->items[--t->count];
+    /* the last entry moved into the hole: an update, which cannot fail */
+    if (x != &t->items[t->count]) idmap_put(&t->ix, x->id, (uint32_t)(x - t->items), NULL);
     return CT_OK;
 }
 
