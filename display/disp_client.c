@@ -392,8 +392,8 @@ static int receive(disp_client *c, ct_error *err)
         if (!rc) continue;
         if ((m.type >= WIRE_TEX_ALLOC && m.type <= WIRE_TEX_PATCH) || m.type == WIRE_TEX_RESIZE) {
             /* Inbox errors do not know the peer: name it and the message. */
-            char what[64];
-            snprintf(what, sizeof what, "%s from %s", wire_type_name(m.type), c->addr);
+            char what[XPORT_ADDR_LEN + 32];
+            snprintf(what, sizeof what, "%s: %s", c->addr, wire_type_name(m.type));
             ct_error_prefix(err, what);
         }
         /* A message that does not fit our state: tell the master why before
