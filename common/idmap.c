@@ -1,13 +1,31 @@
 /* idmap.c: the id -> index hash map (idmap.h). */
 #include "common/idmap.h"
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 
-/* Fibonacci hashing: ids that are consecutive or share low bits spread. */
+#include "common/timer.h"
+
+/* splitmix64's finaliser of the id and the map's seed, top bits: ids that
+ * are consecutive or share low bits spread, and without the seed nobody
+ * can tell which ids collide. */
 static uint32_t home(const ct_idmap *m, uint32_t key)
 {
-    return (uint32_t)(((uint64_t)key * 0x9E3779B97F4A7C15ull) >> 32) & (m->cap - 1);
+    uint64_t z = (uint64_t)key ^ m->seed;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return (uint32_t)(z >> m->shift);
+}
+
+static uint64_t new_seed(const ct_idmap *m)
+{
+    uint64_t s;
+    if (getrandom(&s, sizeof s, GRND_NONBLOCK) == (ssize_t)sizeof s) return s;
+    /* (no entropy yet, early at boot: still not known to a peer) */
+    return (uint64_t)(uintptr_t)m * 0x9E3779B97F4A7C15ull ^ ct_now_us();
 }
 
 void idmap_free(ct_idmap *m)
@@ -42,6 +60,7 @@ static void insert(ct_idmap *m, uint32_t key, uint32_t val)
 
 int idmap_put(ct_idmap *m, uint32_t key, uint32_t val, ct_error *err)
 {
+    if (val == IDMAP_NONE) return ct_fail(err, CT_EINVAL, "id map: index %u is the empty mark", val);
     if (m->n) {
         for (uint32_t i = home(m, key);; i = (i + 1) & (m->cap - 1)) {
             if (m->s[i].val == IDMAP_NONE) break;
@@ -58,8 +77,10 @@ int idmap_put(ct_idmap *m, uint32_t key, uint32_t val, ct_error *err)
         ct_idmap_slot *s = malloc((size_t)cap * sizeof *s);
         if (!s) return ct_fail(err, CT_ENOMEM, "id map: out of memory for %u slots", cap);
         ct_idmap old = *m;
+        if (!old.cap) m->seed = new_seed(m);
         m->s = s;
         m->cap = cap;
+        m->shift = 64u - (uint32_t)__builtin_ctz(cap);
         idmap_clear(m);
         for (uint32_t i = 0; i < old.cap; i++)
             if (old.s[i].val != IDMAP_NONE) insert(m, old.s[i].key, old.s[i].val);

@@ -24,14 +24,15 @@
 #define PING_EVERY_US 1000000u
 #define PING_QUICK 4
 #define READ_AFTER_SEND_FAILED_US 2000000u   /* see thread_main */
-/* A master that completes no message this long (disp_client_opts.silent_ms),
- * PONGs included, is taken for gone: one stopped in the middle of a message
- * left a lockstep display waiting for good (a working master answers a PING
- * within its loop's turn, and a busy queue still delivers whole messages:
- * the largest a master sends, a patch of one row of tiles of a 16384-texel
- * texture, is 384 KiB, 3 s over 1 Mbit/s). Whole messages, not bytes: one
- * byte a second kept a master that trickled a frame alive for good. */
+/* A master that makes no progress this long (disp_client_opts.silent_ms) is
+ * taken for gone: one stopped in the middle of a message left a lockstep
+ * display waiting for good (a working master answers a PING within its
+ * loop's turn). Progress is a whole message, PONGs included, or
+ * PROGRESS_BYTES more of one: a SCENE_CHUNK of up to 1 MiB over a slow link
+ * still counts, a master that trickles a frame a byte a second (which kept
+ * the display waiting when any byte counted) does not. */
 #define MASTER_SILENT_MS 30000
+#define PROGRESS_BYTES (64u << 10)   /* 64 KiB in 30 s: 17 kbit/s */
 
 struct disp_client {
     chan *ch;
@@ -423,7 +424,7 @@ static void *thread_main(void *arg)
     disp_client *c = arg;
     ct_error err;
     ct_error_clear(&err);
-    uint64_t next_ping = ct_now_us(), heard = next_ping, heard_msgs = 0;
+    uint64_t next_ping = ct_now_us(), heard = next_ping, heard_msgs = 0, heard_rx = 0;
     int pings = 0, rc = 0;
     bool more = false;   /* the last pump read bytes nobody has decoded yet */
     while (!atomic_load(&c->stop)) {
@@ -461,8 +462,9 @@ static void *thread_main(void *arg)
         uint64_t rx2;
         chan_byte_counts(c->ch, &rx2, &tx);
         more = rx2 != rx;
-        if (c->msgs_in != heard_msgs) {
+        if (c->msgs_in != heard_msgs || rx2 - heard_rx >= PROGRESS_BYTES) {
             heard_msgs = c->msgs_in;
+            heard_rx = rx2;
             heard = now;
         } else if (!c->send_rc && now - heard > 1000u * (uint64_t)c->silent_ms) {
             rc = ct_fail(&err, CT_EIO, "%s: the master completed no message for %.1f s, not even a PONG", c->addr,

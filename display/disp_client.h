@@ -24,7 +24,7 @@ typedef struct disp_client_opts {
     const char *token_file;       /* NULL: $CORRTEX_TOKEN, or none */
     uint32_t samples_per_frame;   /* lockstep K (0: free running) */
     int connect_timeout_ms;       /* connect + handshake */
-    int silent_ms;                /* a master that sends nothing this long is gone (0: 30000) */
+    int silent_ms;                /* a master that completes no message (nor 64 KiB of one) this long is gone (0: 30000) */
 } disp_client_opts;
 
 typedef struct disp_client disp_client;

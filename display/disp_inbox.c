@@ -332,6 +332,14 @@ int disp_inbox_tex_resize(disp_inbox *b, uint32_t id, int w, int h, ct_error *er
     }
     pthread_mutex_lock(&b->mu);
     t = find(b, id);   /* (the render thread may have compacted the table) */
+    if (!t) {
+        /* cannot happen: compaction keeps live textures, and only this
+         * thread frees one; refused rather than crashed on */
+        pthread_mutex_unlock(&b->mu);
+        free(st.tx);
+        free(st.bits);
+        return ct_fail(err, CT_ESYS, "texture %u vanished while it was resized", id);
+    }
     store_attach(b, t, &st);
     /* The new GL texture (fresh) takes every tile (or the old texture's: the
      * GPU keeps its scaled texels until the upload replaces them,

@@ -52,7 +52,7 @@ typedef struct naive_opts {
 static const optab OPTS[] = {
     {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE", "the radiosity cache (.ctmesh) the display draws (required)",
      NULL},
-    {"path", 0, OPTAB_STRING, OF(path), 0, 0, NULL, "P", "camera path: a file, or a path name of the scene (required)",
+    {"path", 0, OPTAB_STRING, OF(path), 0, 0, NULL, "P", "camera path: a path name of the scene, or a file (required)",
      NULL},
     {"frames", 0, OPTAB_INT, OF(frames), 1, 100000, "100", "N", "frames spread evenly over the path", NULL},
     /* §5: 1,000 to 4,000 samples per frame */

@@ -32,9 +32,9 @@ typedef enum fxm_end {
     FXM_END_TRICKLE = 8, /* send a TEX_PATCH frame one byte every 50 ms (no PONG), for
                           * up to 5 s or until the display hangs up */
     FXM_END_FRAME_AGAIN = 9, /* send FRAME 5 twice, then wait (up to 5 s) for the end */
-    FXM_END_RESIZES = 10 /* a 2048x2048 texture, then 500 TEX_RESIZE to 4096x4096 and back
-                          * (minutes of work for the display), then wait (up to 10 s)
-                          * for the end */
+    FXM_END_RESIZES = 10 /* a 2048x2048 texture, then 1,000 TEX_RESIZE, to 4096x4096 and
+                          * back in turn (minutes of work for the display), then wait
+                          * (up to 10 s) for the end */
 } fxm_end;
 
 #define FXM_ROUNDS 30

@@ -369,10 +369,11 @@ Test(disp_client, a_master_that_trickles_a_message_is_given_up)
               err.msg);
 }
 
-/* A master that queues minutes of work (500 resizes of a 4096x4096
- * texture, 20 bytes each): the display, asked to stop, stops within about
- * one resize (its connection thread used to work through every message it
- * had read before it looked). */
+/* A master that queues minutes of work (1,000 resizes, to 4096x4096 and
+ * back, 20 bytes each): the display, asked to stop, stops within about one
+ * resize (its connection thread used to work through every message it had
+ * read before it looked; a resize takes up to a second under the
+ * sanitizers, hence the bound of 10 s against minutes). */
 Test(disp_client, a_display_asked_to_stop_does_not_finish_a_backlog_first, .timeout = 30)
 {
     fxm_peer p;
@@ -391,7 +392,7 @@ Test(disp_client, a_display_asked_to_stop_does_not_finish_a_backlog_first, .time
     disp_client_close(c);
     double took = ct_now() - t0;
     printf("closing with a backlog of resizes took %.2f s\n", took);
-    cr_expect_lt(took, 3.0, "closing took %.2f s", took);
+    cr_expect_lt(took, 10.0, "closing took %.2f s", took);
     disp_inbox_free(in);
     cr_expect_eq(fxm_stop(&p), 0);
 }

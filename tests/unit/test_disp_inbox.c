@@ -8,7 +8,7 @@
  * messages that do not fit are refused with their reason; the lag
  * histogram's quantiles; an exact resize (TEX_RESIZE) computed from the
  * inbox's copy and uploaded whole; resizes racing the frames that take them; every
- * kind of message in random order racing frames that draw them. Over 600
+ * kind of message (exact resizes included) in random order racing frames that draw them. Over 600
  * lines: the two threads' cases share one GL rig and its helpers. */
 #include <criterion/criterion.h>
 #include <pthread.h>
@@ -548,7 +548,9 @@ static void *churn_loop(void *arg)
         } else if (op < 30 && w[id]) {
             c->rc = disp_inbox_tex_projection(c->in, id, &p, &c->err);
         } else if (op < 90 && w[id]) {
-            int pw = 1 + (int)(churn_rand(&seed) % (uint32_t)w[id]), ph = 1 + (int)(churn_rand(&seed) % (uint32_t)h[id]);
+            /* (at most 64 x 64: px's size; resizes make textures up to 128) */
+            int pw = 1 + (int)(churn_rand(&seed) % (uint32_t)(w[id] < 64 ? w[id] : 64));
+            int ph = 1 + (int)(churn_rand(&seed) % (uint32_t)(h[id] < 64 ? h[id] : 64));
             int x = (int)(churn_rand(&seed) % (uint32_t)(w[id] - pw + 1));
             int y = (int)(churn_rand(&seed) % (uint32_t)(h[id] - ph + 1));
             c->rc = disp_inbox_tex_patch(c->in, id, x, y, pw, ph, px, 1000u + (uint64_t)i, 1 + (uint32_t)(r % 5),
@@ -558,6 +560,16 @@ static void *churn_loop(void *arg)
         } else if (op < 97) {
             disp_inbox_frame_end(c->in, (uint64_t)i, 0, 7, false);
             disp_inbox_stats(c->in, (uint64_t)i, false);
+        } else if (w[id]) {
+            /* an exact resize, computed outside the lock while frames (and
+             * their compaction of the table) go on */
+            bool up = w[id] <= 64 && h[id] <= 64;
+            int nw = up ? 2 * w[id] : (w[id] + 1) / 2, nh = up ? 2 * h[id] : (h[id] + 1) / 2;
+            if (nw != w[id] || nh != h[id]) {
+                c->rc = disp_inbox_tex_resize(c->in, id, nw, nh, &c->err);
+                w[id] = nw;
+                h[id] = nh;
+            }
         }
     }
     atomic_store(&c->done, true);

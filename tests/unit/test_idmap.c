@@ -1,7 +1,8 @@
 /* test_idmap.c: the id -> index hash map (common/idmap.h) against a plain
  * reference under a long random run of puts, updates and deletes (ids
  * clustered so that probe runs collide and deletions shift entries back),
- * including the extreme ids 0 and 2^32 - 1; clearing keeps it usable. */
+ * including the extreme ids 0 and 2^32 - 1; clearing keeps it usable; the
+ * empty mark is refused as a value. */
 #include <criterion/criterion.h>
 #include <stdlib.h>
 
@@ -55,6 +56,8 @@ Test(idmap, random_operations_match_a_reference)
     idmap_clear(&m);
     for (int k = 0; k < NKEYS; k++) ref[k] = IDMAP_NONE;
     check_all(&m, ref);
+    cr_assert_eq(idmap_put(&m, 3, IDMAP_NONE, &err), CT_EINVAL);   /* the empty mark */
+    cr_assert_eq(idmap_get(&m, 3), IDMAP_NONE);
     cr_assert_eq(idmap_put(&m, UINT32_MAX, 7, &err), 0);
     cr_assert_eq(idmap_get(&m, UINT32_MAX), 7u);
     idmap_free(&m);
