@@ -116,8 +116,12 @@ master_term() {
   pid=$(rank_pid "$1" 0)
   if [[ -z $pid ]]; then
     # rank 0 ended before it was asked to: its log says why (on stderr,
-    # which a benchmark that hides this function's output still shows)
+    # which a benchmark that hides this function's output still shows),
+    # and mpirun's children whether it is a zombie mpirun has not reaped
+    # (seen twice under the sanitizers, mpirun then alive 20 s more)
     master_log "$1" | tail -n 20 >&2
+    echo "  mpirun ${MASTER_PID[$1]}'s children:" >&2
+    ps -o pid=,stat=,etime=,args= --ppid "${MASTER_PID[$1]}" 2>/dev/null | cut -c1-160 | sed 's/^/    /' >&2
     master_wait "$1" 20 || true
     fail "$1: rank 0 ended before SIGTERM (the job's exit status $MASTER_RC)" >&2
     return 1
