@@ -430,6 +430,18 @@ int scene_find_path(const ct_scene *s, const char *name)
     return -1;
 }
 
+const ct_campath *scene_path_or_file(const ct_scene *s, const char *scene_file, const char *name, ct_campath *own,
+                                     ct_error *err)
+{
+    int pi = scene_find_path(s, name);
+    if (pi >= 0) return &s->paths[pi];
+    int rc = campath_load(name, own, err);
+    if (!rc) return own;
+    ct_error why = *err;
+    ct_fail(err, rc, "path '%s' is neither a path of %s nor a readable path file (%s)", name, scene_file, why.msg);
+    return NULL;
+}
+
 vec3 scene_tri_normal(const ct_scene *s, uint32_t t)
 {
     const uint32_t *i = s->tris + 3 * (size_t)t;

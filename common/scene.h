@@ -178,6 +178,14 @@ int scene_find_camera(const ct_scene *s, const char *name);
 /* Index of the path with that name, or -1. */
 int scene_find_path(const ct_scene *s, const char *name);
 
+/* A --path value: the scene's path of that name first, else a path file
+ * loaded into *own (freed by the caller with campath_free when its keys are
+ * set). A folder or file named like a scene path (walk/ of an earlier run)
+ * does not hide the path. NULL with err naming both tries when neither
+ * works; scene_file names the scene in that message. */
+const ct_campath *scene_path_or_file(const ct_scene *s, const char *scene_file, const char *name, ct_campath *own,
+                                     ct_error *err);
+
 /* Geometric (face) normal and area of triangle t. */
 vec3 scene_tri_normal(const ct_scene *s, uint32_t t);
 float scene_tri_area(const ct_scene *s, uint32_t t);

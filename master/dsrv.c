@@ -411,9 +411,7 @@ static void service_display(dsrv *s)
         case WIRE_CAMERA: {
             char why[CT_ERROR_LEN];
             if (!camera_in_order(s, m.u.camera.epoch, why, sizeof why)) {
-                ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, why);
-                chan_send_error(s->disp, WIRE_ERR_PROTOCOL, why, 200);
-                close_display(s, why);
+                dsrv_drop(s, WIRE_ERR_PROTOCOL, why);
                 return;
             }
             add_event(s, DSRV_EV_MESSAGE, &m, NULL);
@@ -458,9 +456,7 @@ static void service_display(dsrv *s)
         default: {
             char why[CT_ERROR_LEN];
             snprintf(why, sizeof why, "unexpected %s message from a display", wire_type_name(m.type));
-            ct_warn(COMPONENT, "dropped display %s: %s", s->disp_peer, why);
-            chan_send_error(s->disp, WIRE_ERR_PROTOCOL, why, 200);
-            close_display(s, why);
+            dsrv_drop(s, WIRE_ERR_PROTOCOL, why);
             return;
         }
         }

@@ -202,19 +202,12 @@ static int run(const naive_opts *o, ct_error *err)
     if (!rc) rc = scene_load(o->scene, &scene, err);
     if (!rc) rc = rmesh_load(o->mesh, 0, &mesh, err);
     if (!rc) {
-        /* The scene's path name first, as corrtex reference does: a folder
-         * or file of that name beside it (walk/ of an earlier run) does not
-         * hide the path the user named. */
-        int pi = scene_find_path(scene, o->path);
-        if (pi >= 0) {
-            rc = campath_from_keys(scene->paths[pi].keys, scene->paths[pi].nkeys, scene->paths[pi].up, o->path,
-                                   &path, err);
-        } else if ((rc = campath_load(o->path, &path, err))) {
-            char why[CT_ERROR_LEN];
-            snprintf(why, sizeof why, "%s", err->msg);
-            rc = ct_fail(err, rc, "--path %s: neither a path of %s nor a readable path file (%s)", o->path, o->scene,
-                         why);
-        }
+        /* (a copy of the scene's path: path is freed as a loaded one is) */
+        ct_campath own = {0};
+        const ct_campath *p = scene_path_or_file(scene, o->scene, o->path, &own, err);
+        if (!p) rc = CT_EINVAL;
+        else if (p == &own) path = own;
+        else rc = campath_from_keys(p->keys, p->nkeys, p->up, o->path, &path, err);
         have_path = !rc;
     }
     if (!rc && (rc = trc_new(scene, &mesh, &o->trc, &trc, err)) == CT_ESTALE) ct_error_prefix(err, o->mesh);

@@ -309,16 +309,9 @@ int cmd_reference(int argc, char **argv)
     if ((rc = img_size_check(a.width, a.height, &err))) goto fail;
     if ((rc = scene_load(a.scene, &s, &err))) goto fail;
     if (a.path) {
-        int pi = scene_find_path(s, a.path);
-        if (pi >= 0) {
-            path = &s->paths[pi];
-        } else if ((rc = campath_load(a.path, &own_path, &err))) {
-            ct_error why = err;
-            ct_fail(&err, rc, "path '%s' is neither a path of %s nor a readable path file (%s)", a.path,
-                    a.scene, why.msg);
+        if (!(path = scene_path_or_file(s, a.scene, a.path, &own_path, &err))) {
+            rc = CT_EINVAL;
             goto fail;
-        } else {
-            path = &own_path;
         }
     } else if (a.camera) {
         int ci = scene_find_camera(s, a.camera);

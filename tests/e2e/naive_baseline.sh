@@ -62,7 +62,7 @@ bad() {  # bad WANT ARGS...
   grep -qF -- "$want" "$tmp/err" || fail "message lacks '$want': $*"
 }
 bad "--mesh" "$scene" --path "$pathf" -o "$tmp/x"
-bad "--path nope: neither a path of" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
+bad "path 'nope' is neither a path of" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
 bad "exceeds" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --samples-per-frame 65 -o "$tmp/x"
 bad "missing.ctmesh" "$scene" --mesh "$tmp/missing.ctmesh" --path "$pathf" -o "$tmp/x"
 # the tracer's option table, shared with corrtex-render and reference (tracer/trc_cli.h)
