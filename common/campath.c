@@ -37,6 +37,11 @@ static int validate(const campath_key *k, int n, vec3 up, const char *origin, co
         if (i > 0 && !(k[i].t > k[i - 1].t))
             return ct_fail(err, CT_EINVAL, "%s: time %g not after %g", where, (double)k[i].t,
                            (double)k[i - 1].t);
+        /* Each time finite, their span not: the path's duration was inf and
+         * every camera between the ends NaN (a tracer aborted on the rays). */
+        if (i > 0 && !isfinite(k[i].t - k[0].t))
+            return ct_fail(err, CT_ERANGE, "%s: times %g to %g span more than a float holds", where,
+                           (double)k[0].t, (double)k[i].t);
     }
     return CT_OK;
 }
@@ -233,7 +238,8 @@ ct_camera campath_frame(const ct_campath *p, int k, int n)
 {
     if (n <= 1) return p->cams[0];
     float t0 = p->keys[0].t;
-    return campath_eval(p, t0 + campath_duration(p) * (float)k / (float)(n - 1));
+    /* In double: duration * k alone may pass FLT_MAX. */
+    return campath_eval(p, (float)((double)t0 + (double)campath_duration(p) * k / (n - 1)));
 }
 
 void campath_free(ct_campath *p)

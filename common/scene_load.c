@@ -731,7 +731,11 @@ static int import_lights(loader *L, const cJSON *lights)
             if (r < 0) return (int)r;
             idx[k] = (uint32_t)r;
         }
+        uint32_t before = L->s->ntris;
         if ((rc = scene_add_polygon(L->s, idx, 4, L->err))) return rc;
+        /* Some area, but too thin for its length: the scene drops such
+         * slivers, and the light was gone with no word (a black image). */
+        if (L->s->ntris == before) return bad(L, ctx, "too thin: its area is a sliver of its edges' lengths");
         if ((rc = scene_end_node(L->s, L->err))) return rc;
     }
     return scene_end_node(L->s, L->err);

@@ -193,6 +193,24 @@ Test(campath, parse_errors_name_the_line)
     expect_error("0 0 0 5 0 0 0\n1 0 0 -1e19 0 0 0\n", CT_ERANGE, "bad.path:2:", "outside the coordinate range");
     expect_error("0 0 0 5 0 2e9 0\n", CT_ERANGE, "bad.path:1:", "eye or target");
     expect_error("up 0 0 0\n0 0 0 5 0 0 0\n", CT_EINVAL, "bad.path", "up");
+    /* Finite times whose span is not (the duration was inf, the cameras NaN). */
+    expect_error("-3e38 0 0 5 0 0 0\n3e38 1 0 5 0 0 0\n", CT_ERANGE, "bad.path:2:", "span more than a float");
+}
+
+/* The widest span a float holds: every frame's camera is finite. */
+Test(campath, frames_of_a_path_spanning_most_of_the_float_range)
+{
+    ct_campath p = load_text("-1e38 0 0 5 0 0 0\n1e38 1 0 5 0 0 0\n2e38 2 0 5 0 0 0\n");
+    for (int k = 0; k < 7; k++) {
+        ct_camera c = campath_frame(&p, k, 7);
+        cr_assert(v3_finite(c.eye) && isfinite(c.fov_y), "frame %d: eye (%g %g %g) fov %g", k, (double)c.eye.x,
+                  (double)c.eye.y, (double)c.eye.z, (double)c.fov_y);
+    }
+    /* Frame 3 of 7 is at 5e37, between the first two keys (duration x 3
+     * overflowed a float: the frame jumped to the path's end). */
+    float x = campath_frame(&p, 3, 7).eye.x;
+    cr_expect(x > 0.0f && x < 1.0f, "frame 3: eye x %g, want between the first keys' 0 and 1", (double)x);
+    campath_free(&p);
 }
 
 /* A NUL byte would end the text where it stands: what follows went unread. */

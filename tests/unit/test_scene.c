@@ -317,6 +317,9 @@ Test(scene_bad, wrong_types_and_values)
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"materials\":{\"m\":{\"diffuse\":[0.5,0.5]}}}", "array of 3"},
         {"{\"meshes\":[{\"file\":\"a.obj\",\"transform\":{\"scale\":0}}]}", "zero"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"lights\":[{\"type\":\"disc\"}]}", "unknown light type"},
+        /* Area, but a sliver: the scene dropped both triangles and the light was gone. */
+        {"{\"meshes\":[{\"file\":\"a.obj\"}],\"lights\":[{\"type\":\"quad\",\"corner\":[0,2,0],\"edge1\":[8,0,0],"
+         "\"edge2\":[0,0,1e-7],\"emission\":[1,1,1]}]}", "lights[0]: too thin"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"keys\":[[1,0,0,1,0,0,0],[0,0,0,2,0,0,0]]}]}", "not after"},
         {"{\"meshes\":[{\"file\":\"a.obj\"}],\"paths\":[{\"name\":\"p\",\"file\":\"x.path\"}]}", "x.path"},
         {"{\"meshes\":{}}", "must be an array"},
