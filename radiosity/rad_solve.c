@@ -563,6 +563,12 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         }
         ct_debug("radiosity", "pass %d: %llu links refined, %u elements, %.2f s", c->pass + 1,
                  (unsigned long long)refined, c->nelems, ct_now() - tp);
+        /* A scene that reflects nearly all its light (a closed white room)
+         * converges slowly: stopped here it is darker than its solution
+         * (20 % in a box of albedo 1 at the defaults), which no figure said. */
+        if (last && !(residual < tol))
+            ct_warn("radiosity", "not converged: residual %.2e after %d iterations is above --tolerance %.0e; "
+                    "the solution is darker than converged (raise --max-iterations)", residual, max_it, tol);
         if (last) break;
     }
     /* One more gather at the converged values for the absorbed power. */

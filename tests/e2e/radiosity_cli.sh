@@ -21,6 +21,13 @@ for key in patches links iterations residual triangles seconds; do
 done
 grep -q "^info radiosity: .*triangles.* s$" "$tmp/a.err" || { echo "FAIL: no final stats line on stderr"; fail=1; }
 grep -q "^progress radiosity" "$tmp/a.err" || { echo "FAIL: no progress line"; fail=1; }
+grep -q "not converged" "$tmp/a.err" && { echo "FAIL: the Cornell box converges, yet a warning says not"; fail=1; }
+# Stopped before the tolerance (a closed white room at the defaults): a
+# warning says the solution is darker than converged; it used to be silent.
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/n.ctmesh" --error 1e-4 --max-iterations 1 >/dev/null 2>"$tmp/n.err" \
+  || { echo "FAIL: the 1-iteration solve exited $?"; fail=1; }
+grep -q "^warn radiosity: not converged: residual .* after 1 iterations is above --tolerance" "$tmp/n.err" \
+  || { echo "FAIL: no 'not converged' warning"; cat "$tmp/n.err"; fail=1; }
 tris=$(awk '$1 == "triangles" { print $2 }' "$tmp/a.out")
 patches=$(awk '$1 == "patches" { print $2 }' "$tmp/a.out")
 (( tris > 2 * patches )) || { echo "FAIL: $tris triangles for $patches patches: no refinement"; fail=1; }
