@@ -230,7 +230,7 @@ ct_camera campath_eval(const ct_campath *p, float t)
     ct_camera c = cam_lerp(&p->cams[lo], &p->cams[lo + 1], u);
     /* The spline overshoots its keys by up to about half their spread: keep
      * the eye in the range a master accepts in a CAMERA. */
-    c.eye = v3_min(v3_max(spline(p->keys, p->nkeys, lo, u), v3s(-CT_COORD_MAX)), v3s(CT_COORD_MAX));
+    c.eye = v3_clamp_range(spline(p->keys, p->nkeys, lo, u));
     return c;
 }
 

@@ -59,6 +59,12 @@ static inline bool v3_in_range(vec3 a)
 {
     return fabsf(a.x) <= CT_COORD_MAX && fabsf(a.y) <= CT_COORD_MAX && fabsf(a.z) <= CT_COORD_MAX;
 }
+/* a moved into +-CT_COORD_MAX: interpolation between points at the
+ * range's edge rounds past it by a float step. */
+static inline vec3 v3_clamp_range(vec3 a)
+{
+    return v3_min(v3_max(a, v3s(-CT_COORD_MAX)), v3s(CT_COORD_MAX));
+}
 static inline bool v3_is_zero(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
 static inline float v3_get(vec3 a, int i) { return i == 0 ? a.x : (i == 1 ? a.y : a.z); }
 

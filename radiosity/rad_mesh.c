@@ -407,7 +407,9 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     if (rc) goto done;
     const float inv_pi = 1.0f / CT_PI;
     for (uint32_t g = 0; g < nv; g++) {
-        out->pos[g] = vpos[g];
+        /* (a room with walls at the range's edge: a corner rounded past it,
+         * and the mesh's own loader refused it) */
+        out->pos[g] = v3_clamp_range(vpos[g]);
         out->nrm[g] = v3_norm(vnrm[g]);
         out->rad[g] = v3_scale(vsum[g], inv_pi);
         out->rad_direct[g] = v3_scale(vdsum[g], inv_pi);
@@ -430,7 +432,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
                 r = v3_add(r, out->rad[bvert[b0 + j]]);
                 rd = v3_add(rd, out->rad_direct[bvert[b0 + j]]);
             }
-            out->pos[ce] = e->c;
+            out->pos[ce] = v3_clamp_range(e->c);
             out->nrm[ce] = pa->n;
             out->rad[ce] = v3_scale(r, 1.0f / (float)k);
             out->rad_direct[ce] = v3_scale(rd, 1.0f / (float)k);

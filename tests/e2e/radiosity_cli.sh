@@ -4,6 +4,7 @@
 # not depend on the thread count (byte-identical files), that --reuse keeps a
 # fresh cache and recomputes a stale one, and that bad input exits 2 with one
 # error line and a blown memory cap exits 1 naming the cap.
+# A room with walls at the coordinate range's edge gives a mesh a tracer takes.
 set -u
 BIN=${CORRTEX_BIN:-bin}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -100,4 +101,30 @@ echo "+ $BIN/corrtex-render $scene --rad-dim-floor 2  -> exit $rc: $(grep '^erro
 [[ $rc -eq 2 ]] || { echo "FAIL: corrtex-render exit $rc, want 2"; fail=1; }
 [[ $(grep -c '^error ' "$tmp/e") -eq 1 ]] || { echo "FAIL: corrtex-render: want exactly one error line"; cat "$tmp/e"; fail=1; }
 grep -q -- "--rad-dim-floor: '2'" "$tmp/e" || { echo "FAIL: corrtex-render's message lacks the option"; fail=1; }
+
+# A closed room with its walls at the coordinate range's edge (+-1e9, which
+# the scene format allows): subdivided corners rounded a float step past it
+# and the mesh's own loader refused the .ctmesh (corrtex-render failed to
+# start). Now the mesh keeps to the range and a tracer takes it.
+e=1e+09
+{
+  echo "usemtl wall"
+  for f in "$e -$e -$e|$e $e -$e|-$e $e -$e|-$e -$e -$e" "-$e $e $e|$e $e $e|$e -$e $e|-$e -$e $e" \
+           "-$e -$e -$e|-$e $e -$e|-$e $e $e|-$e -$e $e" "$e -$e $e|$e $e $e|$e $e -$e|$e -$e -$e" \
+           "-$e -$e $e|$e -$e $e|$e -$e -$e|-$e -$e -$e" "-$e $e -$e|$e $e -$e|$e $e $e|-$e $e $e"; do
+    IFS='|' read -r a b c d <<<"$f"; printf 'v %s\nv %s\nv %s\nv %s\n' "$a" "$b" "$c" "$d"
+  done
+  for i in 0 4 8 12 16 20; do echo "f $((i + 1)) $((i + 2)) $((i + 3)) $((i + 4))"; done
+} >"$tmp/edge.obj"
+cat >"$tmp/edge.json" <<'JSON'
+{"meshes": [{"file": "edge.obj"}], "materials": {"wall": {"diffuse": [0.5, 0.5, 0.5]}},
+ "cameras": [{"name": "c", "eye": [0, 0, -9e8], "target": [0, 0, 0]}],
+ "lights": [{"type": "quad", "corner": [-1e8, 9.9e8, -1e8], "edge1": [0, 0, 2e8], "edge2": [2e8, 0, 0],
+             "emission": [10, 10, 10]}]}
+JSON
+run "$BIN/corrtex" radiosity "$tmp/edge.json" -o "$tmp/edge.ctmesh" --max-triangles 20000 --quiet >/dev/null \
+  || { echo "FAIL: the room at the range's edge did not solve"; fail=1; }
+run "$BIN/corrtex" reference "$tmp/edge.json" --radmesh "$tmp/edge.ctmesh" --width 16 --height 16 --spp 1 --mode drt \
+  --quiet -o "$tmp/edge.exr" >/dev/null 2>"$tmp/edge.err" \
+  || { echo "FAIL: the room's mesh was refused: $(cat "$tmp/edge.err")"; fail=1; }
 exit $fail
