@@ -185,13 +185,19 @@ void disp_compositor_depth_range(const disp_scene *s, const ct_camera *cam, floa
     }
     float diag = v3_len(b3_extent(b));
     *zfar = fmaxf(dmax * 1.01f + 1e-3f * diag, 1e-3f);
-    /* A 24-bit depth buffer resolves dz = z^2 / (znear 2^24) at distance z:
+    /* Reversed float depth (zn / distance) resolves a float's 24 bits
+     * relative to the distance whatever znear is, so the near plane can sit
+     * where it clips nothing seen: at zfar / 10^3 a room inside a ground
+     * plane 10^4 times its size was clipped away, and at a field of view
+     * near 180 degrees so were the pixels looking sideways (a wall at 1 m
+     * seen at 89.99 degrees off the axis is 0.2 mm ahead along it).
+     * A 24-bit depth buffer resolves dz = z^2 / (znear 2^24) at distance z:
      * with znear = zfar / 10^4 that was 1.5 mm at 8 m in the office, and a
      * whiteboard 1 mm in front of its frame z-fought with it (the frame's
      * corrections showed through in black and white). zfar / 10^3 resolves
      * 0.15 mm there and clips only geometry nearer than a thousandth of the
      * scene's depth (2.5 cm in the office, 1.7 mm in the Cornell box). */
-    *znear = fmaxf(*zfar * 1e-3f, 1e-6f);
+    *znear = gl.reversed_z ? fmaxf(*zfar * 1e-7f, 1e-12f) : fmaxf(*zfar * 1e-3f, 1e-6f);
 }
 
 /* "Nearer" and "as near" for the depth convention in use (gl_load.h). */

@@ -111,7 +111,8 @@ void disp_compositor_read_display(disp_compositor *c, uint8_t *rgb);
 void disp_compositor_read_window(int win_w, int win_h, uint8_t *rgb);
 
 /* Near and far planes that bound the scene seen from cam (also what the
- * render uses). */
+ * render uses); the near plane follows the current context's depth
+ * convention (gl_load.h: far nearer with reversed float depth). */
 void disp_compositor_depth_range(const disp_scene *s, const ct_camera *cam, float *znear,
                                  float *zfar);
 

@@ -177,6 +177,73 @@ Test(disp_golden, one_millimetre_apart_at_twenty_metres) { layered((layers){20.0
 /* The classic 24-bit fallback: 1 mm apart at 8 m (the office's whiteboard). */
 Test(disp_golden, one_millimetre_apart_at_eight_metres_classic_depth) { layered((layers){8.0f, false}); }
 
+/* Near geometry the near plane must not clip: a white panel 0.5 m ahead in
+ * a scene 20 km deep (a ground plane around a room), and a closed white box
+ * seen from inside at a 179.9 degree field of view (pixels looking nearly
+ * sideways are a fraction of a millimetre ahead along the axis). With the
+ * near plane at a thousandth of the scene's depth the first was black and
+ * the second black at its edges. */
+typedef struct near_case {
+    bool box;   /* the box (else the panel in the deep scene) */
+} near_case;
+
+static int setup_near(disp_session *s, void *ctx, ct_error *err)
+{
+    const near_case *nc = ctx;
+    if (!gl.reversed_z) return ct_fail(err, CT_ESYS, "no clip control: no reversed depth");
+    ct_scene *sc = scene_new("near");
+    int dark = ts_diffuse(sc, "ground", v3s(0.0f), v3s(0.0f), err);
+    int white = ts_diffuse(sc, "white", v3s(1.0f), v3s(0.0f), err);
+    int rc = dark < 0 || white < 0 ? CT_EINVAL : CT_OK;
+    if (!rc && !nc->box) {
+        if (ts_quad(sc, "ground", (uint32_t)dark, v3(-2e4f, -2e4f, -2e4f), v3(4e4f, 0, 0), v3(0, 4e4f, 0), err) < 0 ||
+            ts_quad(sc, "panel", (uint32_t)white, v3(-0.2f, -0.2f, -0.5f), v3(0.4f, 0, 0), v3(0, 0.4f, 0), err) < 0)
+            rc = CT_EINVAL;
+    } else if (!rc) {
+        /* Six faces of [-1, 1]^3 around the eye. */
+        for (int a = 0; a < 3 && !rc; a++)
+            for (int side = -1; side <= 1 && !rc; side += 2) {
+                float c[3] = {-1, -1, -1}, e1[3] = {0, 0, 0}, e2[3] = {0, 0, 0};
+                c[a] = (float)side;
+                e1[(a + 1) % 3] = 2.0f;
+                e2[(a + 2) % 3] = 2.0f;
+                if (ts_quad(sc, "wall", (uint32_t)white, v3(c[0], c[1], c[2]), v3(e1[0], e1[1], e1[2]),
+                            v3(e2[0], e2[1], e2[2]), err) < 0)
+                    rc = CT_EINVAL;
+            }
+    }
+    if (!rc) rc = scene_finalize(sc, err);
+    ct_radmesh m;
+    if (!rc) rc = rmesh_from_scene(sc, v3s(1.0f), &m, err);
+    scene_free(sc);
+    if (rc) return rc;
+    rc = disp_session_scene(s, &m, err);
+    rmesh_free(&m);
+    return rc;
+}
+
+static void near_geometry(near_case nc, float fov_deg)
+{
+    ct_camera cam = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), fov_deg);
+    fx_frame f;
+    char msg[256];
+    disp_render_opts o = {1, DISP_VIEW_RADIOSITY, 0.0f, false, false, DISP_KEPT_AUTO};
+    int rc = fx_render(GL_BACKEND_EGL, 32, 32, &cam, &o, setup_near, &nc, &f, msg, sizeof msg);
+    if (rc && strstr(msg, "no clip control")) cr_skip_test("the GL context has no clip control");
+    cr_assert_eq(rc, 0, "egl: %s", msg);
+    int black = 0;
+    for (int p = 0; p < 32 * 32; p++)
+        if (f.linear[3 * (size_t)p] < 0.99f) black++;
+    printf("metric: %s, fov %g: %d of 1024 pixels clipped (not white)\n", nc.box ? "box from inside" : "panel in a deep scene",
+           (double)fov_deg, black);
+    cr_expect_eq(black, 0, "%d of 1024 pixels clipped by the near plane", black);
+    fx_frame_free(&f);
+}
+
+Test(disp_golden, a_panel_half_a_metre_ahead_in_a_scene_twenty_km_deep) { near_geometry((near_case){false}, 40.0f); }
+
+Test(disp_golden, a_box_seen_from_inside_at_a_179_degree_field_of_view) { near_geometry((near_case){true}, 179.9f); }
+
 /* Multisampling (--msaa): with 4 samples a pixel the interior pixels keep
  * the single-sample values (the varyings are centroid-sampled, so a covered
  * pixel is shaded at its centre), and the pixels on the box's edges come
