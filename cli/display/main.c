@@ -205,8 +205,10 @@ static int parse_camera(const char *s, ct_camera *cam)
         ct_log(CT_LOG_ERROR, COMP, "--camera: '%s' is not EX,EY,EZ,TX,TY,TZ[,FOV]", s);
         return -1;
     }
-    if (!(v[6] > 1 && v[6] < 179)) {
-        ct_log(CT_LOG_ERROR, COMP, "--camera: '%s': the field of view %g is outside (1, 179) degrees", s, (double)v[6]);
+    /* The range of scene cameras and paths (it was (1, 179) here alone). */
+    if (!cam_fov_deg_valid(v[6])) {
+        ct_log(CT_LOG_ERROR, COMP, "--camera: '%s': the field of view %g is outside [%g, %g] degrees", s,
+               (double)v[6], (double)CT_FOV_DEG_MIN, (double)CT_FOV_DEG_MAX);
         return -1;
     }
     vec3 eye = v3(v[0], v[1], v[2]), target = v3(v[3], v[4], v[5]);

@@ -137,6 +137,9 @@ bad "--samples-per-frame: '16777217' is not an integer in \[0, 16777216\]" --bac
 bad "--camera: '0,1,nan,0,0,0'" --backend osmesa --scene "$SCENE" --camera 0,1,nan,0,0,0
 bad "--camera: 'inf,1,4,0,0,0'" --backend osmesa --scene "$SCENE" --camera inf,1,4,0,0,0
 bad "must be finite and within +-1e+09" --backend osmesa --scene "$SCENE" --camera 0,1,-1e19,0,0,0
+# The field of view's range is the scenes' and paths' (it was (1, 179) here alone).
+bad "the field of view 179.995 is outside \[0.01, 179.99\] degrees" --backend osmesa --scene "$SCENE" \
+  --camera 0,1,4,0,1,0,179.995
 # A bad token file is bad input (exit 2), not a lost connection (exit 3);
 # a FIFO as token file used to block the display for good.
 printf 'short\n' >"$tmp/short.token"; chmod 600 "$tmp/short.token"
