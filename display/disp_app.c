@@ -367,7 +367,17 @@ static int run(app *a, ct_error *err)
             prev = c;
             /* frames.csv alone needs no pixels: no read-back. */
             bool pixels = disp_capture_needs_pixels(a->capture);
-            if (pixels) disp_compositor_read_linear(a->comp, rgb);
+            if (pixels) {
+                disp_compositor_read_linear(a->comp, rgb);
+                /* A negative correction splatted from a darker neighbour can
+                 * take a pixel below zero (-0.07 in the Cornell box); the
+                 * screen shows it as black, as the paper's clamping frame
+                 * buffer did, and so does the captured radiance. The
+                 * corrections view keeps its signs. */
+                if (a->ropts.view == DISP_VIEW_FULL)
+                    for (size_t i = 0; i < (size_t)3 * (size_t)o->width * (size_t)o->height; i++)
+                        rgb[i] = fmaxf(rgb[i], 0.0f);
+            }
             rc = disp_capture_frame(a->capture, &fi, pixels ? rgb : NULL, o->width, o->height, err);
             a->t_capture += ct_now() - cap0;
             if (rc) break;

@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "common/image.h"
 #include "display/disp_app.h"
 #include "tests/support/disp_fixture.h"
 #include "tests/support/disp_master.h"
@@ -105,6 +106,19 @@ Test(disp_app, bye_draws_the_last_state_and_exits_0)
     cr_expect_geq(lines, 2, "frames.csv has %d lines", lines);
     struct stat sb;
     cr_expect_eq(stat(out_file(&a, "frame_00000.png", path, sizeof path), &sb), 0, "no %s", path);
+    /* The wall's texture has corrections down to -0.25, below the wall's
+     * radiosity in places: the captured radiance is clamped at zero, as
+     * the screen shows it (it held negative pixels). */
+    ct_image img;
+    cr_assert_eq(img_read_exr(out_file(&a, "frame_00000.exr", path, sizeof path), &img, &err), 0, "%s", err.msg);
+    size_t neg = 0, zero = 0;
+    for (size_t i = 0; i < (size_t)3 * (size_t)img.width * (size_t)img.height; i++) {
+        neg += img.px[i] < 0.0f;
+        zero += img.px[i] == 0.0f;
+    }
+    printf("metric: captured frame: %zu negative values, %zu zeros\n", neg, zero);
+    cr_expect_eq(neg, 0, "%zu negative values in the captured radiance", neg);
+    img_free(&img);
     finish(&a);
 }
 
