@@ -7,14 +7,23 @@ void disp_fly_init(disp_fly *f, const ct_camera *cam, bounds3 scene)
     f->cam = *cam;
     cam_axes(cam, NULL, &f->world_up, NULL);
     float diag = b3_is_empty(scene) ? 1.0f : v3_len(b3_extent(scene));
-    f->speed = 0.25f * (diag > 0 ? diag : 1.0f);
+    if (!(diag > 0 && isfinite(diag))) diag = 1.0f;
+    f->speed = 0.25f * diag;
+    /* Unbounded, a hundred clicks of the wheel sent the eye past the range
+     * a CAMERA may carry in a second (the connection ended), and 1,200
+     * the other way left a speed of exactly 0 that no scrolling restored. */
+    f->speed_min = 1e-6f * diag;
+    f->speed_max = 100.0f * diag;
     f->look = 0.004f;
 }
 
 bool disp_fly_update(disp_fly *f, const gl_input *in, double dt)
 {
     bool changed = false;
-    if (in->scroll != 0.0) f->speed *= powf(1.25f, (float)in->scroll);
+    if (in->scroll != 0.0) {
+        float sp = f->speed * powf(1.25f, (float)fmax(-200.0, fmin(200.0, in->scroll)));
+        f->speed = fmaxf(f->speed_min, fminf(f->speed_max, sp));
+    }
     vec3 r, u, fw;
     cam_axes(&f->cam, &r, &u, &fw);
     vec3 move = v3s(0);
@@ -26,7 +35,7 @@ bool disp_fly_update(disp_fly *f, const gl_input *in, double dt)
     if (in->down['Q'] || in->down[GL_KEY_PAGE_DOWN]) move = v3_sub(move, f->world_up);
     if (!v3_is_zero(move)) {
         float step = f->speed * (float)dt * (in->down[GL_KEY_SHIFT] ? 4.0f : 1.0f);
-        f->cam.eye = v3_add(f->cam.eye, v3_scale(v3_norm(move), step));
+        f->cam.eye = v3_clamp_range(v3_add(f->cam.eye, v3_scale(v3_norm(move), step)));
         changed = true;
     }
     if (in->mouse_dx != 0.0 || in->mouse_dy != 0.0) {

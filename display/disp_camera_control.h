@@ -15,13 +15,16 @@ typedef struct disp_fly {
     ct_camera cam;
     vec3 world_up;
     float speed;       /* world units per second */
+    float speed_min, speed_max;   /* what the scroll wheel may reach */
     float look;        /* radians per pixel of mouse motion */
 } disp_fly;
 
-/* Starts at cam; speed is a quarter of the scene diagonal per second. */
+/* Starts at cam; speed is a quarter of the scene diagonal per second, and
+ * the scroll wheel keeps it within 10^-6 to 100 diagonals per second. */
 void disp_fly_init(disp_fly *f, const ct_camera *cam, bounds3 scene);
 
-/* Applies dt seconds of input; true when the camera changed. */
+/* Applies dt seconds of input; true when the camera changed. The eye
+ * stays within +-CT_COORD_MAX, the range a master takes. */
 bool disp_fly_update(disp_fly *f, const gl_input *in, double dt);
 
 /* A camera that sees all of bounds from the +z side with the given

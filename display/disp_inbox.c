@@ -105,6 +105,7 @@ struct disp_inbox {
     bool frame_taken_any;
     uint64_t frame_taken;
     uint64_t bytes_applied;
+    uint64_t bytes_base;   /* st.bytes when this connection began (it counts from 0) */
     /* render-thread scratch */
     texop *ops;
     uint32_t nops, cap_ops;
@@ -215,6 +216,10 @@ void disp_inbox_connection(disp_inbox *b)
     b->frame_taken_any = false;
     b->epoch = 0;
     b->nframes = 0;
+    /* st.bytes stays the session's total: the new connection's count
+     * starts from 0, and st.bytes - bytes_applied wrapped to 3e16 bytes
+     * right after a reconnection. */
+    b->bytes_base = b->st.bytes;
     pthread_mutex_unlock(&b->mu);
 }
 
@@ -501,7 +506,7 @@ void disp_inbox_view(disp_inbox *b, const ct_camera *cam)
 void disp_inbox_bytes(disp_inbox *b, uint64_t total)
 {
     pthread_mutex_lock(&b->mu);
-    b->st.bytes = total;
+    b->st.bytes = b->bytes_base + total;
     pthread_mutex_unlock(&b->mu);
 }
 

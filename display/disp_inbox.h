@@ -52,7 +52,7 @@ typedef struct disp_inbox_state {
     uint64_t frame_last;         /* ...with this number */
     bool have_view;              /* the master suggested a camera */
     ct_camera view;
-    uint64_t bytes;              /* bytes received */
+    uint64_t bytes;              /* bytes received, over every connection of the session */
 } disp_inbox_state;
 
 typedef struct disp_inbox disp_inbox;

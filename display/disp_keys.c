@@ -1,5 +1,7 @@
 #include "display/disp_keys.h"
 
+#include <math.h>
+
 #include "display/gl_backend.h"
 
 disp_key_action disp_keys_apply(int key, disp_render_opts *o)
@@ -10,8 +12,8 @@ disp_key_action disp_keys_apply(int key, disp_render_opts *o)
     }
     switch (key) {
     case 'P': o->passes = o->passes == 1 ? 3 : 1; return DISP_KEY_CHANGED;
-    case '+': o->exposure += DISP_EXPOSURE_STEP; return DISP_KEY_CHANGED;
-    case '-': o->exposure -= DISP_EXPOSURE_STEP; return DISP_KEY_CHANGED;
+    case '+': o->exposure = fminf(o->exposure + DISP_EXPOSURE_STEP, DISP_EXPOSURE_MAX); return DISP_KEY_CHANGED;
+    case '-': o->exposure = fmaxf(o->exposure - DISP_EXPOSURE_STEP, -DISP_EXPOSURE_MAX); return DISP_KEY_CHANGED;
     case '0': o->exposure = 0.0f; return DISP_KEY_CHANGED;
     case 'H': case '?': case GL_KEY_F1: return DISP_KEY_HELP;
     case 'C': return DISP_KEY_CAMERA;

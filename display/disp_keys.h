@@ -16,6 +16,9 @@ typedef enum disp_key_action {
 
 /* Exposure step of the + and - keys, in stops. */
 #define DISP_EXPOSURE_STEP 0.5f
+/* The keys keep the exposure within --exposure's range (+-30 stops; 400
+ * presses had reached 2^200, infinite in float). */
+#define DISP_EXPOSURE_MAX 30.0f
 
 /* Applies one key press (gl_backend.h key code) to o. */
 disp_key_action disp_keys_apply(int key, disp_render_opts *o);

@@ -48,6 +48,35 @@ Test(disp_camera_control, keys_move_along_the_view_axes)
     cr_expect_float_eq(f.speed, 2.0f * 1.5625f, 1e-5f);
 }
 
+/* A hundred clicks of the wheel and a key held took the eye past the range a
+ * CAMERA carries (the display's own encoder ended the connection); 1,200 the
+ * other way left a speed of 0 that no scrolling brought back. */
+Test(disp_camera_control, speed_and_eye_stay_within_bounds)
+{
+    ct_camera c = cam_look_at(v3(0, 1, 5), v3(0, 1, 0), v3(0, 1, 0), 50);
+    bounds3 b = {v3(-2, -2, -2), v3(2, 2, 2)};
+    float diag = v3_len(v3(4, 4, 4));
+    disp_fly f;
+    disp_fly_init(&f, &c, b);
+    gl_input in = none();
+    in.scroll = 1200;
+    disp_fly_update(&f, &in, 0.01);
+    cr_expect_float_eq(f.speed, 100.0f * diag, 1e-3f, "speed %g", (double)f.speed);
+    in = none();
+    in.down['W'] = true;
+    for (int i = 0; i < 100000 && fabsf(f.cam.eye.z) < CT_COORD_MAX; i++) disp_fly_update(&f, &in, 1e4);
+    cr_expect(v3_in_range(f.cam.eye), "eye (%g %g %g) out of range", (double)f.cam.eye.x, (double)f.cam.eye.y,
+              (double)f.cam.eye.z);
+    cr_expect_eq(f.cam.eye.z, -CT_COORD_MAX, "the eye stops at the range's edge (%g)", (double)f.cam.eye.z);
+    in = none();
+    in.scroll = -1e6;
+    disp_fly_update(&f, &in, 0.01);
+    cr_expect_float_eq(f.speed, 1e-6f * diag, 1e-9f, "speed %g", (double)f.speed);
+    in.scroll = 2;
+    disp_fly_update(&f, &in, 0.01);
+    cr_expect_gt(f.speed, 1e-6f * diag, "scrolling up brings the speed back");
+}
+
 Test(disp_camera_control, mouse_turns_without_roll)
 {
     ct_camera c = cam_look_at(v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), 50);

@@ -615,3 +615,22 @@ Test(disp_inbox, every_message_racing_frames_in_random_order)
     cr_expect_gt(texels, 0u);
     rig_close(&r);
 }
+
+/* The byte count is the session's: a new connection counts from 0, and the
+ * render thread's difference (total - applied) wrapped to 3e16 bytes right
+ * after a reconnection (the window's title showed kB/s of that size). */
+Test(disp_inbox, bytes_received_add_up_over_connections)
+{
+    disp_inbox *b;
+    ct_error err;
+    cr_assert_eq(disp_inbox_new(4096, &b, &err), 0, "%s", err.msg);
+    disp_inbox_connection(b);
+    disp_inbox_bytes(b, 1000);
+    cr_expect_eq(disp_inbox_get_state(b).bytes, 1000);
+    disp_inbox_connection(b);
+    disp_inbox_bytes(b, 10);
+    cr_expect_eq(disp_inbox_get_state(b).bytes, 1010, "bytes %llu", (unsigned long long)disp_inbox_get_state(b).bytes);
+    disp_inbox_bytes(b, 30);
+    cr_expect_eq(disp_inbox_get_state(b).bytes, 1030);
+    disp_inbox_free(b);
+}

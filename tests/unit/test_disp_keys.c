@@ -26,6 +26,10 @@ Test(disp_keys, view_pass_and_exposure_keys)
     cr_expect_float_eq(o.exposure, 2 * DISP_EXPOSURE_STEP, 1e-6f);
     disp_keys_apply('-', &o);
     cr_expect_float_eq(o.exposure, DISP_EXPOSURE_STEP, 1e-6f);
+    for (int i = 0; i < 400; i++) disp_keys_apply('+', &o);
+    cr_expect_float_eq(o.exposure, DISP_EXPOSURE_MAX, 0, "exposure %g", (double)o.exposure);
+    for (int i = 0; i < 800; i++) disp_keys_apply('-', &o);
+    cr_expect_float_eq(o.exposure, -DISP_EXPOSURE_MAX, 0, "exposure %g", (double)o.exposure);
     disp_keys_apply('0', &o);
     cr_expect_float_eq(o.exposure, 0.0f, 0);
     cr_expect_eq(disp_keys_apply('H', &o), DISP_KEY_HELP);
