@@ -297,6 +297,13 @@ static int run(app *a, ct_error *err)
                     a->ropts.view != drawn_opts.view || a->ropts.exposure != drawn_opts.exposure ||
                     a->ropts.all_positive != drawn_opts.all_positive || in.fb_width != drawn_w ||
                     in.fb_height != drawn_h || (window && now - t_drawn >= 0.25);
+        /* A minimised or unmapped window, free running, shows nothing: it
+         * drew 90 frames a second there, 70 % of a core taken from the
+         * tracers. The connection thread goes on acknowledging updates and
+         * the inbox keeps the newest texels for the frame on restore. */
+        if (draw && window && in.hidden && k > 0 && !capture_due && !o->continuous && nframes == 0 &&
+            o->samples_per_frame == 0)
+            draw = false;
         if (!draw) {
             bool waiting = a->hold_texels && a->inbox && disp_inbox_pending(a->inbox);
             ct_sleep_us(2000);

@@ -62,6 +62,7 @@ void gl_backend_poll(gl_backend *b, gl_input *in)
     in->mouse_dx = in->mouse_dy = in->scroll = 0;
     in->fb_width = b->width;
     in->fb_height = b->height;
+    in->hidden = false;
     if (b->ops->poll) b->ops->poll(b, in);
 }
 

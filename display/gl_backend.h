@@ -40,6 +40,7 @@ typedef struct gl_input {
     double scroll;                        /* wheel steps since the last poll */
     bool close;                           /* the window was asked to close */
     int fb_width, fb_height;              /* framebuffer size in pixels */
+    bool hidden;                          /* window iconified or unmapped: nothing to see */
 } gl_input;
 
 typedef struct gl_backend gl_backend;

@@ -100,6 +100,7 @@ static void glfw_poll(gl_backend *b, gl_input *in)
     in->scroll = s->pending.scroll;
     in->close = glfwWindowShouldClose(s->win);
     glfwGetFramebufferSize(s->win, &in->fb_width, &in->fb_height);
+    in->hidden = glfwGetWindowAttrib(s->win, GLFW_ICONIFIED) || !glfwGetWindowAttrib(s->win, GLFW_VISIBLE);
     s->pending.npresses = 0;
     s->pending.mouse_dx = s->pending.mouse_dy = s->pending.scroll = 0;
 }
