@@ -180,6 +180,14 @@ static int run(app *a, ct_error *err)
     double frame_cpu = 0;    /* CPU seconds of the last frame, taking what arrived included */
     int rc = CT_OK;
     bool fly_ready = disp_session_scene_of(a->session) != NULL;
+    /* The scene the fly camera was started over (its triangle count and
+     * bounds stand for its identity): a reconnection that brings another
+     * scene starts over without --camera, or the old scene's camera (far
+     * outside the new one, a black window) and speed stayed. */
+    const disp_scene *fly_scene = disp_session_scene_of(a->session);
+    uint64_t fly_serial = fly_scene ? disp_scene_serial(fly_scene) : 0;
+    uint32_t fly_ntris = fly_scene ? disp_scene_ntris(fly_scene) : 0;
+    bounds3 fly_bounds = fly_scene ? disp_scene_bounds(fly_scene) : b3_empty();
     bool path_done = false;
     gl_input in;
     memset(&in, 0, sizeof in);
@@ -220,7 +228,21 @@ static int run(app *a, ct_error *err)
                 break;
             }
         }
-        if (!fly_ready && disp_session_scene_of(a->session)) {
+        const disp_scene *now_scene = disp_session_scene_of(a->session);
+        if (fly_ready && now_scene && disp_scene_serial(now_scene) != fly_serial) {
+            bounds3 nb = disp_scene_bounds(now_scene);
+            bool other = disp_scene_ntris(now_scene) != fly_ntris || memcmp(&nb, &fly_bounds, sizeof nb) != 0;
+            if (other && !o->has_camera && !a->have_path) {
+                ct_info(COMP, "another scene arrived: starting at its view");
+                a->have_cam = false;
+                fly_ready = false;
+            }
+            fly_serial = disp_scene_serial(now_scene);
+        }
+        if (!fly_ready && now_scene) {
+            fly_serial = disp_scene_serial(now_scene);
+            fly_ntris = disp_scene_ntris(now_scene);
+            fly_bounds = disp_scene_bounds(now_scene);
             /* The scene arrived: start the fly camera over it, at the view
              * the master suggested when the user gave none. */
             bounds3 b = disp_scene_bounds(disp_session_scene_of(a->session));
