@@ -96,7 +96,16 @@ void app_set_title(app *a, double now, bool force)
     if (!force && dt < 0.5) return;
     disp_counters c = disp_session_counters(a->session);
     double fps = dt > 0 ? (double)a->stat_frames / dt : 0;
-    double sps = dt > 0 ? (double)(c.samples - a->stat_c0.samples) / dt : 0;
+    if (c.samples != a->sps_samples) {
+        if (a->sps_t > 0 && now > a->sps_t && c.samples > a->sps_samples)
+            a->sps_shown = (double)(c.samples - a->sps_samples) / (now - a->sps_t);
+        a->sps_samples = c.samples;
+        a->sps_t = now;
+    } else if (a->sps_t > 0 && now - a->sps_t > 3.0) {
+        a->sps_shown = 0.0;   /* no word for 3 s: nothing is being inserted */
+    }
+    if (a->sps_t == 0) a->sps_t = now;
+    double sps = a->sps_shown;
     double bps = dt > 0 ? (double)(c.bytes - a->stat_c0.bytes) / dt : 0;
     char title[320], points[80] = "";
     if (a->ropts.view == DISP_VIEW_SAMPLES) {
@@ -128,7 +137,10 @@ bool app_handle_keys(app *a, const gl_input *in)
             vec3 f;
             cam_axes(&a->fly.cam, NULL, NULL, &f);
             vec3 t = v3_add(a->fly.cam.eye, f);
-            printf("0  %.4f %.4f %.4f  %.4f %.4f %.4f  %.2f\n", a->fly.cam.eye.x, a->fly.cam.eye.y,
+            /* The time since the start, so that the lines of several
+             * presses make a path (every line said 0, and two of them were
+             * refused: "time 0 not after 0"). */
+            printf("%.3f  %.4f %.4f %.4f  %.4f %.4f %.4f  %.2f\n", ct_now() - a->t_run0, a->fly.cam.eye.x, a->fly.cam.eye.y,
                    a->fly.cam.eye.z, t.x, t.y, t.z, a->fly.cam.fov_y * 180.0f / CT_PI);
             fflush(stdout);
             break;
@@ -157,6 +169,7 @@ static int run(app *a, ct_error *err)
     int nframes = o->frames;
     if (!window && nframes == 0 && !a->have_path && !o->connect) nframes = 1;
     double t_start = ct_now(), t_last = t_start;
+    a->t_run0 = t_start;
     a->stat_t0 = t_start;
     a->stat_c0 = disp_session_counters(a->session);
     disp_counters prev = a->stat_c0;

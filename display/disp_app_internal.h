@@ -54,6 +54,11 @@ typedef struct app {
     double stat_t0;
     uint32_t stat_frames;
     disp_counters stat_c0;
+    /* The title's samples/s, measured between changes of the count (STATS
+     * every --stats-s: over the title's 0.5 s it read 0 and 2x in turn). */
+    double t_run0;            /* when run() began: the time of C's keyframe lines */
+    uint64_t sps_samples;
+    double sps_t, sps_shown;
     char status[160];
     uint64_t points_version;      /* of the sample points last uploaded */
     bool points_uploaded;

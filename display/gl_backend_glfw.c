@@ -62,6 +62,10 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     if (action == GLFW_PRESS) {
         s->pending.down[k] = true;
         if (s->pending.npresses < GL_INPUT_MAX_PRESSES) s->pending.presses[s->pending.npresses++] = k;
+    } else if (action == GLFW_REPEAT && (k == '+' || k == '-')) {
+        /* Exposure steps repeat while held (one step for a 2 s hold before);
+         * toggles (P, the views) do not. */
+        if (s->pending.npresses < GL_INPUT_MAX_PRESSES) s->pending.presses[s->pending.npresses++] = k;
     } else if (action == GLFW_RELEASE) {
         s->pending.down[k] = false;
     }
@@ -71,7 +75,8 @@ static void on_cursor(GLFWwindow *w, double x, double y)
 {
     glfw_state *s = glfwGetWindowUserPointer(w);
     bool held = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS ||
-                glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+                glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+                glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
     if (held && s->have_last) {
         s->pending.mouse_dx += x - s->last_x;
         s->pending.mouse_dy += y - s->last_y;
