@@ -860,6 +860,17 @@ int disp_compositor_present(disp_compositor *c, const disp_render_opts *o, bool 
     gl_target_bind(to_window ? NULL : &c->ldr, win_w, win_h);
     gl.Disable(GL_DEPTH_TEST);
     gl.Disable(GL_BLEND);
+    if (to_window && (int64_t)win_w * c->height != (int64_t)win_h * c->width && win_w > 0 && win_h > 0) {
+        /* A window of another shape than the image (a tiling window manager,
+         * a user's resize) shows it whole at its own aspect ratio, black
+         * bars beside it; it was stretched (600 x 200 squashed a square
+         * view), and the master samples the image's size, not the window's. */
+        double sc = fmin((double)win_w / c->width, (double)win_h / c->height);
+        int vw = (int)fmax(1.0, round(c->width * sc)), vh = (int)fmax(1.0, round(c->height * sc));
+        gl.ClearColor(0, 0, 0, 1);
+        gl.Clear(GL_COLOR_BUFFER_BIT);
+        gl.Viewport((win_w - vw) / 2, (win_h - vh) / 2, vw, vh);
+    }
     gl.UseProgram(c->tonemap);
     gl.ActiveTexture(GL_TEXTURE0);
     gl.BindTexture(GL_TEXTURE_2D, shown(c)->color);
