@@ -58,7 +58,7 @@ LIBS_COMMON  := -lOpenEXRCore-3_1 -lassimp -lcjson -lpng -lz -lm
 LIBS_PROTO   := -llz4 -lsodium
 LIBS_EMBREE  := -lembree3
 LIBS_MPI     := $(shell pkg-config --libs ompi-c 2>/dev/null)
-LIBS_GL      := -lglfw -lEGL -lOSMesa -lGL -ldl
+LIBS_GL      := -lglfw -lX11 -lEGL -lOSMesa -lGL -ldl
 LIBS_TEST    := -lcriterion
 
 ifeq ($(V),1)

@@ -5,10 +5,12 @@
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
+#include <X11/Xlib.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "common/log.h"
 #include "display/gl_backend_impl.h"
 
 typedef struct glfw_state {
@@ -19,6 +21,54 @@ typedef struct glfw_state {
 } glfw_state;
 
 static char glfw_msg[200];
+
+/* GLFW's own X11 accessor (glfw3native.h declares it, but with
+ * GLFW_EXPOSE_NATIVE_X11 that header also wants the XRandR headers). */
+GLFWAPI Display *glfwGetX11Display(void);
+
+/* The window gone under the program: another client destroyed it (an X
+ * error, BadWindow) or the X server went away (an I/O error). Xlib's own
+ * handlers printed five lines or one of their own and called exit(): no
+ * BYE to the master, frames.csv not completed. Now the window counts as
+ * closed, with one line saying why, and the run ends in order. 1: an X
+ * error, 2: the connection broke (Xlib then does nothing more on it). */
+static volatile int x_gone;
+static char x_why[160];
+
+static int on_x_error(Display *d, XErrorEvent *e)
+{
+    if (!x_gone) {
+        char text[96];
+        XGetErrorText(d, e->error_code, text, sizeof text);
+        snprintf(x_why, sizeof x_why, "X error %s (request %u)", text, (unsigned)e->request_code);
+        x_gone = 1;
+    }
+    return 0;
+}
+
+static int on_x_io_error(Display *d)
+{
+    (void)d;
+    return 0;   /* Xlib then calls the exit handler below instead of exit() */
+}
+
+static void on_x_io_exit(Display *d, void *user)
+{
+    (void)d;
+    (void)user;
+    snprintf(x_why, sizeof x_why, "the connection to the X server broke");
+    x_gone = 2;
+}
+
+/* Ours, also after GLFW set and reset its own around some of its calls. */
+static void x_handlers(void)
+{
+    Display *d = glfwGetX11Display();
+    if (!d) return;
+    XSetErrorHandler(on_x_error);
+    XSetIOErrorHandler(on_x_io_error);
+    XSetIOErrorExitHandler(d, on_x_io_exit, NULL);
+}
 
 static void on_error(int code, const char *desc)
 {
@@ -96,6 +146,14 @@ static void on_scroll(GLFWwindow *w, double dx, double dy)
 static void glfw_poll(gl_backend *b, gl_input *in)
 {
     glfw_state *s = b->state;
+    if (x_gone) {
+        static bool told;
+        if (!told) ct_warn("display", "the window is gone: %s; ending as if it were closed", x_why);
+        told = true;
+        in->close = true;
+        return;
+    }
+    x_handlers();
     glfwPollEvents();
     memcpy(in->down, s->pending.down, sizeof in->down);
     memcpy(in->presses, s->pending.presses, sizeof in->presses);
@@ -104,6 +162,10 @@ static void glfw_poll(gl_backend *b, gl_input *in)
     in->mouse_dy = s->pending.mouse_dy;
     in->scroll = s->pending.scroll;
     in->close = glfwWindowShouldClose(s->win);
+    if (x_gone) {
+        glfw_poll(b, in);   /* says so once, and closes */
+        return;
+    }
     glfwGetFramebufferSize(s->win, &in->fb_width, &in->fb_height);
     in->hidden = glfwGetWindowAttrib(s->win, GLFW_ICONIFIED) || !glfwGetWindowAttrib(s->win, GLFW_VISIBLE);
     s->pending.npresses = 0;
@@ -113,12 +175,14 @@ static void glfw_poll(gl_backend *b, gl_input *in)
 static void glfw_present(gl_backend *b)
 {
     glfw_state *s = b->state;
+    if (x_gone) return;
     glfwSwapBuffers(s->win);
 }
 
 static void glfw_title(gl_backend *b, const char *title)
 {
     glfw_state *s = b->state;
+    if (x_gone) return;
     glfwSetWindowTitle(s->win, title);
 }
 
@@ -126,8 +190,12 @@ static void glfw_close(gl_backend *b)
 {
     glfw_state *s = b->state;
     if (!s) return;
-    if (s->win) glfwDestroyWindow(s->win);
-    glfwTerminate();
+    /* (with the server gone there is nothing to destroy, and GLFW's
+     * teardown would wait on the dead connection) */
+    if (x_gone != 2) {
+        if (s->win) glfwDestroyWindow(s->win);
+        glfwTerminate();
+    }
     free(s);
     b->state = NULL;
 }
@@ -138,9 +206,12 @@ int gl_backend_open_glfw(gl_backend *b, const char *title, bool vsync, ct_error 
 {
     glfw_msg[0] = '\0';
     glfwSetErrorCallback(on_error);
-    if (!glfwInit())
-        return ct_fail(err, CT_ESYS, "glfw: cannot initialise: %s (is $DISPLAY set? try "
-                       "--backend egl)", glfw_msg[0] ? glfw_msg : "unknown error");
+    if (!glfwInit()) {
+        const char *dpy = getenv("DISPLAY");
+        return ct_fail(err, CT_ESYS, "glfw: cannot initialise: %s (%s%s%s; try --backend egl)",
+                       glfw_msg[0] ? glfw_msg : "unknown error", dpy && *dpy ? "DISPLAY=" : "$DISPLAY is not set",
+                       dpy && *dpy ? dpy : "", dpy && *dpy ? " cannot be opened" : "");
+    }
     glfw_state *s = calloc(1, sizeof *s);
     if (!s) {
         glfwTerminate();
@@ -166,6 +237,8 @@ int gl_backend_open_glfw(gl_backend *b, const char *title, bool vsync, ct_error 
     glfwSetScrollCallback(s->win, on_scroll);
     glfwMakeContextCurrent(s->win);
     glfwSwapInterval(vsync ? 1 : 0);
+    x_gone = 0;
+    x_handlers();
     int rc = gl_load(getproc, "glfw", err);
     if (rc) glfw_close(b);
     return rc;
