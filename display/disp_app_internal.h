@@ -67,8 +67,8 @@ typedef struct app {
 /* What the connection says about the frame about to be drawn. */
 enum { STEP_DRAW = 0, STEP_END = 1, STEP_WAIT = 2, STEP_QUIT = 3, STEP_LOST = 4, STEP_ERROR = 5 };
 
-/* disp_app.c: the window title (statistics and status), at most twice a
- * second unless forced; the keys (false: the user asked to quit). */
+/* disp_app_window.c: the window title (statistics and status), at most
+ * twice a second unless forced; the keys (false: the user asked to quit). */
 void app_set_title(app *a, double now, bool force);
 bool app_handle_keys(app *a, const gl_input *in);
 
