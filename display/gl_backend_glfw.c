@@ -33,6 +33,7 @@ GLFWAPI Display *glfwGetX11Display(void);
  * closed, with one line saying why, and the run ends in order. 1: an X
  * error, 2: the connection broke (Xlib then does nothing more on it). */
 static volatile int x_gone;
+static bool x_told;
 static char x_why[160];
 
 static int on_x_error(Display *d, XErrorEvent *e)
@@ -147,9 +148,8 @@ static void glfw_poll(gl_backend *b, gl_input *in)
 {
     glfw_state *s = b->state;
     if (x_gone) {
-        static bool told;
-        if (!told) ct_warn("display", "the window is gone: %s; ending as if it were closed", x_why);
-        told = true;
+        if (!x_told) ct_warn("display", "the window is gone: %s; ending as if it were closed", x_why);
+        x_told = true;
         in->close = true;
         return;
     }
@@ -238,6 +238,7 @@ int gl_backend_open_glfw(gl_backend *b, const char *title, bool vsync, ct_error 
     glfwMakeContextCurrent(s->win);
     glfwSwapInterval(vsync ? 1 : 0);
     x_gone = 0;
+    x_told = false;
     x_handlers();
     int rc = gl_load(getproc, "glfw", err);
     if (rc) glfw_close(b);
