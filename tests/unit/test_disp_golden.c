@@ -111,6 +111,20 @@ Test(disp_golden, rejects_bad_mesh)
     rmesh_free(&m);
 }
 
+/* Gives session s the scene sc (freed) with the stand-in radiosity of
+ * ambient 1 (white diffuse = 1); rc is the building's status so far. */
+static int show_scene(disp_session *s, ct_scene *sc, int rc, ct_error *err)
+{
+    if (!rc) rc = scene_finalize(sc, err);
+    ct_radmesh m;
+    if (!rc) rc = rmesh_from_scene(sc, v3s(1.0f), &m, err);
+    scene_free(sc);
+    if (rc) return rc;
+    rc = disp_session_scene(s, &m, err);
+    rmesh_free(&m);
+    return rc;
+}
+
 /* A 25 m deep scene (a floor strip sets the far plane), a black panel
  * `dist` metres ahead and a white one 1 mm in front of it, added after it so
  * that depth ties would go to the black one. */
@@ -133,14 +147,7 @@ static int setup_layers(disp_session *s, void *ctx, ct_error *err)
     if (!rc && ts_quad(sc, "frame", (uint32_t)dark, v3(-4, -4, z), v3(8, 0, 0), v3(0, 8, 0), err) < 0) rc = CT_EINVAL;
     if (!rc && ts_quad(sc, "board", (uint32_t)white, v3(-4, -4, z + 0.001f), v3(8, 0, 0), v3(0, 8, 0), err) < 0)
         rc = CT_EINVAL;
-    if (!rc) rc = scene_finalize(sc, err);
-    ct_radmesh m;
-    if (!rc) rc = rmesh_from_scene(sc, v3s(1.0f), &m, err);
-    scene_free(sc);
-    if (rc) return rc;
-    rc = disp_session_scene(s, &m, err);
-    rmesh_free(&m);
-    return rc;
+    return show_scene(s, sc, rc, err);
 }
 
 /* Board pixels (of the middle 16 x 16) that show the frame behind. */
@@ -212,14 +219,7 @@ static int setup_near(disp_session *s, void *ctx, ct_error *err)
                     rc = CT_EINVAL;
             }
     }
-    if (!rc) rc = scene_finalize(sc, err);
-    ct_radmesh m;
-    if (!rc) rc = rmesh_from_scene(sc, v3s(1.0f), &m, err);
-    scene_free(sc);
-    if (rc) return rc;
-    rc = disp_session_scene(s, &m, err);
-    rmesh_free(&m);
-    return rc;
+    return show_scene(s, sc, rc, err);
 }
 
 static void near_geometry(near_case nc, float fov_deg)
