@@ -66,7 +66,7 @@ int disp_tiles_set(disp_tiles *t, const float *tri, int width, int height, ct_er
             int rc = ct_grow((void **)&t->ids, &t->ids_cap, used + k, sizeof *t->ids, "tile index entries", err);
             if (rc) return rc;
             first[(size_t)ty * (size_t)tw + (size_t)tx] = (uint32_t)used;
-            memcpy(t->ids + used, t->scratch, k * sizeof *t->ids);
+            if (k) memcpy(t->ids + used, t->scratch, k * sizeof *t->ids);   /* (ids is NULL while every tile is empty) */
             used += k;
         }
     first[ntiles] = (uint32_t)used;

@@ -88,3 +88,17 @@ Test(disp_tiles, cover_matches_a_scan_of_the_pixels)
     disp_tiles_free(t);
     free(img);
 }
+
+/* A view with no triangle (all background, as when the window went away):
+ * the index is empty, and no copy is made from a null table (UBSan caught a
+ * memcpy of 0 bytes into NULL). */
+Test(disp_tiles, an_image_of_background_only)
+{
+    disp_tiles *t;
+    ct_error err;
+    cr_assert_eq(disp_tiles_new(&t, &err), 0, "%s", err.msg);
+    float img[70 * 40];
+    for (int i = 0; i < 70 * 40; i++) img[i] = -1.0f;
+    cr_expect_eq(disp_tiles_set(t, img, 70, 40, &err), 0, "%s", err.msg);
+    disp_tiles_free(t);
+}
