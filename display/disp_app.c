@@ -135,10 +135,10 @@ static int run(app *a, ct_error *err)
      * bounds stand for its identity): a reconnection that brings another
      * scene starts over without --camera, or the old scene's camera (far
      * outside the new one, a black window) and speed stayed. */
-    const disp_scene *fly_scene = disp_session_scene_of(a->session);
-    uint64_t fly_serial = fly_scene ? disp_scene_serial(fly_scene) : 0;
-    uint32_t fly_ntris = fly_scene ? disp_scene_ntris(fly_scene) : 0;
-    bounds3 fly_bounds = fly_scene ? disp_scene_bounds(fly_scene) : b3_empty();
+    const disp_scene *sc0 = disp_session_scene_of(a->session);
+    uint64_t fly_serial = sc0 ? disp_scene_serial(sc0) : 0;
+    uint32_t fly_ntris = sc0 ? disp_scene_ntris(sc0) : 0;
+    bounds3 fly_bounds = sc0 ? disp_scene_bounds(sc0) : b3_empty();
     bool path_done = false;
     gl_input in;
     memset(&in, 0, sizeof in);
@@ -188,7 +188,7 @@ static int run(app *a, ct_error *err)
                 a->have_cam = false;
                 fly_ready = false;
             }
-            fly_serial = disp_scene_serial(now_scene);
+            fly_serial = disp_scene_serial(now_scene);   /* the same scene again: keep flying */
         }
         if (!fly_ready && now_scene) {
             fly_serial = disp_scene_serial(now_scene);

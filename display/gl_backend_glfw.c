@@ -144,15 +144,20 @@ static void on_scroll(GLFWwindow *w, double dx, double dy)
     s->pending.scroll += dy;
 }
 
+/* With the window gone: says so once, and asks to close. */
+static bool window_gone(gl_input *in)
+{
+    if (!x_gone) return false;
+    if (!x_told) ct_warn("display", "the window is gone: %s; ending as if it were closed", x_why);
+    x_told = true;
+    in->close = true;
+    return true;
+}
+
 static void glfw_poll(gl_backend *b, gl_input *in)
 {
     glfw_state *s = b->state;
-    if (x_gone) {
-        if (!x_told) ct_warn("display", "the window is gone: %s; ending as if it were closed", x_why);
-        x_told = true;
-        in->close = true;
-        return;
-    }
+    if (window_gone(in)) return;
     x_handlers();
     glfwPollEvents();
     memcpy(in->down, s->pending.down, sizeof in->down);
@@ -162,10 +167,7 @@ static void glfw_poll(gl_backend *b, gl_input *in)
     in->mouse_dy = s->pending.mouse_dy;
     in->scroll = s->pending.scroll;
     in->close = glfwWindowShouldClose(s->win);
-    if (x_gone) {
-        glfw_poll(b, in);   /* says so once, and closes */
-        return;
-    }
+    if (window_gone(in)) return;
     glfwGetFramebufferSize(s->win, &in->fb_width, &in->fb_height);
     in->hidden = glfwGetWindowAttrib(s->win, GLFW_ICONIFIED) || !glfwGetWindowAttrib(s->win, GLFW_VISIBLE);
     s->pending.npresses = 0;
