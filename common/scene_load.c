@@ -35,7 +35,23 @@ typedef struct loader {
     ct_error unread;        /* the first companion that could not be read, "" if none */
     char unread_base[256];  /* its file name, '\\' read as '/' */
     int companions_read;    /* companions that could */
+    struct import_slot *imports;    /* one per mesh file the entries name */
+    int nimports;
 } loader;
+
+/* One import per mesh file. A scene that places one model many times names
+ * its file once per entry, and assimp's OBJ importer alone clears 8 MB of
+ * line buffers per import: 3,000 entries of a 12-triangle file took 10 s.
+ * An import is kept while later entries still name the file, so memory
+ * stays that of one import at a time when every file is named once. */
+typedef struct import_slot {
+    char *path;                     /* as joined to the scene's folder */
+    const struct aiScene *ai;       /* NULL until imported, and after the last use */
+    uint64_t digest;                /* the scene hash after the first import: stands in for the bytes read */
+    int uses_left;                  /* entries still to come that name it */
+    ct_error unread;                /* the first import's companions, for resolve_material */
+    int companions_read;
+} import_slot;
 
 /* --- JSON helpers ---------------------------------------------------------- */
 
@@ -602,6 +618,87 @@ static void basename_noext(const char *path, char *out, size_t cap)
     if (dot && dot != out) *dot = '\0';
 }
 
+static import_slot *import_slot_of(loader *L, const char *full)
+{
+    for (int i = 0; i < L->nimports; i++)
+        if (strcmp(L->imports[i].path, full) == 0) return &L->imports[i];
+    return NULL;
+}
+
+/* Counts the entries naming each file before any is imported. A slot that
+ * cannot be made (out of memory) only costs the sharing: the file is then
+ * imported per entry as before. */
+static void plan_imports(loader *L, const cJSON *meshes)
+{
+    int n = cJSON_GetArraySize(meshes);
+    L->imports = calloc(n > 0 ? (size_t)n : 1, sizeof *L->imports);
+    if (!L->imports) return;
+    for (const cJSON *m = meshes->child; m; m = m->next) {
+        const cJSON *f = cJSON_GetObjectItemCaseSensitive(m, "file");
+        if (!cJSON_IsString(f) || !f->valuestring[0]) continue;
+        char full[4096];
+        fs_join(L->dir, f->valuestring, full, sizeof full);
+        import_slot *slot = import_slot_of(L, full);
+        if (!slot) {
+            char *p = strdup(full);
+            if (!p) continue;
+            slot = &L->imports[L->nimports++];
+            slot->path = p;
+        }
+        slot->uses_left++;
+    }
+}
+
+static void free_imports(loader *L)
+{
+    for (int i = 0; i < L->nimports; i++) {
+        if (L->imports[i].ai) aiReleaseImport(L->imports[i].ai);
+        free(L->imports[i].path);
+    }
+    free(L->imports);
+    L->imports = NULL;
+    L->nimports = 0;
+}
+
+/* One entry is done with ai: the last one of its file frees it. */
+static void release_use(import_slot *slot, const struct aiScene *ai)
+{
+    if (!slot) {
+        aiReleaseImport(ai);
+        return;
+    }
+    if (--slot->uses_left > 0) return;
+    aiReleaseImport(slot->ai);
+    slot->ai = NULL;
+}
+
+static int import_file(loader *L, const char *full, const struct aiScene **out)
+{
+    /* Checked here because assimp's own message for a file it cannot open
+     * does not say why; a FIFO fails at once instead of blocking. */
+    FILE *probe;
+    size_t size;
+    int rc = fs_open_regular(full, &probe, &size, L->err);
+    if (rc) return rc;
+    rc = mesh_precheck(probe, full, size, L->err);
+    fclose(probe);
+    if (rc) return rc;
+
+    struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
+    L->mesh_file = full;
+    ct_error_clear(&L->unread);
+    L->companions_read = 0;
+    const struct aiScene *ai = aiImportFileEx(full, aiProcess_ValidateDataStructure, &io);
+    L->mesh_file = NULL;
+    if (!ai) return ct_fail(L->err, CT_EPARSE, "%s: %s", full, aiGetErrorString());
+    if (!ai->mRootNode || (ai->mFlags & AI_SCENE_FLAGS_INCOMPLETE)) {
+        aiReleaseImport(ai);
+        return ct_fail(L->err, CT_EPARSE, "%s: incomplete mesh file (no geometry)", full);
+    }
+    *out = ai;
+    return CT_OK;
+}
+
 static int import_mesh_entry(loader *L, const cJSON *entry, int index)
 {
     char ctx[64];
@@ -625,28 +722,24 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
 
     char full[4096];
     fs_join(L->dir, file, full, sizeof full);
-    /* Checked here because assimp's own message for a file it cannot open
-     * does not say why; a FIFO fails at once instead of blocking. */
-    FILE *probe;
-    size_t size;
-    if ((rc = fs_open_regular(full, &probe, &size, L->err))) return rc;
-    rc = mesh_precheck(probe, full, size, L->err);
-    fclose(probe);
-    if (rc) return rc;
-
-    struct aiFileIO io = {mf_open, mf_close, (aiUserData)L};
-    L->mesh_file = full;
-    ct_error_clear(&L->unread);
-    L->companions_read = 0;
-    const struct aiScene *ai = aiImportFileEx(full, aiProcess_ValidateDataStructure, &io);
-    L->mesh_file = NULL;
-    if (!ai) return ct_fail(L->err, CT_EPARSE, "%s: %s", full, aiGetErrorString());
-    if (!ai->mRootNode || (ai->mFlags & AI_SCENE_FLAGS_INCOMPLETE)) {
-        aiReleaseImport(ai);
-        return ct_fail(L->err, CT_EPARSE, "%s: incomplete mesh file (no geometry)", full);
+    import_slot *slot = import_slot_of(L, full);
+    const struct aiScene *ai;
+    bool again = slot && slot->ai;
+    if (again) {
+        ai = slot->ai;
+        L->hash = ct_hash_bytes(L->hash, &slot->digest, sizeof slot->digest);
+        L->unread = slot->unread;
+        L->companions_read = slot->companions_read;
+    } else if ((rc = import_file(L, full, &ai))) {
+        return rc;
+    } else if (slot) {
+        slot->ai = ai;
+        slot->digest = L->hash;
+        slot->unread = L->unread;
+        slot->companions_read = L->companions_read;
     }
     int *matmap = calloc(ai->mNumMaterials ? ai->mNumMaterials : 1, sizeof *matmap);
-    if (!matmap) { aiReleaseImport(ai); return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", full); }
+    if (!matmap) { release_use(slot, ai); return ct_fail(L->err, CT_ENOMEM, "%s: out of memory", full); }
     for (unsigned i = 0; i < ai->mNumMaterials; i++) matmap[i] = forced;
     uint32_t dropped_before = L->s->dropped_degenerate, tris_before = L->s->ntris;
     if (rc == CT_OK && (rc = scene_begin_node(L->s, nodename, SCENE_NODE_FILE, UINT32_MAX, L->err)) >= 0) {
@@ -655,11 +748,11 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
         if (rc == CT_OK) rc = scene_end_node(L->s, L->err);
     }
     free(matmap);
-    aiReleaseImport(ai);
+    release_use(slot, ai);
     if (rc < 0) return rc;
     /* Every material came from the scene (or a fallback library assimp
      * found): the import is right, but the file names one that is gone. */
-    if (L->unread.msg[0]) ct_warn("scene", "%s: cannot read a file it names (%s)", full, L->unread.msg);
+    if (L->unread.msg[0] && !again) ct_warn("scene", "%s: cannot read a file it names (%s)", full, L->unread.msg);
     uint32_t dropped = L->s->dropped_degenerate - dropped_before;
     if (dropped) ct_warn("scene", "%s: dropped %u degenerate triangle%s", full, dropped, dropped == 1 ? "" : "s");
     /* Likely the wrong file (points or lines only): say so rather than
@@ -966,9 +1059,12 @@ static int load_json(loader *L, const char *text, size_t len)
     const cJSON *meshes = cJSON_GetObjectItemCaseSensitive(root, "meshes");
     if (meshes) {
         if (!cJSON_IsArray(meshes)) { rc = bad(L, "meshes", "must be an array"); goto done; }
+        plan_imports(L, meshes);
         int i = 0;
         for (const cJSON *m = meshes->child; m; m = m->next, i++)
-            if ((rc = import_mesh_entry(L, m, i))) goto done;
+            if ((rc = import_mesh_entry(L, m, i))) break;
+        free_imports(L);
+        if (rc) goto done;
     }
     const cJSON *lights = cJSON_GetObjectItemCaseSensitive(root, "lights");
     if (lights && (rc = import_lights(L, lights))) goto done;

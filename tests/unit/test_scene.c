@@ -191,6 +191,44 @@ Test(scene, hash_changes_with_content)
     scene_free(s2);
 }
 
+/* A file named by several entries is imported once (scene_load.c's import
+ * slots) and placed once per entry: each copy with its own transform and
+ * material, in entry order, and the scene hash still follows the file. */
+Test(scene, repeated_mesh_file_is_placed_per_entry)
+{
+    const char *d = fx_tmpdir();
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const char *p = fx_write(d, "s.json",
+        "{\"materials\":{\"red\":{\"diffuse\":[0.5,0,0]},\"blue\":{\"diffuse\":[0,0,0.5]}},"
+        "\"meshes\":[{\"file\":\"a.obj\",\"material\":\"red\"},"
+        "{\"file\":\"./a.obj\",\"material\":\"blue\",\"transform\":{\"translate\":[10,0,0]}},"
+        "{\"file\":\"a.obj\",\"material\":\"blue\",\"transform\":{\"translate\":[20,0,0]}},"
+        "{\"file\":\"a.obj\",\"material\":\"red\",\"transform\":{\"scale\":2,\"translate\":[30,0,0]}}]}");
+    ct_scene *s = load_ok(p);
+    cr_assert_eq(s->ntris, 4);
+    const float x0[4] = {0, 10, 20, 30}, x1[4] = {1, 11, 21, 32};
+    const char *m[4] = {"red", "blue", "blue", "red"};
+    for (uint32_t t = 0; t < 4; t++) {
+        float lo = 1e30f, hi = -1e30f;
+        for (int k = 0; k < 3; k++) {
+            float x = s->pos[s->tris[3 * t + k]].x;
+            lo = fminf(lo, x);
+            hi = fmaxf(hi, x);
+        }
+        cr_expect_float_eq(lo, x0[t], 1e-5, "triangle %u starts at x %g", t, (double)lo);
+        cr_expect_float_eq(hi, x1[t], 1e-5, "triangle %u ends at x %g", t, (double)hi);
+        cr_expect_str_eq(s->mats[s->tri_mat[t]].name, m[t], "triangle %u", t);
+    }
+    fx_write(d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 2 0\nf 1 2 3\n");
+    ct_scene *s2 = load_ok(p);
+    cr_expect_neq(s->source_hash, s2->source_hash, "the file's content is part of the hash of every copy");
+    ct_scene *s3 = load_ok(p);
+    cr_expect_eq(s2->source_hash, s3->source_hash);
+    scene_free(s);
+    scene_free(s2);
+    scene_free(s3);
+}
+
 /* --- bad input: each case gives one line naming the file and the problem --- */
 
 static void expect_fail(const char *path, int code, const char *needle1, const char *needle2)
@@ -378,6 +416,11 @@ Test(scene_bad, missing_mtl_library)
     s = load_ok(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\",\"material\":\"m\"}],"
                                       "\"materials\":{\"m\":{\"diffuse\":[0.5,0.5,0.5]}}}"));
     scene_free(s);
+    /* A later entry of the same file without a material of its own must not
+     * take the made-up material the first (forced) entry left unused. */
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\",\"material\":\"m\"},{\"file\":\"a.obj\"}],"
+                                      "\"materials\":{\"m\":{\"diffuse\":[0.5,0.5,0.5]}}}"),
+                CT_EIO, "a.obj: material 'wood': its library cannot be read (", "gone.mtl: cannot open");
     /* assimp's fallback, the library named after the OBJ, defines it */
     fx_write(d, "a.mtl", "newmtl wood\nKd 0.1 0.2 0.3\n");
     s = load_ok(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"a.obj\"}]}"));
