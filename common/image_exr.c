@@ -3,10 +3,12 @@
 #include "common/image.h"
 #include "common/fsutil.h"
 #include "common/image_internal.h"
+#include "common/log.h"
 
 #include <errno.h>
 #include <math.h>
 #include <openexr.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -331,12 +333,19 @@ int img_write_exr(const char *path, const ct_image *img, img_pixel_type type, ct
     if (type == IMG_HALF) {
         rc = img_alloc(&clamped, img->width, img->height, err);
         if (rc) { ct_error_prefix(err, path); return rc; }
-        size_t n = (size_t)img->width * (size_t)img->height * 3;
+        size_t n = (size_t)img->width * (size_t)img->height * 3, over = 0;
         for (size_t i = 0; i < n; i++) {
             float v = img->px[i];
+            over += fabsf(v) > IMG_HALF_MAX;
             clamped.px[i] = v > IMG_HALF_MAX ? IMG_HALF_MAX : (v < -IMG_HALF_MAX ? -IMG_HALF_MAX : v);
         }
         src = &clamped;
+        /* Only scenes with emission above the half range meet this (the
+         * scene format allows 1e9), and then in every frame: said once. */
+        static atomic_flag said = ATOMIC_FLAG_INIT;
+        if (over && !atomic_flag_test_and_set(&said))
+            ct_warn("image", "%s: %zu channel values beyond the half-float range +-65504 clamped to it "
+                    "(later files are not mentioned)", path, over);
     }
 
     exr_mem mem = {NULL, 0, 0};

@@ -6,6 +6,7 @@
  * truncated and corrupted files, PNG tone mapping, atomic writes, and the
  * tiny EXR files under tests/data/ used by tests/e2e/compare.sh. */
 #include <criterion/criterion.h>
+#include <criterion/redirect.h>
 
 #include <dirent.h>
 #include <errno.h>
@@ -333,6 +334,40 @@ Test(image, exr_half_roundtrip_within_half_precision)
     cr_assert_lt(file_size(p), file_size(pf));
     img_free(&a);
     img_free(&b);
+}
+
+/* A clamp to the half range is said once per process, with the count, so a
+ * display writing a frame a second of a very bright scene says it once. */
+static void redirect_and_dir(void)
+{
+    cr_redirect_stderr();
+    make_dir();
+}
+
+Test(image_log, half_clamp_is_said_once, .init = redirect_and_dir, .fini = remove_dir)
+{
+    ct_image a;
+    ct_error err;
+    cr_assert_eq(img_alloc(&a, 2, 2, &err), 0);
+    for (int i = 0; i < 12; i++) a.px[i] = 1.0f;
+    cr_assert_eq(img_write_exr(tpath("in.exr"), &a, IMG_HALF, &err), 0, "%s", err.msg);
+    a.px[0] = 7e4f;
+    a.px[5] = -1e9f;
+    cr_assert_eq(img_write_exr(tpath("over1.exr"), &a, IMG_HALF, &err), 0, "%s", err.msg);
+    cr_assert_eq(img_write_exr(tpath("over2.exr"), &a, IMG_HALF, &err), 0, "%s", err.msg);
+    cr_assert_eq(img_write_exr(tpath("f.exr"), &a, IMG_FLOAT, &err), 0, "%s", err.msg);
+    img_free(&a);
+    fflush(stderr);
+    FILE *f = cr_get_redirected_stderr();
+    char buf[4096];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = '\0';
+    cr_expect(strstr(buf, "over1.exr: 2 channel values beyond the half-float range +-65504 clamped") != NULL,
+              "stderr: '%s'", buf);
+    cr_expect(strstr(buf, "over2.exr") == NULL && strstr(buf, "in.exr") == NULL, "stderr: '%s'", buf);
+    int lines = 0;
+    for (char *c = buf; *c; c++) lines += *c == '\n';
+    cr_expect_eq(lines, 1, "stderr: '%s'", buf);
 }
 
 Test(image, exr_overwrite_and_one_pixel)
