@@ -445,7 +445,11 @@ int rq_report(rq_engine *e, const ct_sample *s, vec3 E, uint32_t shown_node, ct_
          * node than the pixel's: those texels are not its node's); no
          * children (the pixel is the domain), and the significant samples
          * are the view's first ones. */
-        if (!hit) e->ref.samples++;
+        if (!hit && e->ref.px) {
+            int64_t p = pixel_of(e, req.px, req.py);
+            int rc = p >= 0 ? rq_refine_miss(&e->ref, (uint32_t)p, err) : 0;
+            if (rc < 0) return rc;
+        }
         return in_mean ? RQ_REPORT_REFINE : 0;
     }
     uint32_t hq_node = hit ? s->node : RQ_NODE_NONE;

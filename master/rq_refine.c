@@ -188,6 +188,17 @@ int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float base_l
     return rc < 0 ? rc : 1;
 }
 
+int rq_refine_miss(rq_refine *r, uint32_t p, ct_error *err)
+{
+    if (!r->px || p >= r->npx) return 0;
+    if (r->active) r->samples++;
+    rq_pixel *x = &r->px[p];
+    if (x->tag != r->tag || x->n == 0 || x->n == UINT16_MAX) return 0;
+    x->n++;
+    int rc = r->active ? queue(r, p, err) : 0;
+    return rc < 0 ? rc : 0;
+}
+
 int rq_refine_start(rq_refine *r, ct_error *err)
 {
     if (!r->px || r->active) return 0;
@@ -226,6 +237,7 @@ bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio)
         r->top = *prio;
         return true;
     }
+    r->top = 0.0f;
     return false;
 }
 

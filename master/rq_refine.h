@@ -54,7 +54,7 @@ typedef struct rq_refine {
      * level over a million pixels (docs/sampling.md, "Refinement"). */
     rq_heap q;
     uint32_t seq;           /* pushes this epoch (ties: first queued first) */
-    float top;              /* priority of the last pixel handed out (the largest left) */
+    float top;              /* priority of the last pixel handed out (the largest left); 0 when none is */
     uint64_t samples;       /* refinement samples reported, this epoch */
 } rq_refine;
 
@@ -74,11 +74,18 @@ void rq_refine_epoch(rq_refine *r);
 int rq_refine_add(rq_refine *r, uint32_t p, uint32_t node, vec3 dl, float base_lum, float err_norm,
                   ct_error *err);
 
+/* A refinement sample of pixel p that hit nothing (a silhouette against
+ * the background): counted towards n as a sample on another node is, and
+ * the pixel queued again, so it goes on refining its node's part instead
+ * of leaving the queue at its first miss. Pixels without a record (their
+ * first sample missed) stay out. Returns 0, negative on failure. */
+int rq_refine_miss(rq_refine *r, uint32_t p, ct_error *err);
+
 /* Starts refining: every pixel with a sample is queued. */
 int rq_refine_start(rq_refine *r, ct_error *err);
 
 /* The pixel that needs a sample most, and its priority; false when none
- * is over the threshold (or all wait for their samples). */
+ * is over the threshold (or all wait for their samples); top is then 0. */
 bool rq_refine_next(rq_refine *r, uint32_t *p, float *prio);
 
 /* The mean dL of pixel p (zero without samples). */

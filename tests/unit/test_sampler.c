@@ -790,9 +790,9 @@ typedef struct refine_run {
 
 /* Runs a 64x48 still view until the engine goes idle; every sample's dL is
  * dl_of's (noisy_dl when NULL), and hits node 2 instead of 1 where
- * other_node says. */
-static rq_engine *refine_until_idle(refine_run *rr, uint64_t seed, bool (*other_node)(const ct_request *),
-                                    vec3 (*dl_of)(const ct_request *))
+ * other_node says, nothing where misses says (both past a pixel's first). */
+static rq_engine *refine_until_idle_or_miss(refine_run *rr, uint64_t seed, bool (*other_node)(const ct_request *),
+                                            vec3 (*dl_of)(const ct_request *), bool (*misses)(const ct_request *))
 {
     if (!dl_of) dl_of = noisy_dl;
     const int W = 64, H = 48;
@@ -825,6 +825,11 @@ static rq_engine *refine_until_idle(refine_run *rr, uint64_t seed, bool (*other_
             smp.l_base = v3s(1.0f);
             bool other = other_node && other_node(&r[i]) && rr->samples[p] > 0;
             if (other) smp.node = 2;
+            if (misses && misses(&r[i]) && rr->samples[p] > 0) {
+                smp.flags = 0;
+                smp.node = RQ_NODE_NONE;
+                other = true;
+            }
             int f = report(e, &smp, dl, 1);
             cr_assert_eq((f & RQ_REPORT_REFINE) != 0, refine && !other, "write the mean of same-node samples only");
             rr->samples[p]++;
@@ -832,6 +837,12 @@ static rq_engine *refine_until_idle(refine_run *rr, uint64_t seed, bool (*other_
         }
     }
     return e;
+}
+
+static rq_engine *refine_until_idle(refine_run *rr, uint64_t seed, bool (*other_node)(const ct_request *),
+                                    vec3 (*dl_of)(const ct_request *))
+{
+    return refine_until_idle_or_miss(rr, seed, other_node, dl_of, NULL);
 }
 
 /* Pixel (x, y) lies wholly outside the disc (its four corners do). */
@@ -933,6 +944,37 @@ Test(sampler, refinement_means_take_only_samples_of_the_pixels_first_node)
         checked++;
     }
     cr_assert_gt(checked, 100);
+    rq_free(e);
+}
+
+/* A silhouette against the background: a refinement sample that hits
+ * nothing counts as a sample on another node does. A pixel used to leave
+ * the queue at its first miss for good: with one refinement sample in three
+ * missing, the noisy disc pixels stopped after a handful of samples instead
+ * of reaching the cap, and the stats then showed the last pixel's error as
+ * the largest left while the master idled. */
+static bool every_third_misses(const ct_request *r) { return r->id % 3 == 0; }
+
+Test(sampler, refinement_goes_on_past_samples_that_miss)
+{
+    static refine_run rr;
+    rq_engine *e = refine_until_idle_or_miss(&rr, 1, NULL, NULL, every_third_misses);
+    int disc = 0;
+    for (int y = 0; y < 48; y++)
+        for (int x = 0; x < 64; x++) {
+            if (!(in_disc((float)x, (float)y) && in_disc((float)x + 1, (float)y + 1) &&
+                  in_disc((float)x + 1, (float)y) && in_disc((float)x, (float)y + 1)))
+                continue;
+            cr_assert_eq(rr.samples[y * 64 + x], 64, "disc pixel %d,%d: %d samples", x, y, rr.samples[y * 64 + x]);
+            disc++;
+        }
+    cr_assert_gt(disc, 200);
+    rq_stats st;
+    rq_stats_get(e, &st);
+    cr_assert(st.refining);
+    cr_assert_eq(st.refine_error, 0.0f, "idle: no error left over the threshold, got %g", (double)st.refine_error);
+    ct_request r[8];
+    cr_assert_eq(batch(e, r, 8), 0);
     rq_free(e);
 }
 
