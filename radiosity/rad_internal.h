@@ -62,6 +62,7 @@ typedef struct rad_patch {
                           * instead (rad_mirror.c): not applied to its direct light */
     vec3 E;              /* emitted radiosity: pi * L_e */
     uint32_t node, mat;
+    uint32_t tri;        /* its first scene triangle (a quad's second follows it) */
     uint32_t root;       /* root element */
     rad_link *links;     /* this patch tree's links */
     uint32_t nlinks;

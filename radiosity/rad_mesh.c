@@ -220,6 +220,41 @@ static float on_segment(vec3 a, vec3 b, vec3 p)
     return v3_len2(v3_sub(d, v3_scale(ab, t))) <= tol * tol ? t : -1.0f;
 }
 
+/* The scene's shading normal at point q of patch pa: its triangle's (of a
+ * quad, the one q lies in) vertex normals interpolated at q's barycentrics.
+ * The tracer shades the radiosity mesh with these in drt, so they must be
+ * the scene's, not the patches' averaged face normals: a faceted sphere
+ * read smooth in drt and banded in path (6-14 % apart per region). The
+ * patch normal stands in where the interpolation degenerates or faces the
+ * patch's back. */
+static vec3 shade_normal(const rad_ctx *c, const rad_patch *pa, vec3 q)
+{
+    const ct_scene *s = c->scene;
+    int ntri = rad_el(c, pa->root)->nv == 4 ? 2 : 1;
+    vec3 best = pa->n;
+    float best_in = -INFINITY;
+    for (int k = 0; k < ntri; k++) {
+        const uint32_t *i = s->tris + 3 * ((size_t)pa->tri + (size_t)k);
+        vec3 a = s->pos[i[0]], e1 = v3_sub(s->pos[i[1]], a), e2 = v3_sub(s->pos[i[2]], a), d = v3_sub(q, a);
+        float d11 = v3_dot(e1, e1), d12 = v3_dot(e1, e2), d22 = v3_dot(e2, e2);
+        float d1 = v3_dot(d, e1), d2 = v3_dot(d, e2), den = d11 * d22 - d12 * d12;
+        if (!(den > 0.0f)) continue;
+        float u = (d22 * d1 - d12 * d2) / den, v = (d11 * d2 - d12 * d1) / den, w = 1.0f - u - v;
+        float in = fminf(w, fminf(u, v));
+        if (!(in > best_in)) continue;
+        /* (a corner rounded just outside takes its nearest inside weights) */
+        u = fmaxf(u, 0.0f);
+        v = fmaxf(v, 0.0f);
+        w = fmaxf(w, 0.0f);
+        vec3 n = v3_add(v3_add(v3_scale(s->nrm[i[0]], w), v3_scale(s->nrm[i[1]], u)), v3_scale(s->nrm[i[2]], v));
+        float l2 = v3_len2(n);
+        if (!(l2 > 1e-12f) || v3_dot(n, pa->n) <= 0.0f) continue;
+        best_in = in;
+        best = v3_scale(n, 1.0f / sqrtf(l2));
+    }
+    return best;
+}
+
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
 {
     const ct_scene *s = c->scene;
@@ -346,8 +381,20 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     for (size_t i = 0; i < leaves.n; i++)
         for (uint32_t j = boff.v[i]; j < boff.v[i + 1]; j++) slot_leaf[j] = (uint32_t)i;
 
-    /* Vertex groups: same node and material, normals within the crease. */
+    /* The scene's shading normal at each boundary slot. */
+    vec3 *snrm = malloc((bnd.n ? bnd.n : 1) * sizeof *snrm);
+    if (!snrm) {
+        free(slot_leaf);
+        goto oom;
+    }
+    for (size_t i = 0; i < bnd.n; i++)
+        snrm[i] = shade_normal(c, &c->patches[rad_el(c, leaves.v[slot_leaf[i]])->patch], h.pts[bnd.v[i]]);
+
+    /* Vertex groups: same node and material, face normals within the
+     * crease and the same shading normal (a flat-shaded mesh keeps a vertex
+     * per face: its radiosity and its shading are faceted, as in path). */
     float cos_crease = cosf((float)c->prm.crease_deg * CT_PI / 180.0f);
+    const float cos_shade = 0.99996f;   /* 0.5 degrees: rounding of one interpolated normal */
     size_t vcap = bnd.n + leaves.n + 1;
     vsum = calloc(vcap, sizeof *vsum);
     vdsum = calloc(vcap, sizeof *vdsum);
@@ -357,6 +404,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
     vleaf = calloc(vcap, sizeof *vleaf);
     if (!vsum || !vdsum || !vnrm || !vpos || !vcount || !vleaf) {
         free(slot_leaf);
+        free(snrm);
         goto oom;
     }
     uint32_t nv = 0;
@@ -370,7 +418,9 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
             for (uint32_t q = gfirst; q < nv && g == RAD_NONE; q++) {
                 const rad_elem *f = rad_el(c, leaves.v[slot_leaf[vcount[q]]]);
                 const rad_patch *pb = &c->patches[f->patch];
-                if (pb->node == pa->node && pb->mat == pa->mat && v3_dot(pa->n, pb->n) >= cos_crease) g = q;
+                if (pb->node == pa->node && pb->mat == pa->mat && v3_dot(pa->n, pb->n) >= cos_crease &&
+                    v3_dot(snrm[slot], snrm[vcount[q]]) >= cos_shade)
+                    g = q;
             }
             if (g == RAD_NONE) {
                 g = nv++;
@@ -384,13 +434,13 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
         for (uint32_t q = gfirst; q < nv; q++) vcount[q] = 0;
         for (uint32_t k = cnt[p]; k < cnt[p + 1]; k++) {
             uint32_t slot = byp[k], g = bvert[slot];
-            const rad_elem *e = rad_el(c, leaves.v[slot_leaf[slot]]);
             if (vcount[g] == 0) vleaf[g] = leaves.v[slot_leaf[slot]];
-            vnrm[g] = v3_add(vnrm[g], c->patches[e->patch].n);
+            vnrm[g] = v3_add(vnrm[g], snrm[slot]);
             vcount[g]++;
         }
     }
     free(slot_leaf);
+    free(snrm);
     rc = rad_gather_points(c, vleaf, vpos, nv, vsum, vdsum);
     if (!rc) rc = rad_contact_vertices(c, leaves.v, leaves.n, boff.v, bvert, nv, vpos, vsum, vdsum, &c->contact_vertices);
     if (rc) goto oom;
@@ -433,7 +483,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
                 rd = v3_add(rd, out->rad_direct[bvert[b0 + j]]);
             }
             out->pos[ce] = v3_clamp_range(e->c);
-            out->nrm[ce] = pa->n;
+            out->nrm[ce] = shade_normal(c, pa, e->c);
             out->rad[ce] = v3_scale(r, 1.0f / (float)k);
             out->rad_direct[ce] = v3_scale(rd, 1.0f / (float)k);
             for (uint32_t j = 0; j < k; j++, t++) {

@@ -268,6 +268,7 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         p->E = v3_scale(v3_max(m->emission, v3s(0.0f)), CT_PI);
         p->node = s->tri_node[t];
         p->mat = s->tri_mat[t];
+        p->tri = t;
         p->open = 1.0f;
         uint32_t ei = rad_alloc_elems(c, 1);
         if (ei == RAD_NONE) return ct_fail(err, CT_ENOMEM, "radiosity: memory cap reached while creating patches");

@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 17u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 18u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -34,7 +34,8 @@
                                  * leaf's inherited light taken at its centre (rad_leaf_scales);
                                  * 15: Gauss points from a fortieth of the distance; 16: vertices
                                  * look at element links whose rays were all blocked; 17: glossy
-                                 * and mirror layers pass their light on (rho_t) */
+                                 * and mirror layers pass their light on (rho_t); 18: the mesh
+                                 * carries the scene's shading normals (rad_mesh.c) */
 
 void rad_params_default(rad_params *p)
 {

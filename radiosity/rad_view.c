@@ -25,8 +25,8 @@ typedef struct view_job {
 } view_job;
 
 /* The plane of triangle t, as three floats exact in an image: its part node
- * + 1, its first vertex's normal (the mean face normal of the flat
- * surface, the same at all its vertices; a triangle's own normal would vary
+ * + 1, its first vertex's normal (the scene's shading normal, the same at
+ * every vertex of a flat-shaded surface; a triangle's own normal would vary
  * with its rounding) quantized to 1/64 per axis, and its distance from the
  * origin along that normal in units of 1/256 of the bounding radius of the
  * mesh's vertices. */

@@ -4,6 +4,7 @@
  * conforming mesh (edges, T-vertices, values, node and material per
  * triangle), determinism across thread counts, and the memory cap. */
 #include <criterion/criterion.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -401,6 +402,82 @@ Test(radiosity, values_kept_apart_across_creases_and_materials)
     for (uint32_t t = 0; t < m.ntris; t++)
         if (strcmp(s->nodes[m.tri_node[t]].name, "lamp") == 0)
             for (int k = 0; k < 3; k++) cr_assert_float_eq(m.rad[m.tris[3 * t + k]].x, 10.0f, 1e-4f);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
+/* A lat-long sphere (nu x nv) with shared vertices and radial normals:
+ * smooth shading, facets 360 / nu degrees apart. */
+static void smooth_sphere(ct_scene *s, uint32_t mat, vec3 c, float r, int nu, int nv)
+{
+    ct_error err;
+    cr_assert_geq(scene_begin_node(s, "smooth", SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
+    uint32_t base = s->nverts;
+    for (int j = 0; j <= nv; j++)
+        for (int i = 0; i < nu; i++) {
+            float th = CT_PI * (float)j / (float)nv, ph = 2.0f * CT_PI * (float)i / (float)nu;
+            vec3 d = v3(sinf(th) * cosf(ph), cosf(th), sinf(th) * sinf(ph));
+            cr_assert_geq(scene_add_vertex(s, v3_add(c, v3_scale(d, r)), d, &err), 0, "%s", err.msg);
+        }
+    for (int j = 0; j < nv; j++)
+        for (int i = 0; i < nu; i++) {
+            uint32_t a = base + (uint32_t)(j * nu + i), b = base + (uint32_t)(j * nu + (i + 1) % nu);
+            uint32_t q[4] = {a, a + (uint32_t)nu, b + (uint32_t)nu, b};
+            if (j == 0) cr_assert_eq(scene_add_polygon(s, (uint32_t[]){a, q[1], q[2]}, 3, &err), 0, "%s", err.msg);
+            else if (j == nv - 1) cr_assert_eq(scene_add_polygon(s, (uint32_t[]){a, q[1], b}, 3, &err), 0, "%s", err.msg);
+            else cr_assert_eq(scene_add_polygon(s, q, 4, &err), 0, "%s", err.msg);
+        }
+    cr_assert_eq(scene_end_node(s, &err), 0, "%s", err.msg);
+}
+
+/* drt shades the radiosity mesh with its vertex normals, so they are the
+ * scene's shading normals, not the patches' face normals averaged within
+ * the crease angle: a flat-shaded sphere (facets 22.5 degrees apart, under
+ * the 30-degree crease) keeps a vertex per facet with that facet's normal,
+ * and a smooth one carries its interpolated normals, which on a sphere are
+ * radial at every point of a facet. Before, both had averaged normals (a
+ * faceted sphere read smooth in drt and banded in path). */
+Test(radiosity, mesh_carries_the_scenes_shading_normals)
+{
+    ct_error err;
+    ct_scene *s = scene_new("spheres");
+    int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
+    int ball_m = ts_diffuse(s, "ball", v3s(0.7f), v3s(0.0f), &err);
+    int lamp_m = ts_diffuse(s, "lamp", v3s(0.0f), v3s(10.0f), &err);
+    cr_assert(floor_m >= 0 && ball_m >= 0 && lamp_m >= 0);
+    cr_assert_geq(ts_quad(s, "floor", (uint32_t)floor_m, v3(-4, 0, -4), v3(0, 0, 8), v3(8, 0, 0), &err), 0);
+    cr_assert_geq(ts_quad(s, "lamp", (uint32_t)lamp_m, v3(-0.5f, 3, -0.5f), v3(1, 0, 0), v3(0, 0, 1), &err), 0);
+    vec3 cf = v3(-1.2f, 0.6f, 0), cs = v3(1.2f, 0.6f, 0);
+    cr_assert_geq(ts_sphere(s, "flat", (uint32_t)ball_m, cf, 0.5f, 16, 8, false, &err), 0);
+    smooth_sphere(s, (uint32_t)ball_m, cs, 0.5f, 16, 8);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    rad_params p = test_params();
+    p.error = 1e-4;
+    ct_radmesh m;
+    solve_ok(s, &p, &m, NULL);
+    double worst_flat = 0.0, worst_smooth = 0.0;
+    uint32_t nflat = 0, nsmooth = 0;
+    for (uint32_t t = 0; t < m.ntris; t++) {
+        const char *name = s->nodes[m.tri_node[t]].name;
+        vec3 fn = tri_normal(&m, t);
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = m.tris[3 * t + (uint32_t)k];
+            if (strcmp(name, "flat") == 0) {
+                worst_flat = fmax(worst_flat, 1.0 - (double)v3_dot(m.nrm[v], fn));
+                nflat++;
+            } else if (strcmp(name, "smooth") == 0) {
+                worst_smooth = fmax(worst_smooth, 1.0 - (double)v3_dot(m.nrm[v], v3_norm(v3_sub(m.pos[v], cs))));
+                nsmooth++;
+            }
+        }
+    }
+    printf("metric: shading normals, flat sphere: 1 - cos %.3g worst over %u corners; smooth: %.3g over %u\n",
+           worst_flat, nflat, worst_smooth, nsmooth);
+    cr_assert(nflat > 0 && nsmooth > 0);
+    cr_expect_lt(worst_flat, 1e-4, "a flat facet's mesh normal is %.1f degrees off its face",
+                 acos(1.0 - worst_flat) * 180.0 / CT_PI);
+    cr_expect_lt(worst_smooth, 1e-4, "a smooth sphere's mesh normal is %.1f degrees off radial",
+                 acos(1.0 - worst_smooth) * 180.0 / CT_PI);
     rmesh_free(&m);
     scene_free(s);
 }
