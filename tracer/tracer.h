@@ -58,8 +58,9 @@ enum {
  * mirrors; 2: drt samples lamps seen in plane mirrors; 3: the gather traces
  * the lamps' light where its rays land (TRC_GATHER_DIRECT_TRACE); 4: by
  * the landing surface's glossy lobe too; 5: both Fresnel branches on the
- * first three levels (fresnel_depth). */
-#define TRC_VERSION 5
+ * first three levels (fresnel_depth); 6: a glossy layer where a gather
+ * ray lands reflects the room's light too (integ_gather.c). */
+#define TRC_VERSION 6
 
 typedef struct trc_options {
     trc_mode mode;

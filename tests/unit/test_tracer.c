@@ -491,15 +491,14 @@ Test(tracer, drt_gather_traces_the_lamps_where_its_rays_land)
  * of radiance 0.5 A on the floor: every gather ray goes up, is reflected
  * down and reads 0.5 A, so the floor's indirect light is 0.5 * R * 0.5 A;
  * with the ceiling a black diffuse surface instead, nothing. */
-static vec3 floor_under_ceiling(bool mirror)
+/* (The scene of this test and the next: drt's mean radiance at the floor,
+ * seen along look from between floor and ceiling.) */
+static vec3 floor_under(const scene_material *ceiling, vec3 look, int spp, uint32_t seed)
 {
     ct_error err;
-    ct_scene *s = scene_new("mirrorceiling");
+    ct_scene *s = scene_new(ceiling->name);
     int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
-    scene_material mm = scene_material_default("ceiling");
-    mm.diffuse = v3s(0.0f);
-    if (mirror) mm.mirror = v3(0.8f, 0.6f, 0.4f);
-    int ceil_m = scene_add_material(s, &mm, &err);
+    int ceil_m = scene_add_material(s, ceiling, &err);
     cr_assert(floor_m >= 0 && ceil_m >= 0);
     cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-200, 0, -200), v3(0, 0, 400), v3(400, 0, 0), &err) >= 0);
     cr_assert(ts_quad(s, "ceiling", (uint32_t)ceil_m, v3(-200, 1, -200), v3(400, 0, 0), v3(0, 0, 400), &err) >= 0);
@@ -507,12 +506,20 @@ static vec3 floor_under_ceiling(bool mirror)
     ct_radmesh rad;
     CHECK(rmesh_from_scene(s, v3(0.2f, 0.4f, 0.6f), &rad, &err));
     trc_tracer *t = make_tracer_ind(s, &rad, TRC_MODE_DRT, 4, 0, 0, TRC_INDIRECT_GATHER);
-    trc_view v = view_of(v3(0, 0.5f, 0), v3(0.3f, 0, 0.2f), 40.0f, 9, 9);
-    vec3 l = mean_at(t, &v, 4.5f, 4.5f, 64, 3u, NULL);
+    trc_view v = view_of(v3(0, 0.5f, 0), look, 40.0f, 9, 9);
+    vec3 l = mean_at(t, &v, 4.5f, 4.5f, spp, seed, NULL);
     trc_free(t);
     rmesh_free(&rad);
     scene_free(s);
     return l;
+}
+
+static vec3 floor_under_ceiling(bool mirror)
+{
+    scene_material mm = scene_material_default("mirrorceiling");
+    mm.diffuse = v3s(0.0f);
+    if (mirror) mm.mirror = v3(0.8f, 0.6f, 0.4f);
+    return floor_under(&mm, v3(0.3f, 0, 0.2f), 64, 3u);
 }
 
 Test(tracer, drt_final_gather_follows_mirrors)
@@ -526,6 +533,42 @@ Test(tracer, drt_final_gather_follows_mirrors)
         cr_expect(fabs(v3_get(with, k) - want) < 1e-4 + 1e-3 * want, "channel %d: %g, want %g", k,
                   (double)v3_get(with, k), want);
         cr_expect(fabs(v3_get(without, k)) < 1e-6, "black ceiling, channel %d: %g", k, (double)v3_get(without, k));
+    }
+}
+
+/* The radiosity mesh holds the diffuse layer's light alone, so where a
+ * gather ray lands on a glossy surface the gather traces its lobe on and
+ * reads the mesh there. A floor (rho 0.5) under a ceiling with a sharp
+ * normalized Phong lobe (rho_s R, exponent 1000) and diffuse D, no light,
+ * a stand-in mesh of radiance rho_d A everywhere: a gather ray reads D A at
+ * the ceiling plus what its lobe reflects of the floor, R (n+2)/(n+1)
+ * cos(theta) 0.5 A (theta the ray's angle to the normal, whose mean over
+ * cosine-weighted rays is 2/3). The diffuse layer makes the lobe traced by
+ * chance (its share of the smooth reflectance), weighted up. */
+static vec3 floor_under_glossy_ceiling(float diffuse)
+{
+    scene_material gm = scene_material_default("glossyceiling");
+    gm.diffuse = v3s(diffuse);
+    gm.glossy = SCENE_GLOSSY_PHONG;
+    gm.specular = v3(0.8f, 0.6f, 0.4f);
+    gm.phong_exp = 1000.0f;
+    return floor_under(&gm, v3(0.3f, -1.0f, 0.2f), 8192, 7u);
+}
+
+Test(tracer, drt_final_gather_reads_the_room_in_glossy_surfaces)
+{
+    const float A[3] = {0.2f, 0.4f, 0.6f}, R[3] = {0.8f, 0.6f, 0.4f}, n = 1000.0f;
+    const float D[2] = {0.0f, 0.3f};
+    for (int j = 0; j < 2; j++) {
+        vec3 l = floor_under_glossy_ceiling(D[j]);
+        for (int k = 0; k < 3; k++) {
+            double glossy = R[k] * (n + 2.0) / (n + 1.0) * (2.0 / 3.0) * 0.5 * A[k];
+            double want = 0.5 * (D[j] * A[k] + glossy);
+            printf("metric: gather under a glossy ceiling (diffuse %g), channel %d: %g (want %g, %g without the lobe)\n",
+                   (double)D[j], k, (double)v3_get(l, k), want, 0.5 * D[j] * A[k]);
+            cr_expect(fabs(v3_get(l, k) - want) < 0.02 * want, "diffuse %g, channel %d: %g, want %g", (double)D[j], k,
+                      (double)v3_get(l, k), want);
+        }
     }
 }
 
