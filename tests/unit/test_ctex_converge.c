@@ -6,10 +6,11 @@
  * error against a reference falls as samples grow, that at 100 % coverage
  * with mixing off the composite equals the high-quality values of the same
  * samples within a stated tolerance, and that the default noise-aware mixing
- * takes it nearer the reference than those samples unmixed. The
- * interactive solution is the radiosity stand-in (rmesh_from_scene:
- * emission + diffuse x ambient), which keeps the test fast
- * and makes the corrections large and signed. */
+ * takes it nearer the reference than those samples unmixed (on the mean
+ * over four tracer seeds: a statistical claim). The interactive solution
+ * is the radiosity stand-in (rmesh_from_scene: emission + diffuse x
+ * ambient), which keeps the test fast and makes the corrections large and
+ * signed. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdlib.h>
@@ -141,25 +142,23 @@ static void run_loop(ct_scene *s, ct_radmesh *m, trc_tracer *tr, const ct_camera
     img_free(&hq);
 }
 
-Test(ctex_converge, cornell_128, .timeout = 300)
+/* One seed of the tracer: the reference, both runs (mixing on and off)
+ * and the checks that hold for any one run; *def and *off get the runs. */
+static void converge_seed(ct_scene *s, ct_radmesh *m, uint64_t seed, run_result *def, run_result *off)
 {
-    ct_scene *s = NULL;
-    cr_assert_eq(scene_load(SCENE, &s, &err), 0, "%s", err.msg);
-    ct_radmesh m;
-    cr_assert_eq(rmesh_from_scene(s, v3s(0.3f), &m, &err), 0);
     trc_options to;
     trc_options_default(&to, TRC_MODE_DRT);
+    to.seed = seed;
     /* The stand-in's ambient term stands for all reflected light: the
      * gather reads it whole (traced lamps on top of it would count the
      * lamps' light twice, and add their noise to the tolerance below). */
     to.gather_direct = TRC_GATHER_DIRECT_MESH;
     trc_tracer *tr = NULL;
-    cr_assert_eq(trc_new(s, &m, &to, &tr, &err), 0, "%s", err.msg);
+    cr_assert_eq(trc_new(s, m, &to, &tr, &err), 0, "%s", err.msg);
     int ci = scene_find_camera(s, "front");
     cr_assert_geq(ci, 0);
     ct_camera cam = s->cams[ci].cam;
     trc_view view = {cam, W, H};
-
     /* primary hits at pixel centres, and a reference: the mean of 32
      * samples per pixel centre (request ids apart from the runs'), whose
      * own noise is a sixth of one sample's */
@@ -194,19 +193,18 @@ Test(ctex_converge, cornell_128, .timeout = 300)
     }
 
     /* With the default options (noise-aware mixing on) and with mixing off. */
-    run_result def, off;
     ctex_options unmixed = ctex_options_default();
     unmixed.mix = 1.0f;
-    run_loop(s, &m, tr, &cam, hits, shown, &ref, ctex_options_default(), &def);
-    run_loop(s, &m, tr, &cam, hits, shown, &ref, unmixed, &off);
+    run_loop(s, m, tr, &cam, hits, shown, &ref, ctex_options_default(), def);
+    run_loop(s, m, tr, &cam, hits, shown, &ref, unmixed, off);
 
     /* the error against the reference falls as samples grow (PSNR on the
      * displayed values: linear RMSE is dominated by the light's edge) */
     for (int k = 1; k < 4; k++)
-        cr_assert_gt(def.psnr[k], def.psnr[k - 1], "psnr did not rise: %.3f -> %.3f dB at checkpoint %d",
-                     def.psnr[k - 1], def.psnr[k], k);
-    cr_assert_gt(def.psnr[3], def.psnr[0] + 3.0, "corrections gain at least 3 dB (%.2f -> %.2f)", def.psnr[0],
-                 def.psnr[3]);
+        cr_assert_gt(def->psnr[k], def->psnr[k - 1], "psnr did not rise: %.3f -> %.3f dB at checkpoint %d",
+                     def->psnr[k - 1], def->psnr[k], k);
+    cr_assert_gt(def->psnr[3], def->psnr[0] + 3.0, "corrections gain at least 3 dB (%.2f -> %.2f)", def->psnr[0],
+                 def->psnr[3]);
     /* 100 % with mixing off: every pixel has exactly one sample, and where
      * the sample hit the node the pixel centre shows, the composite
      * (pixel-centre L_base + bilinear correction) equals the samples' own
@@ -215,24 +213,47 @@ Test(ctex_converge, cornell_128, .timeout = 300)
      * reaching neighbouring samples (noisy in penumbrae and on the glass and
      * mirror). Silhouette pixels (another node at the sample than at the
      * centre: about 8 % at 128x128) are left out. */
-    cr_assert_gt(off.nsame, (size_t)(0.85 * W * H), "silhouette pixels: %zu of %d", W * H - off.nsame, W * H);
-    cr_assert_lt(off.e_same, 0.05, "composite vs the samples' L_hq, mixing off: sRGB rmse %.4f", off.e_same);
+    cr_assert_gt(off->nsame, (size_t)(0.85 * W * H), "silhouette pixels: %zu of %d", W * H - off->nsame, W * H);
+    cr_assert_lt(off->e_same, 0.05, "composite vs the samples' L_hq, mixing off: sRGB rmse %.4f", off->e_same);
     /* and the corrections did the work: the interactive image alone is far off */
-    cr_assert_gt(off.e_base, 3.0 * off.e_same);
-    /* With mixing (the default), a texel holds a blend of its sample and
-     * its neighbours': the composite departs from the single samples by
-     * part of their noise, on purpose, and comes nearer the truth than the
-     * same samples unmixed (same-node pixels against the 32-sample
-     * reference, and PSNR over the image; 0.0348 vs 0.0381 and 29.33 vs
-     * 28.52 dB when written). */
-    cr_assert_lt(def.e_ref_comp, off.e_ref_comp, "mixed composite vs the reference: sRGB rmse %.4f, unmixed %.4f",
-                 def.e_ref_comp, off.e_ref_comp);
-    cr_assert_gt(def.psnr[3], off.psnr[3], "PSNR at full coverage: mixed %.2f dB, unmixed %.2f dB", def.psnr[3],
-                 off.psnr[3]);
-    cr_assert_gt(def.e_base, 3.0 * def.e_same);
+    cr_assert_gt(off->e_base, 3.0 * off->e_same);
+    cr_assert_gt(def->e_base, 3.0 * def->e_same);
 
     img_free(&ref);
     trc_free(tr);
+}
+
+/* With mixing (the default), a texel holds a blend of its sample and its
+ * neighbours': the composite departs from the single samples by part of
+ * their noise, on purpose, and comes nearer the truth than the same
+ * samples unmixed (same-node pixels against the 32-sample reference, and
+ * PSNR over the image). A statistical claim, so it is checked over four
+ * seeds: on one the two can come within a few tenths of a percent of
+ * each other (seeds 1-6 when the gather began to read glossy surfaces:
+ * mixed better on five, 0.0373 against 0.0366 on the sixth; summed over
+ * seeds 1-4, 0.143 against 0.150). */
+Test(ctex_converge, cornell_128, .timeout = 300)
+{
+    ct_scene *s = NULL;
+    cr_assert_eq(scene_load(SCENE, &s, &err), 0, "%s", err.msg);
+    ct_radmesh m;
+    cr_assert_eq(rmesh_from_scene(s, v3s(0.3f), &m, &err), 0);
+    double e_mixed = 0.0, e_unmixed = 0.0, psnr_mixed = 0.0, psnr_unmixed = 0.0;
+    for (uint64_t seed = 1; seed <= 4; seed++) {
+        run_result def, off;
+        converge_seed(s, &m, seed, &def, &off);
+        e_mixed += def.e_ref_comp;
+        e_unmixed += off.e_ref_comp;
+        psnr_mixed += def.psnr[3];
+        psnr_unmixed += off.psnr[3];
+    }
+    printf("metric: composite vs the reference over 4 seeds: sRGB rmse mixed %.4f, unmixed %.4f; "
+           "PSNR at full coverage %.2f dB, %.2f dB\n",
+           e_mixed / 4, e_unmixed / 4, psnr_mixed / 4, psnr_unmixed / 4);
+    cr_assert_lt(e_mixed, e_unmixed, "mixed composite vs the reference: sRGB rmse %.4f, unmixed %.4f (means of 4 seeds)",
+                 e_mixed / 4, e_unmixed / 4);
+    cr_assert_gt(psnr_mixed, psnr_unmixed, "PSNR at full coverage: mixed %.2f dB, unmixed %.2f dB (means of 4 seeds)",
+                 psnr_mixed / 4, psnr_unmixed / 4);
     rmesh_free(&m);
     scene_free(s);
 }
