@@ -118,10 +118,17 @@ master_term() {
     # rank 0 ended before it was asked to: its log says why (on stderr,
     # which a benchmark that hides this function's output still shows),
     # and mpirun's children whether it is a zombie mpirun has not reaped
-    # (seen twice under the sanitizers, mpirun then alive 20 s more)
+    # (seen twice under the sanitizers, mpirun then alive 20 s more) or
+    # alive but not found (once in CI: both ranks running; their
+    # environments are listed to tell why)
     master_log "$1" | tail -n 20 >&2
     echo "  mpirun ${MASTER_PID[$1]}'s children:" >&2
     ps -o pid=,stat=,etime=,args= --ppid "${MASTER_PID[$1]}" 2>/dev/null | cut -c1-160 | sed 's/^/    /' >&2
+    local c
+    for c in $(pgrep -P "${MASTER_PID[$1]}"); do
+      echo "    $c: environ $(wc -c <"/proc/$c/environ" 2>&1) bytes," \
+        "$(tr '\0' '\n' <"/proc/$c/environ" 2>&1 | grep -a -e OMPI_COMM_WORLD_RANK= -e 'No such' -e denied)" >&2
+    done
     master_wait "$1" 20 || true
     fail "$1: rank 0 ended before SIGTERM (the job's exit status $MASTER_RC)" >&2
     return 1
@@ -138,12 +145,21 @@ master_term() {
 
 # rank_pid NAME RANK: the pid of one rank of job NAME (a child of its mpirun
 # whose environment says OMPI_COMM_WORLD_RANK=RANK); empty when not found.
+# Looked for up to ten times a tenth of a second apart: once in a few
+# hundred jobs under a full load the lookup came back empty while both
+# ranks were alive and running (mpirun's children listed right after), and
+# the job, never told to end, was counted as one that ended by itself.
 rank_pid() {
-  local mp=${MASTER_PID[$1]} p
-  for p in $(pgrep -P "$mp"); do
-    if tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2"; then
-      echo "$p"; return 0
-    fi
+  local mp=${MASTER_PID[$1]} p try env
+  for ((try = 0; try < 10; try++)); do
+    for p in $(pgrep -P "$mp"); do
+      env=$(tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null) || continue
+      if grep -qx "OMPI_COMM_WORLD_RANK=$2" <<<"$env"; then
+        echo "$p"; return 0
+      fi
+    done
+    kill -0 "$mp" 2>/dev/null || return 0
+    sleep 0.1
   done
 }
 
