@@ -56,6 +56,26 @@ gl_backend_kind gl_backend_kind_of(const gl_backend *b) { return b->kind; }
 
 bool gl_backend_is_window(const gl_backend *b) { return b->kind == GL_BACKEND_GLFW; }
 
+bool gl_press_push(gl_press_queue *q, int key)
+{
+    if (q->n == GL_PRESS_QUEUE_CAP) {
+        q->dropped++;
+        return false;
+    }
+    q->keys[(q->head + q->n++) % GL_PRESS_QUEUE_CAP] = key;
+    return true;
+}
+
+void gl_press_take(gl_press_queue *q, gl_input *in)
+{
+    in->npresses = 0;
+    while (q->n > 0 && in->npresses < GL_INPUT_MAX_PRESSES) {
+        in->presses[in->npresses++] = q->keys[q->head];
+        q->head = (q->head + 1) % GL_PRESS_QUEUE_CAP;
+        q->n--;
+    }
+}
+
 void gl_backend_poll(gl_backend *b, gl_input *in)
 {
     in->npresses = 0;

@@ -43,6 +43,25 @@ typedef struct gl_input {
     bool hidden;                          /* window iconified or unmapped: nothing to see */
 } gl_input;
 
+/* Key presses between two polls, in order. A poll takes at most
+ * GL_INPUT_MAX_PRESSES and leaves the rest for the next: a frame of
+ * software GL on a large scene can last seconds, more presses than one
+ * gl_input holds (a held + or - repeats), and the surplus was dropped. A
+ * press beyond the queue's capacity (seconds of typing in one frame) is
+ * dropped and counted. */
+#define GL_PRESS_QUEUE_CAP 1024
+typedef struct gl_press_queue {
+    int keys[GL_PRESS_QUEUE_CAP];
+    int head, n;                          /* the oldest press, and how many */
+    unsigned long dropped;                /* presses that found it full */
+} gl_press_queue;
+
+/* Appends a press; false (and counted) when the queue is full. */
+bool gl_press_push(gl_press_queue *q, int key);
+
+/* Moves the oldest presses into in (up to GL_INPUT_MAX_PRESSES). */
+void gl_press_take(gl_press_queue *q, gl_input *in);
+
 typedef struct gl_backend gl_backend;
 
 /* Name of a backend kind. */

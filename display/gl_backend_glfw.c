@@ -15,7 +15,8 @@
 
 typedef struct glfw_state {
     GLFWwindow *win;
-    gl_input pending;
+    gl_input pending;    /* all but the presses, which queue in presses */
+    gl_press_queue presses;
     double last_x, last_y;
     bool have_last;
 } glfw_state;
@@ -103,6 +104,12 @@ static int map_key(int k)
     }
 }
 
+static void queue_press(glfw_state *s, int k)
+{
+    if (!gl_press_push(&s->presses, k) && s->presses.dropped == 1)
+        ct_warn("display", "more than %d key presses waiting for one frame: the rest are dropped", GL_PRESS_QUEUE_CAP);
+}
+
 static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
 {
     (void)scancode;
@@ -112,11 +119,11 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods)
     if (k == GL_KEY_NONE) return;
     if (action == GLFW_PRESS) {
         s->pending.down[k] = true;
-        if (s->pending.npresses < GL_INPUT_MAX_PRESSES) s->pending.presses[s->pending.npresses++] = k;
+        queue_press(s, k);
     } else if (action == GLFW_REPEAT && (k == '+' || k == '-')) {
         /* Exposure steps repeat while held (one step for a 2 s hold before);
          * toggles (P, the views) do not. */
-        if (s->pending.npresses < GL_INPUT_MAX_PRESSES) s->pending.presses[s->pending.npresses++] = k;
+        queue_press(s, k);
     } else if (action == GLFW_RELEASE) {
         s->pending.down[k] = false;
     }
@@ -161,8 +168,7 @@ static void glfw_poll(gl_backend *b, gl_input *in)
     x_handlers();
     glfwPollEvents();
     memcpy(in->down, s->pending.down, sizeof in->down);
-    memcpy(in->presses, s->pending.presses, sizeof in->presses);
-    in->npresses = s->pending.npresses;
+    gl_press_take(&s->presses, in);
     in->mouse_dx = s->pending.mouse_dx;
     in->mouse_dy = s->pending.mouse_dy;
     in->scroll = s->pending.scroll;
@@ -170,7 +176,6 @@ static void glfw_poll(gl_backend *b, gl_input *in)
     if (window_gone(in)) return;
     glfwGetFramebufferSize(s->win, &in->fb_width, &in->fb_height);
     in->hidden = glfwGetWindowAttrib(s->win, GLFW_ICONIFIED) || !glfwGetWindowAttrib(s->win, GLFW_VISIBLE);
-    s->pending.npresses = 0;
     s->pending.mouse_dx = s->pending.mouse_dy = s->pending.scroll = 0;
 }
 

@@ -1,5 +1,6 @@
 /* The window's view keys: debug views 1-5, P toggles passes, +/-/0
- * exposure, H/F1/? help, C camera, Esc quit; other keys are left alone. */
+ * exposure, H/F1/? help, C camera, Esc quit; other keys are left alone;
+ * presses queue from one poll to the next (display/gl_backend.h). */
 #include <criterion/criterion.h>
 #include <string.h>
 
@@ -39,4 +40,37 @@ Test(disp_keys, view_pass_and_exposure_keys)
     disp_render_opts before = o;
     cr_expect_eq(disp_keys_apply('W', &o), DISP_KEY_NONE, "camera keys are not view keys");
     cr_expect_eq(memcmp(&before, &o, sizeof o), 0);
+}
+
+/* Presses that outnumber one poll's gl_input wait for the next poll, in
+ * order (they were dropped past 32); past the queue's capacity they are
+ * dropped and counted. */
+Test(disp_keys, presses_beyond_one_poll_wait_for_the_next)
+{
+    static gl_press_queue q;
+    int n = 3 * GL_INPUT_MAX_PRESSES + 5;
+    for (int i = 0; i < n; i++) cr_assert(gl_press_push(&q, i % 2 ? '+' : 'A' + i % 26));
+    int seen = 0, polls = 0;
+    for (;;) {
+        gl_input in;
+        memset(&in, 0, sizeof in);
+        gl_press_take(&q, &in);
+        if (in.npresses == 0) break;
+        polls++;
+        cr_assert_leq(in.npresses, GL_INPUT_MAX_PRESSES);
+        for (int j = 0; j < in.npresses; j++, seen++)
+            cr_assert_eq(in.presses[j], seen % 2 ? '+' : 'A' + seen % 26, "press %d out of order", seen);
+    }
+    cr_expect_eq(seen, n);
+    cr_expect_eq(polls, 4);
+    /* full: the surplus is counted, the queue keeps its oldest */
+    for (int i = 0; i < GL_PRESS_QUEUE_CAP; i++) cr_assert(gl_press_push(&q, 'P'));
+    cr_expect_not(gl_press_push(&q, 'Q'));
+    cr_expect_eq(q.dropped, 1);
+    gl_input in;
+    memset(&in, 0, sizeof in);
+    gl_press_take(&q, &in);
+    cr_expect_eq(in.npresses, GL_INPUT_MAX_PRESSES);
+    cr_expect_eq(in.presses[0], 'P');
+    cr_expect(gl_press_push(&q, 'Q'), "room again after a poll");
 }
