@@ -85,6 +85,31 @@ int ts_sphere(ct_scene *s, const char *name, uint32_t mat, vec3 centre, float ra
     return rc ? rc : node;
 }
 
+int ts_smooth_sphere(ct_scene *s, const char *name, uint32_t mat, vec3 centre, float radius, int nu, int nv,
+                     ct_error *err)
+{
+    int node = scene_begin_node(s, name, SCENE_NODE_PART, mat, err);
+    if (node < 0) return node;
+    uint32_t base = s->nverts;
+    for (int j = 0; j <= nv; j++)
+        for (int i = 0; i < nu; i++) {
+            vec3 p = sph(centre, radius, i, nu, j, nv);
+            int64_t v = scene_add_vertex(s, p, v3_norm(v3_sub(p, centre)), err);
+            if (v < 0) return (int)v;
+        }
+    for (int j = 0; j < nv; j++)
+        for (int i = 0; i < nu; i++) {
+            uint32_t a = base + (uint32_t)(j * nu + i), b = base + (uint32_t)(j * nu + (i + 1) % nu);
+            uint32_t q[4] = {a, a + (uint32_t)nu, b + (uint32_t)nu, b};
+            /* the poles' quads have two corners in one place: triangles */
+            uint32_t t[3] = {a, q[1], j == 0 ? q[2] : b};
+            int rc = j == 0 || j == nv - 1 ? scene_add_polygon(s, t, 3, err) : scene_add_polygon(s, q, 4, err);
+            if (rc) return rc;
+        }
+    int rc = scene_end_node(s, err);
+    return rc ? rc : node;
+}
+
 int ts_diffuse(ct_scene *s, const char *name, vec3 rho, vec3 le, ct_error *err)
 {
     scene_material m = scene_material_default(name);

@@ -20,6 +20,11 @@ int ts_box(ct_scene *s, const char *name, uint32_t mat, vec3 lo, vec3 hi, bool i
 int ts_sphere(ct_scene *s, const char *name, uint32_t mat, vec3 centre, float radius, int nu, int nv,
               bool inward, ct_error *err);
 
+/* The same sphere smooth: shared vertices with radial normals, quads
+ * (triangles at the poles), front sides out. Returns the node or < 0. */
+int ts_smooth_sphere(ct_scene *s, const char *name, uint32_t mat, vec3 centre, float radius, int nu, int nv,
+                     ct_error *err);
+
 /* Adds a material with the given diffuse albedo and emission; returns its index. */
 int ts_diffuse(ct_scene *s, const char *name, vec3 rho, vec3 le, ct_error *err);
 

@@ -406,30 +406,6 @@ Test(radiosity, values_kept_apart_across_creases_and_materials)
     scene_free(s);
 }
 
-/* A lat-long sphere (nu x nv) with shared vertices and radial normals:
- * smooth shading, facets 360 / nu degrees apart. */
-static void smooth_sphere(ct_scene *s, uint32_t mat, vec3 c, float r, int nu, int nv)
-{
-    ct_error err;
-    cr_assert_geq(scene_begin_node(s, "smooth", SCENE_NODE_PART, mat, &err), 0, "%s", err.msg);
-    uint32_t base = s->nverts;
-    for (int j = 0; j <= nv; j++)
-        for (int i = 0; i < nu; i++) {
-            float th = CT_PI * (float)j / (float)nv, ph = 2.0f * CT_PI * (float)i / (float)nu;
-            vec3 d = v3(sinf(th) * cosf(ph), cosf(th), sinf(th) * sinf(ph));
-            cr_assert_geq(scene_add_vertex(s, v3_add(c, v3_scale(d, r)), d, &err), 0, "%s", err.msg);
-        }
-    for (int j = 0; j < nv; j++)
-        for (int i = 0; i < nu; i++) {
-            uint32_t a = base + (uint32_t)(j * nu + i), b = base + (uint32_t)(j * nu + (i + 1) % nu);
-            uint32_t q[4] = {a, a + (uint32_t)nu, b + (uint32_t)nu, b};
-            if (j == 0) cr_assert_eq(scene_add_polygon(s, (uint32_t[]){a, q[1], q[2]}, 3, &err), 0, "%s", err.msg);
-            else if (j == nv - 1) cr_assert_eq(scene_add_polygon(s, (uint32_t[]){a, q[1], b}, 3, &err), 0, "%s", err.msg);
-            else cr_assert_eq(scene_add_polygon(s, q, 4, &err), 0, "%s", err.msg);
-        }
-    cr_assert_eq(scene_end_node(s, &err), 0, "%s", err.msg);
-}
-
 /* drt shades the radiosity mesh with its vertex normals, so they are the
  * scene's shading normals, not the patches' face normals averaged within
  * the crease angle: a flat-shaded sphere (facets 22.5 degrees apart, under
@@ -449,7 +425,7 @@ Test(radiosity, mesh_carries_the_scenes_shading_normals)
     cr_assert_geq(ts_quad(s, "lamp", (uint32_t)lamp_m, v3(-0.5f, 3, -0.5f), v3(1, 0, 0), v3(0, 0, 1), &err), 0);
     vec3 cf = v3(-1.2f, 0.6f, 0), cs = v3(1.2f, 0.6f, 0);
     cr_assert_geq(ts_sphere(s, "flat", (uint32_t)ball_m, cf, 0.5f, 16, 8, false, &err), 0);
-    smooth_sphere(s, (uint32_t)ball_m, cs, 0.5f, 16, 8);
+    cr_assert_geq(ts_smooth_sphere(s, "smooth", (uint32_t)ball_m, cs, 0.5f, 16, 8, &err), 0, "%s", err.msg);
     cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
     rad_params p = test_params();
     p.error = 1e-4;
