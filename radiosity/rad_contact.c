@@ -35,7 +35,7 @@ static bool hidden(const rad_ctx *c, vec3 x, vec3 n)
 {
     vec3 t, b;
     v3_basis(n, &t, &b);
-    vec3 o = v3_add(x, v3_scale(n, c->ray_eps));
+    vec3 o = rad_lift(x, n);
     const int m = CONTACT_RAYS_SIDE;
     for (int i = 0; i < m * m; i++) {
         float u = ((float)(i % m) + 0.5f) / (float)m, v = ((float)(i / m) + 0.5f) / (float)m;

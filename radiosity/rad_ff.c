@@ -151,7 +151,7 @@ static int elem_points(const rad_elem *r, const float g[2], vec3 *x)
 static double ff_avg(const rad_ctx *c, const rad_elem *a, const rad_elem *b, float d)
 {
     vec3 n = c->patches[a->patch].n, nb = c->patches[b->patch].n;
-    float tol = fmaxf(1e-5f * a->radius, 0.05f * c->ray_eps);
+    float tol = fmaxf(1e-5f * a->radius, rad_pos_tol(b->c, b->radius + d));
     int front = 0, back = 0;
     float h[4];
     for (int i = 0; i < a->nv; i++) {
@@ -313,7 +313,6 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
     vec3 n = c->patches[r->patch].n;
     const rad_elem *se = rad_el(c, src);
     vec3 nsrc = c->patches[se->patch].n;
-    vec3 nr = v3_scale(n, c->ray_eps), ns = v3_scale(nsrc, c->ray_eps);
     uint16_t perm[1024];
     strata_perm(&g, perm, nrays);
     double sum = 0.0, sumv = 0.0;
@@ -330,7 +329,7 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
         double kern = cc / d2;
         sum += kern;
         traced++;
-        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, ns));
+        sumv += kern * rad_vis_transmit(c->vis, rad_lift(x, n), rad_lift(y, nsrc));
     }
     atomic_fetch_add(&c->rays, traced);
     *nvalid = (int)traced;
@@ -384,7 +383,6 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
     int m = strata_side(nrays);
     nrays = m * m;
     vec3 n = c->patches[r->patch].n;
-    vec3 nr = v3_scale(n, c->ray_eps);
     uint16_t perm[1024];
     strata_perm(&g, perm, nrays);
     double sum = 0.0, sumv = 0.0;
@@ -403,7 +401,7 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
         double kern = cc / (M_PI * d2);
         sum += kern;
         traced++;
-        sumv += kern * rad_vis_transmit(c->vis, v3_add(x, nr), v3_add(y, v3_scale(ny, c->ray_eps)));
+        sumv += kern * rad_vis_transmit(c->vis, rad_lift(x, n), rad_lift(y, ny));
     }
     atomic_fetch_add(&c->rays, traced);
     *F = (double)k->area * sum / nrays;
@@ -438,7 +436,7 @@ float rad_point_visibility(const rad_ctx *c, vec3 x, vec3 n, uint32_t src, int n
         if (!facing(x, n, y, ny, &cc, &d2)) continue;
         double kern = cc / d2;
         sum += kern;
-        sumv += kern * rad_vis_transmit(c->vis, x, v3_add(y, v3_scale(ny, c->ray_eps)));
+        sumv += kern * rad_vis_transmit(c->vis, x, rad_lift(y, ny));
     }
     return sum > 0.0 ? (float)(sumv / sum) : -1.0f;
 }

@@ -16,9 +16,9 @@
 /* A point just inside leaf e near x, a hair in front of its plane: a mesh
  * vertex lies on the planes of the neighbours it shares an edge with, where
  * the point factor to them would be cut to nothing. */
-static vec3 gather_point(const rad_ctx *c, const rad_elem *e, vec3 x, vec3 n)
+static vec3 gather_point(const rad_elem *e, vec3 x, vec3 n)
 {
-    return v3_add(v3_lerp(x, e->c, 1e-3f), v3_scale(n, c->ray_eps));
+    return rad_lift(v3_lerp(x, e->c, 1e-3f), n);
 }
 
 /* Unoccluded factor from point x (normal n) to element s: the point-to-
@@ -242,7 +242,7 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
                       vec3 n, vec3 *H, vec3 *Hd)
 {
     vec3 h = v3s(0.0f), hd = v3s(0.0f);
-    vec3 xp = gather_point(c, rad_el(c, leaf), x, n);
+    vec3 xp = gather_point(rad_el(c, leaf), x, n);
     int look = c->prm.vertex_rays > 0;
     w->n = 0;
     for (uint32_t ei = leaf; ei != RAD_NONE; ei = rad_el(c, ei)->parent) {
@@ -321,7 +321,7 @@ static void leaf_walk(rad_ctx *c, const rad_patch *p, leaf_acc *a, uint32_t ei)
             const rad_elem *s = rad_el(c, l->src);
             for (uint32_t j = lo; j < hi; j++) {
                 const rad_elem *lf = rad_el(c, a->id[j]);
-                a->f[j] = gather_factor(c, v3_add(lf->c, v3_scale(p->n, c->ray_eps)), p->n, s);
+                a->f[j] = gather_factor(c, rad_lift(lf->c, p->n), p->n, s);
                 sum += (double)lf->area * a->f[j];
             }
         }

@@ -6,12 +6,14 @@
 #ifndef CT_RAD_INTERNAL_H
 #define CT_RAD_INTERNAL_H
 
+#include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
 
 #include "common/scene.h"
 #include "radiosity/radiosity.h"
+#include "tracer/embree_scene.h"
 
 #define RAD_NONE        UINT32_MAX
 #define RAD_CLUSTER_BIT 0x80000000u   /* a source reference naming a cluster */
@@ -106,7 +108,6 @@ typedef struct rad_ctx {
     double reflected_mean; /* area-weighted mean reflected radiosity of the last pass (0 in the first) */
     double min_area;     /* absolute */
     double total_area, emitted;
-    float ray_eps;       /* offset of ray end points from surfaces */
     uint32_t contact_vertices; /* mesh vertices given the value at a contact line (rad_contact.c) */
 
     uint32_t npatches;
@@ -336,6 +337,20 @@ typedef struct rad_tls {
     int64_t quota;             /* triangles the patch being refined may still add */
     uint64_t want;             /* ...and those its quota refused */
 } rad_tls;
+
+/* A ray end point lifted off its surface at p (normal n) past the float
+ * error of p, and the rounding a position test near centre c (radius r)
+ * allows: both follow the coordinates' magnitude where they are taken, not
+ * the scene's size. Up to solver version 18 both were shares of the scene's
+ * bounding diagonal, which a large ground plane made centimetres: a closed
+ * 2 m room on a 2 km plane saw its lamp through its own ceiling and leaked
+ * light to the ground (docs/radiosity.md, "Scale"). */
+static inline vec3 rad_lift(vec3 p, vec3 n) { return emb_offset_ray(p, n); }
+static inline float rad_pos_tol(vec3 c, float r)
+{
+    float m = fmaxf(fmaxf(fabsf(c.x), fabsf(c.y)), fmaxf(fabsf(c.z), 1.0f / 32.0f));
+    return 1e-6f * (m + r);
+}
 
 /* Estimated output triangles that splitting e adds (its 4 children replace
  * it; T-vertices of the neighbours included). */

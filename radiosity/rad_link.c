@@ -29,8 +29,8 @@ static int faces_away(const rad_ctx *c, const rad_elem *r, const rad_elem *s)
     vec3 nr = c->patches[r->patch].n, ns = c->patches[s->patch].n;
     /* Coplanar neighbours must come out "behind" despite float rounding,
      * which grows with the coordinates, not with the element. */
-    float tol_r = fmaxf(1e-5f * r->radius, 0.05f * c->ray_eps);
-    float tol_s = fmaxf(1e-5f * s->radius, 0.05f * c->ray_eps);
+    float tol_r = fmaxf(1e-5f * r->radius, rad_pos_tol(r->c, r->radius + s->radius));
+    float tol_s = fmaxf(1e-5f * s->radius, rad_pos_tol(s->c, r->radius + s->radius));
     int front = 0;
     for (int i = 0; i < s->nv && !front; i++) front = v3_dot(nr, v3_sub(s->p[i], r->c)) > tol_r;
     if (!front) return 1;
@@ -42,7 +42,7 @@ static int faces_away(const rad_ctx *c, const rad_elem *r, const rad_elem *s)
 static int cluster_behind(const rad_ctx *c, const rad_elem *r, const rad_cluster *k)
 {
     vec3 nr = c->patches[r->patch].n;
-    float tol = fmaxf(1e-5f * r->radius, 0.05f * c->ray_eps);
+    float tol = fmaxf(1e-5f * r->radius, rad_pos_tol(r->c, r->radius + k->radius));
     for (int i = 0; i < 8; i++)
         if (v3_dot(nr, v3_sub(b3_corner(k->b, i), r->c)) > tol) return 0;
     return 1;
@@ -244,12 +244,13 @@ static int add_cand(rad_tls *t, uint32_t src, const rad_link *old)
     return 0;
 }
 
-/* Whether r may be split, without counting a refusal (can_split_receiver
- * counts it once a split is actually wanted). */
+/* Whether r may be split (1), is refused by the quota alone (-1: a split
+ * it then wants is counted, refine_elem), or is too small or too deep (0). */
 static int receiver_splittable(const rad_ctx *c, const rad_tls *t, const rad_elem *r)
 {
     if (r->child != RAD_NONE) return 1;
-    return r->depth < RAD_MAX_DEPTH && r->area * 0.25 >= c->min_area && t->quota >= (int64_t)rad_split_tris(r);
+    if (!(r->depth < RAD_MAX_DEPTH && r->area * 0.25 >= c->min_area)) return 0;
+    return t->quota >= (int64_t)rad_split_tris(r) ? 1 : -1;
 }
 
 /* Replaces candidate i by the children of its source (appended). */
@@ -351,7 +352,17 @@ static int refine_elem(rad_ctx *c, rad_tls *t, uint32_t ei, size_t in_b, size_t 
     }
     for (size_t k = in_b; k < in_e; k++)
         if (add_cand(t, t->work[k].l.src, NULL)) return CT_ENOMEM;
+    /* A receiver the quota refuses still counts the split its links want:
+     * that is its claim on the next pass's budget. Uncounted (solver
+     * version 18), a patch whose area share of the first pass's budget was
+     * under one split never claimed any and stayed one element: hundreds
+     * of refinements a pass in the Cornell box, about 10,000 in the office
+     * building, and a closed room beside a 2 km ground plane kept its walls
+     * whole (docs/radiosity.md, "Scale"). */
     int r_split = receiver_splittable(c, t, rad_el(c, ei));
+    const int starved = r_split < 0;
+    int wanted = 0;
+    if (starved) r_split = 0;
     const double dim = dim_share(c, ei);   /* the receiver's B does not change while it is refined */
     size_t down = base;   /* work[base, down): links moving to the children */
     for (int again = 1; again;) {
@@ -370,6 +381,7 @@ static int refine_elem(rad_ctx *c, rad_tls *t, uint32_t ei, size_t in_b, size_t 
             if (src & RAD_CLUSTER_BIT) {
                 if (P > c->eps) {
                     const rad_cluster *q = &c->clusters[src & RAD_ID_MASK];
+                    wanted |= q->radius <= r->radius;
                     if (!r_split || q->radius > r->radius) {
                         if (split_cand(c, t, i)) return CT_ENOMEM;
                         continue;
@@ -408,6 +420,7 @@ static int refine_elem(rad_ctx *c, rad_tls *t, uint32_t ei, size_t in_b, size_t 
                 double lim = gap < CONTACT_GAP * r->radius && k->l.gv > 0.0f ? CONTACT_SHARE * c->eps : c->eps;
                 lim *= dim;
                 move = err > lim && r_split;
+                wanted |= err > lim;
                 if (!move && k->fresh && value(c, r, &k->l, F, nr) < 0) {
                     t->work[i] = t->work[--t->nwork];
                     continue;
@@ -432,6 +445,7 @@ static int refine_elem(rad_ctx *c, rad_tls *t, uint32_t ei, size_t in_b, size_t 
             again = 1;
         }
     }
+    if (starved && wanted) t->want += rad_split_tris(rad_el(c, ei));
     if (down > base) {
         if (rad_el(c, ei)->child == RAD_NONE) {
             t->quota -= rad_split_tris(rad_el(c, ei));
@@ -493,13 +507,17 @@ int rad_refine_patch(rad_ctx *c, rad_tls *t, uint32_t pi)
     rad_patch *p = &c->patches[pi];
     int rc = 0;
     t->nout = 0;
-    /* The patch's share of the pass's triangle budget: by what it wanted
-     * and was refused in the last pass, or by area when no patch was refused
-     * (the first pass). A pure function of the state at the pass start, so
-     * the mesh is the same for any thread count and timing; what a patch
-     * leaves unused returns to the next pass's budget. */
-    double share = c->want_total ? (double)p->want / (double)c->want_total
-                   : c->total_area > 0.0 ? rad_el(c, p->root)->area / c->total_area : 0.0;
+    /* The patch's share of the pass's triangle budget: half by its area,
+     * half in equal parts, and when patches were refused in the last pass,
+     * half of that and half by what each wanted. A pure function of the
+     * state at the pass start, so the mesh is the same for any thread count
+     * and timing; what a patch leaves unused returns to the next pass's
+     * budget. By area alone, a small patch beside a large one got less than
+     * one split (docs/radiosity.md, "Scale"); by want alone, every
+     * patch not refused last pass got nothing. */
+    double share = 0.5 / (double)c->npatches;
+    if (c->total_area > 0.0) share += 0.5 * rad_el(c, p->root)->area / c->total_area;
+    if (c->want_total) share = 0.5 * share + 0.5 * (double)p->want / (double)c->want_total;
     t->quota = (int64_t)floor((double)c->pass_budget * share);
     t->want = 0;
     t->nwork = 0;

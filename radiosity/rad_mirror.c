@@ -28,7 +28,6 @@
  * pass it on again through their radiosity (rho_ml, push_pull). */
 static void mark_mirror_patches(rad_ctx *c)
 {
-    float tol = 50.0f * c->ray_eps;
     for (uint32_t pi = 0; pi < c->npatches; pi++) {
         rad_patch *p = &c->patches[pi];
         const scene_material *m = &c->scene->mats[p->mat];
@@ -36,7 +35,7 @@ static void mark_mirror_patches(rad_ctx *c)
         vec3 x = rad_el(c, p->root)->c;
         for (uint32_t i = 0; i < mlight_count(c->mirrors); i++) {
             const mlight_plane *pl = mlight_get(c->mirrors, i);
-            if (!mlight_same_kind(pl, p->mat, p->n) || fabsf(mlight_side(pl, x)) > tol || !mlight_in_bounds(pl, x))
+            if (!mlight_same_kind(pl, p->mat, p->n) || fabsf(mlight_side(pl, x)) > 1e3f * rad_pos_tol(x, rad_el(c, p->root)->radius) || !mlight_in_bounds(pl, x))
                 continue;
             p->rho_ml = v3_min(v3_max(m->mirror, v3s(0.0f)), p->rho_t);
             break;

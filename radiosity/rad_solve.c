@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 18u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 19u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -35,7 +35,8 @@
                                  * 15: Gauss points from a fortieth of the distance; 16: vertices
                                  * look at element links whose rays were all blocked; 17: glossy
                                  * and mirror layers pass their light on (rho_t); 18: the mesh
-                                 * carries the scene's shading normals (rad_mesh.c) */
+                                 * carries the scene's shading normals (rad_mesh.c); 19: the
+                                 * triangle budget shared by area, count and refused wants */
 
 void rad_params_default(rad_params *p)
 {
@@ -308,20 +309,38 @@ static void publish_tree(rad_ctx *c, uint32_t root)
     }
 }
 
-/* The area-weighted mean over the input patches of their reflected
- * radiosity (brightest channel), from the last pass's solution: what a
- * dim receiver is measured against (refine_elem, --dim-floor). */
-static double mean_reflected(const rad_ctx *c)
+/* The lit area and the area-weighted mean reflected radiosity over it
+ * (brightest channel), from the last pass's solution: what --min-area is a
+ * share of, and what a dim receiver is measured against (refine_elem,
+ * --dim-floor). A patch counts as lit when it emits or reflects more than a
+ * millionth of the radiosity its light meets on average (the power-weighted
+ * mean, which dark area cannot dilute). Over all the area, a 2 km ground
+ * plane no light reached made a closed room's smallest element 0.8 m^2 and
+ * every wall "bright" (docs/radiosity.md, "Scale"). */
+#define LIT_SHARE 1e-6
+static void lit_stats(const rad_ctx *c, double *lit_area, double *mean)
 {
-    double area = 0.0, sum = 0.0;
+    double s1 = 0.0, s2 = 0.0;
     for (uint32_t p = 0; p < c->npatches; p++) {
         const rad_patch *pa = &c->patches[p];
         const rad_elem *r = rad_el(c, pa->root);
-        vec3 b = *rad_B(c, c->cur, pa->root);
-        area += r->area;
-        sum += r->area * v3_maxc(v3_max(v3_sub(b, pa->E), v3s(0.0f)));
+        double b = v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
+        s1 += r->area * b;
+        s2 += r->area * b * b;
     }
-    return area > 0.0 ? sum / area : 0.0;
+    double cut = s1 > 0.0 ? LIT_SHARE * s2 / s1 : 0.0, area = 0.0, sum = 0.0;
+    for (uint32_t p = 0; p < c->npatches; p++) {
+        const rad_patch *pa = &c->patches[p];
+        const rad_elem *r = rad_el(c, pa->root);
+        double b = v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
+        if (!(b > cut) && !(v3_maxc(pa->E) > 0.0f)) continue;
+        area += r->area;
+        sum += r->area * b;
+    }
+    /* Nothing reflects (black materials only): no lit area to speak of,
+     * and the oracle would refine receivers whose light nobody sees. */
+    *lit_area = s1 > 0.0 && area > 0.0 ? area : c->total_area;
+    *mean = area > 0.0 ? sum / area : 0.0;
 }
 
 /* Patches per pool task: enough to keep the hand-out counter cold, few
@@ -481,8 +500,6 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         rc = ct_fail(err, CT_EEMPTY, "radiosity: scene '%s' has no emitting surface", s->name);
         goto done;
     }
-    vec3 ext = b3_extent(s->bounds);
-    c->ray_eps = 2e-5f * v3_len(ext);
     c->eps = prm->error * c->emitted;
     c->min_area = prm->min_area * c->total_area;
     if (progress) progress(user, 0.0, "building the visibility scene");
@@ -508,7 +525,11 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         c->pass_budget = prm->max_triangles > est ? prm->max_triangles - est : 0;
         c->want_total = 0;
         for (uint32_t p = 0; p < c->npatches; p++) c->want_total += c->patches[p].want;
-        c->reflected_mean = c->pass > 0 ? mean_reflected(c) : 0.0;
+        if (c->pass > 0) {
+            double lit;
+            lit_stats(c, &lit, &c->reflected_mean);
+            c->min_area = prm->min_area * lit;
+        }
         rc = run_job(c, ws, prm->threads, JOB_REFINE, 0);
         if (rc || atomic_load(&c->over_cap)) {
             rc = rc == CT_ENOMEM || atomic_load(&c->over_cap) ? cap_error(c, err)
@@ -522,8 +543,12 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         for (uint32_t i = 0; i < c->npatches; i++) nlinks += c->patches[i].nlinks;
         /* Converged when (almost) no link changed: a pass that refines under
          * 0.1 % of the links changes the solution by far less than the
-         * links' own error. */
-        int last = (c->pass > 0 && refined * 1000 <= nlinks) || c->pass + 1 == prm->max_passes;
+         * links' own error. Not while the quotas refused splits that the
+         * budget still has room for: the next pass gives them their share. */
+        uint64_t wanted = 0;
+        for (uint32_t i = 0; i < c->npatches; i++) wanted += c->patches[i].want;
+        int room = wanted > 0 && atomic_load(&c->est_tris) < prm->max_triangles;
+        int last = (c->pass > 0 && refined * 1000 <= nlinks && !room) || c->pass + 1 == prm->max_passes;
         /* Intermediate passes only need the oracle's B roughly right: a few
          * iterations; the last pass converges to the tolerance. */
         if (last) {

@@ -28,7 +28,7 @@ typedef struct rad_params {
     double error;           /* link error threshold, fraction of the total emitted power */
     double dim_floor;       /* a receiver dimmer than the mean reflected radiosity takes the threshold times its
                              * share of that mean, down to this factor (0: every receiver the same threshold) */
-    double min_area;        /* smallest element area, fraction of the total surface area */
+    double min_area;        /* smallest element area, fraction of the lit surface area (docs/radiosity.md, "Scale") */
     uint32_t max_triangles; /* stop subdividing near this many output triangles */
     int threads;            /* worker threads (pthreads) */
     uint32_t memory_cap_mb; /* fail when the solver's memory would exceed this */

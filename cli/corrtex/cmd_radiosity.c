@@ -31,7 +31,7 @@ static const optab OPTS[] = {
     {"error", 0, OPTAB_DOUBLE, OF(p.error), 1e-15, 1.0, NULL, "E",
      "link error threshold: the largest B*F*A a link may carry, as a fraction of the total emitted power", NULL},
     {"min-area", 0, OPTAB_DOUBLE, OF(p.min_area), 1e-15, 1.0, NULL, "A",
-     "smallest element, as a fraction of the total surface area", NULL},
+     "smallest element, as a fraction of the lit surface area (of all of it in the first pass)", NULL},
     {"max-triangles", 0, OPTAB_U32, OF(p.max_triangles), 1, 4e9, NULL, "N", "stop subdividing near N output triangles",
      NULL},
     {"threads", 0, OPTAB_INT, OF(p.threads), 1, 256, NULL, "T", "worker threads (the online CPUs)", NULL},

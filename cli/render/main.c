@@ -74,7 +74,7 @@ static const optab MESH_OPTS[] = {
      "the scene or parameters change)", NULL},
     {"rad-error", 0, OPTAB_DOUBLE, OF(rad.error), 1e-15, 1.0, NULL, "E", "link error threshold", NULL},
     {"rad-min-area", 0, OPTAB_DOUBLE, OF(rad.min_area), 1e-15, 1.0, NULL, "A",
-     "smallest element, fraction of the surface", NULL},
+     "smallest element, fraction of the lit surface (corrtex radiosity --min-area)", NULL},
     {"rad-dim-floor", 0, OPTAB_DOUBLE, OF(rad.dim_floor), 0, 1.0, NULL, "F",
      "dim receivers refined down to F times the threshold (0: one threshold; corrtex radiosity --dim-floor)", NULL},
     {"rad-max-triangles", 0, OPTAB_U32, OF(rad.max_triangles), 1, 4e9, NULL, "N", "output mesh size target", NULL},

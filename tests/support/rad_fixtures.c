@@ -30,13 +30,18 @@ static int add_mat(ct_scene *s, const char *name, vec3 diffuse, vec3 emission)
     return scene_add_material(s, &m, NULL);
 }
 
-ct_scene *rfx_closed_box(int n, float rho, float le)
+ct_scene *rfx_closed_box(int n, float rho, float le) { return rfx_closed_box_on_ground(n, rho, le, 0.0f); }
+
+ct_scene *rfx_closed_box_on_ground(int n, float rho, float le, float ground)
 {
     ct_scene *s = scene_new("box");
     if (!s) return NULL;
     int wall = add_mat(s, "wall", v3s(rho), v3s(0.0f));
     int lamp = add_mat(s, "lamp", v3s(0.0f), v3s(le));
     int rc = 0;
+    if (ground > 0.0f)
+        rc |= rfx_add_grid(s, "ground", (uint32_t)wall, v3(0.5f - ground, -0.01f, 0.5f - ground), v3(0, 0, 2.0f * ground),
+                           v3(2.0f * ground, 0, 0), 1);
     rc |= rfx_add_grid(s, "floor", (uint32_t)wall, v3(0, 0, 0), v3(0, 0, 1), v3(1, 0, 0), n);
     rc |= rfx_add_grid(s, "back", (uint32_t)wall, v3(0, 0, 1), v3(0, 1, 0), v3(1, 0, 0), n);
     rc |= rfx_add_grid(s, "front", (uint32_t)wall, v3(0, 0, 0), v3(1, 0, 0), v3(0, 1, 0), n);

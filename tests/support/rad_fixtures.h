@@ -16,6 +16,11 @@ int rfx_add_grid(ct_scene *s, const char *name, uint32_t mat, vec3 corner, vec3 
  * radiance le (a separate part); walls reflect rho. */
 ct_scene *rfx_closed_box(int n, float rho, float le);
 
+/* The same box standing 1 cm above a square ground of one quad, 2 ground
+ * wide, facing up (0: no ground). No light leaves the box, so the ground
+ * changes nothing inside it. */
+ct_scene *rfx_closed_box_on_ground(int n, float rho, float le, float ground);
+
 /* Two unit squares facing each other at distance d: an emitter of radiance
  * le at z = d facing down and a black receiver at z = 0 facing up. */
 ct_scene *rfx_parallel_squares(float d, float le);
