@@ -33,6 +33,12 @@ typedef struct ct_camera {
  * degrees made the master's first CAMERA unsendable: no display could
  * connect). */
 #define CT_FOV_DEG_MIN 0.01f
+/* The near plane as a share of the scene's depth, wherever a view is drawn
+ * with depth compared in relative precision (reversed float depth in the
+ * display, 1/z in the master's item buffer): the display and the master
+ * must clip alike, or the master takes what the display shows near the eye
+ * for another object (docs/display.md, docs/sampling.md). */
+#define CT_NEAR_SHARE 1e-7f
 #define CT_FOV_DEG_MAX 179.99f
 
 /* Whether fov_y (radians) is in [CT_FOV_MIN, CT_FOV_MAX) (false for NaN). */

@@ -197,7 +197,7 @@ void disp_compositor_depth_range(const disp_scene *s, const ct_camera *cam, floa
      * corrections showed through in black and white). zfar / 10^3 resolves
      * 0.15 mm there and clips only geometry nearer than a thousandth of the
      * scene's depth (2.5 cm in the office, 1.7 mm in the Cornell box). */
-    *znear = gl.reversed_z ? fmaxf(*zfar * 1e-7f, 1e-12f) : fmaxf(*zfar * 1e-3f, 1e-6f);
+    *znear = gl.reversed_z ? fmaxf(*zfar * CT_NEAR_SHARE, 1e-12f) : fmaxf(*zfar * 1e-3f, 1e-6f);
 }
 
 /* "Nearer" and "as near" for the depth convention in use (gl_load.h). */

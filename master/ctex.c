@@ -329,10 +329,10 @@ int ctex_new(const ct_radmesh *mesh, const scene_material *mats, uint32_t nmats,
         memcpy(c->names + (size_t)i * SCENE_NAME_LEN, mesh->nodes[i].name, SCENE_NAME_LEN);
     for (uint32_t i = 0; i < c->h.nleaves; i++) c->leaf_owner[i] = -1;
     bounds3 b = c->h.nodes[0].bounds;
-    /* The display's near plane (10^-7 of the scene's depth, master/shown.c):
-     * at 10^-4 of the diagonal a part within 28 cm of the eye in a room on
-     * a 2 km ground got no texture. */
-    c->znear = 1e-7f * fmaxf(v3_len(b3_extent(b)), 1e-6f);
+    /* The display's near plane (CT_NEAR_SHARE): at 10^-4 of the diagonal a
+     * part within 28 cm of the eye in a room on a 2 km ground got no
+     * texture. */
+    c->znear = CT_NEAR_SHARE * fmaxf(v3_len(b3_extent(b)), 1e-6f);
     c->st.hier_nodes = N;
     c->st.hier_leaves = c->h.nleaves;
     *out = c;

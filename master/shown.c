@@ -234,12 +234,11 @@ int shown_render(const ct_radmesh *m, const ct_camera *cam, int width, int heigh
     if (b->mesh != m) {
         bounds3 bb = b3_empty();
         for (uint32_t i = 0; i < m->nverts; i++) bb = b3_add(bb, m->pos[i]);
-        /* As the display's near plane with reversed depth, 10^-7 of the
-         * scene's depth (display/disp_compositor.c): depth is compared as
+        /* The display's near plane (CT_NEAR_SHARE): depth is compared as
          * 1/z in float, which keeps its relative precision at any distance.
          * At 10^-4 of the diagonal a panel 5 cm ahead in a scene 20 km wide
          * was clipped here but drawn there (test_shown). */
-        b->znear = m->nverts ? 1e-7f * fmaxf(v3_len(b3_extent(bb)), 1e-6f) : 1e-6f;
+        b->znear = m->nverts ? CT_NEAR_SHARE * fmaxf(v3_len(b3_extent(bb)), 1e-6f) : 1e-6f;
         b->mesh = m;
     }
     if (m->nverts > b->vcap) {

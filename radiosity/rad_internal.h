@@ -146,7 +146,7 @@ typedef struct rad_ctx {
     atomic_int over_cap;
     atomic_uint_fast64_t est_tris;  /* estimated output triangles */
     uint64_t pass_budget;           /* --max-triangles minus est_tris at the pass start */
-    uint64_t want_total;            /* sum of the patches' want at the pass start (0: share by area) */
+    uint64_t want_total;            /* sum of the patches' want after the last pass (0 before the first) */
     atomic_uint_fast64_t rays;
     atomic_uint_fast64_t refined;   /* links refined in this pass */
     atomic_int failed;

@@ -318,24 +318,26 @@ static void publish_tree(rad_ctx *c, uint32_t root)
  * plane no light reached made a closed room's smallest element 0.8 m^2 and
  * every wall "bright" (docs/radiosity.md, "Scale"). */
 #define LIT_SHARE 1e-6
+static double reflected(const rad_ctx *c, const rad_patch *pa)
+{
+    return v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
+}
+
 static void lit_stats(const rad_ctx *c, double *lit_area, double *mean)
 {
     double s1 = 0.0, s2 = 0.0;
     for (uint32_t p = 0; p < c->npatches; p++) {
-        const rad_patch *pa = &c->patches[p];
-        const rad_elem *r = rad_el(c, pa->root);
-        double b = v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
-        s1 += r->area * b;
-        s2 += r->area * b * b;
+        double a = rad_el(c, c->patches[p].root)->area, b = reflected(c, &c->patches[p]);
+        s1 += a * b;
+        s2 += a * b * b;
     }
     double cut = s1 > 0.0 ? LIT_SHARE * s2 / s1 : 0.0, area = 0.0, sum = 0.0;
     for (uint32_t p = 0; p < c->npatches; p++) {
         const rad_patch *pa = &c->patches[p];
-        const rad_elem *r = rad_el(c, pa->root);
-        double b = v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
+        double a = rad_el(c, pa->root)->area, b = reflected(c, pa);
         if (!(b > cut) && !(v3_maxc(pa->E) > 0.0f)) continue;
-        area += r->area;
-        sum += r->area * b;
+        area += a;
+        sum += a * b;
     }
     /* Nothing reflects (black materials only): no lit area to speak of,
      * and the oracle would refine receivers whose light nobody sees. */
@@ -523,8 +525,6 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         double tp = ct_now();
         uint64_t est = atomic_load(&c->est_tris);
         c->pass_budget = prm->max_triangles > est ? prm->max_triangles - est : 0;
-        c->want_total = 0;
-        for (uint32_t p = 0; p < c->npatches; p++) c->want_total += c->patches[p].want;
         if (c->pass > 0) {
             double lit;
             lit_stats(c, &lit, &c->reflected_mean);
@@ -545,9 +545,9 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
          * 0.1 % of the links changes the solution by far less than the
          * links' own error. Not while the quotas refused splits that the
          * budget still has room for: the next pass gives them their share. */
-        uint64_t wanted = 0;
-        for (uint32_t i = 0; i < c->npatches; i++) wanted += c->patches[i].want;
-        int room = wanted > 0 && atomic_load(&c->est_tris) < prm->max_triangles;
+        c->want_total = 0;   /* the next pass's shares (rad_refine_patch) */
+        for (uint32_t i = 0; i < c->npatches; i++) c->want_total += c->patches[i].want;
+        int room = c->want_total > 0 && atomic_load(&c->est_tris) < prm->max_triangles;
         int last = (c->pass > 0 && refined * 1000 <= nlinks && !room) || c->pass + 1 == prm->max_passes;
         /* Intermediate passes only need the oracle's B roughly right: a few
          * iterations; the last pass converges to the tolerance. */
