@@ -353,6 +353,66 @@ static const rad_sgeo *cluster_patch(const rad_ctx *c, const rad_cluster *k, flo
     return &c->sgeo[lo];
 }
 
+void rad_cluster_power(rad_ctx *c)
+{
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        const rad_patch *p = &c->patches[c->order[i]];
+        double a = c->sarea[i + 1] - c->sarea[i];
+        c->spow[i + 1] = c->spow[i] + a * v3_maxc(*rad_B(c, c->cur, p->root));
+    }
+}
+
+/* The patch of cluster k whose stretch of the cluster's power holds the
+ * fraction u in [0, 1); NULL when the cluster has none. */
+static const rad_sgeo *cluster_patch_by_power(const rad_ctx *c, const rad_cluster *k, float u)
+{
+    double lo_p = c->spow[k->pbegin], hi_p = c->spow[k->pend];
+    if (!(hi_p > lo_p)) return NULL;
+    double a = lo_p + (double)u * (hi_p - lo_p);
+    uint32_t lo = k->pbegin, hi = k->pend - 1;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (c->spow[mid + 1] <= a) lo = mid + 1;
+        else hi = mid;
+    }
+    return &c->sgeo[lo];
+}
+
+/* Points drawn by power, not area: what a link carries comes from the
+ * cluster's bright patches (a lamp, the walls it lights), and by area the
+ * rays from a ground plane to a closed room went mostly to the room's dark
+ * outside. A segment that meets the back of its patch, or leaves the back
+ * of r, carries nothing and counts as blocked. */
+int rad_cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays)
+{
+    const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
+    ct_rng g = link_rng(c, r, src, 0, TAG_HIDDEN);
+    int m = strata_side(nrays);
+    nrays = m * m;
+    vec3 n = c->patches[r->patch].n;
+    uint16_t perm[1024];
+    strata_perm(&g, perm, nrays);
+    uint64_t traced = 0;
+    int hidden = 1;
+    for (int i = 0; i < nrays && hidden; i++) {
+        float u, v;
+        stratum(&g, i, m, &u, &v);
+        vec3 x = rad_elem_point(r, u, v);
+        float pu = ((float)perm[i] + rng_float(&g)) / (float)nrays;
+        float su = rng_float(&g), sv = rng_float(&g);
+        const rad_sgeo *q = cluster_patch_by_power(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
+        if (!q) break;
+        vec3 y = poly_point(q->p, (int)q->nv, su, sv);
+        double cc;
+        float d2;
+        if (!facing(x, n, y, q->n, &cc, &d2)) continue;
+        traced++;
+        hidden = !(rad_vis_transmit(c->vis, rad_lift(x, n), rad_lift(y, q->n)) > 0.0f);
+    }
+    atomic_fetch_add(&c->rays, traced);
+    return hidden;
+}
+
 /* A point of cluster k for the fractions pu (which patch, by area) and su,
  * sv (where on it); *ny receives its patch's normal. */
 static vec3 cluster_point(const rad_ctx *c, const rad_cluster *k, float pu, float su, float sv, vec3 *ny)

@@ -70,6 +70,7 @@ typedef struct rad_patch {
     uint32_t nlinks;
     uint64_t want;       /* triangles its last refinement wanted beyond its quota */
     float open;          /* the part of its hemisphere its links see (rad_solve.c, patch_openness) */
+    uint8_t direct;      /* emits or sees an emitter: the first pass's lit area (rad_solve.c) */
 } rad_patch;
 
 /* A source cluster: a node of a binary BVH over input patches. A child is a
@@ -118,6 +119,9 @@ typedef struct rad_ctx {
     uint32_t *order;     /* patch ids in cluster order */
     rad_sgeo *sgeo;      /* their geometry, same order */
     double *sarea;       /* prefix sums of their areas, same order (npatches + 1) */
+    double *spow;        /* prefix sums of their power, area x brightest channel of
+                          * B, same order, made at each refinement pass's start
+                          * (rad_cluster_hidden) */
 
     rad_elem **chunks;
     vec3 **bchunks[2];   /* radiosity per element, double-buffered by iteration
@@ -237,8 +241,8 @@ int rad_vis_new(const ct_scene *s, int threads, rad_vis **out, ct_error *err);
 /* Frees it (NULL is fine). */
 void rad_vis_free(rad_vis *v);
 
-/* The fraction of light that passes the segment a -> b (excluding the last
- * 1e-4 of it): 0 when something opaque blocks it, else the product of the
+/* The fraction of light that passes the segment a -> b (both lifted off
+ * their surfaces, rad_lift): 0 when something opaque blocks it, else the product of the
  * glass crossings' transmission and Fresnel factors (1 without glass; 0
  * after RMESH_MAX_GLASS_CROSSINGS). */
 float rad_vis_transmit(const rad_vis *v, vec3 a, vec3 b);
@@ -286,6 +290,7 @@ vec3 rad_mirror_point(const rad_ctx *c, vec3 x, vec3 n, uint64_t key);
 #define TAG_DECIDE 0x7669u   /* rays that decide whether a link is refined */
 #define TAG_VALUE  0x7661u   /* rays of the factor a kept link carries */
 #define TAG_RETEST 0x7265u   /* a second look before a link is dropped */
+#define TAG_HIDDEN 0x6869u   /* a cluster's look before its link is refined */
 
 /* Whether source src (element or cluster) emits. */
 int rad_src_has_emitter(const rad_ctx *c, uint32_t src);
@@ -303,6 +308,14 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
 /* r's average factor to cluster src, unoccluded (*F) and visible (*FV), by
  * Monte Carlo over the cluster's area. */
 void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, double *FV);
+
+/* Whether all of nrays segments from points stratified over r to points
+ * of cluster src drawn by power (c->spow) are blocked or meet a patch's
+ * back: 1 when none got through, 0 at the first that did. */
+int rad_cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays);
+
+/* Fills c->spow from the current solution (rad_cluster_hidden). */
+void rad_cluster_power(rad_ctx *c);
 
 /* Visible fraction of source src (element or cluster) seen from point x
  * with normal n, by nrays kernel-weighted rays seeded by key; -1 when no

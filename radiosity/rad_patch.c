@@ -299,9 +299,10 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
     c->sgeo = aligned_alloc(64, ((size_t)c->npatches * sizeof *c->sgeo + 63) / 64 * 64);
     if (!c->sgeo) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for clusters");
     c->sarea = malloc(((size_t)c->npatches + 1) * sizeof *c->sarea);
-    if (!c->sarea) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for clusters");
-    rad_track(c, (int64_t)c->npatches * (int64_t)(sizeof *c->sgeo + sizeof *c->sarea));
-    c->sarea[0] = 0.0;
+    c->spow = malloc(((size_t)c->npatches + 1) * sizeof *c->spow);
+    if (!c->sarea || !c->spow) return ct_fail(err, CT_ENOMEM, "radiosity: out of memory for clusters");
+    rad_track(c, (int64_t)c->npatches * (int64_t)(sizeof *c->sgeo + sizeof *c->sarea + sizeof *c->spow));
+    c->sarea[0] = c->spow[0] = 0.0;
     for (uint32_t i = 0; i < c->npatches; i++) {
         const rad_patch *p = &c->patches[c->order[i]];
         const rad_elem *e = rad_el(c, p->root);
@@ -322,8 +323,10 @@ void rad_free_patches(rad_ctx *c)
     free(c->order);
     free(c->sgeo);
     free(c->sarea);
+    free(c->spow);
     c->sgeo = NULL;
     c->sarea = NULL;
+    c->spow = NULL;
     for (uint32_t i = 0; i < RAD_MAX_CHUNKS; i++) {
         if (c->chunks) free(c->chunks[i]);
         if (c->bchunks[0]) free(c->bchunks[0][i]);

@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 19u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 20u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -36,7 +36,10 @@
                                  * look at element links whose rays were all blocked; 17: glossy
                                  * and mirror layers pass their light on (rho_t); 18: the mesh
                                  * carries the scene's shading normals (rad_mesh.c); 19: the
-                                 * triangle budget shared by area, count and refused wants */
+                                 * triangle budget shared by area, count and refused wants;
+                                 * 20: cluster links looked at before they are refined, the
+                                 * first pass's lit area, segment ends traced from both
+                                 * sides, value rays that miss fall back on evaluate's */
 
 void rad_params_default(rad_params *p)
 {
@@ -177,7 +180,7 @@ int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_p
 
 /* Publishing a patch's tree (what sources see of it next pass) also makes
  * its openness from the links just refined (patch_openness). */
-typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH, JOB_LEAF_SCALES } job_kind;
+typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH, JOB_LEAF_SCALES, JOB_DIRECT } job_kind;
 
 typedef struct worker {
     rad_ctx *c;
@@ -323,6 +326,21 @@ static double reflected(const rad_ctx *c, const rad_patch *pa)
     return v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
 }
 
+/* The first pass has no solution to measure: its lit area is that of the
+ * patches that emit or see an emitter (JOB_DIRECT: rays drawn by the
+ * emitters' power, as rad_cluster_hidden draws them). With all the area,
+ * a closed room beside a 2 km ground plane could not split its walls in
+ * the first pass; the cluster links it then split instead stayed split,
+ * and the room ended with 4.2 million links against 0.75 million alone
+ * (26 s against 7 s; docs/radiosity.md, "Scale"). */
+static double direct_area(const rad_ctx *c)
+{
+    double area = 0.0;
+    for (uint32_t p = 0; p < c->npatches; p++)
+        if (c->patches[p].direct) area += rad_el(c, c->patches[p].root)->area;
+    return area > 0.0 ? area : c->total_area;
+}
+
 static void lit_stats(const rad_ctx *c, double *lit_area, double *mean)
 {
     double s1 = 0.0, s2 = 0.0;
@@ -373,6 +391,10 @@ static void job_task(void *ctx, int wi, size_t task)
         } else if (w->kind == JOB_GATHER) {
             vec3 bd;
             push_pull(w, c->patches[p].root, v3s(0.0f), v3s(0.0f), &bd);
+        } else if (w->kind == JOB_DIRECT) {
+            rad_patch *pa = &c->patches[p];
+            pa->direct = v3_maxc(pa->E) > 0.0f ||
+                         (c->nclusters && !rad_cluster_hidden(c, rad_el(c, pa->root), RAD_CLUSTER_BIT, c->prm.shadow_rays));
         } else if (w->kind == JOB_LEAF_SCALES) {
             if (rad_leaf_scales(c, p)) {
                 w->rc = CT_ENOMEM;
@@ -503,7 +525,6 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         goto done;
     }
     c->eps = prm->error * c->emitted;
-    c->min_area = prm->min_area * c->total_area;
     if (progress) progress(user, 0.0, "building the visibility scene");
     rc = rad_vis_new(s, prm->threads, &c->vis, err);
     if (rc) goto done;
@@ -518,6 +539,9 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     c->cur = 1;
     update_clusters(c);
     c->cur = 0;
+    rad_cluster_power(c);
+    run_job(c, ws, prm->threads, JOB_DIRECT, 0);   /* (traces only: cannot fail) */
+    c->min_area = prm->min_area * direct_area(c);
 
     double residual = 1.0;
     for (c->pass = 0; c->pass < prm->max_passes; c->pass++) {
@@ -529,6 +553,7 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
             double lit;
             lit_stats(c, &lit, &c->reflected_mean);
             c->min_area = prm->min_area * lit;
+            rad_cluster_power(c);
         }
         rc = run_job(c, ws, prm->threads, JOB_REFINE, 0);
         if (rc || atomic_load(&c->over_cap)) {

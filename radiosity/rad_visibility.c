@@ -142,6 +142,16 @@ void rad_vis_free(rad_vis *v)
     free(v);
 }
 
+/* The segment's last share is not traced from a: there Embree's t, whose
+ * rounding grows with the segment's length, cannot tell b's own surface
+ * (just behind b) from one just in front of it. A second, short ray from b
+ * back towards a covers that stretch twice over, from an origin lifted off
+ * its surface. Without it the untested end was a share of the length: 14 cm
+ * of a segment from a 1.4 km ground plane to a wall, through the room's
+ * floor where the two meet, and the ground got light from inside a closed
+ * room (docs/radiosity.md, "Scale"). */
+#define SEG_END 1e-4f
+
 static void segment_ray(struct RTCRay *r, vec3 a, vec3 b, float tnear)
 {
     r->org_x = a.x;
@@ -151,7 +161,7 @@ static void segment_ray(struct RTCRay *r, vec3 a, vec3 b, float tnear)
     r->dir_y = b.y - a.y;
     r->dir_z = b.z - a.z;
     r->tnear = tnear;
-    r->tfar = 1.0f - 1e-4f;
+    r->tfar = 1.0f - SEG_END;
     r->time = 0.0f;
     r->mask = 0xFFFFFFFFu;
     r->id = 0;
@@ -164,6 +174,10 @@ float rad_vis_transmit(const rad_vis *v, vec3 a, vec3 b)
     rtcInitIntersectContext(&ctx);
     struct RTCRay r;
     segment_ray(&r, a, b, 0.0f);
+    rtcOccluded1(v->scn, &ctx, &r);
+    if (r.tfar < 0.0f) return 0.0f;
+    segment_ray(&r, b, a, 0.0f);
+    r.tfar = 2.0f * SEG_END;
     rtcOccluded1(v->scn, &ctx, &r);
     if (r.tfar < 0.0f) return 0.0f;
     if (!v->glass) return 1.0f;

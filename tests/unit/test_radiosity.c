@@ -718,6 +718,7 @@ Test(radiosity, a_huge_ground_plane_changes_nothing_inside_a_closed_room, .timeo
     ct_image ref, img;
     ct_error err;
     double ref_ratio = 0.0;
+    uint64_t ref_links = 0, ref_elems = 0;
     const float grounds[3] = {0.0f, 30.0f, 1000.0f};
     for (int k = 0; k < 3; k++) {
         ct_scene *s = rfx_closed_box_on_ground(5, 0.5f, 10.0f, grounds[k]);
@@ -729,6 +730,8 @@ Test(radiosity, a_huge_ground_plane_changes_nothing_inside_a_closed_room, .timeo
         box_inside_view(&m, k == 0 ? &ref : &img);
         if (k == 0) {
             ref_ratio = ratio;
+            ref_links = st.links;
+            ref_elems = st.elements;
         } else {
             img_regions r;
             cr_assert_eq(metrics_regions(&img, &ref, NULL, 0, NULL, 1.0, 8, &r, &err), 0, "%s", err.msg);
@@ -740,6 +743,33 @@ Test(radiosity, a_huge_ground_plane_changes_nothing_inside_a_closed_room, .timeo
             cr_assert_eq(r.counted, 36, "ground %g m: %d blocks counted", 2.0 * grounds[k], r.counted);
             cr_assert_leq(r.worst, 0.03, "ground %g m: a block inside the box is off by %.4f", 2.0 * grounds[k],
                           r.worst);
+            /* Nothing reaches the ground, so nothing is refined for it, and
+             * next to nothing leaks onto it: ray ends (rad_vis_transmit),
+             * links whose value rays missed (value in rad_link.c). What
+             * remains are grazing links under the error threshold whose
+             * rays found no facing pair at all. */
+            float ground_max = 0.0f;
+            double wall_sum = 0.0;
+            uint32_t wall_n = 0;
+            for (uint32_t t = 0; t < m.ntris; t++) {
+                const char *part = m.nodes[m.tri_node[t]].name;
+                for (int v = 0; v < 3; v++) {
+                    float b = v3_maxc(m.rad[m.tris[3 * t + v]]);
+                    if (strcmp(part, "ground") == 0) ground_max = fmaxf(ground_max, b);
+                    else if (strcmp(part, "lamp") != 0) wall_sum += b, wall_n++;
+                }
+            }
+            double wall_mean = wall_n ? wall_sum / wall_n : 0.0;
+            cr_log_info("  %llu elements, %llu links (no ground: %llu, %llu); brightest ground vertex %.3g of the "
+                        "walls' mean",
+                        (unsigned long long)st.elements, (unsigned long long)st.links,
+                        (unsigned long long)ref_elems, (unsigned long long)ref_links, ground_max / wall_mean);
+            cr_assert_leq(ground_max, 1e-3 * wall_mean, "ground %g m: light leaked onto it (%.3g of the walls' mean)",
+                          2.0 * grounds[k], ground_max / wall_mean);
+            cr_assert_leq(st.links, ref_links + ref_links / 8, "ground %g m: %llu links against %llu without",
+                          2.0 * grounds[k], (unsigned long long)st.links, (unsigned long long)ref_links);
+            cr_assert_leq(st.elements, ref_elems + ref_elems / 4, "ground %g m: %llu elements against %llu without",
+                          2.0 * grounds[k], (unsigned long long)st.elements, (unsigned long long)ref_elems);
             metrics_regions_free(&r);
             img_free(&img);
         }
