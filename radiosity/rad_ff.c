@@ -336,18 +336,19 @@ double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, ui
     return sum > 0.0 ? sumv / sum : -1.0;
 }
 
-/* The patch of cluster k whose stretch of the cluster's area holds the
- * fraction u in [0, 1): patches are drawn in proportion to their area, and
- * since a cluster's patches are in BVH order, stratified u spread the
- * points over the cluster. */
-static const rad_sgeo *cluster_patch(const rad_ctx *c, const rad_cluster *k, float u)
+/* The patch of cluster k whose stretch of the prefix sums pre (over the
+ * patches in cluster order) holds the fraction u in [0, 1); NULL when the
+ * cluster's stretch is empty. Since a cluster's patches are in BVH order,
+ * stratified u spread the points over the cluster. */
+static const rad_sgeo *cluster_pick(const rad_ctx *c, const double *pre, const rad_cluster *k, float u)
 {
-    double lo_a = c->sarea[k->pbegin], hi_a = c->sarea[k->pend];
-    double a = lo_a + (double)u * (hi_a - lo_a);
+    double lo_a = pre[k->pbegin], hi_a = pre[k->pend];
+    if (!(hi_a > lo_a)) return NULL;
+    double a = lo_a + (double)(u < 0x1.fffffep-1f ? u : 0x1.fffffep-1f) * (hi_a - lo_a);
     uint32_t lo = k->pbegin, hi = k->pend - 1;
     while (lo < hi) {
         uint32_t mid = lo + (hi - lo) / 2;
-        if (c->sarea[mid + 1] <= a) lo = mid + 1;
+        if (pre[mid + 1] <= a) lo = mid + 1;
         else hi = mid;
     }
     return &c->sgeo[lo];
@@ -360,22 +361,6 @@ void rad_cluster_power(rad_ctx *c)
         double a = c->sarea[i + 1] - c->sarea[i];
         c->spow[i + 1] = c->spow[i] + a * v3_maxc(*rad_B(c, c->cur, p->root));
     }
-}
-
-/* The patch of cluster k whose stretch of the cluster's power holds the
- * fraction u in [0, 1); NULL when the cluster has none. */
-static const rad_sgeo *cluster_patch_by_power(const rad_ctx *c, const rad_cluster *k, float u)
-{
-    double lo_p = c->spow[k->pbegin], hi_p = c->spow[k->pend];
-    if (!(hi_p > lo_p)) return NULL;
-    double a = lo_p + (double)u * (hi_p - lo_p);
-    uint32_t lo = k->pbegin, hi = k->pend - 1;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2;
-        if (c->spow[mid + 1] <= a) lo = mid + 1;
-        else hi = mid;
-    }
-    return &c->sgeo[lo];
 }
 
 /* Points drawn by power, not area: what a link carries comes from the
@@ -400,7 +385,7 @@ int rad_cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays)
         vec3 x = rad_elem_point(r, u, v);
         float pu = ((float)perm[i] + rng_float(&g)) / (float)nrays;
         float su = rng_float(&g), sv = rng_float(&g);
-        const rad_sgeo *q = cluster_patch_by_power(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
+        const rad_sgeo *q = cluster_pick(c, c->spow, k, pu);
         if (!q) break;
         vec3 y = poly_point(q->p, (int)q->nv, su, sv);
         double cc;
@@ -417,14 +402,15 @@ int rad_cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays)
  * sv (where on it); *ny receives its patch's normal. */
 static vec3 cluster_point(const rad_ctx *c, const rad_cluster *k, float pu, float su, float sv, vec3 *ny)
 {
-    const rad_sgeo *q = cluster_patch(c, k, pu < 0x1.fffffep-1f ? pu : 0x1.fffffep-1f);
+    const rad_sgeo *q = cluster_pick(c, c->sarea, k, pu);
+    if (!q) q = &c->sgeo[k->pbegin];   /* (patches of no area: any point is as good) */
     *ny = q->n;
     return poly_point(q->p, (int)q->nv, su, sv);
 }
 
 /* A cluster seen from r, by Monte Carlo over its area: points x_i
  * stratified over r, y_i drawn by area over the cluster's patches
- * (cluster_patch), and
+ * (cluster_pick), and
  *   F = A_k / n * sum cos_x+ cos_y+ / (pi d^2),   FV = the same over the free segments,
  * an unbiased estimate of r's average factor to the cluster, unoccluded
  * and visible. Patches turned away from x_i count zero, so no model of the

@@ -176,7 +176,6 @@ static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_l
             *nr = n2;
         }
     }
-    l->vis = (float)V;   /* value's fallback (-1: unknown) */
     if (V < 0.0) {
         /* No ray found the exchange: its visibility counted as unknown
          * (half). */
@@ -204,12 +203,12 @@ static int value(rad_ctx *c, const rad_elem *r, rad_link *l, double F, int n)
     int nvalid;
     double V = rad_visibility(c, r, l->src, n, TAG_VALUE, n <= c->prm.shadow_rays, &nvalid);
     /* None of these rays found the exchange (their points were all turned
-     * away from each other): evaluate's estimate stands in, and when its
-     * rays found none either, a closer look with RETEST_RAYS; what even
-     * that misses is counted as unknown, half visible. Taken as fully
-     * visible, grazing links carried their whole unoccluded factor: ground
-     * reaching under a closed room got light from inside it, a fiftieth of
-     * the room's own (docs/radiosity.md, "Scale"). */
+     * away from each other): a closer look with RETEST_RAYS of its own
+     * (evaluate's estimate would be the deciding rays' again, a selection:
+     * see above); what even that misses is counted as unknown, half
+     * visible. Taken as fully visible, grazing links carried their whole
+     * unoccluded factor: ground reaching under a closed room got light from
+     * inside it, a fortieth of the room's own (docs/radiosity.md, "Scale"). */
     if (V < 0.0) V = rad_visibility(c, r, l->src, RETEST_RAYS, TAG_RETEST, 0, &nvalid);
     if (V < 0.0) V = 0.5;
     if (V == 0.0 && l->gr == 0.0f && l->gv == 0.0f) return -1;
@@ -317,7 +316,7 @@ static int split_cand(rad_ctx *c, rad_tls *t, size_t i)
  * to bound (P infinite) is refined as before. */
 static int cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, double P)
 {
-    if (!isfinite(P) || getenv("XNOHID")) return 0;
+    if (!isfinite(P)) return 0;
     double want = ceil(P / (M_E * c->eps));
     int n = want > RETEST_RAYS ? RETEST_RAYS : (int)want;
     if (n < c->prm.vis_rays) n = c->prm.vis_rays;
