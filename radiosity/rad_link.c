@@ -1,6 +1,8 @@
 /* rad_link.c: the per-patch link refinement with its error oracle (the
  * links' error over the receiver and from the source's radiosity, not their
- * power), over the factors and visibility of rad_ff.c. */
+ * power), over the factors and visibility of rad_ff.c. (Just over 600
+ * lines: the oracle's rules -- thresholds, shares, looks before a split --
+ * and the one loop that applies them read best side by side.) */
 #include "radiosity/rad_internal.h"
 
 #include <math.h>
