@@ -167,13 +167,13 @@ static float grid_cell(const rad_ctx *c, const u32vec *leaves)
     for (size_t i = 0; i < leaves->n; i++) {
         const rad_elem *e = rad_el(c, leaves->v[i]);
         a[i] = e->area;
-        mag = fmaxf(mag, v3_maxc(v3(fabsf(e->c.x), fabsf(e->c.y), fabsf(e->c.z))) + e->radius);
+        mag = fmaxf(mag, v3_maxabs(e->c) + e->radius);
     }
     qsort(a, leaves->n, sizeof *a, cmp_float);
     float cell = sqrtf(a[leaves->n / 2]);
     free(a);
-    float floor_ = 4.0f * SEG_TOL * mag;   /* an edge is at most 2 sqrt(3) mag long */
-    if (!(cell > floor_)) cell = floor_;
+    float least = 4.0f * SEG_TOL * mag;   /* an edge is at most 2 sqrt(3) mag long */
+    if (!(cell > least)) cell = least;
     return cell > 0.0f && isfinite(cell) ? cell : 1.0f;
 }
 
@@ -199,7 +199,7 @@ static int segment_points(const pgrid *g, const vec3 *pts, vec3 a, vec3 b, uint3
     if (!(l2 > 0.0f)) return 0;
     float len = sqrtf(l2);
     /* Rounding of coordinates, not of the edge, sets the tolerance. */
-    float scale = fmaxf(v3_maxc(v3(fabsf(a.x), fabsf(a.y), fabsf(a.z))), v3_maxc(v3(fabsf(b.x), fabsf(b.y), fabsf(b.z))));
+    float scale = fmaxf(v3_maxabs(a), v3_maxabs(b));
     float tol = SEG_TOL * fmaxf(scale, len);
     int steps = (int)ceilf(len * g->inv_h) + 1;
     if (steps > 1 << 20) steps = 1 << 20;
@@ -250,7 +250,7 @@ static float on_segment(vec3 a, vec3 b, vec3 p)
     if (!(l2 > 0.0f)) return -1.0f;
     float t = v3_dot(d, ab) / l2;
     if (t < -1e-6f || t > 1.0f + 1e-6f) return -1.0f;
-    float scale = fmaxf(v3_maxc(v3(fabsf(a.x), fabsf(a.y), fabsf(a.z))), v3_maxc(v3(fabsf(b.x), fabsf(b.y), fabsf(b.z))));
+    float scale = fmaxf(v3_maxabs(a), v3_maxabs(b));
     float tol = 4e-6f * fmaxf(scale, sqrtf(l2));
     return v3_len2(v3_sub(d, v3_scale(ab, t))) <= tol * tol ? t : -1.0f;
 }

@@ -39,7 +39,7 @@
                                  * triangle budget shared by area, count and refused wants;
                                  * 20: cluster links looked at before they are refined, the
                                  * first pass's lit area, segment ends traced from both
-                                 * sides, value rays that miss fall back on evaluate's */
+                                 * sides, value rays that miss take a 256-ray look */
 
 void rad_params_default(rad_params *p)
 {
@@ -246,7 +246,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         B = v3_add(p->E, refl);
         Bd = v3_add(p->E, v3_mul(p->rho, Hdt));
         vec3 old = *rad_B(c, cur, ei);
-        double r = v3_maxc(v3(fabsf(B.x - old.x), fabsf(B.y - old.y), fabsf(B.z - old.z)));
+        double r = v3_maxabs(v3_sub(B, old));
         if (r > w->residual) w->residual = r;
         double rmax = v3_maxc(refl);
         if (rmax > w->max_reflected) w->max_reflected = rmax;
@@ -394,7 +394,8 @@ static void job_task(void *ctx, int wi, size_t task)
         } else if (w->kind == JOB_DIRECT) {
             rad_patch *pa = &c->patches[p];
             pa->direct = v3_maxc(pa->E) > 0.0f ||
-                         (c->nclusters && !rad_cluster_hidden(c, rad_el(c, pa->root), RAD_CLUSTER_BIT, c->prm.shadow_rays));
+                         (c->nclusters &&
+                          !rad_cluster_hidden(c, rad_el(c, pa->root), RAD_CLUSTER_BIT, c->prm.shadow_rays));
         } else if (w->kind == JOB_LEAF_SCALES) {
             if (rad_leaf_scales(c, p)) {
                 w->rc = CT_ENOMEM;

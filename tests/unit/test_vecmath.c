@@ -295,3 +295,10 @@ Test(vecmath, angle_exact_for_small_turns)
     cr_assert_float_eq(v3_angle(v3(1, 0, 0), v3(-1, 0, 0)), (float)M_PI, 1e-6f);
     cr_assert_eq(v3_angle(v3(1, 2, 3), v3(2, 4, 6)), 0.0f);
 }
+
+Test(vecmath, maxabs_is_the_largest_magnitude)
+{
+    cr_expect_float_eq(v3_maxabs(v3(1.0f, -3.0f, 2.0f)), 3.0f, 0.0f);
+    cr_expect_float_eq(v3_maxabs(v3(-0.5f, 0.25f, 0.0f)), 0.5f, 0.0f);
+    cr_expect_float_eq(v3_maxabs(v3(0.0f, 0.0f, 0.0f)), 0.0f, 0.0f);
+}
