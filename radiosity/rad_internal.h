@@ -26,12 +26,17 @@
 /* One link: the receiver gathers ff * B(src); ff is the form factor times
  * the fraction of visibility rays that were not blocked. gr and gv are its
  * error per unit of source radiosity (rad_link.c, evaluate), kept for the
- * oracle of the later passes. */
+ * oracle of the later passes. A cluster's link has no gv: in its place bk,
+ * what the radiosity its rays saw is of the cluster's mean (rad_link_bk). */
 typedef struct rad_link {
     uint32_t src;
     float ff;
     float vis;           /* the visible fraction in ff */
-    float gr, gv;        /* a cluster's: gr its unoccluded factor (ff / vis, also where vis is 0), gv 0 */
+    float gr;            /* a cluster's: its unoccluded factor (ff / vis, also where vis is 0) */
+    union {
+        float gv;        /* an element's */
+        float bk;        /* a cluster's */
+    };
 } rad_link;
 
 /* A patch or sub-patch: a triangle (nv = 3) or a quad (nv = 4) in world
@@ -195,6 +200,15 @@ static inline vec3 rad_cluster_B(const rad_cluster *k, int b, vec3 x)
     return den > 0.0f ? v3_scale(num, 1.0f / den) : v3s(0.0f);
 }
 
+/* The factor by which link l scales its source's radiosity: a cluster's
+ * bk (1 until the last pass sets it, rad_cluster_bk), 1 for an element.
+ * Only clusters without a lamp get a bk other than 1, so no emission (the
+ * direct part) needs scaling. */
+static inline float rad_link_bk(const rad_link *l)
+{
+    return (l->src & RAD_CLUSTER_BIT) ? l->bk : 1.0f;
+}
+
 /* The brightest of cluster k's six sides in buffer b (per channel): no
  * receiver sees more of it (rad_cluster_B blends the sides). */
 static inline vec3 rad_cluster_B_max(const rad_cluster *k, int b)
@@ -313,6 +327,10 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
  * of cluster src drawn by power (c->spow) are blocked or meet a patch's
  * back: 1 when none got through, 0 at the first that did. */
 int rad_cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays);
+
+/* Sets bk of patch p's links from non-emitting clusters from their own
+ * rays again and the current solution; the others keep 1. */
+void rad_cluster_bk(rad_ctx *c, uint32_t p);
 
 /* Fills c->spow from the current solution (rad_cluster_hidden). */
 void rad_cluster_power(rad_ctx *c);

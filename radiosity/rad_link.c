@@ -141,7 +141,9 @@ static int can_split_receiver(const rad_ctx *c, rad_tls *t, const rad_elem *r)
 static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_link *l, double *F, int *nr)
 {
     l->src = src;
-    l->ff = l->gr = l->gv = 0.0f;
+    l->ff = l->gr = 0.0f;
+    if (src & RAD_CLUSTER_BIT) l->bk = 1.0f;   /* (set after the last refinement: rad_cluster_bk) */
+    else l->gv = 0.0f;
     l->vis = 1.0f;
     double V, dF = 0.0;
     *F = 0.0;

@@ -2,7 +2,7 @@
  * refined by the B*F*A oracle against the current solution), Jacobi
  * gather/push-pull iterations until the residual is under the tolerance,
  * each a loop over input patches on one thread pool (common/pool.h), the
- * memory cap, and the stats. (Just over 600 lines on purpose: the passes,
+ * memory cap, and the stats. (About 700 lines on purpose: the passes,
  * the iterations and the jobs they hand the pool share one worker state
  * and one order of steps, which one file keeps in view.) */
 #include "radiosity/rad_internal.h"
@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 20u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 21u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -39,7 +39,9 @@
                                  * triangle budget shared by area, count and refused wants;
                                  * 20: cluster links looked at before they are refined, the
                                  * first pass's lit area, segment ends traced from both
-                                 * sides, value rays that miss take a 256-ray look */
+                                 * sides, value rays that miss take a 256-ray look; 21: a
+                                 * cluster link scales the cluster's mean by the radiosity
+                                 * its rays saw (bk) */
 
 void rad_params_default(rad_params *p)
 {
@@ -180,7 +182,7 @@ int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_p
 
 /* Publishing a patch's tree (what sources see of it next pass) also makes
  * its openness from the links just refined (patch_openness). */
-typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH, JOB_LEAF_SCALES, JOB_DIRECT } job_kind;
+typedef enum { JOB_REFINE, JOB_GATHER, JOB_PUBLISH, JOB_LEAF_SCALES, JOB_DIRECT, JOB_CLUSTER_BK } job_kind;
 
 typedef struct worker {
     rad_ctx *c;
@@ -214,7 +216,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         vec3 B;
         if (src & RAD_CLUSTER_BIT) {
             const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
-            B = rad_cluster_B(k, cur, e->c);
+            B = v3_scale(rad_cluster_B(k, cur, e->c), rad_link_bk(l));
             if (direct) Hd = v3_madd(Hd, k->E, l->ff);
         } else {
             B = *rad_B(c, cur, src);
@@ -396,6 +398,8 @@ static void job_task(void *ctx, int wi, size_t task)
             pa->direct = v3_maxc(pa->E) > 0.0f ||
                          (c->nclusters &&
                           !rad_cluster_hidden(c, rad_el(c, pa->root), RAD_CLUSTER_BIT, c->prm.shadow_rays));
+        } else if (w->kind == JOB_CLUSTER_BK) {
+            rad_cluster_bk(c, p);
         } else if (w->kind == JOB_LEAF_SCALES) {
             if (rad_leaf_scales(c, p)) {
                 w->rc = CT_ENOMEM;
@@ -476,6 +480,39 @@ static void update_clusters(rad_ctx *c)
         memcpy(k->NB[nxt], NB, sizeof NB);
         memcpy(k->W[nxt], W, sizeof W);
     }
+}
+
+/* Gathers and pushes/pulls until the largest change, relative to the
+ * brightest reflected radiosity, is under tol, or max_it times; *residual
+ * receives the last change. tp: the pass's start (debug lines). */
+static int iterate(rad_ctx *c, worker *ws, int max_it, double tol, double tp, rad_stats *st, double *residual)
+{
+    const rad_params *prm = &c->prm;
+    for (int it = 0; it < max_it; it++) {
+        int rc = run_job(c, ws, prm->threads, JOB_GATHER, 0);
+        if (rc) return rc;
+        update_clusters(c);
+        c->cur = 1 - c->cur;
+        st->iterations++;
+        double res = 0.0, scale = 0.0;
+        for (int i = 0; i < prm->threads; i++) {
+            res = fmax(res, ws[i].residual);
+            scale = fmax(scale, ws[i].max_reflected);
+        }
+        /* Relative to the brightest reflected light: emitters are orders
+         * of magnitude brighter and would hide a slow convergence. */
+        *residual = res = scale > 0.0 ? res / scale : 0.0;
+        if (ws[0].progress) {
+            char msg[128];
+            snprintf(msg, sizeof msg, "pass %d: iteration %d, residual %.2e, %u elements", c->pass + 1, it + 1, res,
+                     c->nelems);
+            ws[0].progress(ws[0].user, res > 0.0 ? fmax(0.0, fmin(1.0, log(res) / log(prm->tolerance))) : 1.0, msg);
+        }
+        ct_debug("radiosity", "pass %d iteration %d: residual %.3e (%.2f s into the pass)", c->pass + 1, it + 1, res,
+                 ct_now() - tp);
+        if (res < tol) break;
+    }
+    return 0;
 }
 
 static int cap_error(rad_ctx *c, ct_error *err)
@@ -576,43 +613,31 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
         int room = c->want_total > 0 && atomic_load(&c->est_tris) < prm->max_triangles;
         int last = (c->pass > 0 && refined * 1000 <= nlinks && !room) || c->pass + 1 == prm->max_passes;
         /* Intermediate passes only need the oracle's B roughly right: a few
-         * iterations; the last pass converges to the tolerance. */
+         * iterations; the last pass converges to the tolerance. Before it
+         * does, its cluster links take bk (rad_cluster_bk) from a solution
+         * roughly converged on the final links, and the leaves' inherited
+         * light is shared out with it. bk is set here only: taken when a
+         * link was made, from the solution of an earlier pass (the lamps
+         * alone in the first, patches not yet weighed by openness), it
+         * brought the office building's cluster links 5 % more light than
+         * their rays saw at the end, and the brighter light refined it to
+         * 50 million links (docs/radiosity.md, "Cluster links"). */
+        int rough = prm->max_iterations < 6 ? prm->max_iterations : 6;
+        rc = iterate(c, ws, rough, 10.0 * prm->tolerance, tp, st, &residual);
+        if (rc) goto done;
         if (last) {
             double ts = ct_now();
+            run_job(c, ws, prm->threads, JOB_CLUSTER_BK, 0);   /* (traces only: cannot fail) */
             if ((rc = run_job(c, ws, prm->threads, JOB_LEAF_SCALES, 0)) != 0) {
                 rc = ct_fail(err, rc, "radiosity: out of memory while sharing out the links' light");
                 goto done;
             }
-            ct_debug("radiosity", "pass %d: inherited links shared out over the leaves in %.2f s", c->pass + 1,
+            ct_debug("radiosity", "pass %d: cluster links' bk and inherited links shared out in %.2f s", c->pass + 1,
                      ct_now() - ts);
-        }
-        int max_it = last ? prm->max_iterations : (prm->max_iterations < 6 ? prm->max_iterations : 6);
-        double tol = last ? prm->tolerance : 10.0 * prm->tolerance;
-        for (int it = 0; it < max_it; it++) {
-            rc = run_job(c, ws, prm->threads, JOB_GATHER, 0);
+            rc = iterate(c, ws, prm->max_iterations, prm->tolerance, tp, st, &residual);
             if (rc) goto done;
-            update_clusters(c);
-            c->cur = 1 - c->cur;
-            st->iterations++;
-            residual = 0.0;
-            double scale = 0.0;
-            for (int i = 0; i < prm->threads; i++) {
-                residual = fmax(residual, ws[i].residual);
-                scale = fmax(scale, ws[i].max_reflected);
-            }
-            /* Relative to the brightest reflected light: emitters are orders
-             * of magnitude brighter and would hide a slow convergence. */
-            residual = scale > 0.0 ? residual / scale : 0.0;
-            if (progress) {
-                char msg[128];
-                snprintf(msg, sizeof msg, "pass %d: iteration %d, residual %.2e, %u elements",
-                         c->pass + 1, it + 1, residual, c->nelems);
-                progress(user, residual > 0.0 ? fmax(0.0, fmin(1.0, log(residual) / log(prm->tolerance))) : 1.0, msg);
-            }
-            ct_debug("radiosity", "pass %d iteration %d: residual %.3e (%.2f s into the pass)", c->pass + 1,
-                     it + 1, residual, ct_now() - tp);
-            if (residual < tol) break;
         }
+        double tol = last ? prm->tolerance : 10.0 * prm->tolerance;
         ct_debug("radiosity", "pass %d: %llu links refined, %u elements, %.2f s", c->pass + 1,
                  (unsigned long long)refined, c->nelems, ct_now() - tp);
         /* A scene that reflects nearly all its light (a closed white room)
@@ -620,7 +645,8 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
          * (20 % in a box of albedo 1 at the defaults), which no figure said. */
         if (last && !(residual < tol))
             ct_warn("radiosity", "not converged: residual %.2e after %d iterations is above --tolerance %.0e; "
-                    "the solution is darker than converged (raise --max-iterations)", residual, max_it, tol);
+                    "the solution is darker than converged (raise --max-iterations)", residual,
+                    prm->max_iterations, tol);
         if (last) break;
     }
     /* One more gather at the converged values for the absorbed power. */

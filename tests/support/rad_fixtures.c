@@ -107,6 +107,28 @@ ct_scene *rfx_perpendicular_squares(float le)
     return receiver_and_emitter("corner", v3(0, 0, 0), v3(0, 1, 0), v3(0, 0, 1), le);
 }
 
+ct_scene *rfx_covered_floor(int n, float le)
+{
+    ct_scene *s = scene_new("covered");
+    if (!s) return NULL;
+    int white = add_mat(s, "white", v3s(0.8f), v3s(0.0f));
+    int black = add_mat(s, "black", v3s(0.0f), v3s(0.0f));
+    int lamp = add_mat(s, "lamp", v3s(0.0f), v3s(le));
+    int rc = 0;
+    rc |= rfx_add_grid(s, "open", (uint32_t)white, v3(-1, 0, -0.5f), v3(0, 0, 1), v3(1, 0, 0), n);
+    rc |= rfx_add_grid(s, "covered", (uint32_t)white, v3(0, 0, -0.5f), v3(0, 0, 1), v3(1, 0, 0), n);
+    rc |= rfx_add_grid(s, "lid", (uint32_t)black, v3(0, 0.3f, -0.6f), v3(1.1f, 0, 0), v3(0, 0, 1.2f), 1);
+    rc |= rfx_add_grid(s, "side", (uint32_t)black, v3(0, 0, -0.6f), v3(0, 0.3f, 0), v3(0, 0, 1.2f), 1);
+    rc |= rfx_add_grid(s, "lamp", (uint32_t)lamp, v3(-2.5f, 1.5f, -0.5f), v3(1, 0, 0), v3(0, 0, 1), 1);
+    rc |= rfx_add_grid(s, "receiver", (uint32_t)white, v3(-0.55f, 5, -0.05f), v3(0.1f, 0, 0), v3(0, 0, 0.1f), 1);
+    ct_error err;
+    if (rc || scene_finalize(s, &err) != 0) {
+        scene_free(s);
+        return NULL;
+    }
+    return s;
+}
+
 ct_scene *rfx_room_with_block(void)
 {
     ct_scene *s = scene_new("room");

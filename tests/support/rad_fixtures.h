@@ -30,6 +30,15 @@ ct_scene *rfx_parallel_squares(float d, float le);
  * facing +x. */
 ct_scene *rfx_perpendicular_squares(float le);
 
+/* Two 1 x 1 floors side by side facing up, n x n white quads each: one
+ * open, lit by a lamp of radiance le off to its side; one covered by a
+ * black lid 30 cm above it and a black side towards the open one, dark.
+ * A small white receiver faces down 5 m above the open floor and sees
+ * none of the covered one. A cluster of both floors' patches has about
+ * half the light of the open one's on average (the covered floor sees its
+ * lid, so it counts as nearly as open as the other). */
+ct_scene *rfx_covered_floor(int n, float le);
+
 /* A box room (floor, walls, ceiling lamp) with a table-like block standing
  * on the floor: shadows that force uneven refinement. */
 ct_scene *rfx_room_with_block(void);

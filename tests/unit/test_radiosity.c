@@ -1014,3 +1014,50 @@ Test(radiosity, light_passes_glass)
         cr_expect(fabs(ratio - want) < 0.03 * want, "transmission %g: ratio %g, expected %g", (double)T[i], ratio, want);
     }
 }
+
+/* The area-weighted mean radiosity of part `name` (each triangle its
+ * vertices' mean: Gouraud shading's). */
+static double part_mean(const ct_radmesh *m, const char *name)
+{
+    double sum = 0.0, area = 0.0;
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        if (strcmp(m->nodes[m->tri_node[t]].name, name) != 0) continue;
+        const uint32_t *i = m->tris + 3 * (size_t)t;
+        double a = 0.5 * v3_len(v3_cross(v3_sub(m->pos[i[1]], m->pos[i[0]]), v3_sub(m->pos[i[2]], m->pos[i[0]])));
+        sum += a * (v3_avg(m->rad[i[0]]) + v3_avg(m->rad[i[1]]) + v3_avg(m->rad[i[2]])) / 3.0;
+        area += a;
+    }
+    return area > 0.0 ? sum / area : 0.0;
+}
+
+/* A cluster link reads its cluster's mean radiosity, weighted by area,
+ * openness and facing, not by what its receiver sees: a receiver 5 m
+ * above a lit floor that sees none of the dark covered floor beside it
+ * got the mean of both from the cluster holding them, 0.39 of its light
+ * (solver version 20). Now each cluster link scales the mean by what its
+ * own rays found (bk, rad_ff.c): the receiver gets what the lit floor
+ * shows it, 0.8 F B with F its factor to that 1 x 1 floor centred 5 m
+ * below it (four corner rectangles of a = b = 0.1) and B the floor's mean.
+ * 64 rays a link, so that the factor's own noise does not hide a bias. */
+Test(radiosity, cluster_links_carry_the_light_their_rays_see, .timeout = 240)
+{
+    ct_scene *s = rfx_covered_floor(4, 20.0f);
+    cr_assert_not_null(s);
+    double a = 0.1, q = sqrt(1.0 + a * a);
+    double F = 4.0 * (2.0 * a / q * atan(a / q)) / (2.0 * M_PI);
+    for (int seed = 1; seed <= 2; seed++) {
+        rad_params p = test_params();
+        p.error = 1e-4;
+        p.vis_rays = 64;
+        p.seed = (uint64_t)seed;
+        ct_radmesh m;
+        solve_ok(s, &p, &m, NULL);
+        double want = 0.8 * F * part_mean(&m, "open"), got = part_mean(&m, "receiver");
+        cr_log_info("seed %d: receiver %.5f, 0.8 F B of the lit floor %.5f (ratio %.3f); covered floor %.2g",
+                    seed, got, want, got / want, part_mean(&m, "covered"));
+        cr_assert(fabs(got / want - 1.0) <= 0.05, "seed %d: the receiver has %.3f of the light the floor shows it",
+                  seed, got / want);
+        rmesh_free(&m);
+    }
+    scene_free(s);
+}
