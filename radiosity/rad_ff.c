@@ -398,14 +398,14 @@ int rad_cluster_hidden(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays)
     return hidden;
 }
 
-/* A point of cluster k for the fractions pu (which patch, by area) and su,
- * sv (where on it); *ny receives its patch's normal. */
-static vec3 cluster_point(const rad_ctx *c, const rad_cluster *k, float pu, float su, float sv, vec3 *ny)
+/* A point *y of cluster k for the fractions pu (which patch, by area) and
+ * su, sv (where on it); returns its patch (normal, place in cluster order). */
+static const rad_sgeo *cluster_point(const rad_ctx *c, const rad_cluster *k, float pu, float su, float sv, vec3 *y)
 {
     const rad_sgeo *q = cluster_pick(c, c->sarea, k, pu);
     if (!q) q = &c->sgeo[k->pbegin];   /* (patches of no area: any point is as good) */
-    *ny = q->n;
-    return poly_point(q->p, (int)q->nv, su, sv);
+    *y = poly_point(q->p, (int)q->nv, su, sv);
+    return q;
 }
 
 /* Whether y (in the plane of element e, patch normal n) lies inside e:
@@ -443,14 +443,14 @@ static uint32_t leaf_at(const rad_ctx *c, uint32_t ei, vec3 n, vec3 y)
     }
 }
 
-/* Sums over nrays (a square) segments from points stratified over r to
- * points drawn by area over cluster k's patches (cluster_pick), stream g:
- * *sum of their kernels cos_x+ cos_y+ / (pi d^2), *sumv of those of the
- * free ones, and with sumb the latter weighted by the radiosity where each
- * lands (the leaf there, the current solution). Segments whose kernel is
- * zero trace no ray. */
-static void cluster_segments(rad_ctx *c, const rad_elem *r, const rad_cluster *k, ct_rng *g, int nrays,
-                             double *sum, double *sumv, double *sumb)
+/* Sums over at least nrays segments (a square number; returned) from
+ * points stratified over r to points drawn by area over cluster k's
+ * patches (cluster_point), stream g: *sum of their kernels cos_x+ cos_y+ /
+ * (pi d^2), *sumv of those of the free ones, and with sumb the latter
+ * weighted by the radiosity where each lands (the leaf there, the current
+ * solution). Segments whose kernel is zero trace no ray. */
+static int cluster_segments(rad_ctx *c, const rad_elem *r, const rad_cluster *k, ct_rng *g, int nrays,
+                            double *sum, double *sumv, double *sumb)
 {
     int m = strata_side(nrays);
     nrays = m * m;
@@ -466,9 +466,8 @@ static void cluster_segments(rad_ctx *c, const rad_elem *r, const rad_cluster *k
         vec3 x = rad_elem_point(r, u, v);
         float pu = ((float)perm[i] + rng_float(g)) / (float)nrays;
         float su = rng_float(g), sv = rng_float(g);
-        const rad_sgeo *q = cluster_pick(c, c->sarea, k, pu);
-        if (!q) q = &c->sgeo[k->pbegin];   /* (patches of no area: any point is as good) */
-        vec3 y = poly_point(q->p, (int)q->nv, su, sv);
+        vec3 y;
+        const rad_sgeo *q = cluster_point(c, k, pu, su, sv, &y);
         double cc;
         float d2;
         if (!facing(x, n, y, q->n, &cc, &d2)) continue;
@@ -483,6 +482,7 @@ static void cluster_segments(rad_ctx *c, const rad_elem *r, const rad_cluster *k
         }
     }
     atomic_fetch_add(&c->rays, traced);
+    return nrays;
 }
 
 /* A cluster seen from r, by Monte Carlo over its area: points x_i
@@ -504,10 +504,9 @@ void rad_cluster_factor(rad_ctx *c, const rad_elem *r, uint32_t src, double *F, 
     int nrays = emitting ? c->prm.shadow_rays : c->prm.vis_rays;
     ct_rng g = link_rng(c, r, src, !emitting, TAG_DECIDE);
     double sum, sumv;
-    cluster_segments(c, r, k, &g, nrays, &sum, &sumv, NULL);
-    int m = strata_side(nrays);
-    *F = (double)k->area * sum / (m * m);
-    *FV = (double)k->area * sumv / (m * m);
+    int n = cluster_segments(c, r, k, &g, nrays, &sum, &sumv, NULL);
+    *F = (double)k->area * sum / n;
+    *FV = (double)k->area * sumv / n;
 }
 
 /* bk of r's link from non-emitting cluster src: the radiosity its free
@@ -570,7 +569,7 @@ float rad_point_visibility(const rad_ctx *c, vec3 x, vec3 n, uint32_t src, int n
         stratum(&g, i, m, &u, &v);
         vec3 y, ny;
         if (k) {
-            y = cluster_point(c, k, ((float)i + rng_float(&g)) / (float)(m * m), u, v, &ny);
+            ny = cluster_point(c, k, ((float)i + rng_float(&g)) / (float)(m * m), u, v, &y)->n;
         } else {
             y = rad_elem_point(se, u, v);
             ny = c->patches[se->patch].n;

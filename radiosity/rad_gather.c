@@ -90,12 +90,11 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
                         if (sweep) g->idx[fill++] = e->link_off + i;
                         else g->off[ei + 1]++;
                     } else if (sweep) {
-                        vec3 B = (l->src & RAD_CLUSTER_BIT)
-                                     ? rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], c->cur, e->c)
-                                     : *rad_B(c, c->cur, l->src);
+                        vec3 B = (l->src & RAD_CLUSTER_BIT) ? rad_link_cluster_B(c, l, c->cur, e->c)
+                                                            : *rad_B(c, c->cur, l->src);
                         vec3 E = (l->src & RAD_CLUSTER_BIT) ? c->clusters[l->src & RAD_ID_MASK].E
                                                             : c->patches[rad_el(c, l->src)->patch].E;
-                        g->flat[ei] = v3_madd(g->flat[ei], B, l->ff * rad_link_bk(l));
+                        g->flat[ei] = v3_madd(g->flat[ei], B, l->ff);
                         g->flat_d[ei] = v3_madd(g->flat_d[ei], E, l->ff);
                     }
                 }
@@ -260,7 +259,7 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
                 const rad_cluster *q = &c->clusters[l->src & RAD_ID_MASK];
                 f0 = l->gr;
                 f = l->ff;
-                B = v3_scale(rad_cluster_B(q, c->cur, xp), rad_link_bk(l));
+                B = rad_link_cluster_B(c, l, c->cur, xp);
                 E = q->E;
             } else {
                 const rad_elem *s = rad_el(c, l->src);
@@ -309,8 +308,7 @@ static void leaf_walk(rad_ctx *c, const rad_patch *p, leaf_acc *a, uint32_t ei)
     for (uint32_t i = 0; i < e->nlinks; i++) {
         const rad_link *l = &p->links[e->link_off + i];
         int cl = (l->src & RAD_CLUSTER_BIT) != 0;
-        double b = cl ? v3_avg(rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], c->cur, e->c)) * rad_link_bk(l)
-                      : v3_avg(*rad_B(c, c->cur, l->src));
+        double b = v3_avg(cl ? rad_link_cluster_B(c, l, c->cur, e->c) : *rad_B(c, c->cur, l->src));
         double ee = cl ? v3_avg(c->clusters[l->src & RAD_ID_MASK].E) : v3_avg(c->patches[rad_el(c, l->src)->patch].E);
         /* Not gather_flat: no vertex rays look at a partly hidden source
          * here, a cluster has no polygon to take a factor to, and a hidden

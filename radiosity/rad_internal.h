@@ -27,7 +27,7 @@
  * the fraction of visibility rays that were not blocked. gr and gv are its
  * error per unit of source radiosity (rad_link.c, evaluate), kept for the
  * oracle of the later passes. A cluster's link has no gv: in its place bk,
- * what the radiosity its rays saw is of the cluster's mean (rad_link_bk). */
+ * what the radiosity its rays saw is of the cluster's mean (rad_link_cluster_B). */
 typedef struct rad_link {
     uint32_t src;
     float ff;
@@ -200,15 +200,6 @@ static inline vec3 rad_cluster_B(const rad_cluster *k, int b, vec3 x)
     return den > 0.0f ? v3_scale(num, 1.0f / den) : v3s(0.0f);
 }
 
-/* The factor by which link l scales its source's radiosity: a cluster's
- * bk (1 until the last pass sets it, rad_cluster_bk), 1 for an element.
- * Only clusters without a lamp get a bk other than 1, so no emission (the
- * direct part) needs scaling. */
-static inline float rad_link_bk(const rad_link *l)
-{
-    return (l->src & RAD_CLUSTER_BIT) ? l->bk : 1.0f;
-}
-
 /* The brightest of cluster k's six sides in buffer b (per channel): no
  * receiver sees more of it (rad_cluster_B blends the sides). */
 static inline vec3 rad_cluster_B_max(const rad_cluster *k, int b)
@@ -217,6 +208,16 @@ static inline vec3 rad_cluster_B_max(const rad_cluster *k, int b)
     for (int d = 0; d < 6; d++)
         if (k->W[b][d] > 0.0f) m = v3_max(m, v3_scale(k->NB[b][d], 1.0f / k->W[b][d]));
     return m;
+}
+
+/* What cluster link l brings its receiver from a point x of it, per unit
+ * of ff, in buffer b: the cluster's mean as x sees it times the link's bk
+ * (1 until the last pass sets it, rad_cluster_bk). Only clusters without
+ * a lamp get a bk other than 1, so their emission (the direct part) needs
+ * no scaling. */
+static inline vec3 rad_link_cluster_B(const rad_ctx *c, const rad_link *l, int b, vec3 x)
+{
+    return v3_scale(rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], b, x), l->bk);
 }
 
 /* Radiosity of element i in buffer b (0 or 1). */

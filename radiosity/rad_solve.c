@@ -215,9 +215,8 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         uint32_t src = l->src;
         vec3 B;
         if (src & RAD_CLUSTER_BIT) {
-            const rad_cluster *k = &c->clusters[src & RAD_ID_MASK];
-            B = v3_scale(rad_cluster_B(k, cur, e->c), rad_link_bk(l));
-            if (direct) Hd = v3_madd(Hd, k->E, l->ff);
+            B = rad_link_cluster_B(c, l, cur, e->c);
+            if (direct) Hd = v3_madd(Hd, c->clusters[src & RAD_ID_MASK].E, l->ff);
         } else {
             B = *rad_B(c, cur, src);
             if (direct) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
@@ -637,16 +636,15 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
             rc = iterate(c, ws, prm->max_iterations, prm->tolerance, tp, st, &residual);
             if (rc) goto done;
         }
-        double tol = last ? prm->tolerance : 10.0 * prm->tolerance;
         ct_debug("radiosity", "pass %d: %llu links refined, %u elements, %.2f s", c->pass + 1,
                  (unsigned long long)refined, c->nelems, ct_now() - tp);
         /* A scene that reflects nearly all its light (a closed white room)
          * converges slowly: stopped here it is darker than its solution
          * (20 % in a box of albedo 1 at the defaults), which no figure said. */
-        if (last && !(residual < tol))
+        if (last && !(residual < prm->tolerance))
             ct_warn("radiosity", "not converged: residual %.2e after %d iterations is above --tolerance %.0e; "
                     "the solution is darker than converged (raise --max-iterations)", residual,
-                    prm->max_iterations, tol);
+                    prm->max_iterations, prm->tolerance);
         if (last) break;
     }
     /* One more gather at the converged values for the absorbed power. */
