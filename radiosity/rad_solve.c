@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 21u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 22u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -41,7 +41,7 @@
                                  * first pass's lit area, segment ends traced from both
                                  * sides, value rays that miss take a 256-ray look; 21: a
                                  * cluster link scales the cluster's mean by the radiosity
-                                 * its rays saw (bk) */
+                                 * its rays saw (bk); 22: deciding rays turned per receiver */
 
 void rad_params_default(rad_params *p)
 {
