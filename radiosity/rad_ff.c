@@ -2,7 +2,10 @@
  * smaller element to the other's polygon, averaged over a small quadrature,
  * turned by reciprocity), cluster factors by Monte Carlo over the cluster's
  * area, and visibility by jittered Embree rays weighted by the point kernel,
- * from an element or from a mesh vertex (rad_internal.h). */
+ * from an element or from a mesh vertex (rad_internal.h). (Over 600
+ * lines: the factors, the cluster points and the link rays share the
+ * strata, the random streams and the point pickers, which stay private to
+ * this file.) */
 #include "radiosity/rad_internal.h"
 
 #include <math.h>
