@@ -239,7 +239,7 @@ int rad_src_has_emitter(const rad_ctx *c, uint32_t src)
  * share their jitter pattern, so neighbouring receivers see the same few
  * rays' bias instead of independent noise (blotches across a curved
  * surface or a shadow); the deciding rays turn it per receiver
- * (receiver_shift). Shadow rays to emitters stay independent, or penumbrae
+ * (RAD_RAYS_TURNED, receiver_shift). Shadow rays to emitters stay independent, or penumbrae
  * would show as a few shifted hard shadows. */
 /* A source's stable key: an element's (patch and child path), a cluster's
  * hashed index. */
@@ -301,11 +301,11 @@ static void stratum(ct_rng *g, int i, int m, float *u, float *v)
  * every receiver, so one unlucky point (1 mm under a lamp in a room
  * stretched four times, docs/radiosity.md "Shared rays") made every link
  * to the ceiling look part hidden and refined the whole room three times
- * over for one seed in four. The deciding rays (TAG_DECIDE) of each
- * receiver turn the pattern on an element source by an offset of their
- * own (a Cranley-Patterson rotation): the points stay stratified and
- * paired as before, but no point decides for all receivers. The value
- * rays stay shared: turned too, neighbouring elements in a shadow drew
+ * over for one seed in four. Rays that ask for it (RAD_RAYS_TURNED: the
+ * deciding rays, rad_link.c evaluate) turn the pattern on an element
+ * source by an offset of the receiver's own (a Cranley-Patterson
+ * rotation): the points stay stratified and paired as before, but no point
+ * decides for all receivers. The value rays stay shared: turned too, neighbouring elements in a shadow drew
  * their own noise again, and the L room's box foot came out blotchier
  * (worst block over seeds 1-4 10.5 % on average against 8.7 %). A
  * cluster's points stay shared (cluster_segments): turned too, the office
@@ -333,14 +333,13 @@ static float wrap01(float u)
  * seeing half of a floor got half its light twice over. Returns -1 when no
  * segment's kernel is positive (the exchange is too slight for its rays to
  * find). */
-double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, uint64_t tag, int shared,
+double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, uint64_t tag, rad_rays rays,
                       int *nvalid)
 {
-    int emitting = rad_src_has_emitter(c, src);
-    shared = !emitting && shared;
-    ct_rng g = link_rng(c, r, src, shared, tag);
+    if (rad_src_has_emitter(c, src)) rays = RAD_RAYS_OWN;
+    ct_rng g = link_rng(c, r, src, rays != RAD_RAYS_OWN, tag);
     float du = 0.0f, dv = 0.0f;
-    if (shared && tag == TAG_DECIDE) receiver_shift(r, &du, &dv);
+    if (rays == RAD_RAYS_TURNED) receiver_shift(r, &du, &dv);
     int m = strata_side(nrays);
     nrays = m * m;
     vec3 n = c->patches[r->patch].n;

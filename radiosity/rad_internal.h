@@ -314,10 +314,16 @@ int rad_src_has_emitter(const rad_ctx *c, uint32_t src);
  * r, integrated over the smaller one and turned by reciprocity. */
 void rad_ff_elem(const rad_ctx *c, const rad_elem *r, const rad_elem *s, double *F, double *dF);
 
+/* Whose points a link's rays take on a non-emitting source (a lamp's
+ * links always take their own, rad_ff.c link_rng): the link's own, the
+ * source's shared with every receiver, or those turned by an offset of
+ * the receiver's (receiver_shift). */
+typedef enum { RAD_RAYS_OWN = 0, RAD_RAYS_SHARED, RAD_RAYS_TURNED } rad_rays;
+
 /* Visible fraction of source src seen from receiver r by nrays jittered,
- * kernel-weighted segments (stream tag, shared between receivers when
- * shared); *nvalid the segments traced; -1 when none could be. */
-double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, uint64_t tag, int shared,
+ * kernel-weighted segments (stream tag, points as rays says); *nvalid the
+ * segments traced; -1 when none could be. */
+double rad_visibility(rad_ctx *c, const rad_elem *r, uint32_t src, int nrays, uint64_t tag, rad_rays rays,
                       int *nvalid);
 
 /* r's average factor to cluster src, unoccluded (*F) and visible (*FV), by

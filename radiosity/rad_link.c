@@ -166,7 +166,9 @@ static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_l
     if (!(*F > 0.0)) return -1;
     int n = rad_src_has_emitter(c, src) ? c->prm.shadow_rays : c->prm.vis_rays, nvalid;
     *nr = n;
-    V = rad_visibility(c, r, src, n, TAG_DECIDE, 1, &nvalid);
+    /* Turned per receiver: a point shared by all would decide for all
+     * (rad_ff.c, receiver_shift). */
+    V = rad_visibility(c, r, src, n, TAG_DECIDE, RAD_RAYS_TURNED, &nvalid);
     if (V <= 0.0 && P > c->eps) {
         /* A link that may carry P is declared hidden only on enough
          * evidence: with n rays all blocked, a source visible to the
@@ -176,7 +178,7 @@ static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_l
         double want = ceil(P / (M_E * c->eps));
         int n2 = want > RETEST_RAYS ? RETEST_RAYS : (int)want;
         if (n2 > n) {
-            V = rad_visibility(c, r, src, n2, TAG_RETEST, 0, &nvalid);
+            V = rad_visibility(c, r, src, n2, TAG_RETEST, RAD_RAYS_OWN, &nvalid);
             *nr = n2;
         }
     }
@@ -205,7 +207,8 @@ static int evaluate(rad_ctx *c, const rad_elem *r, uint32_t src, double P, rad_l
 static int value(rad_ctx *c, const rad_elem *r, rad_link *l, double F, int n)
 {
     int nvalid;
-    double V = rad_visibility(c, r, l->src, n, TAG_VALUE, n <= c->prm.shadow_rays, &nvalid);
+    double V = rad_visibility(c, r, l->src, n, TAG_VALUE, n <= c->prm.shadow_rays ? RAD_RAYS_SHARED : RAD_RAYS_OWN,
+                              &nvalid);
     /* None of these rays found the exchange (their points were all turned
      * away from each other): a closer look with RETEST_RAYS of its own
      * (evaluate's estimate would be the deciding rays' again, a selection:
@@ -213,7 +216,7 @@ static int value(rad_ctx *c, const rad_elem *r, rad_link *l, double F, int n)
      * visible. Taken as fully visible, grazing links carried their whole
      * unoccluded factor: ground reaching under a closed room got light from
      * inside it, a fortieth of the room's own (docs/radiosity.md, "Scale"). */
-    if (V < 0.0) V = rad_visibility(c, r, l->src, RETEST_RAYS, TAG_RETEST, 0, &nvalid);
+    if (V < 0.0) V = rad_visibility(c, r, l->src, RETEST_RAYS, TAG_RETEST, RAD_RAYS_OWN, &nvalid);
     if (V < 0.0) V = 0.5;
     if (V == 0.0 && l->gr == 0.0f && l->gv == 0.0f) return -1;
     l->vis = (float)V;
