@@ -59,14 +59,90 @@ static int gather_flat(const rad_ctx *c, const rad_elem *e, const rad_link *l)
     return (l->src & RAD_CLUSTER_BIT) || factor_flat(e, l);
 }
 
+/* A source element is seen as one value from x while it is small there
+ * (radius^2 under SEEN_SMALL d^2, gather_factor's own test: its factor is
+ * then even over it) or its leaves' radiosity spreads by at most
+ * SEEN_SPREAD of its mean. */
+#define SEEN_SMALL 0.01f
+#define SEEN_SPREAD 0.05f
+
+static int seen_whole(const rad_ctx *c, const rad_gather_prep *g, vec3 x, uint32_t si, vec3 B)
+{
+    const rad_elem *s = rad_el(c, si);
+    return s->child == RAD_NONE || s->radius * s->radius < SEEN_SMALL * v3_len2(v3_sub(s->c, x)) ||
+           g->spread[si] <= SEEN_SPREAD * v3_maxc(B);
+}
+
+static void seen_descend(const rad_ctx *c, const rad_gather_prep *g, vec3 x, vec3 n, uint32_t si, double *fs,
+                         vec3 *fb)
+{
+    vec3 B = *rad_B(c, c->cur, si);
+    if (seen_whole(c, g, x, si, B)) {
+        float f = gather_factor(c, x, n, rad_el(c, si));
+        *fs += f;
+        *fb = v3_madd(*fb, B, f);
+        return;
+    }
+    for (uint32_t k = 0; k < 4; k++) seen_descend(c, g, x, n, rad_el(c, si)->child + k, fs, fb);
+}
+
+/* Source element si's radiosity as the point x (normal n) sees it. A link
+ * holds a source as coarse as its error allowed, and gathers the source's
+ * mean; but a near source's parts weigh by their own factors. Under the
+ * Cornell box's sphere, the floor around the contact is dark and the lit
+ * floor beyond it bright: the sphere's lowest vertices took the mean of
+ * floor elements reaching out into the light and gathered twice what their
+ * rays saw there (0.173 against 0.083, docs/radiosity.md "Where a curved
+ * object touches a surface"). So where the source is large seen from x and
+ * its leaves differ, its children's values are weighed by their factors at
+ * x, down to where that no longer matters; the link's factor and
+ * visibility stay its own. */
+static vec3 seen_B(const rad_ctx *c, const rad_gather_prep *g, vec3 x, vec3 n, uint32_t si)
+{
+    vec3 B = *rad_B(c, c->cur, si);
+    if (seen_whole(c, g, x, si, B)) return B;
+    double fs = 0.0;
+    vec3 fb = v3s(0.0f);
+    seen_descend(c, g, x, n, si, &fs, &fb);
+    return fs > 0.0 ? v3_scale(fb, (float)(1.0 / fs)) : B;
+}
+
+/* The spread of element ei's leaves' radiosity (brightest channel) into
+ * spread[ei]; returns their smallest and largest in *lo, *hi. */
+static void leaf_spread(const rad_ctx *c, float *spread, uint32_t ei, float *lo, float *hi)
+{
+    const rad_elem *e = rad_el(c, ei);
+    if (e->child == RAD_NONE) {
+        *lo = *hi = v3_maxc(*rad_B(c, c->cur, ei));
+        spread[ei] = 0.0f;
+        return;
+    }
+    float a = INFINITY, b = -INFINITY;
+    for (uint32_t k = 0; k < 4; k++) {
+        float l, h;
+        leaf_spread(c, spread, e->child + k, &l, &h);
+        a = fminf(a, l);
+        b = fmaxf(b, h);
+    }
+    spread[ei] = b - a;
+    *lo = a;
+    *hi = b;
+}
+
 int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
 {
     memset(g, 0, sizeof *g);
     size_t n = c->nelems;
     g->flat = calloc(n ? n : 1, sizeof *g->flat);
     g->flat_d = calloc(n ? n : 1, sizeof *g->flat_d);
+    g->flat_p = calloc(n ? n : 1, sizeof *g->flat_p);
     g->off = calloc(n + 1, sizeof *g->off);
-    if (!g->flat || !g->flat_d || !g->off) return CT_ENOMEM;
+    g->spread = calloc(n ? n : 1, sizeof *g->spread);
+    if (!g->flat || !g->flat_d || !g->flat_p || !g->off || !g->spread) return CT_ENOMEM;
+    for (uint32_t pi = 0; pi < c->npatches; pi++) {
+        float lo, hi;
+        leaf_spread(c, g->spread, c->patches[pi].root, &lo, &hi);
+    }
     /* Two sweeps over every element: count the links taken per vertex
      * (into off[e + 1]), then sum the flat ones and list the others. */
     for (int sweep = 0; sweep < 2; sweep++) {
@@ -90,11 +166,16 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
                         if (sweep) g->idx[fill++] = e->link_off + i;
                         else g->off[ei + 1]++;
                     } else if (sweep) {
+                        /* A flat link's factor is the same at every vertex,
+                         * and so, near enough, is how its source looks:
+                         * seen from the receiver's centre. */
                         vec3 B = (l->src & RAD_CLUSTER_BIT) ? rad_link_cluster_B(c, l, c->cur, e->c)
-                                                            : *rad_B(c, c->cur, l->src);
+                                                            : seen_B(c, g, rad_lift(e->c, p->n), p->n, l->src);
                         vec3 E = (l->src & RAD_CLUSTER_BIT) ? c->clusters[l->src & RAD_ID_MASK].E
                                                             : c->patches[rad_el(c, l->src)->patch].E;
+                        vec3 Bp = (l->src & RAD_CLUSTER_BIT) ? B : *rad_B(c, c->cur, l->src);
                         g->flat[ei] = v3_madd(g->flat[ei], B, l->ff);
+                        g->flat_p[ei] = v3_madd(g->flat_p[ei], Bp, l->ff);
                         g->flat_d[ei] = v3_madd(g->flat_d[ei], E, l->ff);
                     }
                 }
@@ -110,8 +191,10 @@ void rad_gather_prep_free(rad_gather_prep *g)
 {
     free(g->flat);
     free(g->flat_d);
+    free(g->flat_p);
     free(g->off);
     free(g->idx);
+    free(g->spread);
     memset(g, 0, sizeof *g);
 }
 
@@ -237,10 +320,13 @@ static void look_at_partial_links(const rad_ctx *c, rad_gather_scratch *w, vec3 
     }
 }
 
-void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
-                      vec3 n, vec3 *H, vec3 *Hd)
+/* rad_final_gather; with Hl and Hdl, also what the same point factors
+ * bring with the links' own visibility and their sources' means
+ * (gather_leaf_task). */
+static void final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
+                         vec3 n, vec3 *H, vec3 *Hd, vec3 *Hl, vec3 *Hdl)
 {
-    vec3 h = v3s(0.0f), hd = v3s(0.0f);
+    vec3 h = v3s(0.0f), hd = v3s(0.0f), hl = v3s(0.0f);
     vec3 xp = gather_point(rad_el(c, leaf), x, n);
     int look = c->prm.vertex_rays > 0;
     w->n = 0;
@@ -249,35 +335,48 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
         const rad_patch *p = &c->patches[e->patch];
         h = v3_add(h, g->flat[ei]);
         hd = v3_add(hd, g->flat_d[ei]);
+        hl = v3_add(hl, g->flat_p[ei]);
         for (uint32_t k = g->off[ei]; k < g->off[ei + 1]; k++) {
             const rad_link *l = &p->links[g->idx[k]];
             float f0, f;
-            vec3 B, E;
+            vec3 B, Bp, E;
             if (l->src & RAD_CLUSTER_BIT) {
                 /* Non-flat only when partly hidden: its factor stays the
                  * receiver's average, its visibility becomes the vertex's. */
                 const rad_cluster *q = &c->clusters[l->src & RAD_ID_MASK];
                 f0 = l->gr;
                 f = l->ff;
-                B = rad_link_cluster_B(c, l, c->cur, xp);
+                Bp = B = rad_link_cluster_B(c, l, c->cur, xp);
                 E = q->E;
             } else {
                 const rad_elem *s = rad_el(c, l->src);
                 f0 = gather_factor(c, xp, n, s);
                 f = f0 * l->vis;
-                B = *rad_B(c, c->cur, l->src);
+                B = seen_B(c, g, xp, n, l->src);
+                Bp = *rad_B(c, c->cur, l->src);
                 E = c->patches[s->patch].E;
             }
             h = v3_madd(h, B, f);
             hd = v3_madd(hd, E, f);
+            hl = v3_madd(hl, Bp, f);
             /* Out of memory: this vertex keeps its elements' visibility. */
             if (look && l->vis < 1.0f && f0 > 0.0f && v3_maxc(B) > 0.0f && scratch_push(w, l, f0, B, E)) look = 0;
         }
+    }
+    if (Hl) {
+        *Hl = hl;
+        *Hdl = hd;
     }
     if (look && w->n > 0) look_at_partial_links(c, w, xp, n, vertex_key(x), &h, &hd);
     /* A sampled change may overshoot where the vertex is nearly dark. */
     *H = v3_max(h, v3s(0.0f));
     *Hd = v3_max(hd, v3s(0.0f));
+}
+
+void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
+                      vec3 n, vec3 *H, vec3 *Hd)
+{
+    final_gather(c, g, w, leaf, x, n, H, Hd, NULL, NULL);
 }
 
 /* The leaves of one patch tree and what their ancestors' links bring them
@@ -391,13 +490,70 @@ int rad_leaf_scales(rad_ctx *c, uint32_t pi)
  * points per pool task, a scratch per worker. */
 #define GATHER_RUN 256
 
+/* What leaf li's links bring it, as push_pull gathers it (rad_solve.c):
+ * its own links, and its ancestors' scaled by its share (hk, hkd). */
+static void leaf_links(const rad_ctx *c, uint32_t li, vec3 *H, vec3 *Hd)
+{
+    vec3 h = v3s(0.0f), hd = v3s(0.0f), hi = v3s(0.0f), hdi = v3s(0.0f);
+    for (uint32_t ei = li; ei != RAD_NONE; ei = rad_el(c, ei)->parent) {
+        const rad_elem *e = rad_el(c, ei);
+        const rad_patch *p = &c->patches[e->patch];
+        vec3 a = v3s(0.0f), ad = v3s(0.0f);
+        for (uint32_t i = 0; i < e->nlinks; i++) {
+            const rad_link *l = &p->links[e->link_off + i];
+            int cl = (l->src & RAD_CLUSTER_BIT) != 0;
+            vec3 B = cl ? rad_link_cluster_B(c, l, c->cur, e->c) : *rad_B(c, c->cur, l->src);
+            vec3 E = cl ? c->clusters[l->src & RAD_ID_MASK].E : c->patches[rad_el(c, l->src)->patch].E;
+            a = v3_madd(a, B, l->ff);
+            ad = v3_madd(ad, E, l->ff);
+        }
+        if (ei == li) {
+            h = a;
+            hd = ad;
+        } else {
+            hi = v3_add(hi, a);
+            hdi = v3_add(hdi, ad);
+        }
+    }
+    const rad_elem *lf = rad_el(c, li);
+    *H = v3_add(h, v3_scale(hi, 1.0f + lf->hk));
+    *Hd = v3_add(hd, v3_scale(hdi, 1.0f + lf->hkd));
+}
+
+/* Per channel: the links' value a scaled by the point's change num / den;
+ * the point's own value where the links' visibility brought nothing. */
+static vec3 rescale(vec3 a, vec3 num, vec3 den)
+{
+    float av[3] = {a.x, a.y, a.z}, nv[3] = {num.x, num.y, num.z}, dv[3] = {den.x, den.y, den.z}, o[3];
+    for (int i = 0; i < 3; i++) o[i] = dv[i] > 0.0f ? av[i] * (nv[i] / dv[i]) : nv[i];
+    return v3(o[0], o[1], o[2]);
+}
+
+/* A leaf's irradiance and its direct part from the final gather at its
+ * centre, as a change of what its links bring (rad_solve.c,
+ * regather_leaves): the links' values times what the centre's own
+ * visibility and its near sources' parts (seen_B) make of the same point
+ * factors. The point factors themselves stay out: a leaf's centre is not
+ * its mean, and where a leaf is large beside a lamp (office's desks under
+ * their desk lamps) the centre's value tripled the desks' power. */
+static void gather_leaf(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t li, vec3 *H,
+                        vec3 *Hd)
+{
+    const rad_elem *lf = rad_el(c, li);
+    vec3 num, numd, den, dend, a, ad;
+    final_gather(c, g, w, li, lf->c, c->patches[lf->patch].n, &num, &numd, &den, &dend);
+    leaf_links(c, li, &a, &ad);
+    *H = rescale(a, num, den);
+    *Hd = rescale(ad, numd, dend);
+}
+
 typedef struct gather_job {
     const rad_ctx *c;
     const rad_gather_prep *prep;
     rad_gather_scratch *w;   /* one per worker */
     const uint32_t *leaf;
-    const vec3 *pos;
-    vec3 *B, *Bd;
+    const vec3 *pos;         /* NULL: at the leaves' centres, as the solve's values */
+    vec3 *B, *Bd, *H;
     uint32_t n;
 } gather_job;
 
@@ -406,8 +562,23 @@ static void gather_task(void *ctx, int worker, size_t task)
     const gather_job *j = ctx;
     uint32_t b = (uint32_t)task * GATHER_RUN, e = b + GATHER_RUN < j->n ? b + GATHER_RUN : j->n;
     for (uint32_t g = b; g < e; g++) {
-        const rad_patch *p = &j->c->patches[rad_el(j->c, j->leaf[g])->patch];
+        const rad_elem *lf = rad_el(j->c, j->leaf[g]);
+        const rad_patch *p = &j->c->patches[lf->patch];
         vec3 H, Hd;
+        if (!j->pos) {
+            gather_leaf(j->c, j->prep, &j->w[worker], j->leaf[g], &H, &Hd);
+            /* A leaf's value as push_pull makes it (rad_solve.c): what it
+             * passes on, with the lamps its mirrors show sampled once. */
+            if (j->c->mirrors) {
+                H = v3_add(H, lf->Hm);
+                Hd = v3_add(Hd, lf->Hm);
+            }
+            vec3 refl = v3_max(v3_sub(v3_mul(p->rho_t, H), v3_mul(p->rho_ml, Hd)), v3s(0.0f));
+            j->B[g] = v3_add(p->E, refl);
+            j->Bd[g] = v3_add(p->E, v3_mul(p->rho, Hd));
+            j->H[g] = H;
+            continue;
+        }
         rad_final_gather(j->c, j->prep, &j->w[worker], j->leaf[g], j->pos[g], p->n, &H, &Hd);
         if (j->c->mirrors) {
             vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
@@ -419,7 +590,8 @@ static void gather_task(void *ctx, int worker, size_t task)
     }
 }
 
-int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
+static int gather_run(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd,
+                      vec3 *H)
 {
     /* On the solver's pool (rad_solve.c), the caller alone without one. */
     int nth = pool_threads(c->pool);
@@ -427,7 +599,7 @@ int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, u
     rad_gather_scratch *w = calloc((size_t)nth, sizeof *w);
     int rc = w ? rad_gather_prepare(c, &prep) : CT_ENOMEM;
     if (!rc) {
-        gather_job j = {c, &prep, w, leaf, pos, B, Bd, n};
+        gather_job j = {c, &prep, w, leaf, pos, B, Bd, H, n};
         pool_run(c->pool, ((size_t)n + GATHER_RUN - 1) / GATHER_RUN, gather_task, &j);
     }
     if (w) {
@@ -436,4 +608,14 @@ int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, u
     }
     free(w);
     return rc ? CT_ENOMEM : CT_OK;
+}
+
+int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
+{
+    return gather_run(c, leaf, pos, n, B, Bd, NULL);
+}
+
+int rad_gather_leaves(const rad_ctx *c, const uint32_t *leaf, uint32_t n, vec3 *B, vec3 *Bd, vec3 *H)
+{
+    return gather_run(c, leaf, NULL, n, B, Bd, H);
 }

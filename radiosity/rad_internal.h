@@ -413,9 +413,11 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err);
  * factors flat over the element), and the others, to be taken at each
  * vertex, as indices into the patch's link block. */
 typedef struct rad_gather_prep {
-    vec3 *flat, *flat_d;     /* sum of ff * B and of ff * E of the flat links */
+    vec3 *flat, *flat_d;     /* sum of ff * B and of ff * E of the flat links (B as seen_B) */
+    vec3 *flat_p;            /* the same with the sources' means */
     uint32_t *off;           /* first entry of an element's other links in idx (nelems + 1) */
     uint32_t *idx;
+    float *spread;           /* per element: its leaves' largest minus smallest radiosity (seen_B) */
 } rad_gather_prep;
 
 /* Fills g from the final links; CT_ENOMEM when out of memory. */
@@ -455,5 +457,10 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
  * leaf[g] (rad_final_gather, plus lamps seen in mirrors), on
  * c->prm.threads threads. CT_OK or CT_ENOMEM. */
 int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd);
+
+/* The final gather at the n leaves' centres, as the solve's values (B: E
+ * plus what the leaf passes on, rho_t and rho_ml as push_pull; Bd: its
+ * direct part; H: its irradiance); CT_OK or CT_ENOMEM. */
+int rad_gather_leaves(const rad_ctx *c, const uint32_t *leaf, uint32_t n, vec3 *B, vec3 *Bd, vec3 *H);
 
 #endif

@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 22u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 23u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -41,7 +41,9 @@
                                  * first pass's lit area, segment ends traced from both
                                  * sides, value rays that miss take a 256-ray look; 21: a
                                  * cluster link scales the cluster's mean by the radiosity
-                                 * its rays saw (bk); 22: deciding rays turned per receiver */
+                                 * its rays saw (bk); 22: deciding rays turned per receiver;
+                                 * 23: near sources seen by their parts in the final gather,
+                                 * the final gather at the leaves (--gather-passes) */
 
 void rad_params_default(rad_params *p)
 {
@@ -56,6 +58,7 @@ void rad_params_default(rad_params *p)
     p->vis_rays = 4;
     p->shadow_rays = 16;
     p->vertex_rays = 8;
+    p->gather_passes = 2;
     p->tolerance = 1e-3;
     p->max_iterations = 100;
     p->max_passes = 8;
@@ -82,6 +85,8 @@ int rad_params_check(const rad_params *p, ct_error *err)
         return ct_fail(err, CT_EINVAL, "--shadow-rays %d outside [1, 1024]", p->shadow_rays);
     if (p->vertex_rays < 0 || p->vertex_rays > 1024)
         return ct_fail(err, CT_EINVAL, "--vertex-rays %d outside [0, 1024]", p->vertex_rays);
+    if (p->gather_passes < 0 || p->gather_passes > 16)
+        return ct_fail(err, CT_EINVAL, "--gather-passes %d outside [0, 16]", p->gather_passes);
     if (!(p->tolerance > 0.0 && p->tolerance < 1.0))
         return ct_fail(err, CT_EINVAL, "--tolerance %g outside (0, 1)", p->tolerance);
     if (p->max_iterations < 1) return ct_fail(err, CT_EINVAL, "--max-iterations must be at least 1");
@@ -137,6 +142,7 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
     h = mix(h, (uint64_t)p->vis_rays);
     h = mix(h, (uint64_t)p->shadow_rays);
     h = mix(h, (uint64_t)p->vertex_rays);
+    h = mix(h, (uint64_t)p->gather_passes);
     h = mix_f(h, p->tolerance);
     h = mix(h, (uint64_t)p->max_iterations);
     h = mix(h, (uint64_t)p->max_passes);
@@ -514,6 +520,84 @@ static int iterate(rad_ctx *c, worker *ws, int max_it, double tol, double tp, ra
     return 0;
 }
 
+/* Pulls the leaves' radiosity (buffer b) up to every element of e's tree. */
+static vec3 pull_tree(rad_ctx *c, int b, uint32_t ei, vec3 *Bd)
+{
+    rad_elem *e = rad_el(c, ei);
+    if (e->child == RAD_NONE) {
+        *Bd = e->Bd;
+        return *rad_B(c, b, ei);
+    }
+    vec3 B = v3s(0.0f), D = v3s(0.0f);
+    for (uint32_t k = 0; k < 4; k++) {
+        vec3 cd;
+        vec3 cb = pull_tree(c, b, e->child + k, &cd);
+        float a = rad_el(c, e->child + k)->area;
+        B = v3_madd(B, cb, a);
+        D = v3_madd(D, cd, a);
+    }
+    float inv = e->area > 0.0f ? 1.0f / e->area : 0.0f;
+    B = v3_scale(B, inv);
+    e->Bd = *Bd = v3_scale(D, inv);
+    *rad_B(c, b, ei) = B;
+    return B;
+}
+
+/* One step of the final gather at every leaf's centre (rad_gather_leaves)
+ * into the next buffer, pulled up the trees and into the clusters; the
+ * power the leaves absorb then into *absorbed. The links' values of a leaf
+ * are what its links bring with their receivers' visibility: a leaf that
+ * inherits a link from an ancestor partly hidden from the source takes the
+ * ancestor's visible share, where its own may be none (the floor under the
+ * Cornell box's sphere: its links brought 0.131 where rays from its
+ * vertices saw 0.104, docs/radiosity.md). The mesh's vertices look at their
+ * own visibility in the final gather, but they gathered from those leaves,
+ * and the floor and the sphere lit each other up. Each step here gives
+ * the leaves what their own centres see, as the vertices will. */
+static int regather_leaves(rad_ctx *c, double *absorbed)
+{
+    uint32_t nl = 0, cap = c->nelems ? c->nelems : 1;
+    uint32_t *leaf = malloc(cap * sizeof *leaf);
+    vec3 *B = malloc(cap * sizeof *B), *Bd = malloc(cap * sizeof *Bd), *H = malloc(cap * sizeof *H);
+    int rc = leaf && B && Bd && H ? CT_OK : CT_ENOMEM;
+    for (uint32_t p = 0; p < c->npatches && !rc; p++) {
+        uint32_t stack[4 * RAD_MAX_DEPTH + 8];
+        int sp = 0;
+        stack[sp++] = c->patches[p].root;
+        while (sp) {
+            uint32_t ei = stack[--sp];
+            const rad_elem *e = rad_el(c, ei);
+            if (e->child == RAD_NONE) leaf[nl++] = ei;
+            else for (uint32_t k = 0; k < 4; k++) stack[sp++] = e->child + k;
+        }
+    }
+    if (!rc) rc = rad_gather_leaves(c, leaf, nl, B, Bd, H);
+    if (!rc) {
+        int nxt = 1 - c->cur;
+        double ab = 0.0;
+        for (uint32_t i = 0; i < nl; i++) {
+            rad_elem *e = rad_el(c, leaf[i]);
+            const rad_patch *p = &c->patches[e->patch];
+            *rad_B(c, nxt, leaf[i]) = B[i];
+            e->Bd = Bd[i];
+            if (!c->scene->mats[p->mat].dielectric)
+                ab += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho_t), H[i])) * e->area;
+        }
+        for (uint32_t p = 0; p < c->npatches; p++) {
+            vec3 d;
+            pull_tree(c, nxt, c->patches[p].root, &d);
+        }
+        update_clusters(c);
+        c->cur = nxt;
+        *absorbed = ab;
+    }
+    free(leaf);
+    free(B);
+    free(Bd);
+    free(H);
+    return rc;
+}
+
 static int cap_error(rad_ctx *c, ct_error *err)
 {
     return ct_fail(err, CT_ENOMEM,
@@ -652,6 +736,18 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     for (int i = 0; i < prm->threads; i++) st->absorbed += ws[i].absorbed;
     c->cur = 1 - c->cur;
 
+    /* The leaves' values again, from the final gather (docs/radiosity.md,
+     * "The final gather at the leaves"). */
+    for (int k = 0; k < prm->gather_passes; k++) {
+        if (progress) progress(user, 1.0, "final gather at the leaves");
+        double tg = ct_now();
+        rc = regather_leaves(c, &st->absorbed);
+        if (rc) {
+            rc = ct_fail(err, rc, "radiosity: out of memory in the final gather at the leaves");
+            goto done;
+        }
+        ct_debug("radiosity", "final gather at the leaves %d/%d: %.2f s", k + 1, prm->gather_passes, ct_now() - tg);
+    }
     if (progress) progress(user, 1.0, "meshing");
     double tm = ct_now();
     rc = rad_mesh_build(c, out, err);

@@ -35,6 +35,7 @@ typedef struct rad_params {
     int vis_rays;           /* visibility rays per link from a non-emitting source */
     int shadow_rays;        /* visibility rays per link from a source containing emitters */
     int vertex_rays;        /* final gather: rays from a vertex to a partly hidden source (0: the link's own visibility) */
+    int gather_passes;      /* after the solve, steps of the final gather at every leaf (0: the links' values) */
     double tolerance;       /* residual (relative to the brightest reflected light) to stop iterating */
     int max_iterations;     /* gather/push-pull iterations per refinement pass at most */
     int max_passes;         /* refinement passes at most */

@@ -47,6 +47,9 @@ static const optab OPTS[] = {
     {"vertex-rays", 0, OPTAB_INT, OF(p.vertex_rays), 0, 1024, NULL, "N",
      "final gather: visibility rays from a mesh vertex to a partly hidden source whose light it may change by "
      "more than 1 % (0: every vertex takes its element's visibility)", NULL},
+    {"gather-passes", 0, OPTAB_INT, OF(p.gather_passes), 0, 16, NULL, "N",
+     "after the solve, steps of the final gather at every leaf's centre, so that what the vertices gather from "
+     "has each leaf's own visibility (0: the links' values)", NULL},
     {"tolerance", 0, OPTAB_DOUBLE, OF(p.tolerance), 1e-15, 1.0, NULL, "R",
      "stop iterating when the largest change of a radiosity, relative to the brightest reflected radiosity, is "
      "below R", NULL},

@@ -77,6 +77,8 @@ check 2 "unknown option '--bogus'" "$scene" -o "$tmp/x.ctmesh" --bogus
 check 2 "\-\-mirror-samples: '-1'" "$scene" -o "$tmp/x.ctmesh" --mirror-samples -1
 check 2 "\-\-mirror-samples: '4097'" "$scene" -o "$tmp/x.ctmesh" --mirror-samples 4097
 check 2 "\-\-vertex-rays: '1025'" "$scene" -o "$tmp/x.ctmesh" --vertex-rays 1025
+check 2 "\-\-gather-passes: '17'" "$scene" -o "$tmp/x.ctmesh" --gather-passes 17
+check 2 "\-\-gather-passes: '-1'" "$scene" -o "$tmp/x.ctmesh" --gather-passes -1
 check 2 "\-\-dim-floor: '1.5'" "$scene" -o "$tmp/x.ctmesh" --dim-floor 1.5
 check 2 "cannot create" "$scene" -o "$tmp/no/such/dir/x.ctmesh" --error 1e-2
 check 2 "cannot create" "$scene" -o "$tmp/x.ctmesh" --image-planes "$tmp/no/such/dir/p.exr" --error 1e-2
