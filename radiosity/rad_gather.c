@@ -3,7 +3,11 @@
  * it, the others' factors taken at every vertex, and the visibility of
  * partly hidden sources looked at from the vertex itself; and the same
  * sharing of non-flat links at the leaves' centres for the solve's last
- * pass (rad_leaf_scales) (rad_internal.h). */
+ * pass (rad_leaf_scales), and the same gather at the leaves after the
+ * solve (rad_gather_leaves) (rad_internal.h). (Over 600 lines: the
+ * gather's parts -- flat sums, near sources by their parts, a vertex's own
+ * visibility, the leaves' shares and values -- read one set of links the
+ * same way, which one file keeps in view.) */
 #include "radiosity/rad_internal.h"
 
 #include <math.h>
