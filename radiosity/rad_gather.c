@@ -326,7 +326,7 @@ static void look_at_partial_links(const rad_ctx *c, rad_gather_scratch *w, vec3 
 
 /* rad_final_gather; with Hl and Hdl, also what the same point factors
  * bring with the links' own visibility and their sources' means
- * (gather_leaf_task). */
+ * (gather_leaf). */
 static void final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scratch *w, uint32_t leaf, vec3 x,
                          vec3 n, vec3 *H, vec3 *Hd, vec3 *Hl, vec3 *Hdl)
 {
@@ -339,30 +339,31 @@ static void final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_
         const rad_patch *p = &c->patches[e->patch];
         h = v3_add(h, g->flat[ei]);
         hd = v3_add(hd, g->flat_d[ei]);
-        hl = v3_add(hl, g->flat_p[ei]);
+        if (Hl) hl = v3_add(hl, g->flat_p[ei]);
         for (uint32_t k = g->off[ei]; k < g->off[ei + 1]; k++) {
             const rad_link *l = &p->links[g->idx[k]];
             float f0, f;
-            vec3 B, Bp, E;
+            vec3 B, E;
             if (l->src & RAD_CLUSTER_BIT) {
                 /* Non-flat only when partly hidden: its factor stays the
                  * receiver's average, its visibility becomes the vertex's. */
                 const rad_cluster *q = &c->clusters[l->src & RAD_ID_MASK];
                 f0 = l->gr;
                 f = l->ff;
-                Bp = B = rad_link_cluster_B(c, l, c->cur, xp);
+                B = rad_link_cluster_B(c, l, c->cur, xp);
                 E = q->E;
             } else {
                 const rad_elem *s = rad_el(c, l->src);
                 f0 = gather_factor(c, xp, n, s);
                 f = f0 * l->vis;
                 B = seen_B(c, g, xp, n, l->src);
-                Bp = *rad_B(c, c->cur, l->src);
                 E = c->patches[s->patch].E;
+                if (Hl) hl = v3_madd(hl, *rad_B(c, c->cur, l->src), f);
             }
             h = v3_madd(h, B, f);
             hd = v3_madd(hd, E, f);
-            hl = v3_madd(hl, Bp, f);
+            /* A cluster's value is the same either way. */
+            if (Hl && (l->src & RAD_CLUSTER_BIT)) hl = v3_madd(hl, B, f);
             /* Out of memory: this vertex keeps its elements' visibility. */
             if (look && l->vis < 1.0f && f0 > 0.0f && v3_maxc(B) > 0.0f && scratch_push(w, l, f0, B, E)) look = 0;
         }
@@ -498,28 +499,15 @@ int rad_leaf_scales(rad_ctx *c, uint32_t pi)
  * its own links, and its ancestors' scaled by its share (hk, hkd). */
 static void leaf_links(const rad_ctx *c, uint32_t li, vec3 *H, vec3 *Hd)
 {
-    vec3 h = v3s(0.0f), hd = v3s(0.0f), hi = v3s(0.0f), hdi = v3s(0.0f);
-    for (uint32_t ei = li; ei != RAD_NONE; ei = rad_el(c, ei)->parent) {
-        const rad_elem *e = rad_el(c, ei);
-        const rad_patch *p = &c->patches[e->patch];
-        vec3 a = v3s(0.0f), ad = v3s(0.0f);
-        for (uint32_t i = 0; i < e->nlinks; i++) {
-            const rad_link *l = &p->links[e->link_off + i];
-            int cl = (l->src & RAD_CLUSTER_BIT) != 0;
-            vec3 B = cl ? rad_link_cluster_B(c, l, c->cur, e->c) : *rad_B(c, c->cur, l->src);
-            vec3 E = cl ? c->clusters[l->src & RAD_ID_MASK].E : c->patches[rad_el(c, l->src)->patch].E;
-            a = v3_madd(a, B, l->ff);
-            ad = v3_madd(ad, E, l->ff);
-        }
-        if (ei == li) {
-            h = a;
-            hd = ad;
-        } else {
-            hi = v3_add(hi, a);
-            hdi = v3_add(hdi, ad);
-        }
-    }
     const rad_elem *lf = rad_el(c, li);
+    vec3 h, hd, hi = v3s(0.0f), hdi = v3s(0.0f);
+    rad_elem_links(c, lf, c->cur, true, &h, &hd);
+    for (uint32_t ei = lf->parent; ei != RAD_NONE; ei = rad_el(c, ei)->parent) {
+        vec3 a, ad;
+        rad_elem_links(c, rad_el(c, ei), c->cur, true, &a, &ad);
+        hi = v3_add(hi, a);
+        hdi = v3_add(hdi, ad);
+    }
     *H = v3_add(h, v3_scale(hi, 1.0f + lf->hk));
     *Hd = v3_add(hd, v3_scale(hdi, 1.0f + lf->hkd));
 }

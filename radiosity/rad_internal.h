@@ -226,6 +226,30 @@ static inline vec3 *rad_B(const rad_ctx *c, int b, uint32_t i)
     return &c->bchunks[b][i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
 }
 
+/* What element e's own links bring it from buffer b: the irradiance into
+ * *H and, with direct, the sources' emission in it into *Hd (push_pull in
+ * rad_solve.c, and a leaf's links in rad_gather.c). */
+static inline void rad_elem_links(const rad_ctx *c, const rad_elem *e, int b, bool direct, vec3 *H, vec3 *Hd)
+{
+    const rad_patch *p = &c->patches[e->patch];
+    vec3 h = v3s(0.0f), hd = v3s(0.0f);
+    for (uint32_t i = 0; i < e->nlinks; i++) {
+        const rad_link *l = &p->links[e->link_off + i];
+        uint32_t src = l->src;
+        vec3 B;
+        if (src & RAD_CLUSTER_BIT) {
+            B = rad_link_cluster_B(c, l, b, e->c);
+            if (direct) hd = v3_madd(hd, c->clusters[src & RAD_ID_MASK].E, l->ff);
+        } else {
+            B = *rad_B(c, b, src);
+            if (direct) hd = v3_madd(hd, c->patches[rad_el(c, src)->patch].E, l->ff);
+        }
+        h = v3_madd(h, B, l->ff);
+    }
+    *H = h;
+    *Hd = hd;
+}
+
 /* --- rad_patch.c ---------------------------------------------------------- */
 
 /* Builds input patches (quads rebuilt from triangle pairs), their root

@@ -211,24 +211,12 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
     rad_elem *e = rad_el(c, ei);
     const rad_patch *p = &c->patches[e->patch];
     int cur = c->cur, nxt = 1 - cur;
-    vec3 H = v3s(0.0f), Hd = v3s(0.0f);
+    vec3 H, Hd;
     /* The direct part needs no iteration (only the final gather computes
      * it: it reads the elements, which is slower), except on plane mirrors,
      * which pass on the rest (rho_ml). */
     bool direct = w->final || v3_maxc(p->rho_ml) > 0.0f;
-    for (uint32_t i = 0; i < e->nlinks; i++) {
-        const rad_link *l = &p->links[e->link_off + i];
-        uint32_t src = l->src;
-        vec3 B;
-        if (src & RAD_CLUSTER_BIT) {
-            B = rad_link_cluster_B(c, l, cur, e->c);
-            if (direct) Hd = v3_madd(Hd, c->clusters[src & RAD_ID_MASK].E, l->ff);
-        } else {
-            B = *rad_B(c, cur, src);
-            if (direct) Hd = v3_madd(Hd, c->patches[rad_el(c, src)->patch].E, l->ff);
-        }
-        H = v3_madd(H, B, l->ff);
-    }
+    rad_elem_links(c, e, cur, direct, &H, &Hd);
     /* A leaf's inherited light as its own centre sees it (rad_leaf_scales). */
     if (e->child == RAD_NONE) {
         Hdown = v3_scale(Hdown, 1.0f + e->hk);
