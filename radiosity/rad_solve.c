@@ -58,7 +58,9 @@ void rad_params_default(rad_params *p)
     p->vis_rays = 4;
     p->shadow_rays = 16;
     p->vertex_rays = 8;
-    p->gather_passes = 2;
+    /* Off: in the box with boxes the steps gave 0.2-0.7 % more power than
+     * was emitted (docs/radiosity.md, "The final gather at the leaves"). */
+    p->gather_passes = 0;
     p->tolerance = 1e-3;
     p->max_iterations = 100;
     p->max_passes = 8;
