@@ -484,7 +484,8 @@ int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, u
 
 /* The final gather at the n leaves' centres, as the solve's values (B: E
  * plus what the leaf passes on, rho_t and rho_ml as push_pull; Bd: its
- * direct part; H: its irradiance); CT_OK or CT_ENOMEM. */
+ * direct part; H: its irradiance), their gathered light scaled to what
+ * their links bring over all of them; CT_OK or CT_ENOMEM. */
 int rad_gather_leaves(const rad_ctx *c, const uint32_t *leaf, uint32_t n, vec3 *B, vec3 *Bd, vec3 *H);
 
 #endif

@@ -49,8 +49,8 @@ static const optab OPTS[] = {
      "more than 1 % (0: every vertex takes its element's visibility)", NULL},
     {"gather-passes", 0, OPTAB_INT, OF(p.gather_passes), 0, 16, NULL, "N",
      "after the solve, steps of the final gather at every leaf's centre, so that what the vertices gather from "
-     "has each leaf's own visibility (0: the links' values; 2 takes the Cornell box's contact shadows from 1.7 to "
-     "1.3 times the truth, and may create up to 0.7 % of the power in cluttered scenes)", NULL},
+     "has each leaf's own visibility, the scene's total light kept (0: the links' values; 2 takes the Cornell box's "
+     "contact shadows from 1.7 to 1.3 times the truth and costs about 1.4-2 times the solve)", NULL},
     {"tolerance", 0, OPTAB_DOUBLE, OF(p.tolerance), 1e-15, 1.0, NULL, "R",
      "stop iterating when the largest change of a radiosity, relative to the brightest reflected radiosity, is "
      "below R", NULL},

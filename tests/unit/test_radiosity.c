@@ -245,6 +245,36 @@ Test(radiosity, box_with_boxes_keeps_its_power, .timeout = 240)
     scene_free(s);
 }
 
+/* The final gather at the leaves (--gather-passes) moves light between
+ * leaves and keeps the links' total: two steps created 0.6-0.8 % of the
+ * box with boxes' power before their sum was scaled back to the links'. */
+Test(radiosity, leaf_gather_keeps_the_power, .timeout = 240)
+{
+    ct_scene *s;
+    ct_error err;
+    cr_assert_eq(scene_load("tests/data/radiosity/clutterbox.json", &s, &err), 0, "%s", err.msg);
+    for (int seed = 1; seed <= 2; seed++) {
+        double ratio[2];
+        for (int k = 0; k < 2; k++) {
+            rad_params p = test_params();
+            p.error = 1e-4;
+            p.tolerance = 1e-6;
+            p.seed = (uint64_t)seed;
+            p.gather_passes = 2 * k;
+            ct_radmesh m;
+            rad_stats st;
+            solve_ok(s, &p, &m, &st);
+            ratio[k] = st.absorbed / st.emitted;
+            rmesh_free(&m);
+        }
+        cr_log_info("box with boxes, seed %d: absorbed / emitted %.5f, %.5f after two steps at the leaves", seed,
+                    ratio[0], ratio[1]);
+        cr_assert_leq(fabs(ratio[1] - ratio[0]), 0.0015,
+                      "seed %d: the leaves' steps took absorbed / emitted from %.5f to %.5f", seed, ratio[0], ratio[1]);
+    }
+    scene_free(s);
+}
+
 /* Position key for edge checks: exact bits (the mesh welds exactly). */
 typedef struct pkey { float x, y, z; } pkey;
 
