@@ -324,6 +324,23 @@ static void look_at_partial_links(const rad_ctx *c, rad_gather_scratch *w, vec3 
     }
 }
 
+/* The final gather reads every non-flat link's source element and its
+ * radiosity, scattered over the element chunks: a miss on each link made a
+ * quarter of its time (perf, the Cornell box). So an element's first
+ * GATHER_AHEAD links' sources are asked for before its loop, and each
+ * later one GATHER_AHEAD links early. */
+#define GATHER_AHEAD 4
+
+static inline void gather_ahead(const rad_ctx *c, const rad_gather_prep *g, const rad_patch *p, uint32_t k)
+{
+    uint32_t src = p->links[g->idx[k]].src;
+    if (src & RAD_CLUSTER_BIT) return;
+    const char *e = (const char *)rad_el(c, src);
+    __builtin_prefetch(e);
+    __builtin_prefetch(e + 64);
+    __builtin_prefetch(rad_B(c, c->cur, src));
+}
+
 /* rad_final_gather; with Hl and Hdl, also what the same point factors
  * bring with the links' own visibility and their sources' means
  * (gather_leaf). */
@@ -340,7 +357,10 @@ static void final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_
         h = v3_add(h, g->flat[ei]);
         hd = v3_add(hd, g->flat_d[ei]);
         if (Hl) hl = v3_add(hl, g->flat_p[ei]);
-        for (uint32_t k = g->off[ei]; k < g->off[ei + 1]; k++) {
+        uint32_t end = g->off[ei + 1];
+        for (uint32_t k = g->off[ei]; k < end && k < g->off[ei] + GATHER_AHEAD; k++) gather_ahead(c, g, p, k);
+        for (uint32_t k = g->off[ei]; k < end; k++) {
+            if (k + GATHER_AHEAD < end) gather_ahead(c, g, p, k + GATHER_AHEAD);
             const rad_link *l = &p->links[g->idx[k]];
             float f0, f;
             vec3 B, E;
