@@ -110,7 +110,7 @@ int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, cons
     if (nr) {
         rB = malloc(nr * sizeof *rB);
         rBd = malloc(nr * sizeof *rBd);
-        rc = rB && rBd ? rad_gather_points(c, rleaf, rpos, nr, rB, rBd) : CT_ENOMEM;
+        rc = rB && rBd ? rad_gather_points(c, rleaf, rpos, NULL, nr, rB, rBd) : CT_ENOMEM;
         for (uint32_t i = 0; i < nr && !rc; i++) {
             B[rv[i]] = rB[i];
             Bd[rv[i]] = rBd[i];

@@ -565,6 +565,7 @@ typedef struct gather_job {
     rad_gather_scratch *w;   /* one per worker */
     const uint32_t *leaf;
     const vec3 *pos;         /* NULL: at the leaves' centres, as the solve's values */
+    const vec3 *nrm;         /* at points: their normals (NULL: their leaves' planes') */
     vec3 *B, *Bd;            /* at points: the values; at leaves: H and Hd */
     vec3 *L, *Ld;            /* at leaves: what their links bring (H, Hd) */
     uint32_t n;
@@ -582,9 +583,10 @@ static void gather_task(void *ctx, int worker, size_t task)
         const rad_elem *lf = rad_el(j->c, j->leaf[g]);
         const rad_patch *p = &j->c->patches[lf->patch];
         vec3 H, Hd;
-        rad_final_gather(j->c, j->prep, &j->w[worker], j->leaf[g], j->pos[g], p->n, &H, &Hd);
+        vec3 n = j->nrm ? j->nrm[g] : p->n;
+        rad_final_gather(j->c, j->prep, &j->w[worker], j->leaf[g], j->pos[g], n, &H, &Hd);
         if (j->c->mirrors) {
-            vec3 hm = rad_mirror_point(j->c, j->pos[g], p->n, g);
+            vec3 hm = rad_mirror_point(j->c, j->pos[g], n, g);
             H = v3_add(H, hm);
             Hd = v3_add(Hd, hm);
         }
@@ -593,8 +595,8 @@ static void gather_task(void *ctx, int worker, size_t task)
     }
 }
 
-static int gather_run(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd,
-                      vec3 *L, vec3 *Ld)
+static int gather_run(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, const vec3 *nrm, uint32_t n,
+                      vec3 *B, vec3 *Bd, vec3 *L, vec3 *Ld)
 {
     /* On the solver's pool (rad_solve.c), the caller alone without one. */
     int nth = pool_threads(c->pool);
@@ -602,7 +604,7 @@ static int gather_run(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, u
     rad_gather_scratch *w = calloc((size_t)nth, sizeof *w);
     int rc = w ? rad_gather_prepare(c, &prep) : CT_ENOMEM;
     if (!rc) {
-        gather_job j = {c, &prep, w, leaf, pos, B, Bd, L, Ld, n};
+        gather_job j = {c, &prep, w, leaf, pos, nrm, B, Bd, L, Ld, n};
         pool_run(c->pool, ((size_t)n + GATHER_RUN - 1) / GATHER_RUN, gather_task, &j);
     }
     if (w) {
@@ -613,9 +615,10 @@ static int gather_run(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, u
     return rc ? CT_ENOMEM : CT_OK;
 }
 
-int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd)
+int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, const vec3 *nrm, uint32_t n, vec3 *B,
+                      vec3 *Bd)
 {
-    return gather_run(c, leaf, pos, n, B, Bd, NULL, NULL);
+    return gather_run(c, leaf, pos, nrm, n, B, Bd, NULL, NULL);
 }
 
 static void acc3(double s[3], vec3 v, float a)
@@ -646,7 +649,7 @@ static vec3 scale3(vec3 o, const double want[3], const double have[3])
 int rad_gather_leaves(const rad_ctx *c, const uint32_t *leaf, uint32_t n, vec3 *B, vec3 *Bd, vec3 *H)
 {
     vec3 *L = malloc((n ? n : 1) * sizeof *L), *Ld = malloc((n ? n : 1) * sizeof *Ld);
-    int rc = L && Ld ? gather_run(c, leaf, NULL, n, B, Bd, L, Ld) : CT_ENOMEM;
+    int rc = L && Ld ? gather_run(c, leaf, NULL, NULL, n, B, Bd, L, Ld) : CT_ENOMEM;
     double links[3] = {0}, got[3] = {0}, linksd[3] = {0}, gotd[3] = {0};
     for (uint32_t g = 0; g < n && !rc; g++) {
         float a = rad_el(c, leaf[g])->area;

@@ -478,9 +478,11 @@ void rad_final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_scr
                       vec3 n, vec3 *H, vec3 *Hd);
 
 /* Radiosity B and its direct part Bd at the n points pos[g], each on leaf
- * leaf[g] (rad_final_gather, plus lamps seen in mirrors), on
- * c->prm.threads threads. CT_OK or CT_ENOMEM. */
-int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, uint32_t n, vec3 *B, vec3 *Bd);
+ * leaf[g], facing nrm[g] (NULL: the leaves' planes' normals)
+ * (rad_final_gather, plus lamps seen in mirrors), on c->prm.threads
+ * threads. CT_OK or CT_ENOMEM. */
+int rad_gather_points(const rad_ctx *c, const uint32_t *leaf, const vec3 *pos, const vec3 *nrm, uint32_t n, vec3 *B,
+                      vec3 *Bd);
 
 /* The final gather at the n leaves' centres, as the solve's values (B: E
  * plus what the leaf passes on, rho_t and rho_ml as push_pull; Bd: its

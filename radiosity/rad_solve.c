@@ -44,7 +44,8 @@
                                  * its rays saw (bk); 22: deciding rays turned per receiver;
                                  * 23: near sources seen by their parts in the final gather,
                                  * the final gather at the leaves (--gather-passes); 24: the
-                                 * leaves' steps keep the links' total light */
+                                 * leaves' steps keep the links' total light, vertices
+                                 * gather with their shading normals */
 
 void rad_params_default(rad_params *p)
 {

@@ -488,6 +488,59 @@ Test(radiosity, mesh_carries_the_scenes_shading_normals)
     scene_free(s);
 }
 
+/* A vertex gathers with the normal it is shaded with, as the tracers
+ * shade it: a smooth sphere's vertex is lit as its radial normal sees the
+ * lamp, not as one of its facets' planes does (the Cornell box's spheres
+ * were 20-46 % dark along their terminators in 8 x 8-pixel blocks). The
+ * sphere is inscribed in its smooth surface, so nothing of it rises above a
+ * vertex's tangent plane: the exact point factor to the lamp with the
+ * radial normal is what the vertex's direct light must be. Gathered with
+ * one of its facets' planes, the worst vertex was off by 0.113 of the
+ * brightest (mean 0.030); with its own normal by 0.001. */
+Test(radiosity, vertices_gather_with_their_shading_normals)
+{
+    ct_error err;
+    ct_scene *s = scene_new("ball");
+    int ball_m = ts_diffuse(s, "ball", v3s(0.7f), v3s(0.0f), &err);
+    int lamp_m = ts_diffuse(s, "lamp", v3s(0.0f), v3s(10.0f), &err);
+    cr_assert(ball_m >= 0 && lamp_m >= 0);
+    vec3 lamp[4] = {v3(-0.5f, 1.5f, -0.5f), v3(0.5f, 1.5f, -0.5f), v3(0.5f, 1.5f, 0.5f), v3(-0.5f, 1.5f, 0.5f)};
+    cr_assert_geq(ts_quad(s, "lamp", (uint32_t)lamp_m, lamp[0], v3(1, 0, 0), v3(0, 0, 1), &err), 0);
+    vec3 cs = v3(0.0f, 0.0f, 0.0f);
+    cr_assert_geq(ts_smooth_sphere(s, "smooth", (uint32_t)ball_m, cs, 0.5f, 16, 8, &err), 0, "%s", err.msg);
+    cr_assert_eq(scene_finalize(s, &err), 0, "%s", err.msg);
+    rad_params p = test_params();
+    p.error = 1e-4;
+    ct_radmesh m;
+    solve_ok(s, &p, &m, NULL);
+    double top = 0.0, worst = 0.0, sum = 0.0;
+    uint32_t n = 0;
+    for (uint32_t pass = 0; pass < 2; pass++) {
+        for (uint32_t t = 0; t < m.ntris; t++) {
+            if (strcmp(s->nodes[m.tri_node[t]].name, "smooth") != 0) continue;
+            for (int k = 0; k < 3; k++) {
+                uint32_t v = m.tris[3 * t + (uint32_t)k];
+                vec3 nr = v3_norm(v3_sub(m.pos[v], cs));
+                double want = 0.7 * 10.0 * rad_ff_point_polygon(m.pos[v], nr, lamp, 4);
+                double got = m.rad_direct[v].x;
+                if (pass == 0) {
+                    top = fmax(top, want);
+                    continue;
+                }
+                worst = fmax(worst, fabs(got - want) / top);
+                sum += fabs(got - want) / top;
+                n++;
+            }
+        }
+    }
+    printf("metric: smooth sphere's direct light at its vertices: worst %.4f, mean %.4f of the brightest over %u corners\n",
+           worst, sum / n, n);
+    cr_assert(n > 0);
+    cr_expect_lt(worst, 0.03, "a vertex's direct light is off by %.3f of the brightest", worst);
+    rmesh_free(&m);
+    scene_free(s);
+}
+
 static uint64_t mesh_digest(const ct_radmesh *m)
 {
     uint64_t h = 0;
