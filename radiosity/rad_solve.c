@@ -61,9 +61,9 @@ void rad_params_default(rad_params *p)
     p->shadow_rays = 16;
     p->vertex_rays = 8;
     /* Off: two steps take the Cornell box's contacts most of the way to
-     * the truth but cost 1.4-2 times the solve and leave the L room's box
-     * foot a little darker (docs/radiosity.md, "The final gather at the
-     * leaves"). */
+     * the truth but cost 1.4-2 times the solve, and where no curved object
+     * stands on a surface they change nothing measurable (docs/radiosity.md,
+     * "The final gather at the leaves"). */
     p->gather_passes = 0;
     p->tolerance = 1e-3;
     p->max_iterations = 100;
