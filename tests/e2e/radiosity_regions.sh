@@ -54,9 +54,9 @@ done
 # 4 x 4 block at column 4, row 14 holds its lowest rim and the floor in its
 # contact shadow. The floor leaves there inherited their ancestors' links
 # with the visible share their ancestors saw, and the sphere's lowest
-# vertices gathered from them: the block is 1.63-1.74 times the reference
+# vertices gathered from them: the block is 1.62-1.74 times the reference
 # over seeds 1-4 with the links' values (the default, --gather-passes 0),
-# and 1.27-1.31 after two steps of the final gather at the leaves
+# and 1.25-1.30 after two steps of the final gather at the leaves
 # (docs/radiosity.md, "Where a curved object touches a surface"). Checked:
 # with two steps at most 1.45; by default at least 1.45, so that a change
 # of the default or of the solver's contact light shows here.
