@@ -566,7 +566,7 @@ typedef struct gather_job {
     const uint32_t *leaf;
     const vec3 *pos;         /* NULL: at the leaves' centres, as the solve's values */
     const vec3 *nrm;         /* at points: their normals (NULL: their leaves' planes') */
-    vec3 *B, *Bd;            /* at points: the values; at leaves: H and Hd */
+    vec3 *B, *Bd;            /* at points: B and Bd; at leaves: the gathered H and Hd */
     vec3 *L, *Ld;            /* at leaves: what their links bring (H, Hd) */
     uint32_t n;
 } gather_job;
@@ -649,19 +649,21 @@ static vec3 scale3(vec3 o, const double want[3], const double have[3])
 int rad_gather_leaves(const rad_ctx *c, const uint32_t *leaf, uint32_t n, vec3 *B, vec3 *Bd, vec3 *H)
 {
     vec3 *L = malloc((n ? n : 1) * sizeof *L), *Ld = malloc((n ? n : 1) * sizeof *Ld);
-    int rc = L && Ld ? gather_run(c, leaf, NULL, NULL, n, B, Bd, L, Ld) : CT_ENOMEM;
+    /* The gathered irradiance into H, its direct part into Bd until the
+     * values replace it below. */
+    int rc = L && Ld ? gather_run(c, leaf, NULL, NULL, n, H, Bd, L, Ld) : CT_ENOMEM;
     double links[3] = {0}, got[3] = {0}, linksd[3] = {0}, gotd[3] = {0};
     for (uint32_t g = 0; g < n && !rc; g++) {
         float a = rad_el(c, leaf[g])->area;
         acc3(links, L[g], a);
-        acc3(got, B[g], a);
+        acc3(got, H[g], a);
         acc3(linksd, Ld[g], a);
         acc3(gotd, Bd[g], a);
     }
     for (uint32_t g = 0; g < n && !rc; g++) {
         const rad_elem *lf = rad_el(c, leaf[g]);
         const rad_patch *p = &c->patches[lf->patch];
-        vec3 h = scale3(B[g], links, got), hd = scale3(Bd[g], linksd, gotd);
+        vec3 h = scale3(H[g], links, got), hd = scale3(Bd[g], linksd, gotd);
         /* A leaf's value as push_pull makes it (rad_solve.c): what it
          * passes on, with the lamps its mirrors show sampled once. */
         if (c->mirrors) {
