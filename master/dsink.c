@@ -1,6 +1,7 @@
 /* dsink.c: the display sink (dsink.h). */
 #include "master/dsink.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -215,6 +216,23 @@ void dsink_drop_stalled(dsink *k, double now)
     char why[CT_ERROR_LEN];
     snprintf(why, sizeof why, "the display took nothing and acknowledged nothing for %.1f s (--send-timeout-ms)",
              stalled);
+    dsrv_drop(k->c.ds, WIRE_ERR_LIMIT, why);
+}
+
+#define SILENT_MIN_MS 3000.0
+
+void dsink_drop_silent(dsink *k, double now)
+{
+    double silent = dsrv_silent_s(k->c.ds, now);
+    /* Never under 3 s: a display PINGs once a second, and a short
+     * --send-timeout-ms (meant for stalls) would drop it between two. */
+    if (silent * 1000.0 <= fmax((double)k->c.send_timeout_ms, SILENT_MIN_MS)) return;
+    /* A stopped process or a host gone without a word (no FIN on TCP): the
+     * socket takes what is sent for a long while yet, so nothing else
+     * notices, and the slot would stay taken. */
+    char why[CT_ERROR_LEN];
+    snprintf(why, sizeof why, "the display sent nothing, not even its PING a second, for %.1f s (--send-timeout-ms, at least 3 s)",
+             silent);
     dsrv_drop(k->c.ds, WIRE_ERR_LIMIT, why);
 }
 

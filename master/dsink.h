@@ -69,6 +69,11 @@ bool dsink_update_due(const dsink *k, double now);
  * send_timeout_ms (dsync_stalled_s). */
 void dsink_drop_stalled(dsink *k, double now);
 
+/* Every turn, lockstep too: drops a display that has sent nothing for
+ * send_timeout_ms, at least 3 s (dsrv_silent_s; corrtex-display PINGs once
+ * a second). */
+void dsink_drop_silent(dsink *k, double now);
+
 /* The frame in progress belongs to a display that left: it ends without
  * FRAME. */
 void dsink_orphan_frame(dsink *k);

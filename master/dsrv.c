@@ -45,6 +45,9 @@ struct dsrv {
     double t_io;            /* CPU seconds in the display's reads and writes */
     dsrv_event ev[MAX_EVENTS];
     int ev_head, ev_n;
+    uint64_t rx_mark;       /* the display's received byte count when it last grew... */
+    double rx_time;         /* ...at this time (dsrv_silent_s) */
+    double rx_checked;      /* the last dsrv_silent_s */
     uint64_t evicted;       /* handshakes dropped for newcomers, not yet logged */
     double evict_logged;    /* when they were last logged */
 };
@@ -174,6 +177,24 @@ void dsrv_free(dsrv *s)
 const char *dsrv_addr(const dsrv *s)
 {
     return s->addr;
+}
+
+double dsrv_silent_s(dsrv *s, double now)
+{
+    if (!s->disp) return 0.0;
+    uint64_t rx, tx;
+    chan_byte_counts(s->disp, &rx, &tx);
+    /* A master that did not look for a while (a long view change) cannot
+     * tell whether the display was silent meanwhile; and while the server
+     * holds back reading it (the master has its events to take) its bytes
+     * wait unread, not unsent. */
+    bool gap = now - s->rx_checked > 1.0;
+    s->rx_checked = now;
+    if (rx != s->rx_mark || gap || s->ev_n >= MAX_EVENTS - 1) {
+        s->rx_mark = rx;
+        s->rx_time = now;
+    }
+    return now - s->rx_time;
 }
 
 bool dsrv_has_display(const dsrv *s)
@@ -333,6 +354,8 @@ static int service_pending(dsrv *s, int i)
             snprintf(s->disp_peer, sizeof s->disp_peer, "%s", chan_peer(p->c));
             s->disp_lockstep = m.u.settings.samples_per_frame > 0;
             s->cam_seen = false;
+            s->rx_checked = s->rx_time = ct_now();
+            s->rx_mark = 0;
             s->pend[i] = s->pend[--s->npend];
             ct_info(COMPONENT, "display %s connected (%s)", s->disp_peer,
                     m.u.settings.samples_per_frame ? "lockstep" : "free-running");

@@ -78,6 +78,11 @@ bool dsrv_view_pending(const dsrv *s);
 /* Whether a display is connected (after its SETTINGS). */
 bool dsrv_has_display(const dsrv *s);
 
+/* Seconds (ct_now's clock) since the display's last received byte, as far
+ * as the caller's calls can tell: a display sends a PING a second, so a
+ * long silence is a stopped process or a vanished host (0 without one). */
+double dsrv_silent_s(dsrv *s, double now);
+
 /* The display's address (for logs), "" when none. */
 const char *dsrv_peer(const dsrv *s);
 

@@ -319,6 +319,7 @@ static int turn(loop *l, int *busy, int *leave, ct_error *err)
         }
     }
     if (!l->lockstep) dsink_drop_stalled(l->dk, now);
+    dsink_drop_silent(l->dk, now);
     if (!l->lockstep && dsink_update_due(l->dk, now) && (rc = dsink_update(l->dk, l->s, err))) return rc;
     if (now - l->last_stats >= o->stats_s) {
         stats(l, now);

@@ -12,7 +12,12 @@
 # - a display that floods PINGs and reads nothing: the PONGs used to fill
 #   the send queue until the next STATS waited --send-timeout-ms for room,
 #   the whole loop with it; now the master answers no PING behind a quarter
-#   of its queue (tests/unit/test_dsrv.c) and drops the display the same way.
+#   of its queue (tests/unit/test_dsrv.c) and drops the display the same way;
+# - a lockstep display that reads everything and sends nothing, not even its
+#   PING a second (a stopped process, a host gone without a FIN): nothing is
+#   queued for it and every update is acknowledged, so only its silence
+#   tells; it used to hold the slot for good, now it is dropped after
+#   --send-timeout-ms (at least 3 s).
 # Then a real display gets its frame, and SIGTERM ends the job with status 0.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
@@ -37,12 +42,21 @@ grep -qx 'scene after 100 cameras' "$tmp/burst.out" || fail "a display that sent
 stuck noread 0 noread 4
 # (its ERROR may not get through: the scene's frames fill its socket)
 grep -q '^closed: ' "$tmp/noread.out" || fail "a display that read nothing was not dropped"
-grep -q 'dropped display .*took nothing and acknowledged nothing for [0-9.]* s' "$tmp/job.log" ||
+# (silent as well: either rule may come first)
+grep -Eq 'dropped display .*(took nothing and acknowledged nothing|sent nothing, not even its PING a second) for [0-9.]* s' "$tmp/job.log" ||
   fail "the master did not log the dropped display"
 
 stuck pingflood 0 pingflood 4
-(($(grep -c 'took nothing and acknowledged nothing' "$tmp/job.log") >= 2)) ||
+(($(grep -c 'dropped display' "$tmp/job.log") >= 2)) && grep -q 'took nothing and acknowledged nothing' "$tmp/job.log" ||
   fail "the PING-flooding display was not dropped"
+
+# Within 8 s: silence counts from --send-timeout-ms, 1.5 s here, but at
+# least 3 s (a display PINGs once a second); the master's 1 s stats lines
+# go on meanwhile.
+stuck silent 0 silent 8
+grep -q '^closed: ' "$tmp/silent.out" || fail "a silent lockstep display was not dropped"
+grep -q 'dropped display .*sent nothing, not even its PING a second, for [0-9.]* s' "$tmp/job.log" ||
+  fail "the master did not say why it dropped the silent display"
 
 display_run display --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278,273,0,39.3 \
   --samples-per-frame 500 --frames 1 --out "$tmp/out"

@@ -10,7 +10,11 @@
  *   stuck_display ADDR TOKEN_FILE|- pingflood SECONDS
  *     SETTINGS and a CAMERA, then PINGs as fast as the socket takes them for
  *     SECONDS, reading nothing (the PONGs pile up at the master).
- * The last two then read what is left: "closed: <why>" (after "ERROR
+ *   stuck_display ADDR TOKEN_FILE|- silent SECONDS
+ *     SETTINGS for lockstep frames and a CAMERA, then reads everything for
+ *     SECONDS and sends nothing, not even a PING (a stopped process, or a
+ *     host gone without closing its connections).
+ * The last three then read what is left: "closed: <why>" (after "ERROR
  * <code>: <text>" when the master said why) and exit 0 when the master had
  * dropped the connection, "still connected" and exit 1 when not. Exit 2 on
  * bad usage or when it cannot connect. */
@@ -118,7 +122,8 @@ static bool write_raw(int fd, const wire_buf *b)
 
 static int stuck(const char *addr, const char *token_file, const char *mode, double seconds)
 {
-    chan *c = tool_display_connect("stuck_display", addr, token_file, 0);
+    bool silent = !strcmp(mode, "silent");
+    chan *c = tool_display_connect("stuck_display", addr, token_file, silent ? 500u : 0u);
     if (!c) return 2;
     ct_error err;
     wire_msg cm = camera_msg(1);
@@ -127,6 +132,11 @@ static int stuck(const char *addr, const char *token_file, const char *mode, dou
         return 2;
     }
     double end = ct_now() + seconds;
+    if (silent) {
+        int rc = drain(c, seconds);
+        chan_free(c);
+        return rc;
+    }
     if (!strcmp(mode, "pingflood")) {
         wire_buf b = {0};
         for (uint64_t i = 0; i < 4096; i++) {
@@ -155,9 +165,10 @@ int main(int argc, char **argv)
         double v = strtod(argv[4], &e);
         if (!*e && v > 0 && v <= 3600) {
             if (!strcmp(argv[3], "burst") && v == (long)v) return burst(argv[1], argv[2], (long)v);
-            if (!strcmp(argv[3], "noread") || !strcmp(argv[3], "pingflood")) return stuck(argv[1], argv[2], argv[3], v);
+            if (!strcmp(argv[3], "noread") || !strcmp(argv[3], "pingflood") || !strcmp(argv[3], "silent"))
+                return stuck(argv[1], argv[2], argv[3], v);
         }
     }
-    fprintf(stderr, "usage: stuck_display ADDR TOKEN_FILE|- burst N | noread SECONDS | pingflood SECONDS\n");
+    fprintf(stderr, "usage: stuck_display ADDR TOKEN_FILE|- burst N | noread SECONDS | pingflood SECONDS | silent SECONDS\n");
     return 2;
 }

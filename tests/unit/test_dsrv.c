@@ -291,6 +291,43 @@ Test(dsrv, display_events_ping_and_busy)
     stop(&sv);
 }
 
+/* dsrv_silent_s: seconds since the display's last byte, as the master's
+ * calls see them (a display PINGs once a second; the master drops one
+ * silent for --send-timeout-ms, master/dsink.c). */
+static double silent_s(server *sv)
+{
+    pthread_mutex_lock(&sv->mu);
+    double s = dsrv_silent_s(sv->s, ct_now());
+    pthread_mutex_unlock(&sv->mu);
+    return s;
+}
+
+Test(dsrv, silence_is_measured_from_the_last_byte)
+{
+    char spec[128];
+    server sv;
+    dsrv_event e;
+    chan *d = connected_display(&sv, spec, sizeof spec, "silent", 5, &e);
+    cr_expect_lt(silent_s(&sv), 0.5);
+    double t0 = ct_now(), s = 0.0;
+    while (ct_now() - t0 < 1.5) {
+        s = silent_s(&sv);
+        usleep(100000);
+    }
+    cr_expect_geq(s, 1.2, "silent for %.2f s after 1.5 s without a byte", s);
+    ping_pong(d, 5);
+    cr_expect_lt(silent_s(&sv), 0.3, "a PING did not end the silence");
+
+    /* A master that did not look for over a second cannot tell: it starts
+     * counting again. */
+    usleep(1300000);
+    cr_expect_lt(silent_s(&sv), 0.1);
+    chan_free(d);
+    cr_assert_eq(wait_event(&sv, 1, &e), DSRV_EV_DISCONNECTED);
+    cr_expect_eq(silent_s(&sv), 0.0, "no display, no silence");
+    stop(&sv);
+}
+
 Test(dsrv, hostile_peers_next_to_a_display)
 {
     char spec[128];
