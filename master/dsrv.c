@@ -16,6 +16,7 @@
 
 #include "common/fsutil.h"
 #include "common/log.h"
+#include "common/rng.h"
 #include "common/timer.h"
 #include "proto/chan.h"
 #include "proto/xport.h"
@@ -49,6 +50,7 @@ struct dsrv {
     double rx_time;         /* ...at this time (dsrv_silent_s) */
     double rx_checked;      /* the last dsrv_silent_s */
     uint64_t evicted;       /* handshakes dropped for newcomers, not yet logged */
+    ct_rng rng;             /* eviction_victim's choice */
     double evict_logged;    /* when they were last logged */
 };
 
@@ -97,6 +99,8 @@ int dsrv_new(const dsrv_config *cfg, dsrv **out, ct_error *err)
     dsrv *s = calloc(1, sizeof *s);
     if (!s) return ct_fail(err, CT_ENOMEM, "display server: out of memory");
     s->cfg = *cfg;
+    /* (an attacker should not know the order of the draws) */
+    s->rng = rng_make(ct_now_us(), (uint64_t)getpid(), (uint64_t)(uintptr_t)s, 0x657669637473ULL);
     if (a.kind == XPORT_UNIX) {
         /* The socket file is created with this mode: only our user may connect. */
         mode_t old = umask(0077);
@@ -236,23 +240,30 @@ static void peer_host(const char *peer, char *out, size_t cap)
 }
 
 /* The pending connection a newcomer from host may replace (any host when
- * NULL): the oldest of those that sent nothing yet, else the oldest that has
- * not authenticated; -1 when every one has authenticated. */
-static int eviction_victim(const dsrv *s, const char *host)
+ * NULL): the oldest of those that sent nothing yet; else one chosen at
+ * random of those that have not authenticated; -1 when every one has
+ * authenticated. Not the oldest there: a flood of connections that each
+ * send a HELLO looks like displays waiting for their AUTH's round trip,
+ * and the oldest was then always the real display (the flood came after
+ * it), however it retried; at random it gets in within a few tries unless
+ * the flood turns the table over many times in one round trip. */
+static int eviction_victim(dsrv *s, const char *host)
 {
-    int best = -1, best_idle = 0;
+    int best = -1, nbusy = 0;
+    int busy[DSRV_MAX_PENDING];
     for (int i = 0; i < s->npend; i++) {
         const pconn *p = &s->pend[i];
         if (chan_ready(p->c) || (host && strcmp(p->host, host) != 0)) continue;
         uint64_t rx, tx;
         chan_byte_counts(p->c, &rx, &tx);
-        int idle = rx == 0;
-        if (best < 0 || idle > best_idle || (idle == best_idle && p->deadline < s->pend[best].deadline)) {
-            best = i;
-            best_idle = idle;
+        if (rx > 0) {
+            if (nbusy < DSRV_MAX_PENDING) busy[nbusy++] = i;
+            continue;
         }
+        if (best < 0 || p->deadline < s->pend[best].deadline) best = i;
     }
-    return best;
+    if (best >= 0 || nbusy == 0) return best;
+    return busy[rng_below(&s->rng, (uint32_t)nbusy)];
 }
 
 /* Makes room for a newcomer from host; 0, or -1 when it must be refused. */

@@ -4,7 +4,8 @@
  * refused with ERROR BUSY, and hostile peers (garbage, an oversized length,
  * a wrong token, a silent peer) dropped while the legitimate display goes on
  * undisturbed, and idle connections that cannot take the handshake slots
- * from a display; a burst of CAMERAs right after SETTINGS keeps every event;
+ * from a display, nor a flood of HELLOs in every try; a burst of CAMERAs
+ * right after SETTINGS keeps every event; a display's silence is measured;
  * PINGs of a display that reads nothing do not fill the send queue; CAMERA
  * epochs that do not increase (by one in lockstep) drop the display. The
  * server runs in its own thread, as in the master's loop. Over 600 lines:
@@ -689,5 +690,102 @@ Test(dsrv, idle_handshakes_never_lock_a_display_out)
     close(fifth);
     for (int h = 0; h < 4; h++)
         for (int k = 0; k < DSRV_MAX_PENDING_PER_PEER; k++) close(idle[h][k]);
+    stop(&sv);
+}
+
+/* The HELLO a display with token tok sends first: captured from a chan
+ * connected to a plain listening socket. */
+static size_t display_hello(const auth_token *tok, uint8_t *out, size_t cap)
+{
+    int ls = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET};
+    a.sin_addr.s_addr = htonl(0x7f000001u);
+    socklen_t al = sizeof a;
+    cr_assert_eq(bind(ls, (struct sockaddr *)&a, sizeof a), 0);
+    cr_assert_eq(listen(ls, 1), 0);
+    cr_assert_eq(getsockname(ls, (struct sockaddr *)&a, &al), 0);
+    char spec[64];
+    snprintf(spec, sizeof spec, "tcp:127.0.0.1:%d", ntohs(a.sin_port));
+    xport_conn *x = NULL;
+    ct_error err = {{0}};
+    cr_assert_eq(xport_connect(spec, 2000, &x, &err), 0, "%s", err.msg);
+    chan_config cc = {.role = AUTH_ROLE_DISPLAY, .token = tok};
+    chan *c = NULL;
+    cr_assert_eq(chan_new(x, &cc, &c, &err), 0, "%s", err.msg);
+    chan_pump(c, &err);
+    int fd = accept(ls, NULL, NULL);
+    cr_assert_geq(fd, 0);
+    struct pollfd p = {.fd = fd, .events = POLLIN};
+    cr_assert_gt(poll(&p, 1, 2000), 0, "no HELLO");
+    ssize_t n = read(fd, out, cap);
+    cr_assert_gt(n, 0);
+    close(fd);
+    close(ls);
+    chan_free(c);
+    return (size_t)n;
+}
+
+/* Connections that send a display's HELLO and then wait look like displays
+ * waiting for their AUTH's round trip. The server used to replace the
+ * oldest of them, so a flood that came after the real display always took
+ * its place before its AUTH arrived; now it replaces one at random, and the
+ * display gets in within a few tries (in each try below 20 newcomers arrive
+ * during its round trip: the oldest rule dropped it in every try, at random
+ * it stays with a chance of (15/16)^20 = 0.27 a try). */
+Test(dsrv, a_hello_flood_does_not_always_take_the_display_s_place, .timeout = 60)
+{
+    auth_token tok;
+    token(&tok, 'h');
+    uint8_t hello[256];
+    size_t nh = display_hello(&tok, hello, sizeof hello);
+    server sv;
+    start(&sv, "tcp:127.0.0.1:0", &tok, 5000);
+    const char *addr = dsrv_addr(sv.s);
+    int port = atoi(strrchr(addr, ':') + 1);
+    int served = 0, tries = 30;
+    for (int t = 0; t < tries; t++) {
+        int fds[36], nf = 0;
+        for (int h = 0; h < 4; h++)
+            for (int k = 0; k < DSRV_MAX_PENDING_PER_PEER; k++) {
+                fds[nf] = idle_peer(2 + h, port);
+                cr_assert_eq(write(fds[nf], hello, nh), (ssize_t)nh);
+                nf++;
+            }
+        usleep(20000);
+        /* The display: its HELLO, then (its round trip) the flood, then the rest. */
+        xport_conn *x = NULL;
+        ct_error err = {{0}};
+        cr_assert_eq(xport_connect(addr, 2000, &x, &err), 0, "%s", err.msg);
+        chan_config cc = {.role = AUTH_ROLE_DISPLAY, .token = &tok};
+        chan *d = NULL;
+        cr_assert_eq(chan_new(x, &cc, &d, &err), 0, "%s", err.msg);
+        chan_pump(d, &err);
+        usleep(20000);
+        for (int h = 0; h < 5; h++)
+            for (int k = 0; k < DSRV_MAX_PENDING_PER_PEER; k++) {
+                fds[nf] = idle_peer(6 + h, port);
+                if (write(fds[nf], hello, nh) != (ssize_t)nh) {
+                }
+                nf++;
+                usleep(1000);
+            }
+        usleep(20000);
+        if (chan_handshake(d, 2000, &err) == 0) {
+            wire_msg m = {.type = WIRE_SETTINGS};
+            if (chan_send(d, &m, &err) == 0 && chan_flush(d, 2000, &err) == 0) {
+                dsrv_event e;
+                if (wait_event(&sv, 2 * served, &e) == DSRV_EV_CONNECTED) served++;
+            }
+        }
+        chan_free(d);
+        for (int i = 0; i < nf; i++) close(fds[i]);
+        if (served) {
+            dsrv_event e;
+            cr_assert_eq(wait_event(&sv, 2 * served - 1, &e), DSRV_EV_DISCONNECTED);
+        }
+        if (served >= 2) break;
+        usleep(50000);
+    }
+    cr_expect_geq(served, 1, "the display was never served in %d tries under the flood", tries);
     stop(&sv);
 }
