@@ -124,8 +124,14 @@ int rmesh_check_nodes(const ct_radmesh *m, const ct_scene *s, ct_error *err);
  * interactive solution for tests and for runs before radiosity exists. */
 int rmesh_from_scene(const ct_scene *s, vec3 ambient, ct_radmesh *m, ct_error *err);
 
-/* Writes the mesh as a .ctmesh cache file, atomically (radmesh_io.c). */
+/* Writes the mesh as a .ctmesh cache file, atomically (radmesh_io.c),
+ * after rmesh_output_check. */
 int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err);
+
+/* Whether path may receive a .ctmesh: fs_output_check, and an existing
+ * regular file must be empty or a .ctmesh (CT_EINVAL naming it otherwise),
+ * so a slip of the output name does not replace a scene or a document. */
+int rmesh_output_check(const char *path, ct_error *err);
 
 /* Reads a .ctmesh file; checks magic, version, endianness and sizes. When
  * expect_hash is not 0, a file whose scene_hash differs fails with CT_ESTALE. */

@@ -6,6 +6,7 @@
 #include "common/radmesh.h"
 
 #include <stdio.h>
+#include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -109,11 +110,34 @@ int rmesh_encode(const ct_radmesh *m, unsigned char **out, size_t *len, ct_error
     return CT_OK;
 }
 
+int rmesh_output_check(const char *path, ct_error *err)
+{
+    int rc = fs_output_check(path, err);
+    if (rc) return rc;
+    /* A cache path is written over without asking, so a slip (the scene
+     * file itself as -o, a --radiosity-cache naming a document) used to
+     * replace that file with a mesh. Only a .ctmesh, an empty file or a
+     * special file (written in place) may be replaced. */
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISREG(st.st_mode) || st.st_size == 0) return CT_OK;
+    FILE *f = fopen(path, "rb");
+    if (!f) return CT_OK;   /* fs_output_check found it writable; the write will say more */
+    unsigned char head[RMESH_MAGIC_LEN];
+    size_t got = fread(head, 1, sizeof head, f);
+    fclose(f);
+    if (got == sizeof head && memcmp(head, RMESH_MAGIC, RMESH_MAGIC_LEN) == 0) return CT_OK;
+    return ct_fail(err, CT_EINVAL,
+                   "%s: exists and is not a corrtex mesh (.ctmesh): not replaced (remove it or give another name)",
+                   path);
+}
+
 int rmesh_save(const ct_radmesh *m, const char *path, ct_error *err)
 {
+    int rc = rmesh_output_check(path, err);
+    if (rc) return rc;
     unsigned char *buf;
     size_t len;
-    int rc = rmesh_encode(m, &buf, &len, err);
+    rc = rmesh_encode(m, &buf, &len, err);
     if (rc) {
         ct_error_prefix(err, path);
         return rc;
@@ -197,7 +221,7 @@ int rmesh_decode(const unsigned char *d, size_t len, const char *path, uint64_t 
         return ct_fail(err, CT_EPARSE, "%s: checksum mismatch (corrupted cache)", path);
     }
     if (expect_hash && hash != expect_hash) {
-        return ct_fail(err, CT_ESTALE, "%s: stale cache (scene hash %016llx, expected %016llx)", path,
+        return ct_fail(err, CT_ESTALE, "%s: stale cache (solution hash %016llx, expected %016llx: another scene, other solver parameters or another solver version)", path,
                        (unsigned long long)hash, (unsigned long long)expect_hash);
     }
     rc = rmesh_alloc(m, nv, nt, nn, err);

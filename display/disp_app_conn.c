@@ -118,10 +118,12 @@ void app_count_lag(app *a)
 {
     int64_t off;
     if (!a->lag || !a->client || !a->took.nstamps || !disp_client_clock_offset(a->client, &off)) return;
-    int64_t now = (int64_t)ct_now_us() + off;
+    /* (unsigned: the stamps and the offset come from the master and may be
+     * anything; a signed overflow would be undefined) */
+    uint64_t now = ct_now_us() + (uint64_t)off;
     for (uint32_t i = 0; i < a->took.nstamps; i++) {
         const disp_inbox_stamp *t = &a->took.stamps[i];
-        disp_lag_add(a->lag, (double)(now - (int64_t)t->stamp_us) / 1000.0, t->samples);
+        disp_lag_add(a->lag, (double)(int64_t)(now - t->stamp_us) / 1000.0, t->samples);
     }
 }
 

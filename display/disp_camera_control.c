@@ -58,6 +58,10 @@ ct_camera disp_camera_overview(bounds3 b, float fov_deg)
     float r = 0.5f * v3_len(b3_extent(b));
     if (!(r > 0)) r = 1.0f;
     float d = r / sinf(0.5f * fov_deg * CT_PI / 180.0f);
-    vec3 eye = v3_add(c, v3(0.0f, 0.15f * r, d));
+    /* Within the coordinate range: a scene spanning more than about 5e8
+     * put the eye past it, and the display's first CAMERA was refused by
+     * its own encoder (the connection ended). It then sees less than the
+     * whole, but sees it. */
+    vec3 eye = v3_clamp_range(v3_add(c, v3(0.0f, 0.15f * r, d)));
     return cam_look_at(eye, c, v3(0, 1, 0), fov_deg);
 }

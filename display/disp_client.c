@@ -270,7 +270,9 @@ static void pong(disp_client *c, const wire_ping *p)
     uint64_t now = ct_now_us();
     if (p->token > now) return;   /* not one of ours */
     uint64_t rtt = now - p->token;
-    int64_t off = (int64_t)p->clock_us - (int64_t)(p->token + rtt / 2);
+    /* In unsigned arithmetic: a master's clock_us may be anything, and a
+     * signed difference of two far-apart values overflowed (undefined). */
+    int64_t off = (int64_t)(p->clock_us - (p->token + rtt / 2));
     pthread_mutex_lock(&c->mu);
     if (!c->have_offset || rtt <= c->best_rtt_us) {
         c->have_offset = true;

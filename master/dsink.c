@@ -38,6 +38,7 @@ int dsink_new(const dsink_config *c, dsink **out, ct_error *err)
     if (c->patch_encoding >= 0) so.encoding = (uint32_t)c->patch_encoding;
     if (c->display_texels >= 0) so.screen_rate = c->display_texels == 1;
     so.interval_s = c->patch_s;
+    so.send_timeout_ms = c->send_timeout_ms;
     so.share = c->patch_share;
     int rc = dsync_new(&so, &k->sync, err);
     if (rc) {

@@ -61,6 +61,7 @@ void dsync_options_default(dsync_options *o, bool tcp)
      * "Texels at the display's rate"). */
     o->screen_rate = tcp;
     o->window = 2;
+    o->send_timeout_ms = 10000;
     o->target_ms = 40.0;
     o->min_bytes = 64u << 10;
     o->max_bytes = 32u << 20;
@@ -149,9 +150,9 @@ double dsync_stalled_s(dsync *d, dsrv *ds, double now)
 
 /* --- events ----------------------------------------------------------------- */
 
-static int send(dsrv *ds, const wire_msg *m, ct_error *err)
+static int send(const dsync *d, dsrv *ds, const wire_msg *m, ct_error *err)
 {
-    return dsrv_send(ds, m, 10000, err);
+    return dsrv_send(ds, m, d->o.send_timeout_ms, err);
 }
 
 static int send_proj(dsync *d, dsrv *ds, uint32_t tex, const mat4 *mat, ct_error *err)
@@ -160,7 +161,7 @@ static int send_proj(dsync *d, dsrv *ds, uint32_t tex, const mat4 *mat, ct_error
     m.u.tex_projection.tex = tex;
     m.u.tex_projection.epoch = d->disp_epoch;
     m.u.tex_projection.world_to_tex = *mat;
-    return send(ds, &m, err);
+    return send(d, ds, &m, err);
 }
 
 /* Whether texture id goes to the display as 2 x 2 means: more than one
@@ -204,7 +205,7 @@ static int send_alloc(dsync *d, dsrv *ds, ctex *tex, uint32_t id, uint32_t hnode
     m.u.tex_alloc = (wire_tex_alloc){id, hnode, (uint32_t)(w >> sf), (uint32_t)(h >> sf),
                                      kind == CTEX_PROJ_OBJECT ? WIRE_PROJ_OBJECT_PARALLEL
                                                               : WIRE_PROJ_CAMERA_PERSPECTIVE};
-    int rc = send(ds, &m, err);
+    int rc = send(d, ds, &m, err);
     mat4 pm;
     if (rc == 0 && ctex_texture_info(tex, id, NULL, NULL, NULL, NULL, &pm, NULL) >= 0)
         rc = send_proj(d, ds, id, &pm, err);
@@ -226,7 +227,7 @@ static int send_resize(dsync *d, dsrv *ds, ctex *tex, const ctex_event *e, ct_er
         m.u.tex_resize = (wire_tex_resize){e->tex, (uint32_t)e->w, (uint32_t)e->h};
         d->resized++;
         d->resized_texels += (uint64_t)e->w * (uint64_t)e->h;
-        return send(ds, &m, err);
+        return send(d, ds, &m, err);
     }
     ctex_tex *t = ctex_visible_texture(tex, e->tex);
     if (t) ctex_dirty_mark_all(&t->d);
@@ -251,7 +252,7 @@ static int send_events(dsync *d, dsrv *ds, ctex *tex, ct_error *err)
             memset(&m, 0, sizeof m);
             m.type = WIRE_TEX_FREE;
             m.u.tex_free.tex = e->tex;
-            rc = send(ds, &m, err);
+            rc = send(d, ds, &m, err);
             break;
         }
     }
@@ -478,7 +479,7 @@ int dsync_update(dsync *d, dsrv *ds, ctex *tex, double now, uint64_t now_us, ct_
     if (!dsrv_has_display(ds) || (!nev && !np)) return 0;   /* nothing new: no update */
     wire_msg m = {.type = WIRE_SYNC};
     m.u.sync = (wire_sync){d->seq + 1, now_us};
-    if ((rc = send(ds, &m, err))) return rc;
+    if ((rc = send(d, ds, &m, err))) return rc;
     d->seq++;
     d->sent_at[d->seq % WINDOW_MAX] = now;
     d->in_socket_at[d->seq % WINDOW_MAX] = -1.0;

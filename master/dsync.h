@@ -24,6 +24,7 @@
 typedef struct dsync_options {
     uint32_t encoding;     /* wire_patch_enc of TEX_PATCH texels */
     int window;            /* updates in flight before the master waits for an ACK */
+    int send_timeout_ms;   /* a control message waits this long for room in a full queue */
     double target_ms;      /* an update holds what the display takes in about this long */
     size_t min_bytes;      /* bounds of an update's texel bytes (raw) */
     size_t max_bytes;

@@ -64,8 +64,9 @@ static const optab OPTS[] = {
     {"reference-after", 0, OPTAB_STRING, OF(reference_after), 0, 0, NULL, "REF", "reference for the moved camera",
      NULL},
     {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE.ctmesh",
-     "radiosity cache: loaded when it holds this scene's solution, else solved (default parameters) and written "
-     "there, with a warning when it held another scene's (default: solve, no cache)", NULL},
+     "radiosity cache: loaded when it holds this scene's solution at the default parameters, else solved (default "
+     "parameters) and written there, with a warning when it held another scene's or other parameters' solution; a file "
+     "that is not a .ctmesh is refused (default: solve, no cache)", NULL},
     {"stand-in", 0, OPTAB_FLOAT, OF(stand_in), 0, 1e6, NULL, "A",
      "interactive solution: the constant stand-in (emission + diffuse x A per material) instead of radiosity "
      "(tests)", NULL},
@@ -390,9 +391,15 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
                     "solving over it (the file is replaced)", cache, why.msg);
         else if (m->scene_hash == want)
             from_cache = 1;
-        else
-            ct_fail(&why, CT_ESTALE, "%s: stale cache (scene hash %016llx, expected %016llx)", cache,
-                    (unsigned long long)m->scene_hash, (unsigned long long)want);
+        else {
+            /* This scene's, but not the defaults' (corrtex radiosity with
+             * options) or an older solver's: replaced, said aloud. */
+            ct_fail(&why, CT_ESTALE,
+                    "%s: solved with other parameters or another solver version (solution hash %016llx, expected "
+                    "%016llx for the defaults)",
+                    cache, (unsigned long long)m->scene_hash, (unsigned long long)want);
+            ct_warn(COMPONENT, "%s: solving at the defaults over it (the file is replaced)", why.msg);
+        }
         if (!from_cache) rmesh_free(m);
     }
     if (!from_cache) {
@@ -488,6 +495,8 @@ int cmd_converge(int argc, char **argv)
         rc = ct_fail(&err, CT_EINVAL, "give --mesh or --stand-in, not both");
         goto fail;
     }
+    /* (before a solve that would end in a refusal) */
+    if (o.mesh && (rc = rmesh_output_check(o.mesh, &err))) goto fail;
     if ((rc = load_mesh(scene, o.stand_in, o.mesh, &mesh, &err))) goto fail;
     trc_options to;
     trc_cli_apply(&o.trc, &to);

@@ -140,7 +140,7 @@ int cmd_radiosity(int argc, char **argv)
     /* Fail on an unwritable output now, not after a long solve. */
     const char *outs[3] = {out_path, image, planes};
     for (int i = 0; i < 3; i++) {
-        if (outs[i] && fs_output_check(outs[i], &err) != CT_OK) {
+        if (outs[i] && (i == 0 ? rmesh_output_check(outs[i], &err) : fs_output_check(outs[i], &err)) != CT_OK) {
             ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
             return 2;
         }

@@ -2,7 +2,8 @@
 # corrtex radiosity end to end: solves the Cornell box at a coarse error,
 # checks the stats it prints and the .ctmesh it writes, that the result does
 # not depend on the thread count (byte-identical files), that --reuse keeps a
-# fresh cache and recomputes a stale one, and that bad input exits 2 with one
+# fresh cache and recomputes a stale one, that an output which is not a
+# .ctmesh is never replaced, and that bad input exits 2 with one
 # error line and a blown memory cap exits 1 naming the cap.
 # A room with walls at the coordinate range's edge gives a mesh a tracer takes.
 set -u
@@ -86,6 +87,18 @@ check 2 "no camera named 'nope'" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/x.png
 # An image name the format does not match (a .jpg got EXR bytes), refused before the solve.
 check 2 "\-\-image $tmp/v.jpg: give a name ending in .exr (linear) or .png (sRGB)" "$scene" -o "$tmp/x.ctmesh" --image "$tmp/v.jpg"
 check 2 "\-\-image-planes $tmp/p.png: give a name ending in .exr" "$scene" -o "$tmp/x.ctmesh" --image-planes "$tmp/p.png"
+# An output that is not a .ctmesh (the scene itself, a document) is not
+# replaced, with or without --reuse: it used to be, by a mesh.
+cp "$scene" "$tmp/scene-copy.json"; cp scenes/cornell/cornell.obj scenes/cornell/cornell.mtl "$tmp/"
+check 2 "scene-copy.json: exists and is not a corrtex mesh (.ctmesh): not replaced" "$tmp/scene-copy.json" \
+  -o "$tmp/scene-copy.json" --error 1e-2
+cmp -s "$scene" "$tmp/scene-copy.json" || { echo "FAIL: -o the scene file replaced it"; fail=1; }
+echo "notes" >"$tmp/notes.txt"
+check 2 "notes.txt: exists and is not a corrtex mesh" "$scene" -o "$tmp/notes.txt" --reuse --error 1e-2
+[[ $(cat "$tmp/notes.txt") == notes ]] || { echo "FAIL: --reuse replaced a text file"; fail=1; }
+: >"$tmp/empty.ctmesh"
+run "$BIN/corrtex" radiosity "$scene" -o "$tmp/empty.ctmesh" --error 1e-2 --quiet >/dev/null ||
+  { echo "FAIL: an empty output file was refused"; fail=1; }
 check 1 "memory cap of 16 MB" "$scene" -o "$tmp/x.ctmesh" --error 1e-9 --min-area 1e-12 --memory-cap 16
 [[ -e $tmp/x.ctmesh ]] && { echo "FAIL: a failed run left an output"; fail=1; }
 # corrtex-render's solver options go through the same checks (a singleton

@@ -110,5 +110,24 @@ sed 's/^/  walk4: /' "$tmp/walk4.out" | tail -n 4
 grep -q "the MPI job refused its input: error corrtex-render: unknown option '--bogus'" "$tmp/walk4.out" ||
   fail "the launcher did not name the job's reason"
 no_strays "after the refused option"
+# An option the radiosity solver refuses, and a cache path that is not a
+# .ctmesh (a document: corrtex radiosity used to replace it): exit 2 with
+# the solver's line, before any MPI job (both exited 1).
+echo "notes" >"$tmp/notes.txt"
+for case in "--radiosity-options --bogus|unknown option '--bogus'" \
+            "--radiosity-cache $tmp/notes.txt|notes.txt: exists and is not a corrtex mesh"; do
+  IFS='|' read -r opts want <<<"$case"
+  read -r o1 o2 <<<"$opts"
+  cmd=("$walk" cornell --frames 2 --samples-per-frame $spf --width $w --height $w --ranks 2
+       --listen "unix:$sock" --out "$tmp/walk5" --radiosity-cache "$tmp/cornell.ctmesh"
+       --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240 "$o1" "$o2")
+  log_cmd "${cmd[@]}"
+  (cd "$root" && env -u DISPLAY XDG_CACHE_HOME="$tmp/xdg" "${cmd[@]}") >"$tmp/walk5.out" 2>&1; rc=$?
+  sed 's/^/  walk5: /' "$tmp/walk5.out" | tail -n 3
+  ((rc == 2)) || fail "$o1 $o2: exit status $rc, want 2"
+  grep -q "error corrtex radiosity: .*$want" "$tmp/walk5.out" || fail "$o1 $o2: the solver's line is missing"
+done
+[[ $(cat "$tmp/notes.txt") == notes ]] || fail "the launcher's radiosity replaced a document"
+no_strays "after the refused solver input"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: walk of $n frames with report; nothing left behind"

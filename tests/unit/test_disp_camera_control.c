@@ -115,3 +115,16 @@ Test(disp_camera_control, overview_sees_the_bounds)
         cr_expect(px >= 0 && px <= 100 && py >= 0 && py <= 100, "corner %d at (%g, %g)", i, px, py);
     }
 }
+
+/* A scene at the coordinate range's edge: the overview's eye stays within
+ * it (it was placed 2.4 half-diagonals out, past 1e9, and the display's own
+ * encoder refused its first CAMERA). */
+Test(disp_camera_control, overview_of_a_huge_scene_stays_in_range)
+{
+    bounds3 b = {v3(-1e9f, -1e9f, -1e9f), v3(1e9f, 1e9f, 1e9f)};
+    ct_camera c = disp_camera_overview(b, 50);
+    cr_expect(v3_in_range(c.eye), "eye (%g, %g, %g)", c.eye.x, c.eye.y, c.eye.z);
+    cr_expect(isfinite(c.fov_y) && c.fov_y > 0);
+    float px, py, depth;
+    cr_expect(cam_project(&c, 100, 100, v3(0, 0, 0), &px, &py, &depth), "the centre is not in view");
+}
