@@ -110,6 +110,16 @@ int disp_client_connect(const disp_client_opts *o, disp_scene_cache *cache, disp
     rc = chan_send(c->ch, &m, err);
     if (rc == XPORT_QUEUE_FULL) rc = ct_fail(err, CT_EIO, "%s: send queue full at start", c->addr);
     if (!rc) rc = chan_pump(c->ch, err);
+    if (rc == CT_EIO) {
+        /* A master that refuses us (ERROR BUSY: it serves another display)
+         * says why and closes right after the handshake: the SETTINGS then
+         * meet a closed socket, and "the peer closed the connection" hid
+         * its reason, which is already read. */
+        wire_msg e;
+        ct_error e2;
+        if (chan_recv_wait(c->ch, &e, 200, &e2) == WIRE_OK && e.type == WIRE_ERROR)
+            rc = ct_fail(err, CT_EIO, "%s: master reports an error: %s", c->addr, e.u.error.text);
+    }
     if (!rc && pipe2(c->wake, O_NONBLOCK | O_CLOEXEC) != 0)
         rc = ct_fail(err, CT_ESYS, "cannot make a pipe for the connection thread: %s", strerror(errno));
     if (!rc) {

@@ -18,7 +18,8 @@
 #   queued for it and every update is acknowledged, so only its silence
 #   tells; it used to hold the slot for good, now it is dropped after
 #   --send-timeout-ms (at least 3 s).
-# Then a real display gets its frame, and SIGTERM ends the job with status 0.
+# A real display refused meanwhile says the master serves another. Then a
+# real display gets its frame, and SIGTERM ends the job with status 0.
 source "$(dirname "$0")/lib/mpi.sh"
 need_programs
 stuck="$root/${CORRTEX_BUILD:-build/release}/tools/stuck_display"
@@ -53,7 +54,20 @@ stuck pingflood 0 pingflood 4
 # Within 8 s: silence counts from --send-timeout-ms, 1.5 s here, but at
 # least 3 s (a display PINGs once a second); the master's 1 s stats lines
 # go on meanwhile.
-stuck silent 0 silent 8
+# Meanwhile (it holds the slot for 3 s) a real display is refused and
+# says why: ERROR BUSY came right after the handshake and its SETTINGS met
+# a closed socket ("the peer closed the connection" hid the reason).
+log_cmd "$stuck" "$ADDR" - silent 8
+timeout 60 "$stuck" "$ADDR" - silent 8 >"$tmp/silent.out" 2>&1 &
+silent_pid=$!
+for ((i = 0; i < 50; i++)); do (($(grep -c 'connected (lockstep)' "$tmp/job.log") >= 1)) && break; sleep 0.1; done
+display_run busy --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278,273,0,39.3 --samples-per-frame 500 --frames 1
+((DISPLAY_RC == 3)) || fail "a display refused while another is served: exit status $DISPLAY_RC, want 3"
+grep -q 'master reports an error: the master already serves a display' "$tmp/busy.log" ||
+  fail "the refused display did not say the master serves another"
+wait "$silent_pid"; rc=$?
+sed 's/^/  silent: /' "$tmp/silent.out"
+((rc == 0)) || fail "silent: exit status $rc, expected 0"
 grep -q '^closed: ' "$tmp/silent.out" || fail "a silent lockstep display was not dropped"
 grep -q 'dropped display .*sent nothing, not even its PING a second, for [0-9.]* s' "$tmp/job.log" ||
   fail "the master did not say why it dropped the silent display"
