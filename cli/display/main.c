@@ -1,16 +1,20 @@
 /* bin/corrtex-display: the display client. Parses options and runs
  * display/disp_app.c; links common, proto, display and GL only. */
+#include <errno.h>
 #include <signal.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
+#include "common/fsutil.h"
 #include "common/log.h"
 #include "common/optab.h"
 #include "display/disp_app.h"
 #include "display/gl_load.h"
 #include "proto/wire.h"
+#include "proto/xport.h"
 
 #define COMP "corrtex-display"
 
@@ -289,6 +293,28 @@ int main(int argc, char **argv)
     }
     if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {
         ct_log(CT_LOG_ERROR, COMP, "--reference, --no-images and --out-every need --out");
+        return DISP_EXIT_USAGE;
+    }
+    /* Bad input found now is bad input (exit 2, before a GL context and
+     * the first frame): a --connect address no transport takes used to be a
+     * lost connection (3), a missing --reference or an --out that is a file
+     * a failure (1) after the first frame. */
+    xport_addr xa;
+    if (o.connect && xport_parse(o.connect, false, &xa, &err) != CT_OK) {
+        ct_log(CT_LOG_ERROR, COMP, "--connect %s", err.msg);
+        return DISP_EXIT_USAGE;
+    }
+    struct stat st;
+    if (o.ref_dir && stat(o.ref_dir, &st) != 0) {
+        ct_log(CT_LOG_ERROR, COMP, "--reference %s: %s", o.ref_dir, strerror(errno));
+        return DISP_EXIT_USAGE;
+    }
+    if (o.out_dir && stat(o.out_dir, &st) == 0 && !S_ISDIR(st.st_mode)) {
+        ct_log(CT_LOG_ERROR, COMP, "--out %s: not a folder", o.out_dir);
+        return DISP_EXIT_USAGE;
+    }
+    if (o.out_dir && fs_mkdirs(o.out_dir, &err) != CT_OK) {
+        ct_log(CT_LOG_ERROR, COMP, "--out %s", err.msg);
         return DISP_EXIT_USAGE;
     }
     struct sigaction sa;

@@ -127,6 +127,15 @@ bad "--samples-per-frame needs --connect" --backend osmesa --scene "$SCENE" --sa
 bad "--cache needs --connect" --backend osmesa --scene "$SCENE" --cache "$tmp/cache"
 bad "--no-cache needs --connect" --backend osmesa --scene "$SCENE" --no-cache
 bad "--cache-max-mb needs --connect" --backend osmesa --scene "$SCENE" --cache-max-mb 5
+# Found before the first frame, as bad input: an address no transport
+# takes was a lost connection (exit 3), an --out that is a file and a
+# missing --reference failures (exit 1) after the first frame.
+bad "--connect address 'foo:bar': unknown scheme" --backend osmesa --connect foo:bar
+bad "port 99999 out of range" --backend osmesa --connect tcp:localhost:99999
+echo notes >"$tmp/notes.txt"
+bad "--out $tmp/notes.txt: not a folder" --backend osmesa --scene "$SCENE" --frames 1 --out "$tmp/notes.txt"
+bad "--reference $tmp/nope: No such file" --backend osmesa --scene "$SCENE" --frames 1 --out "$tmp/refout" \
+  --reference "$tmp/nope"
 bad "--sample-frames" --backend osmesa --scene "$SCENE" --sample-frames 0
 bad "--sample-max" --backend osmesa --scene "$SCENE" --sample-max abc
 bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5
