@@ -178,19 +178,35 @@ int campath_load(const char *path, ct_campath *out, ct_error *err)
     return rc;
 }
 
+void campath_write(const ct_campath *p, FILE *f)
+{
+    /* A name from a scene file may hold a line break: it would end the
+     * comment, and the rest of the name would be read as a keyframe. */
+    char name[sizeof p->name];
+    size_t n = 0;
+    for (; p->name[n] && n + 1 < sizeof name; n++) {
+        unsigned char c = (unsigned char)p->name[n];
+        name[n] = c < 0x20 || c == 0x7f ? '?' : (char)c;
+    }
+    name[n] = '\0';
+    fprintf(f, "# corrtex camera path '%s': t  eye(x y z)  target(x y z)  fov_deg\n", name);
+    /* %.9g: every keyframe comes back bit for bit, so a path of a scene
+     * written out plays the frames the scene's own path plays. */
+    fprintf(f, "up %.9g %.9g %.9g\n", (double)p->up.x, (double)p->up.y, (double)p->up.z);
+    for (int i = 0; i < p->nkeys; i++) {
+        const campath_key *k = &p->keys[i];
+        fprintf(f, "%.9g  %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g\n", (double)k->t, (double)k->eye.x,
+                (double)k->eye.y, (double)k->eye.z, (double)k->target.x, (double)k->target.y,
+                (double)k->target.z, (double)k->fov_deg);
+    }
+}
+
 int campath_save(const ct_campath *p, const char *path, ct_error *err)
 {
     fs_atomic a;
     int rc = fs_atomic_open(&a, path, err);
     if (rc) return rc;
-    fprintf(a.f, "# corrtex camera path '%s': t  eye(x y z)  target(x y z)  fov_deg\n", p->name);
-    fprintf(a.f, "up %.9g %.9g %.9g\n", (double)p->up.x, (double)p->up.y, (double)p->up.z);
-    for (int i = 0; i < p->nkeys; i++) {
-        const campath_key *k = &p->keys[i];
-        fprintf(a.f, "%.9g  %.9g %.9g %.9g  %.9g %.9g %.9g  %.9g\n", (double)k->t, (double)k->eye.x,
-                (double)k->eye.y, (double)k->eye.z, (double)k->target.x, (double)k->target.y,
-                (double)k->target.z, (double)k->fov_deg);
-    }
+    campath_write(p, a.f);
     return fs_atomic_commit(&a, err);
 }
 

@@ -7,6 +7,8 @@
 #ifndef CT_CAMPATH_H
 #define CT_CAMPATH_H
 
+#include <stdio.h>
+
 #include "common/camera.h"
 #include "common/error.h"
 
@@ -34,6 +36,9 @@ int campath_load(const char *path, ct_campath *out, ct_error *err);
 /* Builds a path from keyframes (copied); validates them like the parser. */
 int campath_from_keys(const campath_key *keys, int n, vec3 up, const char *origin,
                       ct_campath *out, ct_error *err);
+
+/* Writes a path in the text format to f. */
+void campath_write(const ct_campath *p, FILE *f);
 
 /* Writes a path in the text format (atomically). */
 int campath_save(const ct_campath *p, const char *path, ct_error *err);

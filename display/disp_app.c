@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 
 #include "common/campath.h"
@@ -51,6 +52,27 @@ const char *disp_app_keys_help(void)
 }
 
 
+/* --path with --scene: the scene's path of that name first, else a path
+ * file, as corrtex reference and naive resolve it (scene_path_or_file); the
+ * scene is freed after loading, so the path is copied. */
+static int scene_path(app *a, const ct_scene *s, ct_error *err)
+{
+    const disp_app_opts *o = a->o;
+    ct_campath own;
+    memset(&own, 0, sizeof own);
+    const ct_campath *p = scene_path_or_file(s, o->scene, o->path, &own, err);
+    if (!p) return CT_EINVAL;   /* bad input, whatever the file's error was */
+    if (p == &own) {
+        a->path = own;
+    } else {
+        int rc = campath_from_keys(p->keys, p->nkeys, p->up, o->scene, &a->path, err);
+        if (rc) return rc;
+        memcpy(a->path.name, p->name, sizeof a->path.name);
+    }
+    a->have_path = true;
+    return CT_OK;
+}
+
 static int load_solution(app *a, ct_error *err)
 {
     const disp_app_opts *o = a->o;
@@ -67,7 +89,8 @@ static int load_solution(app *a, ct_error *err)
         rc = scene_load(o->scene, &s, err);
         if (rc) return rc;
         /* A stand-in interactive solution: constant radiance per material. */
-        rc = rmesh_from_scene(s, v3s(o->ambient), &a->mesh, err);
+        if (o->path) rc = scene_path(a, s, err);
+        if (!rc) rc = rmesh_from_scene(s, v3s(o->ambient), &a->mesh, err);
         if (!rc) {
             a->have_mesh = true;
             if (!a->have_cam && (o->camera_name || s->ncams)) {
@@ -441,8 +464,14 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
     a.ropts.exposure = o->exposure;
     int status = DISP_EXIT_ERROR;
     int rc = CT_OK;
-    if (o->path) {
+    /* With --scene, load_solution takes --path: it may name one of the
+     * scene's paths. */
+    if (o->path && !o->scene) {
+        struct stat st;
         rc = campath_load(o->path, &a.path, err);
+        if (rc && stat(o->path, &st) != 0 && !strchr(o->path, '/'))
+            ct_fail(err, rc, "--path %s: no such path file (a scene's path name needs --scene; for --connect or "
+                    "--mesh write it out: corrtex info SCENE --path NAME > NAME.path)", o->path);
         if (rc) return DISP_EXIT_USAGE;
         a.have_path = true;
     }

@@ -95,6 +95,38 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
     return CT_OK;
 }
 
+static bool ref_exists(const char *dir, int k)
+{
+    char name[64], path[4096];
+    struct stat st;
+    snprintf(name, sizeof name, "frame_%05d.exr", k);
+    fs_join(dir, name, path, sizeof path);
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* Checked before the first frame: a missing reference used to end the run
+ * at that frame (exit 1, the frames before it drawn for nothing), and the
+ * references of a walk of another frame count were compared with the
+ * wrong cameras without a word (frame k of N is path time k/(N-1)). */
+int disp_capture_check_refs(const char *dir, int frames, ct_error *err)
+{
+    int have = 0;
+    while (have < frames && ref_exists(dir, have)) have++;
+    if (have < frames)
+        return ct_fail(err, CT_EINVAL,
+                       "--reference %s: frame_%05d.exr missing: %d reference frame%s there, --frames %d needs %d "
+                       "(corrtex reference --frames %d)",
+                       dir, have, have, have == 1 ? "" : "s", frames, frames, frames);
+    if (!ref_exists(dir, frames)) return CT_OK;
+    /* (bounded as --frames is: a folder cannot hold more references than
+     * any run could use) */
+    while (have < 10000000 && ref_exists(dir, have)) have++;
+    return ct_fail(err, CT_EINVAL,
+                   "--reference %s: %d reference frames there, made for --frames %d, not %d: their cameras are not "
+                   "these frames'",
+                   dir, have, have, frames);
+}
+
 static int append(disp_capture *c, const char *s, ct_error *err)
 {
     size_t n = strlen(s);

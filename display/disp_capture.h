@@ -36,6 +36,12 @@ typedef struct disp_capture disp_capture;
 int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err);
 
+/* With --reference a folder and --frames N: whether it holds exactly
+ * frame_00000.exr .. frame_{N-1}.exr, the references of these N frames
+ * (those of another N are other cameras); CT_EINVAL with a line naming the
+ * folder and the counts otherwise. */
+int disp_capture_check_refs(const char *dir, int frames, ct_error *err);
+
 /* Queues the frame (rgb: linear, 3 floats per pixel, top row first, copied)
  * for the writer thread, which writes its EXR and PNG and records its row;
  * with a reference also its RMSE and PSNR (logged). Waits only while two

@@ -1,4 +1,5 @@
-/* corrtex info SCENE [--json]: counts and bounds of a scene. */
+/* corrtex info SCENE [--json]: counts and bounds of a scene; with --path
+ * NAME, one of its camera paths in the path file format instead. */
 #include <cJSON.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -31,6 +32,7 @@ static const char *const KINDS[] = {"diffuse", "phong", "ward", "mirror", "diele
 
 typedef struct info_opts {
     bool json, tree, quiet;
+    const char *path;
 } info_opts;
 
 #define OF(f) offsetof(info_opts, f)
@@ -40,13 +42,19 @@ static const optab OPTS[] = {
      NULL},
     {"tree", 't', OPTAB_FLAG, OF(tree), 0, 0, NULL, NULL, "also print the node hierarchy (plain output only)", NULL},
     {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
+    /* A path defined inline (keys) exists in the scene file alone: programs
+     * that take only a path file (corrtex-display with --connect, which has
+     * no scene) get it through this. */
+    {"path", 0, OPTAB_STRING, OF(path), 0, 0, NULL, "NAME",
+     "print the scene's camera path NAME as a path file (docs/scene-format.md) instead of the summary", NULL},
 };
 #undef OF
 
 static void usage(FILE *f)
 {
     fprintf(f, "usage: corrtex info SCENE.json [--json] [--tree] [--quiet]\n"
-               "  Loads a scene and prints its counts and bounds.\n");
+               "       corrtex info SCENE.json --path NAME\n"
+               "  Loads a scene and prints its counts and bounds, or one of its camera paths.\n");
     optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
 }
 
@@ -88,10 +96,37 @@ int cmd_info(int argc, char **argv)
         ct_log(CT_LOG_ERROR, "corrtex info", "expected one scene file (got %d arguments)", npos);
         return 2;
     }
+    if (opt.path && (opt.json || opt.tree)) {
+        ct_log(CT_LOG_ERROR, "corrtex info", "--path prints a path file: not with %s", opt.json ? "--json" : "--tree");
+        return 2;
+    }
     ct_scene *s;
     if (scene_load(pos[0], &s, &err) != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex info", "%s", err.msg);
         return 2;
+    }
+    if (opt.path) {
+        int pi = scene_find_path(s, opt.path);
+        if (pi < 0) {
+            char names[512] = "";
+            size_t len = 0;
+            for (uint32_t i = 0; i < s->npaths && len + 1 < sizeof names; i++)
+                len += (size_t)snprintf(names + len, sizeof names - len, "%s%s", i ? ", " : "",
+                                        shown(s->paths[i].name));
+            ct_log(CT_LOG_ERROR, "corrtex info", "--path %s: %s has no camera path of that name (%s%s)",
+                   shown(opt.path), pos[0], s->npaths ? "its paths: " : "it has none", names);
+            scene_free(s);
+            return 2;
+        }
+        campath_write(&s->paths[pi], stdout);
+        scene_free(s);
+        /* a full disk or a closed pipe: the file is not a path */
+        if (fflush(stdout) || ferror(stdout)) {
+            ct_log(CT_LOG_ERROR, "corrtex info", "--path %s: cannot write the path to the standard output",
+                   shown(opt.path));
+            return 1;
+        }
+        return 0;
     }
     int kinds[NKINDS] = {0};
     for (uint32_t i = 0; i < s->nmats; i++) {

@@ -12,6 +12,7 @@
 #include "common/log.h"
 #include "common/optab.h"
 #include "display/disp_app.h"
+#include "display/disp_capture.h"
 #include "display/gl_load.h"
 #include "proto/wire.h"
 #include "proto/xport.h"
@@ -101,7 +102,8 @@ static const optab VIEW_OPTS[] = {
 };
 
 static const optab RUN_OPTS[] = {
-    {"path", 0, OPTAB_STRING, OF(o.path), 0, 0, NULL, "FILE", "camera path (common/campath.h format)", NULL},
+    {"path", 0, OPTAB_STRING, OF(o.path), 0, 0, NULL, "FILE|NAME",
+     "camera path: a path file (docs/scene-format.md), or with --scene the name of one of its paths", NULL},
     {"frames", 0, OPTAB_INT, OF(o.frames), 0, 10000000, NULL, "N",
      "N frames spread over the path (0: real time); headless without a path, N frames of the still camera (0: one, "
      "or with --connect until the master ends or a signal)", NULL},
@@ -111,8 +113,8 @@ static const optab RUN_OPTS[] = {
      "capture a frame at most every S seconds (0: every frame)", NULL},
     {"no-images", 0, OPTAB_FLAG, OF(o.no_images), 0, 0, NULL, NULL, "with --out: frames.csv only", NULL},
     {"reference", 0, OPTAB_STRING, OF(o.ref_dir), 0, 0, NULL, "DIR|FILE",
-     "add RMSE/PSNR against DIR/frame_NNNNN.exr, or against FILE.exr for every frame (a still view), to frames.csv",
-     NULL},
+     "add RMSE/PSNR against DIR/frame_NNNNN.exr (with --frames N: exactly N of them), or against FILE.exr for "
+     "every frame (a still view), to frames.csv", NULL},
     {"hold", 0, OPTAB_DOUBLE, OF(o.hold_seconds), 0, 1e6, NULL, "S",
      "real-time path: stay at its last camera S seconds after it ends", NULL},
     {"continuous", 0, OPTAB_FLAG, OF(o.continuous), 0, 0, NULL, NULL,
@@ -307,6 +309,10 @@ int main(int argc, char **argv)
     struct stat st;
     if (o.ref_dir && stat(o.ref_dir, &st) != 0) {
         ct_log(CT_LOG_ERROR, COMP, "--reference %s: %s", o.ref_dir, strerror(errno));
+        return DISP_EXIT_USAGE;
+    }
+    if (o.ref_dir && S_ISDIR(st.st_mode) && o.frames > 0 && disp_capture_check_refs(o.ref_dir, o.frames, &err)) {
+        ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
         return DISP_EXIT_USAGE;
     }
     if (o.out_dir && stat(o.out_dir, &st) == 0 && !S_ISDIR(st.st_mode)) {

@@ -2,7 +2,9 @@
 # corrtex-display without a master: scripted path on a small scene with
 # synthetic corrections, headless under OSMesa and EGL and in a GLFW window
 # under Xvfb; frames and frames.csv written; the backends and 1-pass vs
-# 3-pass agree (RMSE through --reference); bad input exits 2 with one line.
+# 3-pass agree (RMSE through --reference); a path of the scene taken by
+# name; bad input (references of another frame count too) exits 2 with one
+# line.
 set -u
 BIN=${CORRTEX_BIN:-bin}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -97,6 +99,39 @@ if command -v xvfb-run >/dev/null; then
 else
   echo "skip: xvfb-run not installed"
 fi
+
+# A path of the scene by name (mini's "inline" is defined by keys in the
+# scene file), as corrtex reference takes it: it was opened as a file
+# ("inline: cannot open"). The same frames as the path written out by
+# corrtex info --path, which is how a display with --connect gets it.
+"$BIN/corrtex" info "$SCENE" --path inline >"$tmp/inline.path" || { echo "FAIL: corrtex info --path inline"; fail=1; }
+SMALL=(--scene "$SCENE" --frames 3 --width 32 --height 24 --quiet)
+run "$BIN/corrtex-display" --backend osmesa "${SMALL[@]}" --path inline --out "$tmp/byname" ||
+  { echo "FAIL: --scene with --path NAME"; fail=1; }
+run "$BIN/corrtex-display" --backend osmesa "${SMALL[@]}" --path "$tmp/inline.path" --out "$tmp/byfile" ||
+  { echo "FAIL: --scene with the written-out path"; fail=1; }
+cams() { cut -d, -f1-10 "$1/frames.csv" 2>/dev/null; }
+[[ $(cams "$tmp/byname" | wc -l) -eq 4 ]] && cmp -s <(cams "$tmp/byname") <(cams "$tmp/byfile") ||
+  { echo "FAIL: the path by name and written out give other cameras:"; diff <(cams "$tmp/byname") <(cams "$tmp/byfile"); fail=1; }
+for k in 0 1 2; do
+  f=$(printf 'frame_%05d.exr' "$k")
+  cmp -s "$tmp/byname/$f" "$tmp/byfile/$f" || { echo "FAIL: $f differs between the path by name and its file"; fail=1; }
+done
+bad "path 'nope' is neither a path of $SCENE nor a readable path file" --backend osmesa --scene "$SCENE" --path nope
+# without --scene a name is no file: the line says how to get the file
+bad "--path inline: no such path file (a scene's path name needs --scene" --backend osmesa \
+  --mesh "$tmp/none.ctmesh" --path inline
+
+# A folder of references is checked against --frames before the first
+# frame: too few used to end the run at the first missing one (exit 1),
+# and those of another frame count were compared with other cameras.
+bad "--reference $tmp/osm: frame_00004.exr missing: 4 reference frames there, --frames 6 needs 6" \
+  --backend osmesa --scene "$SCENE" --path "$PATHF" --frames 6 --width 64 --height 48 --out "$tmp/refn" \
+  --reference "$tmp/osm"
+bad "--reference $tmp/osm: 4 reference frames there, made for --frames 4, not 3" \
+  --backend osmesa --scene "$SCENE" --path "$PATHF" --frames 3 --width 64 --height 48 --out "$tmp/refn" \
+  --reference "$tmp/osm"
+ls "$tmp/refn" 2>/dev/null | grep -q frame_ && { echo "FAIL: frames drawn before the references were refused"; fail=1; }
 
 # Bad input: exit 2 and one error line naming the problem.
 bad "nope.json" --backend osmesa --scene "$tmp/nope.json"

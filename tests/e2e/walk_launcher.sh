@@ -5,8 +5,9 @@
 # writes the report. Checks: exit 0, both programs started and ended, one
 # frames.csv row and one PNG/EXR per frame, the samples per frame, report.md
 # with its plots and contact sheet, and nothing left behind (processes,
-# socket file); a path file the display refuses and an option the MPI job
-# refuses both end the walk at once with status 2 and the reason.
+# socket file); a second walk on a path defined inline in the scene; a path
+# file the display refuses and an option the MPI job refuses both end the
+# walk at once with status 2 and the reason.
 set -u
 source "$(dirname "$0")/lib/walk-common.bash"
 need_programs
@@ -72,13 +73,19 @@ if [[ -f $out/report.md ]]; then
   grep -q '^| radiosity_s | [0-9.]* |$' "$out/report.md" || fail "report.md lacks the radiosity's seconds: $(grep radiosity_s "$out/report.md")"
 fi
 # Again with the cache current: the report says so instead of a bare 0.0 s.
+# The path is pan, defined inline in cornell.json (keys, no file): the
+# launcher used to refuse it ("neither a file nor .../pan.path"); it writes
+# it out beside the frames for the display, which has no scene file.
 out2="$tmp/walk2"
-cmd=("$walk" cornell --path walk --frames 2 --samples-per-frame $spf --width $w --height $w --ranks 2
+cmd=("$walk" cornell --path pan --frames 2 --samples-per-frame $spf --width $w --height $w --ranks 2
      --listen "unix:$sock" --out "$out2" --radiosity-cache "$tmp/cornell.ctmesh"
      --radiosity-options "$walk_rad_opts" --display local --backend egl --timeout 240)
 log_cmd "${cmd[@]}"
 (cd "$root" && env -u DISPLAY XDG_CACHE_HOME="$tmp/xdg" "${cmd[@]}") >"$tmp/walk2.out" 2>&1 || fail "second walk (cache current): exit status $?"
 grep -q "radiosity: checking the cache" "$tmp/walk2.out" || fail "the second walk did not announce the cache check"
+[[ -s $out2/pan.path ]] && cmp -s "$out2/pan.path" <("$bin/corrtex" info "$scene" --path pan) ||
+  fail "the path pan of the scene was not written to $out2/pan.path"
+grep -q -- "--path $out2/pan.path" "$out2/run.env" 2>/dev/null || fail "the display was not given $out2/pan.path"
 grep -q '^| radiosity_s | [0-9.]* (the cache was up to date) |$' "$out2/report.md" 2>/dev/null ||
   fail "the second report does not say the cache was up to date: $(grep radiosity_s "$out2/report.md" 2>/dev/null)"
 no_strays "after the second walk"
