@@ -8,7 +8,8 @@
  * to 60 % too dark at the box's edge. A hidden corner is given the
  * radiosity gathered where its edge to a lit corner of the same element
  * comes out from under the box (the contact line), which is what the
- * visible part lies next to. */
+ * visible part lies next to. The same test of a point tells an element's
+ * exposure (rad_exposure): what its links pass on comes from that part. */
 #include "radiosity/rad_internal.h"
 
 #include <math.h>
@@ -44,6 +45,23 @@ static bool hidden(const rad_ctx *c, vec3 x, vec3 n)
         if (!rad_vis_hits_back(c->vis, o, d)) return false;
     }
     return true;
+}
+
+/* 3 x 3 points: a quarter-covered element is told from an open one. */
+#define EXPOSURE_SIDE 3
+
+float rad_exposure(const rad_ctx *c, const rad_elem *e)
+{
+    if (!c->vis) return 1.0f;
+    vec3 n = c->patches[e->patch].n;
+    int open = 0;
+    for (int i = 0; i < EXPOSURE_SIDE * EXPOSURE_SIDE; i++) {
+        float u = ((float)(i % EXPOSURE_SIDE) + 0.5f) / EXPOSURE_SIDE;
+        float v = ((float)(i / EXPOSURE_SIDE) + 0.5f) / EXPOSURE_SIDE;
+        /* (a triangle's points fold over its diagonal: still inside) */
+        open += !hidden(c, rad_elem_point(e, u, v), n);
+    }
+    return (float)open / (float)(EXPOSURE_SIDE * EXPOSURE_SIDE);
 }
 
 int rad_contact_vertices(const rad_ctx *c, const uint32_t *leaf, size_t nl, const uint32_t *boff,

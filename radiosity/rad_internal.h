@@ -55,6 +55,7 @@ typedef struct rad_elem {
     vec3 Hm;             /* irradiance from lamps seen in plane mirrors (leaves; rad_mirror_leaf) */
     float hk, hkd;       /* a leaf's scale, minus 1, of what its ancestors' links bring it, and
                           * of their direct part (rad_leaf_scales; 0 until the last pass) */
+    float exposed;       /* the part of its area not inside an object standing on it (rad_exposure) */
     uint8_t nv, depth;
     uint8_t hm_done;     /* Hm computed */
 } rad_elem;
@@ -220,6 +221,27 @@ static inline vec3 rad_link_cluster_B(const rad_ctx *c, const rad_link *l, int b
     return v3_scale(rad_cluster_B(&c->clusters[l->src & RAD_ID_MASK], b, x), l->bk);
 }
 
+/* Below this exposure an element counts as covered: its radiosity is
+ * passed on as it is (rad_src_B). */
+#define RAD_EXPOSED_MIN 0.25f
+
+/* What element e (patch emission E) passes on from the exposed part of
+ * its area: its mean radiosity B counts the part hidden under objects that
+ * stand on it (dark: nothing reaches it), and a link's visibility rays from
+ * there are blocked as well; taking the mean for the exposed part lost
+ * that part twice (docs/radiosity.md, "Covered parts"). The element
+ * buffers hold this value; rad_true_B gives the mean back. */
+static inline vec3 rad_src_B(vec3 B, vec3 E, float exposed)
+{
+    if (!(exposed >= RAD_EXPOSED_MIN) || exposed >= 1.0f) return B;
+    return v3_add(E, v3_scale(v3_sub(B, E), 1.0f / exposed));
+}
+static inline vec3 rad_true_B(vec3 Bs, vec3 E, float exposed)
+{
+    if (!(exposed >= RAD_EXPOSED_MIN) || exposed >= 1.0f) return Bs;
+    return v3_add(E, v3_scale(v3_sub(Bs, E), exposed));
+}
+
 /* Radiosity of element i in buffer b (0 or 1). */
 static inline vec3 *rad_B(const rad_ctx *c, int b, uint32_t i)
 {
@@ -261,6 +283,11 @@ uint32_t rad_alloc_elems(rad_ctx *c, uint32_t n);
 
 /* Creates the 4 children of element e (owner thread); returns 0 or < 0. */
 int rad_subdivide(rad_ctx *c, uint32_t e);
+
+/* The exposed part of element e's area (rad_contact.c): the share of a few
+ * stratified points on it that are not hidden inside an object standing on
+ * its surface (1 before the visibility scene exists). */
+float rad_exposure(const rad_ctx *c, const rad_elem *e);
 
 /* Adds (or subtracts, negative) tracked bytes; returns -1 when over the cap. */
 int rad_track(rad_ctx *c, int64_t delta);

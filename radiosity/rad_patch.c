@@ -128,7 +128,12 @@ int rad_subdivide(rad_ctx *c, uint32_t ei)
         *rad_B(c, 1, first + i) = *rad_B(c, 1, ei);
         k->Bd = e->Bd;
         elem_geometry(k);
+        k->exposed = rad_exposure(c, k);
     }
+    /* The children's 4 x 9 points tell the parent's exposure better than
+     * its own 9. */
+    e->exposed = 0.25f * (rad_el(c, first)->exposed + rad_el(c, first + 1)->exposed +
+                          rad_el(c, first + 2)->exposed + rad_el(c, first + 3)->exposed);
     /* Publish the children only after they are complete. */
     e->child = first;
     atomic_fetch_add(&c->est_tris, rad_split_tris(e));
@@ -282,6 +287,7 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         e->key = ct_hash64((uint64_t)pi + 0x51ed27ULL);
         e->Bd = p->E;
         *rad_B(c, 0, ei) = *rad_B(c, 1, ei) = p->E;
+        e->exposed = 1.0f;   /* (rad_solve measures it once the visibility scene exists) */
         elem_geometry(e);
         p->root = ei;
         c->total_area += e->area;

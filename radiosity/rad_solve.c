@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 24u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 25u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -45,7 +45,8 @@
                                  * 23: near sources seen by their parts in the final gather,
                                  * the final gather at the leaves (--gather-passes); 24: the
                                  * leaves' steps keep the links' total light, vertices
-                                 * gather with their shading normals */
+                                 * gather with their shading normals; 25: sources pass on
+                                 * their exposed part's radiosity (rad_src_B) */
 
 void rad_params_default(rad_params *p)
 {
@@ -247,7 +248,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         B = v3_add(p->E, refl);
         Bd = v3_add(p->E, v3_mul(p->rho, Hdt));
         vec3 old = *rad_B(c, cur, ei);
-        double r = v3_maxabs(v3_sub(B, old));
+        double r = v3_maxabs(v3_sub(rad_src_B(B, p->E, e->exposed), old));
         if (r > w->residual) w->residual = r;
         double rmax = v3_maxc(refl);
         if (rmax > w->max_reflected) w->max_reflected = rmax;
@@ -270,7 +271,7 @@ static vec3 push_pull(worker *w, uint32_t ei, vec3 Hdown, vec3 Hddown, vec3 *Bd_
         B = v3_scale(B, inv);
         Bd = v3_scale(Bd, inv);
     }
-    *rad_B(c, nxt, ei) = B;
+    *rad_B(c, nxt, ei) = rad_src_B(B, p->E, e->exposed);
     e->Bd = Bd;
     *Bd_out = Bd;
     return B;
@@ -324,7 +325,8 @@ static void publish_tree(rad_ctx *c, uint32_t root)
 #define LIT_SHARE 1e-6
 static double reflected(const rad_ctx *c, const rad_patch *pa)
 {
-    return v3_maxc(v3_max(v3_sub(*rad_B(c, c->cur, pa->root), pa->E), v3s(0.0f)));
+    vec3 b = rad_true_B(*rad_B(c, c->cur, pa->root), pa->E, rad_el(c, pa->root)->exposed);
+    return v3_maxc(v3_max(v3_sub(b, pa->E), v3s(0.0f)));
 }
 
 /* The first pass has no solution to measure: its lit area is that of the
@@ -518,9 +520,10 @@ static int iterate(rad_ctx *c, worker *ws, int max_it, double tol, double tp, ra
 static vec3 pull_tree(rad_ctx *c, int b, uint32_t ei, vec3 *Bd)
 {
     rad_elem *e = rad_el(c, ei);
+    const rad_patch *pa = &c->patches[e->patch];
     if (e->child == RAD_NONE) {
         *Bd = e->Bd;
-        return *rad_B(c, b, ei);
+        return rad_true_B(*rad_B(c, b, ei), pa->E, e->exposed);
     }
     vec3 B = v3s(0.0f), D = v3s(0.0f);
     for (uint32_t k = 0; k < 4; k++) {
@@ -533,7 +536,7 @@ static vec3 pull_tree(rad_ctx *c, int b, uint32_t ei, vec3 *Bd)
     float inv = e->area > 0.0f ? 1.0f / e->area : 0.0f;
     B = v3_scale(B, inv);
     e->Bd = *Bd = v3_scale(D, inv);
-    *rad_B(c, b, ei) = B;
+    *rad_B(c, b, ei) = rad_src_B(B, pa->E, e->exposed);
     return B;
 }
 
@@ -572,7 +575,7 @@ static int regather_leaves(rad_ctx *c, double *absorbed)
         for (uint32_t i = 0; i < nl; i++) {
             rad_elem *e = rad_el(c, leaf[i]);
             const rad_patch *p = &c->patches[e->patch];
-            *rad_B(c, nxt, leaf[i]) = B[i];
+            *rad_B(c, nxt, leaf[i]) = rad_src_B(B[i], p->E, e->exposed);
             e->Bd = Bd[i];
             if (!c->scene->mats[p->mat].dielectric)
                 ab += (double)v3_avg(v3_mul(v3_sub(v3s(1.0f), p->rho_t), H[i])) * e->area;
@@ -644,6 +647,10 @@ int rad_solve(const ct_scene *s, const rad_params *prm, rad_progress_fn progress
     rc = rad_vis_new(s, prm->threads, &c->vis, err);
     if (rc) goto done;
     rad_track(c, (int64_t)rad_vis_bytes(c->vis));
+    for (uint32_t i = 0; i < c->npatches; i++) {
+        rad_elem *r = rad_el(c, c->patches[i].root);
+        r->exposed = rad_exposure(c, r);
+    }
     rc = rad_mirror_new(c, err);
     if (rc) goto done;
     if (atomic_load(&c->over_cap)) {
