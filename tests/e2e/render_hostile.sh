@@ -47,7 +47,7 @@ for h in slow silent garbage oversize; do
   pids+=($!)
 done
 display_start wrong_token --connect "$ADDR" --token-file "$tmp/wrong" "${HEADLESS[@]}" --samples-per-frame $K \
-  --frames 1 --out "$tmp/wrong"
+  --frames 1 --out "$tmp/wrong-out"
 pids+=($DISPLAY_PID)
 display_run display --connect "$ADDR" --token-file "$tmp/token" "${HEADLESS[@]}" --samples-per-frame $K \
   "${PATHF[@]}" --out "$tmp/out"

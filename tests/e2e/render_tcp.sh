@@ -48,7 +48,7 @@ display_run bad --connect "$ADDR" "${HEADLESS[@]}" --samples-per-frame 500 --fra
 ((DISPLAY_RC != 0)) || fail "a display without the token was served"
 grep -qi 'token\|auth' "$tmp/bad.log" || fail "the refused display does not say why"
 display_run wrong --connect "$ADDR" --token-file "$tmp/wrong" "${HEADLESS[@]}" --samples-per-frame 500 --frames 1 \
-  --out "$tmp/wrong"
+  --out "$tmp/wrong-out"
 ((DISPLAY_RC != 0)) || fail "a display with a wrong token was served"
 grep -qi 'auth\|token\|proof' "$tmp/wrong.log" || fail "the display with a wrong token does not say why"
 
