@@ -557,9 +557,12 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
             rc = disp_capture_close(a.capture, err);
             a.capture = NULL;
         }
-        if (!rc && o->connect && !a.ever_connected) {
+        if (!rc && o->connect && (!a.ever_connected || !disp_session_scene_of(a.session))) {
             /* --reconnect kept trying until the run ended: it drew frames
-             * (and wrote them), but none of them is what was asked for. */
+             * (and wrote them), but none of them is what was asked for. A
+             * connection the master refused (ERROR BUSY: it serves another
+             * display) got through the handshake but was never served: no
+             * scene came (that ended with status 0). */
             rc = ct_fail(err, CT_EIO, "never connected to %s (last: %s)", o->connect,
                          a.last_cause.msg[0] ? a.last_cause.msg : "no answer");
             status = DISP_EXIT_LOST;

@@ -61,10 +61,19 @@ log_cmd "$stuck" "$ADDR" - silent 8
 timeout 60 "$stuck" "$ADDR" - silent 8 >"$tmp/silent.out" 2>&1 &
 silent_pid=$!
 for ((i = 0; i < 50; i++)); do (($(grep -c 'connected (lockstep)' "$tmp/job.log") >= 1)) && break; sleep 0.1; done
+# And one that retries (--reconnect) for a second and is refused each time:
+# never served, status 3 (it was 0: the handshake had got through).
+display_start busy_retry --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278,273,0,39.3 --reconnect --seconds 1
+retry_pid=$DISPLAY_PID
 display_run busy --connect "$ADDR" "${HEADLESS[@]}" --camera 278,273,-800,278,273,0,39.3 --samples-per-frame 500 --frames 1
 ((DISPLAY_RC == 3)) || fail "a display refused while another is served: exit status $DISPLAY_RC, want 3"
 grep -q 'master reports an error: the master already serves a display' "$tmp/busy.log" ||
   fail "the refused display did not say the master serves another"
+wait "$retry_pid"; rc=$?
+sed 's/^/  busy_retry: /' "$tmp/busy_retry.log" | tail -n 3
+((rc == 3)) || fail "a retrying display refused every time: exit status $rc, want 3"
+grep -q 'never connected to .*(last: .*already serves a display' "$tmp/busy_retry.log" ||
+  fail "the retrying display did not say it was never served, and why"
 wait "$silent_pid"; rc=$?
 sed 's/^/  silent: /' "$tmp/silent.out"
 ((rc == 0)) || fail "silent: exit status $rc, expected 0"
