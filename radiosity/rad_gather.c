@@ -70,16 +70,6 @@ static int gather_flat(const rad_ctx *c, const rad_elem *e, const rad_link *l)
 #define SEEN_SMALL 0.01f
 #define SEEN_SPREAD 0.05f
 
-/* Source element si's mean radiosity (the buffers hold what it passes on
- * from its exposed part, rad_src_B): the final gather's factors and
- * visibility are taken from the gathering point itself, and a covered part
- * behind its plane or inside an object is already left out by them. */
-static inline vec3 mean_B(const rad_ctx *c, uint32_t si)
-{
-    const rad_elem *s = rad_el(c, si);
-    return rad_true_B(*rad_B(c, c->cur, si), c->patches[s->patch].E, s->exposed);
-}
-
 static int seen_whole(const rad_ctx *c, const rad_gather_prep *g, vec3 x, uint32_t si, vec3 B)
 {
     const rad_elem *s = rad_el(c, si);
@@ -90,7 +80,7 @@ static int seen_whole(const rad_ctx *c, const rad_gather_prep *g, vec3 x, uint32
 static void seen_descend(const rad_ctx *c, const rad_gather_prep *g, vec3 x, vec3 n, uint32_t si, double *fs,
                          vec3 *fb)
 {
-    vec3 B = mean_B(c, si);
+    vec3 B = rad_mean_B(c, c->cur, si);
     if (seen_whole(c, g, x, si, B)) {
         float f = gather_factor(c, x, n, rad_el(c, si));
         *fs += f;
@@ -113,7 +103,7 @@ static void seen_descend(const rad_ctx *c, const rad_gather_prep *g, vec3 x, vec
  * visibility stay its own. */
 static vec3 seen_B(const rad_ctx *c, const rad_gather_prep *g, vec3 x, vec3 n, uint32_t si)
 {
-    vec3 B = mean_B(c, si);
+    vec3 B = rad_mean_B(c, c->cur, si);
     if (seen_whole(c, g, x, si, B)) return B;
     double fs = 0.0;
     vec3 fb = v3s(0.0f);
@@ -127,7 +117,7 @@ static void leaf_spread(const rad_ctx *c, float *spread, uint32_t ei, float *lo,
 {
     const rad_elem *e = rad_el(c, ei);
     if (e->child == RAD_NONE) {
-        *lo = *hi = v3_maxc(mean_B(c, ei));
+        *lo = *hi = v3_maxc(rad_mean_B(c, c->cur, ei));
         spread[ei] = 0.0f;
         return;
     }
@@ -187,7 +177,7 @@ int rad_gather_prepare(const rad_ctx *c, rad_gather_prep *g)
                                                             : seen_B(c, g, rad_lift(e->c, p->n), p->n, l->src);
                         vec3 E = (l->src & RAD_CLUSTER_BIT) ? c->clusters[l->src & RAD_ID_MASK].E
                                                             : c->patches[rad_el(c, l->src)->patch].E;
-                        vec3 Bp = (l->src & RAD_CLUSTER_BIT) ? B : mean_B(c, l->src);
+                        vec3 Bp = (l->src & RAD_CLUSTER_BIT) ? B : rad_mean_B(c, c->cur, l->src);
                         g->flat[ei] = v3_madd(g->flat[ei], B, l->ff);
                         g->flat_p[ei] = v3_madd(g->flat_p[ei], Bp, l->ff);
                         g->flat_d[ei] = v3_madd(g->flat_d[ei], E, l->ff);
@@ -388,7 +378,7 @@ static void final_gather(const rad_ctx *c, const rad_gather_prep *g, rad_gather_
                 f = f0 * l->vis;
                 B = seen_B(c, g, xp, n, l->src);
                 E = c->patches[s->patch].E;
-                if (Hl) hl = v3_madd(hl, mean_B(c, l->src), f);
+                if (Hl) hl = v3_madd(hl, rad_mean_B(c, c->cur, l->src), f);
             }
             h = v3_madd(h, B, f);
             hd = v3_madd(hd, E, f);

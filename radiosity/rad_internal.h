@@ -230,7 +230,7 @@ static inline vec3 rad_link_cluster_B(const rad_ctx *c, const rad_link *l, int b
  * stand on it (dark: nothing reaches it), and a link's visibility rays from
  * there are blocked as well; taking the mean for the exposed part lost
  * that part twice (docs/radiosity.md, "Covered parts"). The element
- * buffers hold this value; rad_true_B gives the mean back. */
+ * buffers hold this value; rad_mean_B gives the mean back. */
 static inline vec3 rad_src_B(vec3 B, vec3 E, float exposed)
 {
     if (!(exposed >= RAD_EXPOSED_MIN) || exposed >= 1.0f) return B;
@@ -246,6 +246,15 @@ static inline vec3 rad_true_B(vec3 Bs, vec3 E, float exposed)
 static inline vec3 *rad_B(const rad_ctx *c, int b, uint32_t i)
 {
     return &c->bchunks[b][i >> RAD_CHUNK_SHIFT][i & (RAD_CHUNK - 1)];
+}
+
+/* Element i's mean radiosity in buffer b (the buffers hold what it passes
+ * on, rad_src_B): what it shows, and what a gathering point whose own
+ * factors and visibility leave its covered part out reads of it. */
+static inline vec3 rad_mean_B(const rad_ctx *c, int b, uint32_t i)
+{
+    const rad_elem *e = rad_el(c, i);
+    return rad_true_B(*rad_B(c, b, i), c->patches[e->patch].E, e->exposed);
 }
 
 /* What element e's own links bring it from buffer b: the irradiance into

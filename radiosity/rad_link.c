@@ -347,7 +347,7 @@ static double dim_share(const rad_ctx *c, uint32_t ei)
     const rad_elem *r = rad_el(c, ei);
     /* (its own mean, not what it passes on from its exposed part: a floor
      * element reaching under a box is dim for what it shows) */
-    vec3 b = rad_true_B(*rad_B(c, c->cur, ei), c->patches[r->patch].E, r->exposed);
+    vec3 b = rad_mean_B(c, c->cur, ei);
     double share = v3_maxc(v3_max(v3_sub(b, c->patches[r->patch].E), v3s(0.0f))) / c->reflected_mean;
     return share < c->prm.dim_floor ? c->prm.dim_floor : share > 1.0 ? 1.0 : share;
 }

@@ -325,7 +325,7 @@ static void publish_tree(rad_ctx *c, uint32_t root)
 #define LIT_SHARE 1e-6
 static double reflected(const rad_ctx *c, const rad_patch *pa)
 {
-    vec3 b = rad_true_B(*rad_B(c, c->cur, pa->root), pa->E, rad_el(c, pa->root)->exposed);
+    vec3 b = rad_mean_B(c, c->cur, pa->root);
     return v3_maxc(v3_max(v3_sub(b, pa->E), v3s(0.0f)));
 }
 
@@ -523,7 +523,7 @@ static vec3 pull_tree(rad_ctx *c, int b, uint32_t ei, vec3 *Bd)
     const rad_patch *pa = &c->patches[e->patch];
     if (e->child == RAD_NONE) {
         *Bd = e->Bd;
-        return rad_true_B(*rad_B(c, b, ei), pa->E, e->exposed);
+        return rad_mean_B(c, b, ei);
     }
     vec3 B = v3s(0.0f), D = v3s(0.0f);
     for (uint32_t k = 0; k < 4; k++) {
