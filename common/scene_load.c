@@ -18,6 +18,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #define SCENE_JSON_MAX  (64u << 20)
 #define MESH_FILE_MAX   (1ull << 30)
@@ -672,14 +673,26 @@ static void release_use(import_slot *slot, const struct aiScene *ai)
     slot->ai = NULL;
 }
 
-static int import_file(loader *L, const char *full, const struct aiScene **out)
+/* Imports the file of entry ctx ("meshes[2]"), named `file` in the scene
+ * and found at `full`. */
+static int import_file(loader *L, const char *ctx, const char *file, const char *full, const struct aiScene **out)
 {
     /* Checked here because assimp's own message for a file it cannot open
-     * does not say why; a FIFO fails at once instead of blocking. */
+     * does not say why; a FIFO fails at once instead of blocking. A file
+     * that cannot be opened is the scene's error: named as the scene names
+     * it, with its entry (there was only the joined path). */
     FILE *probe;
     size_t size;
     int rc = fs_open_regular(full, &probe, &size, L->err);
-    if (rc) return rc;
+    if (rc) {
+        struct stat st;
+        if (stat(full, &st) != 0)
+            return ct_fail(L->err, rc, "%s: %s: cannot open '%s': %s", L->path, ctx, file, strerror(errno));
+        char where[300];
+        snprintf(where, sizeof where, "%s: %s", L->path, ctx);
+        ct_error_prefix(L->err, where);
+        return rc;
+    }
     rc = mesh_precheck(probe, full, size, L->err);
     fclose(probe);
     if (rc) return rc;
@@ -730,7 +743,7 @@ static int import_mesh_entry(loader *L, const cJSON *entry, int index)
         L->hash = ct_hash_bytes(L->hash, &slot->digest, sizeof slot->digest);
         L->unread = slot->unread;
         L->companions_read = slot->companions_read;
-    } else if ((rc = import_file(L, full, &ai))) {
+    } else if ((rc = import_file(L, ctx, file, full, &ai))) {
         return rc;
     } else if (slot) {
         slot->ai = ai;

@@ -49,6 +49,10 @@ check "$tmp/empty.json" "empty.json"
 check "$tmp/trailing.json" "trailing.json:2:1: trailing characters after the JSON value"
 check "$tmp/dupkey.json" "dupkey.json: duplicate key 'diffuse' in 'm'"
 check "$tmp/dupmesh.json" "dupmesh.json: duplicate key 'meshes' at the top level"
+# A mesh file that is not there: named as the scene names it, with its entry
+# (the message gave the joined path alone, without meshes[i]).
+printf '{"meshes":[{"file":"ok.obj"},{"file":"ok.obj","name":"b"},{"file":"chair.obj"}]}' > "$tmp/nochair.json"
+check "$tmp/nochair.json" "nochair.json: meshes\[2\]: cannot open 'chair.obj': No such file or directory"
 # A mesh file without triangles next to others: loaded, with a warning naming it.
 printf 'v 0 0 0\nv 1 0 0\nl 1 2\n' > "$tmp/lines.obj"
 printf '{"meshes":[{"file":"ok.obj"},{"file":"lines.obj"}]}' > "$tmp/lines.json"

@@ -3,6 +3,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "common/log.h"
 #include "common/scene.h"
@@ -323,10 +324,18 @@ Test(scene_bad, empty_scene)
     expect_fail(p, CT_EEMPTY, "s.json", "no triangles");
 }
 
+/* A mesh file that is not there is named as the scene names it, with its
+ * entry (the message used to give the joined path alone); one that is no
+ * file names its entry too. */
 Test(scene_bad, missing_mesh_file)
 {
-    const char *p = write_scene(NULL, NULL, "{\"meshes\":[{\"file\":\"gone.obj\"}]}");
-    expect_fail(p, CT_EIO, "gone.obj", "cannot open");
+    const char *p = write_scene("a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+                                "{\"meshes\":[{\"file\":\"a.obj\"},{\"file\":\"a.obj\"},{\"file\":\"gone.obj\"}]}");
+    expect_fail(p, CT_EIO, "s.json: meshes[2]: cannot open 'gone.obj': No such file or directory", NULL);
+    const char *d = fx_tmpdir();
+    cr_assert_eq(mkdir(fx_path(d, "dir.obj"), 0700), 0);
+    expect_fail(fx_write(d, "s.json", "{\"meshes\":[{\"file\":\"dir.obj\"}]}"), CT_EIO, "s.json: meshes[0]: ",
+                "dir.obj: is a folder, not a regular file");
 }
 
 Test(scene_bad, garbage_mesh_file)
