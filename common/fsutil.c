@@ -60,6 +60,24 @@ static int in_place(const char *path, ct_error *err)
                    type_name(st.st_mode));
 }
 
+/* An output file's folder is not made for it (docs/architecture.md,
+ * "Outputs"): the message says which one is missing. */
+static int missing_folder(const char *path, ct_error *err)
+{
+    char dir[4096];
+    fs_dirname(path, dir, sizeof dir);
+    return ct_fail(err, CT_EIO, "%s: cannot create: its folder %s does not exist", path, dir);
+}
+
+int fs_output_folder_check(const char *path, ct_error *err)
+{
+    char dir[4096];
+    fs_dirname(path, dir, sizeof dir);
+    struct stat st;
+    if (stat(dir, &st) != 0 && errno == ENOENT) return missing_folder(path, err);
+    return CT_OK;
+}
+
 int fs_atomic_open(fs_atomic *a, const char *path, ct_error *err)
 {
     memset(a, 0, sizeof *a);
@@ -71,7 +89,11 @@ int fs_atomic_open(fs_atomic *a, const char *path, ct_error *err)
     if (kind) return open_in_place(a, path, err);
     temp_name(path, a->tmp, sizeof a->tmp);
     a->f = fopen(a->tmp, "wb");
-    if (!a->f) return ct_fail(err, CT_EIO, "%s: cannot create: %s", path, strerror(errno));
+    if (!a->f) {
+        int e = errno;
+        if (e == ENOENT) return missing_folder(path, err);
+        return ct_fail(err, CT_EIO, "%s: cannot create: %s", path, strerror(e));
+    }
     return CT_OK;
 }
 

@@ -31,6 +31,13 @@ int fs_atomic_commit(fs_atomic *a, ct_error *err);
  * reader would take the close for the end of the output. */
 int fs_output_check(const char *path, ct_error *err);
 
+/* Fails (CT_EIO, "PATH: cannot create: its folder DIR does not exist")
+ * when path's folder is missing, and checks nothing else: for an output
+ * that may also be read, such as a cache in a read-only place. An output
+ * file's folder is never made for it (docs/architecture.md, "Outputs");
+ * fs_output_check and fs_atomic_open fail the same way. */
+int fs_output_folder_check(const char *path, ct_error *err);
+
 /* Writes len bytes to path atomically (fs_atomic_open / commit). */
 int fs_write_atomic(const char *path, const void *data, size_t len, ct_error *err);
 

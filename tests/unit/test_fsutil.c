@@ -2,7 +2,8 @@
  * or folder given as input fails at once (a FIFO used to block the open for
  * good), and outputs replace only regular files: a FIFO or character device
  * is written in place and stays what it was, a FIFO without a reader and a
- * folder are refused with one line; fs_join puts one separator. */
+ * folder are refused with one line, and so is a file whose folder is
+ * missing (it is not made); fs_join puts one separator. */
 #include <criterion/criterion.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -114,6 +115,27 @@ Test(fsutil, fifo_without_reader_and_folders_are_refused)
     struct stat st;
     cr_assert(stat(d, &st) == 0 && S_ISDIR(st.st_mode));
     cr_assert_eq(entries(), 2);
+}
+
+/* An output file's folder is not made for it (docs/architecture.md,
+ * "Outputs"): the early check and the write both name the missing folder,
+ * and nothing is created. */
+Test(fsutil, output_in_a_missing_folder_names_the_folder)
+{
+    const char *p = at("no/such/x.exr");
+    ct_error err;
+    cr_assert_eq(fs_output_check(p, &err), CT_EIO);
+    char want[512];
+    snprintf(want, sizeof want, "%s: cannot create: its folder %s/no/such does not exist", p, g_dir);
+    cr_assert_str_eq(err.msg, want);
+    cr_assert_eq(fs_write_atomic(p, "x", 1, &err), CT_EIO);
+    cr_assert_str_eq(err.msg, want);
+    cr_assert_eq(fs_output_folder_check(p, &err), CT_EIO);
+    cr_assert_str_eq(err.msg, want);
+    cr_assert_eq(entries(), 0, "a folder was made for the output");
+    /* a folder that exists passes, writable or not (a cache may be read-only) */
+    cr_assert_eq(fs_output_folder_check(at("x.ctmesh"), &err), CT_OK, "%s", err.msg);
+    cr_assert_eq(fs_output_folder_check("x.ctmesh", &err), CT_OK, "%s", err.msg);
 }
 
 Test(fsutil, character_device_output_stays_a_device)
