@@ -120,6 +120,20 @@ $(FLAGS_STAMP): FORCE
 	@[ "$$(cat $@ 2>/dev/null)" = '$(FLAGS_NOW)' ] || echo '$(FLAGS_NOW)' > $@
 FORCE:
 
+# The git commit a build came from, for --version (common/version.h): a
+# header written only when the commit changes, so that a new commit
+# recompiles common/version.c alone. Outside a git checkout (a tarball, or
+# git missing) it is "unknown"; .git is looked for here, not in a folder
+# above, whose repository would not be this tree's.
+GIT_COMMIT  := $(or $(if $(wildcard .git),$(shell git rev-parse --short=7 HEAD 2>/dev/null)),unknown)
+COMMIT_H    := $(BUILD)/version/ct_commit.h
+COMMIT_LINE := \#define CT_GIT_COMMIT "$(GIT_COMMIT)"
+$(COMMIT_H): FORCE
+	@mkdir -p $(dir $@)
+	@[ "$$(cat $@ 2>/dev/null)" = '$(COMMIT_LINE)' ] || echo '$(COMMIT_LINE)' > $@
+$(BUILD)/common/version.o: $(COMMIT_H)
+$(BUILD)/common/version.o: CFLAGS += -I$(BUILD)/version
+
 $(BUILD)/%.o: %.c $(FLAGS_STAMP)
 	@mkdir -p $(dir $@)
 	@[ "$(V)" = 1 ] || echo "  CC      $<"

@@ -469,6 +469,18 @@ int cmd_converge(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMPONENT, "--move-to and --samples-after go together");
         return 2;
     }
+    /* (before the scene is read and --out made: found after both, it left
+     * an empty output folder behind) */
+    if (o.mesh && o.stand_in >= 0.0f) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "give --mesh or --stand-in, not both");
+        return 2;
+    }
+    /* --record is written at the end of the run: one that cannot be (its
+     * folder missing) is found now. */
+    if (o.record && fs_output_check(o.record, &err)) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "--record %s", err.msg);
+        return 2;
+    }
     const char *scene_path = pos[0];
     ct_scene *scene = NULL;
     ct_radmesh mesh = {0};
@@ -490,14 +502,10 @@ int cmd_converge(int argc, char **argv)
         goto fail;
     }
     ct_camera cam = scene->cams[ci].cam, cam2 = ci2 >= 0 ? scene->cams[ci2].cam : cam;
-    if ((rc = fs_mkdirs(o.out, &err))) goto fail;
-    if (o.mesh && o.stand_in >= 0.0f) {
-        rc = ct_fail(&err, CT_EINVAL, "give --mesh or --stand-in, not both");
-        goto fail;
-    }
     /* (before a solve that would end in a refusal) */
     if (o.mesh && (rc = rmesh_output_check(o.mesh, &err))) goto fail;
     if ((rc = load_mesh(scene, o.stand_in, o.mesh, &mesh, &err))) goto fail;
+    if ((rc = fs_mkdirs(o.out, &err))) goto fail;
     trc_options to;
     trc_cli_apply(&o.trc, &to);
     to.seed = o.seed;

@@ -40,7 +40,7 @@ static const optab OPTS[] = {
     {"json", 'j', OPTAB_FLAG, OF(json), 0, 0, NULL, NULL,
      "machine-readable output (keys: nodes, primitives, triangles, materials, emitters, cameras, paths, bounds, ...)",
      NULL},
-    {"tree", 't', OPTAB_FLAG, OF(tree), 0, 0, NULL, NULL, "also print the node hierarchy (plain output only)", NULL},
+    {"tree", 't', OPTAB_FLAG, OF(tree), 0, 0, NULL, NULL, "also print the node hierarchy (plain output: not with --json)", NULL},
     {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
     /* A path defined inline (keys) exists in the scene file alone: programs
      * that take only a path file (corrtex-display with --connect, which has
@@ -52,7 +52,7 @@ static const optab OPTS[] = {
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: corrtex info SCENE.json [--json] [--tree] [--quiet]\n"
+    fprintf(f, "usage: corrtex info SCENE.json [--json | --tree] [--quiet]\n"
                "       corrtex info SCENE.json --path NAME\n"
                "  Loads a scene and prints its counts and bounds, or one of its camera paths.\n");
     optab_usage(OPTS, OPTAB_COUNT(OPTS), NULL, f);
@@ -98,6 +98,12 @@ int cmd_info(int argc, char **argv)
     }
     if (opt.path && (opt.json || opt.tree)) {
         ct_log(CT_LOG_ERROR, "corrtex info", "--path prints a path file: not with %s", opt.json ? "--json" : "--tree");
+        return 2;
+    }
+    /* The hierarchy is printed with the plain summary only: with --json it
+     * used to be dropped without a word. */
+    if (opt.tree && opt.json) {
+        ct_log(CT_LOG_ERROR, "corrtex info", "--tree prints the node hierarchy with the plain summary: not with --json");
         return 2;
     }
     ct_scene *s;

@@ -12,6 +12,7 @@
 #include <strings.h>
 
 #include "cli/corrtex/commands.h"
+#include "common/fsutil.h"
 #include "common/image.h"
 #include "common/log.h"
 #include "common/optab.h"
@@ -30,7 +31,7 @@ typedef struct montage_opts {
 
 #define OF(f) offsetof(montage_opts, f)
 static const optab OPTS[] = {
-    {"output", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "FILE", "the sheet (PNG; required)", NULL},
+    {"output", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "FILE", "the sheet (PNG, in a folder that exists; required)", NULL},
     {"columns", 0, OPTAB_INT, OF(columns), 0, 1000, "0", "C", "tiles per row (0: about square)", NULL},
     {"tile", 0, OPTAB_INT, OF(tile), 16, 4096, "256", "W", "tile width in pixels", NULL},
     {"gap", 0, OPTAB_INT, OF(gap), 0, 64, "4", "G", "pixels between tiles", NULL},
@@ -208,6 +209,9 @@ int cmd_montage(int argc, char **argv)
     else if (img_file_kind_of(o.out) != IMG_FILE_PNG)
         ct_log(CT_LOG_ERROR, COMPONENT, "-o %s: the sheet is written as PNG: give a name ending in .png", o.out);
     else if (!npos) ct_log(CT_LOG_ERROR, COMPONENT, "no input images (try --help)");
+    /* (before the images are read: a missing folder of the sheet used to be
+     * found only once it was made) */
+    else if (fs_output_check(o.out, &err)) ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
     else if (build(&o, pos, npos, &err)) ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
     else rc = 1;
     free(pos);

@@ -17,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "cli/corrtex/commands.h"
 #include "common/campath.h"
@@ -211,14 +212,10 @@ static int run(const naive_opts *o, ct_error *err)
         have_path = !rc;
     }
     if (!rc && (rc = trc_new(scene, &mesh, &o->trc, &trc, err)) == CT_ESTALE) ct_error_prefix(err, o->mesh);
-    if (!rc) rc = fs_mkdirs(o->out, err);
     if (!rc) rc = img_alloc(&r.img, o->width, o->height, err);
     r.o = o;
     r.trc = trc;
     r.npx = (size_t)o->width * (size_t)o->height;
-    if (!rc && (size_t)o->spp_frame > r.npx)
-        rc = ct_fail(err, CT_EINVAL, "--samples-per-frame %d exceeds the %zu pixels of a frame", o->spp_frame,
-                     r.npx);
     if (!rc && o->spp_frame > 0) {
         r.perm = malloc(r.npx * sizeof *r.perm);
         if (!r.perm) rc = ct_fail(err, CT_ENOMEM, "out of memory for %zu pixels", r.npx);
@@ -230,6 +227,8 @@ static int run(const naive_opts *o, ct_error *err)
             if (!r.held || !r.held_mask) rc = ct_fail(err, CT_ENOMEM, "out of memory for --hold");
         }
     }
+    /* The output folder last, once every input has been read and checked. */
+    if (!rc) rc = fs_mkdirs(o->out, err);
     r.view.width = o->width;
     r.view.height = o->height;
     double base_s = 0, sample_s = 0, sum_rmse = 0, sum_psnr = 0, t_all = ct_now();
@@ -330,6 +329,33 @@ static int run(const naive_opts *o, ct_error *err)
     return rc;
 }
 
+/* Bad arguments found before anything is made (the output folder used to
+ * be created first, and a reference frame found missing after the frames
+ * before it were written). */
+static int check_args(const naive_opts *o, ct_error *err)
+{
+    size_t npx = (size_t)o->width * (size_t)o->height;
+    if ((size_t)o->spp_frame > npx)
+        return ct_fail(err, CT_EINVAL, "--samples-per-frame %d exceeds the %zu pixels of a frame", o->spp_frame,
+                       npx);
+    struct stat st;
+    if (stat(o->out, &st) == 0 && !S_ISDIR(st.st_mode)) return ct_fail(err, CT_EINVAL, "-o %s: not a folder", o->out);
+    for (int k = 0; o->ref && k < o->frames; k++) {
+        char name[64], file[4096];
+        snprintf(name, sizeof name, "frame_%05d.exr", k);
+        fs_join(o->ref, name, file, sizeof file);
+        FILE *f;
+        size_t size;
+        int rc = fs_open_regular(file, &f, &size, err);
+        if (rc) {
+            ct_error_prefix(err, "--reference");
+            return rc;
+        }
+        fclose(f);
+    }
+    return CT_OK;
+}
+
 int cmd_naive(int argc, char **argv)
 {
     naive_opts o;
@@ -362,6 +388,10 @@ int cmd_naive(int argc, char **argv)
     const char *missing = !o.mesh ? "--mesh FILE.ctmesh" : !o.path ? "--path P" : !o.out ? "-o DIR" : NULL;
     if (missing) {
         ct_log(CT_LOG_ERROR, COMPONENT, "missing %s (try --help)", missing);
+        return 2;
+    }
+    if (check_args(&o, &err)) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
     rc = run(&o, &err);

@@ -143,7 +143,8 @@ static void help(FILE *f)
         "  --raw-cap N       rays logged per thread, a uniform random subset of all\n"
         "                    traced rays (default 2000000)\n"
         "  --bench-runs R    rounds of --raw-embree (default 2)\n"
-        "  -o, --out OUT     output EXR file (folder with --frames and no --frame)\n"
+        "  -o, --out OUT     output EXR file, in a folder that exists; with --frames and no\n"
+        "                    --frame a folder of frames, made with its parents\n"
         "  --quiet, --verbose\n"
         "tracer version %d (changes when the images change: cached references carry it)\n",
         TRC_VERSION);
@@ -307,6 +308,16 @@ int cmd_reference(int argc, char **argv)
     /* an image no reader of ours would open again (16384 x 65536 traced
      * for hours, then written as 6 GB nothing loads) is refused at once */
     if ((rc = img_size_check(a.width, a.height, &err))) goto fail;
+    /* One image (no --path, or --frame K): -o is a file, and its folder must
+     * exist, as for every program's output file (docs/architecture.md,
+     * "Outputs"); a missing one used to be created, where corrtex radiosity
+     * refused it. Checked before the scene is loaded. */
+    bool folder = a.path && a.frame < 0;
+    if (!folder) {
+        char png[4096];
+        with_ext(a.out, ".png", png, sizeof png);
+        if ((rc = fs_output_check(a.out, &err)) || (a.png && (rc = fs_output_check(png, &err)))) goto fail;
+    }
     if ((rc = scene_load(a.scene, &s, &err))) goto fail;
     if (a.path) {
         if (!(path = scene_path_or_file(s, a.scene, a.path, &own_path, &err))) {
@@ -372,10 +383,8 @@ int cmd_reference(int argc, char **argv)
     memset(&total, 0, sizeof total);
     int first = path ? (a.frame >= 0 ? a.frame : 0) : 0;
     int last = path ? (a.frame >= 0 ? a.frame : a.frames - 1) : 0;
-    bool folder = path && a.frame < 0;
-    char outdir[4096];
-    fs_dirname(a.out, outdir, sizeof outdir);
-    if ((rc = fs_mkdirs(folder ? a.out : outdir, &err))) goto fail;
+    /* An output folder (--path without --frame) is made, with its parents. */
+    if (folder && (rc = fs_mkdirs(a.out, &err))) goto fail;
     /* Fail on an output that cannot be written now, not after a render
      * that may take hours (a folder named x.exr was refused only once the
      * image was traced; a frame_00007.exr that is a folder, once the seven

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli/corrtex/commands.h"
+#include "common/version.h"
 
 const cli_command cli_commands[] = {
     {"info", "counts and bounds of a scene (--json for machines)", cmd_info},
@@ -18,7 +19,8 @@ const cli_command cli_commands[] = {
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: corrtex COMMAND [options]   (corrtex COMMAND --help for its options)\n\n"
+    fprintf(f, "usage: corrtex COMMAND [options]   (corrtex COMMAND --help for its options)\n"
+               "       corrtex --version            (the version and the git commit it was built from)\n\n"
                "commands:\n");
     for (const cli_command *c = cli_commands; c->name; c++)
         fprintf(f, "  %-12s %s\n", c->name, c->summary);
@@ -35,6 +37,10 @@ int main(int argc, char **argv)
     }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "help") == 0) {
         usage(stdout);
+        return 0;
+    }
+    if (strcmp(argv[1], "--version") == 0) {
+        ct_version_print("corrtex", stdout);
         return 0;
     }
     for (const cli_command *c = cli_commands; c->name; c++)

@@ -11,6 +11,7 @@
 #include "common/fsutil.h"
 #include "common/log.h"
 #include "common/optab.h"
+#include "common/version.h"
 #include "display/disp_app.h"
 #include "display/disp_capture.h"
 #include "display/gl_load.h"
@@ -35,7 +36,7 @@ typedef struct cli {
     int backend;                  /* -1 until given: disp_app_defaults' choice, which depends on $DISPLAY */
     int passes, view, fbo;
     const char *camera;           /* --camera EX,EY,EZ,TX,TY,TZ[,FOV] */
-    bool no_cache, no_vsync, quiet, verbose;
+    bool no_cache, no_vsync, quiet, verbose, version;
 } cli;
 
 #define OF(f) offsetof(cli, f)
@@ -67,12 +68,14 @@ static const optab INPUT_OPTS[] = {
      "a radiosity mesh cache (corrtex radiosity), no master", NULL},
     {"scene", 0, OPTAB_STRING, OF(o.scene), 0, 0, NULL, "FILE.json",
      "a scene with a stand-in radiosity (constant per material), no master", NULL},
-    {"ambient", 0, OPTAB_FLOAT, OF(o.ambient), 0, 100, NULL, "A", "stand-in radiosity: emission + diffuse * A", NULL},
+    {"ambient", 0, OPTAB_FLOAT, OF(o.ambient), 0, 100, NULL, "A",
+     "stand-in radiosity: emission + diffuse * A; only with --scene", NULL},
     {"synthetic", 0, OPTAB_U32, OF(o.synthetic), 0, 100000, NULL, "N",
      "up to N synthetic correction textures, one per visible part (benchmarks without a master)", NULL},
     {"synthetic-tiles", 0, OPTAB_FLAG, OF(o.synthetic_tiles), 0, 0, NULL, NULL,
-     "cut parts into tiles to make all N (textures stack on parts)", NULL},
-    {"synthetic-positive", 0, OPTAB_FLAG, OF(o.synthetic_positive), 0, 0, NULL, NULL, "make them all positive", NULL},
+     "cut parts into tiles to make all N (textures stack on parts); only with --synthetic N", NULL},
+    {"synthetic-positive", 0, OPTAB_FLAG, OF(o.synthetic_positive), 0, 0, NULL, NULL,
+     "make them all positive; only with --synthetic N", NULL},
 };
 
 static const optab VIEW_OPTS[] = {
@@ -116,7 +119,7 @@ static const optab RUN_OPTS[] = {
      "add RMSE/PSNR against DIR/frame_NNNNN.exr (with --frames N: exactly N of them), or against FILE.exr for "
      "every frame (a still view), to frames.csv", NULL},
     {"hold", 0, OPTAB_DOUBLE, OF(o.hold_seconds), 0, 1e6, NULL, "S",
-     "real-time path: stay at its last camera S seconds after it ends", NULL},
+     "real-time path: stay at its last camera S seconds after it ends; only with --path", NULL},
     {"continuous", 0, OPTAB_FLAG, OF(o.continuous), 0, 0, NULL, NULL,
      "draw every frame, also when nothing changed (frame-rate measurements; else a still, unchanged view is not "
      "redrawn)", NULL},
@@ -141,6 +144,8 @@ static const optab RUN_OPTS[] = {
 static const optab LOG_OPTS[] = {
     {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "warnings and errors only", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
+    {"version", 0, OPTAB_FLAG, OF(version), 0, 0, NULL, NULL, "print the version and the git commit, and exit",
+     NULL},
 };
 #undef OF
 
@@ -231,11 +236,19 @@ static int parse_camera(const char *s, ct_camera *cam)
     return 0;
 }
 
+/* Below every value the options take: what an option not given keeps, so
+ * that one given with a source that does not use it is refused also when
+ * its value is the default. */
+#define NOT_GIVEN -1
+
 int main(int argc, char **argv)
 {
     cli c;
     char cache[2048];
     defaults(&c, cache, sizeof cache);
+    disp_app_opts dflt = c.o;
+    c.o.ambient = NOT_GIVEN;
+    c.o.hold_seconds = NOT_GIVEN;
     optab_group g[NGROUPS];
     groups(&c, g);
     const char *pos[1];
@@ -251,8 +264,15 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
         return DISP_EXIT_USAGE;
     }
+    if (c.version) {
+        ct_version_print(COMP, stdout);
+        return DISP_EXIT_OK;
+    }
     if (c.quiet) ct_log_set_level(CT_LOG_WARN);
     if (c.verbose) ct_log_set_level(CT_LOG_DEBUG);
+    bool ambient_given = c.o.ambient != NOT_GIVEN, hold_given = c.o.hold_seconds != NOT_GIVEN;
+    if (!ambient_given) c.o.ambient = dflt.ambient;
+    if (!hold_given) c.o.hold_seconds = dflt.hold_seconds;
     disp_app_opts o = c.o;
     if (c.backend >= 0) o.backend = (gl_backend_kind)c.backend;
     o.passes = c.passes;
@@ -292,6 +312,22 @@ int main(int argc, char **argv)
             ct_log(CT_LOG_ERROR, COMP, "%s needs --connect: %s has no master", only, o.mesh ? "--mesh" : "--scene");
             return DISP_EXIT_USAGE;
         }
+    }
+    /* Options that shape what another option makes, given without it: each
+     * was dropped without a word. */
+    if (ambient_given && !o.scene) {
+        ct_log(CT_LOG_ERROR, COMP, "--ambient is the stand-in radiosity of --scene: not with %s",
+               o.mesh ? "--mesh (a .ctmesh has its radiosity)" : "--connect (the master sends its radiosity)");
+        return DISP_EXIT_USAGE;
+    }
+    if ((o.synthetic_tiles || o.synthetic_positive) && !o.synthetic) {
+        ct_log(CT_LOG_ERROR, COMP, "%s needs --synthetic N (N > 0): it shapes the synthetic textures",
+               o.synthetic_tiles ? "--synthetic-tiles" : "--synthetic-positive");
+        return DISP_EXIT_USAGE;
+    }
+    if (hold_given && !o.path) {
+        ct_log(CT_LOG_ERROR, COMP, "--hold needs --path: it keeps a real-time path's last camera");
+        return DISP_EXIT_USAGE;
     }
     if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {
         ct_log(CT_LOG_ERROR, COMP, "--reference, --no-images and --out-every need --out");

@@ -11,10 +11,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "common/fsutil.h"
 #include "common/log.h"
 #include "common/optab.h"
 #include "common/radmesh.h"
 #include "common/scene.h"
+#include "common/version.h"
 #include "master/ctex.h"
 #include "master/dsrv.h"
 #include "master/sampler.h"
@@ -49,7 +51,7 @@ typedef struct opts {
     uint64_t seed;
     int threads;
     int idle_sleep_us;
-    bool quiet, verbose;
+    bool quiet, verbose, version;
     rad_params rad;
     rq_options rq;
     ctex_options ctex;
@@ -70,8 +72,8 @@ static const optab MESH_OPTS[] = {
     {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE.ctmesh", "use this radiosity mesh as it is (no cache check)",
      NULL},
     {"rad-cache", 0, OPTAB_STRING, OF(rad_cache), 0, 0, NULL, "FILE",
-     "radiosity cache file (default $XDG_CACHE_HOME/corrtex/HASH.ctmesh, else ~/.cache/corrtex; recomputed when "
-     "the scene or parameters change)", NULL},
+     "radiosity cache file, in a folder that exists (default $XDG_CACHE_HOME/corrtex/HASH.ctmesh, else "
+     "~/.cache/corrtex, made when missing; recomputed when the scene or parameters change)", NULL},
     {"rad-error", 0, OPTAB_DOUBLE, OF(rad.error), 1e-15, 1.0, NULL, "E", "link error threshold", NULL},
     {"rad-min-area", 0, OPTAB_DOUBLE, OF(rad.min_area), 1e-15, 1.0, NULL, "A",
      "smallest element, fraction of the lit surface (corrtex radiosity --min-area)", NULL},
@@ -89,6 +91,8 @@ static const optab TRACER_OPTS[] = {
 static const optab LOG_OPTS[] = {
     {"quiet", 'q', OPTAB_FLAG, OF(quiet), 0, 0, NULL, NULL, "errors only", NULL},
     {"verbose", 0, OPTAB_FLAG, OF(verbose), 0, 0, NULL, NULL, "debug lines too", NULL},
+    {"version", 0, OPTAB_FLAG, OF(version), 0, 0, NULL, NULL, "print the version and the git commit, and exit",
+     NULL},
 };
 #undef OF
 
@@ -149,7 +153,8 @@ static void usage(FILE *f)
     fprintf(f, "  --help                       this text\n");
 }
 
-/* Parses argv into o; 1 for --help, 0 ok, negative with err filled. */
+/* Parses argv into o; 1 for --help, 2 for --version, 0 ok, negative with
+ * err filled. */
 static int parse(int argc, char **argv, opts *o, ct_error *err)
 {
     defaults(o);
@@ -159,6 +164,7 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
     int npos = 0;
     int rc = optab_parse(g, NGROUPS - 1, argc, argv, pos, 1, &npos, err);
     if (rc) return rc;
+    if (o->version) return 2;
     if (o->quiet) ct_log_set_level(CT_LOG_ERROR);
     if (o->verbose) ct_log_set_level(CT_LOG_DEBUG);
     if (!npos) return ct_fail(err, CT_EINVAL, "no scene file given (try --help)");
@@ -246,6 +252,10 @@ static int run_master(const opts *o, int ntracers, ct_error *err)
         dsrv_config dc = {.listen = listen, .token = have_token ? &token : NULL};
         rc = dsrv_check_config(&dc, err);
     }
+    /* A cache file named on the command line is an output file: its folder
+     * must exist (docs/architecture.md, "Outputs"). It used to be found
+     * missing only after the solve, as a warning that nothing was cached. */
+    if (rc == 0 && o->rad_cache && !o->mesh) rc = fs_output_folder_check(o->rad_cache, err);
     if (rc == 0) rc = scene_load(o->scene, &scene, err);
     if (rc == 0) rc = get_mesh(o, scene, &mesh, err);
     if (rc == 0) rc = wire_scene_tx_init(&tx, &mesh, err);
@@ -367,11 +377,12 @@ int main(int argc, char **argv)
     if (prc != 0 || size < 2) {
         if (rank == 0) {
             if (prc == 1) usage(stdout);
+            else if (prc == 2) ct_version_print(PROG, stdout);
             else if (prc < 0) ct_log(CT_LOG_ERROR, PROG, "%s", err.msg);
             else ct_log(CT_LOG_ERROR, PROG, "needs at least one tracer rank: mpirun -np 2 (or more) %s SCENE", PROG);
         }
         mpil_finalize(&err);
-        return prc == 1 ? 0 : 2;
+        return prc > 0 ? 0 : 2;
     }
     if (rank != 0) {
         int rc = run_tracer(&o, rank, &err);

@@ -94,8 +94,13 @@ expect_error "missing.json"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet
 expect_error "48x48"
 
-run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --mesh "$tmp/m.ctmesh" --quiet
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/both" --stand-in 0.3 --mesh "$tmp/m.ctmesh" --quiet
 expect_error "not both"
+[[ ! -e $tmp/both ]] || fail "--mesh with --stand-in: the output folder was made before the refusal"
+# --record is written at the end: a missing folder is found before the run.
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/rec" --stand-in 0.3 --record "$tmp/no/dir/s.srec" --quiet
+expect_error "--record $tmp/no/dir/s.srec: cannot create: its folder $tmp/no/dir does not exist"
+[[ ! -e $tmp/rec && ! -e $tmp/no ]] || fail "--record in a missing folder: something was made"
 
 # The real interactive solution: radiosity solved once into the cache, then
 # loaded from it (the log says which).

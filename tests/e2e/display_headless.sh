@@ -162,6 +162,22 @@ bad "--samples-per-frame needs --connect" --backend osmesa --scene "$SCENE" --sa
 bad "--cache needs --connect" --backend osmesa --scene "$SCENE" --cache "$tmp/cache"
 bad "--no-cache needs --connect" --backend osmesa --scene "$SCENE" --no-cache
 bad "--cache-max-mb needs --connect" --backend osmesa --scene "$SCENE" --cache-max-mb 5
+# Options that shape what another one makes, given without it: dropped
+# without a word before, also at their default values (0.3, 0).
+bad "--ambient is the stand-in radiosity of --scene: not with --mesh" --backend osmesa --mesh "$tmp/none.ctmesh" \
+  --ambient 0.5
+bad "--ambient is the stand-in radiosity of --scene: not with --mesh" --backend osmesa --mesh "$tmp/none.ctmesh" \
+  --ambient 0.3
+bad "--ambient is the stand-in radiosity of --scene: not with --connect" --backend osmesa \
+  --connect "unix:$tmp/none.sock" --ambient 1
+bad "--synthetic-tiles needs --synthetic N (N > 0)" --backend osmesa --scene "$SCENE" --synthetic-tiles
+bad "--synthetic-tiles needs --synthetic N (N > 0)" --backend osmesa --scene "$SCENE" --synthetic 0 --synthetic-tiles
+bad "--synthetic-positive needs --synthetic N (N > 0)" --backend osmesa --scene "$SCENE" --synthetic-positive
+bad "--hold needs --path" --backend osmesa --scene "$SCENE" --hold 5
+bad "--hold needs --path" --backend osmesa --mesh "$tmp/none.ctmesh" --hold 0
+# ... and taken where they belong.
+run "$BIN/corrtex-display" --backend osmesa "${SMALL[@]}" --path inline --ambient 0.5 --synthetic 3 --synthetic-tiles \
+  --synthetic-positive --out "$tmp/shaped" || { echo "FAIL: --ambient and --synthetic-tiles with --scene"; fail=1; }
 # Found before the first frame, as bad input: an address no transport
 # takes was a lost connection (exit 3), an --out that is a file and a
 # missing --reference failures (exit 1) after the first frame.

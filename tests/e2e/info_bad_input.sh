@@ -134,6 +134,15 @@ done
 "$BIN/corrtex" info >/dev/null 2>&1; [[ $? -eq 2 ]] || { echo "FAIL: no argument must exit 2"; fail=1; }
 "$BIN/corrtex" info --bogus x >/dev/null 2>&1; [[ $? -eq 2 ]] || { echo "FAIL: unknown option must exit 2"; fail=1; }
 "$BIN/corrtex" frobnicate >/dev/null 2>&1; [[ $? -eq 2 ]] || { echo "FAIL: unknown command must exit 2"; fail=1; }
+# --tree is printed with the plain summary only: with --json it was dropped
+# without a word. Refused before the scene is read (a missing one here).
+for args in "--tree --json" "--json --tree"; do
+  "$BIN/corrtex" info "$tmp/missing.json" $args >"$tmp/o" 2>"$tmp/e"; rc=$?
+  echo "+ $BIN/corrtex info $tmp/missing.json $args -> exit $rc: $(cat "$tmp/e")"
+  [[ $rc -eq 2 && $(wc -l <"$tmp/e") -eq 1 && ! -s $tmp/o ]] &&
+    grep -q '^error corrtex info: --tree prints the node hierarchy with the plain summary: not with --json$' "$tmp/e" ||
+    { echo "FAIL: info $args: want exit 2 and one line naming --tree and --json"; fail=1; }
+done
 "$BIN/corrtex" >/dev/null 2>"$tmp/e"; rc=$?
 echo "+ $BIN/corrtex -> exit $rc: $(cat "$tmp/e")"
 [[ $rc -eq 2 && $(wc -l <"$tmp/e") -eq 1 ]] && grep -q '^error corrtex: missing COMMAND (info, ' "$tmp/e" \

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # corrtex montage: the contact sheet's size follows tiles, columns and gaps;
 # a tile is the area average of its image (a flat image stays flat, labels
-# off); --max-tiles picks evenly spaced inputs; bad input gives one error
-# line and exit 2 and writes nothing.
+# off); --max-tiles picks evenly spaced inputs; bad input (a sheet in a
+# missing folder too) gives one error line and exit 2 and writes nothing.
 source "$(dirname "$0")/lib/common.sh"
 c=$corrtex
 data="$root/tests/data"
@@ -44,6 +44,12 @@ bad "not a .png or .exr" -o "$tmp/x.png" "$root/tests/data/scenes/mini.json"
 bad "aspect" -o "$tmp/x.png" "$data/compare-ref.exr" "$tmp/b.png"
 bad "--tile" -o "$tmp/x.png" --tile 3 "$data/compare-ref.exr"
 bad "-o $tmp/x.exr: the sheet is written as PNG" -o "$tmp/x.exr" "$data/compare-ref.exr"
+# A sheet in a missing folder: refused before the images are read (a missing
+# one here), as every output file whose folder is missing; it used to be
+# found only once the sheet was made.
+bad "$tmp/no/dir/x.png: cannot create: its folder $tmp/no/dir does not exist" -o "$tmp/no/dir/x.png" \
+  "$tmp/missing.exr"
+[[ ! -e $tmp/no ]] || fail "a folder was made for the sheet"
 [[ ! -e $tmp/x.png ]] || fail "a sheet was written despite an error"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: montage sizes, identity tile, --max-tiles, errors"

@@ -5,7 +5,8 @@
 # thread count; K samples do change the radiosity image; the error columns
 # against references exist; --hold keeps old samples (its frames differ from
 # fresh ones); --path names the scene's path even beside a folder of that
-# name; bad input gives one error line and exit 2.
+# name; bad input gives one error line and exit 2, before the output folder
+# is made.
 source "$(dirname "$0")/lib/common.sh"
 c=$corrtex
 run() { echo "+ $*"; "$@"; }
@@ -63,10 +64,21 @@ bad() {  # bad WANT ARGS...
 }
 bad "--mesh" "$scene" --path "$pathf" -o "$tmp/x"
 bad "path 'nope' is neither a path of" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
-bad "exceeds" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --samples-per-frame 65 -o "$tmp/x"
+bad "--samples-per-frame 65 exceeds the 64 pixels of a frame" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 \
+  --height 8 --samples-per-frame 65 -o "$tmp/x"
+# Every argument is checked before anything is made: K too large left the
+# output folder behind, a missing reference frame (below) that folder with
+# the frames before it written.
+[[ ! -e $tmp/x ]] || fail "the run refusing K created its output folder $tmp/x"
 bad "missing.ctmesh" "$scene" --mesh "$tmp/missing.ctmesh" --path "$pathf" -o "$tmp/x"
 # the tracer's option table, shared with corrtex-render and reference (tracer/trc_cli.h)
 bad "--indirect: 'photons' is not one of mesh|gather" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" -o "$tmp/x" --indirect photons
-bad "frame_00000.exr" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --frames 1 --samples-per-frame 0 --reference "$tmp/none" -o "$tmp/x"
+bad "--reference: $tmp/none/frame_00000.exr: cannot open" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 \
+  --height 8 --frames 1 --samples-per-frame 0 --reference "$tmp/none" -o "$tmp/x"
+[[ ! -e $tmp/x ]] || fail "the run refusing --reference created its output folder $tmp/x"
+echo notes >"$tmp/notes.txt"
+bad "-o $tmp/notes.txt: not a folder" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 --height 8 --frames 1 \
+  --samples-per-frame 0 -o "$tmp/notes.txt"
+[[ $(cat "$tmp/notes.txt") == notes ]] || fail "-o a file changed it"
 ((fails == 0)) || { echo "$fails failure(s)"; exit 1; }
 echo "ok: naive baselines"

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # corrtex reference end to end: EXR output that OpenEXR's own exrheader reads,
 # PNG preview, --frames into a folder, --frame equal to the same frame of the
-# folder, bit-identical output for 1 and 2 threads, and bad input -> exit 2
-# with exactly one error line.
+# folder (made with its parents), bit-identical output for 1 and 2 threads,
+# and bad input (an output file in a missing folder too) -> exit 2 with
+# exactly one error line.
 set -u
 BIN=${CORRTEX_BIN:-bin}
 SCENE=tests/data/scenes/mini.json
@@ -100,6 +101,19 @@ check "-o $tmp/x.png: the image is written as OpenEXR: give a name ending in .ex
 check "image size 16384x65536 exceeds 268435456 pixels" "$SCENE" --width 16384 --height 65536 --spp 1 --mode drt \
   -o "$tmp/x.exr"
 check "--out: the value is empty (give OUT)" "$SCENE" --width 8 --height 8 --spp 1 --mode path -o ""
+# An output file's folder must exist, as for corrtex radiosity's -o
+# (docs/architecture.md, "Outputs"): it used to be made here. Refused before
+# the scene is read (a missing one here), for the image and its --png copy,
+# --frame K included; nothing is made.
+check "$tmp/no/dir/x.exr: cannot create: its folder $tmp/no/dir does not exist" "$tmp/missing.json" \
+  --width 8 --height 8 --spp 1 --mode path -o "$tmp/no/dir/x.exr"
+check "$tmp/no/dir/f1.exr: cannot create: its folder $tmp/no/dir does not exist" "$SCENE" --path walk --frame 1 \
+  --frames 3 --width 8 --height 8 --spp 1 --mode path -o "$tmp/no/dir/f1.exr"
+[[ ! -e $tmp/no ]] || die "a folder was made for an output file"
+# An output folder (--frames without --frame) is made, with its parents.
+run "$BIN/corrtex" reference "$SCENE" --path walk --frames 2 --width 8 --height 8 --spp 1 --mode path \
+    --quiet -o "$tmp/new/deep/frames" >/dev/null || die "--frames into a new folder failed"
+[[ -f $tmp/new/deep/frames/frame_00001.exr ]] || die "--frames did not make its folder with its parents"
 [[ ! -e $tmp/x.png ]] || die "a refused -o was written"
 [[ ! -e $tmp/x.exr ]] || die "a failed run left an output file"
 exit $fail

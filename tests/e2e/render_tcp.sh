@@ -23,6 +23,15 @@ master_wait nodir 30 || fail "the job with a bad --listen did not end"
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC with a bad --listen, expected 2"
 grep -q "cannot create the socket in $tmp/no/such/dir" "$tmp/nodir.log" || { fail "no reason given"; master_log nodir; }
 [[ ! -e $tmp/nodir.ctmesh ]] || fail "the radiosity was solved before --listen was checked"
+# A --rad-cache in a folder that does not exist: an output file, refused
+# before the solve with one line and status 2 (it was found after the
+# solve, as a warning that nothing was cached).
+master_start nocache 2 "${CORNELL[@]}" --rad-cache "$tmp/no/dir/c.ctmesh"
+master_wait nocache 30 || fail "the job with a --rad-cache in a missing folder did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with a --rad-cache in a missing folder, expected 2"
+grep -q "$tmp/no/dir/c.ctmesh: cannot create: its folder $tmp/no/dir does not exist" "$tmp/nocache.log" ||
+  { fail "the missing folder of --rad-cache not named"; master_log nocache; }
+grep -q ": solving" "$tmp/nocache.log" && fail "the radiosity was solved before --rad-cache was checked"
 # An unknown option given last is unknown, not missing its value.
 master_start lastopt 2 "${CORNELL[@]}" --bogus
 master_wait lastopt 30 || fail "the job with an unknown option did not end"

@@ -2,8 +2,9 @@
 # corrtex-walk's inputs, checked without an MPI job: --path takes a path of
 # the scene by name (one defined inline, by keys, too), written out for the
 # display by `corrtex info --path`; a --reference folder of another frame
-# count is refused before anything starts; --timeout covers the radiosity
-# solve (a stand-in solver that never ends, so the test costs no CPU).
+# count and a --radiosity-cache in a missing folder are refused before
+# anything starts; --timeout covers the radiosity solve (a
+# stand-in solver that never ends, so the test costs no CPU).
 set -u
 source "$(dirname "$0")/lib/walk-common.bash"
 [[ -x $bin/corrtex ]] || { echo "error: $bin/corrtex not built"; exit 1; }
@@ -73,6 +74,13 @@ check "--reference $tmp/ref: 3 reference frames there, made for --frames 3, not 
 cmd=("$walk" cornell --frames 3 --reference "$tmp/ref" --out "$tmp/o2" "${common[@]}" --dry-run)
 log_cmd "${cmd[@]}"
 "${cmd[@]}" >/dev/null 2>"$tmp/err" || fail "3 references for --frames 3: exit $?: $(cat "$tmp/err")"
+
+# A cache file named on the command line is an output file: its folder must
+# exist, as for the programs' output files (it was made, where corrtex
+# radiosity refuses a missing one); the default cache's folder is made.
+check "--radiosity-cache $tmp/no/dir/c.ctmesh: its folder $tmp/no/dir does not exist" \
+  cornell --frames 2 --out "$tmp/o4" "${common[@]}" --radiosity-cache "$tmp/no/dir/c.ctmesh"
+[[ ! -e $tmp/no && ! -e $tmp/o4 ]] || fail "a --radiosity-cache in a missing folder: something was made"
 
 # --timeout during the radiosity solve: the clock used to start with the MPI
 # job. A stand-in solver that never ends (named after $tmp, so a survivor
