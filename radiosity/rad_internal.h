@@ -77,6 +77,7 @@ typedef struct rad_patch {
     uint64_t want;       /* triangles its last refinement wanted beyond its quota */
     float open;          /* the part of its hemisphere its links see (rad_solve.c, patch_openness) */
     uint8_t direct;      /* emits or sees an emitter: the first pass's lit area (rad_solve.c) */
+    uint8_t curved;      /* its shading normals leave its plane by over a degree (rad_ff_elem) */
 } rad_patch;
 
 /* A source cluster: a node of a binary BVH over input patches. A child is a
@@ -462,6 +463,10 @@ int rad_refine_patch(rad_ctx *c, rad_tls *t, uint32_t p);
 void rad_tls_free(rad_tls *t);
 
 /* --- rad_mesh.c ----------------------------------------------------------- */
+
+/* The scene's shading normal at point q of patch pa (its plane's where the
+ * interpolation fails). */
+vec3 rad_shade_normal(const rad_ctx *c, const rad_patch *pa, vec3 q);
 
 /* Meshes the leaves into a conforming triangle mesh with per-vertex values. */
 int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err);

@@ -262,7 +262,7 @@ static float on_segment(vec3 a, vec3 b, vec3 p)
  * read smooth in drt and banded in path (6-14 % apart per region). The
  * patch normal stands in where the interpolation degenerates or faces the
  * patch's back. */
-static vec3 shade_normal(const rad_ctx *c, const rad_patch *pa, vec3 q)
+vec3 rad_shade_normal(const rad_ctx *c, const rad_patch *pa, vec3 q)
 {
     const ct_scene *s = c->scene;
     int ntri = rad_el(c, pa->root)->nv == 4 ? 2 : 1;
@@ -421,7 +421,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
         goto oom;
     }
     for (size_t i = 0; i < bnd.n; i++)
-        snrm[i] = shade_normal(c, &c->patches[rad_el(c, leaves.v[slot_leaf[i]])->patch], h.pts[bnd.v[i]]);
+        snrm[i] = rad_shade_normal(c, &c->patches[rad_el(c, leaves.v[slot_leaf[i]])->patch], h.pts[bnd.v[i]]);
 
     /* Vertex groups: same node and material, face normals within the
      * crease and the same shading normal (a flat-shaded mesh keeps a vertex
@@ -521,7 +521,7 @@ int rad_mesh_build(rad_ctx *c, ct_radmesh *out, ct_error *err)
                 rd = v3_add(rd, out->rad_direct[bvert[b0 + j]]);
             }
             out->pos[ce] = v3_clamp_range(e->c);
-            out->nrm[ce] = shade_normal(c, pa, e->c);
+            out->nrm[ce] = rad_shade_normal(c, pa, e->c);
             out->rad[ce] = v3_scale(r, 1.0f / (float)k);
             out->rad_direct[ce] = v3_scale(rd, 1.0f / (float)k);
             for (uint32_t j = 0; j < k; j++, t++) {

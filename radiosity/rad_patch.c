@@ -275,6 +275,13 @@ int rad_build_patches(rad_ctx *c, ct_error *err)
         p->mat = s->tri_mat[t];
         p->tri = t;
         p->open = 1.0f;
+        p->curved = 0;
+        for (int k = 0; k < used; k++)
+            for (int j = 0; j < 3; j++) {
+                vec3 sn = s->nrm[s->tris[3 * (size_t)(t + (uint32_t)k) + (uint32_t)j]];
+                float l2 = v3_len2(sn);
+                if (l2 > 0.0f && v3_dot(sn, fn) < 0.99985f * sqrtf(l2)) p->curved = 1;
+            }
         uint32_t ei = rad_alloc_elems(c, 1);
         if (ei == RAD_NONE) return ct_fail(err, CT_ENOMEM, "radiosity: memory cap reached while creating patches");
         rad_elem *e = rad_el(c, ei);

@@ -19,7 +19,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 25u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 26u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -46,7 +46,8 @@
                                  * the final gather at the leaves (--gather-passes); 24: the
                                  * leaves' steps keep the links' total light, vertices
                                  * gather with their shading normals; 25: sources pass on
-                                 * their exposed part's radiosity (rad_src_B) */
+                                 * their exposed part's radiosity (rad_src_B); 26: receivers
+                                 * on curved patches split along their shading terminator */
 
 void rad_params_default(rad_params *p)
 {

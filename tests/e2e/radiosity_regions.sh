@@ -66,6 +66,23 @@ foot_ratio() {  # IMAGE: the block's ratio to the reference, into $foot
   run_corrtex 0 compare "$1" "$data/$sc-ref.exr" --regions 4 --region-table
   foot=$(grep -E '^ +[0-9. ]+$' <<<"$out" | awk 'NR == 15 { print $5 }')
 }
+# Past the floor sphere's terminator (where its shading normals turn away
+# from the lamp while its facets' planes still face it): the 4 x 4 block at
+# column 5, row 12. Gouraud shading ramps from the last lit vertex to the
+# first unlit one, and with leaves as large as the planes' error allowed
+# the ramp reached far into the dark side: 1.13 times the reference (1.13
+# over seeds 1-4). Receivers split along the terminator (solver version
+# 26, radiosity/rad_ff.c rad_ff_elem): 1.02-1.04 over seeds 1-4. At most 1.07.
+echo "== cornell_diffuse: past the floor sphere's terminator"
+sc=cornell_diffuse
+if [[ -f $tmp/$sc.exr && -f $data/$sc-ref.exr ]]; then
+  run_corrtex 0 compare "$tmp/$sc.exr" "$data/$sc-ref.exr" --regions 4 --region-table
+  term=$(grep -E '^ +[0-9. ]+$' <<<"$out" | awk 'NR == 13 { print $6 }')
+  echo "metric: cornell_diffuse_terminator_ratio=$term (bounds 0.93-1.07)"
+  [[ $term =~ ^[0-9.]+$ ]] || fail "$sc: no block at column 5, row 12 in the region table"
+  awk -v f="$term" 'BEGIN { exit !(f <= 1.07 && f >= 0.93) }' ||
+    fail "$sc: past the floor sphere's terminator the block is $term times the reference (bounds 0.93-1.07)"
+fi
 if [[ -f $tmp/$sc.exr && -f $data/$sc-ref.exr ]]; then
   run_corrtex 0 radiosity "$data/$sc.json" -o "$tmp/$sc-g2.ctmesh" --gather-passes 2 --image "$tmp/$sc-g2.exr" \
       --width 64 --height 64 --spp 64 --quiet
