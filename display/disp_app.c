@@ -545,6 +545,9 @@ int disp_app_run(const disp_app_opts *o, ct_error *err)
                         (unsigned long long)disp_textures_texels(disp_session_textures(a.session)));
         }
     }
+    /* --out last: disp_capture_open makes the folder, once the solution,
+     * the connection and the reference image are known good (the folder
+     * was made before them, and a bad scene or no master left it behind). */
     if (!rc && o->out_dir) {
         rc = disp_capture_open(o->out_dir, o->ref_dir, o->exposure, !o->no_images, &a.capture, err);
         if (rc) status = DISP_EXIT_USAGE;

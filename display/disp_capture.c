@@ -59,8 +59,7 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
                       ct_error *err)
 {
     *out = NULL;
-    int rc = fs_mkdirs(dir, err);
-    if (rc) return rc;
+    int rc;
     disp_capture *c = calloc(1, sizeof *c);
     if (!c) return ct_fail(err, CT_ENOMEM, "out of memory for frame capture");
     snprintf(c->dir, sizeof c->dir, "%s", dir);
@@ -78,6 +77,13 @@ int disp_capture_open(const char *dir, const char *ref, float exposure, bool ima
     } else if (ref) {
         snprintf(c->ref_dir, sizeof c->ref_dir, "%s", ref);
         c->has_ref = true;
+    }
+    /* The folder once the reference image is read: a bad one leaves nothing. */
+    if ((rc = fs_mkdirs(dir, err))) {
+        metrics_ref_free(c->ref_prep);
+        img_free(&c->ref_one);
+        free(c);
+        return rc;
     }
     c->images = images;
     c->exposure = exposure;

@@ -30,9 +30,9 @@ typedef struct disp_frame_info {
 
 typedef struct disp_capture disp_capture;
 
-/* Creates dir (mkdir -p); ref may be NULL, a folder of per-frame
- * references or one reference image (read now); images: write each frame's
- * EXR and PNG. */
+/* Creates dir (mkdir -p), after reading ref: NULL, a folder of per-frame
+ * references or one reference image (read now; a bad one makes nothing);
+ * images: write each frame's EXR and PNG. */
 int disp_capture_open(const char *dir, const char *ref, float exposure, bool images, disp_capture **out,
                       ct_error *err);
 

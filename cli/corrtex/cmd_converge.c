@@ -15,10 +15,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <time.h>
 
 #include "cli/corrtex/commands.h"
 #include "common/fsutil.h"
+#include "common/image.h"
 #include "common/log.h"
 #include "common/optab.h"
 #include "common/pool.h"
@@ -417,6 +419,18 @@ static int load_mesh(const ct_scene *s, float stand_in, const char *cache, ct_ra
     return CT_OK;
 }
 
+/* A reference of the run's size, read before any work (in its phase it was
+ * found after --out was made; --reference-after, after phase 1 wrote there). */
+static int check_reference(const char *ref, int width, int height, ct_error *err)
+{
+    ct_image img = {0};
+    int rc = img_read_exr(ref, &img, err);
+    if (!rc && (img.width != width || img.height != height))
+        rc = ct_fail(err, CT_EINVAL, "%s is %dx%d, the run is %dx%d", ref, img.width, img.height, width, height);
+    img_free(&img);
+    return rc;
+}
+
 int cmd_converge(int argc, char **argv)
 {
     ct_error err = {{0}};
@@ -481,6 +495,18 @@ int cmd_converge(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMPONENT, "--record %s", err.msg);
         return 2;
     }
+    /* (an --out that is a file was found after the solve, when convergence.csv
+     * could not be made in it) */
+    struct stat out_st;
+    if (stat(o.out, &out_st) == 0 && !S_ISDIR(out_st.st_mode)) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "--out %s: not a folder", o.out);
+        return 2;
+    }
+    if ((o.reference && check_reference(o.reference, o.width, o.height, &err)) ||
+        (o.reference_after && check_reference(o.reference_after, o.width, o.height, &err))) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
+        return 2;
+    }
     const char *scene_path = pos[0];
     ct_scene *scene = NULL;
     ct_radmesh mesh = {0};
@@ -505,7 +531,6 @@ int cmd_converge(int argc, char **argv)
     /* (before a solve that would end in a refusal) */
     if (o.mesh && (rc = rmesh_output_check(o.mesh, &err))) goto fail;
     if ((rc = load_mesh(scene, o.stand_in, o.mesh, &mesh, &err))) goto fail;
-    if ((rc = fs_mkdirs(o.out, &err))) goto fail;
     trc_options to;
     trc_cli_apply(&o.trc, &to);
     to.seed = o.seed;
@@ -518,6 +543,8 @@ int cmd_converge(int argc, char **argv)
         ctex_stats st = ctex_get_stats(sess_textures(r.s));
         ct_info(COMPONENT, "texture hierarchy: %u nodes, %u leaves", st.hier_nodes, st.hier_leaves);
     }
+    /* The output folder last, once every input has been read and checked. */
+    if ((rc = fs_mkdirs(o.out, &err))) goto fail;
     fsink_config fc = {o.out, o.exposure, o.width, o.height};
     if ((rc = fsink_new(&fc, &r.fk, &err))) goto fail;
     rec.next = fsink_sink(r.fk);

@@ -8,7 +8,6 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "common/fsutil.h"
 #include "common/log.h"
 #include "common/optab.h"
 #include "common/version.h"
@@ -71,7 +70,8 @@ static const optab INPUT_OPTS[] = {
     {"ambient", 0, OPTAB_FLOAT, OF(o.ambient), 0, 100, NULL, "A",
      "stand-in radiosity: emission + diffuse * A; only with --scene", NULL},
     {"synthetic", 0, OPTAB_U32, OF(o.synthetic), 0, 100000, NULL, "N",
-     "up to N synthetic correction textures, one per visible part (benchmarks without a master)", NULL},
+     "up to N synthetic correction textures, one per visible part (benchmarks without a master; not with "
+     "--connect)", NULL},
     {"synthetic-tiles", 0, OPTAB_FLAG, OF(o.synthetic_tiles), 0, 0, NULL, NULL,
      "cut parts into tiles to make all N (textures stack on parts); only with --synthetic N", NULL},
     {"synthetic-positive", 0, OPTAB_FLAG, OF(o.synthetic_positive), 0, 0, NULL, NULL,
@@ -119,7 +119,8 @@ static const optab RUN_OPTS[] = {
      "add RMSE/PSNR against DIR/frame_NNNNN.exr (with --frames N: exactly N of them), or against FILE.exr for "
      "every frame (a still view), to frames.csv", NULL},
     {"hold", 0, OPTAB_DOUBLE, OF(o.hold_seconds), 0, 1e6, NULL, "S",
-     "real-time path: stay at its last camera S seconds after it ends; only with --path", NULL},
+     "real-time path: stay at its last camera S seconds after it ends; only with --path, not with --frames N",
+     NULL},
     {"continuous", 0, OPTAB_FLAG, OF(o.continuous), 0, 0, NULL, NULL,
      "draw every frame, also when nothing changed (frame-rate measurements; else a still, unchanged view is not "
      "redrawn)", NULL},
@@ -329,6 +330,21 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "--hold needs --path: it keeps a real-time path's last camera");
         return DISP_EXIT_USAGE;
     }
+    /* --frames N steps the path and ends at its last frame: no real time
+     * to stay in, and --hold was dropped without a word. */
+    if (hold_given && o.frames > 0) {
+        ct_log(CT_LOG_ERROR, COMP, "--hold needs --path in real time, not --frames %d: it keeps a real-time path's "
+               "last camera", o.frames);
+        return DISP_EXIT_USAGE;
+    }
+    /* A master sends its own corrective textures: the synthetic ones were
+     * made only over a --mesh or --scene, and dropped without a word. */
+    if (o.synthetic && o.connect) {
+        ct_log(CT_LOG_ERROR, COMP,
+               "--synthetic %u makes corrective textures without a master: not with --connect (the master sends "
+               "its own)", (unsigned)o.synthetic);
+        return DISP_EXIT_USAGE;
+    }
     if ((o.ref_dir || o.no_images || o.out_every > 0) && !o.out_dir) {
         ct_log(CT_LOG_ERROR, COMP, "--reference, --no-images and --out-every need --out");
         return DISP_EXIT_USAGE;
@@ -355,10 +371,9 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "--out %s: not a folder", o.out_dir);
         return DISP_EXIT_USAGE;
     }
-    if (o.out_dir && fs_mkdirs(o.out_dir, &err) != CT_OK) {
-        ct_log(CT_LOG_ERROR, COMP, "--out %s", err.msg);
-        return DISP_EXIT_USAGE;
-    }
+    /* The --out folder itself is made by disp_app_run once the solution
+     * (or the connection) is known good: made here, a bad scene, mesh or
+     * master left it behind. */
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;

@@ -73,7 +73,8 @@ static const optab MESH_OPTS[] = {
      NULL},
     {"rad-cache", 0, OPTAB_STRING, OF(rad_cache), 0, 0, NULL, "FILE",
      "radiosity cache file, in a folder that exists (default $XDG_CACHE_HOME/corrtex/HASH.ctmesh, else "
-     "~/.cache/corrtex, made when missing; recomputed when the scene or parameters change)", NULL},
+     "~/.cache/corrtex, made when missing; recomputed when the scene or parameters change); not with --mesh",
+     NULL},
     {"rad-error", 0, OPTAB_DOUBLE, OF(rad.error), 1e-15, 1.0, NULL, "E", "link error threshold", NULL},
     {"rad-min-area", 0, OPTAB_DOUBLE, OF(rad.min_area), 1e-15, 1.0, NULL, "A",
      "smallest element, fraction of the lit surface (corrtex radiosity --min-area)", NULL},
@@ -169,6 +170,12 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
     if (o->verbose) ct_log_set_level(CT_LOG_DEBUG);
     if (!npos) return ct_fail(err, CT_EINVAL, "no scene file given (try --help)");
     o->scene = pos[0];
+    /* A given mesh is used as it is: nothing is solved, so the cache was
+     * neither read nor written, without a word. */
+    if (o->mesh && o->rad_cache)
+        return ct_fail(err, CT_EINVAL,
+                       "--rad-cache is the cache of the radiosity solve: not with --mesh (a given mesh is used as it "
+                       "is, nothing is solved)");
     rc = rq_options_check(&o->rq, err);
     if (rc == 0) rc = rad_params_check(&o->rad, err);
     if (rc == 0 && o->drive.batch_min > o->drive.batch_max)
@@ -255,7 +262,7 @@ static int run_master(const opts *o, int ntracers, ct_error *err)
     /* A cache file named on the command line is an output file: its folder
      * must exist (docs/architecture.md, "Outputs"). It used to be found
      * missing only after the solve, as a warning that nothing was cached. */
-    if (rc == 0 && o->rad_cache && !o->mesh) rc = fs_output_folder_check(o->rad_cache, err);
+    if (rc == 0 && o->rad_cache) rc = fs_output_folder_check(o->rad_cache, err);
     if (rc == 0) rc = scene_load(o->scene, &scene, err);
     if (rc == 0) rc = get_mesh(o, scene, &mesh, err);
     if (rc == 0) rc = wire_scene_tx_init(&tx, &mesh, err);

@@ -8,7 +8,8 @@
 # checked here, while drt's rise by 1-3 dB on every seed tried): the
 # output files, convergence.csv rows, PSNR against the reference
 # rising with the samples, the --move-to phase (Fig. 7), the insertion timer,
-# and exit status 2 with one error line on bad input.
+# and exit status 2 with one error line on bad input, before the output
+# folder is made.
 source "$(dirname "$0")/lib/common.sh"
 scene="$root/scenes/cornell/cornell.json"
 
@@ -93,6 +94,21 @@ run_corrtex 2 converge "$tmp/missing.json" --samples 10 --out "$tmp/bad" --stand
 expect_error "missing.json"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --stand-in 0.3 --width 32 --height 32 --reference "$tmp/ref.exr" --quiet
 expect_error "48x48"
+# Every input is checked before --out is made: a reference of another
+# size left the folder behind (read in its phase, after the solve), a
+# missing --reference-after the folder with the first phase's images.
+[[ ! -e $tmp/bad ]] || fail "a refused run made its output folder $tmp/bad"
+run_corrtex 2 converge "$scene" --camera front --samples 10 --width 48 --height 48 --stand-in 0.3 \
+  --reference "$tmp/ref.exr" --move-to spheres --samples-after 10 --reference-after "$tmp/missing.exr" \
+  --out "$tmp/after" --quiet
+expect_error "$tmp/missing.exr"
+[[ ! -e $tmp/after ]] || fail "a missing --reference-after: the output folder was made"
+# An --out that is a file: found only when convergence.csv could not be
+# made in it, after the solve.
+echo notes >"$tmp/notes.txt"
+run_corrtex 2 converge "$scene" --samples 10 --width 8 --height 8 --stand-in 0.3 --out "$tmp/notes.txt" --quiet
+expect_error "--out $tmp/notes.txt: not a folder"
+[[ $(cat "$tmp/notes.txt") == notes ]] || fail "--out a file changed it"
 
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/both" --stand-in 0.3 --mesh "$tmp/m.ctmesh" --quiet
 expect_error "not both"

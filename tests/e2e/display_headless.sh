@@ -3,8 +3,9 @@
 # synthetic corrections, headless under OSMesa and EGL and in a GLFW window
 # under Xvfb; frames and frames.csv written; the backends and 1-pass vs
 # 3-pass agree (RMSE through --reference); a path of the scene taken by
-# name; bad input (references of another frame count too) exits 2 with one
-# line.
+# name; --hold at a real-time path's end; bad input (references of another
+# frame count too, options another one makes meaningless) exits 2 with one
+# line, and --out is made only once the input is known good.
 set -u
 BIN=${CORRTEX_BIN:-bin}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -175,9 +176,26 @@ bad "--synthetic-tiles needs --synthetic N (N > 0)" --backend osmesa --scene "$S
 bad "--synthetic-positive needs --synthetic N (N > 0)" --backend osmesa --scene "$SCENE" --synthetic-positive
 bad "--hold needs --path" --backend osmesa --scene "$SCENE" --hold 5
 bad "--hold needs --path" --backend osmesa --mesh "$tmp/none.ctmesh" --hold 0
+# --frames N steps the path: no real time to stay in (dropped without a
+# word before, also --hold 0).
+bad "--hold needs --path in real time, not --frames 3: it keeps a real-time path's last camera" --backend osmesa \
+  --scene "$SCENE" --path "$PATHF" --frames 3 --hold 2
+bad "--hold needs --path in real time, not --frames 1" --backend osmesa --mesh "$tmp/none.ctmesh" --path "$PATHF" \
+  --frames 1 --hold 0
+# A master sends its own textures: --synthetic N made none with --connect.
+bad "--synthetic 5 makes corrective textures without a master: not with --connect" --backend osmesa \
+  --connect "unix:$tmp/none.sock" --synthetic 5
 # ... and taken where they belong.
 run "$BIN/corrtex-display" --backend osmesa "${SMALL[@]}" --path inline --ambient 0.5 --synthetic 3 --synthetic-tiles \
   --synthetic-positive --out "$tmp/shaped" || { echo "FAIL: --ambient and --synthetic-tiles with --scene"; fail=1; }
+# --hold with a real-time path (--frames 0): the 1 s path, then 0.5 s at its
+# last camera.
+run "$BIN/corrtex-display" --backend osmesa --scene "$SCENE" --width 32 --height 24 --quiet --path inline \
+  --hold 0.5 --out "$tmp/held" --no-images || { echo "FAIL: --hold with a real-time path"; fail=1; }
+held=$(tail -n 1 "$tmp/held/frames.csv" 2>/dev/null | awk -F, '{ print $2, $NF }')
+echo "  last frame: path time, wall seconds: $held"
+awk -v t="${held% *}" -v w="${held#* }" 'BEGIN { exit !(t == 1 && w >= 1.5) }' ||
+  { echo "FAIL: --hold 0.5: the last frame is not at the path's end 0.5 s after it"; fail=1; }
 # Found before the first frame, as bad input: an address no transport
 # takes was a lost connection (exit 3), an --out that is a file and a
 # missing --reference failures (exit 1) after the first frame.
@@ -187,6 +205,13 @@ echo notes >"$tmp/notes.txt"
 bad "--out $tmp/notes.txt: not a folder" --backend osmesa --scene "$SCENE" --frames 1 --out "$tmp/notes.txt"
 bad "--reference $tmp/nope: No such file" --backend osmesa --scene "$SCENE" --frames 1 --out "$tmp/refout" \
   --reference "$tmp/nope"
+# --out is made once every input is known good: a bad scene, mesh or
+# reference image left the folder behind (made before any of them was read).
+bad "nope.json" --backend osmesa --scene "$tmp/nope.json" --frames 1 --out "$tmp/made/scene"
+bad "none.ctmesh" --backend osmesa --mesh "$tmp/none.ctmesh" --frames 1 --out "$tmp/made/mesh"
+bad "reference: $tmp/notes.txt" --backend osmesa --scene "$SCENE" --frames 1 --out "$tmp/made/ref" \
+  --reference "$tmp/notes.txt"
+[[ ! -e $tmp/made ]] || { echo "FAIL: --out made before the input was refused: $(cd "$tmp" && find made)"; fail=1; }
 bad "--sample-frames" --backend osmesa --scene "$SCENE" --sample-frames 0
 bad "--sample-max" --backend osmesa --scene "$SCENE" --sample-max abc
 bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5
@@ -208,9 +233,11 @@ mkfifo "$tmp/fifo.token"
 bad "fifo.token: token file is not a regular file" --backend osmesa --connect "unix:$tmp/none.sock" \
   --token-file "$tmp/fifo.token"
 # No master at the address and no --reconnect: exit 3, one error line.
-"$BIN/corrtex-display" --backend osmesa --connect "unix:$tmp/none.sock" --width 32 --height 32 >"$tmp/o" 2>"$tmp/e"; rc=$?
-echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock  -> exit $rc: $(cat "$tmp/e")"
+"$BIN/corrtex-display" --backend osmesa --connect "unix:$tmp/none.sock" --width 32 --height 32 --out "$tmp/nomaster" \
+  >"$tmp/o" 2>"$tmp/e"; rc=$?
+echo "+ $BIN/corrtex-display --backend osmesa --connect unix:$tmp/none.sock --out $tmp/nomaster -> exit $rc: $(cat "$tmp/e")"
 [[ $rc -eq 3 ]] || { echo "FAIL: exit $rc, want 3"; fail=1; }
+[[ ! -e $tmp/nomaster ]] || { echo "FAIL: --out made without a master"; fail=1; }
 [[ $(grep -c "^error" "$tmp/e") -eq 1 ]] && grep -q "none.sock" "$tmp/e" || { echo "FAIL: want one error line naming the socket"; fail=1; }
 grep -q "none.sock: .*none.sock" "$tmp/e" && { echo "FAIL: the address is named twice"; fail=1; }
 # With --reconnect, a run that ends before any connection got through is

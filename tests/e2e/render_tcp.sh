@@ -32,6 +32,14 @@ master_wait nocache 30 || fail "the job with a --rad-cache in a missing folder d
 grep -q "$tmp/no/dir/c.ctmesh: cannot create: its folder $tmp/no/dir does not exist" "$tmp/nocache.log" ||
   { fail "the missing folder of --rad-cache not named"; master_log nocache; }
 grep -q ": solving" "$tmp/nocache.log" && fail "the radiosity was solved before --rad-cache was checked"
+# --rad-cache with --mesh: a given mesh is used as it is, so the cache was
+# neither read nor written, without a word. Refused at once (the mesh named
+# is missing: the refusal comes before it is read).
+master_start meshcache 2 "${CORNELL[@]}" --mesh "$tmp/none.ctmesh"
+master_wait meshcache 30 || fail "the job with --rad-cache and --mesh did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --rad-cache and --mesh, expected 2"
+grep -q -- "--rad-cache is the cache of the radiosity solve: not with --mesh" "$tmp/meshcache.log" ||
+  { fail "--rad-cache with --mesh not refused"; master_log meshcache; }
 # An unknown option given last is unknown, not missing its value.
 master_start lastopt 2 "${CORNELL[@]}" --bogus
 master_wait lastopt 30 || fail "the job with an unknown option did not end"
