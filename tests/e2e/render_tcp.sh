@@ -40,6 +40,12 @@ master_wait meshcache 30 || fail "the job with --rad-cache and --mesh did not en
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --rad-cache and --mesh, expected 2"
 grep -q -- "--rad-cache is the cache of the radiosity solve: not with --mesh" "$tmp/meshcache.log" ||
   { fail "--rad-cache with --mesh not refused"; master_log meshcache; }
+# The solver's parameters with --mesh: dropped without a word too.
+master_start meshrad 2 "$root/scenes/cornell/cornell.json" --mesh "$tmp/none.ctmesh" --rad-error 1e-4
+master_wait meshrad 30 || fail "the job with --rad-error and --mesh did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --rad-error and --mesh, expected 2"
+grep -q -- "--rad-error is a parameter of the radiosity solve: not with --mesh" "$tmp/meshrad.log" ||
+  { fail "--rad-error with --mesh not refused"; master_log meshrad; }
 # An unknown option given last is unknown, not missing its value.
 master_start lastopt 2 "${CORNELL[@]}" --bogus
 master_wait lastopt 30 || fail "the job with an unknown option did not end"
