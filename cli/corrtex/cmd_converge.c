@@ -63,7 +63,7 @@ static const optab OPTS[] = {
      "then move to this camera without updates (moved.exr) ...", NULL},
     {"samples-after", 0, OPTAB_STRING, OF(samples_after), 0, 0, NULL, "LIST",
      "... and trace these many more samples (after_*.png)", NULL},
-    {"reference-after", 0, OPTAB_STRING, OF(reference_after), 0, 0, NULL, "REF", "reference for the moved camera",
+    {"reference-after", 0, OPTAB_STRING, OF(reference_after), 0, 0, NULL, "REF", "reference for the moved camera (with --move-to)",
      NULL},
     {"mesh", 0, OPTAB_STRING, OF(mesh), 0, 0, NULL, "FILE.ctmesh",
      "radiosity cache: loaded when it holds this scene's solution at the default parameters, else solved (default "
@@ -479,8 +479,9 @@ int cmd_converge(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }
-    if (!!o.move_to != !!o.samples_after) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "--move-to and --samples-after go together");
+    if (!!o.move_to != !!o.samples_after || (o.reference_after && !o.move_to)) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "%s", o.move_to || !o.reference_after ? "--move-to and --samples-after go together"
+               : "--reference-after needs --move-to: it is the moved camera's reference");
         return 2;
     }
     /* (before the scene is read and --out made: found after both, it left

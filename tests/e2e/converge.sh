@@ -86,6 +86,10 @@ run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --view-mem-mb -5 -
 expect_error "--view-mem-mb: '-5' is not a number in \[0, 1e+09\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
+# --reference-after is the moved camera's: without --move-to it was dropped
+# without a word.
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --reference-after "$tmp/none.exr" --quiet
+expect_error "--reference-after needs --move-to"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --aa 5 --quiet
 expect_error "--aa: '5' is not an integer in \[1, 4\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --aa 0 --quiet
