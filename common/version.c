@@ -5,11 +5,6 @@
  * alone (a -D in CFLAGS would rebuild every object). */
 #include "ct_commit.h"
 
-const char *ct_version_commit(void)
-{
-    return CT_GIT_COMMIT;
-}
-
 void ct_version_print(const char *prog, FILE *f)
 {
     fprintf(f, "%s %s (git %s)\n", prog, CT_VERSION, CT_GIT_COMMIT);

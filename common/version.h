@@ -11,9 +11,6 @@
 
 #define CT_VERSION "0.1.0"
 
-/* The short hash of the commit the build came from, or "unknown". */
-const char *ct_version_commit(void);
-
 /* Writes the one --version line, "PROG 0.1.0 (git cefb384)", to f. */
 void ct_version_print(const char *prog, FILE *f);
 
