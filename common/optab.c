@@ -238,8 +238,10 @@ static const optab *lookup(const optab_group *g, int ng, const char *a, int *gi)
     return NULL;
 }
 
-int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char **pos, int maxpos, int *npos,
-                ct_error *err)
+/* optab_parse's walk over argv; with `want`, nothing is set or collected
+ * and *found says whether that row is among the options (optab_given). */
+static int scan(const optab_group *g, int ng, int argc, char **argv, const char **pos, int maxpos, int *npos,
+                const optab *want, bool *found, ct_error *err)
 {
     *npos = 0;
     bool only_pos = false;   /* after "--" */
@@ -251,6 +253,7 @@ int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char 
         }
         if (!only_pos && (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0)) return 1;
         if (only_pos || a[0] != '-' || a[1] == 0) {
+            if (want) continue;
             if (*npos >= maxpos) return ct_fail(err, CT_EINVAL, "unexpected argument '%s' (try --help)", a);
             /* positional arguments are files: '' named none */
             if (!*a) return ct_fail(err, CT_EINVAL, "an empty argument (try --help)");
@@ -277,8 +280,28 @@ int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char 
             if (i + 1 >= argc) return ct_fail(err, CT_EINVAL, "option %s needs a value (try --help)", a);
             v = argv[++i];
         }
+        if (want) {
+            *found |= r == want;
+            continue;
+        }
         int rc = set_row(r, g[k].base, v, err);
         if (rc < 0) return rc;
     }
     return CT_OK;
+}
+
+int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char **pos, int maxpos, int *npos,
+                ct_error *err)
+{
+    return scan(g, ng, argc, argv, pos, maxpos, npos, NULL, NULL, err);
+}
+
+bool optab_given(const optab_group *g, int ng, int argc, char **argv, const char *name)
+{
+    const optab *want = NULL;
+    for (int k = 0; k < ng && !want; k++) want = optab_find(g[k].rows, g[k].n, name);
+    bool found = false;
+    int npos;
+    ct_error err;
+    return want && scan(g, ng, argc, argv, NULL, 0, &npos, want, &found, &err) == CT_OK && found;
 }

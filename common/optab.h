@@ -76,4 +76,9 @@ void optab_usage(const optab *t, size_t n, const void *defaults, FILE *f);
 int optab_parse(const optab_group *g, int ng, int argc, char **argv, const char **pos, int maxpos, int *npos,
                 ct_error *err);
 
+/* Whether option `name` of the groups is on the command line (as
+ * optab_parse reads it): a program that refuses an option another makes
+ * meaningless must know it was given, also at its default value. */
+bool optab_given(const optab_group *g, int ng, int argc, char **argv, const char *name);
+
 #endif

@@ -237,19 +237,11 @@ static int parse_camera(const char *s, ct_camera *cam)
     return 0;
 }
 
-/* Below every value the options take: what an option not given keeps, so
- * that one given with a source that does not use it is refused also when
- * its value is the default. */
-#define NOT_GIVEN -1
-
 int main(int argc, char **argv)
 {
     cli c;
     char cache[2048];
     defaults(&c, cache, sizeof cache);
-    disp_app_opts dflt = c.o;
-    c.o.ambient = NOT_GIVEN;
-    c.o.hold_seconds = NOT_GIVEN;
     optab_group g[NGROUPS];
     groups(&c, g);
     const char *pos[1];
@@ -271,9 +263,10 @@ int main(int argc, char **argv)
     }
     if (c.quiet) ct_log_set_level(CT_LOG_WARN);
     if (c.verbose) ct_log_set_level(CT_LOG_DEBUG);
-    bool ambient_given = c.o.ambient != NOT_GIVEN, hold_given = c.o.hold_seconds != NOT_GIVEN;
-    if (!ambient_given) c.o.ambient = dflt.ambient;
-    if (!hold_given) c.o.hold_seconds = dflt.hold_seconds;
+    /* (also at their default values: refused below with a source that does
+     * not use them) */
+    bool ambient_given = optab_given(g, NGROUPS - 1, argc, argv, "ambient"),
+         hold_given = optab_given(g, NGROUPS - 1, argc, argv, "hold");
     disp_app_opts o = c.o;
     if (c.backend >= 0) o.backend = (gl_backend_kind)c.backend;
     o.passes = c.passes;

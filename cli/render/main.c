@@ -160,29 +160,12 @@ static void usage(FILE *f)
 static int parse(int argc, char **argv, opts *o, ct_error *err)
 {
     defaults(o);
-    /* The solver's rows have no default of their own: a value outside their
-     * range marks a row not given, so that --mesh can refuse them. */
-    rad_params rad_dflt = o->rad;
-    o->rad.error = o->rad.min_area = o->rad.dim_floor = -1.0;
-    o->rad.max_triangles = 0;
-    o->rad.threads = 0;
     optab_group g[NGROUPS];
     groups(o, g);
     const char *pos[1];
     int npos = 0;
     int rc = optab_parse(g, NGROUPS - 1, argc, argv, pos, 1, &npos, err);
     if (rc) return rc;
-    const char *rad_given = o->rad.error >= 0.0          ? "--rad-error"
-                            : o->rad.min_area >= 0.0     ? "--rad-min-area"
-                            : o->rad.dim_floor >= 0.0    ? "--rad-dim-floor"
-                            : o->rad.max_triangles > 0   ? "--rad-max-triangles"
-                            : o->rad.threads > 0         ? "--rad-threads"
-                                                         : NULL;
-    if (o->rad.error < 0.0) o->rad.error = rad_dflt.error;
-    if (o->rad.min_area < 0.0) o->rad.min_area = rad_dflt.min_area;
-    if (o->rad.dim_floor < 0.0) o->rad.dim_floor = rad_dflt.dim_floor;
-    if (o->rad.max_triangles == 0) o->rad.max_triangles = rad_dflt.max_triangles;
-    if (o->rad.threads == 0) o->rad.threads = rad_dflt.threads;
     if (o->version) return 2;
     if (o->quiet) ct_log_set_level(CT_LOG_ERROR);
     if (o->verbose) ct_log_set_level(CT_LOG_DEBUG);
@@ -195,10 +178,13 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
                        "--rad-cache is the cache of the radiosity solve: not with --mesh (a given mesh is used as it "
                        "is, nothing is solved)");
     /* The same for the solver's parameters: they were dropped without a word. */
-    if (o->mesh && rad_given)
-        return ct_fail(err, CT_EINVAL,
-                       "%s is a parameter of the radiosity solve: not with --mesh (a given mesh is used as it is, "
-                       "nothing is solved)", rad_given);
+    static const char *const SOLVE_OPTS[] = {"rad-error", "rad-min-area", "rad-dim-floor", "rad-max-triangles",
+                                             "rad-threads"};
+    for (size_t i = 0; o->mesh && i < OPTAB_COUNT(SOLVE_OPTS); i++)
+        if (optab_given(g, NGROUPS - 1, argc, argv, SOLVE_OPTS[i]))
+            return ct_fail(err, CT_EINVAL,
+                           "--%s is a parameter of the radiosity solve: not with --mesh (a given mesh is used as it "
+                           "is, nothing is solved)", SOLVE_OPTS[i]);
     rc = rq_options_check(&o->rq, err);
     if (rc == 0) rc = rad_params_check(&o->rad, err);
     if (rc == 0 && o->drive.batch_min > o->drive.batch_max)

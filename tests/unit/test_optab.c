@@ -171,6 +171,30 @@ Test(optab, argv_parse)
     refused(&g, (const char *[]){"prog", "", NULL}, "an empty argument (try --help)");
 }
 
+/* Whether an option was on the command line, also at its default value
+ * (programs refuse one that another option makes meaningless). */
+Test(optab, given_options)
+{
+    toy t;
+    ct_error err;
+    optab_defaults(TOY, OPTAB_COUNT(TOY), &t, &err);
+    optab_group g = {TOY, OPTAB_COUNT(TOY), &t};
+    const char *a[] = {"prog", "--count", "0", "--rate=0.5", "--quick", "--", "--out", NULL};
+    char **argv = (char **)a;
+    int argc = 7;
+    cr_assert(optab_given(&g, 1, argc, argv, "count"), "--count 0 (its default) not seen");
+    cr_assert(optab_given(&g, 1, argc, argv, "rate"), "--rate=0.5 not seen");
+    cr_assert(optab_given(&g, 1, argc, argv, "quick"));
+    cr_assert_not(optab_given(&g, 1, argc, argv, "out"), "a positional '--out' after '--' taken for the option");
+    cr_assert_not(optab_given(&g, 1, argc, argv, "seed"));
+    cr_assert_not(optab_given(&g, 1, argc, argv, "nosuch"));
+    /* a value that looks like an option is the value, not the option */
+    const char *v[] = {"prog", "-o", "--quick", NULL};
+    char **val = (char **)v;
+    cr_assert_not(optab_given(&g, 1, 3, val, "quick"));
+    cr_assert(optab_given(&g, 1, 3, val, "out"));
+}
+
 /* A default that does not parse (or lies outside its range) is a broken table. */
 Test(optab, every_engine_table_has_valid_defaults)
 {
