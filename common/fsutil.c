@@ -78,6 +78,13 @@ int fs_output_folder_check(const char *path, ct_error *err)
     return CT_OK;
 }
 
+int fs_folder_check(const char *opt, const char *dir, ct_error *err)
+{
+    struct stat st;
+    if (stat(dir, &st) == 0 && !S_ISDIR(st.st_mode)) return ct_fail(err, CT_EINVAL, "%s %s: not a folder", opt, dir);
+    return CT_OK;
+}
+
 int fs_atomic_open(fs_atomic *a, const char *path, ct_error *err)
 {
     memset(a, 0, sizeof *a);

@@ -38,6 +38,11 @@ int fs_output_check(const char *path, ct_error *err);
  * fs_output_check and fs_atomic_open fail the same way. */
 int fs_output_folder_check(const char *path, ct_error *err);
 
+/* Fails (CT_EINVAL, "OPT DIR: not a folder") when dir exists and is no
+ * folder: an output folder given as option opt, checked before any work
+ * (fs_mkdirs finds it only when it is made, after the work's inputs). */
+int fs_folder_check(const char *opt, const char *dir, ct_error *err);
+
 /* Writes len bytes to path atomically (fs_atomic_open / commit). */
 int fs_write_atomic(const char *path, const void *data, size_t len, ct_error *err);
 

@@ -15,7 +15,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
-#include <sys/stat.h>
 #include <time.h>
 
 #include "cli/corrtex/commands.h"
@@ -498,12 +497,8 @@ int cmd_converge(int argc, char **argv)
     }
     /* (an --out that is a file was found after the solve, when convergence.csv
      * could not be made in it) */
-    struct stat out_st;
-    if (stat(o.out, &out_st) == 0 && !S_ISDIR(out_st.st_mode)) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "--out %s: not a folder", o.out);
-        return 2;
-    }
-    if ((o.reference && check_reference(o.reference, o.width, o.height, &err)) ||
+    if (fs_folder_check("--out", o.out, &err) ||
+        (o.reference && check_reference(o.reference, o.width, o.height, &err)) ||
         (o.reference_after && check_reference(o.reference_after, o.width, o.height, &err))) {
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;

@@ -17,7 +17,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "cli/corrtex/commands.h"
 #include "common/campath.h"
@@ -338,16 +337,15 @@ static int check_args(const naive_opts *o, ct_error *err)
     if ((size_t)o->spp_frame > npx)
         return ct_fail(err, CT_EINVAL, "--samples-per-frame %d exceeds the %zu pixels of a frame", o->spp_frame,
                        npx);
-    struct stat st;
-    if (stat(o->out, &st) == 0 && !S_ISDIR(st.st_mode)) return ct_fail(err, CT_EINVAL, "-o %s: not a folder", o->out);
+    int rc = fs_folder_check("-o", o->out, err);
+    if (rc) return rc;
     for (int k = 0; o->ref && k < o->frames; k++) {
         char name[64], file[4096];
         snprintf(name, sizeof name, "frame_%05d.exr", k);
         fs_join(o->ref, name, file, sizeof file);
         FILE *f;
         size_t size;
-        int rc = fs_open_regular(file, &f, &size, err);
-        if (rc) {
+        if ((rc = fs_open_regular(file, &f, &size, err))) {
             ct_error_prefix(err, "--reference");
             return rc;
         }

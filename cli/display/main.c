@@ -8,6 +8,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "common/fsutil.h"
 #include "common/log.h"
 #include "common/optab.h"
 #include "common/version.h"
@@ -360,8 +361,8 @@ int main(int argc, char **argv)
         ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
         return DISP_EXIT_USAGE;
     }
-    if (o.out_dir && stat(o.out_dir, &st) == 0 && !S_ISDIR(st.st_mode)) {
-        ct_log(CT_LOG_ERROR, COMP, "--out %s: not a folder", o.out_dir);
+    if (o.out_dir && fs_folder_check("--out", o.out_dir, &err)) {
+        ct_log(CT_LOG_ERROR, COMP, "%s", err.msg);
         return DISP_EXIT_USAGE;
     }
     /* The --out folder itself is made by disp_app_run once the solution

@@ -192,3 +192,16 @@ Test(fsutil, join_puts_one_separator)
     fs_join("a-long-folder-name", "frame.exr", out, 8);   /* cut, still a string */
     cr_assert_str_eq(out, "a-long-");
 }
+
+Test(fsutil, an_output_folder_that_is_a_file_is_refused)
+{
+    ct_error err;
+    const char *f = at("notes.txt");
+    cr_assert_eq(fs_write_atomic(f, "x", 1, &err), CT_OK, "%s", err.msg);
+    cr_assert_eq(fs_folder_check("--out", f, &err), CT_EINVAL);
+    char want[512];
+    snprintf(want, sizeof want, "--out %s: not a folder", f);
+    cr_assert_str_eq(err.msg, want);
+    cr_assert_eq(fs_folder_check("--out", at(""), &err), CT_OK, "an existing folder refused");
+    cr_assert_eq(fs_folder_check("--out", at("not-yet"), &err), CT_OK, "a folder still to be made refused");
+}
