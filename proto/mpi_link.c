@@ -202,55 +202,6 @@ static int info_of(const MPI_Status *st, mpil_info *info, ct_error *err)
     return 1;
 }
 
-int mpil_probe(int source, int tag, mpil_info *info, ct_error *err)
-{
-    int flag = 0;
-    MPI_Status st;
-    MPI_CHECK(MPI_Iprobe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
-                         MPI_COMM_WORLD, &flag, &st),
-              err);
-    if (!flag) return 0;
-    return info_of(&st, info, err);
-}
-
-int mpil_wait(int source, int tag, unsigned sleep_time_us, double timeout_s, mpil_info *info, ct_error *err)
-{
-    if (sleep_time_us == 0 && timeout_s < 0) {
-        MPI_Status st;
-        MPI_CHECK(MPI_Probe(source == MPIL_ANY ? MPI_ANY_SOURCE : source, tag == MPIL_ANY ? MPI_ANY_TAG : tag,
-                            MPI_COMM_WORLD, &st),
-                  err);
-        return info_of(&st, info, err);
-    }
-    double end = timeout_s < 0 ? 0 : ct_now() + timeout_s;
-    unsigned nap = sleep_time_us < 20 ? sleep_time_us : 20;
-    for (;;) {
-        int rc = mpil_probe(source, tag, info, err);
-        if (rc != 0) return rc;
-        if (mpil_progress(err) < 0) return CT_EIO;
-        if (timeout_s >= 0 && ct_now() > end) return 0;
-        /* Sleeping between probes leaves the core to the ranks that work
-         * (MPI's blocking probe spins, which hurts oversubscribed runs);
-         * the nap grows while nothing comes, so a busy link stays fast. */
-        if (nap) {
-            ct_sleep_us(nap);
-            nap = nap * 2 > sleep_time_us ? sleep_time_us : nap * 2;
-        }
-    }
-}
-
-int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err)
-{
-    if (check_len(info->size, err) < 0) return CT_ERANGE;
-    out->len = 0;
-    if (wire_buf_reserve(out, info->size ? info->size : 1, err) < 0) return CT_ENOMEM;
-    MPI_CHECK(MPI_Recv(out->data, (int)info->size, MPI_BYTE, info->source, info->tag, MPI_COMM_WORLD,
-                       MPI_STATUS_IGNORE),
-              err);
-    out->len = info->size;
-    return 0;
-}
-
 /* Matches every message that arrived and starts its receive. */
 static int start_recvs(int source, int tag, ct_error *err)
 {

@@ -1,8 +1,8 @@
 /* mpi_link.h: the MPI transport between the master (rank 0) and the tracer
- * ranks: start-up and shutdown, non-blocking sends of encoded
- * byte buffers (proto/wire_mpi.h layouts) under a tag, probing and receiving
- * whole messages, and a chunked broadcast for large payloads (the radiosity
- * mesh). The only file of the project that includes <mpi.h>: proto owns every
+ * ranks: start-up and shutdown, non-blocking sends of encoded byte buffers
+ * (proto/wire_mpi.h layouts) under a tag, receiving whole messages without
+ * ever blocking on a peer, and a chunked broadcast for large payloads (the
+ * radiosity mesh). The only file of the project that includes <mpi.h>: proto owns every
  * wire, MPI included, so that tracer/ and master/ stay MPI-free and testable.
  * Every MPI call goes through one check that turns a failure into a ct_error
  * naming file:line, the call and MPI's error string. */
@@ -63,20 +63,6 @@ int mpil_drain(double timeout_s, ct_error *err);
 
 /* Cancels what is still pending (after a failed drain) so MPI can end. */
 void mpil_cancel_pending(void);
-
-/* Looks for a message from source (MPIL_ANY) with tag (MPIL_ANY) without
- * blocking: 1 with *info filled when one is there, 0 when none. */
-int mpil_probe(int source, int tag, mpil_info *info, ct_error *err);
-
-/* Waits for a message, sleeping between probes (from 20 us doubling up to
- * sleep_us; 0 with timeout_s < 0: MPI's own blocking probe, which spins a
- * core) up to timeout_s (< 0: no limit); 1 when one arrived, 0 on timeout. */
-int mpil_wait(int source, int tag, unsigned sleep_us, double timeout_s, mpil_info *info, ct_error *err);
-
-/* Receives the message info describes (from a probe) into out (replacing its
- * contents; out->len = info->size). Blocks until the whole message is in:
- * for a loop that must never wait on one peer, use mpil_poll_recv. */
-int mpil_recv(const mpil_info *info, wire_buf *out, ct_error *err);
 
 /* Receives the next whole message from source with tag (MPIL_ANY) without
  * ever blocking: every message that arrived is matched (MPI_Improbe) and

@@ -9,15 +9,22 @@
  *    idling would throw the time away);
  * 2. two batches of 4096 for view 2, CAMERA 3, a batch of 64 for view 3:
  *    the first of view 2 stops part way (or goes empty), the second goes
- *    empty, the one of view 3 is traced whole.
+ *    empty, the one of view 3 is traced whole;
+ * 3. a batch of 4096 for view 3, then the master calls no MPI for 1.5 s:
+ *    a large message moves only while both sides call MPI, and the rank
+ *    must nap, not spin inside MPI, while the master does not (a blocking
+ *    receive spun a tracer's core on the master's time: 9 % of its CPU in a
+ *    walk on two cores). The rank counts its CPU time beside its tracing.
  * Prints "batch B: N of M samples" for each answer; exits 0 when the rank
  * behaved so, 1 naming what it did not, 2 on bad usage or a failed set-up. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "common/radmesh.h"
 #include "common/scene.h"
+#include "common/timer.h"
 #include "proto/mpi_link.h"
 #include "proto/wire_mpi.h"
 #include "tracer/rank.h"
@@ -128,6 +135,15 @@ static int master(ct_error *err)
         printf("FAIL: batch 4, of the newest view, answered %u of %u\n", n[2], ask2[2]);
         bad = 1;
     }
+    /* 3: the batch's transfer waits on the master; the rank naps meanwhile. */
+    static const uint32_t ask3[1] = {4096};
+    if ((rc = send_batch(5, 3, ask3[0], err))) return rc;
+    ct_sleep_us(1500000);
+    if ((rc = answers(5, 1, n, ask3, err))) return rc;
+    if (n[0] != ask3[0]) {
+        printf("FAIL: batch 5 answered %u of %u\n", n[0], ask3[0]);
+        bad = 1;
+    }
     /* leave in order: SHUTDOWN, then the rank's BYE */
     wire_mpi_control c = {.op = WIRE_MPI_OP_SHUTDOWN};
     wire_buf b = {0};
@@ -140,6 +156,14 @@ static int master(ct_error *err)
     if (got == 0) return ct_fail(err, CT_EIO, "no BYE from the tracer within 10 s of SHUTDOWN");
     if ((rc = mpil_drain(10.0, err))) return rc;
     return bad;
+}
+
+/* CPU seconds of the whole process (the rank's threads and MPI's). */
+static double cpu_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static int tracer(const ct_scene *scene, ct_error *err)
@@ -157,7 +181,17 @@ static int tracer(const ct_scene *scene, ct_error *err)
     if (rc == 0) {
         trank_config tc = {.tracer = t, .rank = 1, .threads = 1, .idle_sleep_us = 200};
         trank_stats st;
+        double cpu0 = cpu_s();
         rc = trank_run(&tc, &st, err);
+        double cpu = cpu_s() - cpu0;
+        printf("tracer: %.2f s of CPU, %.2f s of it tracing\n", cpu, st.busy_s);
+        /* Napping through the master's 1.5 s costs a few ms; spinning in
+         * MPI costs about all of it. */
+        if (rc == 0 && cpu - st.busy_s > 0.75) {
+            printf("FAIL: the rank used %.2f s of CPU beside its tracing: it waited inside MPI for the master\n",
+                   cpu - st.busy_s);
+            rc = 1;
+        }
     }
     trc_free(t);
     rmesh_free(&mesh);
