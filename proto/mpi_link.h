@@ -86,7 +86,9 @@ int mpil_bcast(int root, wire_buf *buf, ct_error *err);
 int mpil_bcast_u64(int root, uint64_t *v, ct_error *err);
 
 /* Every rank passes its value; every rank gets the largest (a collective
- * status check: one failing rank lets all leave in order). */
+ * status check: one failing rank lets all leave in order). Waits napping
+ * (up to 1 ms between looks), not spinning: ranks wait here for as long as
+ * the master's start-up takes. */
 int mpil_allreduce_max(int *v, ct_error *err);
 
 #endif
