@@ -5,7 +5,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 
 #include "common/campath.h"
 #include "common/log.h"
@@ -113,15 +112,6 @@ static int load_solution(app *a, ct_error *err)
     return CT_OK;
 }
 
-/* CPU seconds of the whole process (all threads: llvmpipe renders on its
- * own threads), for frame costs that do not depend on other processes. */
-static double cpu_now(void)
-{
-    struct timespec ts;
-    if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts)) return 0.0;
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* The run loop; returns 0, a negative CT_E* code, or DISP_EXIT_LOST. */
 static int run(app *a, ct_error *err)
 {
@@ -168,7 +158,7 @@ static int run(app *a, ct_error *err)
     app_set_title(a, t_start, true);
     while (nframes <= 0 || k < (uint32_t)nframes) {
         double now = ct_now();
-        double c_top = o->texel_cpu > 0.0 ? cpu_now() : 0.0;
+        double c_top = o->texel_cpu > 0.0 ? ct_process_cpu() : 0.0;
         double dt = now - t_last;
         t_last = now;
         gl_backend_poll(a->backend, &in);
@@ -316,7 +306,7 @@ static int run(app *a, ct_error *err)
         drawn_w = in.fb_width;
         drawn_h = in.fb_height;
         t_drawn = now;
-        double t0 = ct_now(), c0 = cpu_now();
+        double t0 = ct_now(), c0 = ct_process_cpu();
         disp_render_stats rs;
         if (a->ropts.view == DISP_VIEW_SAMPLES) {
             const float *pa, *pb;
@@ -348,14 +338,14 @@ static int run(app *a, ct_error *err)
         /* (not the first frame's: compiling the shaders is paid once, and
          * at 0.05 cores its 160 ms under the sanitizers held the view for
          * three seconds) */
-        if (o->texel_cpu > 0.0 && k > 0) frame_cpu = cpu_now() - c_top;
+        if (o->texel_cpu > 0.0 && k > 0) frame_cpu = ct_process_cpu() - c_top;
         double frame_ms = 1000.0 * (ct_now() - t0);
         /* The first frame pays for shader compilation (JIT on llvmpipe). */
         if (k == 0) {
             first_ms = frame_ms;
         } else {
             render_ms_sum += frame_ms;
-            cpu_ms_sum += 1000.0 * (cpu_now() - c0);
+            cpu_ms_sum += 1000.0 * (ct_process_cpu() - c0);
         }
         a->stat_frames++;
         if (a->capture && (o->out_every <= 0 || k == 0 || last || ct_now() - t_captured >= o->out_every)) {

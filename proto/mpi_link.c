@@ -342,7 +342,6 @@ int mpil_allreduce_max(int *v, ct_error *err)
         int done = 0;
         MPI_CHECK(MPI_Test(&req, &done, MPI_STATUS_IGNORE), err);
         if (done) return 0;
-        ct_sleep_us(nap);
-        nap = nap * 2 > COLL_NAP_US ? COLL_NAP_US : nap * 2;
+        ct_nap(&nap, COLL_NAP_US);
     }
 }

@@ -250,10 +250,7 @@ static int await_work(intake_state *in, ct_error *err)
         int rc = intake(in, err);
         if (rc < 0) return rc;
         if (in->q->n || in->shutdown || (c->stop && *c->stop) || ct_now() > end) return 0;
-        if (nap) {
-            ct_sleep_us(nap);
-            nap = nap * 2 > most ? most : nap * 2;
-        }
+        ct_nap(&nap, most);
     }
 }
 

@@ -20,7 +20,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "common/radmesh.h"
 #include "common/scene.h"
@@ -158,14 +157,6 @@ static int master(ct_error *err)
     return bad;
 }
 
-/* CPU seconds of the whole process (the rank's threads and MPI's). */
-static double cpu_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static int tracer(const ct_scene *scene, ct_error *err)
 {
     ct_radmesh mesh;
@@ -181,9 +172,9 @@ static int tracer(const ct_scene *scene, ct_error *err)
     if (rc == 0) {
         trank_config tc = {.tracer = t, .rank = 1, .threads = 1, .idle_sleep_us = 200};
         trank_stats st;
-        double cpu0 = cpu_s();
+        double cpu0 = ct_process_cpu();
         rc = trank_run(&tc, &st, err);
-        double cpu = cpu_s() - cpu0;
+        double cpu = ct_process_cpu() - cpu0;
         printf("tracer: %.2f s of CPU, %.2f s of it tracing\n", cpu, st.busy_s);
         /* Napping through the master's 1.5 s costs a few ms; spinning in
          * MPI costs about all of it. */
