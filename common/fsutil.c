@@ -231,6 +231,17 @@ int fs_mkdirs(const char *path, ct_error *err)
     return CT_OK;
 }
 
+int fs_user_cache_dir(char *out, size_t cap, int make, ct_error *err)
+{
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    int n;
+    if (xdg && *xdg) n = snprintf(out, cap, "%s/corrtex", xdg);
+    else if (home && *home) n = snprintf(out, cap, "%s/.cache/corrtex", home);
+    else n = snprintf(out, cap, "/tmp/corrtex-cache");
+    if (n < 0 || (size_t)n >= cap) return ct_fail(err, CT_EINVAL, "the cache folder's path is too long");
+    return make ? fs_mkdirs(out, err) : CT_OK;
+}
+
 void fs_dirname(const char *path, char *out, size_t cap)
 {
     const char *slash = strrchr(path, '/');

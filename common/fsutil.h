@@ -59,6 +59,13 @@ int fs_read_all(const char *path, size_t max, char **data, size_t *len, ct_error
 /* mkdir -p. */
 int fs_mkdirs(const char *path, ct_error *err);
 
+/* The user's cache folder for corrtex: $XDG_CACHE_HOME/corrtex, else
+ * ~/.cache/corrtex, else /tmp/corrtex-cache (no HOME: a daemon). Every
+ * program keeps its caches there (radiosity solutions, received scenes), so
+ * each finds what another computed. With make, the folder is made when
+ * missing (fails with the folder named when it cannot be). */
+int fs_user_cache_dir(char *out, size_t cap, int make, ct_error *err);
+
 /* Directory part of path ("." when none) into out. */
 void fs_dirname(const char *path, char *out, size_t cap);
 

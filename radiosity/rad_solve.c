@@ -8,11 +8,13 @@
 #include "radiosity/rad_internal.h"
 
 #include <errno.h>
+#include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "common/fsutil.h"
 #include "common/log.h"
 #include "common/pool.h"
 #include "common/rng.h"
@@ -158,6 +160,16 @@ uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p)
     h = mix(h, p->seed);
     h = mix(h, (uint64_t)p->mirror_samples);
     return h ? h : 1;
+}
+
+int rad_cache_default(const ct_scene *s, const rad_params *p, int make, char *out, size_t cap, ct_error *err)
+{
+    char dir[4096];
+    int rc = fs_user_cache_dir(dir, sizeof dir, make, err);
+    if (rc) return rc;
+    int n = snprintf(out, cap, "%s/%016" PRIx64 ".ctmesh", dir, rad_solution_hash(s, p));
+    if (n < 0 || (size_t)n >= cap) return ct_fail(err, CT_EINVAL, "%s: the cache file's path is too long", dir);
+    return CT_OK;
 }
 
 int rad_cached_solve(const ct_scene *s, const rad_params *p, const char *cache_path,

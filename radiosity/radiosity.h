@@ -79,6 +79,13 @@ int rad_params_check(const rad_params *p, ct_error *err);
  * .ctmesh cache key (threads and the memory cap do not change it). */
 uint64_t rad_solution_hash(const ct_scene *s, const rad_params *p);
 
+/* The default cache file of this scene's solution for these parameters:
+ * HASH.ctmesh (rad_solution_hash, 16 hex digits) in the user's cache folder
+ * (fs_user_cache_dir; with make, the folder is made when missing).
+ * corrtex-render without --mesh or --rad-cache and corrtex radiosity without
+ * -o both use it, so either finds what the other solved. */
+int rad_cache_default(const ct_scene *s, const rad_params *p, int make, char *out, size_t cap, ct_error *err);
+
 /* Solves the scene and meshes the solution into out (which the caller frees
  * with rmesh_free). progress may be NULL. Fails with CT_ENOMEM when the memory
  * cap is hit, CT_EEMPTY when the scene emits no light. */

@@ -1,6 +1,7 @@
-/* corrtex radiosity SCENE -o FILE.ctmesh [options]: solves the scene's
+/* corrtex radiosity SCENE [-o FILE.ctmesh] [options]: solves the scene's
  * interactive solution (hierarchical radiosity, radiosity/radiosity.h) and writes
- * its conforming mesh as a .ctmesh cache (docs/radiosity.md). */
+ * its conforming mesh as a .ctmesh cache (docs/radiosity.md); without -o
+ * into the default cache that corrtex-render reads (rad_cache_default). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,16 +19,21 @@ typedef struct radiosity_opts {
     rad_params p;
     const char *out, *image, *camera, *planes;
     int width, height, spp;
-    bool reuse, image_direct, quiet, verbose;
+    bool reuse, cache_path, image_direct, quiet, verbose;
 } radiosity_opts;
 
 /* The solver's rows have no default of their own: rad_params_default's. */
 #define OF(f) offsetof(radiosity_opts, f)
 static const optab OPTS[] = {
-    {"output", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "FILE", "the .ctmesh cache to write (required)", NULL},
+    {"output", 'o', OPTAB_STRING, OF(out), 0, 0, NULL, "FILE",
+     "the .ctmesh file to write (default: the cache corrtex-render reads, HASH.ctmesh in $XDG_CACHE_HOME/corrtex, "
+     "else ~/.cache/corrtex, made when missing; kept when up to date, as with --reuse)", NULL},
     {"reuse", 0, OPTAB_FLAG, OF(reuse), 0, 0, NULL, NULL,
      "keep FILE when it already holds this scene's solution for these parameters (same hash), else solve and "
      "overwrite it", NULL},
+    {"cache-path", 0, OPTAB_FLAG, OF(cache_path), 0, 0, NULL, NULL,
+     "print the default cache file of this scene and these parameters (where -o is left out) and exit: nothing "
+     "is solved or written", NULL},
     {"error", 0, OPTAB_DOUBLE, OF(p.error), 1e-15, 1.0, NULL, "E",
      "link error threshold: the largest B*F*A a link may carry, as a fraction of the total emitted power", NULL},
     {"min-area", 0, OPTAB_DOUBLE, OF(p.min_area), 1e-15, 1.0, NULL, "A",
@@ -82,7 +88,7 @@ static const optab OPTS[] = {
 
 static void usage(FILE *f, const radiosity_opts *d)
 {
-    fprintf(f, "usage: corrtex radiosity SCENE.json -o FILE.ctmesh [options]\n"
+    fprintf(f, "usage: corrtex radiosity SCENE.json [-o FILE.ctmesh] [options]\n"
                "  Hierarchical radiosity (Hanrahan, Salzman, Aupperle 1991) meshed into a conforming\n"
                "  Gouraud mesh with per-vertex total and direct radiance (docs/radiosity.md).\n");
     optab_usage(OPTS, OPTAB_COUNT(OPTS), d, f);
@@ -120,8 +126,8 @@ int cmd_radiosity(int argc, char **argv)
     }
     const char *scene_path = pos[0], *out_path = o.out, *image = o.image, *camera = o.camera, *planes = o.planes;
     rad_params p = o.p;
-    if (!out_path) {
-        ct_log(CT_LOG_ERROR, "corrtex radiosity", "missing -o FILE.ctmesh (try --help)");
+    if (o.cache_path && out_path) {
+        ct_log(CT_LOG_ERROR, "corrtex radiosity", "--cache-path prints the file -o leaves out: not with -o");
         return 2;
     }
     if (rad_params_check(&p, &err) != CT_OK) {
@@ -137,7 +143,8 @@ int cmd_radiosity(int argc, char **argv)
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "--image-planes %s: give a name ending in .exr", planes);
         return 2;
     }
-    /* Fail on an unwritable output now, not after a long solve. */
+    /* Fail on an unwritable output now, not after a long solve (the
+     * default cache's name needs the scene: checked after it loads). */
     const char *outs[3] = {out_path, image, planes};
     for (int i = 0; i < 3; i++) {
         if (outs[i] && (i == 0 ? rmesh_output_check(outs[i], &err) : fs_output_check(outs[i], &err)) != CT_OK) {
@@ -149,6 +156,22 @@ int cmd_radiosity(int argc, char **argv)
     if (scene_load(scene_path, &s, &err) != CT_OK) {
         ct_log(CT_LOG_ERROR, "corrtex radiosity", "%s", err.msg);
         return 2;
+    }
+    char cache[4096];
+    if (!out_path) {
+        if (rad_cache_default(s, &p, !o.cache_path, cache, sizeof cache, &err) != CT_OK ||
+            (!o.cache_path && rmesh_output_check(cache, &err) != CT_OK)) {
+            ct_log(CT_LOG_ERROR, "corrtex radiosity", "the default cache: %s", err.msg);
+            scene_free(s);
+            return 2;
+        }
+        if (o.cache_path) {
+            printf("%s\n", cache);
+            scene_free(s);
+            return 0;
+        }
+        out_path = cache;
+        o.reuse = true;
     }
     int cam = 0;
     if (image || planes) {
@@ -206,7 +229,7 @@ int cmd_radiosity(int argc, char **argv)
     if (from_cache) {
         ct_info("radiosity", "%s: up to date (hash %016llx), %u triangles, %u vertices", out_path,
                 (unsigned long long)m.scene_hash, m.ntris, m.nverts);
-        printf("cached 1\ntriangles %u\nvertices %u\n", m.ntris, m.nverts);
+        printf("file %s\ncached 1\ntriangles %u\nvertices %u\n", out_path, m.ntris, m.nverts);
         rmesh_free(&m);
         scene_free(s);
         return 0;
@@ -224,11 +247,11 @@ int cmd_radiosity(int argc, char **argv)
             out_path, st.patches, (unsigned long long)st.elements, (unsigned long long)st.links, st.passes,
             st.iterations, st.residual, st.triangles, st.vertices, (unsigned long long)st.rays,
             (double)st.peak_bytes / (1 << 20), st.seconds);
-    printf("patches %u\nelements %llu\nlinks %llu\npasses %d\niterations %d\nresidual %.3e\n"
+    printf("file %s\npatches %u\nelements %llu\nlinks %llu\npasses %d\niterations %d\nresidual %.3e\n"
            "triangles %u\nvertices %u\ncontact_vertices %u\nrays %llu\nsolver_mb %.1f\nseconds %.2f\nemitted %.6g\n"
            "absorbed %.6g\n",
-           st.patches, (unsigned long long)st.elements, (unsigned long long)st.links, st.passes, st.iterations,
-           st.residual, st.triangles, st.vertices, st.contact_vertices, (unsigned long long)st.rays,
+           out_path, st.patches, (unsigned long long)st.elements, (unsigned long long)st.links, st.passes,
+           st.iterations, st.residual, st.triangles, st.vertices, st.contact_vertices, (unsigned long long)st.rays,
            (double)st.peak_bytes / (1 << 20), st.seconds, st.emitted, st.absorbed);
     rmesh_free(&m);
     scene_free(s);

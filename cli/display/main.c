@@ -163,8 +163,9 @@ static void groups(cli *c, optab_group *g)
     g[4] = (optab_group){NULL, 0, NULL};
 }
 
-/* Every option's default: disp_app_defaults', and the scene cache under
- * $XDG_CACHE_HOME or ~/.cache (in cache). */
+/* Every option's default: disp_app_defaults', and the scene cache in the
+ * user's cache folder (fs_user_cache_dir, in cache; made when a scene is
+ * kept). */
 static void defaults(cli *c, char *cache, size_t cache_size)
 {
     memset(c, 0, sizeof *c);
@@ -173,11 +174,9 @@ static void defaults(cli *c, char *cache, size_t cache_size)
     c->passes = c->o.passes;
     c->view = (int)c->o.view;
     c->fbo = (int)c->o.float_format;
-    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
-    cache[0] = '\0';
-    if (xdg && *xdg) snprintf(cache, cache_size, "%s/corrtex", xdg);
-    else if (home && *home) snprintf(cache, cache_size, "%s/.cache/corrtex", home);
-    if (cache[0]) c->o.cache_dir = cache;
+    ct_error e;
+    if (fs_user_cache_dir(cache, cache_size, 0, &e) == CT_OK) c->o.cache_dir = cache;
+    else cache[0] = '\0';
 }
 
 static void usage(FILE *f)

@@ -193,26 +193,18 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
     return rc;
 }
 
-static void cache_path(const opts *o, const ct_scene *s, char *out, size_t cap)
+/* --rad-cache, else the default cache that corrtex radiosity also fills
+ * (rad_cache_default); 0 when there is none to use (a warning says why). */
+static int cache_path(const opts *o, const ct_scene *s, char *out, size_t cap)
 {
     if (o->rad_cache) {
         snprintf(out, cap, "%s", o->rad_cache);
-        return;
+        return 1;
     }
-    char dir[900];
-    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
-    if (xdg && *xdg) snprintf(dir, sizeof dir, "%s/corrtex", xdg);
-    else if (home && *home) snprintf(dir, sizeof dir, "%s/.cache/corrtex", home);
-    else snprintf(dir, sizeof dir, "/tmp/corrtex-cache");
-    char parent[900];
-    snprintf(parent, sizeof parent, "%s", dir);
-    char *slash = strrchr(parent, '/');
-    if (slash && slash != parent) {
-        *slash = 0;
-        mkdir(parent, 0755);
-    }
-    mkdir(dir, 0755);
-    snprintf(out, cap, "%s/%016" PRIx64 ".ctmesh", dir, rad_solution_hash(s, &o->rad));
+    ct_error e;
+    if (rad_cache_default(s, &o->rad, 1, out, cap, &e) == CT_OK) return 1;
+    ct_warn(PROG, "no radiosity cache: %s", e.msg);
+    return 0;
 }
 
 static void on_progress(void *user, double fraction, const char *what)
@@ -225,22 +217,24 @@ static void on_progress(void *user, double fraction, const char *what)
 static int get_mesh(const opts *o, const ct_scene *s, ct_radmesh *m, ct_error *err)
 {
     if (o->mesh) return rmesh_load(o->mesh, 0, m, err);
-    char path[1024];
-    cache_path(o, s, path, sizeof path);
+    char path[4096];
+    int cached = cache_path(o, s, path, sizeof path);
     uint64_t h = rad_solution_hash(s, &o->rad);
     ct_error e;
-    int rc = rmesh_load(path, h, m, &e);
+    int rc = cached ? rmesh_load(path, h, m, &e) : CT_EIO;
     if (rc == 0) {
         ct_info(PROG, "radiosity mesh from the cache %s (%u triangles)", path, m->ntris);
         return 0;
     }
-    if (rc == CT_ESTALE) ct_info(PROG, "radiosity cache %s is stale: solving again", path);
+    if (!cached) ct_info(PROG, "solving the radiosity");
+    else if (rc == CT_ESTALE) ct_info(PROG, "radiosity cache %s is stale: solving again", path);
     else ct_info(PROG, "no radiosity cache at %s: solving", path);
     rad_stats st;
     rc = rad_solve(s, &o->rad, ct_log_get_level() >= CT_LOG_INFO ? on_progress : NULL, NULL, m, &st, err);
     if (ct_log_get_level() >= CT_LOG_INFO) ct_progress("radiosity", 1.0, 1, "%s", rc ? "failed" : "done");
     if (rc) return rc;
-    if (rmesh_save(m, path, &e) != 0) ct_warn(PROG, "cannot write the radiosity cache: %s", e.msg);
+    if (!cached) ct_info(PROG, "radiosity mesh (%u triangles, %.1f s)", m->ntris, st.seconds);
+    else if (rmesh_save(m, path, &e) != 0) ct_warn(PROG, "cannot write the radiosity cache: %s", e.msg);
     else ct_info(PROG, "radiosity mesh (%u triangles, %.1f s) cached in %s", m->ntris, st.seconds, path);
     return 0;
 }

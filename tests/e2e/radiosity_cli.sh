@@ -68,7 +68,6 @@ check() { # expected-exit expected-substring args...
   [[ $(grep -c '^error ' "$tmp/e") -eq 1 ]] || { echo "FAIL: want exactly one error line"; cat "$tmp/e"; fail=1; }
   grep -q -- "$msg" "$tmp/e" || { echo "FAIL: message lacks '$msg'"; fail=1; }
 }
-check 2 "missing -o" "$scene"
 check 2 "expected one scene file" -o "$tmp/x.ctmesh"
 check 2 "missing.json" "$tmp/missing.json" -o "$tmp/x.ctmesh"
 check 2 "no emitting surface" "$tmp/dark.json" -o "$tmp/x.ctmesh"

@@ -205,3 +205,47 @@ Test(fsutil, an_output_folder_that_is_a_file_is_refused)
     cr_assert_eq(fs_folder_check("--out", at(""), &err), CT_OK, "an existing folder refused");
     cr_assert_eq(fs_folder_check("--out", at("not-yet"), &err), CT_OK, "a folder still to be made refused");
 }
+
+/* Every program's caches in one folder: $XDG_CACHE_HOME/corrtex, else
+ * ~/.cache/corrtex, else /tmp/corrtex-cache; made only when asked. */
+Test(fsutil, the_user_cache_folder_follows_xdg_then_home)
+{
+    ct_error err;
+    char out[4096], want[4096];
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    char *keep_xdg = xdg ? strdup(xdg) : NULL, *keep_home = home ? strdup(home) : NULL;
+
+    setenv("XDG_CACHE_HOME", at("xdg"), 1);
+    cr_assert_eq(fs_user_cache_dir(out, sizeof out, 0, &err), CT_OK, "%s", err.msg);
+    snprintf(want, sizeof want, "%s/corrtex", at("xdg"));
+    cr_assert_str_eq(out, want);
+    struct stat st;
+    cr_assert_neq(stat(out, &st), 0, "made without being asked");
+    cr_assert_eq(fs_user_cache_dir(out, sizeof out, 1, &err), CT_OK, "%s", err.msg);
+    cr_assert(stat(out, &st) == 0 && S_ISDIR(st.st_mode), "not made when asked");
+
+    setenv("XDG_CACHE_HOME", "", 1);
+    setenv("HOME", at("home"), 1);
+    cr_assert_eq(fs_user_cache_dir(out, sizeof out, 0, &err), CT_OK, "%s", err.msg);
+    snprintf(want, sizeof want, "%s/.cache/corrtex", at("home"));
+    cr_assert_str_eq(out, want);
+
+    unsetenv("XDG_CACHE_HOME");
+    unsetenv("HOME");
+    cr_assert_eq(fs_user_cache_dir(out, sizeof out, 0, &err), CT_OK, "%s", err.msg);
+    cr_assert_str_eq(out, "/tmp/corrtex-cache");
+
+    /* a folder that cannot be made is named */
+    const char *f = at("a-file");
+    cr_assert_eq(fs_write_atomic(f, "x", 1, &err), CT_OK, "%s", err.msg);
+    setenv("XDG_CACHE_HOME", f, 1);
+    cr_assert_eq(fs_user_cache_dir(out, sizeof out, 1, &err), CT_EIO);
+    cr_assert(strstr(err.msg, "a-file/corrtex") != NULL, "%s", err.msg);
+    char tiny[8];
+    cr_assert_eq(fs_user_cache_dir(tiny, sizeof tiny, 0, &err), CT_EINVAL, "a path cut short was accepted");
+
+    if (keep_xdg) setenv("XDG_CACHE_HOME", keep_xdg, 1); else unsetenv("XDG_CACHE_HOME");
+    if (keep_home) setenv("HOME", keep_home, 1); else unsetenv("HOME");
+    free(keep_xdg);
+    free(keep_home);
+}
