@@ -2,8 +2,9 @@
  * first diffuse hit (integ_internal.h; docs/tracer.md, "Indirect light"). */
 #include "tracer/integ_internal.h"
 
-/* Mirrors a gather ray follows (their light is not in the radiosity
- * solution, which has no specular transport) before it reads the mesh. */
+/* Mirrors (and glass faces' reflections) a gather ray follows (their light
+ * is not in the radiosity solution, which has no specular transport)
+ * before it reads the mesh. */
 #define GATHER_MIRROR_BOUNCES 4
 
 /* The direct light leaving the surface at h towards -d, traced: one lamp
@@ -62,8 +63,9 @@ static vec3 gather_glossy(integ_ctx *c, const bsdf *b, const integ_surf *s, vec3
 
 /* What a final-gather ray from a diffuse point finds at h, coming along d:
  * the mesh's radiance there less the emission the point's shadow rays
- * already brought (through glass as the display shows it; behind a
- * surface's back nothing: radiosity's surfaces are one-sided), plus what a
+ * already brought (through glass as the display shows it, and what the
+ * glass's face reflects; behind a surface's back nothing: radiosity's
+ * surfaces are one-sided), plus what a
  * mirror there reflects: the radiosity solution has a mirror as black, so
  * the ray is reflected on (at most GATHER_MIRROR_BOUNCES times) and reads
  * the mesh where it lands. Emission seen in a mirror is left out as well:
@@ -83,7 +85,24 @@ static vec3 gather_hit(integ_ctx *c, emb_hit h, vec3 d)
         const scene_material *hm = &c->mesh->mats[h.mat];
         vec3 ng = h.rec->ng;
         float cosd = v3_dot(d, ng);
-        if (hm->dielectric) return v3_add(sum, v3_mul(att, integ_through_glass_base(c, &h, d, true)));
+        if (hm->dielectric) {
+            /* What the glass passes, and what its face reflects (F of the
+             * light, more at a slant), followed as a mirror's with
+             * probability F and weight 1, so that the extra ray costs what
+             * it brings: without it a room beside a glass partition lost
+             * that share of the light from the partition's side. */
+            sum = v3_add(sum, v3_mul(att, integ_through_glass_base(c, &h, d, true)));
+            rmesh_material x = rmesh_material_of(hm);
+            float cos_t;
+            if (k == GATHER_MIRROR_BOUNCES || rnd(c) >= rmesh_fresnel(fabsf(cosd), 1.0f / x.ior, &cos_t)) return sum;
+            vec3 n = cosd < 0.0f ? ng : v3_neg(ng);
+            d = bsdf_reflect(v3_neg(d), n);
+            vec3 o = emb_offset_ray(emb_hit_point(&h), n);
+            c->st->secondary++;
+            log_ray(c, o, d, INFINITY, 0);
+            if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return sum;
+            continue;
+        }
         if (cosd >= 0.0f) return sum;
         vec3 l;
         bool glossy = hm->glossy != SCENE_GLOSSY_NONE && maxc(hm->specular) > 0.0f;

@@ -59,8 +59,9 @@ enum {
  * the lamps' light where its rays land (TRC_GATHER_DIRECT_TRACE); 4: by
  * the landing surface's glossy lobe too; 5: both Fresnel branches on the
  * first three levels (fresnel_depth); 6: a glossy layer where a gather
- * ray lands reflects the room's light too (integ_gather.c). */
-#define TRC_VERSION 6
+ * ray lands reflects the room's light too (integ_gather.c); 7: a gather ray
+ * that meets glass takes its face's reflection too. */
+#define TRC_VERSION 7
 
 typedef struct trc_options {
     trc_mode mode;
