@@ -76,6 +76,7 @@ typedef struct rad_patch {
     uint32_t nlinks;
     uint64_t want;       /* triangles its last refinement wanted beyond its quota */
     float open;          /* the part of its hemisphere its links see (rad_solve.c, patch_openness) */
+    float ior;           /* glass: its index of refraction (its links weighed by rad_pane_reflectance); 0 */
     uint8_t direct;      /* emits or sees an emitter: the first pass's lit area (rad_solve.c) */
     uint8_t curved;      /* its shading normals leave its plane by over a degree (rad_ff_elem) */
 } rad_patch;
@@ -258,9 +259,21 @@ static inline vec3 rad_mean_B(const rad_ctx *c, int b, uint32_t i)
     return rad_true_B(*rad_B(c, b, i), c->patches[e->patch].E, e->exposed);
 }
 
+/* The share of the light arriving at cos (to its normal) that a pane of
+ * glass of index ior reflects, its two faces and their interreflections:
+ * 2 F / (1 + F), F the Fresnel reflectance of one face. */
+static inline float rad_pane_reflectance(float ior, float cos)
+{
+    float ct, f = rmesh_fresnel(fabsf(cos), 1.0f / ior, &ct);
+    return 2.0f * f / (1.0f + f);
+}
+
 /* What element e's own links bring it from buffer b: the irradiance into
  * *H and, with direct, the sources' emission in it into *Hd (push_pull in
- * rad_solve.c, and a leaf's links in rad_gather.c). */
+ * rad_solve.c, and a leaf's links in rad_gather.c). On glass, what it
+ * reflects: each link's light times the pane's reflectance at the angle
+ * from which the source's centre arrives (what passes through goes on by
+ * the links' visibility, docs/radiosity.md "Glass"). */
 static inline void rad_elem_links(const rad_ctx *c, const rad_elem *e, int b, bool direct, vec3 *H, vec3 *Hd)
 {
     const rad_patch *p = &c->patches[e->patch];
@@ -268,15 +281,24 @@ static inline void rad_elem_links(const rad_ctx *c, const rad_elem *e, int b, bo
     for (uint32_t i = 0; i < e->nlinks; i++) {
         const rad_link *l = &p->links[e->link_off + i];
         uint32_t src = l->src;
-        vec3 B;
+        vec3 B, E, at;
         if (src & RAD_CLUSTER_BIT) {
             B = rad_link_cluster_B(c, l, b, e->c);
-            if (direct) hd = v3_madd(hd, c->clusters[src & RAD_ID_MASK].E, l->ff);
+            E = c->clusters[src & RAD_ID_MASK].E;
+            at = c->clusters[src & RAD_ID_MASK].c;
         } else {
             B = *rad_B(c, b, src);
-            if (direct) hd = v3_madd(hd, c->patches[rad_el(c, src)->patch].E, l->ff);
+            E = c->patches[rad_el(c, src)->patch].E;
+            at = rad_el(c, src)->c;
         }
-        h = v3_madd(h, B, l->ff);
+        float ff = l->ff;
+        if (p->ior > 0.0f) {
+            vec3 d = v3_sub(at, e->c);
+            float len = v3_len(d);
+            ff *= rad_pane_reflectance(p->ior, len > 0.0f ? v3_dot(d, p->n) / len : 1.0f);
+        }
+        h = v3_madd(h, B, ff);
+        if (direct) hd = v3_madd(hd, E, ff);
     }
     *H = h;
     *Hd = hd;

@@ -21,7 +21,7 @@
 #include "common/timer.h"
 
 /* Bump when a change alters solutions, so old caches become stale. */
-#define RAD_SOLVER_VERSION 26u   /* 2: --max-triangles shared out per patch and pass; 3: the error
+#define RAD_SOLVER_VERSION 27u   /* 2: --max-triangles shared out per patch and pass; 3: the error
                                  * oracle, unbiased factors and visibility, the final gather;
                                  * 4: lamps seen in plane mirrors; 5: light passes glass;
                                  * 6: clusters weigh their patches by openness; 7: cluster links
@@ -49,7 +49,8 @@
                                  * leaves' steps keep the links' total light, vertices
                                  * gather with their shading normals; 25: sources pass on
                                  * their exposed part's radiosity (rad_src_B); 26: receivers
-                                 * on curved patches split along their shading terminator */
+                                 * on curved patches split along their shading terminator;
+                                 * 27: glass passes on what its faces reflect */
 
 void rad_params_default(rad_params *p)
 {
