@@ -1122,7 +1122,7 @@ static double floor_direct(float transmission)
  * (F of one face at each link's angle, rad_elem_links): absorbed / emitted 0.9962 (0.9992 without the pane),
  * bound 1.5 %. Before solver version 27 the reflection was lost (0.9292);
  * weighed by the hemisphere's mean reflectance it made light (1.0313). */
-static double glass_box_absorbed(bool pane)
+static double glass_box_absorbed(bool pane, int gather_passes)
 {
     ct_error err;
     ct_scene *s = scene_new("glassbox");
@@ -1142,6 +1142,7 @@ static double glass_box_absorbed(bool pane)
     rad_params p = test_params();
     p.error = 1e-4;
     p.tolerance = 1e-6;
+    p.gather_passes = gather_passes;
     ct_radmesh m;
     rad_stats st;
     solve_ok(s, &p, &m, &st);
@@ -1152,10 +1153,14 @@ static double glass_box_absorbed(bool pane)
 
 Test(radiosity, glass_passes_on_what_it_reflects, .timeout = 240)
 {
-    double without = glass_box_absorbed(false), with = glass_box_absorbed(true);
-    printf("metric: closed box, absorbed / emitted: %.4f without the pane, %.4f with it\n", without, with);
+    double without = glass_box_absorbed(false, 0), with = glass_box_absorbed(true, 0);
+    double steps = glass_box_absorbed(true, 2);
+    printf("metric: closed box, absorbed / emitted: %.4f without the pane, %.4f with it, %.4f with it and two "
+           "steps of the leaves' gather\n", without, with, steps);
     cr_expect(fabs(without - 1.0) < 0.005, "the box without the pane: %.4f", without);
     cr_expect(fabs(with - 1.0) < 0.015, "the box with a clear pane: absorbed / emitted %.4f", with);
+    /* (the leaves' gather scales what the links bring, weighed already) */
+    cr_expect(fabs(steps - 1.0) < 0.015, "the box with a clear pane, --gather-passes 2: %.4f", steps);
 }
 
 Test(radiosity, light_passes_glass)
