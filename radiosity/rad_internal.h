@@ -281,24 +281,22 @@ static inline void rad_elem_links(const rad_ctx *c, const rad_elem *e, int b, bo
     for (uint32_t i = 0; i < e->nlinks; i++) {
         const rad_link *l = &p->links[e->link_off + i];
         uint32_t src = l->src;
-        vec3 B, E, at;
-        if (src & RAD_CLUSTER_BIT) {
-            B = rad_link_cluster_B(c, l, b, e->c);
-            E = c->clusters[src & RAD_ID_MASK].E;
-            at = c->clusters[src & RAD_ID_MASK].c;
-        } else {
-            B = *rad_B(c, b, src);
-            E = c->patches[rad_el(c, src)->patch].E;
-            at = rad_el(c, src)->c;
-        }
+        bool cl = (src & RAD_CLUSTER_BIT) != 0;
         float ff = l->ff;
         if (p->ior > 0.0f) {
-            vec3 d = v3_sub(at, e->c);
+            vec3 d = v3_sub(cl ? c->clusters[src & RAD_ID_MASK].c : rad_el(c, src)->c, e->c);
             float len = v3_len(d);
             ff *= rad_pane_reflectance(p->ior, len > 0.0f ? v3_dot(d, p->n) / len : 1.0f);
         }
+        vec3 B;
+        if (cl) {
+            B = rad_link_cluster_B(c, l, b, e->c);
+            if (direct) hd = v3_madd(hd, c->clusters[src & RAD_ID_MASK].E, ff);
+        } else {
+            B = *rad_B(c, b, src);
+            if (direct) hd = v3_madd(hd, c->patches[rad_el(c, src)->patch].E, ff);
+        }
         h = v3_madd(h, B, ff);
-        if (direct) hd = v3_madd(hd, E, ff);
     }
     *H = h;
     *Hd = hd;
