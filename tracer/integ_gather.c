@@ -78,6 +78,17 @@ static vec3 gather_glossy(integ_ctx *c, const bsdf *b, const integ_surf *s, vec3
  * is traced instead of read (gather_direct): the mesh blurs its shadows
  * over the elements they cross, and a gather next to a contact reads them
  * at close range (docs/tracer.md, "Indirect light"). */
+/* Reflects *d off the surface at *h whose normal n faces the incoming
+ * side and traces on into *h; false when the ray leaves the scene. */
+static bool reflect_on(integ_ctx *c, emb_hit *h, vec3 *d, vec3 n)
+{
+    *d = bsdf_reflect(v3_neg(*d), n);
+    vec3 o = emb_offset_ray(emb_hit_point(h), n);
+    c->st->secondary++;
+    log_ray(c, o, *d, INFINITY, 0);
+    return emb_intersect(c->emb, o, *d, 0.0f, INFINITY, h);
+}
+
 static vec3 gather_hit(integ_ctx *c, emb_hit h, vec3 d)
 {
     vec3 sum = v3s(0.0f), att = v3s(1.0f);
@@ -95,12 +106,7 @@ static vec3 gather_hit(integ_ctx *c, emb_hit h, vec3 d)
             rmesh_material x = rmesh_material_of(hm);
             float cos_t;
             if (k == GATHER_MIRROR_BOUNCES || rnd(c) >= rmesh_fresnel(fabsf(cosd), 1.0f / x.ior, &cos_t)) return sum;
-            vec3 n = cosd < 0.0f ? ng : v3_neg(ng);
-            d = bsdf_reflect(v3_neg(d), n);
-            vec3 o = emb_offset_ray(emb_hit_point(&h), n);
-            c->st->secondary++;
-            log_ray(c, o, d, INFINITY, 0);
-            if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return sum;
+            if (!reflect_on(c, &h, &d, cosd < 0.0f ? ng : v3_neg(ng))) return sum;
             continue;
         }
         if (cosd >= 0.0f) return sum;
@@ -122,11 +128,7 @@ static vec3 gather_hit(integ_ctx *c, emb_hit h, vec3 d)
         sum = v3_add(sum, v3_mul(att, l));
         if (!(maxc(hm->mirror) > 0.0f) || k == GATHER_MIRROR_BOUNCES) return sum;
         att = v3_mul(att, hm->mirror);
-        d = bsdf_reflect(v3_neg(d), ng);
-        vec3 o = emb_offset_ray(emb_hit_point(&h), ng);
-        c->st->secondary++;
-        log_ray(c, o, d, INFINITY, 0);
-        if (!emb_intersect(c->emb, o, d, 0.0f, INFINITY, &h)) return sum;
+        if (!reflect_on(c, &h, &d, ng)) return sum;
     }
 }
 
