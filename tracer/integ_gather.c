@@ -73,8 +73,10 @@ static vec3 gather_glossy(integ_ctx *c, const bsdf *b, const integ_surf *s, vec3
  * bright, which in one-sample images is fireflies (the corrections of the
  * Cornell box's floor under its mirror sphere; on `table` at 256x256 a
  * one-sample image lost 1.8 dB with it, 16 samples 1.0 dB, and only from
- * about 64 samples on did it gain). What a mirror shows of the lit room
- * is kept. With TRC_GATHER_DIRECT_TRACE the direct part of that radiance
+ * about 64 samples on did it gain); that light comes from the lamps'
+ * images in plane mirrors and the photons' caustic estimate (caustics.h),
+ * at the gathering point itself. What a mirror shows of the lit room is
+ * kept. With TRC_GATHER_DIRECT_TRACE the direct part of that radiance
  * is traced instead of read (gather_direct): the mesh blurs its shadows
  * over the elements they cross, and a gather next to a contact reads them
  * at close range (docs/tracer.md, "Indirect light"). */

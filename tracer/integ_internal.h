@@ -35,6 +35,17 @@ static inline vec3 clamp0(vec3 a) { return v3(bsdf_maxf(a.x, 0.0f), bsdf_maxf(a.
 static inline float maxc(vec3 a) { return bsdf_maxf(a.x, bsdf_maxf(a.y, a.z)); }
 static inline float minf(float x, float y) { return x < y || y != y ? x : y; }
 
+/* The lamps' reflective caustic (caustics.h) that the diffuse layer at h
+ * sends back along a ray that arrived along d: rho_d / pi times the
+ * irradiance interpolated as the mesh's values are; on the front side
+ * only, as the mesh's values hold. */
+static inline vec3 integ_caustic(const integ_ctx *c, const emb_hit *h, vec3 d)
+{
+    if (!c->caustic || v3_dot(d, h->rec->ng) >= 0.0f) return v3s(0.0f);
+    vec3 e = integ_vertex_lerp(c->caustic, h);
+    return v3_mul(v3_scale(c->bmats[h->mat].kd, (float)(1.0 / M_PI)), e);
+}
+
 static inline void log_ray(integ_ctx *c, vec3 o, vec3 d, float tfar, uint32_t shadow)
 {
     trc_raylog *l = c->st->log;

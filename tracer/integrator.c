@@ -218,8 +218,12 @@ static vec3 drt_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, int de
             /* The first diffuse hit of the path (the camera's, or seen in
              * mirrors and through glass: the hits whose emission counts
              * fully); behind a glossy bounce the mesh's value at the hit is
-             * blurred by the lobe anyway. */
+             * blurred by the lobe anyway. The caustic only here: the mesh's
+             * value, read below and where the gather lands, holds what
+             * mirrors and glass reflect already (spread as if diffuse,
+             * docs/radiosity.md), the hit's own the gather cannot see. */
             L = v3_add(L, integ_final_gather(c, &s, &b));
+            L = v3_add(L, integ_caustic(c, &s.h, d));
         } else if (c->rad) {
             /* The radiosity solution's indirect part at this very point. */
             vec3 ind = v3_sub(integ_vertex_lerp(c->rad->rad, &s.h), integ_vertex_lerp(c->rad->rad_direct, &s.h));

@@ -25,6 +25,7 @@ typedef struct integ_ctx {
     const emb_mesh *mesh;
     const light_set *lights;
     const mlight_set *mirrors; /* plane mirrors as virtual lights (drt with a mesh); NULL: none */
+    const vec3 *caustic;       /* per mesh vertex: reflective caustic irradiance (caustics.h); NULL: none */
     const bsdf_mat *bmats;     /* per material: its precomputed lobes */
     const ct_radmesh *rad;     /* NULL: no interactive solution */
     const trc_options *opt;

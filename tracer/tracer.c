@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "tracer/bsdf.h"
+#include "tracer/caustics.h"
 #include "tracer/embree_scene.h"
 #include "tracer/integrator.h"
 #include "tracer/lights.h"
@@ -36,6 +37,8 @@ struct trc_tracer {
     mlight_set *mirrors;
     bsdf_mat *bmats;     /* per scene material */
     bool has_dielectric;
+    vec3 *caustic;       /* per mesh vertex: reflective caustic irradiance (drt with a mesh); NULL: none */
+    caus_stats caus;
 };
 
 void trc_options_default(trc_options *o, trc_mode mode)
@@ -69,6 +72,7 @@ void trc_options_default(trc_options *o, trc_mode mode)
     o->indirect = TRC_INDIRECT_GATHER;
     o->gather_rays = 4;
     o->gather_direct = TRC_GATHER_DIRECT_TRACE;
+    o->caustic_photons = mode == TRC_MODE_DRT ? TRC_CAUSTIC_PHOTONS : 0;
 }
 
 const char *trc_mode_name(trc_mode m)
@@ -121,6 +125,9 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
         return ct_fail(err, CT_EINVAL, "gather rays %d outside 1..4096", o->gather_rays);
     if (o->gather_direct != TRC_GATHER_DIRECT_MESH && o->gather_direct != TRC_GATHER_DIRECT_TRACE)
         return ct_fail(err, CT_EINVAL, "gather direct light %d unknown", (int)o->gather_direct);
+    if (o->caustic_photons < 0 || o->caustic_photons > TRC_CAUSTIC_PHOTONS_MAX)
+        return ct_fail(err, CT_EINVAL, "caustic photons %d outside 0..%d", o->caustic_photons,
+                       TRC_CAUSTIC_PHOTONS_MAX);
     int crc = rad ? rmesh_check_nodes(rad, scene, err) : CT_OK;
     if (crc) return crc;
     trc_tracer *t = calloc(1, sizeof *t);
@@ -138,6 +145,8 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
      * mirror_light): without a mesh its path-traced indirect light finds them. */
     if (rad && o->mode == TRC_MODE_DRT) {
         rc = mlight_build(t->emb, t->lights, &t->mirrors, err);
+        if (rc) goto fail;
+        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed, &t->caustic, &t->caus, err);
         if (rc) goto fail;
     }
     t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);
@@ -161,6 +170,7 @@ void trc_free(trc_tracer *t)
     if (!t) return;
     light_free(t->lights);
     mlight_free(t->mirrors);
+    free(t->caustic);
     free(t->bmats);
     emb_free(t->emb);
     free(t);
@@ -173,6 +183,13 @@ void trc_light_choice(const trc_tracer *t, uint32_t *emitters, bool *spatial, do
     *gain = light_spatial_gain(t->lights);
 }
 
+void trc_caustic_stats(const trc_tracer *t, uint64_t *photons, uint64_t *landed, double *seconds)
+{
+    *photons = t->caus.photons;
+    *landed = t->caus.deposits;
+    *seconds = t->caus.seconds;
+}
+
 const trc_options *trc_get_options(const trc_tracer *t) { return &t->opt; }
 
 static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
@@ -181,6 +198,7 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->mesh = emb_get_mesh(t->emb);
     c->lights = t->lights;
     c->mirrors = t->mirrors;
+    c->caustic = t->caustic;
     c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;

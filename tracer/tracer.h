@@ -60,8 +60,13 @@ enum {
  * the landing surface's glossy lobe too; 5: both Fresnel branches on the
  * first three levels (fresnel_depth); 6: a glossy layer where a gather
  * ray lands reflects the room's light too (integ_gather.c); 7: a gather ray
- * that meets glass takes its face's reflection too. */
-#define TRC_VERSION 7
+ * that meets glass takes its face's reflection too; 8: drt with a mesh
+ * adds the lamps' reflective caustics (caustics.h). */
+#define TRC_VERSION 8
+
+/* drt's default photons for the reflective caustics (caustics.h). */
+#define TRC_CAUSTIC_PHOTONS 1000000
+#define TRC_CAUSTIC_PHOTONS_MAX 100000000
 
 typedef struct trc_options {
     trc_mode mode;
@@ -73,6 +78,7 @@ typedef struct trc_options {
     trc_indirect indirect;   /* drt with a mesh: its indirect light */
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
+    int caustic_photons; /* drt with a mesh: photons of the lamps' reflective caustics (0: none) */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
@@ -81,7 +87,8 @@ typedef struct trc_options {
  * drt and reuse-diffuse K=4, B=4, D=8, glossy splitting on the first level
  * only, both Fresnel branches on the first three;
  * drt's indirect light by final gather, G=4, the lamps traced where its
- * rays land. Seed 1. */
+ * rays land, and its reflective caustics from DRT_CAUSTIC_PHOTONS photons.
+ * Seed 1. */
 void trc_options_default(trc_options *o, trc_mode mode);
 
 /* "path", "drt", "reuse-diffuse". */
@@ -147,6 +154,12 @@ const trc_options *trc_get_options(const trc_tracer *t);
 /* How the tracer picks lights, for logs: its emitters, whether each shading
  * point weighs them itself, and the estimated gain of doing so (lights.h). */
 void trc_light_choice(const trc_tracer *t, uint32_t *emitters, bool *spatial, double *gain);
+
+/* The reflective caustics' photons (caustics.h): shot, landed after a
+ * reflection, and the seconds their shooting and estimate took at
+ * trc_new; all 0 where there are none (no mesh, not drt, no mirror or
+ * glass, or --caustic-photons 0). */
+void trc_caustic_stats(const trc_tracer *t, uint64_t *photons, uint64_t *landed, double *seconds);
 
 /* Traces n requests into n sample records (full L_hq). */
 void trc_trace(const trc_tracer *t, const trc_view *v, const ct_request *req, size_t n,

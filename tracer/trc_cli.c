@@ -28,6 +28,9 @@ static const optab ROWS[] = {
     {"gather-direct", 0, OPTAB_CHOICE, OF(gather_direct), 0, 0, "trace", "trace|mesh",
      "--indirect gather: the lamps' light where a gather ray lands, by one traced lamp sample (the mesh's indirect "
      "part beside it) or read from the mesh (faster; its shadows are blurred, docs/tracer.md)", GATHER_DIRECT},
+    {"caustic-photons", 0, OPTAB_INT, OF(caustic_photons), -1, TRC_CAUSTIC_PHOTONS_MAX, "-1", "N",
+     "drt with a radiosity mesh: photons shot from the lamps for their reflective caustics, the light mirrors and "
+     "glass faces throw onto diffuse surfaces (0: none; -1: the mode's, drt 1000000; docs/tracer.md)", NULL},
 };
 #undef OF
 
@@ -48,4 +51,5 @@ void trc_cli_apply(const trc_cli *c, trc_options *o)
     o->indirect = (trc_indirect)c->indirect;
     o->gather_rays = c->gather_rays;
     o->gather_direct = (trc_gather_direct)c->gather_direct;
+    if (c->caustic_photons >= 0) o->caustic_photons = c->caustic_photons;
 }

@@ -24,11 +24,12 @@ typedef struct trc_cli {
     int indirect;       /* trc_indirect */
     int gather_rays;    /* G */
     int gather_direct;  /* trc_gather_direct */
+    int caustic_photons;   /* -1: the mode's */
 } trc_cli;
 
 /* The rows (optab.h) filling a trc_cli: --mode (default drt),
  * --shadow-rays, --branch, --branch-depth, --depth, --indirect,
- * --gather-rays, --gather-direct. */
+ * --gather-rays, --gather-direct, --caustic-photons. */
 const optab *trc_cli_table(size_t *n);
 
 /* The options of c's mode with what c sets over them (the seed and the

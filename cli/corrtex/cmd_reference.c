@@ -368,6 +368,11 @@ int cmd_reference(int argc, char **argv)
     if (gain > 0.0)
         ct_info(CMD, "%u emitters, picked %s (estimated gain of a per-point choice %.2f)", nem,
                 spatial ? "per shading point" : "by power", gain);
+    uint64_t ph, landed;
+    double cs;
+    trc_caustic_stats(t, &ph, &landed, &cs);
+    if (ph) ct_info(CMD, "reflective caustics: %llu photons, %llu landed after a reflection, %.2f s",
+                    (unsigned long long)ph, (unsigned long long)landed, cs);
     if ((rc = img_alloc(&img, a.width, a.height, &err))) goto fail;
     render_options ro;
     render_options_default(&ro, a.width, a.height);
