@@ -29,11 +29,13 @@ typedef struct emis_w {
 
 /* The emission mode of a ray leaving a mirror or dielectric: reflections see
  * lights fully; a refraction continues a straight line that shadow rays
- * already looked along, unless it started at the camera or a reflection. */
-static inline emis_w after_delta(emis_w in, bool transmit)
+ * already looked along, unless it started at the camera or a reflection.
+ * Where glass blocks shadow rays (TRC_GLASS_REFRACTED) no light sample can
+ * make a path through it, so a refraction sees lights fully too. */
+static inline emis_w after_delta(const integ_ctx *c, emis_w in, bool transmit)
 {
     emis_w out = {EMIS_FULL, 0.0f, 1, in.from, in.from_key};
-    if (transmit && in.mode != EMIS_FULL) out.mode = EMIS_NONE;
+    if (transmit && in.mode != EMIS_FULL && !c->glass_refracted) out.mode = EMIS_NONE;
     return out;
 }
 
@@ -108,7 +110,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         if (!bsdf_sample_all(&b, wo, u0, u1, u2, &bs)) break;
         beta = v3_mul(beta, bs.weight);
         if (bs.delta) {
-            ew = after_delta(ew, bs.transmit);
+            ew = after_delta(c, ew, bs.transmit);
         } else {
             ew.mode = EMIS_MIS;
             ew.pdf = bs.pdf;
@@ -160,7 +162,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
 {
     vec3 L = v3s(0.0f);
     if (nb <= 0 && !(maxc(b->L.km) > 0.0f) && !b->L.dielectric) return L;
-    emis_w refl = after_delta(ew, false), refr = after_delta(ew, true);
+    emis_w refl = after_delta(c, ew, false), refr = after_delta(c, ew, true);
     vec3 up = emb_offset_ray(s->p, b->ng);
     for (int i = 0; i < nb; i++) {
         bsdf_sample bs;

@@ -30,6 +30,7 @@ typedef struct integ_ctx {
     const ct_radmesh *rad;     /* NULL: no interactive solution */
     const trc_options *opt;
     bool has_dielectric;       /* shadow rays must look through glass */
+    bool glass_refracted;      /* TRC_GLASS_REFRACTED: glass blocks shadow rays */
     ct_rng rng;
     trc_stats *st;
 } integ_ctx;

@@ -103,12 +103,17 @@ const char *trc_gather_direct_name(trc_gather_direct g)
     return "?";
 }
 
-int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, trc_tracer **out,
-            ct_error *err)
+const char *trc_glass_light_name(trc_glass_light g)
 {
-    *out = NULL;
-    if (o->mode == TRC_MODE_REUSE && !rad)
-        return ct_fail(err, CT_EINVAL, "mode reuse-diffuse needs a radiosity mesh");
+    switch (g) {
+    case TRC_GLASS_STRAIGHT: return "straight";
+    case TRC_GLASS_REFRACTED: return "refracted";
+    }
+    return "?";
+}
+
+int trc_options_check(const trc_options *o, ct_error *err)
+{
     if (o->shadow_rays < 1 || o->shadow_rays > 4096)
         return ct_fail(err, CT_EINVAL, "shadow rays %d outside 1..4096", o->shadow_rays);
     if (o->branch < 1 || o->branch > 4096)
@@ -128,7 +133,24 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (o->caustic_photons < 0 || o->caustic_photons > TRC_CAUSTIC_PHOTONS_MAX)
         return ct_fail(err, CT_EINVAL, "caustic photons %d outside 0..%d", o->caustic_photons,
                        TRC_CAUSTIC_PHOTONS_MAX);
-    int crc = rad ? rmesh_check_nodes(rad, scene, err) : CT_OK;
+    if (o->glass_light != TRC_GLASS_STRAIGHT && o->glass_light != TRC_GLASS_REFRACTED)
+        return ct_fail(err, CT_EINVAL, "glass light %d unknown", (int)o->glass_light);
+    /* drt's direct light, gather and caustics are built on the straight
+     * model; only path tracing has a refracted variant. */
+    if (o->glass_light == TRC_GLASS_REFRACTED && o->mode != TRC_MODE_PATH)
+        return ct_fail(err, CT_EINVAL, "glass light \"refracted\" is for path tracing only (mode %s)",
+                       trc_mode_name(o->mode));
+    return CT_OK;
+}
+
+int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, trc_tracer **out,
+            ct_error *err)
+{
+    *out = NULL;
+    if (o->mode == TRC_MODE_REUSE && !rad)
+        return ct_fail(err, CT_EINVAL, "mode reuse-diffuse needs a radiosity mesh");
+    int crc = trc_options_check(o, err);
+    if (crc == CT_OK && rad) crc = rmesh_check_nodes(rad, scene, err);
     if (crc) return crc;
     trc_tracer *t = calloc(1, sizeof *t);
     if (!t) return ct_fail(err, CT_ENOMEM, "out of memory");
@@ -202,7 +224,8 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;
-    c->has_dielectric = t->has_dielectric;
+    c->has_dielectric = t->has_dielectric && t->opt.glass_light == TRC_GLASS_STRAIGHT;
+    c->glass_refracted = t->opt.glass_light == TRC_GLASS_REFRACTED;
     c->st = st;
 }
 

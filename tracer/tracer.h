@@ -46,6 +46,13 @@ typedef enum trc_gather_direct {
     TRC_GATHER_DIRECT_TRACE = 1    /* the mesh's indirect part plus one traced lamp sample */
 } trc_gather_direct;
 
+/* How path tracing finds the lamps' light through glass (docs/tracer.md,
+ * "Shadow rays through glass"). */
+typedef enum trc_glass_light {
+    TRC_GLASS_STRAIGHT  = 0,   /* shadow rays pass glass, attenuated (the paper's; drt's only model) */
+    TRC_GLASS_REFRACTED = 1    /* glass blocks shadow rays: only refracted paths bring that light */
+} trc_glass_light;
+
 /* Random stream dimensions (the third id of rng_make). */
 enum {
     TRC_DIM_TRACE = 0,   /* everything the integrator draws */
@@ -79,6 +86,7 @@ typedef struct trc_options {
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
     int caustic_photons; /* drt with a mesh: photons of the lamps' reflective caustics (0: none) */
+    trc_glass_light glass_light;   /* path only: TRC_GLASS_REFRACTED for a reference without the straight model */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
@@ -99,6 +107,9 @@ const char *trc_indirect_name(trc_indirect i);
 
 /* "mesh", "trace". */
 const char *trc_gather_direct_name(trc_gather_direct g);
+
+/* "straight", "refracted". */
+const char *trc_glass_light_name(trc_glass_light g);
 
 /* A recorded ray (benchmark replay of the very rays a run traced). */
 typedef struct trc_ray {
@@ -138,6 +149,11 @@ typedef struct trc_view {
 } trc_view;
 
 typedef struct trc_tracer trc_tracer;
+
+/* Whether o's values and their combination are valid (ranges; the refracted
+ * glass light only for path tracing): what trc_new refuses, for programs
+ * that check their options before loading a scene. */
+int trc_options_check(const trc_options *o, ct_error *err);
 
 /* A tracer over the scene, intersecting rad's triangles when rad is given
  * (then samples carry L_base), else the scene's. reuse-diffuse needs rad.

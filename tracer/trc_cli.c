@@ -4,6 +4,7 @@
 static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
 static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
 static const int GATHER_DIRECT[] = {TRC_GATHER_DIRECT_TRACE, TRC_GATHER_DIRECT_MESH};
+static const int GLASS_LIGHT[] = {TRC_GLASS_STRAIGHT, TRC_GLASS_REFRACTED};
 
 #define OF(f) offsetof(trc_cli, f)
 static const optab ROWS[] = {
@@ -31,6 +32,10 @@ static const optab ROWS[] = {
     {"caustic-photons", 0, OPTAB_INT, OF(caustic_photons), -1, TRC_CAUSTIC_PHOTONS_MAX, "-1", "N",
      "drt with a radiosity mesh: photons shot from the lamps for their reflective caustics, the light mirrors and "
      "glass faces throw onto diffuse surfaces (0: none; -1: the mode's, drt 1000000; docs/tracer.md)", NULL},
+    {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "straight", "straight|refracted",
+     "path: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model, drt's too) "
+     "or only by refracted paths (glass blocks shadow rays: unbiased, slower to converge; docs/tracer.md)",
+     GLASS_LIGHT},
 };
 #undef OF
 
@@ -52,4 +57,12 @@ void trc_cli_apply(const trc_cli *c, trc_options *o)
     o->gather_rays = c->gather_rays;
     o->gather_direct = (trc_gather_direct)c->gather_direct;
     if (c->caustic_photons >= 0) o->caustic_photons = c->caustic_photons;
+    o->glass_light = (trc_glass_light)c->glass_light;
+}
+
+int trc_cli_check(const trc_cli *c, ct_error *err)
+{
+    trc_options o;
+    trc_cli_apply(c, &o);
+    return trc_options_check(&o, err);
 }

@@ -25,15 +25,20 @@ typedef struct trc_cli {
     int gather_rays;    /* G */
     int gather_direct;  /* trc_gather_direct */
     int caustic_photons;   /* -1: the mode's */
+    int glass_light;       /* trc_glass_light */
 } trc_cli;
 
 /* The rows (optab.h) filling a trc_cli: --mode (default drt),
  * --shadow-rays, --branch, --branch-depth, --depth, --indirect,
- * --gather-rays, --gather-direct, --caustic-photons. */
+ * --gather-rays, --gather-direct, --caustic-photons, --glass-light. */
 const optab *trc_cli_table(size_t *n);
 
 /* The options of c's mode with what c sets over them (the seed and the
  * device configuration stay the mode's defaults). */
 void trc_cli_apply(const trc_cli *c, trc_options *o);
+
+/* trc_options_check of what c gives: a combination the rows cannot refuse
+ * one by one (--glass-light refracted with a mode other than path). */
+int trc_cli_check(const trc_cli *c, ct_error *err);
 
 #endif

@@ -474,7 +474,7 @@ int cmd_converge(int argc, char **argv)
     }
     if (parse_list(o.samples, ck, &nck, "--samples", &err) ||
         (o.samples_after && parse_list(o.samples_after, ck2, &nck2, "--samples-after", &err)) ||
-        rq_options_check(&ro, &err)) {
+        rq_options_check(&ro, &err) || trc_cli_check(&o.trc, &err)) {
         ct_log(CT_LOG_ERROR, COMPONENT, "%s", err.msg);
         return 2;
     }

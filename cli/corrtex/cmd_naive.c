@@ -337,7 +337,8 @@ static int check_args(const naive_opts *o, ct_error *err)
     if ((size_t)o->spp_frame > npx)
         return ct_fail(err, CT_EINVAL, "--samples-per-frame %d exceeds the %zu pixels of a frame", o->spp_frame,
                        npx);
-    int rc = fs_folder_check("-o", o->out, err);
+    int rc = trc_cli_check(&o->cli, err);
+    if (rc == 0) rc = fs_folder_check("-o", o->out, err);
     if (rc) return rc;
     for (int k = 0; o->ref && k < o->frames; k++) {
         char name[64], file[4096];

@@ -123,9 +123,17 @@ static void help(FILE *f)
         "                      trace: one traced lamp sample beside the mesh's indirect part\n"
         "                      mesh: read from the mesh (faster; its shadows blurred)\n"
         "                    (default %s)\n"
+        "  --caustic-photons N   drt with a radiosity mesh: photons shot from the lamps\n"
+        "                    for their reflective caustics, the light curved mirrors and\n"
+        "                    glass faces throw onto diffuse surfaces (0: none; default %d)\n"
+        "  --glass-light L   path: the lamps' light through glass,\n"
+        "                      straight: by shadow rays that pass glass attenuated (the\n"
+        "                           paper's model, drt's too; default)\n"
+        "                      refracted: only by refracted paths (glass blocks shadow\n"
+        "                           rays): no straight-line shortcut, slower to converge\n"
         "  --seed N          random seed (default %llu)\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.fresnel_depth, d.depth, p.depth,
-        trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct),
+        trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct), d.caustic_photons,
         (unsigned long long)p.seed);
     fprintf(f,
         "  --tile N          tile edge in pixels (default 16)\n"
@@ -307,7 +315,7 @@ int cmd_reference(int argc, char **argv)
 
     /* an image no reader of ours would open again (16384 x 65536 traced
      * for hours, then written as 6 GB nothing loads) is refused at once */
-    if ((rc = img_size_check(a.width, a.height, &err))) goto fail;
+    if ((rc = img_size_check(a.width, a.height, &err)) || (rc = trc_cli_check(&a.trc, &err))) goto fail;
     /* One image (no --path, or --frame K): -o is a file, and its folder must
      * exist, as for every program's output file (docs/architecture.md,
      * "Outputs"); a missing one used to be created, where corrtex radiosity

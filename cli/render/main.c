@@ -186,6 +186,7 @@ static int parse(int argc, char **argv, opts *o, ct_error *err)
                            "is, nothing is solved)", SOLVE_OPTS[i]);
     rc = rq_options_check(&o->rq, err);
     if (rc == 0) rc = rad_params_check(&o->rad, err);
+    if (rc == 0) rc = trc_cli_check(&o->trc, err);
     if (rc == 0 && o->drive.batch_min > o->drive.batch_max)
         rc = ct_fail(err, CT_EINVAL, "--batch-min %d is larger than --batch-max %d", o->drive.batch_min,
                      o->drive.batch_max);

@@ -28,6 +28,11 @@ run "$BIN/corrtex" reference "$SCENE" --camera top --width 32 --height 24 --spp 
 run exrheader "$tmp/h.exr" >"$tmp/hdr2" 2>&1 || die "exrheader cannot read h.exr"
 grep -qE '^ +R, 16-bit floating-point' "$tmp/hdr2" || die "--half did not write half floats"
 
+# Path tracing without the straight model of light through glass.
+run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode path --glass-light refracted \
+    --quiet -o "$tmp/g.exr" >/dev/null 2>&1 || die "path --glass-light refracted failed"
+exrheader "$tmp/g.exr" >/dev/null 2>&1 || die "--glass-light refracted wrote no readable EXR"
+
 # reuse-diffuse needs a radiosity mesh (here the stand-in).
 run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode reuse-diffuse \
     --stand-in-radiosity 0.1 --quiet -o "$tmp/r.exr" >/dev/null 2>&1 || die "reuse-diffuse with a stand-in failed"
@@ -79,6 +84,9 @@ check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
 check "--indirect: 'photons' is not one of mesh|gather" "$SCENE" "${common[@]}" --mode drt --indirect photons
 check "--gather-rays: '0'" "$SCENE" "${common[@]}" --mode drt --gather-rays 0
+check "--glass-light: 'bent' is not one of straight|refracted" "$SCENE" "${common[@]}" --mode path --glass-light bent
+check "glass light \"refracted\" is for path tracing only (mode drt)" "$SCENE" "${common[@]}" --mode drt \
+  --glass-light refracted
 # The tracer's option table (tracer/trc_cli.h): -1 means the mode's level, less is refused.
 check "--depth: '-2' is not an integer" "$SCENE" "${common[@]}" --mode drt --depth -2
 check "--branch-depth: '1025'" "$SCENE" "${common[@]}" --mode drt --branch-depth 1025

@@ -100,9 +100,11 @@ int ts_smooth_sphere(ct_scene *s, const char *name, uint32_t mat, vec3 centre, f
     for (int j = 0; j < nv; j++)
         for (int i = 0; i < nu; i++) {
             uint32_t a = base + (uint32_t)(j * nu + i), b = base + (uint32_t)(j * nu + (i + 1) % nu);
-            uint32_t q[4] = {a, a + (uint32_t)nu, b + (uint32_t)nu, b};
+            /* counter-clockwise seen from outside: j runs down from the
+             * north pole, i east */
+            uint32_t q[4] = {a, b, b + (uint32_t)nu, a + (uint32_t)nu};
             /* the poles' quads have two corners in one place: triangles */
-            uint32_t t[3] = {a, q[1], j == 0 ? q[2] : b};
+            uint32_t t[3] = {a, j == 0 ? q[2] : b, q[3]};
             int rc = j == 0 || j == nv - 1 ? scene_add_polygon(s, t, 3, err) : scene_add_polygon(s, q, 4, err);
             if (rc) return rc;
         }
@@ -115,6 +117,15 @@ int ts_diffuse(ct_scene *s, const char *name, vec3 rho, vec3 le, ct_error *err)
     scene_material m = scene_material_default(name);
     m.diffuse = rho;
     m.emission = le;
+    return scene_add_material(s, &m, err);
+}
+
+int ts_glass(ct_scene *s, const char *name, float ior, vec3 transmission, ct_error *err)
+{
+    scene_material m = scene_material_default(name);
+    m.dielectric = 1;
+    m.ior = ior;
+    m.transmission = transmission;
     return scene_add_material(s, &m, err);
 }
 

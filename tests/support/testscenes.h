@@ -28,6 +28,10 @@ int ts_smooth_sphere(ct_scene *s, const char *name, uint32_t mat, vec3 centre, f
 /* Adds a material with the given diffuse albedo and emission; returns its index. */
 int ts_diffuse(ct_scene *s, const char *name, vec3 rho, vec3 le, ct_error *err);
 
+/* Adds a clear dielectric of index ior with a transmission colour per
+ * crossing; returns its index. */
+int ts_glass(ct_scene *s, const char *name, float ior, vec3 transmission, ct_error *err);
+
 /* A closed 4x3x4 room (diffuse walls, a ceiling light) holding every
  * material kind: a Ward sphere, a Phong box, a mirror, a glass box. Camera
  * "main" looks into it. Finalized. NULL on failure (err filled). */

@@ -209,11 +209,7 @@ static vec3 slab_moments(trc_mode mode, bool below, bool above, int n, int fresn
 {
     ct_error err;
     ct_scene *s = scene_new("slab");
-    scene_material g = scene_material_default("glass");
-    g.dielectric = 1;
-    g.ior = 1.5f;
-    g.transmission = v3s(1.0f);
-    int gm = scene_add_material(s, &g, &err);
+    int gm = ts_glass(s, "glass", 1.5f, v3s(1.0f), &err);
     int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(1.0f), &err);
     cr_assert(gm >= 0 && lamp >= 0);
     cr_assert(ts_box(s, "slab", (uint32_t)gm, v3(-50, -0.1f, -50), v3(50, 0, 50), false, &err) >= 0);
@@ -692,11 +688,7 @@ static vec3 under_slab(trc_mode mode, bool with_slab, float light_x)
     ct_scene *s = scene_new("shadow");
     int floor_m = ts_diffuse(s, "floor", v3s(0.5f), v3s(0.0f), &err);
     int lamp = ts_diffuse(s, "lamp", v3s(0.0f), v3s(100.0f), &err);
-    scene_material g = scene_material_default("glass");
-    g.dielectric = 1;
-    g.ior = 1.5f;
-    g.transmission = v3(1.0f, 0.5f, 1.0f);
-    int gm = scene_add_material(s, &g, &err);
+    int gm = ts_glass(s, "glass", 1.5f, v3(1.0f, 0.5f, 1.0f), &err);
     cr_assert(floor_m >= 0 && lamp >= 0 && gm >= 0);
     cr_assert(ts_quad(s, "floor", (uint32_t)floor_m, v3(-10, 0, -10), v3(0, 0, 20), v3(20, 0, 0), &err) >= 0);
     cr_assert(ts_quad(s, "light", (uint32_t)lamp, v3(light_x - 0.05f, 5, -0.05f), v3(0.1f, 0, 0), v3(0, 0, 0.1f),
@@ -768,11 +760,8 @@ Test(tracer, glass_l_base_shows_the_surface_behind)
     ct_error err;
     ct_scene *s = scene_new("pane");
     int red = ts_diffuse(s, "red", v3(0.8f, 0.2f, 0.1f), v3s(0.0f), &err);
-    scene_material g = scene_material_default("glass");
-    g.dielectric = 1;
-    g.ior = 1.5f;
-    g.transmission = v3(1.0f, 0.5f, 0.9f);
-    int gm = scene_add_material(s, &g, &err);
+    vec3 tint = v3(1.0f, 0.5f, 0.9f);
+    int gm = ts_glass(s, "glass", 1.5f, tint, &err);
     cr_assert(red >= 0 && gm >= 0);
     cr_assert(ts_quad(s, "wall", (uint32_t)red, v3(-10, -10, -5), v3(10.2f, 0, 0), v3(0, 20, 0), &err) >= 0);
     int slab = ts_box(s, "slab", (uint32_t)gm, v3(-3, -3, -2.2f), v3(3, 3, -2), false, &err);
@@ -799,7 +788,7 @@ Test(tracer, glass_l_base_shows_the_surface_behind)
         vec3 d = v3_norm(out[i].hit);
         float ct;
         float f = bsdf_fresnel(fabsf(d.z), 1.0f / 1.5f, &ct);
-        vec3 pass = v3_scale(g.transmission, 1.0f - f);
+        vec3 pass = v3_scale(tint, 1.0f - f);
         vec3 want = i == 2 ? v3s(0.0f) : v3_mul(v3_mul(pass, pass), v3(0.8f, 0.2f, 0.1f));
         printf("metric: glass pixel (%g, %g): cos %.3f, L_base %.4f %.4f %.4f, want %.4f %.4f %.4f\n",
                (double)px[i], (double)py[i], (double)fabsf(d.z), (double)out[i].l_base.x, (double)out[i].l_base.y,
