@@ -47,7 +47,7 @@ typedef enum trc_gather_direct {
 } trc_gather_direct;
 
 /* How path tracing finds the lamps' light through glass (docs/tracer.md,
- * "Shadow rays through glass"). */
+ * Light sampling, "Light through glass, refracted"). */
 typedef enum trc_glass_light {
     TRC_GLASS_STRAIGHT  = 0,   /* shadow rays pass glass, attenuated (the paper's; drt's only model) */
     TRC_GLASS_REFRACTED = 1    /* glass blocks shadow rays: only refracted paths bring that light */

@@ -255,9 +255,10 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
 {
     uint64_t rays = trc_stats_rays(&r->stats);
     double s = r->seconds > 0 ? r->seconds : 1e-9;
-    printf("reference: %dx%d, %d spp, mode %s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
-           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->trc.mode), a->threads, a->threads == 1 ? "" : "s",
-           nimages, nimages == 1 ? "" : "s", r->seconds, total_s);
+    printf("reference: %dx%d, %d spp, mode %s%s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
+           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->trc.mode),
+           a->trc.glass_light == TRC_GLASS_REFRACTED ? " (glass light refracted)" : "", a->threads,
+           a->threads == 1 ? "" : "s", nimages, nimages == 1 ? "" : "s", r->seconds, total_s);
     printf("reference: %llu samples, %.0f samples/s; %llu rays (%llu primary, %llu secondary, "
            "%llu shadow), %.0f rays/s\n",
            (unsigned long long)r->stats.samples, (double)r->stats.samples / s, (unsigned long long)rays,

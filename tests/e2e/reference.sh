@@ -30,7 +30,8 @@ grep -qE '^ +R, 16-bit floating-point' "$tmp/hdr2" || die "--half did not write 
 
 # Path tracing without the straight model of light through glass.
 run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode path --glass-light refracted \
-    --quiet -o "$tmp/g.exr" >/dev/null 2>&1 || die "path --glass-light refracted failed"
+    -o "$tmp/g.exr" >"$tmp/g.log" 2>&1 || die "path --glass-light refracted failed"
+grep -q "mode path (glass light refracted)" "$tmp/g.log" || die "the report does not say the glass light is refracted"
 exrheader "$tmp/g.exr" >/dev/null 2>&1 || die "--glass-light refracted wrote no readable EXR"
 
 # reuse-diffuse needs a radiosity mesh (here the stand-in).
