@@ -272,5 +272,73 @@ int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *plan
 void metrics_regions_free(img_regions *r)
 {
     free(r->ratio);
+    free(r->z);
     r->ratio = NULL;
+    r->z = NULL;
+}
+
+/* The variance of x's mean over the block at (x0, y0), side b, from the
+ * pixel differences to x2 (NULL: 0); *mean gets x's mean. */
+static double block_mean_var(const ct_image *x, const ct_image *x2, int x0, int y0, int b, double *mean)
+{
+    double s = 0.0, d2 = 0.0;
+    for (int y = y0; y < y0 + b; y++)
+        for (int xx = x0; xx < x0 + b; xx++) {
+            double v = px_mean(x, xx, y);
+            s += v;
+            if (x2) {
+                double d = v - px_mean(x2, xx, y);
+                d2 += d * d;
+            }
+        }
+    double n = (double)b * b;
+    *mean = s / n;
+    return d2 / (2.0 * n * n);
+}
+
+int metrics_regions_noise(const ct_image *a, const ct_image *a2, const ct_image *ref, const ct_image *ref2,
+                          double sigmas, img_regions *r, ct_error *err)
+{
+    if (!a2 && !ref2) return ct_fail(err, CT_EINVAL, "metrics: no repeat to take the noise from");
+    const ct_image *all[2] = {a2, ref2};
+    for (int i = 0; i < 2; i++)
+        if (all[i] && (all[i]->width != a->width || all[i]->height != a->height))
+            return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs %dx%d", a->width, a->height,
+                           all[i]->width, all[i]->height);
+    free(r->z);
+    r->z = malloc((size_t)r->nx * r->ny * sizeof *r->z);
+    if (!r->z) return ct_fail(err, CT_ENOMEM, "metrics: out of memory for %d regions", r->nx * r->ny);
+    r->z_worst = 0.0;
+    r->z_worst_x = r->z_worst_y = -1;
+    r->beyond = 0;
+    double s2 = 0.0;
+    int n = 0;
+    for (int by = 0; by < r->ny; by++)
+        for (int bx = 0; bx < r->nx; bx++) {
+            float *z = &r->z[by * r->nx + bx];
+            *z = NAN;
+            float q = r->ratio[by * r->nx + bx];
+            if (isnan(q)) continue;
+            int x0 = bx * r->block, y0 = by * r->block;
+            double ma, mb;
+            double va = block_mean_var(a, a2, x0, y0, r->block, &ma);
+            double vb = block_mean_var(ref, ref2, x0, y0, r->block, &mb);
+            /* (mb > 0: the block counts) */
+            double rel = (ma > 0.0 ? va / (ma * ma) : 0.0) + vb / (mb * mb);
+            if (!isfinite(rel)) continue;
+            double sigma = sqrt(rel);
+            s2 += rel;
+            n++;
+            if (!(sigma > 0.0)) continue;
+            double zz = ((double)q - 1.0) / sigma;
+            *z = (float)zz;
+            if (fabs(zz) > sigmas) r->beyond++;
+            if (fabs(zz) > r->z_worst || r->z_worst_x < 0) {
+                r->z_worst = fabs(zz);
+                r->z_worst_x = bx;
+                r->z_worst_y = by;
+            }
+        }
+    r->sigma_rms = n ? sqrt(s2 / n) : 0.0;
+    return CT_OK;
 }

@@ -51,6 +51,12 @@ typedef struct img_regions {
     double rms;         /* root mean square of mean(a) / mean(ref) - 1 over them */
     float *ratio;       /* nx * ny block ratios mean(a) / mean(ref), NaN where a block
                          * does not count (free with metrics_regions_free) */
+    /* metrics_regions_noise's (NULL / 0 without it) */
+    float *z;           /* nx * ny: (ratio - 1) over its standard error */
+    double z_worst;     /* largest |z| */
+    int z_worst_x, z_worst_y;
+    double sigma_rms;   /* rms of the blocks' relative standard errors */
+    int beyond;         /* blocks with |z| above the bound given */
 } img_regions;
 
 /* Block means of a against ref (same sizes; planes and flat may be NULL;
@@ -58,7 +64,22 @@ typedef struct img_regions {
 int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, int margin, const ct_image *flat,
                     double flat_ratio, int block, img_regions *out, ct_error *err);
 
-/* Frees out->ratio. */
+/* Frees out->ratio (and out->z). */
 void metrics_regions_free(img_regions *r);
+
+/* The blocks' noise, from repeats: a2, the render of a with another seed,
+ * ref2 that of ref (either may be NULL, not both; same sizes). Two
+ * independent renders differ per pixel by their noise alone, so the mean
+ * over a block of the squared differences, halved, is the pixel variance,
+ * and over the pixel count the variance of the block's mean (pixels
+ * independent, as a tracer's are). Per counted block of r: sigma = the
+ * relative standard error of its ratio, sqrt(var_a / mean_a^2 + var_ref /
+ * mean_ref^2), and z = (ratio - 1) / sigma: how many of its own standard
+ * errors a block is off. Fills r->z (NaN where a block does not count or
+ * sigma is 0), r->z_worst (largest |z|, at z_worst_x, z_worst_y),
+ * r->sigma_rms (the rms of sigma: what region_rms would read with no bias
+ * at all) and r->beyond (blocks with |z| > sigmas). */
+int metrics_regions_noise(const ct_image *a, const ct_image *a2, const ct_image *ref, const ct_image *ref2,
+                          double sigmas, img_regions *r, ct_error *err);
 
 #endif

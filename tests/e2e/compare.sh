@@ -71,13 +71,58 @@ run_corrtex 1 compare "$test" "$ref" --regions 8 --max-region-error 0
 grep -q "above --max-region-error 0" <<<"$err" || fail "exit 1 without the limit in the message"
 run_corrtex 0 compare "$test" "$ref" --regions 8 --max-region-error 1
 run_corrtex 2 compare "$ref" "$ref" --planes "$ref"
-expect_error "--planes, --flat, --max-region-error and --region-table need --regions"
+expect_error "--planes, --flat, --max-region-error, --region-table and the repeats need --regions"
 run_corrtex 2 compare "$ref" "$ref" --regions 17
 expect_error "region size 17 outside [1, 16]"
 run_corrtex 2 compare "$ref" "$ref" --regions 4 --planes "$data/compare-small.exr"
 expect_error "image sizes differ"
 run_corrtex 2 compare "$ref" "$ref" --regions 4 --flat-ratio 0.5
 expect_error "--flat-ratio"
+
+echo "== --repeat-a / --repeat-b: each block in its own standard errors"
+# compare-test is compare-ref +-0.05 on every value: taken as A's repeat,
+# the reference gives A a pixel noise of 0.05 / sqrt(2) per value.
+run_corrtex 0 compare "$test" "$ref" --regions 8 --repeat-a "$ref" --z-table
+for k in region_sigma_rms region_z_worst region_z_worst_at region_beyond; do
+  grep -q "^$k " <<<"$out" || fail "no $k line: $out"
+done
+(( $(grep -c '^ [ 0-9.-]*$' <<<"$out") == 2 )) || fail "--z-table did not print 2 rows"
+sig=$(sed -nE 's/^region_sigma_rms (.*)/\1/p' <<<"$out"); zw=$(sed -nE 's/^region_z_worst (.*)/\1/p' <<<"$out")
+echo "metric: region_sigma_rms=$sig region_z_worst=$zw (compare-test vs compare-ref, its repeat compare-ref)"
+awk -v s="$sig" 'BEGIN { exit !(s > 0) }' || fail "region_sigma_rms $sig is not positive"
+run_corrtex 0 compare "$test" "$ref" --regions 8 --repeat-b "$test" --json
+for k in region_sigma_rms region_z_worst region_beyond; do
+  grep -q "\"$k\":" <<<"$out" || fail "JSON lacks key $k"
+done
+# Real renders (path tracing of tests/data/scenes/mini.json, 64x64, 64 spp,
+# four seeds): two unbiased images agree within their noise; the direct
+# light alone (--depth 1) is a bias that the whole image's rmse hides
+# under the noise, and the blocks show it.
+for s in 1 2 3 4; do
+  run_corrtex 0 reference "$data/scenes/mini.json" --width 64 --height 64 --spp 64 --mode path --seed "$s" --quiet \
+    -o "$tmp/p$s.exr"
+done
+run_corrtex 0 reference "$data/scenes/mini.json" --width 64 --height 64 --spp 64 --mode path --depth 1 --seed 1 \
+  --quiet -o "$tmp/d1.exr"
+run_corrtex 0 reference "$data/scenes/mini.json" --width 64 --height 64 --spp 64 --mode path --depth 1 --seed 2 \
+  --quiet -o "$tmp/d2.exr"
+run_corrtex 0 compare "$tmp/p1.exr" "$tmp/p3.exr" --regions 16 --repeat-a "$tmp/p2.exr" --repeat-b "$tmp/p4.exr" \
+  --max-region-sigma 5
+echo "metric: two seeds of path tracing: $(grep -E '^region_(rms|sigma_rms|z_worst|beyond) ' <<<"$out" | tr '\n' ' ')"
+run_corrtex 1 compare "$tmp/d1.exr" "$tmp/p3.exr" --regions 16 --repeat-a "$tmp/d2.exr" --repeat-b "$tmp/p4.exr" \
+  --max-region-sigma 5
+echo "metric: direct light alone against path tracing: $(grep -E '^region_(rms|sigma_rms|z_worst|beyond) ' <<<"$out" |
+  tr '\n' ' ')"
+grep -q "standard errors (block [0-9]* [0-9]*) above --max-region-sigma 5" <<<"$err" ||
+  fail "exit 1 without the bound in the message: $err"
+run_corrtex 2 compare "$test" "$ref" --repeat-a "$ref"
+expect_error "--planes, --flat, --max-region-error, --region-table and the repeats need --regions"
+run_corrtex 2 compare "$test" "$ref" --regions 8 --max-region-sigma 3
+expect_error "--max-region-sigma and --z-table need --repeat-a or --repeat-b"
+run_corrtex 2 compare "$test" "$ref" --regions 8 --repeat-b "$data/compare-small.exr"
+expect_error "$data/compare-small.exr: image sizes differ"
+run_corrtex 2 compare "$test" "$ref" --regions 8 --repeat-b "$tmp/missing.exr"
+expect_error "$tmp/missing.exr: cannot open"
 
 echo "== bad input"
 head -c 300 "$test" >"$tmp/truncated.exr"

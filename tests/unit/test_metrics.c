@@ -3,6 +3,7 @@
 #include <criterion/criterion.h>
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "common/metrics.h"
@@ -319,4 +320,76 @@ Test(metrics, region_size_and_mask_size_errors)
     img_free(&a);
     img_free(&ref);
     img_free(&small);
+}
+
+/* A grey image of 1 plus independent Gaussian noise of deviation sd per
+ * pixel and channel (Box-Muller), seeded. */
+static ct_image noisy(int w, int h, double sd, uint64_t seed)
+{
+    ct_image img = make(w, h, 1, 1, 1);
+    ct_rng r = rng_make(seed, 7, 0, 0);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            float c[3];
+            for (int k = 0; k < 3; k++) {
+                double u1 = 1.0 - rng_float(&r), u2 = rng_float(&r);
+                c[k] = (float)(1.0 + sd * sqrt(-2.0 * log(u1)) * cos(2.0 * CT_PI * u2));
+            }
+            img_set(&img, x, y, v3(c[0], c[1], c[2]));
+        }
+    return img;
+}
+
+Test(metrics, region_noise_from_repeats_gives_each_block_its_standard_error)
+{
+    /* 256 x 256 in 8 x 8 blocks: 1024 blocks of 64 pixels. Pixel noise sd
+     * 0.3 per channel is sd / sqrt(3) on a pixel's mean of R, G, B, so a
+     * block mean of one image has the relative standard error 0.3 /
+     * sqrt(3 * 64), and a ratio of two such sqrt(2) times that: 0.0306.
+     * Four independent images (a, its repeat, ref, its repeat) must give
+     * that as sigma_rms and z about N(0, 1): rms near 1, hardly a block
+     * beyond 4 (expected 0.06 of 1024). Then one block of a 20 % brighter:
+     * z about 6.5 there, the worst. */
+    ct_error err;
+    const double sd = 0.3, want = sd / sqrt(3.0 * 64.0) * sqrt(2.0);
+    ct_image a = noisy(256, 256, sd, 1), a2 = noisy(256, 256, sd, 2);
+    ct_image ref = noisy(256, 256, sd, 3), ref2 = noisy(256, 256, sd, 4);
+    img_regions r = regions_ok(&a, &ref, NULL, NULL, 1.25, 8);
+    cr_assert_eq(metrics_regions_noise(&a, &a2, &ref, &ref2, 4.0, &r, &err), 0, "%s", err.msg);
+    double zz = 0.0;
+    for (int i = 0; i < r.nx * r.ny; i++) zz += (double)r.z[i] * r.z[i];
+    double zrms = sqrt(zz / (r.nx * r.ny));
+    printf("metric: noise from repeats: sigma_rms %.5f (want %.5f), z rms %.3f, |z| > 4: %d, worst %.2f\n",
+           r.sigma_rms, want, zrms, r.beyond, r.z_worst);
+    cr_expect(fabs(r.sigma_rms / want - 1.0) < 0.05, "sigma_rms %g, want %g", r.sigma_rms, want);
+    cr_expect(zrms > 0.9 && zrms < 1.1, "z rms %g", zrms);
+    cr_expect_leq(r.beyond, 2);
+    metrics_regions_free(&r);
+
+    for (int y = 80; y < 88; y++)
+        for (int x = 40; x < 48; x++) img_set(&a, x, y, v3_scale(img_get(&a, x, y), 1.2f));
+    r = regions_ok(&a, &ref, NULL, NULL, 1.25, 8);
+    cr_assert_eq(metrics_regions_noise(&a, &a2, &ref, &ref2, 4.0, &r, &err), 0, "%s", err.msg);
+    printf("metric: a block 20 %% over: z %.2f at %d %d\n", r.z_worst, r.z_worst_x, r.z_worst_y);
+    cr_expect_eq(r.z_worst_x, 5);
+    cr_expect_eq(r.z_worst_y, 10);
+    cr_expect_gt(r.z_worst, 4.0);
+    metrics_regions_free(&r);
+
+    /* Only the reference's repeat: a taken as exact, sigma 1 / sqrt(2) of
+     * the pair's. */
+    r = regions_ok(&a, &ref, NULL, NULL, 1.25, 8);
+    cr_assert_eq(metrics_regions_noise(&a, NULL, &ref, &ref2, 4.0, &r, &err), 0, "%s", err.msg);
+    cr_expect(fabs(r.sigma_rms / (want / sqrt(2.0)) - 1.0) < 0.05, "sigma_rms %g with the reference's only",
+              r.sigma_rms);
+    cr_assert_eq(metrics_regions_noise(&a, NULL, &ref, NULL, 4.0, &r, &err), CT_EINVAL);
+    ct_image small = make(8, 8, 1, 1, 1);
+    cr_assert_eq(metrics_regions_noise(&a, &small, &ref, NULL, 4.0, &r, &err), CT_EINVAL);
+    cr_assert(strstr(err.msg, "sizes differ"), "%s", err.msg);
+    metrics_regions_free(&r);
+    img_free(&small);
+    img_free(&a);
+    img_free(&a2);
+    img_free(&ref);
+    img_free(&ref2);
 }
