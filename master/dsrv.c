@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -239,6 +240,16 @@ static void peer_host(const char *peer, char *out, size_t cap)
     snprintf(out, cap, "%.*s", n, peer);
 }
 
+/* Whether bytes wait unread on fd: a peer that has sent its HELLO is not
+ * idle even before the server has pumped it (several newcomers accepted
+ * in one step, ahead of the pumping, used to find a slow display's HELLO
+ * unread and take it for an idle connection). */
+static bool has_input(int fd)
+{
+    int n = 0;
+    return ioctl(fd, FIONREAD, &n) == 0 && n > 0;
+}
+
 /* The pending connection a newcomer from host may replace (any host when
  * NULL): the oldest of those that sent nothing yet; else one chosen at
  * random of those that have not authenticated; -1 when every one has
@@ -256,7 +267,7 @@ static int eviction_victim(dsrv *s, const char *host)
         if (chan_ready(p->c) || (host && strcmp(p->host, host) != 0)) continue;
         uint64_t rx, tx;
         chan_byte_counts(p->c, &rx, &tx);
-        if (rx > 0) {
+        if (rx > 0 || has_input(chan_fd(p->c))) {
             if (nbusy < DSRV_MAX_PENDING) busy[nbusy++] = i;
             continue;
         }
