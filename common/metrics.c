@@ -222,6 +222,16 @@ static int block_counts(const ct_image *planes, int margin, const ct_image *flat
     return 1;
 }
 
+/* CT_OK when each of the n images given (NULL: none) has a's size. */
+static int sizes_agree(const ct_image *a, const ct_image *const *all, int n, ct_error *err)
+{
+    for (int i = 0; i < n; i++)
+        if (all[i] && (all[i]->width != a->width || all[i]->height != a->height))
+            return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs %dx%d", a->width, a->height,
+                           all[i]->width, all[i]->height);
+    return CT_OK;
+}
+
 int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *planes, int margin, const ct_image *flat,
                     double flat_ratio, int block, img_regions *out, ct_error *err)
 {
@@ -229,10 +239,8 @@ int metrics_regions(const ct_image *a, const ct_image *ref, const ct_image *plan
     if (!a || !ref || !a->px || !ref->px || a->width < 1 || a->height < 1)
         return ct_fail(err, CT_EINVAL, "metrics: empty image");
     const ct_image *all[3] = {ref, planes, flat};
-    for (int i = 0; i < 3; i++)
-        if (all[i] && (all[i]->width != a->width || all[i]->height != a->height))
-            return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs %dx%d", a->width, a->height,
-                           all[i]->width, all[i]->height);
+    int rc = sizes_agree(a, all, 3, err);
+    if (rc) return rc;
     if (block < 1 || block > a->width || block > a->height)
         return ct_fail(err, CT_EINVAL, "region size %d outside [1, %d]", block,
                        a->width < a->height ? a->width : a->height);
@@ -301,10 +309,8 @@ int metrics_regions_noise(const ct_image *a, const ct_image *a2, const ct_image 
 {
     if (!a2 && !ref2) return ct_fail(err, CT_EINVAL, "metrics: no repeat to take the noise from");
     const ct_image *all[2] = {a2, ref2};
-    for (int i = 0; i < 2; i++)
-        if (all[i] && (all[i]->width != a->width || all[i]->height != a->height))
-            return ct_fail(err, CT_EINVAL, "image sizes differ: %dx%d vs %dx%d", a->width, a->height,
-                           all[i]->width, all[i]->height);
+    int rc = sizes_agree(a, all, 2, err);
+    if (rc) return rc;
     free(r->z);
     r->z = malloc((size_t)r->nx * r->ny * sizeof *r->z);
     if (!r->z) return ct_fail(err, CT_ENOMEM, "metrics: out of memory for %d regions", r->nx * r->ny);

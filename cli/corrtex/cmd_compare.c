@@ -159,8 +159,9 @@ int cmd_compare(int argc, char **argv)
                "--planes, --flat, --max-region-error, --region-table and the repeats need --regions");
         return 2;
     }
-    if ((o.max_sigma >= 0.0 || o.ztable) && !o.repeat_a && !o.repeat_b) {
-        ct_log(CT_LOG_ERROR, COMPONENT, "--max-region-sigma and --z-table need --repeat-a or --repeat-b");
+    if ((o.max_sigma >= 0.0 || o.ztable || optab_given(&g, 1, argc, argv, "sigmas")) && !o.repeat_a &&
+        !o.repeat_b) {
+        ct_log(CT_LOG_ERROR, COMPONENT, "--sigmas, --max-region-sigma and --z-table need --repeat-a or --repeat-b");
         return 2;
     }
     /* a, b, the masks, then the repeats: read in order, freed together. */

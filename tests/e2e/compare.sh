@@ -118,7 +118,9 @@ grep -q "standard errors (block [0-9]* [0-9]*) above --max-region-sigma 5" <<<"$
 run_corrtex 2 compare "$test" "$ref" --repeat-a "$ref"
 expect_error "--planes, --flat, --max-region-error, --region-table and the repeats need --regions"
 run_corrtex 2 compare "$test" "$ref" --regions 8 --max-region-sigma 3
-expect_error "--max-region-sigma and --z-table need --repeat-a or --repeat-b"
+expect_error "--sigmas, --max-region-sigma and --z-table need --repeat-a or --repeat-b"
+run_corrtex 2 compare "$test" "$ref" --regions 8 --sigmas 3
+expect_error "--sigmas, --max-region-sigma and --z-table need --repeat-a or --repeat-b"
 run_corrtex 2 compare "$test" "$ref" --regions 8 --repeat-b "$data/compare-small.exr"
 expect_error "$data/compare-small.exr: image sizes differ"
 run_corrtex 2 compare "$test" "$ref" --regions 8 --repeat-b "$tmp/missing.exr"

@@ -627,6 +627,13 @@ Test(dsrv, pings_of_a_display_that_reads_nothing_do_not_fill_the_queue)
     pthread_mutex_destroy(&sv.mu);
 }
 
+/* A server on a free TCP port of 127.0.0.1 with token tok; returns the port. */
+static int start_tcp(server *sv, const auth_token *tok)
+{
+    start(sv, "tcp:127.0.0.1:0", tok, 5000);
+    return atoi(strrchr(dsrv_addr(sv->s), ':') + 1);
+}
+
 /* An idle TCP connection from source address 127.0.0.<host> to port. */
 static int idle_peer(int host, int port)
 {
@@ -663,9 +670,8 @@ Test(dsrv, idle_handshakes_never_lock_a_display_out)
     auth_token tok;
     token(&tok, 't');
     server sv;
-    start(&sv, "tcp:127.0.0.1:0", &tok, 5000);
+    int port = start_tcp(&sv, &tok);
     const char *addr = dsrv_addr(sv.s);
-    int port = atoi(strrchr(addr, ':') + 1);
     int idle[4][DSRV_MAX_PENDING_PER_PEER];
     for (int h = 0; h < 4; h++)
         for (int k = 0; k < DSRV_MAX_PENDING_PER_PEER; k++) {
@@ -739,9 +745,8 @@ Test(dsrv, a_hello_flood_does_not_always_take_the_display_s_place, .timeout = 60
     uint8_t hello[256];
     size_t nh = display_hello(&tok, hello, sizeof hello);
     server sv;
-    start(&sv, "tcp:127.0.0.1:0", &tok, 5000);
+    int port = start_tcp(&sv, &tok);
     const char *addr = dsrv_addr(sv.s);
-    int port = atoi(strrchr(addr, ':') + 1);
     int served = 0, tries = 30;
     for (int t = 0; t < tries; t++) {
         int fds[36], nf = 0;
@@ -804,9 +809,7 @@ Test(dsrv, a_hello_waiting_unread_is_not_taken_for_an_idle_connection)
     uint8_t hello[256];
     size_t nh = display_hello(&tok, hello, sizeof hello);
     server sv;
-    start(&sv, "tcp:127.0.0.1:0", &tok, 5000);
-    const char *addr = dsrv_addr(sv.s);
-    int port = atoi(strrchr(addr, ':') + 1);
+    int port = start_tcp(&sv, &tok);
     pthread_mutex_lock(&sv.mu);
     int disp = idle_peer(3, port);
     cr_assert_eq(write(disp, hello, nh), (ssize_t)nh);
