@@ -112,6 +112,9 @@ struct disp_inbox {
     upload *ups;
     uint32_t nups, cap_ups;
     unsigned pbo;
+    size_t pbo_cap;        /* its storage's bytes (0: none yet) */
+    size_t pbo_peak;       /* the most a take wanted in this window of takes */
+    uint32_t pbo_takes;    /* takes in this window */
 };
 
 static bool grow(void **p, uint32_t *cap, uint32_t need, size_t elem)
@@ -700,6 +703,32 @@ bool disp_inbox_pending(disp_inbox *b)
     return p;
 }
 
+/* The upload buffer's new storage size for a take of want bytes, or 0 to
+ * keep the storage it has. Re-specifying it every frame (orphaning) made
+ * llvmpipe allocate and zero a fresh buffer each frame: a quarter of the
+ * render thread's time streaming table at 1024x1024 went to that memset and
+ * its page faults. So the storage is kept, grown by doubling, and given
+ * back when a window of takes used under a quarter of it (after a camera
+ * change's burst of tens of MB). */
+#define PBO_WINDOW 64
+static size_t pbo_storage(disp_inbox *b, size_t want)
+{
+    if (want > b->pbo_peak) b->pbo_peak = want;
+    size_t cap = 0;
+    if (want > b->pbo_cap) {
+        cap = 2 * b->pbo_cap > want ? 2 * b->pbo_cap : want;
+        if (cap > DISP_INBOX_FRAME_BYTES) cap = DISP_INBOX_FRAME_BYTES;
+    } else if (b->pbo_takes + 1 >= PBO_WINDOW && b->pbo_peak < b->pbo_cap / 4) {
+        cap = 2 * b->pbo_peak;
+    }
+    if (++b->pbo_takes >= PBO_WINDOW) {
+        b->pbo_takes = 0;
+        b->pbo_peak = 0;
+    }
+    if (cap) b->pbo_cap = cap;
+    return cap;
+}
+
 int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_error *err)
 {
     memset(took, 0, sizeof *took);
@@ -715,8 +744,7 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
 
     /* The upload buffer is sized from a first look (mapping it may not
      * happen under the lock); what arrives after it waits for the next
-     * frame. Changed tiles go into it orphaned each frame, so the driver
-     * never waits for the previous frame's upload. */
+     * frame. */
     pthread_mutex_lock(&b->mu);
     size_t want = upload_bytes(b);
     pthread_mutex_unlock(&b->mu);
@@ -724,7 +752,10 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
     if (want) {
         if (!b->pbo) gl.GenBuffers(1, &b->pbo);
         gl.BindBuffer(GL_PIXEL_UNPACK_BUFFER, b->pbo);
-        gl.BufferData(GL_PIXEL_UNPACK_BUFFER, (GLsizeiptr)want, NULL, GL_STREAM_DRAW);
+        size_t cap = pbo_storage(b, want);
+        if (cap) gl.BufferData(GL_PIXEL_UNPACK_BUFFER, (GLsizeiptr)cap, NULL, GL_STREAM_DRAW);
+        /* Invalidated whole: a driver whose GPU still reads the last
+         * frame's upload renames the storage instead of waiting. */
         dst = gl.MapBufferRange(GL_PIXEL_UNPACK_BUFFER, 0, (GLsizeiptr)want,
                                 GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
         if (!dst) {
@@ -810,6 +841,7 @@ int disp_inbox_apply(disp_inbox *b, disp_session *s, disp_inbox_took *took, ct_e
     }
     took->stamps = b->taken;
     took->nstamps = b->ntaken;
+    took->upload_buffer_bytes = b->pbo_cap;
     if (npts) disp_session_sample_points(s, pts, npts, dropped);
     free(pts);
     for (uint32_t i = 0; i < nframes; i++)
@@ -823,4 +855,6 @@ void disp_inbox_release_gl(disp_inbox *b)
 {
     if (b->pbo) gl.DeleteBuffers(1, &b->pbo);
     b->pbo = 0;
+    b->pbo_cap = b->pbo_peak = 0;
+    b->pbo_takes = 0;
 }

@@ -41,6 +41,7 @@ typedef struct disp_inbox_stamp {
 typedef struct disp_inbox_took {
     uint64_t texels, patches;    /* uploaded / received since the last take */
     uint64_t uploads;            /* texture uploads (glTexSubImage2D calls) that made them */
+    size_t upload_buffer_bytes;  /* the pixel buffer's storage after the take (kept between takes) */
     uint32_t nstamps;            /* stamps of the patches now on the textures */
     const disp_inbox_stamp *stamps;
 } disp_inbox_took;

@@ -2,7 +2,8 @@
  * its render thread (display/disp_inbox.h), with a real GL context
  * (OSMesa): many patches of one area between two frames are one upload of
  * the newest texels and render exactly like the same texels applied
- * directly; a lockstep frame is ready only once its texels are on the
+ * directly; the upload buffer's storage is kept between frames, grown and
+ * given back; a lockstep frame is ready only once its texels are on the
  * textures; a texture freed and allocated again between two frames starts
  * from zero at its new size; stamps reach the frame that shows them;
  * messages that do not fit are refused with their reason; the lag
@@ -142,6 +143,65 @@ Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
     cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
     cr_expect_eq(disp_session_counters(s).patches, 2u);
     cr_expect_eq(took.nstamps, 0u);
+    disp_session_free(direct);
+    rmesh_free(&r.mesh);
+    rig_close(&r);
+}
+
+/* The upload buffer keeps its storage between takes (re-specifying it each
+ * frame made llvmpipe allocate and zero a fresh one every frame): a take that
+ * fits reuses it, a larger one grows it, and a window of 64 takes that use
+ * under a quarter of it gives the rest back. Texels staged in reused storage
+ * render as the same texels applied directly. */
+Test(disp_inbox, the_upload_buffer_is_kept_grown_and_given_back)
+{
+    ct_error err;
+    rig r;
+    rig_open(&r);
+    ct_radmesh copy;
+    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
+    disp_inbox_scene(r.in, &copy);
+    cr_assert_eq(disp_inbox_tex_alloc(r.in, 5, r.nd.back, 32, 32, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    mat4 p = wall_proj();
+    cr_assert_eq(disp_inbox_tex_projection(r.in, 5, &p, &err), 0);
+    static uint16_t whole[32 * 32 * 3], tile[8 * 8 * 3];
+    fill(whole, 32 * 32 * 3, 0.1f, 0.01f);
+    disp_inbox_took took;
+    cr_assert_eq(disp_inbox_tex_patch(r.in, 5, 0, 0, 32, 32, whole, 1, 1, &err), 0);
+    cr_assert_eq(disp_inbox_apply(r.in, r.s, &took, &err), 0, "%s", err.msg);
+    size_t big = took.upload_buffer_bytes;
+    cr_assert_geq(big, 32u * 32u * 6u, "the first take's storage holds its texels: %zu bytes", big);
+    /* Takes 2..128 upload one 8 x 8 tile each. */
+    for (int k = 2; k <= 128; k++) {
+        fill(tile, 8 * 8 * 3, 0.02f * (float)k, -0.003f);
+        cr_assert_eq(disp_inbox_tex_patch(r.in, 5, 0, 0, 8, 8, tile, (uint64_t)k, 1, &err), 0);
+        cr_assert_eq(disp_inbox_apply(r.in, r.s, &took, &err), 0, "%s", err.msg);
+        cr_assert_eq(took.uploads, 1u);
+        if (k < 128)
+            cr_assert_eq(took.upload_buffer_bytes, big, "take %d: kept (%zu bytes, first %zu)", k,
+                         took.upload_buffer_bytes, big);
+    }
+    size_t small = took.upload_buffer_bytes;
+    cr_expect_lt(small, big / 2, "a window of small takes gives storage back: %zu of %zu bytes", small, big);
+    cr_expect_geq(small, 8u * 8u * 6u);
+    /* What the reused storage staged renders as the texels applied directly. */
+    static uint16_t want[32 * 32 * 3];
+    memcpy(want, whole, sizeof want);
+    for (int y = 0; y < 8; y++) memcpy(want + 3 * y * 32, tile + 3 * y * 8, 8 * 6);
+    disp_session *direct = NULL;
+    cr_assert_eq(disp_session_new(&direct, &err), 0);
+    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
+    cr_assert_eq(disp_session_tex_alloc(direct, 5, r.nd.back, 32, 32, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
+    cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 32, 32, want, &err), 0);
+    static uint8_t got[W * H * 3], ref[W * H * 3];
+    render(r.s, got);
+    render(direct, ref);
+    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "texels staged in reused storage render differently");
+    /* A larger take grows it again. */
+    cr_assert_eq(disp_inbox_tex_patch(r.in, 5, 0, 0, 32, 32, whole, 200, 1, &err), 0);
+    cr_assert_eq(disp_inbox_apply(r.in, r.s, &took, &err), 0, "%s", err.msg);
+    cr_expect_geq(took.upload_buffer_bytes, big, "grown for the whole texture: %zu bytes", took.upload_buffer_bytes);
     disp_session_free(direct);
     rmesh_free(&r.mesh);
     rig_close(&r);
