@@ -44,6 +44,7 @@ typedef struct shooter {
     uint32_t ntg;
     deposit *dep;
     size_t ndep, cap;
+    bool refracted;     /* glass refracts photons and blocks shadow rays */
 } shooter;
 
 static vec3 tri_corner(const emb_mesh *m, uint32_t t, int k) { return m->pos[m->tris[3 * t + (uint32_t)k]]; }
@@ -213,8 +214,10 @@ static int keep(shooter *s, vec3 p, vec3 n, vec3 pow, ct_error *err)
 }
 
 /* One photon: a lamp point by luminance x area, a cosine direction about
- * its front, then the reflections and straight glass crossings until it
- * lands on an opaque surface. */
+ * its front, then the reflections and glass crossings until it lands on an
+ * opaque surface. The crossings pass it straight, or refract it where glass
+ * blocks the shadow rays (s->refracted): a photon carries power, so a
+ * refraction changes its direction, not its power. */
 static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
 {
     const emb_mesh *m = s->m;
@@ -240,6 +243,7 @@ static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
     vec3 pow = v3_scale(em->emission, unit_n * cosl / (v3_luminance(em->emission) * pdf));
     vec3 o = emb_offset_ray(p, ng);
     int reflections = 0;
+    bool refracted = false;   /* crossed glass that blocks the shadow rays */
     bool first_on_image_mirror = false;
     for (int k = 0; k < CAUS_MAX_EVENTS; k++) {
         emb_hit h;
@@ -250,18 +254,26 @@ static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
         vec3 side = cosd < 0.0f ? n : v3_neg(n);   /* the side the photon came from */
         if (hm->dielectric) {
             rmesh_material g = rmesh_material_of(hm);
-            float ct;
-            if (rng_float(r) < rmesh_fresnel(fabsf(cosd), 1.0f / g.ior, &ct)) {
+            /* Straight crossings are symmetric (rmesh_glass_pass: F on the
+             * air side); a refraction from inside has its own eta, and total
+             * internal reflection beyond the critical angle. */
+            float eta = s->refracted && cosd > 0.0f ? g.ior : 1.0f / g.ior, ct;
+            if (rng_float(r) < rmesh_fresnel(fabsf(cosd), eta, &ct)) {
                 reflections++;
                 d = bsdf_reflect(v3_neg(d), side);
                 o = emb_offset_ray(x, side);
             } else {
                 pow = v3_mul(pow, hm->transmission);
                 o = emb_offset_ray(x, v3_neg(side));
+                if (s->refracted) {
+                    /* t = eta d + (eta cos_i - cos_t) n, n against d */
+                    d = v3_norm(v3_add(v3_scale(d, eta), v3_scale(side, eta * fabsf(cosd) - ct)));
+                    refracted = true;
+                }
             }
             continue;
         }
-        bool counts = reflections > 1 || (reflections == 1 && !first_on_image_mirror);
+        bool counts = refracted || reflections > 1 || (reflections == 1 && !first_on_image_mirror);
         if (counts && cosd < 0.0f && v3_maxc(hm->diffuse) > 0.0f) {
             int rc = keep(s, x, n, pow, err);
             if (rc) return rc;
@@ -400,8 +412,8 @@ static int estimate(const shooter *s, vec3 **out, ct_error *err)
     return CT_OK;
 }
 
-int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed, vec3 **out,
-               caus_stats *st, ct_error *err)
+int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed, bool refracted,
+               vec3 **out, caus_stats *st, ct_error *err)
 {
     *out = NULL;
     memset(st, 0, sizeof *st);
@@ -411,7 +423,7 @@ int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, 
     for (uint32_t i = 0; i < m->nmats; i++) any = any || specular(&m->mats[i]);
     if (!any) return CT_OK;
     double t0 = ct_now();
-    shooter s = {.e = e, .m = m, .mirrors = mirrors};
+    shooter s = {.e = e, .m = m, .mirrors = mirrors, .refracted = refracted};
     int rc = collect_emitters(&s, err);
     if (!rc) rc = collect_targets(&s, err);
     if (!rc && s.nemit && s.ntg) {

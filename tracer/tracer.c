@@ -135,10 +135,10 @@ int trc_options_check(const trc_options *o, ct_error *err)
                        TRC_CAUSTIC_PHOTONS_MAX);
     if (o->glass_light != TRC_GLASS_STRAIGHT && o->glass_light != TRC_GLASS_REFRACTED)
         return ct_fail(err, CT_EINVAL, "glass light %d unknown", (int)o->glass_light);
-    /* drt's direct light, gather and caustics are built on the straight
-     * model; only path tracing has a refracted variant. */
-    if (o->glass_light == TRC_GLASS_REFRACTED && o->mode != TRC_MODE_PATH)
-        return ct_fail(err, CT_EINVAL, "glass light \"refracted\" is for path tracing only (mode %s)",
+    /* reuse-diffuse's light is the radiosity solution's, which passes glass
+     * straight; path tracing and drt have a refracted variant. */
+    if (o->glass_light == TRC_GLASS_REFRACTED && o->mode == TRC_MODE_REUSE)
+        return ct_fail(err, CT_EINVAL, "glass light \"refracted\" is for path tracing and drt only (mode %s)",
                        trc_mode_name(o->mode));
     return CT_OK;
 }
@@ -168,7 +168,8 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rad && o->mode == TRC_MODE_DRT) {
         rc = mlight_build(t->emb, t->lights, &t->mirrors, err);
         if (rc) goto fail;
-        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed, &t->caustic, &t->caus, err);
+        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed,
+                        o->glass_light == TRC_GLASS_REFRACTED, &t->caustic, &t->caus, err);
         if (rc) goto fail;
     }
     t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);

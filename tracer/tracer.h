@@ -46,11 +46,11 @@ typedef enum trc_gather_direct {
     TRC_GATHER_DIRECT_TRACE = 1    /* the mesh's indirect part plus one traced lamp sample */
 } trc_gather_direct;
 
-/* How path tracing finds the lamps' light through glass (docs/tracer.md,
+/* How path tracing and drt find the lamps' light through glass (docs/tracer.md,
  * Light sampling, "Light through glass, refracted"). */
 typedef enum trc_glass_light {
-    TRC_GLASS_STRAIGHT  = 0,   /* shadow rays pass glass, attenuated (the paper's; drt's only model) */
-    TRC_GLASS_REFRACTED = 1    /* glass blocks shadow rays: only refracted paths bring that light */
+    TRC_GLASS_STRAIGHT  = 0,   /* shadow rays pass glass, attenuated (the paper's; the radiosity solution's) */
+    TRC_GLASS_REFRACTED = 1    /* glass blocks shadow rays: refracted paths (drt with a mesh: photons) bring that light */
 } trc_glass_light;
 
 /* Random stream dimensions (the third id of rng_make). */
@@ -86,7 +86,7 @@ typedef struct trc_options {
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
     int caustic_photons; /* drt with a mesh: photons of the lamps' reflective caustics (0: none) */
-    trc_glass_light glass_light;   /* path only: TRC_GLASS_REFRACTED for a reference without the straight model */
+    trc_glass_light glass_light;   /* path, drt: TRC_GLASS_REFRACTED, light through glass without the straight model */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
@@ -151,7 +151,7 @@ typedef struct trc_view {
 typedef struct trc_tracer trc_tracer;
 
 /* Whether o's values and their combination are valid (ranges; the refracted
- * glass light only for path tracing): what trc_new refuses, for programs
+ * glass light only for path tracing and drt): what trc_new refuses, for programs
  * that check their options before loading a scene. */
 int trc_options_check(const trc_options *o, ct_error *err);
 

@@ -33,8 +33,8 @@ static const optab ROWS[] = {
      "drt with a radiosity mesh: photons shot from the lamps for their reflective caustics, the light mirrors and "
      "glass faces throw onto diffuse surfaces (0: none; -1: the mode's, drt 1000000; docs/tracer.md)", NULL},
     {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "straight", "straight|refracted",
-     "path: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model, drt's too) "
-     "or only by refracted paths (glass blocks shadow rays: unbiased, slower to converge; docs/tracer.md)",
+     "path, drt: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model) or only by "
+     "refracted paths (glass blocks shadow rays; drt with a mesh takes it from refracted photons; docs/tracer.md)",
      GLASS_LIGHT},
 };
 #undef OF

@@ -38,7 +38,7 @@ const optab *trc_cli_table(size_t *n);
 void trc_cli_apply(const trc_cli *c, trc_options *o);
 
 /* trc_options_check of what c gives: a combination the rows cannot refuse
- * one by one (--glass-light refracted with a mode other than path). */
+ * one by one (--glass-light refracted with reuse-diffuse). */
 int trc_cli_check(const trc_cli *c, ct_error *err);
 
 #endif

@@ -380,8 +380,9 @@ int cmd_reference(int argc, char **argv)
     uint64_t ph, landed;
     double cs;
     trc_caustic_stats(t, &ph, &landed, &cs);
-    if (ph) ct_info(CMD, "reflective caustics: %llu photons, %llu landed after a reflection, %.2f s",
-                    (unsigned long long)ph, (unsigned long long)landed, cs);
+    if (ph)
+        ct_info(CMD, "caustics: %llu photons, %llu landed after a reflection%s, %.2f s", (unsigned long long)ph,
+                (unsigned long long)landed, to.glass_light == TRC_GLASS_REFRACTED ? " or through glass" : "", cs);
     if ((rc = img_alloc(&img, a.width, a.height, &err))) goto fail;
     render_options ro;
     render_options_default(&ro, a.width, a.height);

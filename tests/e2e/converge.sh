@@ -86,8 +86,8 @@ run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --view-mem-mb -5 -
 expect_error "--view-mem-mb: '-5' is not a number in \[0, 1e+09\]"
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --frobnicate 1 --quiet
 expect_error "frobnicate"
-run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --glass-light refracted --quiet
-expect_error 'glass light "refracted" is for path tracing only (mode drt)'
+run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --mode reuse-diffuse --glass-light refracted --quiet
+expect_error 'glass light "refracted" is for path tracing and drt only (mode reuse-diffuse)'
 # --reference-after is the moved camera's: without --move-to it was dropped
 # without a word.
 run_corrtex 2 converge "$scene" --samples 10 --out "$tmp/bad" --reference-after "$tmp/none.exr" --quiet

@@ -66,8 +66,8 @@ bad "--mesh" "$scene" --path "$pathf" -o "$tmp/x"
 bad "path 'nope' is neither a path of" "$scene" --mesh "$tmp/c.ctmesh" --path nope -o "$tmp/x"
 bad "--samples-per-frame 65 exceeds the 64 pixels of a frame" "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" --width 8 \
   --height 8 --samples-per-frame 65 -o "$tmp/x"
-bad 'glass light "refracted" is for path tracing only (mode drt)' "$scene" --mesh "$tmp/c.ctmesh" --path "$pathf" \
-  --glass-light refracted -o "$tmp/x"
+bad 'glass light "refracted" is for path tracing and drt only (mode reuse-diffuse)' "$scene" --mesh "$tmp/c.ctmesh" \
+  --path "$pathf" --mode reuse-diffuse --glass-light refracted -o "$tmp/x"
 # Every argument is checked before anything is made: K too large left the
 # output folder behind, a missing reference frame (below) that folder with
 # the frames before it written.

@@ -33,6 +33,10 @@ run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode path
     -o "$tmp/g.exr" >"$tmp/g.log" 2>&1 || die "path --glass-light refracted failed"
 grep -q "mode path (glass light refracted)" "$tmp/g.log" || die "the report does not say the glass light is refracted"
 exrheader "$tmp/g.exr" >/dev/null 2>&1 || die "--glass-light refracted wrote no readable EXR"
+# drt too, with a mesh: the lamps' light through glass from refracted photons.
+run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode drt --glass-light refracted \
+    --stand-in-radiosity 0.1 -o "$tmp/gd.exr" >"$tmp/gd.log" 2>&1 || die "drt --glass-light refracted failed"
+grep -q "mode drt (glass light refracted)" "$tmp/gd.log" || die "the drt report does not say the glass light is refracted"
 
 # reuse-diffuse needs a radiosity mesh (here the stand-in).
 run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode reuse-diffuse \
@@ -86,8 +90,8 @@ check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
 check "--indirect: 'photons' is not one of mesh|gather" "$SCENE" "${common[@]}" --mode drt --indirect photons
 check "--gather-rays: '0'" "$SCENE" "${common[@]}" --mode drt --gather-rays 0
 check "--glass-light: 'bent' is not one of straight|refracted" "$SCENE" "${common[@]}" --mode path --glass-light bent
-check "glass light \"refracted\" is for path tracing only (mode drt)" "$SCENE" "${common[@]}" --mode drt \
-  --glass-light refracted
+check "glass light \"refracted\" is for path tracing and drt only (mode reuse-diffuse)" "$SCENE" "${common[@]}" \
+  --mode reuse-diffuse --stand-in-radiosity 0.1 --glass-light refracted
 # The tracer's option table (tracer/trc_cli.h): -1 means the mode's level, less is refused.
 check "--depth: '-2' is not an integer" "$SCENE" "${common[@]}" --mode drt --depth -2
 check "--branch-depth: '1025'" "$SCENE" "${common[@]}" --mode drt --branch-depth 1025

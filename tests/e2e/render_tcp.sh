@@ -46,13 +46,15 @@ master_wait meshrad 30 || fail "the job with --rad-error and --mesh did not end"
 ((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --rad-error and --mesh, expected 2"
 grep -q -- "--rad-error is a parameter of the radiosity solve: not with --mesh" "$tmp/meshrad.log" ||
   { fail "--rad-error with --mesh not refused"; master_log meshrad; }
-# The refracted glass light is path tracing's: with drt, refused before the
-# solve (it was found by the tracer ranks once the mesh had been sent).
-master_start glasslight 2 "$root/scenes/cornell/cornell.json" --mesh "$tmp/none.ctmesh" --glass-light refracted
-master_wait glasslight 30 || fail "the job with --glass-light refracted in drt did not end"
-((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --glass-light refracted in drt, expected 2"
-grep -q -- 'glass light "refracted" is for path tracing only (mode drt)' "$tmp/glasslight.log" ||
-  { fail "--glass-light refracted with drt not refused"; master_log glasslight; }
+# The refracted glass light is path tracing's and drt's: with reuse-diffuse,
+# refused before the solve (it was found by the tracer ranks once the mesh
+# had been sent).
+master_start glasslight 2 "$root/scenes/cornell/cornell.json" --mesh "$tmp/none.ctmesh" --mode reuse-diffuse \
+  --glass-light refracted
+master_wait glasslight 30 || fail "the job with --glass-light refracted in reuse-diffuse did not end"
+((MASTER_RC == 2)) || fail "exit status $MASTER_RC with --glass-light refracted in reuse-diffuse, expected 2"
+grep -q -- 'glass light "refracted" is for path tracing and drt only (mode reuse-diffuse)' "$tmp/glasslight.log" ||
+  { fail "--glass-light refracted with reuse-diffuse not refused"; master_log glasslight; }
 # An unknown option given last is unknown, not missing its value.
 master_start lastopt 2 "${CORNELL[@]}" --bogus
 master_wait lastopt 30 || fail "the job with an unknown option did not end"
