@@ -44,7 +44,7 @@ typedef struct shooter {
     uint32_t ntg;
     deposit *dep;
     size_t ndep, cap;
-    bool refracted;     /* glass refracts photons and blocks shadow rays */
+    const uint8_t *refract;   /* per part node: its glass refracts photons and blocks shadow rays; NULL: none */
 } shooter;
 
 static vec3 tri_corner(const emb_mesh *m, uint32_t t, int k) { return m->pos[m->tris[3 * t + (uint32_t)k]]; }
@@ -215,8 +215,8 @@ static int keep(shooter *s, vec3 p, vec3 n, vec3 pow, ct_error *err)
 
 /* One photon: a lamp point by luminance x area, a cosine direction about
  * its front, then the reflections and glass crossings until it lands on an
- * opaque surface. The crossings pass it straight, or refract it where glass
- * blocks the shadow rays (s->refracted): a photon carries power, so a
+ * opaque surface. The crossings pass it straight, or refract it where the
+ * glass blocks the shadow rays (s->refract): a photon carries power, so a
  * refraction changes its direction, not its power. */
 static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
 {
@@ -257,7 +257,8 @@ static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
             /* Straight crossings are symmetric (rmesh_glass_pass: F on the
              * air side); a refraction from inside has its own eta, and total
              * internal reflection beyond the critical angle. */
-            float eta = s->refracted && cosd > 0.0f ? g.ior : 1.0f / g.ior, ct;
+            bool bends = s->refract && s->refract[h.node < m->nnodes ? h.node : 0];
+            float eta = bends && cosd > 0.0f ? g.ior : 1.0f / g.ior, ct;
             if (rng_float(r) < rmesh_fresnel(fabsf(cosd), eta, &ct)) {
                 reflections++;
                 d = bsdf_reflect(v3_neg(d), side);
@@ -265,7 +266,7 @@ static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
             } else {
                 pow = v3_mul(pow, hm->transmission);
                 o = emb_offset_ray(x, v3_neg(side));
-                if (s->refracted) {
+                if (bends) {
                     /* t = eta d + (eta cos_i - cos_t) n, n against d */
                     d = v3_norm(v3_add(v3_scale(d, eta), v3_scale(side, eta * fabsf(cosd) - ct)));
                     refracted = true;
@@ -412,8 +413,8 @@ static int estimate(const shooter *s, vec3 **out, ct_error *err)
     return CT_OK;
 }
 
-int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed, bool refracted,
-               vec3 **out, caus_stats *st, ct_error *err)
+int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed,
+               const uint8_t *refract_nodes, vec3 **out, caus_stats *st, ct_error *err)
 {
     *out = NULL;
     memset(st, 0, sizeof *st);
@@ -423,7 +424,7 @@ int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, 
     for (uint32_t i = 0; i < m->nmats; i++) any = any || specular(&m->mats[i]);
     if (!any) return CT_OK;
     double t0 = ct_now();
-    shooter s = {.e = e, .m = m, .mirrors = mirrors, .refracted = refracted};
+    shooter s = {.e = e, .m = m, .mirrors = mirrors, .refract = refract_nodes};
     int rc = collect_emitters(&s, err);
     if (!rc) rc = collect_targets(&s, err);
     if (!rc && s.nemit && s.ntg) {

@@ -36,12 +36,13 @@ typedef struct caus_stats {
 
 /* The caustic irradiance at each vertex of e's mesh (a radiosity mesh:
  * per-vertex reads), from `photons` photons of seed `seed`; mirrors may be
- * NULL. refracted: glass refracts the photons, and every photon that crossed
- * glass counts (the shadow rays do not pass glass: TRC_GLASS_REFRACTED);
- * else glass passes them straight and only reflections make a caustic. *out is NULL (and CT_OK) when the scene has no lamp, no mirror or
+ * NULL. refract_nodes (per part node; NULL: none): that part's glass
+ * refracts the photons, and every photon that crossed it counts (the shadow
+ * rays do not pass it: TRC_GLASS_REFRACTED, TRC_GLASS_AUTO); other glass
+ * passes them straight, and there only reflections make a caustic. *out is NULL (and CT_OK) when the scene has no lamp, no mirror or
  * glass, or no photon landed; else an array of the mesh's nverts for the
  * caller to free. Deterministic for a seed. */
-int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed, bool refracted,
-               vec3 **out, caus_stats *st, ct_error *err);
+int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed,
+               const uint8_t *refract_nodes, vec3 **out, caus_stats *st, ct_error *err);
 
 #endif

@@ -31,7 +31,7 @@ vec3 integ_through_glass(integ_ctx *c, vec3 o, vec3 d, float dist, vec3 target, 
         log_ray(c, o, d, dist, 0);
         if (!emb_intersect(c->emb, o, d, 0.0f, dist, &h)) return att;
         const scene_material *m = &c->mesh->mats[h.mat];
-        if (!m->dielectric) return v3s(0.0f);
+        if (!m->dielectric || (c->glass_bends && c->glass_bends[h.node])) return v3s(0.0f);
         *crossed = true;
         vec3 ng = h.rec->ng;
         float cosd = v3_dot(d, ng);

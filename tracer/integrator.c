@@ -27,15 +27,17 @@ typedef struct emis_w {
     uint32_t from_key;  /* ...and its light_key */
 } emis_w;
 
-/* The emission mode of a ray leaving a mirror or dielectric: reflections see
- * lights fully; a refraction continues a straight line that shadow rays
- * already looked along, unless it started at the camera or a reflection.
- * Where glass blocks shadow rays (TRC_GLASS_REFRACTED) no light sample can
- * make a path through it, so a refraction sees lights fully too. */
-static inline emis_w after_delta(const integ_ctx *c, emis_w in, bool transmit)
+/* The emission mode of a ray leaving a mirror or dielectric (of part node
+ * `node`): reflections see lights fully; a refraction continues a straight
+ * line that shadow rays already looked along, unless it started at the
+ * camera or a reflection. Where the glass blocks shadow rays
+ * (TRC_GLASS_REFRACTED; TRC_GLASS_AUTO's glass that bends light) no light
+ * sample can make a path through it, so a refraction sees lights fully too. */
+static inline emis_w after_delta(const integ_ctx *c, emis_w in, bool transmit, uint32_t node)
 {
     emis_w out = {EMIS_FULL, 0.0f, 1, in.from, in.from_key};
-    if (transmit && in.mode != EMIS_FULL && !c->glass_refracted) out.mode = EMIS_NONE;
+    bool blocks = c->glass_refracted || (c->glass_bends && c->glass_bends[node]);
+    if (transmit && in.mode != EMIS_FULL && !blocks) out.mode = EMIS_NONE;
     return out;
 }
 
@@ -110,7 +112,7 @@ static vec3 path_li(integ_ctx *c, vec3 o, vec3 d, const integ_surf *first, bool 
         if (!bsdf_sample_all(&b, wo, u0, u1, u2, &bs)) break;
         beta = v3_mul(beta, bs.weight);
         if (bs.delta) {
-            ew = after_delta(c, ew, bs.transmit);
+            ew = after_delta(c, ew, bs.transmit, s.h.node);
         } else {
             ew.mode = EMIS_MIS;
             ew.pdf = bs.pdf;
@@ -162,7 +164,7 @@ static vec3 scatter_specular(integ_ctx *c, const integ_surf *s, const bsdf *b, v
 {
     vec3 L = v3s(0.0f);
     if (nb <= 0 && !(maxc(b->L.km) > 0.0f) && !b->L.dielectric) return L;
-    emis_w refl = after_delta(c, ew, false), refr = after_delta(c, ew, true);
+    emis_w refl = after_delta(c, ew, false, s->h.node), refr = after_delta(c, ew, true, s->h.node);
     vec3 up = emb_offset_ray(s->p, b->ng);
     for (int i = 0; i < nb; i++) {
         bsdf_sample bs;

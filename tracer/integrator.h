@@ -31,6 +31,7 @@ typedef struct integ_ctx {
     const trc_options *opt;
     bool has_dielectric;       /* shadow rays must look through glass */
     bool glass_refracted;      /* TRC_GLASS_REFRACTED: glass blocks shadow rays */
+    const uint8_t *glass_bends; /* per part node: its glass blocks shadow rays (TRC_GLASS_AUTO, REFRACTED); NULL: none */
     ct_rng rng;
     trc_stats *st;
 } integ_ctx;

@@ -6,6 +6,7 @@
 
 #include "tracer/bsdf.h"
 #include "tracer/caustics.h"
+#include "tracer/glass_parts.h"
 #include "tracer/embree_scene.h"
 #include "tracer/integrator.h"
 #include "tracer/lights.h"
@@ -38,6 +39,7 @@ struct trc_tracer {
     bsdf_mat *bmats;     /* per scene material */
     bool has_dielectric;
     vec3 *caustic;       /* per mesh vertex: reflective caustic irradiance (drt with a mesh); NULL: none */
+    uint8_t *glass_bends;   /* per part node: glass whose light refracted paths bring (NULL: none) */
     caus_stats caus;
 };
 
@@ -108,6 +110,7 @@ const char *trc_glass_light_name(trc_glass_light g)
     switch (g) {
     case TRC_GLASS_STRAIGHT: return "straight";
     case TRC_GLASS_REFRACTED: return "refracted";
+    case TRC_GLASS_AUTO: return "auto";
     }
     return "?";
 }
@@ -133,13 +136,14 @@ int trc_options_check(const trc_options *o, ct_error *err)
     if (o->caustic_photons < 0 || o->caustic_photons > TRC_CAUSTIC_PHOTONS_MAX)
         return ct_fail(err, CT_EINVAL, "caustic photons %d outside 0..%d", o->caustic_photons,
                        TRC_CAUSTIC_PHOTONS_MAX);
-    if (o->glass_light != TRC_GLASS_STRAIGHT && o->glass_light != TRC_GLASS_REFRACTED)
+    if (o->glass_light != TRC_GLASS_STRAIGHT && o->glass_light != TRC_GLASS_REFRACTED &&
+        o->glass_light != TRC_GLASS_AUTO)
         return ct_fail(err, CT_EINVAL, "glass light %d unknown", (int)o->glass_light);
     /* reuse-diffuse's light is the radiosity solution's, which passes glass
      * straight; path tracing and drt have a refracted variant. */
-    if (o->glass_light == TRC_GLASS_REFRACTED && o->mode == TRC_MODE_REUSE)
-        return ct_fail(err, CT_EINVAL, "glass light \"refracted\" is for path tracing and drt only (mode %s)",
-                       trc_mode_name(o->mode));
+    if (o->glass_light != TRC_GLASS_STRAIGHT && o->mode == TRC_MODE_REUSE)
+        return ct_fail(err, CT_EINVAL, "glass light \"%s\" is for path tracing and drt only (mode %s)",
+                       trc_glass_light_name(o->glass_light), trc_mode_name(o->mode));
     return CT_OK;
 }
 
@@ -163,13 +167,19 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rc) goto fail;
     rc = light_build(t->emb, &t->lights, err);
     if (rc) goto fail;
+    if (o->glass_light != TRC_GLASS_STRAIGHT) {
+        const emb_mesh *em = emb_get_mesh(t->emb);
+        rc = gparts_bending(em, &t->glass_bends, err);
+        if (rc) goto fail;
+        if (o->glass_light == TRC_GLASS_REFRACTED) memset(t->glass_bends, 1, em->nnodes ? em->nnodes : 1);
+    }
     /* Only drt with a radiosity mesh samples mirrored lamps (integrator.c,
      * mirror_light): without a mesh its path-traced indirect light finds them. */
     if (rad && o->mode == TRC_MODE_DRT) {
         rc = mlight_build(t->emb, t->lights, &t->mirrors, err);
         if (rc) goto fail;
-        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed,
-                        o->glass_light == TRC_GLASS_REFRACTED, &t->caustic, &t->caus, err);
+        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed, t->glass_bends, &t->caustic,
+                        &t->caus, err);
         if (rc) goto fail;
     }
     t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);
@@ -194,6 +204,7 @@ void trc_free(trc_tracer *t)
     light_free(t->lights);
     mlight_free(t->mirrors);
     free(t->caustic);
+    free(t->glass_bends);
     free(t->bmats);
     emb_free(t->emb);
     free(t);
@@ -225,8 +236,9 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;
-    c->has_dielectric = t->has_dielectric && t->opt.glass_light == TRC_GLASS_STRAIGHT;
+    c->has_dielectric = t->has_dielectric && t->opt.glass_light != TRC_GLASS_REFRACTED;
     c->glass_refracted = t->opt.glass_light == TRC_GLASS_REFRACTED;
+    c->glass_bends = t->glass_bends;
     c->st = st;
 }
 

@@ -50,7 +50,9 @@ typedef enum trc_gather_direct {
  * Light sampling, "Light through glass, refracted"). */
 typedef enum trc_glass_light {
     TRC_GLASS_STRAIGHT  = 0,   /* shadow rays pass glass, attenuated (the paper's; the radiosity solution's) */
-    TRC_GLASS_REFRACTED = 1    /* glass blocks shadow rays: refracted paths (drt with a mesh: photons) bring that light */
+    TRC_GLASS_REFRACTED = 1,   /* glass blocks shadow rays: refracted paths (drt with a mesh: photons) bring that light */
+    TRC_GLASS_AUTO      = 2    /* straight through flat glass (panes, blocks), refracted through glass that bends
+                                * light (spheres, lenses, drinking glasses): tracer/glass_parts.h */
 } trc_glass_light;
 
 /* Random stream dimensions (the third id of rng_make). */
@@ -86,7 +88,7 @@ typedef struct trc_options {
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
     int caustic_photons; /* drt with a mesh: photons of the lamps' reflective caustics (0: none) */
-    trc_glass_light glass_light;   /* path, drt: TRC_GLASS_REFRACTED, light through glass without the straight model */
+    trc_glass_light glass_light;   /* path, drt: light through glass without (or, auto, partly without) the straight model */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
@@ -108,7 +110,7 @@ const char *trc_indirect_name(trc_indirect i);
 /* "mesh", "trace". */
 const char *trc_gather_direct_name(trc_gather_direct g);
 
-/* "straight", "refracted". */
+/* "straight", "refracted", "auto". */
 const char *trc_glass_light_name(trc_glass_light g);
 
 /* A recorded ray (benchmark replay of the very rays a run traced). */

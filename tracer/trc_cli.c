@@ -4,7 +4,7 @@
 static const int MODES[] = {TRC_MODE_DRT, TRC_MODE_REUSE, TRC_MODE_PATH};
 static const int INDIRECT[] = {TRC_INDIRECT_MESH, TRC_INDIRECT_GATHER};
 static const int GATHER_DIRECT[] = {TRC_GATHER_DIRECT_TRACE, TRC_GATHER_DIRECT_MESH};
-static const int GLASS_LIGHT[] = {TRC_GLASS_STRAIGHT, TRC_GLASS_REFRACTED};
+static const int GLASS_LIGHT[] = {TRC_GLASS_STRAIGHT, TRC_GLASS_REFRACTED, TRC_GLASS_AUTO};
 
 #define OF(f) offsetof(trc_cli, f)
 static const optab ROWS[] = {
@@ -32,9 +32,10 @@ static const optab ROWS[] = {
     {"caustic-photons", 0, OPTAB_INT, OF(caustic_photons), -1, TRC_CAUSTIC_PHOTONS_MAX, "-1", "N",
      "drt with a radiosity mesh: photons shot from the lamps for their reflective caustics, the light mirrors and "
      "glass faces throw onto diffuse surfaces (0: none; -1: the mode's, drt 1000000; docs/tracer.md)", NULL},
-    {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "straight", "straight|refracted",
-     "path, drt: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model) or only by "
-     "refracted paths (glass blocks shadow rays; drt with a mesh takes it from refracted photons; docs/tracer.md)",
+    {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "straight", "straight|refracted|auto",
+     "path, drt: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model), only by "
+     "refracted paths (glass blocks shadow rays; drt with a mesh takes that light from refracted photons), or auto: "
+     "straight through flat glass (panes, blocks), refracted through glass that bends light (docs/tracer.md)",
      GLASS_LIGHT},
 };
 #undef OF

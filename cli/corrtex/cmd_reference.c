@@ -126,11 +126,13 @@ static void help(FILE *f)
         "  --caustic-photons N   drt with a radiosity mesh: photons shot from the lamps\n"
         "                    for their reflective caustics, the light curved mirrors and\n"
         "                    glass faces throw onto diffuse surfaces (0: none; default %d)\n"
-        "  --glass-light L   path: the lamps' light through glass,\n"
+        "  --glass-light L   path, drt: the lamps' light through glass,\n"
         "                      straight: by shadow rays that pass glass attenuated (the\n"
-        "                           paper's model, drt's too; default)\n"
+        "                           paper's model; default)\n"
         "                      refracted: only by refracted paths (glass blocks shadow\n"
-        "                           rays): no straight-line shortcut, slower to converge\n"
+        "                           rays; drt with a mesh: refracted photons)\n"
+        "                      auto: straight through flat glass (panes, blocks),\n"
+        "                           refracted through glass that bends light\n"
         "  --seed N          random seed (default %llu)\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.fresnel_depth, d.depth, p.depth,
         trc_indirect_name(d.indirect), d.gather_rays, trc_gather_direct_name(d.gather_direct), d.caustic_photons,
@@ -255,9 +257,11 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
 {
     uint64_t rays = trc_stats_rays(&r->stats);
     double s = r->seconds > 0 ? r->seconds : 1e-9;
+    char glass[40] = "";
+    if (a->trc.glass_light != TRC_GLASS_STRAIGHT)
+        snprintf(glass, sizeof glass, " (glass light %s)", trc_glass_light_name((trc_glass_light)a->trc.glass_light));
     printf("reference: %dx%d, %d spp, mode %s%s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
-           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->trc.mode),
-           a->trc.glass_light == TRC_GLASS_REFRACTED ? " (glass light refracted)" : "", a->threads,
+           a->width, a->height, a->spp, trc_mode_name((trc_mode)a->trc.mode), glass, a->threads,
            a->threads == 1 ? "" : "s", nimages, nimages == 1 ? "" : "s", r->seconds, total_s);
     printf("reference: %llu samples, %.0f samples/s; %llu rays (%llu primary, %llu secondary, "
            "%llu shadow), %.0f rays/s\n",
@@ -382,7 +386,7 @@ int cmd_reference(int argc, char **argv)
     trc_caustic_stats(t, &ph, &landed, &cs);
     if (ph)
         ct_info(CMD, "caustics: %llu photons, %llu landed after a reflection%s, %.2f s", (unsigned long long)ph,
-                (unsigned long long)landed, to.glass_light == TRC_GLASS_REFRACTED ? " or through glass" : "", cs);
+                (unsigned long long)landed, to.glass_light != TRC_GLASS_STRAIGHT ? " or through glass" : "", cs);
     if ((rc = img_alloc(&img, a.width, a.height, &err))) goto fail;
     render_options ro;
     render_options_default(&ro, a.width, a.height);

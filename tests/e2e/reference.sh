@@ -37,6 +37,9 @@ exrheader "$tmp/g.exr" >/dev/null 2>&1 || die "--glass-light refracted wrote no 
 run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode drt --glass-light refracted \
     --stand-in-radiosity 0.1 -o "$tmp/gd.exr" >"$tmp/gd.log" 2>&1 || die "drt --glass-light refracted failed"
 grep -q "mode drt (glass light refracted)" "$tmp/gd.log" || die "the drt report does not say the glass light is refracted"
+run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode drt --glass-light auto \
+    --stand-in-radiosity 0.1 -o "$tmp/ga.exr" >"$tmp/ga.log" 2>&1 || die "drt --glass-light auto failed"
+grep -q "mode drt (glass light auto)" "$tmp/ga.log" || die "the drt report does not say the glass light is auto"
 
 # reuse-diffuse needs a radiosity mesh (here the stand-in).
 run "$BIN/corrtex" reference "$SCENE" --width 16 --height 12 --spp 1 --mode reuse-diffuse \
@@ -89,7 +92,7 @@ check "missing -o" "$SCENE" --width 8 --height 8 --spp 1 --mode path
 check "unknown option '--bogus'" "$SCENE" "${common[@]}" --mode path --bogus 1
 check "--indirect: 'photons' is not one of mesh|gather" "$SCENE" "${common[@]}" --mode drt --indirect photons
 check "--gather-rays: '0'" "$SCENE" "${common[@]}" --mode drt --gather-rays 0
-check "--glass-light: 'bent' is not one of straight|refracted" "$SCENE" "${common[@]}" --mode path --glass-light bent
+check "--glass-light: 'bent' is not one of straight|refracted|auto" "$SCENE" "${common[@]}" --mode path --glass-light bent
 check "glass light \"refracted\" is for path tracing and drt only (mode reuse-diffuse)" "$SCENE" "${common[@]}" \
   --mode reuse-diffuse --stand-in-radiosity 0.1 --glass-light refracted
 # The tracer's option table (tracer/trc_cli.h): -1 means the mode's level, less is refused.

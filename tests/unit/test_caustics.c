@@ -50,7 +50,7 @@ Test(caustics, a_lamp_in_a_mirror_ceiling_lights_the_floor_as_its_image)
     ct_error err;
     vec3 *E;
     caus_stats st;
-    CHECK(caus_build(f.e, NULL, 2000000, 1, false, &E, &st, &err));
+    CHECK(caus_build(f.e, NULL, 2000000, 1, NULL, &E, &st, &err));
     cr_assert(E, "photons must land on the floor");
     double sum_ratio = 0.0, sum2 = 0.0, worst = 0.0;
     int n = 0;
@@ -97,7 +97,7 @@ Test(caustics, one_reflection_by_a_sampled_plane_mirror_is_left_out)
     cr_assert_eq(mlight_count(ms), 1, "the ceiling is one sampled mirror");
     vec3 *E;
     caus_stats st;
-    CHECK(caus_build(f.e, ms, 200000, 1, false, &E, &st, &err));
+    CHECK(caus_build(f.e, ms, 200000, 1, NULL, &E, &st, &err));
     printf("metric: a sampled plane mirror alone: %llu photons shot, %llu kept\n", (unsigned long long)st.photons,
            (unsigned long long)st.deposits);
     cr_expect_eq(st.deposits, 0, "%llu photons kept", (unsigned long long)st.deposits);
@@ -121,7 +121,7 @@ Test(caustics, a_scene_without_mirrors_or_glass_has_none)
     CHECK(emb_new(&m, NULL, &e, &err));
     vec3 *E = (vec3 *)&err;
     caus_stats st;
-    CHECK(caus_build(e, NULL, 1000, 1, false, &E, &st, &err));
+    CHECK(caus_build(e, NULL, 1000, 1, NULL, &E, &st, &err));
     cr_expect(E == NULL && st.photons == 0, "a diffuse ceiling makes no caustic");
     emb_free(e);
     rmesh_free(&rad);

@@ -215,6 +215,34 @@ Test(glass_light, drt_with_a_mesh_finds_a_ball_lens_focus_by_refracted_photons)
     scene_free(ball);
 }
 
+/* auto: the pane is flat glass, so its light takes the straight model (the
+ * same images as straight, sample for sample); the ball bends light, so its
+ * takes the refracted one (the same as refracted), in path tracing and drt. */
+Test(glass_light, auto_is_straight_through_a_pane_and_refracted_through_a_ball)
+{
+    ct_scene *pane = glass_scene(PANE, 4.0f, 5.0f, 0.2f), *ball = glass_scene(BALL, 1.0f, 10.0f, 0.0f);
+    trc_mode modes[2] = {TRC_MODE_PATH, TRC_MODE_DRT};
+    for (int k = 0; k < 2; k++) {
+        int n = modes[k] == TRC_MODE_PATH ? 4000 : 400;
+        vec3 pa = mode_floor_light(pane, modes[k], TRC_GLASS_AUTO, true, n);
+        vec3 ps = mode_floor_light(pane, modes[k], TRC_GLASS_STRAIGHT, true, n);
+        vec3 ba = mode_floor_light(ball, modes[k], TRC_GLASS_AUTO, false, n);
+        vec3 br = mode_floor_light(ball, modes[k], TRC_GLASS_REFRACTED, false, n);
+        vec3 bs = mode_floor_light(ball, modes[k], TRC_GLASS_STRAIGHT, false, n);
+        printf("metric: %s auto: under the pane %.5f (straight %.5f), under the ball %.5f (refracted %.5f, straight "
+               "%.5f)\n",
+               trc_mode_name(modes[k]), pa.x, ps.x, ba.x, br.x, bs.x);
+        cr_expect(pa.x == ps.x && pa.y == ps.y && pa.z == ps.z, "%s: auto under the pane %g, straight %g",
+                  trc_mode_name(modes[k]), pa.x, ps.x);
+        cr_expect(ba.x == br.x && ba.y == br.y && ba.z == br.z, "%s: auto under the ball %g, refracted %g",
+                  trc_mode_name(modes[k]), ba.x, br.x);
+        cr_expect(ba.x > 3.0f * bs.x, "%s: auto must find the ball's focus (%g against straight %g)",
+                  trc_mode_name(modes[k]), ba.x, bs.x);
+    }
+    scene_free(pane);
+    scene_free(ball);
+}
+
 Test(glass_light, refracted_is_refused_by_reuse_diffuse)
 {
     ct_error err;
