@@ -52,12 +52,25 @@ static bool flat(const part_planes *p)
 int gparts_bending(const emb_mesh *m, uint8_t **out, ct_error *err)
 {
     uint32_t nn = m->nnodes ? m->nnodes : 1;
-    part_planes *pp = calloc(nn, sizeof *pp);
+    /* Planes only for the parts with glass (a scene may have millions of
+     * parts and a few glasses): slot[node] indexes them, 0 = none. */
+    uint32_t *slot = calloc(nn, sizeof *slot);
     uint8_t *bends = calloc(nn, 1);
-    if (!pp || !bends) {
-        free(pp);
+    if (!slot || !bends) {
+        free(slot);
         free(bends);
         return ct_fail(err, CT_ENOMEM, "out of memory for %u glass parts", nn);
+    }
+    uint32_t nglass = 0;
+    for (uint32_t t = 0; t < m->ntris; t++) {
+        uint32_t node = m->tri_node[t] < nn ? m->tri_node[t] : 0;
+        if (m->mats[m->tri_mat[t]].dielectric && !slot[node]) slot[node] = ++nglass;
+    }
+    part_planes *pp = calloc(nglass ? nglass : 1, sizeof *pp);
+    if (!pp) {
+        free(slot);
+        free(bends);
+        return ct_fail(err, CT_ENOMEM, "out of memory for %u glass parts", nglass);
     }
     for (uint32_t t = 0; t < m->ntris; t++) {
         if (!m->mats[m->tri_mat[t]].dielectric) continue;
@@ -67,10 +80,14 @@ int gparts_bending(const emb_mesh *m, uint8_t **out, ct_error *err)
         float len = v3_len(n);
         if (!(len > 0.0f) || !isfinite(len)) continue;
         uint32_t node = m->tri_node[t] < nn ? m->tri_node[t] : 0;
-        add_face(&pp[node], v3_scale(n, 1.0f / len), 0.5 * (double)len);
+        add_face(&pp[slot[node] - 1], v3_scale(n, 1.0f / len), 0.5 * (double)len);
     }
-    for (uint32_t i = 0; i < nn; i++) bends[i] = pp[i].total > 0.0 && !flat(&pp[i]);
+    for (uint32_t i = 0; i < nn; i++) {
+        const part_planes *p = slot[i] ? &pp[slot[i] - 1] : NULL;
+        bends[i] = p && p->total > 0.0 && !flat(p);
+    }
     free(pp);
+    free(slot);
     *out = bends;
     return CT_OK;
 }

@@ -167,11 +167,18 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rc) goto fail;
     rc = light_build(t->emb, &t->lights, err);
     if (rc) goto fail;
-    if (o->glass_light != TRC_GLASS_STRAIGHT) {
-        const emb_mesh *em = emb_get_mesh(t->emb);
-        rc = gparts_bending(em, &t->glass_bends, err);
+    if (o->glass_light == TRC_GLASS_AUTO) {
+        rc = gparts_bending(emb_get_mesh(t->emb), &t->glass_bends, err);
         if (rc) goto fail;
-        if (o->glass_light == TRC_GLASS_REFRACTED) memset(t->glass_bends, 1, em->nnodes ? em->nnodes : 1);
+    } else if (o->glass_light == TRC_GLASS_REFRACTED) {
+        /* every part's glass blocks shadow rays and refracts photons */
+        uint32_t nn = emb_get_mesh(t->emb)->nnodes;
+        t->glass_bends = malloc(nn ? nn : 1);
+        if (!t->glass_bends) {
+            rc = ct_fail(err, CT_ENOMEM, "out of memory for %u glass parts", nn);
+            goto fail;
+        }
+        memset(t->glass_bends, 1, nn ? nn : 1);
     }
     /* Only drt with a radiosity mesh samples mirrored lamps (integrator.c,
      * mirror_light): without a mesh its path-traced indirect light finds them. */
