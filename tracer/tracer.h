@@ -51,7 +51,7 @@ typedef enum trc_gather_direct {
 typedef enum trc_glass_light {
     TRC_GLASS_STRAIGHT  = 0,   /* shadow rays pass glass, attenuated (the paper's; the radiosity solution's) */
     TRC_GLASS_REFRACTED = 1,   /* glass blocks shadow rays: refracted paths (drt with a mesh: photons) bring that light */
-    TRC_GLASS_AUTO      = 2    /* straight through flat glass (panes, blocks), refracted through glass that bends
+    TRC_GLASS_AUTO      = 2    /* straight through flat glass (panes, sheets), refracted through glass that bends
                                 * light (spheres, lenses, drinking glasses): tracer/glass_parts.h */
 } trc_glass_light;
 

@@ -35,7 +35,7 @@ static const optab ROWS[] = {
     {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "straight", "straight|refracted|auto",
      "path, drt: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model), only by "
      "refracted paths (glass blocks shadow rays; drt with a mesh takes that light from refracted photons), or auto: "
-     "straight through flat glass (panes, blocks), refracted through glass that bends light (docs/tracer.md)",
+     "straight through flat glass (panes, sheets), refracted through glass that bends light (docs/tracer.md)",
      GLASS_LIGHT},
 };
 #undef OF

@@ -131,7 +131,7 @@ static void help(FILE *f)
         "                           paper's model; default)\n"
         "                      refracted: only by refracted paths (glass blocks shadow\n"
         "                           rays; drt with a mesh: refracted photons)\n"
-        "                      auto: straight through flat glass (panes, blocks),\n"
+        "                      auto: straight through flat glass (panes, sheets),\n"
         "                           refracted through glass that bends light\n"
         "  --seed N          random seed (default %llu)\n",
         ncpu > 0 ? ncpu : 1, p.shadow_rays, d.shadow_rays, d.branch, d.branch_depth, d.fresnel_depth, d.depth, p.depth,
