@@ -214,7 +214,11 @@ static int parse_camera(const char *s, ct_camera *cam)
         p = end + 1;
     }
     if ((n != 6 && n != 7) || *p != '\0') {
-        ct_log(CT_LOG_ERROR, COMP, "--camera: '%s' is not EX,EY,EZ,TX,TY,TZ[,FOV]", s);
+        /* corrtex reference takes a camera's name here: say where names go */
+        ct_log(CT_LOG_ERROR, COMP,
+               "--camera: '%s' is not EX,EY,EZ,TX,TY,TZ[,FOV] (a scene camera by name: --camera-name with --scene; "
+               "connected to a master the display starts at the scene's first camera)",
+               s);
         return -1;
     }
     /* The range of scene cameras and paths (it was (1, 179) here alone). */

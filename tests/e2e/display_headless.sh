@@ -220,6 +220,8 @@ bad "--cache-max-mb" --backend osmesa --scene "$SCENE" --cache-max-mb -5
 bad "--samples-per-frame: '16777217' is not an integer in \[0, 16777216\]" --backend osmesa \
   --connect "unix:$tmp/none.sock" --samples-per-frame 16777217
 bad "--camera: '0,1,nan,0,0,0'" --backend osmesa --scene "$SCENE" --camera 0,1,nan,0,0,0
+bad "a scene camera by name: --camera-name with --scene" --backend osmesa --connect "unix:$tmp/none.sock" \
+  --camera front
 bad "--camera: 'inf,1,4,0,0,0'" --backend osmesa --scene "$SCENE" --camera inf,1,4,0,0,0
 bad "must be finite and within +-1e+09" --backend osmesa --scene "$SCENE" --camera 0,1,-1e19,0,0,0
 # The field of view's range is the scenes' and paths' (it was (1, 179) here alone).
