@@ -4,8 +4,9 @@
  * leaves a lamp seen in a mirror out: rare and bright, fireflies). Photons
  * are shot from the lamps, followed through their mirror and glass
  * reflections (glass passes the rest straight on, as the tracer's shadow
- * rays see it), and where one lands on a diffuse surface after at least one
- * reflection its power is kept; a density estimate at every mesh vertex
+ * rays see it, or refracts it where glass blocks them), and where one lands
+ * on a diffuse surface after at least one reflection or such a refraction
+ * its power is kept; a density estimate at every mesh vertex
  * turns them into irradiance, which drt reads as it reads the mesh
  * (docs/tracer.md, "Reflective caustics"). One reflection by a plane
  * mirror is left out where drt samples the lamps' images in it
@@ -13,7 +14,6 @@
 #ifndef CT_TRACER_CAUSTICS_H
 #define CT_TRACER_CAUSTICS_H
 
-#include <stdbool.h>
 #include <stdint.h>
 
 #include "common/error.h"
@@ -30,7 +30,7 @@
 
 typedef struct caus_stats {
     uint64_t photons;    /* shot */
-    uint64_t deposits;   /* landed on a diffuse surface after a reflection */
+    uint64_t deposits;   /* landed on a diffuse surface after a reflection or a refraction */
     double seconds;
 } caus_stats;
 
@@ -39,9 +39,10 @@ typedef struct caus_stats {
  * NULL. refract_nodes (per part node; NULL: none): that part's glass
  * refracts the photons, and every photon that crossed it counts (the shadow
  * rays do not pass it: TRC_GLASS_REFRACTED, TRC_GLASS_AUTO); other glass
- * passes them straight, and there only reflections make a caustic. *out is NULL (and CT_OK) when the scene has no lamp, no mirror or
- * glass, or no photon landed; else an array of the mesh's nverts for the
- * caller to free. Deterministic for a seed. */
+ * passes them straight, and there only reflections make a caustic. *out
+ * is NULL (and CT_OK) when the scene has no lamp, no mirror or glass, or no
+ * photon landed; else an array of the mesh's nverts for the caller to free.
+ * Deterministic for a seed. */
 int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed,
                const uint8_t *refract_nodes, vec3 **out, caus_stats *st, ct_error *err);
 

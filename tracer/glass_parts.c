@@ -34,12 +34,11 @@ static void add_face(part_planes *p, vec3 n, double area)
     p->area[p->count++] = area;
 }
 
-/* Flat: a plane, or a pair of opposite planes, holding GPARTS_FLAT_SHARE of
- * the part's glass. Sliver triangles of a subdivided pane, whose rounded
+/* Flat (p holds some glass): a plane, or a pair of opposite planes, holding
+ * GPARTS_FLAT_SHARE of the part's glass. Sliver triangles of a subdivided pane, whose rounded
  * corners tilt them by degrees, hold next to nothing of it. */
 static bool flat(const part_planes *p)
 {
-    if (p->count == 0) return true;
     int a = 0;
     for (int i = 1; i < p->count; i++)
         if (p->area[i] > p->area[a]) a = i;

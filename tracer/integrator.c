@@ -36,7 +36,7 @@ typedef struct emis_w {
 static inline emis_w after_delta(const integ_ctx *c, emis_w in, bool transmit, uint32_t node)
 {
     emis_w out = {EMIS_FULL, 0.0f, 1, in.from, in.from_key};
-    bool blocks = c->glass_refracted || (c->glass_bends && c->glass_bends[node]);
+    bool blocks = c->glass_bends && c->glass_bends[node];
     if (transmit && in.mode != EMIS_FULL && !blocks) out.mode = EMIS_NONE;
     return out;
 }

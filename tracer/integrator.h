@@ -29,8 +29,7 @@ typedef struct integ_ctx {
     const bsdf_mat *bmats;     /* per material: its precomputed lobes */
     const ct_radmesh *rad;     /* NULL: no interactive solution */
     const trc_options *opt;
-    bool has_dielectric;       /* shadow rays must look through glass */
-    bool glass_refracted;      /* TRC_GLASS_REFRACTED: glass blocks shadow rays */
+    bool has_dielectric;       /* shadow rays must look through glass (false: any glass blocks them) */
     const uint8_t *glass_bends; /* per part node: its glass blocks shadow rays (TRC_GLASS_AUTO, REFRACTED); NULL: none */
     ct_rng rng;
     trc_stats *st;

@@ -243,8 +243,9 @@ static void init_ctx(const trc_tracer *t, integ_ctx *c, trc_stats *st)
     c->bmats = t->bmats;
     c->rad = t->rad;
     c->opt = &t->opt;
+    /* refracted: every part's glass bends, so no shadow ray looks through
+     * glass (not even the ray that would find it) */
     c->has_dielectric = t->has_dielectric && t->opt.glass_light != TRC_GLASS_REFRACTED;
-    c->glass_refracted = t->opt.glass_light == TRC_GLASS_REFRACTED;
     c->glass_bends = t->glass_bends;
     c->st = st;
 }

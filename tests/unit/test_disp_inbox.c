@@ -89,21 +89,48 @@ static void fill(uint16_t *h, int n, float base, float step)
     for (int i = 0; i < n; i++) h[i] = fx_half(base + step * (float)(i % 37) - 0.3f * (float)((i / 37) % 3));
 }
 
+/* rig_open, the box scene handed to the inbox and texture id (w x h, the
+ * back wall's projection) allocated there: the connection thread's side of
+ * most cases. */
+static void rig_open_wall(rig *r, uint32_t id, int w, int h)
+{
+    ct_error err;
+    rig_open(r);
+    ct_radmesh copy;
+    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
+    disp_inbox_scene(r->in, &copy);
+    cr_assert_eq(disp_inbox_tex_alloc(r->in, id, r->nd.back, w, h, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
+    mat4 p = wall_proj();
+    cr_assert_eq(disp_inbox_tex_projection(r->in, id, &p, &err), 0);
+}
+
+/* Whether r's session renders as a fresh session with the same scene and
+ * texture id, w x h texels applied directly. */
+static bool renders_as_direct(rig *r, uint32_t id, int w, int h, const uint16_t *texels)
+{
+    ct_error err;
+    mat4 p = wall_proj();
+    disp_session *direct = NULL;
+    cr_assert_eq(disp_session_new(&direct, &err), 0);
+    cr_assert_eq(disp_session_scene(direct, &r->mesh, &err), 0);
+    cr_assert_eq(disp_session_tex_alloc(direct, id, r->nd.back, w, h, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
+    cr_assert_eq(disp_session_tex_projection(direct, id, &p, &err), 0);
+    cr_assert_eq(disp_session_tex_patch(direct, id, 0, 0, w, h, texels, &err), 0);
+    static uint8_t got[W * H * 3], ref[W * H * 3];
+    render(r->s, got);
+    render(direct, ref);
+    disp_session_free(direct);
+    return memcmp(got, ref, sizeof got) == 0;
+}
+
 Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
 {
     ct_error err;
     rig r;
-    rig_open(&r);
+    /* The connection thread's side: scene, texture, three patches. */
+    rig_open_wall(&r, 5, 16, 12);
     disp_inbox *in = r.in;
     disp_session *s = r.s;
-    fx_box_nodes nd = r.nd;
-    ct_radmesh copy;
-    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
-    /* The connection thread's side: scene, texture, three patches. */
-    disp_inbox_scene(in, &copy);
-    cr_assert_eq(disp_inbox_tex_alloc(in, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
-    mat4 p = wall_proj();
-    cr_assert_eq(disp_inbox_tex_projection(in, 5, &p, &err), 0);
     static uint16_t a[16 * 12 * 3], c[6 * 4 * 3], d[16 * 2 * 3];
     fill(a, 16 * 12 * 3, 0.1f, 0.01f);
     fill(c, 6 * 4 * 3, -0.2f, 0.02f);
@@ -129,21 +156,11 @@ Test(disp_inbox, patches_of_one_area_are_one_upload_of_the_newest_texels)
     memcpy(want, a, sizeof want);
     for (int y = 0; y < 4; y++) memcpy(want + 3 * ((2 + y) * 16 + 3), c + 3 * y * 6, 6 * 6);
     memcpy(want + 3 * 10 * 16, d, sizeof d);
-    disp_session *direct = NULL;
-    cr_assert_eq(disp_session_new(&direct, &err), 0);
-    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
-    cr_assert_eq(disp_session_tex_alloc(direct, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
-    cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
-    cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 16, 12, want, &err), 0);
-    static uint8_t got[W * H * 3], ref[W * H * 3];
-    render(s, got);
-    render(direct, ref);
-    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "the inbox's image differs from direct patches");
+    cr_expect(renders_as_direct(&r, 5, 16, 12, want), "the inbox's image differs from direct patches");
     /* Nothing new: the next frame uploads nothing. */
     cr_assert_eq(disp_inbox_apply(in, s, &took, &err), 0);
     cr_expect_eq(disp_session_counters(s).patches, 2u);
     cr_expect_eq(took.nstamps, 0u);
-    disp_session_free(direct);
     rmesh_free(&r.mesh);
     rig_close(&r);
 }
@@ -157,13 +174,7 @@ Test(disp_inbox, the_upload_buffer_is_kept_grown_and_given_back)
 {
     ct_error err;
     rig r;
-    rig_open(&r);
-    ct_radmesh copy;
-    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
-    disp_inbox_scene(r.in, &copy);
-    cr_assert_eq(disp_inbox_tex_alloc(r.in, 5, r.nd.back, 32, 32, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
-    mat4 p = wall_proj();
-    cr_assert_eq(disp_inbox_tex_projection(r.in, 5, &p, &err), 0);
+    rig_open_wall(&r, 5, 32, 32);
     static uint16_t whole[32 * 32 * 3], tile[8 * 8 * 3];
     fill(whole, 32 * 32 * 3, 0.1f, 0.01f);
     disp_inbox_took took;
@@ -188,21 +199,11 @@ Test(disp_inbox, the_upload_buffer_is_kept_grown_and_given_back)
     static uint16_t want[32 * 32 * 3];
     memcpy(want, whole, sizeof want);
     for (int y = 0; y < 8; y++) memcpy(want + 3 * y * 32, tile + 3 * y * 8, 8 * 6);
-    disp_session *direct = NULL;
-    cr_assert_eq(disp_session_new(&direct, &err), 0);
-    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
-    cr_assert_eq(disp_session_tex_alloc(direct, 5, r.nd.back, 32, 32, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
-    cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
-    cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 32, 32, want, &err), 0);
-    static uint8_t got[W * H * 3], ref[W * H * 3];
-    render(r.s, got);
-    render(direct, ref);
-    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "texels staged in reused storage render differently");
+    cr_expect(renders_as_direct(&r, 5, 32, 32, want), "texels staged in reused storage render differently");
     /* A larger take grows it again. */
     cr_assert_eq(disp_inbox_tex_patch(r.in, 5, 0, 0, 32, 32, whole, 200, 1, &err), 0);
     cr_assert_eq(disp_inbox_apply(r.in, r.s, &took, &err), 0, "%s", err.msg);
     cr_expect_geq(took.upload_buffer_bytes, big, "grown for the whole texture: %zu bytes", took.upload_buffer_bytes);
-    disp_session_free(direct);
     rmesh_free(&r.mesh);
     rig_close(&r);
 }
@@ -214,14 +215,8 @@ Test(disp_inbox, close_runs_of_a_tile_row_are_one_upload)
 {
     ct_error err;
     rig r;
-    rig_open(&r);
-    ct_radmesh copy;
-    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
-    disp_inbox_scene(r.in, &copy);
     enum { TW = 128, TH = 8 };   /* one row of 16 tiles of 8 x 8 */
-    cr_assert_eq(disp_inbox_tex_alloc(r.in, 2, r.nd.back, TW, TH, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
-    mat4 p = wall_proj();
-    cr_assert_eq(disp_inbox_tex_projection(r.in, 2, &p, &err), 0);
+    rig_open_wall(&r, 2, TW, TH);
     static uint16_t all[TW * TH * 3], t0[8 * 8 * 3], t5[8 * 8 * 3], t11[8 * 8 * 3];
     fill(all, TW * TH * 3, 0.05f, 0.002f);
     fill(t0, 8 * 8 * 3, 0.4f, 0.01f);
@@ -246,17 +241,7 @@ Test(disp_inbox, close_runs_of_a_tile_row_are_one_upload)
         memcpy(want + 3 * (y * TW + 40), t5 + 3 * y * 8, 8 * 6);
         memcpy(want + 3 * (y * TW + 88), t11 + 3 * y * 8, 8 * 6);
     }
-    disp_session *direct = NULL;
-    cr_assert_eq(disp_session_new(&direct, &err), 0);
-    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
-    cr_assert_eq(disp_session_tex_alloc(direct, 2, r.nd.back, TW, TH, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
-    cr_assert_eq(disp_session_tex_projection(direct, 2, &p, &err), 0);
-    cr_assert_eq(disp_session_tex_patch(direct, 2, 0, 0, TW, TH, want, &err), 0);
-    static uint8_t got[W * H * 3], ref[W * H * 3];
-    render(r.s, got);
-    render(direct, ref);
-    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "the merged uploads' image differs from direct patches");
-    disp_session_free(direct);
+    cr_expect(renders_as_direct(&r, 2, TW, TH, want), "the merged uploads' image differs from direct patches");
     rmesh_free(&r.mesh);
     rig_close(&r);
 }
@@ -341,15 +326,8 @@ Test(disp_inbox, an_exact_resize_is_computed_here_and_uploaded_whole)
 {
     ct_error err;
     rig r;
-    rig_open(&r);
+    rig_open_wall(&r, 5, 16, 12);
     disp_inbox *in = r.in;
-    fx_box_nodes nd = r.nd;
-    ct_radmesh copy;
-    cr_assert_eq(fx_box_mesh(4, &copy, NULL, &err), 0);
-    disp_inbox_scene(in, &copy);
-    cr_assert_eq(disp_inbox_tex_alloc(in, 5, nd.back, 16, 12, DISP_PROJ_OBJECT_PARALLEL, &err), 0, "%s", err.msg);
-    mat4 p = wall_proj();
-    cr_assert_eq(disp_inbox_tex_projection(in, 5, &p, &err), 0);
     static uint16_t a[16 * 12 * 3], want[32 * 24 * 3];
     fill(a, 16 * 12 * 3, 0.1f, 0.01f);
     for (int i = 0; i < 16 * 12; i += 5) a[3 * i] = a[3 * i + 1] = a[3 * i + 2] = 0;   /* empty texels */
@@ -362,16 +340,7 @@ Test(disp_inbox, an_exact_resize_is_computed_here_and_uploaded_whole)
                  (unsigned long long)took.texels);
     bool neg, nz;
     cr_assert_eq(disp_rescale(a, 16, 12, want, 32, 24, &neg, &nz), 0);
-    disp_session *direct = NULL;
-    cr_assert_eq(disp_session_new(&direct, &err), 0);
-    cr_assert_eq(disp_session_scene(direct, &r.mesh, &err), 0);
-    cr_assert_eq(disp_session_tex_alloc(direct, 5, nd.back, 32, 24, DISP_PROJ_OBJECT_PARALLEL, &err), 0);
-    cr_assert_eq(disp_session_tex_projection(direct, 5, &p, &err), 0);
-    cr_assert_eq(disp_session_tex_patch(direct, 5, 0, 0, 32, 24, want, &err), 0);
-    static uint8_t got[W * H * 3], ref[W * H * 3];
-    render(r.s, got);
-    render(direct, ref);
-    cr_expect_eq(memcmp(got, ref, sizeof got), 0, "the resized texture's image differs from its texels patched");
+    cr_expect(renders_as_direct(&r, 5, 32, 24, want), "the resized texture's image differs from its texels patched");
     /* a patch at the new size fits; what is no exact resize does not */
     cr_expect_eq(disp_inbox_tex_patch(in, 5, 28, 20, 4, 4, a, 0, 0, &err), 0, "%s", err.msg);
     cr_expect_eq(disp_inbox_tex_resize(in, 5, 48, 24, &err), CT_EPROTO);
@@ -381,7 +350,6 @@ Test(disp_inbox, an_exact_resize_is_computed_here_and_uploaded_whole)
     cr_expect_eq(disp_inbox_tex_resize(in, 5, 64, 0, &err), CT_ERANGE);
     cr_assert_eq(disp_inbox_tex_free(in, 5, &err), 0);
     cr_expect_eq(disp_inbox_tex_resize(in, 5, 16, 12, &err), CT_EPROTO, "a freed texture");
-    disp_session_free(direct);
     rmesh_free(&r.mesh);
     rig_close(&r);
 }
