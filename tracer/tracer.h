@@ -70,8 +70,10 @@ enum {
  * first three levels (fresnel_depth); 6: a glossy layer where a gather
  * ray lands reflects the room's light too (integ_gather.c); 7: a gather ray
  * that meets glass takes its face's reflection too; 8: drt with a mesh
- * adds the lamps' reflective caustics (caustics.h). */
-#define TRC_VERSION 8
+ * adds the lamps' reflective caustics (caustics.h); 9: path tracing and drt
+ * refract the lamps' light through glass that bends it by default
+ * (TRC_GLASS_AUTO). */
+#define TRC_VERSION 9
 
 /* drt's default photons for the reflective caustics (caustics.h). */
 #define TRC_CAUSTIC_PHOTONS 1000000
@@ -88,7 +90,7 @@ typedef struct trc_options {
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
     int caustic_photons; /* drt with a mesh: photons of the lamps' reflective caustics (0: none) */
-    trc_glass_light glass_light;   /* path, drt: light through glass without (or, auto, partly without) the straight model */
+    trc_glass_light glass_light;   /* light through glass (default auto; reuse-diffuse: straight, whatever is asked) */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;

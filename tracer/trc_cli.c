@@ -32,10 +32,11 @@ static const optab ROWS[] = {
     {"caustic-photons", 0, OPTAB_INT, OF(caustic_photons), -1, TRC_CAUSTIC_PHOTONS_MAX, "-1", "N",
      "drt with a radiosity mesh: photons shot from the lamps for their reflective caustics, the light mirrors and "
      "glass faces throw onto diffuse surfaces (0: none; -1: the mode's, drt 1000000; docs/tracer.md)", NULL},
-    {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "straight", "straight|refracted|auto",
-     "path, drt: the lamps' light through glass, by shadow rays that pass it attenuated (the paper's model), only by "
-     "refracted paths (glass blocks shadow rays; drt with a mesh takes that light from refracted photons), or auto: "
-     "straight through flat glass (panes, sheets), refracted through glass that bends light (docs/tracer.md)",
+    {"glass-light", 0, OPTAB_CHOICE, OF(glass_light), 0, 0, "auto", "straight|refracted|auto",
+     "the lamps' light through glass: by shadow rays that pass it attenuated (the paper's model), only by refracted "
+     "paths (path, drt: glass blocks shadow rays; drt with a mesh takes that light from refracted photons), or auto: "
+     "straight through flat glass (panes, sheets), refracted through glass that bends light (reuse-diffuse: straight "
+     "everywhere; docs/tracer.md)",
      GLASS_LIGHT},
 };
 #undef OF

@@ -258,7 +258,7 @@ static void report(const ref_args *a, const render_result *r, double total_s, in
     uint64_t rays = trc_stats_rays(&r->stats);
     double s = r->seconds > 0 ? r->seconds : 1e-9;
     char glass[40] = "";
-    if (a->trc.glass_light != TRC_GLASS_STRAIGHT)
+    if (a->trc.glass_light != TRC_GLASS_AUTO && a->trc.mode != TRC_MODE_REUSE)
         snprintf(glass, sizeof glass, " (glass light %s)", trc_glass_light_name((trc_glass_light)a->trc.glass_light));
     printf("reference: %dx%d, %d spp, mode %s%s, %d thread%s, %d image%s: %.3f s tracing (%.3f s total)\n",
            a->width, a->height, a->spp, trc_mode_name((trc_mode)a->trc.mode), glass, a->threads,
