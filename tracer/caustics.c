@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "common/grow.h"
+#include "common/pool.h"
 #include "common/radmesh.h"
 #include "common/rng.h"
 #include "common/timer.h"
@@ -19,6 +20,11 @@
 /* Share of the photons aimed at them; the rest leave the lamp by the
  * cosine (every direction keeps a positive density). */
 #define CAUS_AIMED 0.9f
+/* Photons a task shoots, and vertices a task estimates: the work is cut
+ * into the same pieces for any thread count, so the deposits come out in
+ * photon order and the result does not depend on it. */
+#define CAUS_PHOTON_TASK 8192u
+#define CAUS_VERTEX_TASK 1024u
 
 typedef struct deposit {
     vec3 p, n;   /* where it landed, the surface's front normal */
@@ -42,8 +48,8 @@ typedef struct shooter {
     double total;       /* sum of luminance x area */
     target tg[CAUS_MAX_TARGETS];
     uint32_t ntg;
-    deposit *dep;
-    size_t ndep, cap;
+    deposit *dep;       /* every task's deposits, in photon order */
+    size_t ndep;
     const uint8_t *refract;   /* per part node: its glass refracts photons and blocks shadow rays; NULL: none */
 } shooter;
 
@@ -205,11 +211,17 @@ static vec3 leave_lamp(const shooter *s, ct_rng *r, vec3 p, vec3 ng, float *pdf)
     return d;
 }
 
-static int keep(shooter *s, vec3 p, vec3 n, vec3 pow, ct_error *err)
+/* One task's deposits. */
+typedef struct deposits {
+    deposit *dep;
+    size_t n, cap;
+} deposits;
+
+static int keep(deposits *ds, vec3 p, vec3 n, vec3 pow, ct_error *err)
 {
-    int rc = ct_grow((void **)&s->dep, &s->cap, s->ndep + 1, sizeof *s->dep, "caustic photons", err);
+    int rc = ct_grow((void **)&ds->dep, &ds->cap, ds->n + 1, sizeof *ds->dep, "caustic photons", err);
     if (rc) return rc;
-    s->dep[s->ndep++] = (deposit){p, n, pow};
+    ds->dep[ds->n++] = (deposit){p, n, pow};
     return CT_OK;
 }
 
@@ -218,7 +230,7 @@ static int keep(shooter *s, vec3 p, vec3 n, vec3 pow, ct_error *err)
  * opaque surface. The crossings pass it straight, or refract it where the
  * glass blocks the shadow rays (s->refract): a photon carries power, so a
  * refraction changes its direction, not its power. */
-static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
+static int shoot(const shooter *s, deposits *out, ct_rng *r, float unit_n, ct_error *err)
 {
     const emb_mesh *m = s->m;
     double u = rng_double(r) * s->total;
@@ -276,7 +288,7 @@ static int shoot(shooter *s, ct_rng *r, float unit_n, ct_error *err)
         }
         bool counts = refracted || reflections > 1 || (reflections == 1 && !first_on_image_mirror);
         if (counts && cosd < 0.0f && v3_maxc(hm->diffuse) > 0.0f) {
-            int rc = keep(s, x, n, pow, err);
+            int rc = keep(out, x, n, pow, err);
             if (rc) return rc;
         }
         float pm = mlight_material(hm) ? v3_maxc(hm->mirror) : 0.0f;
@@ -371,7 +383,47 @@ static vec3 gather(const grid *g, const deposit *dep, vec3 p, vec3 n, float r, u
     return sum;
 }
 
-static int estimate(const shooter *s, vec3 **out, ct_error *err)
+/* The radii a vertex's estimate chooses among: rmax, rmax/2, rmax/4, rmax/8. */
+enum { CAUS_RINGS = 4 };
+
+typedef struct estimate_job {
+    const shooter *s;
+    const grid *g;
+    float r[CAUS_RINGS];
+    const uint8_t *read;   /* per vertex: a corner of a diffuse triangle */
+    vec3 *e;
+} estimate_job;
+
+/* Vertices [task * CAUS_VERTEX_TASK, ...): the smallest radius that holds
+ * CAUS_KNN photons (a sharper caustic at the same noise), else rmax. */
+static void estimate_task(void *ctx, int worker, size_t task)
+{
+    (void)worker;
+    const estimate_job *j = ctx;
+    const emb_mesh *m = j->s->m;
+    size_t i0 = task * CAUS_VERTEX_TASK, i1 = i0 + CAUS_VERTEX_TASK;
+    if (i1 > m->nverts) i1 = m->nverts;
+    for (size_t i = i0; i < i1; i++) {
+        if (!j->read[i]) continue;
+        vec3 n = m->nrm[i];
+        float ln = v3_len(n);
+        if (!(ln > 0.0f)) continue;
+        n = v3_scale(n, 1.0f / ln);
+        /* From the smallest radius out: where photons are dense (a focus,
+         * where the estimate's cost is) the first look is the small one. */
+        uint32_t cnt = 0;
+        vec3 sum = v3s(0.0f);
+        int k = CAUS_RINGS - 1;
+        for (; k >= 0; k--) {
+            sum = gather(j->g, j->s->dep, m->pos[i], n, j->r[k], &cnt);
+            if (cnt >= CAUS_KNN) break;
+        }
+        if (k < 0) k = 0;
+        if (cnt) j->e[i] = v3_scale(sum, 1.0f / ((float)M_PI * j->r[k] * j->r[k]));
+    }
+}
+
+static int estimate(const shooter *s, ct_pool *pool, vec3 **out, ct_error *err)
 {
     const emb_mesh *m = s->m;
     vec3 lo = v3s(INFINITY), hi = v3s(-INFINITY);
@@ -382,27 +434,27 @@ static int estimate(const shooter *s, vec3 **out, ct_error *err)
     float rmax = CAUS_RADIUS_SHARE * v3_len(v3_sub(hi, lo));
     if (!(rmax > 0.0f)) return CT_OK;
     grid g = {0};
-    int rc = grid_build(&g, s->dep, s->ndep, lo, hi, rmax / 2.0f, err);
+    /* cells of the smallest radius, so that a dense vertex's look stays
+     * small (grid_build coarsens them for a large scene) */
+    int rc = grid_build(&g, s->dep, s->ndep, lo, hi, rmax / 8.0f, err);
     vec3 *e = rc ? NULL : calloc(m->nverts ? m->nverts : 1, sizeof *e);
-    if (!rc && !e) rc = ct_fail(err, CT_ENOMEM, "caustics: out of memory for %u vertices", m->nverts);
-    for (uint32_t i = 0; !rc && i < m->nverts; i++) {
-        vec3 n = m->nrm[i];
-        float ln = v3_len(n);
-        if (!(ln > 0.0f)) continue;
-        n = v3_scale(n, 1.0f / ln);
-        uint32_t cnt;
-        float r = rmax;
-        vec3 sum = gather(&g, s->dep, m->pos[i], n, r, &cnt);
-        /* Smaller radii where the photons are dense enough: a sharper
-         * caustic at the same noise. */
-        for (float rs = rmax / 2.0f; cnt >= CAUS_KNN && rs >= rmax / 8.0f; rs /= 2.0f) {
-            uint32_t c2;
-            vec3 s2 = gather(&g, s->dep, m->pos[i], n, rs, &c2);
-            if (c2 < CAUS_KNN) break;
-            sum = s2, cnt = c2, r = rs;
-        }
-        if (cnt) e[i] = v3_scale(sum, 1.0f / ((float)M_PI * r * r));
+    /* drt reads the estimate only at diffuse hits (integrator.c): the
+     * vertices of glass and of pure mirrors need none, and glass standing
+     * in its own focus made most of the estimate's work (table: the
+     * glasses' vertices looking at the deposits under them, facing away). */
+    uint8_t *read = rc ? NULL : calloc(m->nverts ? m->nverts : 1, 1);
+    if (!rc && (!e || !read)) rc = ct_fail(err, CT_ENOMEM, "caustics: out of memory for %u vertices", m->nverts);
+    for (uint32_t t = 0; !rc && t < m->ntris; t++) {
+        const scene_material *mt = &m->mats[m->tri_mat[t]];
+        if (mt->dielectric || !(v3_maxc(mt->diffuse) > 0.0f)) continue;
+        for (int k = 0; k < 3; k++) read[m->tris[3 * t + (uint32_t)k]] = 1;
     }
+    if (!rc) {
+        estimate_job j = {.s = s, .g = &g, .read = read, .e = e};
+        for (int k = 0; k < CAUS_RINGS; k++) j.r[k] = k ? j.r[k - 1] / 2.0f : rmax;
+        pool_run(pool, (m->nverts + CAUS_VERTEX_TASK - 1) / CAUS_VERTEX_TASK, estimate_task, &j);
+    }
+    free(read);
     free(g.start);
     free(g.idx);
     if (rc) {
@@ -413,8 +465,63 @@ static int estimate(const shooter *s, vec3 **out, ct_error *err)
     return CT_OK;
 }
 
+typedef struct shoot_job {
+    const shooter *s;
+    uint32_t photons;
+    uint64_t seed;
+    float unit_n;
+    deposits *tasks;   /* per task */
+    int *rc;
+    ct_error *err;
+} shoot_job;
+
+static void shoot_task(void *ctx, int worker, size_t task)
+{
+    (void)worker;
+    shoot_job *j = ctx;
+    uint32_t i0 = (uint32_t)task * CAUS_PHOTON_TASK;
+    uint32_t i1 = j->photons - i0 < CAUS_PHOTON_TASK ? j->photons : i0 + CAUS_PHOTON_TASK;
+    for (uint32_t i = i0; i < i1 && !j->rc[task]; i++) {
+        ct_rng r = rng_make(j->seed, 0xCA05u, i, 0);
+        j->rc[task] = shoot(j->s, &j->tasks[task], &r, j->unit_n, &j->err[task]);
+    }
+}
+
+/* Shoots the photons in tasks and joins their deposits in photon order. */
+static int shoot_all(shooter *s, ct_pool *pool, uint32_t photons, uint64_t seed, ct_error *err)
+{
+    size_t nt = (photons + (size_t)CAUS_PHOTON_TASK - 1) / CAUS_PHOTON_TASK;
+    shoot_job j = {.s = s, .photons = photons, .seed = seed, .unit_n = (float)(s->total / (double)photons),
+                   .tasks = calloc(nt, sizeof *j.tasks), .rc = calloc(nt, sizeof *j.rc),
+                   .err = calloc(nt, sizeof *j.err)};
+    int rc = CT_OK;
+    if (!j.tasks || !j.rc || !j.err) rc = ct_fail(err, CT_ENOMEM, "caustics: out of memory for %zu tasks", nt);
+    if (!rc) pool_run(pool, nt, shoot_task, &j);
+    size_t total = 0;
+    for (size_t t = 0; !rc && t < nt; t++) {
+        if (j.rc[t]) {
+            rc = j.rc[t];
+            *err = j.err[t];
+        }
+        total += j.tasks[t].n;
+    }
+    if (!rc && total) {
+        s->dep = malloc(total * sizeof *s->dep);
+        if (!s->dep) rc = ct_fail(err, CT_ENOMEM, "caustics: out of memory for %zu photons", total);
+        for (size_t t = 0; !rc && t < nt; t++) {
+            if (j.tasks[t].n) memcpy(s->dep + s->ndep, j.tasks[t].dep, j.tasks[t].n * sizeof *s->dep);
+            s->ndep += j.tasks[t].n;
+        }
+    }
+    for (size_t t = 0; j.tasks && t < nt; t++) free(j.tasks[t].dep);
+    free(j.tasks);
+    free(j.rc);
+    free(j.err);
+    return rc;
+}
+
 int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed,
-               const uint8_t *refract_nodes, vec3 **out, caus_stats *st, ct_error *err)
+               const uint8_t *refract_nodes, int threads, vec3 **out, caus_stats *st, ct_error *err)
 {
     *out = NULL;
     memset(st, 0, sizeof *st);
@@ -425,18 +532,19 @@ int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, 
     if (!any) return CT_OK;
     double t0 = ct_now();
     shooter s = {.e = e, .m = m, .mirrors = mirrors, .refract = refract_nodes};
+    ct_pool *pool = NULL;
     int rc = collect_emitters(&s, err);
     if (!rc) rc = collect_targets(&s, err);
     if (!rc && s.nemit && s.ntg) {
-        float unit_n = (float)(s.total / (double)photons);
-        for (uint32_t i = 0; !rc && i < photons; i++) {
-            ct_rng r = rng_make(seed, 0xCA05u, i, 0);
-            rc = shoot(&s, &r, unit_n, err);
-        }
+        if (threads <= 0) threads = pool_cpus();
+        if (threads > POOL_MAX_THREADS) threads = POOL_MAX_THREADS;
+        if (threads > 1) rc = pool_new(threads, &pool, err);
+        if (!rc) rc = shoot_all(&s, pool, photons, seed, err);
         st->photons = photons;
         st->deposits = s.ndep;
-        if (!rc && s.ndep) rc = estimate(&s, out, err);
+        if (!rc && s.ndep) rc = estimate(&s, pool, out, err);
     }
+    pool_free(pool);
     free(s.cdf);
     free(s.etri);
     free(s.dep);

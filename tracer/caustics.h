@@ -42,8 +42,9 @@ typedef struct caus_stats {
  * passes them straight, and there only reflections make a caustic. *out
  * is NULL (and CT_OK) when the scene has no lamp, no mirror or glass, or no
  * photon landed; else an array of the mesh's nverts for the caller to free.
- * Deterministic for a seed. */
+ * Runs on `threads` threads (0: the cores this process may use, as
+ * Embree's build does). Deterministic for a seed, whatever the threads. */
 int caus_build(const emb_scene *e, const mlight_set *mirrors, uint32_t photons, uint64_t seed,
-               const uint8_t *refract_nodes, vec3 **out, caus_stats *st, ct_error *err);
+               const uint8_t *refract_nodes, int threads, vec3 **out, caus_stats *st, ct_error *err);
 
 #endif

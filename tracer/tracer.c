@@ -190,8 +190,8 @@ int trc_new(const ct_scene *scene, const ct_radmesh *rad, const trc_options *o, 
     if (rad && o->mode == TRC_MODE_DRT) {
         rc = mlight_build(t->emb, t->lights, &t->mirrors, err);
         if (rc) goto fail;
-        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed, t->glass_bends, &t->caustic,
-                        &t->caus, err);
+        rc = caus_build(t->emb, t->mirrors, (uint32_t)o->caustic_photons, o->seed, t->glass_bends, 0,
+                        &t->caustic, &t->caus, err);
         if (rc) goto fail;
     }
     t->bmats = malloc((scene->nmats ? scene->nmats : 1) * sizeof *t->bmats);

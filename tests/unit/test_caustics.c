@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "common/radmesh.h"
 #include "tests/support/testscenes.h"
@@ -50,7 +51,7 @@ Test(caustics, a_lamp_in_a_mirror_ceiling_lights_the_floor_as_its_image)
     ct_error err;
     vec3 *E;
     caus_stats st;
-    CHECK(caus_build(f.e, NULL, 2000000, 1, NULL, &E, &st, &err));
+    CHECK(caus_build(f.e, NULL, 2000000, 1, NULL, 0, &E, &st, &err));
     cr_assert(E, "photons must land on the floor");
     double sum_ratio = 0.0, sum2 = 0.0, worst = 0.0;
     int n = 0;
@@ -97,7 +98,7 @@ Test(caustics, one_reflection_by_a_sampled_plane_mirror_is_left_out)
     cr_assert_eq(mlight_count(ms), 1, "the ceiling is one sampled mirror");
     vec3 *E;
     caus_stats st;
-    CHECK(caus_build(f.e, ms, 200000, 1, NULL, &E, &st, &err));
+    CHECK(caus_build(f.e, ms, 200000, 1, NULL, 0, &E, &st, &err));
     printf("metric: a sampled plane mirror alone: %llu photons shot, %llu kept\n", (unsigned long long)st.photons,
            (unsigned long long)st.deposits);
     cr_expect_eq(st.deposits, 0, "%llu photons kept", (unsigned long long)st.deposits);
@@ -121,9 +122,34 @@ Test(caustics, a_scene_without_mirrors_or_glass_has_none)
     CHECK(emb_new(&m, NULL, &e, &err));
     vec3 *E = (vec3 *)&err;
     caus_stats st;
-    CHECK(caus_build(e, NULL, 1000, 1, NULL, &E, &st, &err));
+    CHECK(caus_build(e, NULL, 1000, 1, NULL, 0, &E, &st, &err));
     cr_expect(E == NULL && st.photons == 0, "a diffuse ceiling makes no caustic");
     emb_free(e);
     rmesh_free(&rad);
     scene_free(s);
+}
+
+/* The photons are shot and the vertices estimated in pieces of a fixed size
+ * whatever the threads, the deposits joined in photon order: the same
+ * caustic, bit for bit, on one thread and on several (a photon count that
+ * leaves the last piece short). */
+Test(caustics, the_same_on_any_number_of_threads)
+{
+    fixture f;
+    open_scene(&f);
+    ct_error err;
+    vec3 *E1, *E3;
+    caus_stats s1, s3;
+    CHECK(caus_build(f.e, NULL, 100001, 7, NULL, 1, &E1, &s1, &err));
+    CHECK(caus_build(f.e, NULL, 100001, 7, NULL, 3, &E3, &s3, &err));
+    cr_assert(E1 && E3, "photons must land on the floor");
+    cr_expect_eq(s1.deposits, s3.deposits, "%llu deposits on one thread, %llu on three",
+                 (unsigned long long)s1.deposits, (unsigned long long)s3.deposits);
+    uint32_t lit = 0;
+    for (uint32_t i = 0; i < f.rad.nverts; i++) lit += E1[i].x > 0.0f;
+    cr_expect(lit > 0, "no vertex lit");
+    cr_expect(memcmp(E1, E3, f.rad.nverts * sizeof *E1) == 0, "the caustics differ between one and three threads");
+    free(E1);
+    free(E3);
+    close_scene(&f);
 }
