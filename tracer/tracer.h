@@ -90,7 +90,7 @@ typedef struct trc_options {
     int gather_rays;     /* G: rays of TRC_INDIRECT_GATHER per shading point */
     trc_gather_direct gather_direct;   /* TRC_INDIRECT_GATHER: the lamps' light where a ray lands */
     int caustic_photons; /* drt with a mesh: photons of the lamps' reflective caustics (0: none) */
-    trc_glass_light glass_light;   /* light through glass (default auto; reuse-diffuse: straight, whatever is asked) */
+    trc_glass_light glass_light;   /* light through glass (default auto; reuse-diffuse: auto is straight, refracted refused) */
     uint64_t seed;
     const char *device_config;   /* rtcNewDevice config, NULL for defaults */
 } trc_options;
